@@ -1,0 +1,77 @@
+"""State and control layout: defined here once, used everywhere.
+
+State vector X in R^18 (SPEC §1), stacked as
+
+    X = [x (3, inertial position); gamma (3, inertial linear momentum);
+         vec(R) (9, column-major: R[:, 0], R[:, 1], R[:, 2]); Pi (3, body angular momentum)]
+
+Control vector u in R^6: [u_f (3, inertial force); u_m (3, body moment)].
+
+Tangent (variation) vector z in R^12 (SPEC §4): [dx; dgamma; zeta; dPi] with
+dR = R S(zeta).
+
+Trajectories are stored node-major as arrays of shape (N+1, 18) on the NumPy side
+and as 18 x (N+1) matrices on the CasADi side (one column per node).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+NX = 18
+NU = 6
+NZ = 12
+
+X_POS = slice(0, 3)
+X_MOM = slice(3, 6)
+X_ROT = slice(6, 15)
+X_ANG = slice(15, 18)
+
+U_FORCE = slice(0, 3)
+U_MOMENT = slice(3, 6)
+
+Z_POS = slice(0, 3)
+Z_MOM = slice(3, 6)
+Z_ROT = slice(6, 9)
+Z_ANG = slice(9, 12)
+
+
+def split_state(X):
+    """CasADi (18,1) -> (x, gamma, R (3x3), Pi)."""
+    return X[X_POS], X[X_MOM], ca.reshape(X[X_ROT], 3, 3), X[X_ANG]
+
+
+def join_state(x, gamma, R, Pi):
+    """CasADi (x, gamma, R (3x3), Pi) -> (18,1)."""
+    return ca.vertcat(x, gamma, ca.reshape(R, 9, 1), Pi)
+
+
+def pack_state(x, gamma, R, Pi) -> np.ndarray:
+    """NumPy: one node (shapes (3,), (3,), (3,3), (3,)) or many ((M,3),(M,3),(M,3,3),(M,3))
+    -> (18,) or (M, 18)."""
+    x, gamma, Pi = (np.asarray(a, dtype=float) for a in (x, gamma, Pi))
+    R = np.asarray(R, dtype=float)
+    Rv = np.swapaxes(R, -1, -2).reshape(R.shape[:-2] + (9,))  # column-major vec
+    return np.concatenate([x, gamma, Rv, Pi], axis=-1)
+
+
+@dataclass(frozen=True)
+class States:
+    """Named view of stacked states: x, gamma, Pi (M,3) and R (M,3,3)."""
+
+    x: np.ndarray
+    gamma: np.ndarray
+    R: np.ndarray
+    Pi: np.ndarray
+
+
+def unpack_states(X) -> States:
+    """NumPy (M,18) or (18,) (or CasADi DM 18 x M) -> :class:`States` (node-major)."""
+    X = np.asarray(X, dtype=float)
+    if X.ndim == 2 and X.shape[0] == NX and X.shape[1] != NX:
+        X = X.T
+    X = np.atleast_2d(X)
+    R = np.swapaxes(X[:, X_ROT].reshape(-1, 3, 3), -1, -2)
+    return States(x=X[:, X_POS].copy(), gamma=X[:, X_MOM].copy(), R=R.copy(), Pi=X[:, X_ANG].copy())

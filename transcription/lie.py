@@ -1,0 +1,152 @@
+"""SO(3) helpers for symbolic (CasADi SX/MX) and numeric (NumPy) use.
+
+Conventions (SPEC §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on
+skew matrices.  The Cayley map is ``cay(c) = (I + S(c)) (I - S(c))^-1``, written in
+closed form ``I + 2/(1 + |c|^2) (S(c) + S(c)^2)`` so that it is exactly the same
+expression whatever the backend.  ``exp``/``log`` handle small angles by computing
+their coefficients from theta^2 behind a branch on theta^2 (jaxlie style), so that
+neither values nor derivatives become NaN at the identity.
+
+Every function accepts either NumPy arrays (returns NumPy) or CasADi SX/MX/DM
+(returns the same CasADi type).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+# Below this theta^2 the Taylor branches are used (their truncation error is
+# O(theta^6) relative, i.e. < 1e-18 here).
+_SMALL_THETA2 = 1e-6
+
+
+def _is_casadi(a) -> bool:
+    return isinstance(a, (ca.SX, ca.MX, ca.DM))
+
+
+def hat(a):
+    """Hat map R^3 -> so(3): ``hat(a) @ b = a x b``.  a: (3,) or (3,1)."""
+    if _is_casadi(a):
+        return ca.skew(a)
+    a = np.asarray(a, dtype=float).reshape(3)
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def vee(A):
+    """Inverse of :func:`hat` for a skew 3x3 matrix (reads the lower triangle)."""
+    if _is_casadi(A):
+        return ca.vertcat(A[2, 1], A[0, 2], A[1, 0])
+    A = np.asarray(A, dtype=float)
+    return np.array([A[2, 1], A[0, 2], A[1, 0]])
+
+
+def vee_skew(A):
+    """vee of the skew part (A - A^T)/2; agrees with vee(log A) to first order."""
+    return vee(0.5 * (A - A.T))
+
+
+def _where(cond, a, b):
+    if _is_casadi(cond) or _is_casadi(a) or _is_casadi(b):
+        return ca.if_else(cond, a, b)
+    return np.where(cond, a, b)
+
+
+def _dot(a, b):
+    if _is_casadi(a) or _is_casadi(b):
+        return ca.dot(a, b)
+    return float(np.dot(np.ravel(a), np.ravel(b)))
+
+
+def _eye(like):
+    return ca.DM.eye(3) if _is_casadi(like) else np.eye(3)
+
+
+def _mm(A, B):
+    if _is_casadi(A) or _is_casadi(B):
+        return ca.mtimes(A, B)
+    return A @ B
+
+
+def cayley(c):
+    """Cayley map R^3 -> SO(3): ``(I + S(c))(I - S(c))^-1`` (SPEC §2).
+
+    Exactly orthogonal in exact arithmetic for every c; rotation angle 2 atan|c|.
+    """
+    S = hat(c)
+    return _eye(c) + (2.0 / (1.0 + _dot(c, c))) * (S + _mm(S, S))
+
+
+def cayley_inv(F):
+    """Inverse Cayley map SO(3) -> R^3 (F must not be a rotation by pi)."""
+    tr = F[0, 0] + F[1, 1] + F[2, 2]
+    return vee(F - F.T) / (1.0 + tr)
+
+
+def exp_so3(w):
+    """Exponential map R^3 -> SO(3) (Rodrigues), safe at w = 0."""
+    t2 = _dot(w, w)
+    small = t2 < _SMALL_THETA2
+    t2_safe = _where(small, 1.0, t2)
+    if _is_casadi(t2_safe):
+        t = ca.sqrt(t2_safe)
+        sin, cos = ca.sin, ca.cos
+    else:
+        t = np.sqrt(t2_safe)
+        sin, cos = np.sin, np.cos
+    a = _where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, sin(t) / t)
+    b = _where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, (1.0 - cos(t)) / t2_safe)
+    S = hat(w)
+    return _eye(w) + a * S + b * _mm(S, S)
+
+
+def log_so3(R):
+    """Logarithm SO(3) -> R^3, safe at the identity.
+
+    Valid for rotation angles in [0, pi); near pi the axis is ill-conditioned
+    (as it is for every formula) and the result loses accuracy.
+    """
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    cos_t = 0.5 * (tr - 1.0)
+    if _is_casadi(cos_t):
+        cos_t = ca.fmin(ca.fmax(cos_t, -1.0), 1.0)
+        acos, sqrt = ca.acos, ca.sqrt
+    else:
+        cos_t = float(np.clip(cos_t, -1.0, 1.0))
+        acos, sqrt = np.arccos, np.sqrt
+    # theta^2 ~ 2 (1 - cos theta) for small angles
+    one_minus = 1.0 - cos_t
+    small = one_minus < 0.5 * _SMALL_THETA2
+    cos_safe = _where(small, 0.0, cos_t)
+    t = acos(cos_safe)
+    # theta / (2 sin theta); Taylor: 1/2 + theta^2/12 + 7 theta^4/720
+    t2 = 2.0 * one_minus
+    coef = _where(small, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * sqrt(1.0 - cos_safe**2)))
+    return coef * vee(R - R.T)
+
+
+def rot_x(deg: float) -> np.ndarray:
+    """Elementary rotation about e1 by ``deg`` degrees."""
+    t = np.deg2rad(deg)
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(deg: float) -> np.ndarray:
+    """Elementary rotation about e2 by ``deg`` degrees."""
+    t = np.deg2rad(deg)
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(deg: float) -> np.ndarray:
+    """Elementary rotation about e3 by ``deg`` degrees."""
+    t = np.deg2rad(deg)
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def orthogonality_error(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For R of shape (..., 3, 3): (Frobenius ||R^T R - I||, |det R - 1|), shape (...)."""
+    R = np.asarray(R, dtype=float)
+    E = np.einsum("...ji,...jk->...ik", R, R) - np.eye(3)
+    return np.linalg.norm(E, axis=(-2, -1)), np.abs(np.linalg.det(R) - 1.0)
