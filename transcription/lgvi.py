@@ -60,9 +60,15 @@ def _solve3(A, b):
 
 
 def chart(X, z):
-    """Left-trivialized chart around X (SPEC §4): additive on x, gamma, Pi; R -> R cay(zeta)."""
+    """Left-trivialized chart around X (SPEC §4): additive on x, gamma, Pi; R -> R cay(zeta/2).
+
+    The Cayley map here is (I + S(c))(I - S(c))^-1 = I + 2 S(c) + O(c^2), so the
+    argument is halved to make dR = R S(zeta) to first order (the coordinates read
+    back by :func:`tangent_readback`); with cay(zeta) the zeta-columns of A would be
+    twice the left-trivialized Jacobian.
+    """
     x, gamma, R, Pi = split_state(X)
-    return join_state(x + z[0:3], gamma + z[3:6], ca.mtimes(R, cayley(z[6:9])), Pi + z[9:12])
+    return join_state(x + z[0:3], gamma + z[3:6], ca.mtimes(R, cayley(0.5 * z[6:9])), Pi + z[9:12])
 
 
 def tangent_readback(Xbar, dX):
