@@ -120,7 +120,10 @@ def log_so3(R):
     t = acos(cos_safe)
     # theta / (2 sin theta); Taylor: 1/2 + theta^2/12 + 7 theta^4/720
     t2 = 2.0 * one_minus
-    coef = _where(small, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * sqrt(1.0 - cos_safe**2)))
+    # sin(theta) as sqrt((1 - cos)(1 + cos)): 1 - cos is exact near theta = 0, whereas
+    # 1 - cos^2 loses eps/theta^2 (relative 1e-10 just above the switch at theta = 1e-3)
+    sin_t = sqrt((1.0 - cos_safe) * (1.0 + cos_safe))
+    coef = _where(small, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * sin_t))
     return coef * vee(R - R.T)
 
 
