@@ -1,0 +1,468 @@
+"""YAML maneuver schema: validation, defaults, and conversion to problem objects.
+
+Schema (unknown keys are rejected everywhere; see README "Maneuver files")::
+
+    name: str
+    model: {kind: dumbbell, mass: 1.0, length: 0.1, sphere_radius: 0.02,
+            mu: 39.478..., central_body_radius: 0.0}          # all but kind optional
+    horizon: {T: 0.5, N: 500}
+    discretization: lgvi | first_order                         # default lgvi
+    initial: {position: [3], velocity: [3], attitude: ATT, angular_velocity: [3]}
+    terminal: {position, velocity, attitude, angular_velocity} | {orbit: {radius: r, normal: [3]}}
+    control: {kind: smooth | impulsive, weights: {force: [3] | scalar, moment: [3] | scalar}}
+    solver: {direct: {...}, indirect: {...}}
+
+Velocities are inertial, angular velocities body-frame; momenta follow as
+gamma = m v, Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``,
+``{axis_angle: [ax, ay, az, angle_deg]}`` or ``{rotations: [[x|y|z, deg], ...]}``
+(product left to right).  A matrix must satisfy |R^T R - I|_F <= 1e-6 and
+det R > 0; it is then projected onto SO(3) (polar decomposition) so that the
+integrator starts exactly on the group.  An orbit normal must be non-zero; it is
+normalized.
+
+Every error is a :class:`ConfigError` whose text is one line
+``FILE: FIELD: what was expected``.
+"""
+from __future__ import annotations
+
+import copy
+import re
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from transcription.layout import pack_state
+from transcription.lgvi import SCHEMES, Discretization
+from transcription.lie import rot_x, rot_y, rot_z
+from transcription.problem import ImpulsiveProblem, OrbitTarget, SmoothProblem
+
+from .dumbbell import GM_NORMALIZED, Dumbbell
+
+ORTHOGONALITY_TOL = 1e-6
+
+DIRECT_DEFAULTS: dict[str, Any] = {
+    "solver": "ipopt",          # ipopt | fatrop
+    "tol": 1e-10,               # KKT tolerance
+    "max_iter": 3000,
+    "initial_guess": "rollout",  # rollout | interpolate
+    "options": {},              # raw options passed to the NLP solver plugin
+}
+INDIRECT_DEFAULTS: dict[str, Any] = {
+    "alpha": 1e-4,              # Armijo constant
+    "eps_S": 1e-11,             # stop when |z_N| <= eps_S
+    "max_iter": 50,             # outer Newton iterations
+    "max_halvings": 30,         # line-search halvings per outer iteration
+    "initial_costate": "zero",  # zero | from_direct | [12 numbers]
+}
+MODEL_DEFAULTS: dict[str, Any] = {
+    "kind": "dumbbell",
+    "mass": 1.0,
+    "length": 0.1,
+    "sphere_radius": 0.02,
+    "mu": GM_NORMALIZED,
+    "central_body_radius": 0.0,
+}
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader with YAML 1.2 floats: ``1e4`` and ``1.0e4`` are numbers (PyYAML's
+    YAML 1.1 rule would read them as strings)."""
+
+
+_Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+for _ch in "-+0123456789.":
+    _Loader.yaml_implicit_resolvers[_ch] = [
+        (tag, rx) for tag, rx in _Loader.yaml_implicit_resolvers.get(_ch, []) if tag != "tag:yaml.org,2002:float"
+    ]
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def yaml_load(text: str):
+    """Parse YAML text with the project's loader (YAML 1.2 floats)."""
+    return yaml.load(text, Loader=_Loader)
+
+
+class ConfigError(ValueError):
+    """Invalid maneuver file: ``str(err)`` is ``FILE: FIELD: expected ...``."""
+
+    def __init__(self, source: str, fieldname: str, message: str):
+        self.source, self.field, self.detail = source, fieldname, message
+        super().__init__(f"{source}: {fieldname or '<document>'}: {message}")
+
+
+# ----------------------------------------------------------------- validators
+class _V:
+    """Validation context: the file name, for messages."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, where: str, msg: str):
+        raise ConfigError(self.source, where, msg)
+
+    def mapping(self, d, where, allowed, required=()):
+        if not isinstance(d, dict):
+            self.fail(where, f"expected a mapping with keys {sorted(allowed)}, got {_describe(d)}")
+        for k in d:
+            if not isinstance(k, str) or k not in allowed:
+                self.fail(_join(where, str(k)), f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
+        for k in required:
+            if k not in d:
+                self.fail(_join(where, k), "missing required key")
+        return d
+
+    def number(self, v, where, *, positive=False, nonneg=False, integer=False, lo=None, hi=None):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.fail(where, f"expected {'an integer' if integer else 'a number'}, got {_describe(v)}")
+        if integer and not (isinstance(v, int) or float(v).is_integer()):
+            self.fail(where, f"expected an integer, got {v!r}")
+        if not math.isfinite(v):
+            self.fail(where, f"expected a finite number, got {v!r}")
+        if positive and not v > 0:
+            self.fail(where, f"expected a positive {'integer' if integer else 'number'}, got {v!r}")
+        if nonneg and v < 0:
+            self.fail(where, f"expected a non-negative number, got {v!r}")
+        if lo is not None and not v > lo:
+            self.fail(where, f"expected a number > {lo}, got {v!r}")
+        if hi is not None and not v < hi:
+            self.fail(where, f"expected a number < {hi}, got {v!r}")
+        return int(v) if integer else float(v)
+
+    def vec3(self, v, where):
+        if not isinstance(v, (list, tuple)) or len(v) != 3:
+            self.fail(where, f"expected a list of 3 numbers, got {_describe(v)}")
+        return np.array([self.number(a, f"{where}[{i}]") for i, a in enumerate(v)])
+
+    def weights(self, v, where):
+        if isinstance(v, (list, tuple)):
+            w = self.vec3(v, where)
+            for i, a in enumerate(w):
+                if not a > 0:
+                    self.fail(f"{where}[{i}]", f"expected a positive weight, got {a!r}")
+            return w
+        return np.full(3, self.number(v, where, positive=True))
+
+    def choice(self, v, where, options):
+        if not isinstance(v, str) or v not in options:
+            self.fail(where, f"expected one of {', '.join(options)}, got {_describe(v)}")
+        return v
+
+    def attitude(self, v, where) -> np.ndarray:
+        if v == "identity":
+            return np.eye(3)
+        forms = "'identity', {matrix: 3x3}, {axis_angle: [ax, ay, az, deg]} or {rotations: [[x|y|z, deg], ...]}"
+        if not isinstance(v, dict) or len(v) != 1:
+            self.fail(where, f"expected one of {forms}, got {_describe(v)}")
+        (kind, val), = v.items()
+        w = _join(where, str(kind))
+        if kind == "matrix":
+            if not isinstance(val, (list, tuple)) or len(val) != 3:
+                self.fail(w, f"expected a 3x3 matrix as 3 rows of 3 numbers, got {_describe(val)}")
+            R = np.array([self.vec3(r, f"{w}[{i}]") for i, r in enumerate(val)])
+            err = np.linalg.norm(R.T @ R - np.eye(3))
+            if err > ORTHOGONALITY_TOL or np.linalg.det(R) <= 0:
+                self.fail(w, f"expected a rotation matrix (|R^T R - I| <= {ORTHOGONALITY_TOL:g}, det R = +1); "
+                             f"got |R^T R - I| = {err:.3g}, det R = {np.linalg.det(R):.6g}")
+            Uu, _, Vt = np.linalg.svd(R)
+            return Uu @ Vt
+        if kind == "axis_angle":
+            if not isinstance(val, (list, tuple)) or len(val) != 4:
+                self.fail(w, f"expected [ax, ay, az, angle_deg], got {_describe(val)}")
+            a = np.array([self.number(x, f"{w}[{i}]") for i, x in enumerate(val)])
+            n = np.linalg.norm(a[:3])
+            if n == 0:
+                self.fail(w, "expected a non-zero rotation axis")
+            from transcription.lie import exp_so3
+
+            return np.asarray(exp_so3(a[:3] / n * np.deg2rad(a[3])))
+        if kind == "rotations":
+            if not isinstance(val, (list, tuple)) or not val:
+                self.fail(w, f"expected a non-empty list of [x|y|z, deg] pairs, got {_describe(val)}")
+            R = np.eye(3)
+            elem = {"x": rot_x, "y": rot_y, "z": rot_z}
+            for i, pair in enumerate(val):
+                if not isinstance(pair, (list, tuple)) or len(pair) != 2 or pair[0] not in elem:
+                    self.fail(f"{w}[{i}]", f"expected a pair [x|y|z, angle_deg], got {_describe(pair)}")
+                R = R @ elem[pair[0]](self.number(pair[1], f"{w}[{i}][1]"))
+            return R
+        self.fail(where, f"unknown attitude form {kind!r}; expected one of {forms}")
+
+
+def _join(where, key):
+    return f"{where}.{key}" if where else key
+
+
+def _describe(v) -> str:
+    if v is None:
+        return "nothing (null)"
+    if isinstance(v, bool):
+        return f"a boolean ({v})"
+    if isinstance(v, str):
+        return f"the string {v!r}"
+    if isinstance(v, dict):
+        return "a mapping"
+    if isinstance(v, (list, tuple)):
+        return f"a list of length {len(v)}"
+    return f"{type(v).__name__} {v!r}"
+
+
+# ----------------------------------------------------------------- data types
+@dataclass(frozen=True)
+class StateSpec:
+    """A state given by velocities: position, velocity (inertial), R (body->inertial), omega (body)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    R: np.ndarray
+    omega: np.ndarray
+
+    def vector(self, body: Dumbbell) -> np.ndarray:
+        """18-vector with momenta gamma = m v, Pi = J omega."""
+        return pack_state(self.position, body.mass * self.velocity, self.R, body.inertia @ self.omega)
+
+
+@dataclass(frozen=True)
+class OrbitSpec:
+    radius: float
+    normal: np.ndarray  # unit
+
+
+@dataclass(frozen=True)
+class Maneuver:
+    """A validated maneuver.  ``resolved`` is the config after defaults and overrides."""
+
+    name: str
+    source: str
+    body: Dumbbell
+    central_body_radius: float
+    T: float
+    N: int
+    discretization: str
+    initial: StateSpec
+    terminal: StateSpec | OrbitSpec | None
+    control_kind: str | None
+    W_f: np.ndarray
+    W_m: np.ndarray
+    direct: dict[str, Any]
+    indirect: dict[str, Any]
+    resolved: dict[str, Any] = field(repr=False)
+
+    @property
+    def h(self) -> float:
+        return self.T / self.N
+
+    def discretization_object(self, scheme: str | None = None) -> Discretization:
+        return Discretization(self.body.body_model(), scheme or self.discretization)
+
+    def X0(self) -> np.ndarray:
+        return self.initial.vector(self.body)
+
+    def require_terminal(self, kinds=("smooth", "impulsive")):
+        if self.control_kind not in kinds or self.terminal is None:
+            raise ConfigError(self.source, "control/terminal",
+                              "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
+
+    def smooth_problem(self, disc: Discretization | None = None) -> SmoothProblem:
+        self.require_terminal(("smooth",))
+        disc = disc or self.discretization_object()
+        return SmoothProblem(disc=disc, N=self.N, T=self.T, X0=self.X0(), Xd=self.terminal.vector(self.body),
+                             W_f=self.W_f, W_m=self.W_m, options=dict(self.direct, indirect=dict(self.indirect)))
+
+    def impulsive_problem(self, disc: Discretization | None = None) -> ImpulsiveProblem:
+        self.require_terminal(("impulsive",))
+        disc = disc or self.discretization_object()
+        term = self.terminal
+        target = OrbitTarget(term.radius, term.normal) if isinstance(term, OrbitSpec) else term.vector(self.body)
+        return ImpulsiveProblem(disc=disc, N=self.N, T=self.T, X0=self.X0(), terminal=target,
+                                mu=self.body.mu, options=dict(self.direct))
+
+
+# ------------------------------------------------------------------ loading
+TOP_KEYS = ("name", "model", "horizon", "discretization", "initial", "terminal", "control", "solver")
+STATE_KEYS = ("position", "velocity", "attitude", "angular_velocity")
+
+
+def apply_override(doc: dict, assignment: str, source: str = "--set") -> None:
+    """Apply ``dotted.key=value`` (value parsed as YAML) to ``doc`` in place."""
+    if "=" not in assignment:
+        raise ConfigError(source, assignment, "expected KEY=VALUE, e.g. horizon.N=1000")
+    key, _, text = assignment.partition("=")
+    parts = [p for p in key.strip().split(".") if p]
+    if not parts:
+        raise ConfigError(source, assignment, "expected a dotted key before '='")
+    try:
+        value = yaml_load(text)
+    except yaml.YAMLError as e:
+        raise ConfigError(source, key, f"value is not valid YAML: {str(e).splitlines()[0]}") from None
+    node = doc
+    for p in parts[:-1]:
+        if not isinstance(node.get(p), dict):
+            node[p] = {}
+        node = node[p]
+    node[parts[-1]] = value
+
+
+def load_maneuver(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Maneuver:
+    """Read, override (``--set``) and validate a maneuver file."""
+    source = str(path)
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise ConfigError(source, "", f"cannot read file ({e.strerror or e})") from None
+    try:
+        doc = yaml_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ConfigError(source, where, f"not valid YAML ({getattr(e, 'problem', None) or e})") from None
+    if doc is None:
+        doc = {}
+    if isinstance(doc, dict):
+        doc = copy.deepcopy(doc)
+        for a in overrides:
+            apply_override(doc, a)
+    return parse_maneuver(doc, source)
+
+
+def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
+    """Validate a parsed YAML document; return a :class:`Maneuver` or raise ConfigError."""
+    v = _V(source)
+    v.mapping(doc, "", TOP_KEYS, required=("name", "horizon", "initial"))
+    name = doc["name"]
+    if not isinstance(name, str) or not name.strip():
+        v.fail("name", f"expected a non-empty string, got {_describe(name)}")
+
+    m = dict(MODEL_DEFAULTS)
+    mdoc = v.mapping(doc.get("model", {"kind": "dumbbell"}), "model", MODEL_DEFAULTS.keys(), required=("kind",))
+    v.choice(mdoc["kind"], "model.kind", ("dumbbell",))
+    for k in ("mass", "length", "sphere_radius", "mu"):
+        if k in mdoc:
+            m[k] = v.number(mdoc[k], f"model.{k}", positive=True)
+    if "central_body_radius" in mdoc:
+        m["central_body_radius"] = v.number(mdoc["central_body_radius"], "model.central_body_radius", nonneg=True)
+    body = Dumbbell(mass=m["mass"], length=m["length"], sphere_radius=m["sphere_radius"], mu=m["mu"])
+
+    hz = v.mapping(doc["horizon"], "horizon", ("T", "N"), required=("T", "N"))
+    T = v.number(hz["T"], "horizon.T", positive=True)
+    N = v.number(hz["N"], "horizon.N", positive=True, integer=True)
+
+    disc = v.choice(doc.get("discretization", "lgvi"), "discretization", SCHEMES)
+
+    initial = _state(v, doc["initial"], "initial", body, m["central_body_radius"], all_required=True)
+
+    control_kind = None
+    W_f = np.ones(3)
+    W_m = np.full(3, 1e4)
+    weights_doc = {"force": 1.0, "moment": 1e4}
+    if "control" in doc:
+        c = v.mapping(doc["control"], "control", ("kind", "weights"), required=("kind",))
+        control_kind = v.choice(c["kind"], "control.kind", ("smooth", "impulsive"))
+        if "weights" in c:
+            if control_kind == "impulsive":
+                v.fail("control.weights", "weights apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
+            wd = v.mapping(c["weights"], "control.weights", ("force", "moment"))
+            if "force" in wd:
+                W_f = v.weights(wd["force"], "control.weights.force")
+                weights_doc["force"] = wd["force"]
+            if "moment" in wd:
+                W_m = v.weights(wd["moment"], "control.weights.moment")
+                weights_doc["moment"] = wd["moment"]
+
+    terminal = None
+    if "terminal" in doc:
+        t = doc["terminal"]
+        if isinstance(t, dict) and "orbit" in t:
+            v.mapping(t, "terminal", ("orbit",))
+            o = v.mapping(t["orbit"], "terminal.orbit", ("radius", "normal"), required=("radius", "normal"))
+            r = v.number(o["radius"], "terminal.orbit.radius", positive=True)
+            n = v.vec3(o["normal"], "terminal.orbit.normal")
+            if np.linalg.norm(n) < 1e-12:
+                v.fail("terminal.orbit.normal", "expected a non-zero vector (it is normalized)")
+            if not r > m["central_body_radius"] + body.sphere_radius + 0.5 * body.length:
+                v.fail("terminal.orbit.radius", "expected an orbit outside the central body")
+            terminal = OrbitSpec(r, n / np.linalg.norm(n))
+            if control_kind == "smooth":
+                v.fail("terminal.orbit", "a relaxed orbit target is supported for impulsive maneuvers only; "
+                                         "give position, velocity, attitude and angular_velocity for smooth control")
+        else:
+            terminal = _state(v, t, "terminal", body, m["central_body_radius"], all_required=True)
+    if control_kind is not None and terminal is None:
+        v.fail("terminal", f"a {control_kind} maneuver needs a terminal block")
+    if terminal is not None and control_kind is None:
+        v.fail("control", "a terminal block needs a control block (kind: smooth or impulsive)")
+
+    sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
+    direct = _solver_block(v, sdoc.get("direct", {}), "solver.direct", DIRECT_DEFAULTS)
+    indirect = _solver_block(v, sdoc.get("indirect", {}), "solver.indirect", INDIRECT_DEFAULTS)
+
+    resolved = copy.deepcopy(doc)
+    resolved["model"] = dict(m)
+    resolved["discretization"] = disc
+    if control_kind == "smooth":
+        resolved["control"] = {"kind": control_kind, "weights": weights_doc}
+    resolved["solver"] = {"direct": _plain(direct), "indirect": _plain(indirect)}
+    return Maneuver(name=name.strip(), source=source, body=body, central_body_radius=m["central_body_radius"],
+                    T=T, N=N, discretization=disc, initial=initial, terminal=terminal, control_kind=control_kind,
+                    W_f=W_f, W_m=W_m, direct=direct, indirect=indirect, resolved=resolved)
+
+
+def _state(v: _V, d, where, body: Dumbbell, central_radius: float, all_required: bool) -> StateSpec:
+    v.mapping(d, where, STATE_KEYS, required=("position", "velocity", "angular_velocity") if all_required else ())
+    x = v.vec3(d["position"], f"{where}.position")
+    vel = v.vec3(d["velocity"], f"{where}.velocity")
+    R = v.attitude(d.get("attitude", "identity"), f"{where}.attitude")
+    w = v.vec3(d["angular_velocity"], f"{where}.angular_velocity")
+    # The dumbbell's bounding sphere (radius l/2 + r_s about x) must lie outside
+    # the central body; this also keeps |x + R rho_q| away from 0 (U singular).
+    clearance = central_radius + 0.5 * body.length + body.sphere_radius
+    if not np.linalg.norm(x) > clearance:
+        v.fail(f"{where}.position",
+               f"expected the dumbbell outside the central body: |position| = {np.linalg.norm(x):.3g} "
+               f"(needs > central_body_radius + length/2 + sphere_radius = {clearance:.3g})")
+    return StateSpec(x, vel, R, w)
+
+
+def _solver_block(v: _V, d, where, defaults) -> dict[str, Any]:
+    v.mapping(d, where, defaults.keys())
+    out = copy.deepcopy(defaults)
+    for k, val in d.items():
+        w = f"{where}.{k}"
+        if k == "solver":
+            out[k] = v.choice(val, w, ("ipopt", "fatrop"))
+        elif k == "initial_guess":
+            out[k] = v.choice(val, w, ("rollout", "interpolate"))
+        elif k in ("tol", "eps_S"):
+            out[k] = v.number(val, w, positive=True)
+        elif k in ("max_iter", "max_halvings"):
+            out[k] = v.number(val, w, positive=True, integer=True)
+        elif k == "alpha":
+            out[k] = v.number(val, w, lo=0.0, hi=1.0)
+        elif k == "options":
+            out[k] = dict(v.mapping(val, w, val.keys() if isinstance(val, dict) else ()))
+        elif k == "initial_costate":
+            if isinstance(val, str):
+                out[k] = v.choice(val, w, ("zero", "from_direct"))
+            elif isinstance(val, (list, tuple)) and len(val) == 12:
+                out[k] = [v.number(a, f"{w}[{i}]") for i, a in enumerate(val)]
+            else:
+                v.fail(w, f"expected zero, from_direct or a list of 12 numbers, got {_describe(val)}")
+    return out
+
+
+def _plain(d):
+    return {k: (list(x) if isinstance(x, tuple) else x) for k, x in d.items()}
