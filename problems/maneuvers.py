@@ -434,6 +434,10 @@ def _state(v: _V, d, where, body: Dumbbell, central_radius: float, all_required:
         v.fail(f"{where}.position",
                f"expected the dumbbell outside the central body: |position| = {np.linalg.norm(x):.3g} "
                f"(needs > central_body_radius + length/2 + sphere_radius = {clearance:.3g})")
+    with np.errstate(over="ignore", invalid="ignore"):
+        momenta = np.concatenate([body.mass * vel, body.inertia @ w])
+    if not np.all(np.isfinite(momenta)):
+        v.fail(where, "expected finite momenta m v and J Omega (the values overflow)")
     return StateSpec(x, vel, R, w)
 
 

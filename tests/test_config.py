@@ -126,6 +126,7 @@ BAD = [
     ("control kind", "control.kind", "bang", "control.kind"),
     ("weight zero", "control.weights.moment", 0, "control.weights.moment"),
     ("weight negative entry", "control.weights.force", [1, -1, 1], "control.weights.force[1]"),
+    ("momentum overflow", "initial.velocity", [1e308, 0.0, 0.0], "initial"),
     ("position at origin", "initial.position", [0.0, 0.0, 0.0], "initial.position"),
     ("direct solver", "solver.direct", {"solver": "snopt"}, "solver.direct.solver"),
     ("indirect unknown", "solver.indirect", {"tolerance": 1e-9}, "solver.indirect.tolerance"),
@@ -138,6 +139,7 @@ BAD = [
 @pytest.mark.parametrize("label,key,value,field", BAD, ids=[b[0] for b in BAD])
 def test_bad_input_names_file_and_field(label, key, value, field):
     doc = base_doc()
+    doc["model"]["mass"] = 10.0
     _set(doc, key, copy.deepcopy(value))
     with pytest.raises(ConfigError) as ei:
         parse_maneuver(doc, "bad.yaml")
