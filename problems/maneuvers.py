@@ -120,7 +120,7 @@ class _V:
             self.fail(where, f"expected a mapping with keys {sorted(allowed)}, got {_describe(d)}")
         for k in d:
             if not isinstance(k, str) or k not in allowed:
-                self.fail(_join(where, str(k)), f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
+                self.fail(_join(where, k), f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
         for k in required:
             if k not in d:
                 self.fail(_join(where, k), "missing required key")
@@ -169,7 +169,7 @@ class _V:
         if not isinstance(v, dict) or len(v) != 1:
             self.fail(where, f"expected one of {forms}, got {_describe(v)}")
         (kind, val), = v.items()
-        w = _join(where, str(kind))
+        w = _join(where, kind)
         if kind == "matrix":
             if not isinstance(val, (list, tuple)) or len(val) != 3:
                 self.fail(w, f"expected a 3x3 matrix as 3 rows of 3 numbers, got {_describe(val)}")
@@ -196,7 +196,7 @@ class _V:
             R = np.eye(3)
             elem = {"x": rot_x, "y": rot_y, "z": rot_z}
             for i, pair in enumerate(val):
-                if not isinstance(pair, (list, tuple)) or len(pair) != 2 or pair[0] not in elem:
+                if not isinstance(pair, (list, tuple)) or len(pair) != 2 or not isinstance(pair[0], str) or pair[0] not in elem:
                     self.fail(f"{w}[{i}]", f"expected a pair [x|y|z, angle_deg], got {_describe(pair)}")
                 R = R @ elem[pair[0]](self.number(pair[1], f"{w}[{i}][1]"))
             return R
@@ -204,6 +204,9 @@ class _V:
 
 
 def _join(where, key):
+    key = str(key)
+    if not key.isprintable() or not key or any(ch in key for ch in " .[]"):
+        key = repr(key)  # keep messages on one line and unambiguous
     return f"{where}.{key}" if where else key
 
 

@@ -7,6 +7,7 @@ exception type.
 from __future__ import annotations
 
 import copy
+import os
 from pathlib import Path
 
 import numpy as np
@@ -52,14 +53,14 @@ def _check(doc):
     assert np.all(np.isfinite(man.X0())) and man.N > 0 and man.T > 0
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, derandomize=bool(os.environ.get("CI")), suppress_health_check=[HealthCheck.too_slow])
 @given(st.one_of(values, st.dictionaries(st.sampled_from(["name", "horizon", "initial", "model", "terminal",
                                                           "control", "solver", "discretization"]), values)))
 def test_random_documents(doc):
     _check(doc)
 
 
-@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=500, deadline=None, derandomize=bool(os.environ.get("CI")), suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_mutated_configs(data):
     doc = copy.deepcopy(data.draw(st.sampled_from(BASES)))
