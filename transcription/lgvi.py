@@ -40,10 +40,12 @@ from .model import BodyModel
 SCHEMES = ("lgvi", "first_order")
 
 #: default number of unrolled Newton iterations in the Cayley solve.  From the
-#: (2J)^-1 g start, h|Pi|/lambda_min(J) = 1 (about a radian per step for the
-#: dumbbell) needs up to 8 to reach |G|/|g| <= 1e-12 over random directions
-#: (tests/test_lgvi.py); ordinary steps (h = 1e-3) need 2-3.  Past about 1.5 the
-#: iteration may fail, which the residual output reports.
+#: (2J)^-1 g start, s = h|Pi|/lambda_min(J) <= 0.999 needs at most 7 to reach
+#: |G|/|g| <= 1e-12 in every direction (tests/test_lgvi.py); ordinary steps
+#: (h = 1e-3) need 2-3.  At s = 1 along the minor principal axis eq. (9) has a
+#: double root (no real root beyond), Newton turns linear and 8 iterations do not
+#: suffice (~3e-4 of directions at s = 1; more for s > 1); the residual output
+#: reports it.
 DEFAULT_NEWTON_ITERS = 8
 
 
