@@ -1,0 +1,432 @@
+"""Direct method: multiple-shooting NLP on the discrete equations, solved by IPOPT.
+
+Problem (SPEC §6, :class:`~transcription.problem.SmoothProblem`)::
+
+    min  sum_j  omega_j * (1/2) u_j^T W u_j,        W = diag(W_f, W_m)
+    s.t. X_{k+1} = step(X_k, w_k, h),   k = 0..N-1   (eqs. 7-11 or 21-25)
+         X_0 = X0,   x_N, gamma_N, Pi_N = desired,   vee log(R_d^T R_N) = 0
+
+with quadrature weights omega_j = h for the first-order scheme (controls u_1..u_N,
+which is SPEC §6's sum (h/2) u^T W u) and the trapezoidal weights h (1/2, 1, ..., 1, 1/2)
+for the LGVI scheme (node controls u_0..u_N; u_0 and u_N are priced h/2), so that
+both approximate the integral of (1/2) u^T W u.
+
+Transcription
+-------------
+Decision variables per node k = 0..N (see :class:`NLPLayout`, the only place that
+knows the order): the state X_k (18), the node control u_k (6; first_order: nodes
+1..N, lgvi: nodes 0..N) and, with ``options['cayley_variables']`` (default True),
+the Cayley vector c_k (3) of step k = 0..N-1.  With c_k as unknowns every defect
+is explicit: X_{k+1} - step_given_c(X_k, c_k, w_k, h) = 0 (18 rows) and the Cayley
+equation G(c_k; g(X_k, w_k)) = 0 (3 rows, SPEC §2); without them the defect uses
+the Newton-solved step (8 unrolled Newton iterations in every Hessian).
+One stage Function is built and ``map``-ped over the horizon; the NLP is
+SX-expanded and IPOPT uses the exact Hessian.  X_0 is fixed by its bounds.
+
+Scaling: every variable is divided by a characteristic magnitude (positions by the
+orbit size, momenta by their boundary values or what the horizon requires, controls
+by momentum change over the horizon, c by h |Omega| / 2), every constraint row by the
+magnitude of its variable, and the objective by its value at the characteristic
+controls.  The weights W only enter the objective, so W_m = I (SPEC §7 note) is
+handled as well as W_m = 1e4 I.
+
+Costates (hand-off to the indirect method, SPEC §6)
+--------------------------------------------------
+Write the Lagrangian of the unscaled NLP as
+
+    L = J + sum_k nu_k^T (step(X_k, w_k, h) - X_{k+1}) + (terminal and Cayley terms),
+
+nu_k in R^18 the multiplier of the step-k defect *written as step minus next state*.
+``Solution.costates[k]`` (k = 0..N-1, shape (N, 12)) is lambda_k = D(X_{k+1})^T nu_k,
+where D(X) maps tangent coordinates z = [dx; dgamma; zeta; dPi] (SPEC §4, dR = R S(zeta))
+to dX.  With this sign the discrete necessary conditions read
+
+    lambda_{k-1} = A_k^T lambda_k                       (SPEC eq. 28)
+    sum over steps touching u_j of B^T lambda + omega_j W u_j = 0,
+
+i.e. for the first-order scheme u_{k+1} = -W^-1 [lambda^2_k; lambda^4_k]  (eqs. 26-27),
+where (A_k, B_k) = ``disc.variation`` at (X_k, w_k).  Both are tested.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from .guess import Guess, make_guess
+from .layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, split_state, unpack_states
+from .lie import hat, log_so3
+from .problem import SmoothProblem
+from .results import Solution, Trajectory, terminal_error_full
+
+NC = 3  # Cayley vector
+BALANCE = 1e-2  # see characteristic_scales
+
+#: options read from ``problem.options`` (the YAML ``solver.direct`` block) and their defaults
+DIRECT_OPTION_DEFAULTS: dict[str, Any] = {
+    "solver": "ipopt",
+    "tol": 1e-10,
+    "max_iter": 3000,
+    "initial_guess": "rollout",
+    "options": {},               # raw IPOPT options (e.g. {'print_level': 5, 'linear_solver': 'ma27'})
+    "cayley_variables": True,    # c_k as decision variables with G(c_k) = 0 as constraints
+    "terminal_tol": 1e-6,        # re-simulated terminal error above which the solve is not "converged"
+}
+
+
+# ---------------------------------------------------------------------------- layout
+class NLPLayout:
+    """Order of the NLP decision vector: node-major blocks [X_k, u_k?, c_k?], k = 0..N.
+
+    X_k (18) at every node; u_k (6) at the nodes that carry a control (``control_nodes``);
+    c_k (3) at nodes 0..N-1 when ``with_c``.  :meth:`pack` and :meth:`unpack` are the
+    only routines that know the order; they work on NumPy arrays and on CasADi
+    column vectors alike.
+
+    Shapes: X (18, N+1) (column k = node k), U (6, n_controls), C (3, N).
+    """
+
+    def __init__(self, N: int, control_nodes: list[int] | range, with_c: bool):
+        self.N = int(N)
+        self.control_nodes = list(control_nodes)
+        self.with_c = bool(with_c)
+        has_u = np.zeros(self.N + 1, dtype=bool)
+        has_u[self.control_nodes] = True
+        iX = np.zeros((NX, self.N + 1), dtype=int)
+        iU = np.zeros((NU, len(self.control_nodes)), dtype=int)
+        iC = np.zeros((NC, self.N if with_c else 0), dtype=int)
+        pos, ju = 0, 0
+        for k in range(self.N + 1):
+            iX[:, k] = np.arange(pos, pos + NX)
+            pos += NX
+            if has_u[k]:
+                iU[:, ju] = np.arange(pos, pos + NU)
+                pos += NU
+                ju += 1
+            if with_c and k < self.N:
+                iC[:, k] = np.arange(pos, pos + NC)
+                pos += NC
+        self.n = pos
+        self.iX, self.iU, self.iC = iX, iU, iC
+
+    def unpack(self, w):
+        """w (n,) or (n,1) -> (X (18, N+1), U (6, nU), C (3, N) or None), same backend as w."""
+        if isinstance(w, (ca.SX, ca.MX, ca.DM)):
+            def take(idx):
+                return ca.reshape(w[idx.ravel(order="F").tolist()], idx.shape[0], idx.shape[1])
+        else:
+            w = np.asarray(w, dtype=float).ravel()
+
+            def take(idx):
+                return w[idx]
+        C = take(self.iC) if self.with_c else None
+        return take(self.iX), take(self.iU), C
+
+    def pack(self, X, U, C=None) -> np.ndarray:
+        """NumPy (X (18, N+1), U (6, nU), C (3, N)) -> w (n,).  C required iff ``with_c``."""
+        w = np.full(self.n, np.nan)
+        w[self.iX] = np.asarray(X, dtype=float)
+        w[self.iU] = np.asarray(U, dtype=float)
+        if self.with_c:
+            if C is None:
+                raise ValueError("this layout has Cayley variables: C (3, N) is required")
+            w[self.iC] = np.asarray(C, dtype=float)
+        if np.isnan(w).any():
+            raise ValueError("pack: some entries were not filled (shape mismatch?)")
+        return w
+
+
+# --------------------------------------------------------------------------- scaling
+@dataclass(frozen=True)
+class Scales:
+    """Characteristic magnitudes: state (18,), control (6,), Cayley (3,), objective scalar."""
+
+    X: np.ndarray
+    U: np.ndarray
+    C: np.ndarray
+    objective: float
+
+
+def characteristic_scales(problem: SmoothProblem) -> Scales:
+    """Magnitudes of the unknowns from the boundary data, the horizon and the body.
+
+    positions L = max(|x0|, |xd|, |xd - x0|); linear momenta max(|gamma0|, |gammad|, m L / T);
+    angular momenta max(|Pi0|, |Pid|, lambda_max(J) / T); forces and moments: momentum
+    scale / T; attitude entries 1; Cayley vector h |Omega| / 2 with |Omega| the
+    angular-momentum scale / lambda_min(J).  Objective: its value for controls of
+    the characteristic size held over the horizon.
+    """
+    a, d = unpack_states(problem.X0), unpack_states(problem.Xd)
+    m, J, T, h = problem.disc.model.mass, problem.disc.J, problem.T, problem.h
+    ev = np.linalg.eigvalsh(J)
+    L = max(np.abs(a.x).max(), np.abs(d.x).max(), np.abs(d.x - a.x).max(), 1e-12)
+    sg = max(np.abs(a.gamma).max(), np.abs(d.gamma).max(), m * L / T)
+    sP = max(np.abs(a.Pi).max(), np.abs(d.Pi).max(), ev[-1] / T)
+    sX = np.concatenate([np.full(3, L), np.full(3, sg), np.ones(9), np.full(3, sP)])
+    sU = np.concatenate([np.full(3, sg / T), np.full(3, sP / T)])
+    sC = np.full(3, 0.5 * h * sP / ev[0])
+    Wdiag = np.concatenate([np.asarray(problem.W_f, float).ravel(), np.asarray(problem.W_m, float).ravel()])
+    # balance the cost weights: no control's curvature W_i s_i^2 below BALANCE times the largest
+    cw = Wdiag * sU**2
+    sU = sU * np.sqrt(np.maximum(1.0, BALANCE * cw.max() / cw))
+    obj = 0.5 * T * float(np.sum(Wdiag * sU**2))
+    return Scales(X=sX, U=sU, C=sC, objective=obj)
+
+
+# ---------------------------------------------------------------------- quadrature
+def control_nodes(disc, N: int) -> range:
+    """Nodes carrying a control: 0..N (lgvi) or 1..N (first_order)."""
+    return range(0, N + 1) if disc.scheme == "lgvi" else range(1, N + 1)
+
+
+def quadrature_weights(disc, N: int, h: float) -> np.ndarray:
+    """omega_j for the controls in ``control_nodes`` order: h (1/2, 1, .., 1, 1/2) or h (1, .., 1)."""
+    if disc.scheme == "lgvi":
+        om = np.full(N + 1, h)
+        om[[0, -1]] = 0.5 * h
+        return om
+    return np.full(N, h)
+
+
+def control_cost(U: np.ndarray, W: np.ndarray, omega: np.ndarray) -> float:
+    """sum_j omega_j (1/2) u_j^T diag(W) u_j for U (6, nU), W (6,), omega (nU,)."""
+    U = np.asarray(U, dtype=float)
+    return float(0.5 * np.sum(omega[None, :] * W[:, None] * U**2))
+
+
+# ------------------------------------------------------------------- tangent maps
+def tangent_basis(X: np.ndarray) -> np.ndarray:
+    """D(X) (18 x 12): dX = D z for z = [dx; dgamma; zeta; dPi], dR = R S(zeta), vec column-major."""
+    R = unpack_states(X).R[0]
+    D = np.zeros((NX, NZ))
+    D[X_POS, 0:3] = np.eye(3)
+    D[X_MOM, 3:6] = np.eye(3)
+    D[X_ANG, 9:12] = np.eye(3)
+    for i in range(3):
+        D[X_ROT, 6 + i] = (R @ hat(np.eye(3)[i])).ravel(order="F")
+    return D
+
+
+def terminal_residual(X, Xd: np.ndarray):
+    """CasADi: [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d] (12,) (SPEC §6)."""
+    x, g, R, P = split_state(X)
+    d = unpack_states(Xd)
+    return ca.vertcat(x - d.x[0], g - d.gamma[0], log_so3(ca.mtimes(ca.DM(d.R[0].T), R)), P - d.Pi[0])
+
+
+# ------------------------------------------------------------------ iteration hook
+class _Progress(ca.Callback):
+    """IPOPT iteration callback forwarding {'iter', 'objective', 'inf_pr'} to a Python callable."""
+
+    def __init__(self, nx: int, ng: int, fn: Callable[[dict], None], obj_scale: float):
+        ca.Callback.__init__(self)
+        self.nx, self.ng, self.fn, self.obj_scale, self.k = nx, ng, fn, obj_scale, 0
+        self.construct("direct_progress", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.ng)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
+        f = float(arg[ca.nlpsol_out().index("f")])
+        self.fn({"iter": self.k, "objective": f * self.obj_scale, "inf_pr_scaled": float(np.abs(g).max()) if g.size else 0.0})
+        self.k += 1
+        return [0]
+
+
+# ----------------------------------------------------------------------- the NLP
+class DirectNLP:
+    """The scaled multiple-shooting NLP of one SmoothProblem, built once.
+
+    Attributes: ``layout`` (NLPLayout), ``scales`` (Scales), ``solver`` (nlpsol),
+    ``lbg``/``ubg``/``lbx``/``ubx``, ``w_scale`` (n,) (physical w = w_scale * scaled w),
+    ``g_scale`` (ng,) (physical constraint = g_scale * scaled row), ``defect_rows``
+    (18, N) indices of the step defects in g.
+    """
+
+    def __init__(self, problem: SmoothProblem, opts: dict[str, Any], progress: Callable[[dict], None] | None = None):
+        disc, N, h = problem.disc, problem.N, problem.h
+        self.problem = problem
+        self.opts = opts
+        self.with_c = bool(opts["cayley_variables"])
+        self.layout = lay = NLPLayout(N, control_nodes(disc, N), self.with_c)
+        self.scales = sc = characteristic_scales(problem)
+        self.omega = quadrature_weights(disc, N, h)
+        self.W = np.concatenate([np.asarray(problem.W_f, float).ravel(), np.asarray(problem.W_m, float).ravel()])
+
+        nU = len(lay.control_nodes)
+        self.w_scale = lay.pack(np.repeat(sc.X[:, None], N + 1, axis=1), np.repeat(sc.U[:, None], nU, axis=1),
+                                np.repeat(sc.C[:, None], N, axis=1) if self.with_c else None)
+        ws = ca.MX.sym("w", lay.n)
+        Xs, Us, Cs = lay.unpack(ws * ca.DM(self.w_scale))
+        Wst = disc.stage_controls(Us)                         # nw x N stage controls
+
+        # one stage Function, mapped over the horizon
+        Xk = ca.MX.sym("Xk", NX)
+        Xk1 = ca.MX.sym("Xk1", NX)
+        wk = ca.MX.sym("wk", disc.nw)
+        if self.with_c:
+            ck = ca.MX.sym("ck", NC)
+            X1, G = disc.step_given_c(Xk, ck, wk, h)
+            defect = ca.vertcat(X1 - Xk1, G)
+            stage = ca.Function("stage_defect", [Xk, Xk1, ck, wk], [defect], ["Xk", "Xk1", "ck", "wk"], ["defect"])
+            D = stage.map(N)(Xs[:, :-1], Xs[:, 1:], Cs, Wst)
+            gsc = np.concatenate([sc.X, np.full(NC, h * sc.X[15])])  # G ~ h Pi
+        else:
+            X1, _ = disc.step(Xk, wk, h)
+            stage = ca.Function("stage_defect", [Xk, Xk1, wk], [X1 - Xk1], ["Xk", "Xk1", "wk"], ["defect"])
+            D = stage.map(N)(Xs[:, :-1], Xs[:, 1:], Wst)
+            gsc = sc.X.copy()
+        nd = D.shape[0]
+        D = D / ca.repmat(ca.DM(gsc), 1, N)
+        term = terminal_residual(Xs[:, -1], problem.Xd)
+        tsc = np.concatenate([sc.X[X_POS], sc.X[X_MOM], np.ones(3), sc.X[X_ANG]])
+        g = ca.vertcat(ca.vec(D), term / ca.DM(tsc))
+        self.g_scale = np.concatenate([np.tile(gsc, N), tsc])
+        self.defect_rows = np.arange(nd * N).reshape(N, nd).T[:NX]      # (18, N)
+        wq = ca.DM(self.W[:, None] * self.omega[None, :])              # 6 x nU
+        f = 0.5 * ca.sum1(ca.sum2(wq * Us**2)) / sc.objective
+
+        # bounds: X_0 fixed
+        lbx = np.full(lay.n, -np.inf)
+        ubx = np.full(lay.n, np.inf)
+        x0s = np.asarray(problem.X0, float) / sc.X
+        lbx[lay.iX[:, 0]] = x0s
+        ubx[lay.iX[:, 0]] = x0s
+        self.lbx, self.ubx = lbx, ubx
+        self.lbg = self.ubg = np.zeros(g.shape[0])
+
+        ipopt = {"tol": float(opts["tol"]), "max_iter": int(opts["max_iter"]), "print_level": 0, "sb": "yes",
+                 "hessian_approximation": "exact"}
+        ipopt.update(dict(opts.get("options") or {}))
+        nlp_opts: dict[str, Any] = {"expand": True, "print_time": False, "ipopt": ipopt}
+        self._progress = None
+        if progress is not None:
+            self._progress = _Progress(lay.n, g.shape[0], progress, sc.objective)
+            nlp_opts["iteration_callback"] = self._progress
+        self.solver = ca.nlpsol("direct_ms", "ipopt", {"x": ws, "f": f, "g": g}, nlp_opts)
+
+    # ------------------------------------------------------------------ helpers
+    def initial_point(self, guess: Guess) -> np.ndarray:
+        """Scaled decision vector of a :class:`Guess`."""
+        C = guess.C.T if self.with_c else None
+        return self.layout.pack(guess.X.T, guess.U, C) / self.w_scale
+
+    def costates(self, X: np.ndarray, lam_g: np.ndarray) -> np.ndarray:
+        """lambda_k = D(X_{k+1})^T nu_k (N, 12), nu_k = multiplier of step - X_{k+1} (see module doc).
+
+        IPOPT's Lagrangian is f_s + lam_g^T g_s with g_s = (step - X_{k+1}) / g_scale and
+        f_s = J / objective scale, so nu = objective_scale * lam_g / g_scale on the defect rows.
+        """
+        nu_all = self.scales.objective * lam_g / self.g_scale
+        nu = nu_all[self.defect_rows]                                   # (18, N)
+        return np.stack([tangent_basis(X[:, k + 1]).T @ nu[:, k] for k in range(self.problem.N)])
+
+
+def _options(problem: SmoothProblem) -> dict[str, Any]:
+    opts = dict(DIRECT_OPTION_DEFAULTS)
+    opts.update({k: v for k, v in (problem.options or {}).items() if k in DIRECT_OPTION_DEFAULTS})
+    return opts
+
+
+def _failure(problem: SmoothProblem, opts, status: str, message: str, build_s: float = 0.0) -> Solution:
+    """A Solution for a solve that could not run: the free rollout, converged False."""
+    X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
+    return Solution(method="direct", solver=str(opts.get("solver")), discretization=problem.disc.scheme, N=problem.N,
+                    h=problem.h, trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=X), status=status,
+                    message=message, converged=False, cost=float("nan"),
+                    terminal_error=terminal_error_full(X[-1], problem.Xd), iterations=0, build_s=build_s, solve_s=0.0)
+
+
+def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None = None) -> Solution:
+    """Solve a :class:`SmoothProblem` by multiple shooting + IPOPT (see the module docstring).
+
+    ``problem.options`` (the YAML ``solver.direct`` block): ``solver`` ('ipopt'),
+    ``tol``, ``max_iter``, ``initial_guess`` ('rollout' | 'interpolate'), ``options``
+    (raw IPOPT options), ``cayley_variables`` (bool), ``terminal_tol``.
+    ``progress``: optional callable receiving {'iter', 'objective', 'inf_pr_scaled'} per
+    IPOPT iteration.
+
+    Returns a :class:`Solution`: controls (6, n_controls) [u_f inertial; u_m body],
+    trajectory = re-simulation from X0 with those controls, terminal_error on it,
+    costates (N, 12) (module docstring), extra = {'ipopt_return_status', 'kkt_tol',
+    'initial_guess', 'cayley_variables', 'n_variables', 'n_constraints',
+    'max_defect', 'nlp_terminal_error', 'max_cayley_residual'}.  converged is True iff
+    IPOPT returned Solve_Succeeded and the re-simulated terminal error is <= terminal_tol.
+    """
+    opts = _options(problem)
+    if opts["solver"] != "ipopt":
+        return _failure(problem, opts, "unsupported_solver",
+                        f"solver {opts['solver']!r} is not available for the direct method yet (use 'ipopt')")
+    try:
+        guess = make_guess(opts["initial_guess"], problem.disc, problem.X0, problem.Xd, problem.N, problem.T)
+    except ValueError as exc:
+        return _failure(problem, opts, "invalid_option", str(exc))
+    t0 = time.perf_counter()
+    nlp = DirectNLP(problem, opts, progress)
+    build_s = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    sol = nlp.solver(x0=nlp.initial_point(guess), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    solve_s = time.perf_counter() - t0
+    stats = nlp.solver.stats()
+    status = str(stats.get("return_status", "unknown"))
+
+    w = np.array(sol["x"]).ravel() * nlp.w_scale
+    Xn, U, _ = nlp.layout.unpack(w)
+    lam_g = np.array(sol["lam_g"]).ravel()
+    g_phys = np.array(sol["g"]).ravel() * nlp.g_scale
+    Xsim, res = problem.disc.simulate(problem.X0, U, problem.h, problem.N)
+    err = terminal_error_full(Xsim[-1], problem.Xd)
+    cost = control_cost(U, nlp.W, nlp.omega)
+    ok = status == "Solve_Succeeded" and err <= float(opts["terminal_tol"])
+    if ok:
+        message = f"IPOPT: {status}; re-simulated terminal error {err:.2e}"
+    elif status == "Solve_Succeeded":
+        message = (f"IPOPT: {status}, but the re-simulated terminal error {err:.2e} exceeds terminal_tol "
+                   f"{opts['terminal_tol']:.1e} (max Cayley residual {float(np.max(res)):.1e})")
+    else:
+        message = f"IPOPT did not converge: {status}; re-simulated terminal error {err:.2e}"
+    it = stats.get("iterations", {}) or {}
+    history = [
+        {"iter": i, "objective": float(o) * nlp.scales.objective, "inf_pr": float(p), "inf_du": float(d), "mu": float(m)}
+        for i, (o, p, d, m) in enumerate(zip(it.get("obj", []), it.get("inf_pr", []), it.get("inf_du", []), it.get("mu", [])))
+    ]
+    extra = {
+        "ipopt_return_status": status,
+        "kkt_tol": float(opts["tol"]),
+        "initial_guess": opts["initial_guess"],
+        "cayley_variables": nlp.with_c,
+        "n_variables": int(nlp.layout.n),
+        "n_constraints": int(len(nlp.lbg)),
+        "max_defect": float(np.abs(g_phys[nlp.defect_rows.ravel()]).max()),
+        "nlp_terminal_error": terminal_error_full(Xn[:, -1], problem.Xd),
+        "max_cayley_residual": float(np.max(res)) if res.size else 0.0,
+    }
+    return Solution(method="direct", solver="ipopt", discretization=problem.disc.scheme, N=problem.N, h=problem.h,
+                    trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=Xsim), status=status,
+                    message=message, converged=bool(ok), cost=cost, terminal_error=err,
+                    iterations=int(stats.get("iter_count", len(history))), build_s=build_s, solve_s=solve_s,
+                    controls=U, costates=nlp.costates(Xn, lam_g), history=history, extra=extra)

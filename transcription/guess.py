@@ -1,0 +1,140 @@
+"""Initial guesses for the direct method (node states, controls, Cayley vectors).
+
+Two kinds, selected by ``options['initial_guess']`` of a
+:class:`~transcription.problem.SmoothProblem`:
+
+* ``'rollout'`` (default): free motion (all controls zero) of the problem's own
+  discretization from X0.  Every node then satisfies the discrete dynamics exactly,
+  so only the terminal conditions are violated at the start.
+* ``'interpolate'``: the geodesic (screw motion) of SE(3) between the initial and
+  the desired configuration, g(s) = exp(s log(g_d g_0^-1)) g_0 with s = t/T,
+  i.e. R(s) = Exp(s w) R_0 and x(s) = q + Exp(s w)(x_0 - q) + s d n about the
+  screw axis (unit n = w/|w| through q, pitch d = n^T p).  For a half orbit
+  (x_0 = -x_d, R_d = Rz(180) R_0) this is the circular arc, not the straight chord
+  through the attracting centre.  Momenta are the kinematic ones of that motion,
+  gamma = m dx/dt (inertial) and Pi = J R^T w / T (body), plus a linear blend of
+  the endpoint mismatches so that they equal the given momenta at s = 0 and s = 1.
+  Controls are zero.  At a rotation by exactly pi the sign of the axis is
+  ambiguous; the one turning with the initial orbital angular momentum
+  x_0 x gamma_0 (or, failing that, with Pi_0 in the inertial frame) is chosen.
+
+Both return a :class:`Guess`; Cayley vectors are c_k = cay^-1(R_k^T R_{k+1})
+(SPEC §2), consistent with the node attitudes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .layout import NU, pack_state, unpack_states
+from .lie import exp_so3, log_so3
+
+
+@dataclass(frozen=True)
+class Guess:
+    """X: (N+1, 18) node states; U: (6, n_controls) controls; C: (N, 3) Cayley vectors of the steps."""
+
+    X: np.ndarray
+    U: np.ndarray
+    C: np.ndarray
+
+
+def cayley_vectors(X: np.ndarray) -> np.ndarray:
+    """c_k = cay^-1(R_k^T R_{k+1}) for the node states X (N+1, 18) -> (N, 3).
+
+    cay^-1(F) = vee(F - F^T) / (1 + tr F) for cay(c) = (I + S(c))(I - S(c))^-1.
+    """
+    R = unpack_states(X).R
+    F = np.einsum("kji,kjl->kil", R[:-1], R[1:])
+    tr = np.trace(F, axis1=1, axis2=2)
+    A = F - np.swapaxes(F, 1, 2)
+    return np.stack([A[:, 2, 1], A[:, 0, 2], A[:, 1, 0]], axis=1) / (1.0 + tr)[:, None]
+
+
+def log_so3_any(R: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
+    """vee log R for every rotation, including angles at or near pi.
+
+    Near pi (where vee(R - R^T) loses the axis) the axis is read from
+    (R + I)/2 = n n^T; its sign is chosen by ``prefer`` (n^T prefer >= 0) when given.
+    """
+    R = np.asarray(R, dtype=float)
+    cos_t = np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)
+    if cos_t > -0.99:
+        return np.asarray(log_so3(R), dtype=float)
+    theta = np.arccos(cos_t)
+    B = 0.5 * (R + np.eye(3))
+    i = int(np.argmax(np.diag(B)))
+    n = B[:, i] / np.sqrt(max(B[i, i], 1e-300))
+    # sign from the (small) skew part when it is informative
+    s = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if np.linalg.norm(s) > 1e-9:
+        n = n if n @ s >= 0 else -n
+    elif prefer is not None and n @ prefer < 0:
+        n = -n
+    return theta * n / np.linalg.norm(n)
+
+
+def rollout_guess(disc, X0: np.ndarray, N: int, h: float) -> Guess:
+    """Free motion of ``disc`` from X0 over N steps of size h (controls zero)."""
+    X, _ = disc.simulate(X0, None, h, N)
+    return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
+
+
+def screw_path(X0: np.ndarray, Xd: np.ndarray, s: np.ndarray, mass: float, J: np.ndarray, T: float) -> np.ndarray:
+    """SE(3) geodesic between the configurations of X0 and Xd at parameters s in [0, 1].
+
+    Returns node states (len(s), 18): see the module docstring for the momenta.
+    """
+    a, d = unpack_states(X0), unpack_states(Xd)
+    x0, xd, R0, Rd = a.x[0], d.x[0], a.R[0], d.R[0]
+    Rrel = Rd @ R0.T                       # inertial-frame relative rotation
+    prefer = np.cross(x0, a.gamma[0])
+    if np.linalg.norm(prefer) < 1e-12:
+        prefer = R0 @ a.Pi[0]
+    w = log_so3_any(Rrel, prefer)           # inertial rotation vector of the whole motion
+    theta = np.linalg.norm(w)
+    p = xd - Rrel @ x0                      # y -> Rrel y + p maps x0 to xd
+    s = np.asarray(s, dtype=float)
+    if theta < 1e-9:
+        n = np.zeros(3)
+        q = np.zeros(3)
+        xs = x0[None, :] + s[:, None] * p[None, :]
+        vs = np.repeat(p[None, :] / T, len(s), axis=0)
+    else:
+        n = w / theta
+        dpitch = n @ p
+        p_perp = p - dpitch * n
+        q = np.linalg.lstsq(np.eye(3) - Rrel, p_perp, rcond=1e-10)[0]
+        q = q - (n @ q) * n
+        Es = np.array([exp_so3(si * w) for si in s])
+        xs = q[None, :] + Es @ (x0 - q) + s[:, None] * dpitch * n[None, :]
+        vs = np.cross(w / T, xs - q[None, :]) + (dpitch / T) * n[None, :]
+    Rs = np.array([exp_so3(si * w) @ R0 for si in s])
+    gam = mass * vs
+    Pis = np.einsum("ij,kjl,l->ki", J, np.swapaxes(Rs, 1, 2), w / T)
+    # blend the endpoint mismatches away linearly
+    g_a, g_b = a.gamma[0] - gam[0], d.gamma[0] - gam[-1]
+    P_a, P_b = a.Pi[0] - Pis[0], d.Pi[0] - Pis[-1]
+    gam = gam + (1 - s)[:, None] * g_a + s[:, None] * g_b
+    Pis = Pis + (1 - s)[:, None] * P_a + s[:, None] * P_b
+    return pack_state(xs, gam, Rs, Pis)
+
+
+def interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) -> Guess:
+    """SE(3) screw interpolation from X0 to Xd at the N+1 nodes t_k = k T / N; zero controls."""
+    s = np.linspace(0.0, 1.0, N + 1)
+    X = screw_path(X0, Xd, s, disc.model.mass, disc.J, T)
+    return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
+
+
+def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) -> Guess:
+    """Dispatch on ``kind`` in {'rollout', 'interpolate'}."""
+    if kind == "rollout":
+        return rollout_guess(disc, X0, N, T / N)
+    if kind == "interpolate":
+        return interpolation_guess(disc, X0, Xd, N, T)
+    raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
+
+
+__all__ = ["Guess", "cayley_vectors", "log_so3_any", "rollout_guess", "interpolation_guess", "make_guess", "screw_path"]
