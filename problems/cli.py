@@ -24,7 +24,13 @@ CAYLEY_RESIDUAL_TOL = 1e-10
 EPILOG = """examples:
   se3ocp validate configs/e3_inclination_change.yaml
   se3ocp simulate configs/free_tumble.yaml --set horizon.N=2000
+  se3ocp solve configs/e3_inclination_change.yaml --method both
+  se3ocp compare configs/e4_orbital_capture.yaml --set solver.indirect.initial_costate=from_direct
+  se3ocp plot results/e3_inclination_change
 """
+
+#: relative cost difference above which compare reports different extremals
+MISMATCH_COST_RTOL = 1e-6
 
 
 def _common(p: argparse.ArgumentParser, out=True):
@@ -56,6 +62,33 @@ def build_parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     _common(p)
     p.set_defaults(func=cmd_simulate)
+
+    for name, helptext, ex in (
+        ("solve", "solve the optimal control problem (direct, indirect or both)",
+         "examples:\n  se3ocp solve configs/e3_inclination_change.yaml --method direct\n"
+         "  se3ocp solve configs/e1_impulsive_tpbvp.yaml --set horizon.N=200\n"
+         "  se3ocp solve configs/e4_orbital_capture.yaml --method indirect --set solver.indirect.initial_costate=from_direct"),
+        ("compare", "solve by both methods and compare them side by side",
+         "example:\n  se3ocp compare configs/e3_inclination_change.yaml --set horizon.N=200"),
+    ):
+        p = sub.add_parser(name, help=helptext, epilog=ex, formatter_class=argparse.RawDescriptionHelpFormatter)
+        _common(p)
+        if name == "solve":
+            p.add_argument("--method", choices=("direct", "indirect", "both"), default="direct",
+                           help="direct (multiple shooting + NLP solver), indirect (Newton-Armijo shooting), "
+                                "or both (default: direct)")
+        p.add_argument("--no-figures", action="store_true", help="skip the PNG/PDF figures")
+        p.add_argument("--animate", action="store_true", help="also write maneuver.gif")
+        p.set_defaults(func=cmd_solve, method="both" if name == "compare" else None)
+
+    p = sub.add_parser("plot", help="(re)draw the figures of a results directory",
+                       epilog="example:\n  se3ocp plot results/e3_inclination_change --animate",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("results", help="a results directory written by simulate, solve or compare")
+    p.add_argument("--animate", action="store_true", help="also write maneuver.gif")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--json", action="store_true", help="print the list of files written as JSON")
+    p.set_defaults(func=cmd_plot)
     return ap
 
 
@@ -159,6 +192,142 @@ def cmd_simulate(args) -> int:
     _say(args, f"  results in {out}/")
     _emit_summary(args, summary)
     return 0 if summary["converged"] else 1
+
+
+class Progress:
+    """One line per Newton-Armijo outer iteration, and per block of NLP iterations
+    (at most one line a second after the first ten), so long solves show life without flooding."""
+
+    def __init__(self, args, label: str):
+        self.args, self.label = args, label
+        self.last = 0.0
+        self.count = 0
+
+    def __call__(self, rec: dict):
+        self.count += 1
+        now = time.perf_counter()
+        if self.count > 10 and now - self.last < 1.0 and "step" not in rec:
+            return
+        self.last = now
+        if "iteration" in rec:  # Newton-Armijo
+            _say(self.args, f"  [{self.label}] iter {rec['iteration']:3d}  |z_N| = {rec.get('error', float('nan')):.3e}"
+                            f"  step = {rec.get('step', float('nan')):.3g}  halvings = {rec.get('halvings', 0)}")
+        else:
+            inf = rec.get("inf_pr", rec.get("inf_pr_scaled", float("nan")))
+            _say(self.args, f"  [{self.label}] iter {rec.get('iter', self.count - 1):4d}  cost = {rec.get('objective', float('nan')):.8e}"
+                            f"  infeasibility = {inf:.2e}")
+
+
+def _run_method(args, man: Maneuver, method: str, lam0=None):
+    """Build the problem for ``method`` and solve it; returns a Solution (failures are data)."""
+    if man.control_kind == "impulsive":
+        from transcription.impulsive import solve_impulsive
+
+        return solve_impulsive(man.impulsive_problem(), progress=Progress(args, "impulsive"))
+    if method == "direct":
+        from transcription.direct import solve_direct
+
+        return solve_direct(man.smooth_problem("direct"), progress=Progress(args, "direct"))
+    from transcription.indirect import solve_indirect
+
+    return solve_indirect(man.smooth_problem("indirect"), lam0=lam0, progress=Progress(args, "indirect"))
+
+
+def compare_solutions(a, b) -> dict:
+    """Cost and control differences between two solutions; flags different extremals."""
+    out = {"cost_relative_difference": abs(a.cost - b.cost) / max(abs(a.cost), abs(b.cost), 1e-300)}
+    if a.controls is not None and b.controls is not None and a.controls.shape == b.controls.shape:
+        scale = max(np.abs(a.controls).max(), 1e-300)
+        out["control_max_difference_relative"] = float(np.abs(a.controls - b.controls).max() / scale)
+    both = a.converged and b.converged
+    out["same_extremal"] = bool(both and out["cost_relative_difference"] <= MISMATCH_COST_RTOL)
+    if not both:
+        out["verdict"] = "not comparable: at least one method did not converge"
+    elif out["same_extremal"]:
+        out["verdict"] = "agree: same extremal"
+    else:
+        lo, hi = sorted([a, b], key=lambda s: s.cost)
+        out["verdict"] = (f"MISMATCH: the methods reached different extremals ({lo.method} cost {lo.cost:.6g} vs "
+                          f"{hi.method} cost {hi.cost:.6g}, ratio {hi.cost / lo.cost:.3g}); the higher one is not the "
+                          f"optimum. Try solver.indirect.initial_costate=from_direct.")
+    return out
+
+
+def _table(sols) -> list[str]:
+    head = f"{'method':<10} {'status':<20} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} {'build s':>8} {'solve s':>8}"
+    rows = [head, "-" * len(head)]
+    for s in sols:
+        o = s.trajectory.orthogonality()["max_orthogonality_error"]
+        rows.append(f"{s.method:<10} {s.status[:20]:<20} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
+                    f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
+    return rows
+
+
+def cmd_solve(args) -> int:
+    from .io import write_json as _wj
+    from .plots import animate, draw_all
+
+    man = _load(args)
+    man.require_terminal()
+    methods = ["direct", "indirect"] if args.method == "both" else [args.method]
+    if man.control_kind == "impulsive":
+        if "indirect" in methods and args.method != "both":
+            raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
+                                                          "impulsive maneuvers are solved by --method direct")
+        methods = ["direct"]
+    if "indirect" in methods and man.discretization != "first_order":
+        raise ConfigError(man.source, "discretization", "the indirect method needs discretization: first_order "
+                                                        "(the paper's necessary conditions, SPEC §6)")
+    out = _outdir(args, man)
+    write_yaml(out / "config.resolved.yaml", man.resolved)
+    _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} -> {out}/")
+    sols = {}
+    for method in methods:
+        lam0 = None
+        if method == "indirect" and man.indirect.get("initial_costate") == "from_direct" and "direct" in sols \
+                and sols["direct"].costates is not None:
+            lam0 = sols["direct"].costates[0]
+        _say(args, f"solving by the {method} method ...")
+        sol = _run_method(args, man, method, lam0)
+        sols[method] = sol
+        write_npz(out / f"{method}.npz", sol.arrays())
+        _say(args, f"  {method}: {sol.status} ({sol.message}); cost {sol.cost:.10g}, terminal error "
+                   f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, solve {sol.solve_s:.2f} s")
+    summary = {"name": man.name, "config": man.source, "control": man.control_kind,
+               "discretization": man.discretization, "N": man.N, "T": man.T,
+               "converged": all(s.converged for s in sols.values()),
+               "methods": {m: dict(s.summary(), history=s.history) for m, s in sols.items()}}
+    if len(sols) == 2:
+        summary["comparison"] = compare_solutions(sols["direct"], sols["indirect"])
+    _wj(out / "summary.json", summary)
+    if not args.no_figures:
+        draw_all(out)
+        if args.animate:
+            animate(out)
+    for line in _table(sols.values()):
+        _say(args, line)
+    if "comparison" in summary:
+        _say(args, f"comparison: {summary['comparison']['verdict']}")
+    _say(args, f"results in {out}/")
+    _emit_summary(args, {k: v for k, v in summary.items() if k != "methods"} | {
+        "methods": {m: s.summary() for m, s in sols.items()}})
+    return 0 if summary["converged"] else 1
+
+
+def cmd_plot(args) -> int:
+    from .plots import animate, draw_all
+
+    d = Path(args.results)
+    if not (d / "summary.json").exists() or not (d / "config.resolved.yaml").exists():
+        print(f"se3ocp: error: {d}: not a results directory (needs summary.json and config.resolved.yaml)", file=sys.stderr)
+        return 2
+    written = [str(p) for p in draw_all(d)]
+    if args.animate:
+        written.append(str(animate(d)))
+    _say(args, f"wrote {len(written)} files in {d}/")
+    if args.json:
+        print(json.dumps(written))
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -280,11 +280,13 @@ class Maneuver:
             raise ConfigError(self.source, "control/terminal",
                               "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
 
-    def smooth_problem(self, disc: Discretization | None = None) -> SmoothProblem:
+    def smooth_problem(self, method: str = "direct", disc: Discretization | None = None) -> SmoothProblem:
+        """The smooth-control problem, carrying the ``solver.<method>`` options."""
         self.require_terminal(("smooth",))
         disc = disc or self.discretization_object()
+        opts = self.direct if method == "direct" else self.indirect
         return SmoothProblem(disc=disc, N=self.N, T=self.T, X0=self.X0(), Xd=self.terminal.vector(self.body),
-                             W_f=self.W_f, W_m=self.W_m, options=dict(self.direct, indirect=dict(self.indirect)))
+                             W_f=self.W_f, W_m=self.W_m, options=dict(opts))
 
     def impulsive_problem(self, disc: Discretization | None = None) -> ImpulsiveProblem:
         self.require_terminal(("impulsive",))

@@ -148,7 +148,7 @@ def _components(runs, key_fn, ylabel, title, impulses=None):
                     for tt, yy in marks:
                         ax.plot(tt, yy[i], "o", mfc="white", color=run.color, ms=5)
     for i, ax in enumerate(axs):
-        ax.set_ylabel(f"{ylabel}$_{i + 1}$")
+        ax.set_ylabel(ylabel.replace("#", str(i + 1)))  # template, e.g. "$u_{f,#}$"
         ax.grid(alpha=0.3)
         _no_offset(ax)
     axs[0].set_title(title)
@@ -184,7 +184,7 @@ def fig_velocity(runs, config):
         return [(t[0], (a["gamma"][0]) / m), (t[-1], (a["gamma"][-1] + a["dgammaN"]) / m)]
 
     imp = after if any("dgamma0" in r.arrays for r in runs) else None
-    return _components(runs, lambda r: (r.arrays["t"], r.arrays["gamma"] / m), "v",
+    return _components(runs, lambda r: (r.arrays["t"], r.arrays["gamma"] / m), "$v_#$",
                        "velocity v = γ/m, inertial (radii/period)", imp)
 
 
@@ -199,7 +199,7 @@ def fig_angular_velocity(runs, config):
         return [(t[0], Jinv @ a["Pi"][0]), (t[-1], Jinv @ (a["Pi"][-1] + a["dPiN"]))]
 
     imp = after if any("dPiN" in r.arrays for r in runs) else None
-    return _components(runs, lambda r: (r.arrays["t"], r.arrays["Pi"] @ Jinv.T), "Ω",
+    return _components(runs, lambda r: (r.arrays["t"], r.arrays["Pi"] @ Jinv.T), r"$\Omega_#$",
                        "angular velocity Ω = J⁻¹Π, body frame (rad/period)", imp)
 
 
@@ -212,14 +212,21 @@ def _control_time(run):
 
 def fig_force(runs, config):
     return _components([r for r in runs if "u_f" in r.arrays],
-                       lambda r: (_control_time(r), r.arrays["u_f"]), "u_f",
+                       lambda r: (_control_time(r), r.arrays["u_f"]), "$u_{f,#}$",
                        "control force u_f, inertial (mass·radii/period²)")
 
 
 def fig_moment(runs, config):
     return _components([r for r in runs if "u_m" in r.arrays],
-                       lambda r: (_control_time(r), r.arrays["u_m"]), "u_m",
+                       lambda r: (_control_time(r), r.arrays["u_m"]), "$u_{m,#}$",
                        "control moment u_m, body (mass·radii²/period²)")
+
+
+def _positive(values):
+    """Values for a log axis: non-positive or missing entries become NaN (not drawn)."""
+    y = np.array([np.nan if v is None else v for v in values], float)
+    y[~(y > 0)] = np.nan
+    return y
 
 
 def fig_convergence(runs, config):
@@ -231,7 +238,7 @@ def fig_convergence(runs, config):
         if not hist:
             continue
         if any("trial" in h for h in hist):  # Newton-Armijo: one record per trial
-            errs = np.array([h.get("error", np.nan) for h in hist], float)
+            errs = _positive([h.get("error", np.nan) for h in hist])
             ax.semilogy(np.arange(len(errs)), errs, ".-", color=run.color, lw=1, ms=4,
                         label=f"{run.label}: all line-search trials")
             acc = [i for i, h in enumerate(hist) if h.get("accepted")]
@@ -240,7 +247,7 @@ def fig_convergence(runs, config):
         else:  # NLP solver: one record per iteration
             it = np.array([h.get("iter", i) for i, h in enumerate(hist)])
             for key, mark, lab in (("inf_pr", "-", "primal infeasibility"), ("inf_du", ":", "dual infeasibility")):
-                y = np.array([h.get(key, np.nan) for h in hist], float)
+                y = _positive([h.get(key, np.nan) for h in hist])
                 if np.isfinite(y).any():
                     ax.semilogy(it, y, mark, color=run.color, lw=1.4, label=f"{run.label}: {lab}")
         drew = True
