@@ -100,31 +100,52 @@ def exp_so3(w):
 
 
 def log_so3(R):
-    """Logarithm SO(3) -> R^3, safe at the identity.
+    """Logarithm SO(3) -> R^3 for angles in [0, pi], safe at the identity.
 
-    Valid for rotation angles in [0, pi); near pi the axis is ill-conditioned
-    (as it is for every formula) and the result loses accuracy.
+    NumPy: theta = atan2(sin, cos) from the skew part and the trace (well
+    conditioned for every angle); near pi (cos theta < -0.9) the axis is read
+    from the symmetric part (R + R^T)/2 - cos(theta) I = (1 - cos theta) n n^T,
+    its sign from the skew part, so the result stays accurate to round-off.
+
+    CasADi (symbolic, differentiable): theta/(2 sin theta) vee(R - R^T) with a
+    Taylor branch at the identity.  Its derivative is singular at pi, as is the
+    logarithm's; the method layer evaluates it near the identity (terminal
+    attitude error).
     """
+    if not _is_casadi(R):
+        return _log_so3_np(np.asarray(R, dtype=float))
     tr = R[0, 0] + R[1, 1] + R[2, 2]
-    cos_t = 0.5 * (tr - 1.0)
-    if _is_casadi(cos_t):
-        cos_t = ca.fmin(ca.fmax(cos_t, -1.0), 1.0)
-        acos, sqrt = ca.acos, ca.sqrt
-    else:
-        cos_t = float(np.clip(cos_t, -1.0, 1.0))
-        acos, sqrt = np.arccos, np.sqrt
+    cos_t = ca.fmin(ca.fmax(0.5 * (tr - 1.0), -1.0), 1.0)
     # theta^2 ~ 2 (1 - cos theta) for small angles
     one_minus = 1.0 - cos_t
     small = one_minus < 0.5 * _SMALL_THETA2
     cos_safe = _where(small, 0.0, cos_t)
-    t = acos(cos_safe)
+    t = ca.acos(cos_safe)
     # theta / (2 sin theta); Taylor: 1/2 + theta^2/12 + 7 theta^4/720
     t2 = 2.0 * one_minus
     # sin(theta) as sqrt((1 - cos)(1 + cos)): 1 - cos is exact near theta = 0, whereas
     # 1 - cos^2 loses eps/theta^2 (relative 1e-10 just above the switch at theta = 1e-3)
-    sin_t = sqrt((1.0 - cos_safe) * (1.0 + cos_safe))
+    sin_t = ca.sqrt((1.0 - cos_safe) * (1.0 + cos_safe))
     coef = _where(small, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * sin_t))
     return coef * vee(R - R.T)
+
+
+def _log_so3_np(R: np.ndarray) -> np.ndarray:
+    w2 = vee(R - R.T)                      # 2 sin(theta) n
+    s = 0.5 * np.linalg.norm(w2)
+    c = 0.5 * (np.trace(R) - 1.0)
+    t = np.arctan2(s, c)
+    if c > -0.9:
+        t2 = t * t
+        coef = 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0 if t2 < _SMALL_THETA2 else t / (2.0 * s)
+        return coef * w2
+    B = 0.5 * (R + R.T) - c * np.eye(3)    # (1 - cos theta) n n^T
+    j = int(np.argmax(np.diag(B)))
+    n = B[:, j] / np.sqrt(B[j, j] * (1.0 - c))
+    n /= np.linalg.norm(n)
+    if n @ w2 < 0:
+        n = -n
+    return t * n
 
 
 def rot_x(deg: float) -> np.ndarray:
