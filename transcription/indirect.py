@@ -1,0 +1,526 @@
+"""Indirect method: discrete necessary conditions and Newton-Armijo shooting (SPEC §6).
+
+Scheme: the first-order modified scheme of SPEC §3, eqs. (21)-(25), one control
+per step, ``X_{k+1} = step(X_k, u_{k+1}, h)``, k = 0 .. N-1.  States X (18) in the
+layout of :mod:`transcription.layout`; controls u = [u_f (inertial); u_m (body)];
+tangent coordinates z = [dx; dgamma; zeta; dPi] with dR = R S(zeta) (SPEC §4).
+
+Lagrangian and sign convention
+------------------------------
+With z-coordinates for the step defect (the difference ``step(X_k, u_{k+1}) ⊖
+X_{k+1}`` read in the left-trivialized chart of SPEC §4 around X_{k+1}),
+
+    L = sum_{k=0}^{N-1} [ (h/2) u_{k+1}^T W u_{k+1}
+                          + lambda_k^T ( step(X_k, u_{k+1}) ⊖ X_{k+1} ) ],
+    W = blkdiag(W_f, W_m),
+
+lambda_k in R^12 the multiplier of step k (X_k -> X_{k+1}).  First variation with
+z_{k+1} = A_k z_k + B_k du_{k+1} (SPEC §4 eq. 18, A_k, B_k from
+``Discretization.variation``):
+
+    dL = sum_k [ h u_{k+1}^T W du_{k+1} + lambda_k^T (A_k z_k + B_k du_{k+1} - z_{k+1}) ].
+
+* stationarity in u_{k+1}:  h W u_{k+1} + B_k^T lambda_k = 0, and since the
+  first-order scheme has B_k = [0; h I; 0; 0 | 0; 0; 0; h I] (control enters
+  additively, eqs. 22, 25) this is (26)-(27):
+  u_f,k+1 = -W_f^-1 lambda^2_k,  u_m,k+1 = -W_m^-1 lambda^4_k.
+  The code uses the general form u = -(1/h) W^-1 B_k^T lambda_k with B_k taken
+  from the graph (tested equal to the block form).
+* stationarity in z_k, k = 1 .. N-1:  A_k^T lambda_k - lambda_{k-1} = 0, i.e. (28)
+  lambda_{k-1} = A_k^T lambda_k.
+* z_0 is fixed (initial state); z_N is fixed (all terminal states given), so
+  lambda_{N-1} is free: it is the multiplier of the terminal conditions.
+
+A_k does not depend on u_{k+1} in this scheme (checked symbolically when the
+functions are built), so the recursion runs forward:
+
+    (X_k, lambda_{k-1}) -> lambda_k = A_k^-T lambda_{k-1},
+                           u_{k+1} = -(1/h) W^-1 B_k^T lambda_k,
+                           X_{k+1} = step(X_k, u_{k+1}, h).
+
+The only unknown is lambda_0 in R^12; the shooting residual (12 conditions) is
+
+    z_N(lambda_0) = [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d],
+
+and Psi_12 = dz_N/dlambda_0 (the linearized coupled state-multiplier recursion,
+(29)-(31)) is computed by exact forward-mode AD through the rollout.
+
+Functions built once per (Discretization, N) (see :func:`shooting_functions`):
+
+    costate_map  (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res)
+    first_step   (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
+    shoot        (lam0, X0, Xd, h, Winv) -> (zN[12], X[18xN], lam[12xN], U[6xN], res, lam_res)
+    shoot_jac    (lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12x12])
+
+Newton-Armijo (SPEC §6, Kelley 1995) is :func:`solve_indirect`.
+"""
+from __future__ import annotations
+
+import time
+from functools import lru_cache
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from .layout import NU, NX, NZ, U_FORCE, U_MOMENT, join_state, split_state
+from .lgvi import Discretization
+from .lie import log_so3
+from .problem import SmoothProblem
+from .results import Solution, Trajectory, terminal_error_full
+
+#: defaults for the ``solver.indirect`` options block
+DEFAULT_OPTIONS: dict[str, Any] = {
+    "alpha": 1e-4,  # Armijo constant
+    "eps_S": 1e-12,  # tolerance on |z_N|_2
+    "max_iter": 50,  # outer (Newton) iterations
+    "max_halvings": 30,  # line-search halvings per outer iteration
+    "initial_costate": "zero",
+    # the round-off floor is declared when the full Newton step fails Armijo and
+    # |z_N| <= floor_factor * (round-off level of z_N), see noise_level
+    "floor_factor": 10.0,
+    # a floor above this is not accepted as convergence (something is broken)
+    "floor_accept": 1e-8,
+}
+
+_EPS = np.finfo(float).eps
+
+
+# --------------------------------------------------------------------------- graph
+def terminal_residual_function() -> ca.Function:
+    """(XN[18], Xd[18]) -> zN[12] = [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d].
+
+    Positions and linear momenta inertial, Pi body; the attitude error is the
+    rotation vector of R_d^T R_N (body frame at the target), three conditions.
+    """
+    XN = ca.SX.sym("XN", NX)
+    Xd = ca.SX.sym("Xd", NX)
+    x, g, R, P = split_state(XN)
+    xd, gd, Rd, Pd = split_state(Xd)
+    z = ca.vertcat(x - xd, g - gd, log_so3(ca.mtimes(Rd.T, R)), P - Pd)
+    return ca.Function("terminal_residual", [XN, Xd], [z], ["XN", "Xd"], ["zN"])
+
+
+def solve_unpivoted(M, b):
+    """Solve M y = b (SX, n x n dense) by Gaussian elimination without pivoting.
+
+    Used for lambda_k = A_k^-T lambda_{k-1}.  For the step sizes of interest A_k
+    is a perturbation of a block-triangular matrix with unit diagonal blocks (x, gamma,
+    Pi) and the rotation block F_k^T (zeta), so the leading principal minors stay
+    near 1 and elimination without pivoting is accurate: measured forward error
+    ~1 ulp of |lambda| on E3, as good as LAPACK LU, whereas CasADi's symbolic QR
+    (``ca.solve`` on SX, Gram-Schmidt) loses ~3 digits there, which raised the
+    round-off floor of the shooting residual to ~1e-11.  The caller reports the
+    relative residual |M y - b| / |b| so a breakdown would be visible.
+    """
+    n = M.shape[0]
+    a = [[M[i, j] for j in range(n)] for i in range(n)]
+    r = [b[i] for i in range(n)]
+    for c in range(n):
+        for i in range(c + 1, n):
+            f = a[i][c] / a[c][c]
+            for j in range(c + 1, n):
+                a[i][j] = a[i][j] - f * a[c][j]
+            r[i] = r[i] - f * r[c]
+    y = [None] * n
+    for i in reversed(range(n)):
+        acc = r[i]
+        for j in range(i + 1, n):
+            acc = acc - a[i][j] * y[j]
+        y[i] = acc / a[i][i]
+    return ca.vertcat(*y)
+
+
+def orthonormalized(X):
+    """X with R replaced by R (3 I - R^T R) / 2 (one Newton-Schulz step towards the polar factor).
+
+    Identity on SO(3) (and its derivative is the identity on tangent vectors R S(zeta)),
+    so it changes nothing in exact arithmetic; off the manifold by E = R^T R - I it
+    leaves O(E^2).  Used only for the argument of A_k: the readback vee(skew(Rbar^T dR))
+    of SPEC §4 is sensitive to R^T R != I, and the round-off drift of R^T R, which
+    persists from step to step, would otherwise dominate the round-off floor of the
+    shooting residual (measured on E3, N = 100: 1-ulp per-step perturbations of R normal
+    to SO(3) moved z_N 4x more than tangent ones).
+    """
+    x, gamma, R, Pi = split_state(X)
+    Rp = 0.5 * ca.mtimes(R, 3 * ca.DM.eye(3) - ca.mtimes(R.T, R))
+    return join_state(x, gamma, Rp, Pi)
+
+
+def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
+    """The forward map of the necessary conditions for ``disc`` (first-order scheme).
+
+    Returns (costate_map, first_step):
+
+    * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res):
+      X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
+      u = u_{k+1} = -(1/h) Winv B_k^T lambda_k (26)-(27); X1 = X_{k+1} = step(X_k, u_{k+1});
+      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf.
+    * first_step (X0[18], lam0[12], h, Winv) -> (X1[18], u[6], res): the k = 0 step,
+      where lambda_0 is the unknown itself.
+
+    A_k and B_k come from ``disc.variation`` (the Jacobian of the same step Function).
+    """
+    if disc.scheme != "first_order":
+        raise NotImplementedError(
+            f"indirect necessary conditions are implemented for the 'first_order' scheme, not {disc.scheme!r}"
+        )
+    X = ca.SX.sym("X", NX)
+    lam_prev = ca.SX.sym("lam_prev", NZ)
+    lam0 = ca.SX.sym("lam0", NZ)
+    h = ca.SX.sym("h")
+    Winv = ca.SX.sym("Winv", NU, NU)
+    w = ca.SX.sym("w", disc.nw)
+
+    A_w, B_w = disc.variation(X, w, h)
+    if ca.depends_on(A_w, w) or ca.depends_on(B_w, w):
+        raise ValueError("A_k or B_k depends on the stage control: the forward costate recursion does not apply")
+    A, B = disc.variation(orthonormalized(X), ca.DM.zeros(disc.nw), h)
+
+    def control(lam):
+        return -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
+
+    lam = solve_unpivoted(A.T, lam_prev)
+    lam_res = ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+    u = control(lam)
+    X1, res = disc.step(X, u, h)
+    costate_map = ca.Function(
+        "first_order_costate_map",
+        [X, lam_prev, h, Winv],
+        [X1, lam, u, res, lam_res],
+        ["X", "lam_prev", "h", "Winv"],
+        ["X1", "lam", "u", "res", "lam_res"],
+    )
+    u0 = control(lam0)
+    X1, res = disc.step(X, u0, h)
+    first_step = ca.Function(
+        "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"], ["X1", "u", "res"]
+    )
+    return costate_map, first_step
+
+
+class ShootingFunctions:
+    """Shooting residual and its Jacobian for one (Discretization, N), built once.
+
+    shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6])
+        -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
+            U[6 x N] u_1..u_N, res[1 x N] Cayley residuals,
+            lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0)
+    shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by
+        forward-mode AD (12 directions) through the mapaccum'ed rollout.
+    """
+
+    def __init__(self, disc: Discretization, N: int):
+        if N < 1:
+            raise ValueError("N must be >= 1")
+        self.disc, self.N = disc, int(N)
+        self.costate_map, self.first_step = costate_functions(disc)
+        self.terminal_residual = terminal_residual_function()
+
+        lam0 = ca.MX.sym("lam0", NZ)
+        X0 = ca.MX.sym("X0", NX)
+        Xd = ca.MX.sym("Xd", NX)
+        h = ca.MX.sym("h")
+        Winv = ca.MX.sym("Winv", NU, NU)
+        X1, u1, r1 = self.first_step(X0, lam0, h, Winv)
+        Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
+        if N > 1:
+            acc = self.costate_map.mapaccum(f"first_order_costate_acc{N - 1}", N - 1, 2)
+            Xr, Lr, Ur, Rr, LRr = acc(X1, lam0, ca.repmat(h, 1, N - 1), ca.repmat(Winv, 1, N - 1))
+            Xs.append(Xr)
+            lams.append(Lr)
+            Us.append(Ur)
+            res.append(Rr)
+            lres.append(LRr)
+        Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
+        zN = self.terminal_residual(Xs[:, -1], Xd)
+        names_in = ["lam0", "X0", "Xd", "h", "Winv"]
+        args = [lam0, X0, Xd, h, Winv]
+        self.shoot = ca.Function(
+            f"first_order_shoot{N}",
+            args,
+            [zN, Xs, lams, Us, res, lres],
+            names_in,
+            ["zN", "X", "lam", "U", "res", "lam_res"],
+        )
+        # exact forward-mode AD: Psi = dzN/dlam0 @ I_12 (jtimes with tr=False is forward mode)
+        Psi = ca.jtimes(zN, lam0, ca.MX.eye(NZ), False)
+        self.shoot_jac = ca.Function(f"first_order_shoot_jac{N}", args, [zN, Psi], names_in, ["zN", "Psi"])
+
+
+@lru_cache(maxsize=None)
+def shooting_functions(disc: Discretization, N: int) -> ShootingFunctions:
+    """Cached :class:`ShootingFunctions` (one per Discretization object and N)."""
+    return ShootingFunctions(disc, N)
+
+
+# ------------------------------------------------------------------------- helpers
+def weight_inverse(problem: SmoothProblem) -> np.ndarray:
+    """blkdiag(W_f, W_m)^-1 (6x6); W_f, W_m given as diagonals (3,) or as 3x3 matrices."""
+    blocks = []
+    for W in (problem.W_f, problem.W_m):
+        W = np.asarray(W, dtype=float)
+        W = np.diag(W) if W.ndim == 1 else W
+        if W.shape != (3, 3):
+            raise ValueError(f"weights must be (3,) or (3,3), got {W.shape}")
+        blocks.append(np.linalg.inv(W))
+    out = np.zeros((NU, NU))
+    out[U_FORCE, U_FORCE] = blocks[0]
+    out[U_MOMENT, U_MOMENT] = blocks[1]
+    return out
+
+
+def control_cost(problem: SmoothProblem, U: np.ndarray) -> float:
+    """sum_k (h/2)(u_f^T W_f u_f + u_m^T W_m u_m) for U (6 x N) (SPEC §6)."""
+    Winv = weight_inverse(problem)
+    W = np.linalg.inv(Winv)
+    return float(0.5 * problem.h * np.einsum("ik,ij,jk->", U, W, U))
+
+
+def noise_level(residual: Callable[[np.ndarray], np.ndarray], lam0: np.ndarray, z: np.ndarray, Psi: np.ndarray,
+                n: int = 3, ulps: float = 4.0, seed: int = 0) -> float:
+    """Measured round-off level of |z_N|_2 at lambda_0.
+
+    Perturbs lambda_0 by a few ulps (relative ``ulps * eps``, seeded) and returns the
+    largest |z(lam') - z(lam) - Psi (lam' - lam)|_2 over ``n`` draws: what is left
+    after the linear part is evaluation noise of the rollout.  For E3/E4 it is far
+    above the a-priori eps * |Psi||lambda_0| because the rod-axis rotation (tiny J_11)
+    amplifies the rounding of the costate recursion.
+    """
+    rng = np.random.default_rng(seed)
+    out = 0.0
+    for _ in range(n):
+        lp = lam0 * (1.0 + ulps * _EPS * rng.standard_normal(lam0.size))
+        zp = residual(lp)
+        out = max(out, float(np.linalg.norm(zp - z - Psi @ (lp - lam0))))
+    return out
+
+
+def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, str, Any]:
+    """lambda_0 from the argument or options.initial_costate ('zero', 'from_direct', 12-list)."""
+    if lam0 is not None:
+        return np.asarray(lam0, dtype=float).reshape(NZ), "argument", None
+    spec = opts.get("initial_costate", "zero")
+    if isinstance(spec, str):
+        if spec == "zero":
+            return np.zeros(NZ), "zero", None
+        if spec == "from_direct":
+            from .direct import solve_direct  # lazy: the direct method is optional here
+
+            dsol = solve_direct(problem)
+            if dsol.costates is None:
+                raise ValueError("the direct solution carries no costates")
+            return np.asarray(dsol.costates[0], dtype=float).reshape(NZ), "from_direct", dsol
+        raise ValueError(f"initial_costate must be 'zero', 'from_direct' or 12 numbers, got {spec!r}")
+    arr = np.asarray(spec, dtype=float).ravel()
+    if arr.size != NZ:
+        raise ValueError(f"initial_costate needs {NZ} numbers, got {arr.size}")
+    return arr, "explicit", None
+
+
+# -------------------------------------------------------------------------- solver
+def solve_indirect(
+    problem: SmoothProblem, lam0=None, progress: Callable[[dict], None] | None = None
+) -> Solution:
+    """Newton-Armijo shooting on lambda_0 (SPEC §6).
+
+    problem: a :class:`SmoothProblem` with the 'first_order' discretization;
+    ``problem.options`` = the ``solver.indirect`` block (alpha, eps_S, max_iter,
+    max_halvings, initial_costate, floor_factor; defaults in DEFAULT_OPTIONS).
+    lam0: optional initial lambda_0 (12,) overriding options.initial_costate.
+    progress: optional callable(dict) called once per outer iteration with
+    {iteration, error, error_inf, step, halvings, elapsed_s}.
+
+    Iteration (e = |z_N|_2):  D = -Psi^-1 z_N;  c = 1, 1/2, ... until
+    e~ <= (1 - alpha c) e;  stop when e <= eps_S.  Statuses:
+
+    * 'converged'        e <= eps_S.
+    * 'round_off_floor'  the full Newton step does not satisfy Armijo while e is
+                         within floor_factor of the measured round-off level of
+                         z_N (:func:`noise_level`): no further decrease is
+                         possible; stops at once (converged = True, the floor is
+                         reported in message and extra['roundoff_floor']).
+    * 'floor_too_high'   as above but e > floor_accept (converged = False).
+    * 'stagnated'        the trial step no longer changes lambda_0 in floating point.
+    * 'line_search_failed' max_halvings exhausted away from the floor.
+    * 'max_iter', 'singular_jacobian', 'nan' (non-finite rollout or residual).
+
+    The returned Solution (method 'indirect', solver 'newton-armijo') has the
+    controls U (6 x N) = u_1..u_N from lambda_k, costates (N, 12) = lambda_0..lambda_{N-1},
+    the trajectory re-simulated with ``disc.simulate`` from those controls, the
+    SPEC §8 terminal error measured on it, the cost sum (h/2) u^T W u, and the
+    history: one dict per rollout (the initial one, then every line-search
+    trial) with keys outer, trial, c, error, error_inf, accepted.
+    """
+    opts = dict(DEFAULT_OPTIONS)
+    opts.update(problem.options or {})
+    alpha = float(opts["alpha"])
+    eps_S = float(opts["eps_S"])
+    max_iter = int(opts["max_iter"])
+    max_halvings = int(opts["max_halvings"])
+    floor_factor = float(opts["floor_factor"])
+    floor_accept = float(opts["floor_accept"])
+    disc, N, h = problem.disc, problem.N, problem.h
+
+    t0 = time.perf_counter()
+    fns = shooting_functions(disc, N)
+    build_s = time.perf_counter() - t0
+
+    X0 = np.asarray(problem.X0, dtype=float).reshape(NX)
+    Xd = np.asarray(problem.Xd, dtype=float).reshape(NX)
+    Winv = weight_inverse(problem)
+    extra: dict[str, Any] = {}
+    t_init = time.perf_counter()
+    lam, source, dsol = _initial_costate(problem, lam0, opts)
+    extra["initial_costate"] = source
+    if dsol is not None:
+        extra["direct_solve_s"] = float(time.perf_counter() - t_init)
+    t1 = time.perf_counter()
+
+    def residual(l):
+        return np.array(fns.shoot_jac(l, X0, Xd, h, Winv)[0]).ravel()
+
+    def residual_jac(l):
+        z, P = fns.shoot_jac(l, X0, Xd, h, Winv)
+        return np.array(z).ravel(), np.array(P)
+
+    history: list[dict[str, Any]] = []
+    z, Psi = residual_jac(lam)
+    e = float(np.linalg.norm(z))
+    history.append({"outer": 0, "trial": 0, "c": 0.0, "error": e, "error_inf": float(np.abs(z).max()), "accepted": True})
+    status, message = "max_iter", f"no convergence in {max_iter} outer iterations"
+    it = 0
+    floor = None
+    noise = None
+    while True:
+        if not np.all(np.isfinite(z)) or not np.all(np.isfinite(Psi)):
+            status, message = "nan", f"non-finite residual or Jacobian at outer iteration {it}"
+            break
+        if e <= eps_S:
+            status, message = "converged", f"|z_N| = {e:.3e} <= eps_S = {eps_S:.1e} after {it} outer iterations"
+            break
+        if it >= max_iter:
+            status, message = "max_iter", f"no convergence in {max_iter} outer iterations (|z_N| = {e:.3e})"
+            break
+        try:
+            D = -np.linalg.solve(Psi, z)
+        except np.linalg.LinAlgError:
+            status, message = "singular_jacobian", f"Psi_12 singular at outer iteration {it} (|z_N| = {e:.3e})"
+            break
+        if not np.all(np.isfinite(D)):
+            status, message = "singular_jacobian", f"Psi_12 ill-conditioned at outer iteration {it} (|z_N| = {e:.3e})"
+            break
+        it += 1
+        c = 1.0
+        accepted = False
+        stop = None
+        for j in range(max_halvings + 1):
+            lt = lam + c * D
+            if np.array_equal(lt, lam):
+                stop = ("stagnated", f"the line-search step no longer changes lambda_0 (|z_N| = {e:.3e}, c = {c:.1e})")
+                break
+            zt = residual(lt)
+            et = float(np.linalg.norm(zt)) if np.all(np.isfinite(zt)) else float("inf")
+            ok = et <= (1.0 - alpha * c) * e
+            history.append(
+                {"outer": it, "trial": j + 1, "c": c, "error": et, "error_inf": float(np.abs(zt).max()), "accepted": bool(ok)}
+            )
+            if ok:
+                accepted = True
+                break
+            if j == 0:
+                noise = noise_level(residual, lam, z, Psi)
+                if e <= floor_factor * noise:
+                    floor = e
+                    stop = (
+                        "round_off_floor",
+                        f"round-off floor reached after {it - 1} outer iterations: |z_N| = {e:.3e} "
+                        f"(measured round-off level {noise:.1e}); the full Newton step gives {et:.3e}, "
+                        "no further decrease possible",
+                    )
+                    break
+            c *= 0.5
+        if not accepted:
+            if stop is None:
+                stop = ("line_search_failed", f"line search failed after {max_halvings} halvings at outer iteration {it} (|z_N| = {e:.3e})")
+            status, message = stop
+            it -= 1  # the failed iteration did not change lambda_0
+            break
+        lam = lt
+        z, Psi = residual_jac(lam)
+        e = float(np.linalg.norm(z))
+        if progress is not None:
+            progress(
+                {
+                    "iteration": it,
+                    "error": e,
+                    "error_inf": float(np.abs(z).max()),
+                    "step": c,
+                    "halvings": j,
+                    "elapsed_s": time.perf_counter() - t1,
+                }
+            )
+
+    # final rollout: controls and costates from lambda_0, re-simulated trajectory
+    zN, _, lams, U, _, lres = fns.shoot(lam, X0, Xd, h, Winv)
+    U = np.array(U)
+    lams = np.array(lams).T
+    Xsim, res = disc.simulate(X0, U, h, N)
+    solve_s = time.perf_counter() - t1
+    finite = np.all(np.isfinite(Xsim))
+    term = terminal_error_full(Xsim[-1], Xd) if finite else float("inf")
+    if status == "round_off_floor" and e > floor_accept:
+        status = "floor_too_high"
+        message += f"; the floor is above floor_accept = {floor_accept:.0e}: not accepted"
+    converged = status in ("converged", "round_off_floor")
+    if converged and not finite:
+        converged, status, message = False, "nan", "re-simulation produced non-finite states"
+    extra.update(
+        {
+            "residual_norm": e,
+            "roundoff_floor": floor,
+            "noise_level": noise,
+            "max_cayley_residual": float(np.max(res)) if res.size else 0.0,
+            "max_costate_solve_residual": float(np.max(np.array(lres))),
+            "lam0": lam.copy(),
+            "quadratic_C": quadratic_constant(history, floor=100.0 * noise if noise else 0.0),
+        }
+    )
+    return Solution(
+        method="indirect",
+        solver="newton-armijo",
+        discretization=disc.scheme,
+        N=N,
+        h=h,
+        trajectory=Trajectory(t=np.linspace(0.0, problem.T, N + 1), X=Xsim),
+        status=status,
+        message=message,
+        converged=bool(converged),
+        cost=control_cost(problem, U) if np.all(np.isfinite(U)) else float("inf"),
+        terminal_error=term,
+        iterations=it,
+        build_s=build_s,
+        solve_s=solve_s,
+        controls=U,
+        costates=lams,
+        history=history,
+        extra=extra,
+    )
+
+
+def outer_errors(history: list[dict]) -> np.ndarray:
+    """|z_N|_2 after each outer iteration (index 0: the initial guess) from a history."""
+    return np.array([r["error"] for r in history if r["accepted"]])
+
+
+def quadratic_constant(history: list[dict], floor: float = 0.0, tail_from: float = 1e-2) -> float | None:
+    """max e_{i+1}/e_i^2 over the full-step (c = 1) outer iterations of the local phase
+    (e_i <= tail_from) that end above ``floor`` (iterations that land at the round-off
+    floor measure the noise, not the convergence rate).  None if there is none."""
+    acc = [r for r in history if r["accepted"]]
+    ratios = [
+        b["error"] / a["error"] ** 2
+        for a, b in zip(acc[:-1], acc[1:])
+        if b["c"] == 1.0 and 0 < a["error"] <= tail_from and b["error"] > floor
+    ]
+    return float(max(ratios)) if ratios else None
