@@ -56,6 +56,7 @@ Newton-Armijo (SPEC §6, Kelley 1995) is :func:`solve_indirect`.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from functools import lru_cache
 from typing import Any, Callable
@@ -206,6 +207,7 @@ class ShootingFunctions:
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
             U[6 x N] u_1..u_N, res[1 x N] Cayley residuals,
             lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0)
+    residual(lam0, X0, Xd, h, Winv) -> zN[12]  (line-search trials)
     shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by
         forward-mode AD (12 directions) through the mapaccum'ed rollout.
     """
@@ -243,6 +245,7 @@ class ShootingFunctions:
             names_in,
             ["zN", "X", "lam", "U", "res", "lam_res"],
         )
+        self.residual = ca.Function(f"first_order_shoot_residual{N}", args, [zN], names_in, ["zN"])
         # exact forward-mode AD: Psi = dzN/dlam0 @ I_12 (jtimes with tr=False is forward mode)
         Psi = ca.jtimes(zN, lam0, ca.MX.eye(NZ), False)
         self.shoot_jac = ca.Function(f"first_order_shoot_jac{N}", args, [zN, Psi], names_in, ["zN", "Psi"])
@@ -307,7 +310,8 @@ def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, st
         if spec == "from_direct":
             from .direct import solve_direct  # lazy: the direct method is optional here
 
-            dsol = solve_direct(problem)
+            # the direct method reads its own option block; the indirect one (max_iter, ...) must not leak into it
+            dsol = solve_direct(dataclasses.replace(problem, options=dict(opts.get("direct_options") or {})))
             if dsol.costates is None:
                 raise ValueError("the direct solution carries no costates")
             return np.asarray(dsol.costates[0], dtype=float).reshape(NZ), "from_direct", dsol
@@ -316,6 +320,15 @@ def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, st
     if arr.size != NZ:
         raise ValueError(f"initial_costate needs {NZ} numbers, got {arr.size}")
     return arr, "explicit", None
+
+
+def _failure(problem: SmoothProblem, status: str, message: str, build_s: float = 0.0) -> Solution:
+    """A Solution for a solve that could not start: the free rollout, converged False."""
+    X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
+    return Solution(method="indirect", solver="newton-armijo", discretization=problem.disc.scheme, N=problem.N,
+                    h=problem.h, trajectory=Trajectory(t=np.linspace(0.0, problem.T, problem.N + 1), X=X),
+                    status=status, message=message, converged=False, cost=float("nan"),
+                    terminal_error=terminal_error_full(X[-1], problem.Xd), iterations=0, build_s=build_s, solve_s=0.0)
 
 
 # -------------------------------------------------------------------------- solver
@@ -363,6 +376,9 @@ def solve_indirect(
     disc, N, h = problem.disc, problem.N, problem.h
 
     t0 = time.perf_counter()
+    if disc.scheme != "first_order":
+        return _failure(problem, "unsupported_scheme",
+                        f"the indirect method is implemented for the 'first_order' scheme (SPEC §6), not {disc.scheme!r}")
     fns = shooting_functions(disc, N)
     build_s = time.perf_counter() - t0
 
@@ -371,14 +387,19 @@ def solve_indirect(
     Winv = weight_inverse(problem)
     extra: dict[str, Any] = {}
     t_init = time.perf_counter()
-    lam, source, dsol = _initial_costate(problem, lam0, opts)
+    try:
+        lam, source, dsol = _initial_costate(problem, lam0, opts)
+    except (ValueError, ImportError) as exc:
+        return _failure(problem, "invalid_initial_costate", str(exc), build_s)
     extra["initial_costate"] = source
     if dsol is not None:
         extra["direct_solve_s"] = float(time.perf_counter() - t_init)
+        extra["direct_status"] = dsol.status
+        extra["direct_cost"] = float(dsol.cost)
     t1 = time.perf_counter()
 
     def residual(l):
-        return np.array(fns.shoot_jac(l, X0, Xd, h, Winv)[0]).ravel()
+        return np.array(fns.residual(l, X0, Xd, h, Winv)).ravel()
 
     def residual_jac(l):
         z, P = fns.shoot_jac(l, X0, Xd, h, Winv)
@@ -483,7 +504,7 @@ def solve_indirect(
             "max_cayley_residual": float(np.max(res)) if res.size else 0.0,
             "max_costate_solve_residual": float(np.max(np.array(lres))),
             "lam0": lam.copy(),
-            "quadratic_C": quadratic_constant(history, floor=100.0 * noise if noise else 0.0),
+            "quadratic_C": quadratic_constant(history, floor=10.0 * noise if noise else 0.0),
         }
     )
     return Solution(
@@ -513,7 +534,7 @@ def outer_errors(history: list[dict]) -> np.ndarray:
     return np.array([r["error"] for r in history if r["accepted"]])
 
 
-def quadratic_constant(history: list[dict], floor: float = 0.0, tail_from: float = 1e-2) -> float | None:
+def quadratic_constant(history: list[dict], floor: float = 0.0, tail_from: float = 0.1) -> float | None:
     """max e_{i+1}/e_i^2 over the full-step (c = 1) outer iterations of the local phase
     (e_i <= tail_from) that end above ``floor`` (iterations that land at the round-off
     floor measure the noise, not the convergence rate).  None if there is none."""

@@ -1,0 +1,255 @@
+"""Indirect method (SPEC §6, issue 4): necessary conditions, Psi_12, Newton-Armijo.
+
+Default run: N = 100 (h = 5e-3) and smaller; the N = 500 versions of the
+acceptance figures are marked slow (``pytest -m slow tests/test_indirect.py``).
+Numbers measured are printed (run with -s to see them).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tests.examples import e3, e4
+from transcription.indirect import (
+    control_cost,
+    outer_errors,
+    quadratic_constant,
+    shooting_functions,
+    solve_indirect,
+    terminal_residual_function,
+    weight_inverse,
+)
+from transcription.layout import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
+
+EXAMPLES = {"E3": e3, "E4": e4}
+
+
+def problem(name: str, N: int, **options):
+    return EXAMPLES[name](N, scheme="first_order", **options)
+
+
+def _args(p):
+    return (p.X0, p.Xd, p.h, weight_inverse(p))
+
+
+@pytest.fixture(scope="module")
+def solved():
+    """Indirect solutions of E3 and E4 at N = 100 from lambda_0 = 0, eps_S = 0 (run to the floor)."""
+    return {name: solve_indirect(problem(name, 100, eps_S=0.0)) for name in EXAMPLES}
+
+
+# ------------------------------------------------------------- necessary conditions
+def test_forward_map_is_the_stated_recursion(solved):
+    """On a rollout from a perturbed lambda_0 (the E3 solution's, 10 % random): lambda_{k-1} = A_k^T lambda_k
+    (28) with A_k from disc.variation evaluated independently, and u_{k+1} = -W^-1 [lambda^2_k; lambda^4_k]
+    (26)-(27).  (Arbitrary lambda_0 of this size make the body spin faster than the Cayley solve allows.)"""
+    p = problem("E3", 100)
+    rng = np.random.default_rng(0)
+    lam0 = solved["E3"].extra["lam0"] * (1 + 0.1 * rng.standard_normal(12))
+    _, X, lam, U, res, lres = (np.array(a) for a in shooting_functions(p.disc, p.N).shoot(lam0, *_args(p)))
+    Xall = np.hstack([p.X0[:, None], X])
+    Wf, Wm = np.asarray(p.W_f), np.asarray(p.W_m)
+    for k in range(p.N):
+        lk = lam[:, k]
+        np.testing.assert_allclose(U[U_FORCE, k], -lk[Z_MOM] / Wf, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(U[U_MOMENT, k], -lk[Z_ANG] / Wm, rtol=1e-13, atol=1e-15)
+        if k >= 1:
+            A = np.array(p.disc.variation(Xall[:, k], np.zeros(NU), p.h)[0])
+            np.testing.assert_allclose(A.T @ lk, lam[:, k - 1], rtol=0, atol=1e-12 * np.abs(lam[:, k - 1]).max())
+    assert np.max(res) < 1e-12 and np.max(lres) < 1e-13
+
+
+def test_A_and_B_do_not_depend_on_the_stage_control():
+    """The forward recursion needs A_k independent of u_{k+1} (first-order scheme): check numerically."""
+    p = problem("E4", 10)
+    rng = np.random.default_rng(1)
+    A0, B0 = (np.array(a) for a in p.disc.variation(p.X0, np.zeros(NU), p.h))
+    A1, B1 = (np.array(a) for a in p.disc.variation(p.X0, rng.standard_normal(NU), p.h))
+    np.testing.assert_allclose(A1, A0, atol=1e-14)
+    np.testing.assert_allclose(B1, B0, atol=1e-14)
+    Bblock = np.zeros((12, NU))
+    Bblock[Z_MOM, U_FORCE] = p.h * np.eye(3)
+    Bblock[Z_ANG, U_MOMENT] = p.h * np.eye(3)
+    np.testing.assert_allclose(B0, Bblock, atol=1e-15)
+
+
+def test_sign_convention_by_the_reduced_gradient(solved):
+    """Independent of the costate recursion: at the solution the gradient of the cost equals
+    -(dz_N/dU)^T lambda_{N-1}, dz_N/dU by AD of the plain rollout (disc.rollout) and the
+    terminal residual.  This fixes the sign of L = J + sum lambda_k^T (step - X_{k+1})."""
+    for name, sol in solved.items():
+        p = problem(name, 100)
+        # plain state rollout (X_{k+1} only: the Cayley-residual output of disc.step has a norm whose
+        # derivative at 0 is NaN, which a reverse sweep would spread), mapaccum'ed, reverse-mode jacobian
+        Xsym, wsym = ca.SX.sym("X", NX), ca.SX.sym("w", NU)
+        step_x = ca.Function("step_x", [Xsym, wsym], [p.disc.step(Xsym, wsym, p.h)[0]])
+        U = ca.MX.sym("U", NU, p.N)
+        Xs = step_x.mapaccum("acc", p.N)(p.X0, U)
+        zN = terminal_residual_function()(Xs[:, -1], p.Xd)
+        dz = np.array(ca.Function("dz", [U], [ca.jacobian(zN, ca.vec(U))])(sol.controls))  # 12 x 6N, column-major vec
+        W = np.diag(np.r_[p.W_f, p.W_m])
+        gradJ = (p.h * W @ sol.controls).T.ravel()  # same column-major order
+        lamN1 = sol.costates[-1]
+        resid = gradJ + dz.T @ lamN1
+        rel = np.abs(resid).max() / np.abs(gradJ).max()
+        print(f"{name}: |grad J + dz_N/dU^T lambda_(N-1)| / |grad J| = {rel:.2e}")
+        assert rel < 1e-9
+        wrong_sign = np.abs(gradJ - dz.T @ lamN1).max() / np.abs(gradJ).max()
+        assert wrong_sign > 1.0
+
+
+# ------------------------------------------------------------------------ Psi_12
+@pytest.mark.parametrize("name", ["E3", "E4"])
+def test_psi_against_finite_differences(name, solved):
+    """Psi_12 (forward AD through the rollout) vs central differences of z_N(lambda_0):
+    max column-wise relative error <= 1e-6, at lambda_0 = 0 and at a point near the solution."""
+    p = problem(name, 100)
+    fns = shooting_functions(p.disc, p.N)
+    rng = np.random.default_rng(2)
+    for lam0 in (np.zeros(12), solved[name].extra["lam0"] * (1 + 0.05 * rng.standard_normal(12))):
+        _, Psi = (np.array(a) for a in fns.shoot_jac(lam0, *_args(p)))
+        fd = np.zeros_like(Psi)
+        for j in range(12):
+            d = 1e-5 * max(1.0, abs(lam0[j]))
+            e = np.zeros(12)
+            e[j] = d
+            zp = np.array(fns.residual(lam0 + e, *_args(p))).ravel()
+            zm = np.array(fns.residual(lam0 - e, *_args(p))).ravel()
+            fd[:, j] = (zp - zm) / (2 * d)
+        err = max(np.linalg.norm(fd[:, j] - Psi[:, j]) / np.linalg.norm(Psi[:, j]) for j in range(12))
+        print(f"{name}: Psi_12 vs central differences, max column relative error {err:.2e}")
+        assert err <= 1e-6
+
+
+# ------------------------------------------------------------------ Newton-Armijo
+def _check_run(name, sol, max_outer=50, tol=1e-11):
+    e = outer_errors(sol.history)
+    C = quadratic_constant(sol.history, floor=10 * sol.extra["noise_level"])
+    print(f"{name} N={sol.N}: {sol.status}, {sol.iterations} outer iterations, terminal error {sol.terminal_error:.2e}, "
+          f"cost {sol.cost:.10g}, C = {C}, solve {sol.solve_s:.2f} s\n  |z_N| per outer iteration: "
+          + " ".join(f"{v:.1e}" for v in e))
+    assert sol.converged, sol.message
+    assert sol.iterations <= max_outer
+    assert sol.terminal_error <= tol
+    # quadratic convergence before the floor: e_{i+1} <= C e_i^2 over the full Newton steps of the
+    # local phase (e_i <= 0.1) that end above 10x the measured round-off level; at least two of them
+    acc = [r for r in sol.history if r["accepted"]]
+    pairs = [(a["error"], b["error"]) for a, b in zip(acc[:-1], acc[1:])
+             if b["c"] == 1.0 and a["error"] <= 0.1 and b["error"] > 10 * sol.extra["noise_level"]]
+    assert len(pairs) >= 2, pairs
+    assert C is not None and C <= 2e3
+    assert all(b <= C * a * a for a, b in pairs)
+    # the floor: reached, reported, and left after exactly one failed trial
+    assert sol.status == "round_off_floor" and "round-off floor" in sol.message
+    assert sol.extra["roundoff_floor"] == pytest.approx(e[-1])
+    last = [r for r in sol.history if r["outer"] == sol.iterations + 1]
+    assert len(last) == 1 and not last[0]["accepted"]
+    # every outer iteration and trial recorded
+    assert len(e) == sol.iterations + 1
+    assert sum(1 for r in sol.history if r["trial"] > 0) == sum(1 for r in sol.history if r["outer"] >= 1)
+
+
+@pytest.mark.parametrize("name", ["E3", "E4"])
+def test_newton_armijo_from_zero(name, solved):
+    _check_run(name, solved[name])
+
+
+def test_solution_is_consistent(solved):
+    """controls u_1..u_N from lambda_k; trajectory re-simulated; cost = sum (h/2) u^T W u."""
+    sol = solved["E3"]
+    p = problem("E3", 100)
+    assert sol.controls.shape == (6, 100) and sol.costates.shape == (100, 12)
+    X, _ = p.disc.simulate(p.X0, sol.controls, p.h, p.N)
+    np.testing.assert_array_equal(X, sol.trajectory.X)
+    assert sol.cost == pytest.approx(control_cost(p, sol.controls), rel=1e-14)
+    assert sol.trajectory.orthogonality()["max_orthogonality_error"] < 1e-13
+    assert sol.method == "indirect" and sol.solver == "newton-armijo"
+
+
+def test_progress_called_once_per_outer_iteration():
+    calls = []
+    sol = solve_indirect(problem("E3", 30), progress=calls.append)
+    assert len(calls) == sol.iterations >= 1
+    assert [c["iteration"] for c in calls] == list(range(1, sol.iterations + 1))
+
+
+# ------------------------------------------------------------------- failure is data
+def test_failures_are_data():
+    p = problem("E4", 30, max_iter=1, eps_S=0.0)
+    sol = solve_indirect(p)
+    assert not sol.converged and sol.status == "max_iter" and "1 outer" in sol.message
+
+    sol = solve_indirect(problem("E4", 30), lam0=np.full(12, np.nan))
+    assert not sol.converged and sol.status == "nan"
+
+    sol = solve_indirect(problem("E4", 30, initial_costate=[1.0, 2.0]))
+    assert not sol.converged and sol.status == "invalid_initial_costate"
+
+    sol = solve_indirect(EXAMPLES["E3"](10, scheme="lgvi"))
+    assert not sol.converged and sol.status == "unsupported_scheme"
+
+
+def test_line_search_failure_is_reported():
+    """A line search allowed no halvings from far away fails with a readable status."""
+    sol = solve_indirect(problem("E4", 30, max_halvings=0, eps_S=0.0), lam0=np.r_[np.zeros(9), 1e4, 1e4, 1e4])
+    assert not sol.converged
+    assert sol.status in ("line_search_failed", "nan", "max_iter"), sol.message
+    print(sol.status, sol.message)
+
+
+def test_explicit_initial_costate_and_eps_S():
+    """initial_costate as 12 numbers; the eps_S stop (before the floor)."""
+    ref = solve_indirect(problem("E3", 30, eps_S=0.0))
+    sol = solve_indirect(problem("E3", 30, eps_S=1e-6, initial_costate=list(ref.extra["lam0"] * 1.001)))
+    assert sol.converged and sol.status == "converged" and sol.extra["initial_costate"] == "explicit"
+    assert outer_errors(sol.history)[-1] <= 1e-6
+
+
+# ------------------------------------------------- agreement with the direct method
+def _agreement(name, N, dsol, isol, rsol):
+    cost_rel = abs(dsol.cost - isol.cost) / dsol.cost
+    u_rel = np.abs(dsol.controls - isol.controls).max() / np.abs(dsol.controls).max()
+    lam_rel = np.abs(dsol.costates - isol.costates).max() / np.abs(isol.costates).max()
+    print(f"{name} N={N}: direct cost {dsol.cost:.12g}, indirect cost {isol.cost:.12g}: rel {cost_rel:.1e}; "
+          f"controls rel {u_rel:.1e}; mapped multipliers vs lambda_k rel {lam_rel:.1e}; restart from the direct "
+          f"multipliers: {rsol.iterations} outer iterations, {rsol.status}, terminal error {rsol.terminal_error:.1e}")
+    assert dsol.converged and isol.converged and rsol.converged
+    assert cost_rel <= 1e-8
+    assert u_rel <= 1e-6
+    assert lam_rel <= 1e-6
+    assert rsol.iterations <= 3
+    assert rsol.terminal_error <= 1e-11
+
+
+def _direct(p):
+    from transcription.direct import solve_direct
+
+    return solve_direct(dataclasses.replace(p, options={}))
+
+
+@pytest.mark.parametrize("name", ["E3", "E4"])
+def test_agrees_with_direct(name, solved):
+    """E3 and E4 (first-order scheme, N = 100): indirect from lambda_0 = 0 and direct agree; the direct
+    multipliers mapped to tangent coordinates are the lambda_k; restarted from them (the
+    initial_costate: from_direct path) the indirect method converges in <= 3 outer iterations."""
+    p = problem(name, 100, eps_S=0.0)
+    dsol = _direct(p)
+    rsol = solve_indirect(problem(name, 100, eps_S=0.0, initial_costate="from_direct"))
+    assert rsol.extra["initial_costate"] == "from_direct"
+    _agreement(name, 100, dsol, solved[name], rsol)
+
+
+# ------------------------------------------------------------------ full size (slow)
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["E3", "E4"])
+def test_full_size_from_zero_and_agreement(name):
+    """Acceptance at N = 500: from lambda_0 = 0 to <= 1e-11 in <= 50 outer iterations, quadratic,
+    stops at the floor; agreement with the direct method and the from_direct restart."""
+    isol = solve_indirect(problem(name, 500, eps_S=0.0))
+    _check_run(name, isol)
+    dsol = _direct(problem(name, 500))
+    rsol = solve_indirect(problem(name, 500, eps_S=0.0), lam0=dsol.costates[0])
+    _agreement(name, 500, dsol, isol, rsol)
