@@ -253,3 +253,16 @@ def test_full_size_from_zero_and_agreement(name):
     dsol = _direct(problem(name, 500))
     rsol = solve_indirect(problem(name, 500, eps_S=0.0), lam0=dsol.costates[0])
     _agreement(name, 500, dsol, isol, rsol)
+
+
+def test_convergence_figure_script(tmp_path):
+    """scripts/fig_convergence.py runs and writes the figure (small N)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "fig_convergence.py"
+    spec = importlib.util.spec_from_file_location("fig_convergence", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--N", "30", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "indirect_convergence_N30.png").stat().st_size > 0
