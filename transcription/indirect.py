@@ -82,6 +82,8 @@ DEFAULT_OPTIONS: dict[str, Any] = {
     "floor_factor": 10.0,
     # a floor above this is not accepted as convergence (something is broken)
     "floor_accept": 1e-8,
+    # line-search trials whose rollout leaves a relative Cayley residual above this are rejected
+    "cayley_tol": 1e-10,
 }
 
 _EPS = np.finfo(float).eps
@@ -207,7 +209,9 @@ class ShootingFunctions:
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
             U[6 x N] u_1..u_N, res[1 x N] Cayley residuals,
             lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0)
-    residual(lam0, X0, Xd, h, Winv) -> zN[12]  (line-search trials)
+    residual(lam0, X0, Xd, h, Winv) -> (zN[12], res_max)  (line-search trials; res_max = max
+        relative Cayley residual over the steps: a rollout with res_max > cayley_tol is not
+        a solution of the discrete equations and is rejected)
     shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by
         forward-mode AD (12 directions) through the mapaccum'ed rollout.
     """
@@ -245,7 +249,10 @@ class ShootingFunctions:
             names_in,
             ["zN", "X", "lam", "U", "res", "lam_res"],
         )
-        self.residual = ca.Function(f"first_order_shoot_residual{N}", args, [zN], names_in, ["zN"])
+        res_max = ca.mmax(res)
+        self.residual = ca.Function(
+            f"first_order_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"]
+        )
         # exact forward-mode AD: Psi = dzN/dlam0 @ I_12 (jtimes with tr=False is forward mode)
         Psi = ca.jtimes(zN, lam0, ca.MX.eye(NZ), False)
         self.shoot_jac = ca.Function(f"first_order_shoot_jac{N}", args, [zN, Psi], names_in, ["zN", "Psi"])
@@ -363,7 +370,9 @@ def solve_indirect(
     the trajectory re-simulated with ``disc.simulate`` from those controls, the
     SPEC §8 terminal error measured on it, the cost sum (h/2) u^T W u, and the
     history: one dict per rollout (the initial one, then every line-search
-    trial) with keys outer, trial, c, error, error_inf, accepted.
+    trial) with keys outer, trial, c, error, error_inf, accepted, cayley_residual
+    (a trial whose rollout does not solve the Cayley equation to cayley_tol, i.e. the
+    controls spin the body too fast for h, counts as error = inf).
     """
     opts = dict(DEFAULT_OPTIONS)
     opts.update(problem.options or {})
@@ -373,6 +382,7 @@ def solve_indirect(
     max_halvings = int(opts["max_halvings"])
     floor_factor = float(opts["floor_factor"])
     floor_accept = float(opts["floor_accept"])
+    cayley_tol = float(opts["cayley_tol"])
     disc, N, h = problem.disc, problem.N, problem.h
 
     t0 = time.perf_counter()
@@ -398,8 +408,12 @@ def solve_indirect(
         extra["direct_cost"] = float(dsol.cost)
     t1 = time.perf_counter()
 
+    def residual_checked(l):
+        z, r = fns.residual(l, X0, Xd, h, Winv)
+        return np.array(z).ravel(), float(r)
+
     def residual(l):
-        return np.array(fns.residual(l, X0, Xd, h, Winv)).ravel()
+        return residual_checked(l)[0]
 
     def residual_jac(l):
         z, P = fns.shoot_jac(l, X0, Xd, h, Winv)
@@ -408,7 +422,14 @@ def solve_indirect(
     history: list[dict[str, Any]] = []
     z, Psi = residual_jac(lam)
     e = float(np.linalg.norm(z))
-    history.append({"outer": 0, "trial": 0, "c": 0.0, "error": e, "error_inf": float(np.abs(z).max()), "accepted": True})
+    r0 = residual_checked(lam)[1]
+    history.append({"outer": 0, "trial": 0, "c": 0.0, "error": e, "error_inf": float(np.abs(z).max()), "accepted": True,
+                    "cayley_residual": r0})
+    if not r0 <= cayley_tol:
+        return _failure(problem, "invalid_initial_costate",
+                        f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual {r0:.1e} > "
+                        f"cayley_tol {cayley_tol:.0e}): the controls spin the body too fast for the step size",
+                        build_s)
     status, message = "max_iter", f"no convergence in {max_iter} outer iterations"
     it = 0
     floor = None
@@ -440,11 +461,13 @@ def solve_indirect(
             if np.array_equal(lt, lam):
                 stop = ("stagnated", f"the line-search step no longer changes lambda_0 (|z_N| = {e:.3e}, c = {c:.1e})")
                 break
-            zt = residual(lt)
-            et = float(np.linalg.norm(zt)) if np.all(np.isfinite(zt)) else float("inf")
+            zt, rt = residual_checked(lt)
+            valid = bool(np.all(np.isfinite(zt)) and rt <= cayley_tol)
+            et = float(np.linalg.norm(zt)) if valid else float("inf")
             ok = et <= (1.0 - alpha * c) * e
             history.append(
-                {"outer": it, "trial": j + 1, "c": c, "error": et, "error_inf": float(np.abs(zt).max()), "accepted": bool(ok)}
+                {"outer": it, "trial": j + 1, "c": c, "error": et, "error_inf": float(np.abs(zt).max()) if valid else et,
+                 "accepted": bool(ok), "cayley_residual": rt}
             )
             if ok:
                 accepted = True
