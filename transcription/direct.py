@@ -217,6 +217,34 @@ def terminal_residual(X, Xd: np.ndarray):
     return ca.vertcat(x - d.x[0], g - d.gamma[0], log_so3(ca.mtimes(ca.DM(d.R[0].T), R)), P - d.Pi[0])
 
 
+# ------------------------------------------------------------------------ defects
+def shooting_defects(disc, h: float, Xs, Cs, Wst, sX: np.ndarray):
+    """Scaled step defects of all N steps from ONE stage Function mapped over the horizon.
+
+    Xs (18 x N+1), Cs (3 x N) or None, Wst (nw x N) CasADi matrices.  Rows per step:
+    (step - X_{k+1}) / sX (18; explicit ``step_given_c`` when Cs is given) and, with Cs,
+    the Cayley equation G(c_k) / (h sX_Pi) (3, SPEC §2).
+    Returns (D (nd x N) CasADi, row scales (nd,)).
+    """
+    N = Xs.shape[1] - 1
+    Xk = ca.MX.sym("Xk", NX)
+    Xk1 = ca.MX.sym("Xk1", NX)
+    wk = ca.MX.sym("wk", disc.nw)
+    if Cs is not None:
+        ck = ca.MX.sym("ck", NC)
+        X1, G = disc.step_given_c(Xk, ck, wk, h)
+        stage = ca.Function("stage_defect", [Xk, Xk1, ck, wk], [ca.vertcat(X1 - Xk1, G)],
+                            ["Xk", "Xk1", "ck", "wk"], ["defect"])
+        D = stage.map(N)(Xs[:, :-1], Xs[:, 1:], Cs, Wst)
+        gsc = np.concatenate([sX, np.full(NC, h * sX[X_ANG].max())])  # G ~ h Pi
+    else:
+        X1, _ = disc.step(Xk, wk, h)
+        stage = ca.Function("stage_defect", [Xk, Xk1, wk], [X1 - Xk1], ["Xk", "Xk1", "wk"], ["defect"])
+        D = stage.map(N)(Xs[:, :-1], Xs[:, 1:], Wst)
+        gsc = np.asarray(sX, dtype=float).copy()
+    return D / ca.repmat(ca.DM(gsc), 1, N), gsc
+
+
 # ------------------------------------------------------------------ iteration hook
 class _Progress(ca.Callback):
     """IPOPT iteration callback forwarding {'iter', 'objective', 'inf_pr'} to a Python callable."""
@@ -283,24 +311,8 @@ class DirectNLP:
         Xs, Us, Cs = lay.unpack(ws * ca.DM(self.w_scale))
         Wst = disc.stage_controls(Us)                         # nw x N stage controls
 
-        # one stage Function, mapped over the horizon
-        Xk = ca.MX.sym("Xk", NX)
-        Xk1 = ca.MX.sym("Xk1", NX)
-        wk = ca.MX.sym("wk", disc.nw)
-        if self.with_c:
-            ck = ca.MX.sym("ck", NC)
-            X1, G = disc.step_given_c(Xk, ck, wk, h)
-            defect = ca.vertcat(X1 - Xk1, G)
-            stage = ca.Function("stage_defect", [Xk, Xk1, ck, wk], [defect], ["Xk", "Xk1", "ck", "wk"], ["defect"])
-            D = stage.map(N)(Xs[:, :-1], Xs[:, 1:], Cs, Wst)
-            gsc = np.concatenate([sc.X, np.full(NC, h * sc.X[15])])  # G ~ h Pi
-        else:
-            X1, _ = disc.step(Xk, wk, h)
-            stage = ca.Function("stage_defect", [Xk, Xk1, wk], [X1 - Xk1], ["Xk", "Xk1", "wk"], ["defect"])
-            D = stage.map(N)(Xs[:, :-1], Xs[:, 1:], Wst)
-            gsc = sc.X.copy()
+        D, gsc = shooting_defects(disc, h, Xs, Cs, Wst, sc.X)
         nd = D.shape[0]
-        D = D / ca.repmat(ca.DM(gsc), 1, N)
         term = terminal_residual(Xs[:, -1], problem.Xd)
         tsc = np.concatenate([sc.X[X_POS], sc.X[X_MOM], np.ones(3), sc.X[X_ANG]])
         g = ca.vertcat(ca.vec(D), term / ca.DM(tsc))
