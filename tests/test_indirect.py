@@ -76,29 +76,42 @@ def test_A_and_B_do_not_depend_on_the_stage_control():
     np.testing.assert_allclose(B0, Bblock, atol=1e-15)
 
 
+def _reduced_gradient_check(name, p, sol):
+    """|grad J + (dz_N/dU)^T lambda_{N-1}| / |grad J| at a solution, dz_N/dU by reverse AD of the
+    plain state rollout (disc.step only, no costates) and the terminal residual."""
+    # X_{k+1} only: the Cayley-residual output of disc.step has a norm whose derivative at 0 is
+    # NaN, which a reverse sweep would spread
+    Xsym, wsym = ca.SX.sym("X", NX), ca.SX.sym("w", p.disc.nw)
+    step_x = ca.Function("step_x", [Xsym, wsym], [p.disc.step(Xsym, wsym, p.h)[0]])
+    U = ca.MX.sym("U", NU, p.disc.n_controls(p.N))
+    Xs = step_x.mapaccum("acc", p.N)(p.X0, p.disc.stage_controls(U))
+    zN = terminal_residual_function()(Xs[:, -1], p.Xd)
+    dz = np.array(ca.Function("dz", [U], [ca.jacobian(zN, ca.vec(U))])(sol.controls))  # 12 x 6n, column-major vec
+    W = np.diag(np.r_[p.W_f, p.W_m])
+    omega = np.full(sol.controls.shape[1], p.h)
+    if p.disc.scheme == "lgvi":
+        omega[[0, -1]] *= 0.5
+    gradJ = (omega * (W @ sol.controls)).T.ravel()  # same column-major order
+    lamN1 = sol.costates[-1]
+    rel = np.abs(gradJ + dz.T @ lamN1).max() / np.abs(gradJ).max()
+    wrong_sign = np.abs(gradJ - dz.T @ lamN1).max() / np.abs(gradJ).max()
+    print(f"{name} {p.disc.scheme}: |grad J + dz_N/dU^T lambda_(N-1)| / |grad J| = {rel:.2e} (opposite sign: {wrong_sign:.1e})")
+    assert rel < 1e-9
+    assert wrong_sign > 1.0
+
+
 def test_sign_convention_by_the_reduced_gradient(solved):
     """Independent of the costate recursion: at the solution the gradient of the cost equals
-    -(dz_N/dU)^T lambda_{N-1}, dz_N/dU by AD of the plain rollout (disc.rollout) and the
-    terminal residual.  This fixes the sign of L = J + sum lambda_k^T (step - X_{k+1})."""
+    -(dz_N/dU)^T lambda_{N-1}.  This fixes the sign of L = J + sum lambda_k^T (step - X_{k+1})."""
     for name, sol in solved.items():
-        p = problem(name, 100)
-        # plain state rollout (X_{k+1} only: the Cayley-residual output of disc.step has a norm whose
-        # derivative at 0 is NaN, which a reverse sweep would spread), mapaccum'ed, reverse-mode jacobian
-        Xsym, wsym = ca.SX.sym("X", NX), ca.SX.sym("w", NU)
-        step_x = ca.Function("step_x", [Xsym, wsym], [p.disc.step(Xsym, wsym, p.h)[0]])
-        U = ca.MX.sym("U", NU, p.N)
-        Xs = step_x.mapaccum("acc", p.N)(p.X0, U)
-        zN = terminal_residual_function()(Xs[:, -1], p.Xd)
-        dz = np.array(ca.Function("dz", [U], [ca.jacobian(zN, ca.vec(U))])(sol.controls))  # 12 x 6N, column-major vec
-        W = np.diag(np.r_[p.W_f, p.W_m])
-        gradJ = (p.h * W @ sol.controls).T.ravel()  # same column-major order
-        lamN1 = sol.costates[-1]
-        resid = gradJ + dz.T @ lamN1
-        rel = np.abs(resid).max() / np.abs(gradJ).max()
-        print(f"{name}: |grad J + dz_N/dU^T lambda_(N-1)| / |grad J| = {rel:.2e}")
-        assert rel < 1e-9
-        wrong_sign = np.abs(gradJ - dz.T @ lamN1).max() / np.abs(gradJ).max()
-        assert wrong_sign > 1.0
+        _reduced_gradient_check(name, problem(name, 100), sol)
+
+
+def test_sign_convention_lgvi():
+    p = EXAMPLES["E4"](50, scheme="lgvi", eps_S=0.0)
+    sol = solve_indirect(p)
+    assert sol.converged, sol.message
+    _reduced_gradient_check("E4", p, sol)
 
 
 # ------------------------------------------------------------------------ Psi_12
@@ -188,8 +201,6 @@ def test_failures_are_data():
     sol = solve_indirect(problem("E4", 30, initial_costate=[1.0, 2.0]))
     assert not sol.converged and sol.status == "invalid_initial_costate"
 
-    sol = solve_indirect(EXAMPLES["E3"](10, scheme="lgvi"))
-    assert not sol.converged and sol.status == "unsupported_scheme"
 
 
 def test_line_search_failure_is_reported():
@@ -275,3 +286,40 @@ def test_convergence_figure_script(tmp_path):
     spec.loader.exec_module(mod)
     assert mod.main(["--N", "30", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "indirect_convergence_N30.png").stat().st_size > 0
+
+
+# ------------------------------------------------ second-order LGVI (stretch, beyond the paper)
+def test_lgvi_control_enters_as_a_momentum_kick():
+    """The identity behind the explicit LGVI conditions: B^a_k = dX_{k+1}/du_k = A_k(X_k, u_k) B^b,
+    with B^b = dX_{k+1}/du_{k+1} constant, and A_k independent of u_{k+1} (eqs. 7-11, on the graph)."""
+    p = EXAMPLES["E4"](10, scheme="lgvi")
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        w = rng.standard_normal(2 * NU) * np.r_[np.ones(3), 1e-2 * np.ones(3), np.ones(3), 1e-2 * np.ones(3)]
+        A, B = (np.array(a) for a in p.disc.variation(p.X0, w, p.h))
+        A2, B2 = (np.array(a) for a in p.disc.variation(p.X0, np.r_[w[:NU], rng.standard_normal(NU)], p.h))
+        Bb = B[:, NU:]
+        np.testing.assert_allclose(A2, A, atol=1e-14)
+        np.testing.assert_allclose(B2[:, NU:], Bb, atol=1e-15)
+        np.testing.assert_allclose(B[:, :NU], A @ Bb, rtol=0, atol=1e-13 * np.abs(B[:, :NU]).max())
+
+
+@pytest.mark.parametrize("name", ["E3", "E4"])
+def test_lgvi_indirect_agrees_with_direct(name):
+    """Second-order LGVI, N = 50: shooting on lambda_{-1} from 0 reaches the floor and agrees with the
+    direct LGVI solution (trapezoidal cost) in cost, controls u_0..u_N and mapped multipliers."""
+    isol = solve_indirect(EXAMPLES[name](50, scheme="lgvi", eps_S=0.0))
+    _check_run(f"{name} lgvi", isol)
+    assert isol.controls.shape == (6, 51) and isol.costates.shape == (50, 12)
+    dsol = _direct(EXAMPLES[name](50, scheme="lgvi"))
+    rsol = solve_indirect(EXAMPLES[name](50, scheme="lgvi", eps_S=0.0), lam0=_lgvi_lam_init(dsol))
+    _agreement(f"{name} lgvi", 50, dsol, isol, rsol)
+
+
+def _lgvi_lam_init(dsol):
+    """lambda_{-1} = A_0(X_0, u_0)^T lambda_0 from a direct LGVI solution."""
+    p_disc = dsol.trajectory.X[0]
+    from tests.examples import disc as _disc
+
+    A0 = np.array(_disc("lgvi").variation(p_disc, np.r_[dsol.controls[:, 0], np.zeros(NU)], dsol.h)[0])
+    return A0.T @ dsol.costates[0]

@@ -1,7 +1,8 @@
 """Indirect method: discrete necessary conditions and Newton-Armijo shooting (SPEC §6).
 
 Scheme: the first-order modified scheme of SPEC §3, eqs. (21)-(25), one control
-per step, ``X_{k+1} = step(X_k, u_{k+1}, h)``, k = 0 .. N-1.  States X (18) in the
+per step, ``X_{k+1} = step(X_k, u_{k+1}, h)``, k = 0 .. N-1 (the second-order LGVI
+is also supported, see the end of this docstring).  States X (18) in the
 layout of :mod:`transcription.layout`; controls u = [u_f (inertial); u_m (body)];
 tangent coordinates z = [dx; dgamma; zeta; dPi] with dR = R S(zeta) (SPEC §4).
 
@@ -53,6 +54,24 @@ Functions built once per (Discretization, N) (see :func:`shooting_functions`):
     shoot_jac    (lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12x12])
 
 Newton-Armijo (SPEC §6, Kelley 1995) is :func:`solve_indirect`.
+
+Second-order LGVI (beyond the paper)
+------------------------------------
+For the scheme of SPEC §2 (node controls u_0..u_N, trapezoidal cost weights) the
+same Lagrangian gives explicit conditions too, because u_k enters step k as a
+momentum kick: u_j = -W^-1 [lambda^2_{j-1}; lambda^4_{j-1}] for j = 0..N with
+lambda_{-1} = A_0^T lambda_0, and lambda_k = A_k(X_k, u_k)^-T lambda_{k-1}.  The
+shooting unknown is then lambda_{-1}; see :data:`LGVI_CONDITIONS`.
+
+Round-off
+---------
+Forward costate shooting amplifies rounding: on E3/E4 the rod-axis rotation (tiny
+J_11) turns ulp-level errors of the recursion into ~1e-13..1e-12 of z_N.  Two
+measures keep the floor there (it was ~1e-11 at N = 500 without them): A_k^-T by
+Gaussian elimination (:func:`solve_unpivoted`, ~1 ulp, where CasADi's symbolic QR
+lost ~3 digits) and R re-orthonormalized in the argument of A_k
+(:func:`orthonormalized`).  The floor is *measured* (:func:`noise_level`), and the
+iteration stops there at once.
 """
 from __future__ import annotations
 
@@ -150,10 +169,13 @@ def orthonormalized(X):
     return join_state(x, gamma, Rp, Pi)
 
 
-def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
-    """The forward map of the necessary conditions for ``disc`` (first-order scheme).
+def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
+    """The forward map of the necessary conditions for ``disc``.
 
-    Returns (costate_map, first_step):
+    Returns (costate_map, first_step); both built from ``disc.variation`` (A_k, B_k: the
+    Jacobian of the same step Function) and ``disc.step``.
+
+    first_order (module docstring):
 
     * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res):
       X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
@@ -162,12 +184,10 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
     * first_step (X0[18], lam0[12], h, Winv) -> (X1[18], u[6], res): the k = 0 step,
       where lambda_0 is the unknown itself.
 
-    A_k and B_k come from ``disc.variation`` (the Jacobian of the same step Function).
+    lgvi (see :data:`LGVI_CONDITIONS`): costate_map has the same signature with
+    u = u_{k+1}; it also computes u_k = -(2/h) Winv B^b^T lambda_{k-1} and
+    A_k = A(X_k, u_k).  first_step is None (the map is applied N times from lambda_{-1}).
     """
-    if disc.scheme != "first_order":
-        raise NotImplementedError(
-            f"indirect necessary conditions are implemented for the 'first_order' scheme, not {disc.scheme!r}"
-        )
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
     lam0 = ca.SX.sym("lam0", NZ)
@@ -176,39 +196,88 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
     w = ca.SX.sym("w", disc.nw)
 
     A_w, B_w = disc.variation(X, w, h)
-    if ca.depends_on(A_w, w) or ca.depends_on(B_w, w):
-        raise ValueError("A_k or B_k depends on the stage control: the forward costate recursion does not apply")
-    A, B = disc.variation(orthonormalized(X), ca.DM.zeros(disc.nw), h)
+    if disc.scheme == "first_order":
+        if ca.depends_on(A_w, w) or ca.depends_on(B_w, w):
+            raise ValueError("A_k or B_k depends on the stage control: the forward costate recursion does not apply")
+        A, B = disc.variation(orthonormalized(X), ca.DM.zeros(disc.nw), h)
+
+        def control(lam):
+            return -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
+
+        lam = solve_unpivoted(A.T, lam_prev)
+        lam_res = ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+        u = control(lam)
+        X1, res = disc.step(X, u, h)
+        costate_map = ca.Function(
+            "first_order_costate_map",
+            [X, lam_prev, h, Winv],
+            [X1, lam, u, res, lam_res],
+            ["X", "lam_prev", "h", "Winv"],
+            ["X1", "lam", "u", "res", "lam_res"],
+        )
+        u0 = control(lam0)
+        X1, res = disc.step(X, u0, h)
+        first_step = ca.Function(
+            "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"],
+            ["X1", "u", "res"]
+        )
+        return costate_map, first_step
+
+    # lgvi: w = [u_k; u_{k+1}]; A_k and B^a_k depend on u_k only, B^b = dX_{k+1}/du_{k+1} is constant
+    Bb_w = B_w[:, NU:]
+    if ca.depends_on(A_w, w[NU:]) or ca.depends_on(Bb_w, w):
+        raise ValueError("A_k depends on u_{k+1} or B^b is not constant: the forward costate recursion does not apply")
+    Bb = ca.substitute(Bb_w, w, ca.DM.zeros(disc.nw))
+    Xo = orthonormalized(X)
 
     def control(lam):
-        return -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
+        return -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam)) / h
 
+    uk = control(lam_prev)
+    A, _ = disc.variation(Xo, ca.vertcat(uk, ca.DM.zeros(NU)), h)
     lam = solve_unpivoted(A.T, lam_prev)
     lam_res = ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
-    u = control(lam)
-    X1, res = disc.step(X, u, h)
+    uk1 = control(lam)
+    X1, res = disc.step(X, ca.vertcat(uk, uk1), h)
     costate_map = ca.Function(
-        "first_order_costate_map",
+        "lgvi_costate_map",
         [X, lam_prev, h, Winv],
-        [X1, lam, u, res, lam_res],
+        [X1, lam, uk1, res, lam_res],
         ["X", "lam_prev", "h", "Winv"],
         ["X1", "lam", "u", "res", "lam_res"],
     )
-    u0 = control(lam0)
-    X1, res = disc.step(X, u0, h)
-    first_step = ca.Function(
-        "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"], ["X1", "u", "res"]
-    )
-    return costate_map, first_step
+    return costate_map, None
+
+
+#: The second-order LGVI (SPEC §2, node controls u_0..u_N, stage control w_k = [u_k; u_{k+1}],
+#: cost sum_j omega_j (1/2) u_j^T W u_j with trapezoidal omega = h (1/2, 1, ..., 1, 1/2), as in
+#: the direct method), derived with the same Lagrangian L = J + sum_k lambda_k^T (step ⊖ X_{k+1}).
+LGVI_CONDITIONS = """
+z_{k+1} = A_k z_k + B^a_k du_k + B^b du_{k+1}.  Stationarity in z_k (k = 1..N-1):
+lambda_{k-1} = A_k^T lambda_k.  In u_j:  omega_j W u_j + B^a_j^T lambda_j + B^b^T lambda_{j-1} = 0
+(terms absent for j = N resp. j = 0).  In eqs. (7)-(11) u_k enters exactly as a momentum kick
+(gamma_k, Pi_k) += (h/2) u_k before the step, with f_k, M_k unchanged, so B^a_k = A_k B^b
+(tested) and, with lambda_{-1} := A_0^T lambda_0 (the multiplier of the initial condition),
+stationarity reads uniformly for j = 0..N
+
+    u_j = -(2/h) W^-1 B^b^T lambda_{j-1} = -W^-1 [lambda^2_{j-1}; lambda^4_{j-1}]   (omega_j = h inside,
+                                                                              h/2 at both ends)
+
+A_k depends on u_k but not on u_{k+1}, so the recursion runs forward from the unknown lambda_{-1}:
+u_k from lambda_{k-1}; lambda_k = A_k(X_k, u_k)^-T lambda_{k-1}; u_{k+1} from lambda_k;
+X_{k+1} = step(X_k, [u_k; u_{k+1}]).  The shooting unknown is lambda_{-1} (12), the residual z_N.
+"""
 
 
 class ShootingFunctions:
     """Shooting residual and its Jacobian for one (Discretization, N), built once.
 
+    The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS).
+
     shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6])
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
-            U[6 x N] u_1..u_N, res[1 x N] Cayley residuals,
-            lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0)
+            U[6 x n_controls] (first_order u_1..u_N; lgvi u_0..u_N), res[1 x N] Cayley residuals,
+            lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0 in first_order)
     residual(lam0, X0, Xd, h, Winv) -> (zN[12], res_max)  (line-search trials; res_max = max
         relative Cayley residual over the steps: a rollout with res_max > cayley_tol is not
         a solution of the discrete equations and is rejected)
@@ -220,6 +289,7 @@ class ShootingFunctions:
         if N < 1:
             raise ValueError("N must be >= 1")
         self.disc, self.N = disc, int(N)
+        sch = disc.scheme
         self.costate_map, self.first_step = costate_functions(disc)
         self.terminal_residual = terminal_residual_function()
 
@@ -228,34 +298,47 @@ class ShootingFunctions:
         Xd = ca.MX.sym("Xd", NX)
         h = ca.MX.sym("h")
         Winv = ca.MX.sym("Winv", NU, NU)
-        X1, u1, r1 = self.first_step(X0, lam0, h, Winv)
-        Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
-        if N > 1:
-            acc = self.costate_map.mapaccum(f"first_order_costate_acc{N - 1}", N - 1, 2)
-            Xr, Lr, Ur, Rr, LRr = acc(X1, lam0, ca.repmat(h, 1, N - 1), ca.repmat(Winv, 1, N - 1))
-            Xs.append(Xr)
-            lams.append(Lr)
-            Us.append(Ur)
-            res.append(Rr)
-            lres.append(LRr)
+        if sch == "first_order":
+            X1, u1, r1 = self.first_step(X0, lam0, h, Winv)
+            Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
+            if N > 1:
+                acc = self.costate_map.mapaccum(f"{sch}_costate_acc{N - 1}", N - 1, 2)
+                Xr, Lr, Ur, Rr, LRr = acc(X1, lam0, ca.repmat(h, 1, N - 1), ca.repmat(Winv, 1, N - 1))
+                Xs.append(Xr)
+                lams.append(Lr)
+                Us.append(Ur)
+                res.append(Rr)
+                lres.append(LRr)
+        else:
+            acc = self.costate_map.mapaccum(f"{sch}_costate_acc{N}", N, 2)
+            Xr, Lr, Ur, Rr, LRr = acc(X0, lam0, ca.repmat(h, 1, N), ca.repmat(Winv, 1, N))
+            u0 = self._lgvi_u0(lam0, h, Winv)
+            Xs, lams, Us, res, lres = [Xr], [Lr], [u0, Ur], [Rr], [LRr]
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
         zN = self.terminal_residual(Xs[:, -1], Xd)
         names_in = ["lam0", "X0", "Xd", "h", "Winv"]
         args = [lam0, X0, Xd, h, Winv]
         self.shoot = ca.Function(
-            f"first_order_shoot{N}",
+            f"{sch}_shoot{N}",
             args,
             [zN, Xs, lams, Us, res, lres],
             names_in,
             ["zN", "X", "lam", "U", "res", "lam_res"],
         )
         res_max = ca.mmax(res)
-        self.residual = ca.Function(
-            f"first_order_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"]
-        )
+        self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"])
         # exact forward-mode AD: Psi = dzN/dlam0 @ I_12 (jtimes with tr=False is forward mode)
         Psi = ca.jtimes(zN, lam0, ca.MX.eye(NZ), False)
-        self.shoot_jac = ca.Function(f"first_order_shoot_jac{N}", args, [zN, Psi], names_in, ["zN", "Psi"])
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zN, Psi], names_in, ["zN", "Psi"])
+
+    def _lgvi_u0(self, lam_init, h, Winv):
+        """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph."""
+        X = ca.SX.sym("X", NX)
+        w = ca.SX.sym("w", self.disc.nw)
+        hs = ca.SX.sym("h")
+        Bb = ca.substitute(self.disc.variation(X, w, hs)[1][:, NU:], w, ca.DM.zeros(self.disc.nw))
+        Bb_fun = ca.Function("lgvi_Bb", [hs], [Bb])  # constant in X (checked in costate_functions)
+        return -2.0 * ca.mtimes(Winv, ca.mtimes(Bb_fun(h).T, lam_init)) / h
 
 
 @lru_cache(maxsize=None)
@@ -281,10 +364,16 @@ def weight_inverse(problem: SmoothProblem) -> np.ndarray:
 
 
 def control_cost(problem: SmoothProblem, U: np.ndarray) -> float:
-    """sum_k (h/2)(u_f^T W_f u_f + u_m^T W_m u_m) for U (6 x N) (SPEC §6)."""
-    Winv = weight_inverse(problem)
-    W = np.linalg.inv(Winv)
-    return float(0.5 * problem.h * np.einsum("ik,ij,jk->", U, W, U))
+    """sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m) (SPEC §6).
+
+    first_order: U (6 x N) = u_1..u_N, omega_j = h.  lgvi: U (6 x N+1) = u_0..u_N with
+    trapezoidal omega = h (1/2, 1, ..., 1, 1/2) (the direct method's weights).
+    """
+    W = np.linalg.inv(weight_inverse(problem))
+    omega = np.full(U.shape[1], problem.h)
+    if problem.disc.scheme == "lgvi":
+        omega[[0, -1]] *= 0.5
+    return float(0.5 * np.einsum("k,ik,ij,jk->", omega, U, W, U))
 
 
 def noise_level(residual: Callable[[np.ndarray], np.ndarray], lam0: np.ndarray, z: np.ndarray, Psi: np.ndarray,
@@ -321,7 +410,12 @@ def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, st
             dsol = solve_direct(dataclasses.replace(problem, options=dict(opts.get("direct_options") or {})))
             if dsol.costates is None:
                 raise ValueError("the direct solution carries no costates")
-            return np.asarray(dsol.costates[0], dtype=float).reshape(NZ), "from_direct", dsol
+            lam = np.asarray(dsol.costates[0], dtype=float).reshape(NZ)
+            if problem.disc.scheme == "lgvi":  # the unknown is lambda_{-1} = A_0(X_0, u_0)^T lambda_0
+                w0 = np.r_[dsol.controls[:, 0], np.zeros(NU)]
+                A0 = np.array(problem.disc.variation(problem.X0, w0, problem.h)[0])
+                lam = A0.T @ lam
+            return lam, "from_direct", dsol
         raise ValueError(f"initial_costate must be 'zero', 'from_direct' or 12 numbers, got {spec!r}")
     arr = np.asarray(spec, dtype=float).ravel()
     if arr.size != NZ:
@@ -344,10 +438,12 @@ def solve_indirect(
 ) -> Solution:
     """Newton-Armijo shooting on lambda_0 (SPEC §6).
 
-    problem: a :class:`SmoothProblem` with the 'first_order' discretization;
+    problem: a :class:`SmoothProblem` ('first_order' or 'lgvi' discretization; for
+    'lgvi' the shooting unknown lam0 is lambda_{-1}, see LGVI_CONDITIONS);
     ``problem.options`` = the ``solver.indirect`` block (alpha, eps_S, max_iter,
-    max_halvings, initial_costate, floor_factor; defaults in DEFAULT_OPTIONS).
-    lam0: optional initial lambda_0 (12,) overriding options.initial_costate.
+    max_halvings, initial_costate; also floor_factor, floor_accept, cayley_tol,
+    direct_options (for initial_costate 'from_direct'); defaults in DEFAULT_OPTIONS).
+    lam0: optional initial lambda_0 (12,) (lgvi: lambda_{-1}) overriding options.initial_costate.
     progress: optional callable(dict) called once per outer iteration with
     {iteration, error, error_inf, step, halvings, elapsed_s}.
 
@@ -364,9 +460,10 @@ def solve_indirect(
     * 'stagnated'        the trial step no longer changes lambda_0 in floating point.
     * 'line_search_failed' max_halvings exhausted away from the floor.
     * 'max_iter', 'singular_jacobian', 'nan' (non-finite rollout or residual).
+    * 'invalid_initial_costate' bad initial_costate, or its rollout breaks the Cayley solve.
 
     The returned Solution (method 'indirect', solver 'newton-armijo') has the
-    controls U (6 x N) = u_1..u_N from lambda_k, costates (N, 12) = lambda_0..lambda_{N-1},
+    controls U (6 x N) = u_1..u_N (lgvi: 6 x N+1, u_0..u_N) from the lambda_k, costates (N, 12) = lambda_0..lambda_{N-1},
     the trajectory re-simulated with ``disc.simulate`` from those controls, the
     SPEC §8 terminal error measured on it, the cost sum (h/2) u^T W u, and the
     history: one dict per rollout (the initial one, then every line-search
@@ -386,9 +483,6 @@ def solve_indirect(
     disc, N, h = problem.disc, problem.N, problem.h
 
     t0 = time.perf_counter()
-    if disc.scheme != "first_order":
-        return _failure(problem, "unsupported_scheme",
-                        f"the indirect method is implemented for the 'first_order' scheme (SPEC §6), not {disc.scheme!r}")
     fns = shooting_functions(disc, N)
     build_s = time.perf_counter() - t0
 
