@@ -522,7 +522,8 @@ def solve_indirect(
     if not r0 <= cayley_tol:
         return _failure(problem, "invalid_initial_costate",
                         f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual {r0:.1e} > "
-                        f"cayley_tol {cayley_tol:.0e}): the controls spin the body too fast for the step size",
+                        f"cayley_tol {cayley_tol:.0e}): the rotation per step is too large; use a smaller step "
+                        f"h = T/N (increase horizon.N) or another initial costate",
                         build_s)
     status, message = "max_iter", f"no convergence in {max_iter} outer iterations"
     it = 0
@@ -607,6 +608,12 @@ def solve_indirect(
     solve_s = time.perf_counter() - t1
     finite = np.all(np.isfinite(Xsim))
     term = terminal_error_full(Xsim[-1], Xd) if finite else float("inf")
+    rejected = [r["cayley_residual"] for r in history if r["trial"] > 0 and not r["cayley_residual"] <= cayley_tol]
+    if not status.startswith(("converged", "round_off")) and rejected:
+        message += (f"; {len(rejected)} line-search trials were rejected because their controls turned the body "
+                    f"too far per step for the Cayley solve (residual up to {max(rejected):.1e} > cayley_tol "
+                    f"{cayley_tol:.0e}): a smaller step h = T/N (increase horizon.N) or a better initial costate "
+                    "(initial_costate: from_direct) may help")
     if status == "round_off_floor" and e > floor_accept:
         status = "floor_too_high"
         message += f"; the floor is above floor_accept = {floor_accept:.0e}: not accepted"
