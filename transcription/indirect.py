@@ -51,7 +51,11 @@ Functions built once per (Discretization, N) (see :func:`shooting_functions`):
     costate_map  (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res)
     first_step   (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
     shoot        (lam0, X0, Xd, h, Winv) -> (zN[12], X[18xN], lam[12xN], U[6xN], res, lam_res)
+    residual     (lam0, X0, Xd, h, Winv) -> (zN[12], res_max)
     shoot_jac    (lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12x12])
+
+Winv = blkdiag(W_f, W_m)^-1; X0, Xd, h, Winv are inputs, so one build serves
+every problem with the same scheme, model and N.
 
 Newton-Armijo (SPEC §6, Kelley 1995) is :func:`solve_indirect`.
 
@@ -67,11 +71,11 @@ Round-off
 ---------
 Forward costate shooting amplifies rounding: on E3/E4 the rod-axis rotation (tiny
 J_11) turns ulp-level errors of the recursion into ~1e-13..1e-12 of z_N.  Two
-measures keep the floor there (it was ~1e-11 at N = 500 without them): A_k^-T by
-Gaussian elimination (:func:`solve_unpivoted`, ~1 ulp, where CasADi's symbolic QR
-lost ~3 digits) and R re-orthonormalized in the argument of A_k
-(:func:`orthonormalized`).  The floor is *measured* (:func:`noise_level`), and the
-iteration stops there at once.
+measures keep the floor there: A_k^-T by Gaussian elimination
+(:func:`solve_unpivoted`; CasADi's symbolic QR gave a floor ~1e-10 at N = 100) and
+R re-orthonormalized in the argument of A_k (:func:`orthonormalized`; without it
+the floor was ~1e-11 at N = 500, with it ~6e-13).  The floor is *measured*
+(:func:`noise_level`), and the iteration stops there at once.
 """
 from __future__ import annotations
 
@@ -126,14 +130,15 @@ def terminal_residual_function() -> ca.Function:
 def solve_unpivoted(M, b):
     """Solve M y = b (SX, n x n dense) by Gaussian elimination without pivoting.
 
-    Used for lambda_k = A_k^-T lambda_{k-1}.  For the step sizes of interest A_k
-    is a perturbation of a block-triangular matrix with unit diagonal blocks (x, gamma,
-    Pi) and the rotation block F_k^T (zeta), so the leading principal minors stay
-    near 1 and elimination without pivoting is accurate: measured forward error
-    ~1 ulp of |lambda| on E3, as good as LAPACK LU, whereas CasADi's symbolic QR
-    (``ca.solve`` on SX, Gram-Schmidt) loses ~3 digits there, which raised the
-    round-off floor of the shooting residual to ~1e-11.  The caller reports the
-    relative residual |M y - b| / |b| so a breakdown would be visible.
+    Used for lambda_k = A_k^-T lambda_{k-1}.  A_k is close to a block-triangular
+    matrix with identity diagonal blocks (x, gamma, Pi) and the rotation block F_k^T
+    (zeta), so the pivots stay away from 0 while the rotation per step is well below
+    a right angle, and elimination without pivoting is accurate: on E3 its error is
+    ~1 ulp per component (against an exact rational solve), as good as LAPACK LU,
+    whereas CasADi's symbolic QR (``ca.solve`` on SX) erred by ~1e-11 on |lambda| ~ 1e2
+    and raised the round-off floor of z_N to ~1e-10 (E3, N = 100).  The caller
+    reports the relative residual |M y - b|_inf / |b|_inf (lam_res) so a breakdown
+    would be visible.
     """
     n = M.shape[0]
     a = [[M[i, j] for j in range(n)] for i in range(n)]
