@@ -115,25 +115,33 @@ def test_sign_convention_lgvi():
 
 
 # ------------------------------------------------------------------------ Psi_12
-@pytest.mark.parametrize("name", ["E3", "E4"])
-def test_psi_against_finite_differences(name, solved):
-    """Psi_12 (forward AD through the rollout) vs central differences of z_N(lambda_0):
-    max column-wise relative error <= 1e-6, at lambda_0 = 0 and at a point near the solution."""
-    p = problem(name, 100)
+@pytest.mark.parametrize("name,scheme,N", [("E3", "first_order", 100), ("E4", "first_order", 100), ("E4", "lgvi", 100),
+                                           pytest.param("E3", "first_order", 500, marks=pytest.mark.slow),
+                                           pytest.param("E4", "first_order", 500, marks=pytest.mark.slow)])
+def test_psi_against_finite_differences(name, scheme, N, solved):
+    """Psi_12 (forward AD through the rollout) vs finite differences of z_N(lambda_0):
+    max column-wise relative error <= 1e-6, at lambda_0 = 0 and at a point near the solution
+    (the N = 100 solution's lambda_0, perturbed by 5 %)."""
+    p = EXAMPLES[name](N, scheme=scheme)
     fns = shooting_functions(p.disc, p.N)
     rng = np.random.default_rng(2)
-    for lam0 in (np.zeros(12), solved[name].extra["lam0"] * (1 + 0.05 * rng.standard_normal(12))):
+    near = solved[name].extra["lam0"]
+    if scheme == "lgvi":  # the unknown is lambda_{-1}; the first-order lambda_0 is close enough
+        near = np.array(p.disc.variation(p.X0, np.r_[solved[name].controls[:, 0], np.zeros(NU)], p.h)[0]).T @ near
+    for lam0 in (np.zeros(12), near * (1 + 0.05 * rng.standard_normal(12))):
         _, Psi = (np.array(a) for a in fns.shoot_jac(lam0, *_args(p)))
         fd = np.zeros_like(Psi)
-        for j in range(12):
-            d = 1e-5 * max(1.0, abs(lam0[j]))
+
+        def z(l):
+            return np.array(fns.residual(l, *_args(p))[0]).ravel()
+
+        for j in range(12):  # five-point central differences (4th order): truncation and round-off both ~1e-8
+            d = 1e-4 * max(1.0, abs(lam0[j]))
             e = np.zeros(12)
             e[j] = d
-            zp = np.array(fns.residual(lam0 + e, *_args(p))[0]).ravel()
-            zm = np.array(fns.residual(lam0 - e, *_args(p))[0]).ravel()
-            fd[:, j] = (zp - zm) / (2 * d)
+            fd[:, j] = (8 * (z(lam0 + e) - z(lam0 - e)) - (z(lam0 + 2 * e) - z(lam0 - 2 * e))) / (12 * d)
         err = max(np.linalg.norm(fd[:, j] - Psi[:, j]) / np.linalg.norm(Psi[:, j]) for j in range(12))
-        print(f"{name}: Psi_12 vs central differences, max column relative error {err:.2e}")
+        print(f"{name} {scheme} N={N}: Psi_12 vs finite differences, max column relative error {err:.2e}")
         assert err <= 1e-6
 
 
