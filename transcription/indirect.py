@@ -110,6 +110,9 @@ DEFAULT_OPTIONS: dict[str, Any] = {
 }
 
 _EPS = np.finfo(float).eps
+#: near the floor (|z_N| <= floor_factor^2 x the measured round-off level) the line search
+#: gives up after this many halvings instead of max_halvings
+NEAR_FLOOR_HALVINGS = 3
 
 
 # --------------------------------------------------------------------------- graph
@@ -461,6 +464,8 @@ def solve_indirect(
                          z_N (:func:`noise_level`): no further decrease is
                          possible; stops at once (converged = True, the floor is
                          reported in message and extra['roundoff_floor']).
+                         Also after NEAR_FLOOR_HALVINGS failed halvings when e is within
+                         floor_factor^2 of that level (no long runs of halvings).
     * 'floor_too_high'   as above but e > floor_accept (converged = False).
     * 'stagnated'        the trial step no longer changes lambda_0 in floating point.
     * 'line_search_failed' max_halvings exhausted away from the floor.
@@ -583,6 +588,15 @@ def solve_indirect(
                         "no further decrease possible",
                     )
                     break
+            elif j == NEAR_FLOOR_HALVINGS and e <= floor_factor**2 * noise:
+                # within 100x of the measured level and still no decrease: the direction is noise
+                floor = e
+                stop = (
+                    "round_off_floor",
+                    f"round-off floor reached after {it - 1} outer iterations: |z_N| = {e:.3e} "
+                    f"(measured round-off level {noise:.1e}); {j + 1} line-search trials, none decreases it",
+                )
+                break
             c *= 0.5
         if not accepted:
             if stop is None:
