@@ -275,9 +275,6 @@ def cmd_solve(args) -> int:
             raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
                                                           "impulsive maneuvers are solved by --method direct")
         methods = ["direct"]
-    if "indirect" in methods and man.discretization != "first_order":
-        raise ConfigError(man.source, "discretization", "the indirect method needs discretization: first_order "
-                                                        "(the paper's necessary conditions, SPEC §6)")
     out = _outdir(args, man)
     write_yaml(out / "config.resolved.yaml", man.resolved)
     _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} -> {out}/")
@@ -286,7 +283,9 @@ def cmd_solve(args) -> int:
         lam0 = None
         if method == "indirect" and man.indirect.get("initial_costate") == "from_direct" and "direct" in sols \
                 and sols["direct"].costates is not None:
-            lam0 = sols["direct"].costates[0]
+            from transcription.indirect import lam0_from_direct
+
+            lam0 = lam0_from_direct(man.smooth_problem("indirect"), sols["direct"])  # reuse, don't re-solve
         _say(args, f"solving by the {method} method ...")
         sol = _run_method(args, man, method, lam0)
         sols[method] = sol

@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from transcription.direct import DIRECT_OPTION_DEFAULTS
+from transcription.indirect import DEFAULT_OPTIONS as INDIRECT_OPTION_DEFAULTS
 from transcription.layout import pack_state
 from transcription.lgvi import SCHEMES, Discretization
 from transcription.lie import rot_x, rot_y, rot_z
@@ -44,20 +46,10 @@ from .dumbbell import GM_NORMALIZED, Dumbbell
 
 ORTHOGONALITY_TOL = 1e-6
 
-DIRECT_DEFAULTS: dict[str, Any] = {
-    "solver": "ipopt",          # ipopt | fatrop
-    "tol": 1e-10,               # KKT tolerance
-    "max_iter": 3000,
-    "initial_guess": "rollout",  # rollout | interpolate
-    "options": {},              # raw options passed to the NLP solver plugin
-}
-INDIRECT_DEFAULTS: dict[str, Any] = {
-    "alpha": 1e-4,              # Armijo constant
-    "eps_S": 1e-11,             # stop when |z_N| <= eps_S
-    "max_iter": 50,             # outer Newton iterations
-    "max_halvings": 30,         # line-search halvings per outer iteration
-    "initial_costate": "zero",  # zero | from_direct | [12 numbers]
-}
+#: solver option blocks: the keys and defaults are the method modules' own, so the
+#: schema and the solvers cannot disagree; values are type-checked in _solver_block.
+DIRECT_DEFAULTS: dict[str, Any] = dict(DIRECT_OPTION_DEFAULTS)
+INDIRECT_DEFAULTS: dict[str, Any] = {k: v for k, v in INDIRECT_OPTION_DEFAULTS.items() if k != "direct_options"}
 MODEL_DEFAULTS: dict[str, Any] = {
     "kind": "dumbbell",
     "mass": 1.0,
@@ -284,7 +276,7 @@ class Maneuver:
         """The smooth-control problem, carrying the ``solver.<method>`` options."""
         self.require_terminal(("smooth",))
         disc = disc or self.discretization_object()
-        opts = self.direct if method == "direct" else self.indirect
+        opts = self.direct if method == "direct" else dict(self.indirect, direct_options=dict(self.direct))
         return SmoothProblem(disc=disc, N=self.N, T=self.T, X0=self.X0(), Xd=self.terminal.vector(self.body),
                              W_f=self.W_f, W_m=self.W_m, options=dict(opts))
 
@@ -446,23 +438,22 @@ def _state(v: _V, d, where, body: Dumbbell, central_radius: float, all_required:
     return StateSpec(x, vel, R, w)
 
 
+_CHOICES = {"solver": ("ipopt", "fatrop"), "initial_guess": ("rollout", "interpolate")}
+
+
 def _solver_block(v: _V, d, where, defaults) -> dict[str, Any]:
+    """Validate a solver.<method> block against the method's option defaults (by type)."""
     v.mapping(d, where, defaults.keys())
     out = copy.deepcopy(defaults)
     for k, val in d.items():
         w = f"{where}.{k}"
-        if k == "solver":
-            out[k] = v.choice(val, w, ("ipopt", "fatrop"))
-        elif k == "initial_guess":
-            out[k] = v.choice(val, w, ("rollout", "interpolate"))
-        elif k in ("tol", "eps_S"):
-            out[k] = v.number(val, w, positive=True)
-        elif k in ("max_iter", "max_halvings"):
-            out[k] = v.number(val, w, positive=True, integer=True)
+        default = defaults[k]
+        if k in _CHOICES:
+            out[k] = v.choice(val, w, _CHOICES[k])
         elif k == "alpha":
             out[k] = v.number(val, w, lo=0.0, hi=1.0)
-        elif k == "options":
-            out[k] = dict(v.mapping(val, w, val.keys() if isinstance(val, dict) else ()))
+        elif k == "eps_S":
+            out[k] = v.number(val, w, nonneg=True)
         elif k == "initial_costate":
             if isinstance(val, str):
                 out[k] = v.choice(val, w, ("zero", "from_direct"))
@@ -470,6 +461,18 @@ def _solver_block(v: _V, d, where, defaults) -> dict[str, Any]:
                 out[k] = [v.number(a, f"{w}[{i}]") for i, a in enumerate(val)]
             else:
                 v.fail(w, f"expected zero, from_direct or a list of 12 numbers, got {_describe(val)}")
+        elif isinstance(default, bool):
+            if not isinstance(val, bool):
+                v.fail(w, f"expected true or false, got {_describe(val)}")
+            out[k] = val
+        elif isinstance(default, int):
+            out[k] = v.number(val, w, positive=True, integer=True)
+        elif isinstance(default, float):
+            out[k] = v.number(val, w, positive=True)
+        elif isinstance(default, dict):
+            out[k] = dict(v.mapping(val, w, val.keys() if isinstance(val, dict) else ()))
+        else:  # pragma: no cover - a new option type in a method module
+            v.fail(w, f"option of unsupported type {type(default).__name__}")
     return out
 
 

@@ -403,6 +403,22 @@ def noise_level(residual: Callable[[np.ndarray], np.ndarray], lam0: np.ndarray, 
     return out
 
 
+def lam0_from_direct(problem: SmoothProblem, dsol: Solution) -> np.ndarray:
+    """The shooting unknown from a direct solution's mapped multipliers (SPEC §6 hand-off).
+
+    first_order: lambda_0 = dsol.costates[0]; lgvi: lambda_{-1} = A_0(X_0, u_0)^T lambda_0.
+    Raises ValueError if the direct solution carries no costates.
+    """
+    if dsol.costates is None:
+        raise ValueError("the direct solution carries no costates")
+    lam = np.asarray(dsol.costates[0], dtype=float).reshape(NZ)
+    if problem.disc.scheme == "lgvi":  # the unknown is lambda_{-1} = A_0(X_0, u_0)^T lambda_0
+        w0 = np.r_[dsol.controls[:, 0], np.zeros(NU)]
+        A0 = np.array(problem.disc.variation(problem.X0, w0, problem.h)[0])
+        lam = A0.T @ lam
+    return lam
+
+
 def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, str, Any]:
     """lambda_0 from the argument or options.initial_costate ('zero', 'from_direct', 12-list)."""
     if lam0 is not None:
@@ -416,13 +432,7 @@ def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, st
 
             # the direct method reads its own option block; the indirect one (max_iter, ...) must not leak into it
             dsol = solve_direct(dataclasses.replace(problem, options=dict(opts.get("direct_options") or {})))
-            if dsol.costates is None:
-                raise ValueError("the direct solution carries no costates")
-            lam = np.asarray(dsol.costates[0], dtype=float).reshape(NZ)
-            if problem.disc.scheme == "lgvi":  # the unknown is lambda_{-1} = A_0(X_0, u_0)^T lambda_0
-                w0 = np.r_[dsol.controls[:, 0], np.zeros(NU)]
-                A0 = np.array(problem.disc.variation(problem.X0, w0, problem.h)[0])
-                lam = A0.T @ lam
+            lam = lam0_from_direct(problem, dsol)
             return lam, "from_direct", dsol
         raise ValueError(f"initial_costate must be 'zero', 'from_direct' or 12 numbers, got {spec!r}")
     arr = np.asarray(spec, dtype=float).ravel()
