@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import examples as ex
-from transcription.impulsive import (P_COLS, relaxed_jacobian, relaxed_terminal, right_jacobian_inv, sensitivity,
+from transcription.impulsive import (P_COLS, orbit_plane_basis, relaxed_jacobian, relaxed_terminal, right_jacobian_inv, sensitivity,
                                      sensitivity_ad, solve_impulsive, tpbvp_jacobian, tpbvp_residual, with_momenta)
 from transcription.layout import pack_state, unpack_states
-from transcription.lie import exp_so3, log_so3
+from transcription.lie import exp_so3, hat, log_so3
 
 SCHEMES = ("lgvi", "first_order")
 SEEDS = (0, 1, 2)
@@ -151,3 +151,49 @@ def test_e1_tpbvp_full():
     assert s.converged, s.message
     assert np.abs(tpbvp_residual(s.trajectory.X[-1], p.terminal)).max() <= 1e-12
     _check_impulsive(s, p)
+
+
+# --------------------------------------------------------------------------- E2
+def reduced_kkt_residual(s, problem) -> float:
+    """|dJ/dp + mu^T dC/dp| / |dJ/dp| minimized over mu, all gradients from Phi (SPEC §5).
+
+    J(p) = |gamma_0^+ - gamma_0| + |Pi_0^+ - Pi_0| + |gamma_N^+(x_N) - gamma_N| + |Pi_N|.
+    """
+    X = s.trajectory.X
+    Phi = sensitivity(problem.disc, X, problem.h)[:, P_COLS]          # dz_N/dp (12 x 6)
+    imp = s.impulses
+    unit = {k: v / np.linalg.norm(v) for k, v in imp.items()}
+    n, _, _ = orbit_plane_basis(problem.terminal.normal)
+    rd = problem.terminal.radius
+    dgp_dx = ex.BODY.mass * np.sqrt(problem.mu / rd) / rd * hat(n)     # d gamma_N^+ / d x_N
+    dJ = np.r_[unit["dgamma0"], unit["dPi0"]]
+    dJ = dJ + unit["dgammaN"] @ (dgp_dx @ Phi[0:3] - Phi[3:6]) - unit["dPiN"] @ Phi[9:12]
+    dC = relaxed_jacobian(X[-1], problem.terminal, sensitivity(problem.disc, X, problem.h))
+    mu = np.linalg.lstsq(dC.T, -dJ, rcond=None)[0]
+    return float(np.linalg.norm(dJ + dC.T @ mu) / np.linalg.norm(dJ))
+
+
+def _check_relaxed(s, p):
+    assert s.status == "Solve_Succeeded" and s.converged, s.message
+    assert s.extra["kkt_tol"] <= 1e-10
+    assert s.terminal_error <= 1e-10                                   # max |C| on the re-simulation
+    C = relaxed_terminal(s.trajectory.X[-1], p.terminal, ex.BODY.mass, p.mu)[0]
+    assert np.abs(C).max() <= 1e-10
+    assert s.extra["min_impulse_norm"] > 1e-6                          # smooth optimum (no kink)
+    _check_impulsive(s, p)
+    # the terminal impulse puts the body on the circular orbit, not spinning
+    XNp = s.extra["XN_plus"]
+    _, gp, Pp = relaxed_terminal(XNp, p.terminal, ex.BODY.mass, p.mu)
+    assert np.allclose(XNp[3:6], gp, atol=1e-14) and np.abs(XNp[15:]).max() == 0.0
+    assert reduced_kkt_residual(s, p) <= 1e-6
+
+
+def test_e2_relaxed_small():
+    p = ex.e2(N=100)
+    _check_relaxed(solve_impulsive(p), p)
+
+
+@pytest.mark.slow
+def test_e2_relaxed_full():
+    p = ex.e2()
+    _check_relaxed(solve_impulsive(p), p)
