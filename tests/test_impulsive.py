@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import examples as ex
+from transcription.direct import DIRECT_OPTION_DEFAULTS
 from transcription.impulsive import (P_COLS, orbit_plane_basis, relaxed_jacobian, relaxed_terminal, right_jacobian_inv, sensitivity,
                                      sensitivity_ad, solve_impulsive, tpbvp_jacobian, tpbvp_residual, with_momenta)
 from transcription.layout import pack_state, unpack_states
@@ -140,8 +141,20 @@ def test_e1_tpbvp_small(scheme):
 
 
 def test_e1_failure_is_data():
-    s = solve_impulsive(ex.e1(N=100, max_iter=1))
+    s = solve_impulsive(ex.e1(N=100, newton_max_iter=1))
     assert not s.converged and s.status == "max_iter" and "max_iter" in s.message
+    s = solve_impulsive(ex.e1(N=100, initial_guess="nonsense"))
+    assert not s.converged and s.status == "invalid_option"
+
+
+@pytest.mark.parametrize("guess", ["rollout", "interpolate"])
+def test_e1_with_the_direct_option_block(guess):
+    """The CLI passes the YAML solver.direct block (tol 1e-10, max_iter 3000, ...) to impulsive problems."""
+    opts = dict(DIRECT_OPTION_DEFAULTS, initial_guess=guess)
+    p = ex.e1(N=100, **opts)
+    s = solve_impulsive(p)
+    assert s.converged, s.message
+    assert np.abs(tpbvp_residual(s.trajectory.X[-1], p.terminal)).max() <= 1e-12
 
 
 @pytest.mark.slow

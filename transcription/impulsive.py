@@ -40,11 +40,13 @@ whole rollout composed with the chart at X_0 and reads back at X_N (a second AD 
   gives the Phi-based gradient dC/dp of SPEC §5, used by the tests to check the
   reduced KKT conditions of the returned solution.
 
-Options (``problem.options``): ``tol`` (Newton: |r|_inf target, default 1e-13;
-NLP: IPOPT tol, default 1e-10), ``max_iter``, ``options`` (raw IPOPT options),
-``initial_guess`` ('rollout' = no impulse, default; 'attitude' = Pi_0^+ = J log(R_0^T R_d)/T;
-TPBVP only: if Newton fails from one guess it restarts from the other unless
-``fallback`` is False), ``terminal_tol`` (relaxed: max |C| for converged, default 1e-8).
+Options (``problem.options``, the YAML ``solver.direct`` block): ``tol``, ``max_iter``,
+``options`` (IPOPT tol / iteration limit / raw options of the relaxed NLP; defaults 1e-10,
+3000); ``newton_tol``, ``newton_max_iter`` (TPBVP: |r|_inf target and iteration limit,
+defaults 1e-13 and 50); ``initial_guess`` ('rollout' = no impulse, default; 'attitude'
+(or the direct block's 'interpolate') = Pi_0^+ = J log(R_0^T R_d)/T; TPBVP only: if
+Newton fails from one guess it restarts from the other unless ``fallback`` is False);
+``terminal_tol`` (relaxed: max |C| for converged, default 1e-8).
 """
 from __future__ import annotations
 
@@ -140,6 +142,12 @@ def tpbvp_jacobian(XN: np.ndarray, Xd: np.ndarray, Phi: np.ndarray) -> np.ndarra
     return np.vstack([Phi[Z_POS][:, P_COLS], right_jacobian_inv(e) @ Phi[Z_ROT][:, P_COLS]])
 
 
+def _guess_kind(opts: dict) -> str:
+    """options['initial_guess'] for impulsive problems; the direct block's 'interpolate' means 'attitude'."""
+    kind = str(opts.get("initial_guess", "rollout"))
+    return "attitude" if kind == "interpolate" else kind
+
+
 def _initial_p(problem: ImpulsiveProblem, kind: str) -> np.ndarray:
     a = unpack_states(problem.X0)
     p = np.concatenate([a.gamma[0], a.Pi[0]])
@@ -147,7 +155,7 @@ def _initial_p(problem: ImpulsiveProblem, kind: str) -> np.ndarray:
         d = unpack_states(problem.terminal)
         p[3:] = problem.disc.J @ log_so3_any(a.R[0].T @ d.R[0]) / problem.T
     elif kind not in ("rollout", "attitude"):
-        raise ValueError(f"initial_guess must be 'rollout' or 'attitude', got {kind!r}")
+        raise ValueError(f"initial_guess must be 'rollout', 'attitude' or 'interpolate', got {kind!r}")
     return p
 
 
@@ -163,6 +171,9 @@ def _simulate(problem: ImpulsiveProblem, p: np.ndarray, strict: bool = False) ->
     return X
 
 
+#: Newton target for the six TPBVP conditions (|r|_inf) and its iteration limit
+NEWTON_TOL = 1e-13
+NEWTON_MAX_ITER = 50
 #: an impulse norm below this at the relaxed optimum means a kink of the cost
 KINK_TOL = 1e-8
 #: consecutive line-search steps below 1e-2 after which Newton gives up ("stagnated")
@@ -429,7 +440,7 @@ def solve_impulsive(problem: ImpulsiveProblem, progress: Callable[[dict], None] 
     disc, N, h = problem.disc, problem.N, problem.h
     t0 = time.perf_counter()
     try:
-        p0 = _initial_p(problem, str(opts.get("initial_guess", "rollout")))
+        p0 = _initial_p(problem, _guess_kind(opts))
     except ValueError as exc:
         p0 = _initial_p(problem, "rollout")
         X = _simulate(problem, p0)
@@ -470,12 +481,13 @@ def solve_impulsive(problem: ImpulsiveProblem, progress: Callable[[dict], None] 
         Xd = np.asarray(problem.terminal, dtype=float)
         build_s = time.perf_counter() - t0
         t1 = time.perf_counter()
-        tol = float(opts.get("tol", 1e-13))
-        first = str(opts.get("initial_guess", "rollout"))
+        tol = float(opts.get("newton_tol", NEWTON_TOL))
+        first = _guess_kind(opts)
         kinds = [first] + [k for k in ("rollout", "attitude") if k != first and opts.get("fallback", True)]
         history, attempts = [], []
         for kind in kinds:           # Newton may stagnate at a local minimum of |r|: restart from the other guess
-            p, X, hist, status = _newton_tpbvp(problem, _initial_p(problem, kind), tol, int(opts.get("max_iter", 50)),
+            p, X, hist, status = _newton_tpbvp(problem, _initial_p(problem, kind), tol,
+                                               int(opts.get("newton_max_iter", NEWTON_MAX_ITER)),
                                                float(opts.get("alpha", 1e-4)), progress)
             history += [dict(r, start=kind) for r in hist]
             attempts.append(f"{kind}: {status} in {len(hist) - 1} iterations")
