@@ -6,17 +6,31 @@ directory); 130 interrupted.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import os
+import signal
 import sys
-import time
-from pathlib import Path
 
-import numpy as np
 
-from .io import ResultsDirError, prepare_results_dir, write_json, write_npz, write_yaml
-from .maneuvers import ConfigError, Maneuver, load_maneuver
+def _interrupted_at_startup(signum, frame):  # pragma: no cover - timing dependent
+    # Ctrl-C while the heavy modules load: nothing has been written yet.
+    os.write(2, b"se3ocp: interrupted during start-up, before anything was written; nothing half-written was left\n")
+    os._exit(130)
+
+
+# Only when running as the program (python -m problems.cli, or the se3ocp script),
+# never when merely imported: main() replaces it once the modules are loaded.
+if __name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "se3ocp":
+    signal.signal(signal.SIGINT, _interrupted_at_startup)
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from .io import ResultsDirError, prepare_results_dir, write_json, write_npz, write_yaml  # noqa: E402
+from .maneuvers import ConfigError, Maneuver, load_maneuver  # noqa: E402
 
 #: Cayley solves whose relative residual exceeds this are reported as failed.
 CAYLEY_RESIDUAL_TOL = 1e-10
@@ -79,7 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
                                 "or both (default: direct)")
         p.add_argument("--no-figures", action="store_true", help="skip the PNG/PDF figures")
         p.add_argument("--animate", action="store_true", help="also write maneuver.gif")
-        p.set_defaults(func=cmd_solve, method="both" if name == "compare" else None)
+        p.set_defaults(func=cmd_solve)
+        if name == "compare":
+            p.set_defaults(method="both")
 
     p = sub.add_parser("plot", help="(re)draw the figures of a results directory",
                        epilog="example:\n  se3ocp plot results/e3_inclination_change --animate",
@@ -92,19 +108,50 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+class _Interrupt:
+    """Ctrl-C policy.  The first SIGINT sets a flag and raises KeyboardInterrupt.
+    Solvers may swallow that exception inside their own callbacks (IPOPT then stops
+    with User_Requested_Stop, CasADi may turn it into another error), so the flag is
+    what counts: it is checked after each solve, and any exception raised while it
+    is set means "interrupted" (exit 130), never a traceback."""
+
+    flag = False
+
+    @classmethod
+    def handler(cls, signum, frame):
+        cls.flag = True
+        raise KeyboardInterrupt
+
+    @classmethod
+    def check(cls):
+        if cls.flag:
+            raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
+    try:
+        signal.signal(signal.SIGINT, _Interrupt.handler)
+    except ValueError:  # not the main thread
+        pass
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except ConfigError as e:
-        print(f"se3ocp: error: {e}", file=sys.stderr)
-        return 2
-    except ResultsDirError as e:
+    except (ConfigError, ResultsDirError) as e:
+        if _Interrupt.flag:
+            return _interrupted()
         print(f"se3ocp: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("se3ocp: interrupted; files already written are complete, nothing half-written was left", file=sys.stderr)
-        return 130
+        return _interrupted()
+    except Exception:
+        if _Interrupt.flag:  # an error caused by the interrupt inside a library
+            return _interrupted()
+        raise
+
+
+def _interrupted() -> int:
+    print("se3ocp: interrupted; files already written are complete, nothing half-written was left", file=sys.stderr)
+    return 130
 
 
 # ------------------------------------------------------------------ helpers
@@ -149,14 +196,21 @@ def free_motion(man: Maneuver):
     build_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     X, res = disc.simulate(man.X0(), None, man.h, man.N)
+    _Interrupt.check()
     run_s = time.perf_counter() - t0
     E = np.array(model.energy().map(X.shape[0])(X.T)).ravel()
     rel = np.abs(E - E[0]) / abs(E[0])
     orth, det = orthogonality_error(unpack_states(X).R)
     worst = float(res.max()) if res.size else 0.0
-    ok = bool(np.all(np.isfinite(X))) and worst <= CAYLEY_RESIDUAL_TOL
+    finite = np.all(np.isfinite(X), axis=1)
+    ok = bool(finite.all()) and worst <= CAYLEY_RESIDUAL_TOL
     if ok:
         status, message = "ok", "free motion simulated"
+    elif not finite.all() and (not np.isfinite(res).all() or res[np.isfinite(res)].max(initial=0) <= CAYLEY_RESIDUAL_TOL):
+        k = int(np.argmin(finite))
+        status = "nan"
+        message = (f"the state became non-finite at node {k} (overflow or a singular potential: check the model "
+                   f"parameters and that the body stays away from the central mass)")
     else:
         k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf)))
         status = "cayley_not_converged"
@@ -204,6 +258,7 @@ class Progress:
         self.count = 0
 
     def __call__(self, rec: dict):
+        _Interrupt.check()
         self.count += 1
         now = time.perf_counter()
         if self.count > 10 and now - self.last < 1.0 and "step" not in rec:
@@ -288,6 +343,7 @@ def cmd_solve(args) -> int:
             lam0 = lam0_from_direct(man.smooth_problem("indirect"), sols["direct"])  # reuse, don't re-solve
         _say(args, f"solving by the {method} method ...")
         sol = _run_method(args, man, method, lam0)
+        _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols[method] = sol
         write_npz(out / f"{method}.npz", sol.arrays())
         _say(args, f"  {method}: {sol.status} ({sol.message}); cost {sol.cost:.10g}, terminal error "

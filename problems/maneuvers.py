@@ -145,7 +145,7 @@ class _V:
             w = self.vec3(v, where)
             for i, a in enumerate(w):
                 if not a > 0:
-                    self.fail(f"{where}[{i}]", f"expected a positive weight, got {a!r}")
+                    self.fail(f"{where}[{i}]", f"expected a positive weight, got {float(a)!r}")
             return w
         return np.full(3, self.number(v, where, positive=True))
 

@@ -49,17 +49,6 @@ KNOWN = {
                      "the message only says 'IPOPT did not converge: ...'; append 'the rotation per step is too "
                      "large (Cayley residual ...): use a smaller step h = T/N (increase horizon.N)' whenever "
                      "max_cayley_residual > 1e-10, as problems/cli.py free_motion does.",
-    "sigint_startup": "Ctrl-C while the CLI is still importing (numpy, casadi via problems.maneuvers, before main()'s "
-                      "try block) prints a KeyboardInterrupt traceback and the process dies by SIGINT. Fix in "
-                      "problems/cli.py: import the heavy modules lazily inside main() (under its try), or have the "
-                      "console entry point catch KeyboardInterrupt around the import and exit 130.",
-    "sigint_ipopt": "Ctrl-C inside IPOPT is swallowed: CasADi catches the KeyboardInterrupt (in its interrupt check "
-                    "-> IPOPT status User_Requested_Stop, or in the _Progress iteration callback -> "
-                    "NonIpopt_Exception_Thrown), solve_direct returns an ordinary non-converged Solution and the run "
-                    "goes on (exit 1; with --method both the indirect solve still runs). In transcription/direct.py: "
-                    "let _Progress.eval catch KeyboardInterrupt, set self.interrupted and return [1] (stop); after the "
-                    "solve, raise KeyboardInterrupt if progress.interrupted or return_status == 'User_Requested_Stop' "
-                    "(problems/cli.py main then exits 130); or the CLI-level SIGINT flag of CLI_SIGINT_FIX below.",
 }
 
 
@@ -179,11 +168,6 @@ def test_nan_potential_direct_is_data(tmp_path):
     _assert_failed_solution_writable(sol, tmp_path)
 
 
-@pytest.mark.xfail(strict=True, reason="problems/cli.py build_parser: p.set_defaults(func=cmd_solve, method=... else "
-                                       "None) overrides --method's default 'direct', so `se3ocp solve` without "
-                                       "--method runs the indirect branch and writes None.npz / methods.null. Fix: "
-                                       "set method='both' only for compare, e.g. p.set_defaults(func=cmd_solve, "
-                                       "**({'method': 'both'} if name == 'compare' else {})).")
 def test_solve_default_method_is_direct(tmp_path):
     r = subprocess.run([sys.executable, "-m", "problems.cli", "solve", str(CONFIGS / "e3_inclination_change.yaml"),
                            "--set", "horizon.N=20", "--out", str(tmp_path / "o"), "--no-figures", "--quiet"],
@@ -223,9 +207,7 @@ def test_ctrl_c_exit_130_nothing_half_written(case, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case_id", [
-    pytest.param(k, id=k, marks=pytest.mark.xfail(strict=True, reason=f"{v[0]} {CLI_SIGINT_FIX}"))
-    for k, v in TIMING_DEPENDENT.items()])
+@pytest.mark.parametrize("case_id", list(TIMING_DEPENDENT))
 def test_ctrl_c_repeated(case_id, tmp_path):
     """Interrupt at delays spread over the run; every one must give 130, no traceback, complete files."""
     import dataclasses

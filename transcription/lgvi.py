@@ -218,8 +218,8 @@ class Discretization:
         for s in range(0, N, chunk):
             n = min(chunk, N - s)
             Xs, r = self.rollout(n)(Xk, W[:, s : s + n], h)
-            Xs = np.array(Xs).T
+            Xs = Xs.full().T
             out.append(Xs)
-            res.append(np.array(r).ravel())
+            res.append(r.full().ravel())
             Xk = Xs[-1]
         return np.vstack(out), np.concatenate(res) if res else np.zeros(0)
