@@ -23,12 +23,17 @@ the Newton-solved step (8 unrolled Newton iterations in every Hessian).
 One stage Function is built and ``map``-ped over the horizon; the NLP is
 SX-expanded and IPOPT uses the exact Hessian.  X_0 is fixed by its bounds.
 
-Scaling: every variable is divided by a characteristic magnitude (positions by the
-orbit size, momenta by their boundary values or what the horizon requires, controls
-by momentum change over the horizon, c by h |Omega| / 2), every constraint row by the
-magnitude of its variable, and the objective by its value at the characteristic
-controls.  The weights W only enter the objective, so W_m = I (SPEC §7 note) is
-handled as well as W_m = 1e4 I.
+Scaling (:func:`characteristic_scales`): every variable is divided by a characteristic
+magnitude (positions by the orbit size, momenta by their boundary values or what the
+horizon requires, controls by momentum change over the horizon, c by h |Omega| / 2),
+every constraint row by the magnitude of its variable, and the objective by its value
+at the characteristic controls.  The control scales are then balanced so that no
+control's cost curvature W_i s_i^2 is below ``BALANCE`` = 1e-2 of the largest: with
+W_m = I (SPEC §7 note) the moment directions would otherwise carry a scaled Hessian of
+~1e-8, IPOPT's inertia correction swamps them and the solve stalls at
+"Solved_To_Acceptable_Level" (measured, E3 N = 100); balanced it reaches
+Solve_Succeeded (the optimal moments are then ~100x larger than with W_m = 1e4 I:
+cheap moments tumble the body to use gravity-gradient forces).
 
 Costates (hand-off to the indirect method, SPEC §6)
 --------------------------------------------------
@@ -45,7 +50,12 @@ to dX.  With this sign the discrete necessary conditions read
     sum over steps touching u_j of B^T lambda + omega_j W u_j = 0,
 
 i.e. for the first-order scheme u_{k+1} = -W^-1 [lambda^2_k; lambda^4_k]  (eqs. 26-27),
-where (A_k, B_k) = ``disc.variation`` at (X_k, w_k).  Both are tested.
+where (A_k, B_k) = ``disc.variation`` at (X_k, w_k).  Both are tested.  With the
+Cayley vectors as unknowns the 18 rows are X_{k+1} - step_given_c(X_k, c_k, w_k) (the
+solver sees ``step_given_c - X_{k+1}``) and the Cayley rows carry their own multipliers;
+eliminating those gives the same nu_k as for the Newton-solved step.  D and the
+costates are evaluated at the NLP's node states (equal to the re-simulation to the
+defect tolerance).
 """
 from __future__ import annotations
 
@@ -63,7 +73,7 @@ from .problem import SmoothProblem
 from .results import Solution, Trajectory, terminal_error_full
 
 NC = 3  # Cayley vector
-BALANCE = 1e-2  # see characteristic_scales
+BALANCE = 1e-2  # smallest allowed ratio of scaled control cost curvatures (characteristic_scales)
 
 #: options read from ``problem.options`` (the YAML ``solver.direct`` block) and their defaults
 DIRECT_OPTION_DEFAULTS: dict[str, Any] = {
@@ -156,8 +166,9 @@ def characteristic_scales(problem: SmoothProblem) -> Scales:
     positions L = max(|x0|, |xd|, |xd - x0|); linear momenta max(|gamma0|, |gammad|, m L / T);
     angular momenta max(|Pi0|, |Pid|, lambda_max(J) / T); forces and moments: momentum
     scale / T; attitude entries 1; Cayley vector h |Omega| / 2 with |Omega| the
-    angular-momentum scale / lambda_min(J).  Objective: its value for controls of
-    the characteristic size held over the horizon.
+    angular-momentum scale / lambda_min(J).  Control scales are raised so that
+    W_i s_i^2 >= BALANCE * max_j W_j s_j^2 (see the module docstring).  Objective: its
+    value for controls of the characteristic size held over the horizon.
     """
     a, d = unpack_states(problem.X0), unpack_states(problem.Xd)
     m, J, T, h = problem.disc.model.mass, problem.disc.J, problem.T, problem.h
