@@ -31,6 +31,7 @@ import numpy as np  # noqa: E402
 
 from .io import ResultsDirError, prepare_results_dir, write_json, write_npz, write_yaml  # noqa: E402
 from .maneuvers import ConfigError, Maneuver, load_maneuver  # noqa: E402
+from transcription.results import SolverOptionError  # noqa: E402
 
 #: Cayley solves whose relative residual exceeds this are reported as failed.
 CAYLEY_RESIDUAL_TOL = 1e-10
@@ -330,6 +331,12 @@ def cmd_solve(args) -> int:
             raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
                                                           "impulsive maneuvers are solved by --method direct")
         methods = ["direct"]
+    from transcription.direct import check_solver_options
+
+    try:  # before anything is written: bad raw solver options are bad input
+        check_solver_options(man.direct.get("options") or {})
+    except SolverOptionError as e:
+        raise ConfigError(man.source, "solver.direct.options" + (f".{e.option}" if e.option else ""), str(e)) from None
     out = _outdir(args, man)
     write_yaml(out / "config.resolved.yaml", man.resolved)
     _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} -> {out}/")
@@ -342,7 +349,10 @@ def cmd_solve(args) -> int:
 
             lam0 = lam0_from_direct(man.smooth_problem("indirect"), sols["direct"])  # reuse, don't re-solve
         _say(args, f"solving by the {method} method ...")
-        sol = _run_method(args, man, method, lam0)
+        try:
+            sol = _run_method(args, man, method, lam0)
+        except SolverOptionError as e:
+            raise ConfigError(man.source, "solver.direct.options" + (f".{e.option}" if e.option else ""), str(e)) from None
         _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols[method] = sol
         write_npz(out / f"{method}.npz", sol.arrays())

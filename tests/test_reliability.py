@@ -33,23 +33,7 @@ sys.modules["failure_table"] = ft
 _spec.loader.exec_module(ft)
 
 #: classes not handled as issue 7 requires today: case id -> where and what should change
-KNOWN = {
-    "ipopt_option_unknown": "solver.direct.options is passed to ca.nlpsol unchecked: an unknown IPOPT option raises "
-                            "RuntimeError ('No such IPOPT option') out of DirectNLP.__init__ (transcription/direct.py, "
-                            "ca.nlpsol call) -> traceback, exit 1. Catch RuntimeError around nlpsol construction and "
-                            "raise ConfigError(source, 'solver.direct.options.<name>', ...) (exit 2).",
-    "ipopt_option_type": "same place: 'yes' parses as a boolean and IPOPT's string option fails the "
-                         "'is_string()' assertion in nlpsol construction -> RuntimeError traceback; report it as "
-                         "ConfigError on solver.direct.options.<name> (exit 2).",
-    "nan_direct": "transcription/direct.py solve_direct: a non-finite rollout guess reaches NLPLayout.pack, which "
-                  "uses NaN as its 'not filled' sentinel and raises ValueError('pack: some entries were not "
-                  "filled') -> traceback, no summary.json. Check np.isfinite(guess.X/U/C) before packing (or track "
-                  "filled entries with a boolean mask) and return a Solution with status 'nan' (converged False).",
-    "cayley_direct": "transcription/direct.py solve_direct: when the re-simulation's max Cayley residual is large "
-                     "the message only says 'IPOPT did not converge: ...'; append 'the rotation per step is too "
-                     "large (Cayley residual ...): use a smaller step h = T/N (increase horizon.N)' whenever "
-                     "max_cayley_residual > 1e-10, as problems/cli.py free_motion does.",
-}
+KNOWN: dict[str, str] = {}
 
 
 def _params(group: str):
@@ -159,7 +143,6 @@ def test_nan_potential_indirect_is_data(tmp_path):
     _assert_failed_solution_writable(sol, tmp_path)
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError, reason=KNOWN["nan_direct"])
 def test_nan_potential_direct_is_data(tmp_path):
     from transcription.direct import solve_direct
 

@@ -66,11 +66,11 @@ from typing import Any, Callable
 import casadi as ca
 import numpy as np
 
-from .guess import Guess, make_guess
+from .guess import Guess, cayley_vectors, make_guess
 from .layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, split_state, unpack_states
 from .lie import hat, log_so3
 from .problem import SmoothProblem
-from .results import Solution, Trajectory, terminal_error_full
+from .results import Solution, SolverOptionError, Trajectory, terminal_error_full
 
 NC = 3  # Cayley vector
 BALANCE = 1e-2  # smallest allowed ratio of scaled control cost curvatures (characteristic_scales)
@@ -345,13 +345,19 @@ class DirectNLP:
         # are driven well below tol (one extra Newton iteration, typically to round-off)
         ipopt = {"tol": float(opts["tol"]), "constr_viol_tol": 1e-2 * float(opts["tol"]),
                  "max_iter": int(opts["max_iter"]), "print_level": 0, "sb": "yes", "hessian_approximation": "exact"}
-        ipopt.update(dict(opts.get("options") or {}))
-        nlp_opts: dict[str, Any] = {"expand": True, "print_time": False, "ipopt": ipopt}
+        # IPOPT has no boolean options: YAML's yes/no/true/false arrive as bools
+        ipopt.update({k: ("yes" if v else "no") if isinstance(v, bool) else v for k, v in (opts.get("options") or {}).items()})
+        if opts.get("warm_start_duals"):
+            ipopt.setdefault("warm_start_init_point", "yes")
+        nlp_opts: dict[str, Any] = {"expand": True, "print_time": False, "ipopt": ipopt, "show_eval_warnings": False}
         self._progress = None
         if progress is not None:
             self._progress = _Progress(lay.n, g.shape[0], progress, sc.objective)
             nlp_opts["iteration_callback"] = self._progress
-        self.solver = ca.nlpsol("direct_ms", "ipopt", {"x": ws, "f": f, "g": g}, nlp_opts)
+        try:
+            self.solver = ca.nlpsol("direct_ms", "ipopt", {"x": ws, "f": f, "g": g}, nlp_opts)
+        except RuntimeError as exc:
+            raise _option_error(exc, opts.get("options") or {}) from None
 
     # ------------------------------------------------------------------ helpers
     def initial_point(self, guess: Guess) -> np.ndarray:
@@ -370,6 +376,48 @@ class DirectNLP:
         return np.stack([tangent_basis(X[:, k + 1]).T @ nu[:, k] for k in range(self.problem.N)])
 
 
+_CASADI_TYPE_HINTS = {"is_double": "expected a number", "is_int": "expected an integer",
+                      "is_string": "expected a string", "No such IPOPT option": "unknown IPOPT option"}
+
+
+def _option_error(exc: RuntimeError, raw: dict) -> SolverOptionError:
+    """Turn CasADi's error on building the solver into a SolverOptionError naming the raw option."""
+    text = str(exc)
+    name = next((k for k in raw if f"option: {k}" in text or f"'{k}'" in text), None)
+    if name is None and len(raw) == 1:
+        name = next(iter(raw))
+    hint = next((v for k, v in _CASADI_TYPE_HINTS.items() if k in text), None)
+    if hint is None:
+        hint = "rejected by IPOPT: " + (text.strip().splitlines()[-1] if text.strip() else "unknown reason")
+    return SolverOptionError(name or "", f"{hint} (value {raw[name]!r})" if name else hint)
+
+
+def check_solver_options(options: dict[str, Any]) -> None:
+    """Raise :class:`SolverOptionError` if IPOPT rejects any raw option (tried on a one-variable NLP).
+
+    Cheap (milliseconds), so front ends can reject bad options before doing any work.
+    """
+    raw = {k: ("yes" if v else "no") if isinstance(v, bool) else v for k, v in (options or {}).items()}
+    x = ca.SX.sym("x")
+    for k, v in raw.items():  # one at a time, so the culprit is named
+        try:
+            ca.nlpsol("option_check", "ipopt", {"x": x, "f": x**2}, {"ipopt": {k: v, "print_level": 0, "sb": "yes"},
+                                                                   "print_time": False})
+        except RuntimeError as exc:
+            raise _option_error(exc, {k: v}) from None
+
+
+def _warm_guess(problem: SmoothProblem, warm: Solution | None) -> Guess | None:
+    """A Guess from a previous Solution of the same size (None if it does not fit)."""
+    if warm is None or warm.controls is None:
+        return None
+    X = np.asarray(warm.trajectory.X, float)
+    U = np.asarray(warm.controls, float)
+    if X.shape != (problem.N + 1, NX) or U.shape != (NU, problem.disc.n_controls(problem.N)):
+        return None
+    return Guess(X=X, U=U, C=cayley_vectors(X))
+
+
 def _options(problem: SmoothProblem) -> dict[str, Any]:
     opts = dict(DIRECT_OPTION_DEFAULTS)
     opts.update({k: v for k, v in (problem.options or {}).items() if k in DIRECT_OPTION_DEFAULTS})
@@ -385,7 +433,8 @@ def _failure(problem: SmoothProblem, opts, status: str, message: str, build_s: f
                     terminal_error=terminal_error_full(X[-1], problem.Xd), iterations=0, build_s=build_s, solve_s=0.0)
 
 
-def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None = None) -> Solution:
+def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None = None,
+                 warm_start: Solution | None = None) -> Solution:
     """Solve a :class:`SmoothProblem` by multiple shooting + IPOPT (see the module docstring).
 
     ``problem.options`` (the YAML ``solver.direct`` block): ``solver`` ('ipopt'),
@@ -400,21 +449,38 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
     'initial_guess', 'cayley_variables', 'n_variables', 'n_constraints',
     'max_defect', 'nlp_terminal_error', 'max_cayley_residual'}.  converged is True iff
     IPOPT returned Solve_Succeeded and the re-simulated terminal error is <= terminal_tol.
+
+    ``warm_start``: a previous direct Solution of a problem with the same N and
+    scheme (continuation, e.g. along a sweep): its trajectory and controls are the
+    initial guess and, if it carries them, its NLP multipliers (``extra['nlp_nu']``,
+    physical units) start IPOPT's duals (``warm_start_init_point``).
+    Raises :class:`SolverOptionError` for raw IPOPT options the plugin rejects.
     """
     opts = _options(problem)
     if opts["solver"] != "ipopt":
         return _failure(problem, opts, "unsupported_solver",
                         f"solver {opts['solver']!r} is not available for the direct method yet (use 'ipopt')")
+    warm = _warm_guess(problem, warm_start)
     try:
-        guess = make_guess(opts["initial_guess"], problem.disc, problem.X0, problem.Xd, problem.N, problem.T)
+        guess = warm or make_guess(opts["initial_guess"], problem.disc, problem.X0, problem.Xd, problem.N, problem.T)
     except ValueError as exc:
         return _failure(problem, opts, "invalid_option", str(exc))
+    if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
+        return _failure(problem, opts, "nan",
+                        f"the initial guess ({'warm start' if warm else opts['initial_guess']}) is not finite "
+                        f"(overflow or a singular potential along the free motion): check the model and the states")
+    nu0 = warm_start.extra.get("nlp_nu") if warm is not None else None
+    if nu0 is not None:
+        opts = dict(opts, warm_start_duals=True)
     t0 = time.perf_counter()
     nlp = DirectNLP(problem, opts, progress)
     build_s = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    sol = nlp.solver(x0=nlp.initial_point(guess), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    args = dict(x0=nlp.initial_point(guess), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    if nu0 is not None and len(nu0) == len(nlp.lbg):
+        args["lam_g0"] = np.asarray(nu0) * nlp.g_scale / nlp.scales.objective
+    sol = nlp.solver(**args)
     solve_s = time.perf_counter() - t0
     stats = nlp.solver.stats()
     status = str(stats.get("return_status", "unknown"))
@@ -434,6 +500,11 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
                    f"{opts['terminal_tol']:.1e} (max Cayley residual {float(np.max(res)):.1e})")
     else:
         message = f"IPOPT did not converge: {status}; re-simulated terminal error {err:.2e}"
+    worst_cayley = float(np.max(res)) if res.size else 0.0
+    if not ok and not worst_cayley <= 1e-10:
+        message += (f"; the Cayley equation was not solved in the re-simulation (relative residual "
+                    f"{worst_cayley:.1e}): the rotation per step is too large, use a smaller step h = T/N "
+                    f"(increase horizon.N)")
     it = stats.get("iterations", {}) or {}
     history = [
         {"iter": i, "objective": float(o) * nlp.scales.objective, "inf_pr": float(p), "inf_du": float(d), "mu": float(m)}
@@ -448,7 +519,8 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
         "n_constraints": int(len(nlp.lbg)),
         "max_defect": float(np.abs(g_phys[nlp.defect_rows.ravel()]).max()),
         "nlp_terminal_error": terminal_error_full(Xn[:, -1], problem.Xd),
-        "max_cayley_residual": float(np.max(res)) if res.size else 0.0,
+        "max_cayley_residual": worst_cayley,
+        "nlp_nu": nlp.scales.objective * lam_g / nlp.g_scale,  # physical multipliers, for warm starts
     }
     return Solution(method="direct", solver="ipopt", discretization=problem.disc.scheme, N=problem.N, h=problem.h,
                     trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=Xsim), status=status,

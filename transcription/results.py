@@ -17,6 +17,14 @@ from .layout import States, unpack_states
 from .lie import log_so3, orthogonality_error
 
 
+class SolverOptionError(ValueError):
+    """A raw solver option the solver plugin rejects; ``option`` names it (e.g. 'mu_init')."""
+
+    def __init__(self, option: str, message: str):
+        self.option = option
+        super().__init__(message)
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """Node values t (N+1,), X (N+1, 18) in the layout of transcription.layout."""
