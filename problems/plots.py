@@ -142,11 +142,13 @@ def _components(runs, key_fn, ylabel, title, impulses=None):
         for i, ax in enumerate(axs):
             ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.4, label=run.label)
         if impulses is not None:
-            marks = impulses(run)
-            if marks is not None:
+            jumps = impulses(run)
+            if jumps is not None:
                 for i, ax in enumerate(axs):
-                    for tt, yy in marks:
-                        ax.plot(tt, yy[i], "o", mfc="white", color=run.color, ms=5)
+                    for tt, before, after in jumps:
+                        ax.plot([tt, tt], [before[i], after[i]], ":", color=run.color, lw=1.2)
+                        ax.plot(tt, before[i], "o", mfc="white", color=run.color, ms=5)
+                        ax.plot(tt, after[i], "o", color=run.color, ms=5)
     for i, ax in enumerate(axs):
         ax.set_ylabel(ylabel.replace("#", str(i + 1)))  # template, e.g. "$u_{f,#}$"
         ax.grid(alpha=0.3)
@@ -156,8 +158,9 @@ def _components(runs, key_fn, ylabel, title, impulses=None):
     handles, labels = axs[0].get_legend_handles_labels()
     if len(set(labels)) > 1 or impulses is not None:
         if impulses is not None:
-            handles.append(plt.Line2D([], [], marker="o", mfc="white", color="0.3", ls=""))
-            labels.append("after impulse")
+            handles += [plt.Line2D([], [], marker="o", mfc="white", color="0.3", ls=""),
+                        plt.Line2D([], [], marker="o", color="0.3", ls=":")]
+            labels += ["before impulse", "after impulse"]
         axs[0].legend(handles, labels, fontsize=8, loc="best")
     fig.tight_layout()
     return fig
@@ -180,8 +183,8 @@ def fig_velocity(runs, config):
         a = run.arrays
         if "dgamma0" not in a:
             return None
-        t = a["t"]
-        return [(t[0], (a["gamma"][0]) / m), (t[-1], (a["gamma"][-1] + a["dgammaN"]) / m)]
+        t, g = a["t"], a["gamma"]
+        return [(t[0], (g[0] - a["dgamma0"]) / m, g[0] / m), (t[-1], g[-1] / m, (g[-1] + a["dgammaN"]) / m)]
 
     imp = after if any("dgamma0" in r.arrays for r in runs) else None
     return _components(runs, lambda r: (r.arrays["t"], r.arrays["gamma"] / m), "$v_#$",
@@ -195,8 +198,8 @@ def fig_angular_velocity(runs, config):
         a = run.arrays
         if "dPiN" not in a:
             return None
-        t = a["t"]
-        return [(t[0], Jinv @ a["Pi"][0]), (t[-1], Jinv @ (a["Pi"][-1] + a["dPiN"]))]
+        t, P = a["t"], a["Pi"]
+        return [(t[0], Jinv @ (P[0] - a["dPi0"]), Jinv @ P[0]), (t[-1], Jinv @ P[-1], Jinv @ (P[-1] + a["dPiN"]))]
 
     imp = after if any("dPiN" in r.arrays for r in runs) else None
     return _components(runs, lambda r: (r.arrays["t"], r.arrays["Pi"] @ Jinv.T), r"$\Omega_#$",
@@ -244,9 +247,10 @@ def fig_convergence(runs, config):
             acc = [i for i, h in enumerate(hist) if h.get("accepted")]
             ax.semilogy(acc, errs[acc], "o", mfc="none", color=run.color, ms=8,
                         label=f"{run.label}: outer iterations")
-        else:  # NLP solver: one record per iteration
+        else:  # NLP solver or Newton: one record per iteration
             it = np.array([h.get("iter", i) for i, h in enumerate(hist)])
-            for key, mark, lab in (("inf_pr", "-", "primal infeasibility"), ("inf_du", ":", "dual infeasibility")):
+            for key, mark, lab in (("inf_pr", "-", "primal infeasibility"), ("inf_du", ":", "dual infeasibility"),
+                                   ("residual_inf", "-", "residual (max norm)")):
                 y = _positive([h.get(key, np.nan) for h in hist])
                 if np.isfinite(y).any():
                     ax.semilogy(it, y, mark, color=run.color, lw=1.4, label=f"{run.label}: {lab}")
