@@ -42,6 +42,7 @@ EPILOG = """examples:
   se3ocp solve configs/e3_inclination_change.yaml --method both
   se3ocp compare configs/e4_orbital_capture.yaml --set solver.indirect.initial_costate=from_direct
   se3ocp plot results/e3_inclination_change
+  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
 """
 
 #: relative cost difference above which compare reports different extremals
@@ -106,7 +107,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.add_argument("--json", action="store_true", help="print the list of files written as JSON")
     p.set_defaults(func=cmd_plot)
+
+    p = sub.add_parser("sweep", help="trade study: solve a grid of parameter values (local pool or Dask cluster)",
+                       epilog="examples:\n  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T\n"
+                              "  se3ocp sweep configs/sweeps/e3_T_inclination.yaml --scheduler tcp://127.0.0.1:8786",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("sweep", help="sweep YAML file (base maneuver, axes, methods; see problems/sweep.py)")
+    p.add_argument("--out", default=None, metavar="DIR", help="results directory (default results/sweeps/<name>/)")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                   help="local worker processes (default: one per core; 1 = in-process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the tasks on an existing dask.distributed cluster, e.g. tcp://host:8786")
+    p.add_argument("--no-continuation", action="store_true", help="cold-start every point (ignore 'continuation')")
+    p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=cmd_sweep)
     return ap
+
+
+def _positive_int(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return int(text)
 
 
 class _Interrupt:
@@ -393,6 +415,12 @@ def cmd_plot(args) -> int:
     if args.json:
         print(json.dumps(written))
     return 0
+
+
+def cmd_sweep(args) -> int:
+    from .sweep import cli_sweep
+
+    return cli_sweep(args, check_interrupt=_Interrupt.check)
 
 
 if __name__ == "__main__":  # pragma: no cover

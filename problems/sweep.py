@@ -1,0 +1,893 @@
+"""Trade studies: parameter sweeps over a maneuver, with continuation, on a local
+process pool or a Dask cluster (issue 8).
+
+Sweep file (unknown keys rejected; every error is a one-line
+``FILE: FIELD: expected ...`` :class:`~problems.maneuvers.ConfigError`)::
+
+    name: e3_T_sweep                      # optional (default: the file's stem)
+    base: ../e3_inclination_change.yaml   # the maneuver file, relative to this file
+    set: {horizon.N: 100}                 # optional overrides applied to every point
+    axes:                                 # one or more; the grid is their product
+      horizon.T: [0.45, 0.5, 0.55]        # a dotted key -> a list of values
+      solver.direct.tol: {geomspace: [1.0e-8, 1.0e-12, 3]}
+      model.length: {linspace: [0.05, 0.15, 5]}        # [start, stop, num], ends included
+      inclination_deg:                    # a linked axis: each value sets several keys
+        values: [10, 30]
+        set:
+          terminal.velocity: [[0, -6.1876, -1.0911], [0, -5.4414, -3.1416]]
+          terminal.attitude: [{rotations: [[x, 10], [z, 180]]}, {rotations: [[x, 30], [z, 180]]}]
+    methods: [direct, indirect]           # default [direct]; impulsive maneuvers: [direct]
+    continuation: true                    # default false
+    continuation_axis: horizon.T          # default: the first axis
+
+Every grid point's overrides are validated through
+:func:`~problems.maneuvers.load_maneuver` (and the raw IPOPT options are checked)
+before any solve starts, so a bad axis value is bad input, not a failed point.
+
+Execution.  A *task* is :func:`solve_point` applied to a plain dict (the base file
+name and text, the override strings, the method, an optional warm-start payload of
+numpy arrays); it returns a plain dict (the result row and the payload for the next
+point).  Tasks run in-process (``workers=1``), on a local
+:class:`~concurrent.futures.ProcessPoolExecutor` (forkserver/spawn context: CasADi
+is not fork-safe once threads exist) or, with ``scheduler=ADDRESS``, on an existing
+``dask.distributed`` cluster (its workers need this package installed).
+
+Continuation.  Along one axis the points form chains (one per value of the other
+axes and per method); the chains are independent and run in parallel, the points of
+a chain in order.  Each point starts from the last converged point(s) of its chain:
+with one, their solution itself (``start = neighbour``); with two, a secant
+predictor, the linear extrapolation in the axis value of both solutions
+(``start = secant``).  Direct: trajectory X, controls U and NLP multipliers nu
+(primal and dual warm start, :func:`transcription.direct.solve_direct`); indirect:
+the shooting unknown lambda_0.  A warm start that does not converge is followed by
+a cold solve (``start = cold_after_failed_warm``; ``iterations_total`` counts both).
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import copy
+import csv
+import io
+import itertools
+import json
+import math
+import multiprocessing
+import os
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import yaml
+
+from .io import atomic_write_bytes, write_json, write_yaml
+from .maneuvers import ConfigError, _describe, _join, _V, apply_override, load_maneuver, parse_maneuver, yaml_load
+
+SWEEP_KEYS = ("name", "base", "set", "axes", "methods", "continuation", "continuation_axis")
+METHODS = ("direct", "indirect")
+RANGE_FORMS = ("linspace", "geomspace")
+#: the result columns after ``point``, ``method`` and one column per axis
+RESULT_COLUMNS = ("status", "converged", "cost", "terminal_error", "iterations", "iterations_total",
+                  "build_s", "solve_s", "warm_started", "start", "message")
+#: a secant step larger than this multiple of the last spacing falls back to the neighbour
+MAX_SECANT_RATIO = 3.0
+
+
+# ---------------------------------------------------------------------------- schema
+@dataclass(frozen=True)
+class Axis:
+    """One axis of the grid.  ``name`` is the result column (a dotted key, or the label
+    of a linked axis); ``values`` the column values; ``sets[i]`` the (dotted key, value)
+    assignments of value i."""
+
+    name: str
+    values: tuple
+    sets: tuple
+    numeric: bool
+
+
+@dataclass(frozen=True)
+class Point:
+    """A grid point: ``coords`` (index along each axis), ``values`` {axis name: value},
+    ``overrides`` the ``KEY=VALUE`` strings (the sweep's ``set`` first, then the axes)."""
+
+    index: int
+    coords: tuple
+    values: dict
+    overrides: tuple
+
+
+@dataclass(frozen=True)
+class Sweep:
+    source: str
+    name: str
+    base: Path
+    fixed: tuple           # override strings from ``set``
+    axes: tuple            # of Axis
+    methods: tuple
+    continuation: bool
+    continuation_axis: int
+    control_kind: str | None
+    doc: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(len(a.values) for a in self.axes)
+
+    def points(self) -> list[Point]:
+        """Grid points in C order (the last axis varies fastest)."""
+        out = []
+        for i, coords in enumerate(itertools.product(*(range(n) for n in self.shape))):
+            values = {a.name: a.values[c] for a, c in zip(self.axes, coords)}
+            ov = list(self.fixed)
+            for a, c in zip(self.axes, coords):
+                ov += [_override(k, v) for k, v in a.sets[c]]
+            out.append(Point(i, coords, values, tuple(ov)))
+        return out
+
+    def chains(self, continuation: bool) -> list[list[int]]:
+        """Point indices grouped into chains: along the continuation axis if
+        ``continuation``, else one point per chain."""
+        pts = self.points()
+        if not continuation:
+            return [[p.index] for p in pts]
+        c = self.continuation_axis
+        groups: dict[tuple, list[int]] = {}
+        for p in pts:
+            groups.setdefault(p.coords[:c] + p.coords[c + 1:], []).append(p.index)
+        return [sorted(g, key=lambda i: pts[i].coords[c]) for g in groups.values()]
+
+    def row_methods(self) -> tuple:
+        """Method labels of the rows: 'impulsive' for impulsive maneuvers."""
+        return ("impulsive",) if self.control_kind == "impulsive" else self.methods
+
+
+def _override(key: str, value) -> str:
+    # JSON is YAML flow syntax, and round-trips floats exactly (repr)
+    return f"{key}={json.dumps(value)}"
+
+
+def _clean(x: float) -> float:
+    """linspace/geomspace values without representation noise (0.47000000000000003 -> 0.47)."""
+    return float(f"{x:.15g}")
+
+
+def _axis_values(v: _V, spec, where) -> list:
+    """A list, or ``{linspace|geomspace: [start, stop, num]}``."""
+    if isinstance(spec, dict):
+        if len(spec) != 1 or next(iter(spec)) not in RANGE_FORMS:
+            v.fail(where, f"expected a list of values or one of {{linspace: [start, stop, num]}}, "
+                          f"{{geomspace: [start, stop, num]}}, got a mapping with keys {sorted(map(str, spec))}")
+        (form, args), = spec.items()
+        w = _join(where, form)
+        if not isinstance(args, (list, tuple)) or len(args) != 3:
+            v.fail(w, f"expected [start, stop, num], got {_describe(args)}")
+        a = v.number(args[0], f"{w}[0]")
+        b = v.number(args[1], f"{w}[1]")
+        n = v.number(args[2], f"{w}[2]", integer=True, positive=True)
+        if form == "geomspace":
+            if not (a > 0 and b > 0):
+                v.fail(w, f"expected positive start and stop for geomspace, got {a!r}, {b!r}")
+            vals = np.geomspace(a, b, n)
+        else:
+            vals = np.linspace(a, b, n)
+        vals = [_clean(x) for x in vals]
+    elif isinstance(spec, (list, tuple)):
+        vals = list(spec)
+    else:
+        v.fail(where, f"expected a list of values or {{linspace: [start, stop, num]}}, got {_describe(spec)}")
+    if not vals:
+        v.fail(where, "expected at least one value")
+    for i, x in enumerate(vals):
+        if x is None:
+            v.fail(f"{where}[{i}]", "expected a value, got nothing (null)")
+        for j in range(i):
+            if vals[j] == x and type(vals[j]) is type(x):
+                v.fail(f"{where}[{i}]", f"expected distinct values; {x!r} repeats {where}[{j}]")
+    return vals
+
+
+def _dotted(v: _V, key, where) -> str:
+    if not isinstance(key, str) or not all(p and p.isidentifier() for p in key.split(".")):
+        v.fail(where, f"expected a dotted maneuver key such as horizon.T, got {_describe(key)}")
+    return key
+
+
+def _axis(v: _V, name, spec, where) -> Axis:
+    if isinstance(spec, dict) and ("values" in spec or "set" in spec):  # linked axis
+        if not isinstance(name, str) or not name or not name.isprintable():
+            v.fail(where, "expected a printable axis name")
+        v.mapping(spec, where, ("values", "set"), required=("values", "set"))
+        vals = _axis_values(v, spec["values"], _join(where, "values"))
+        sets = v.mapping(spec["set"], _join(where, "set"), spec["set"].keys() if isinstance(spec["set"], dict) else ())
+        if not sets:
+            v.fail(_join(where, "set"), "expected at least one dotted key -> list of values")
+        per_key = {}
+        for k, lst in sets.items():
+            wk = f"{where}.set.{k}"
+            _dotted(v, k, wk)
+            if not isinstance(lst, (list, tuple)) or len(lst) != len(vals):
+                v.fail(wk, f"expected a list of {len(vals)} values (one per axis value), got {_describe(lst)}")
+            per_key[k] = list(lst)
+        assigns = tuple(tuple((k, per_key[k][i]) for k in per_key) for i in range(len(vals)))
+    else:
+        _dotted(v, name, where)
+        vals = _axis_values(v, spec, where)
+        assigns = tuple(((name, x),) for x in vals)
+    numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals)
+    return Axis(str(name), tuple(vals), assigns, numeric)
+
+
+def parse_sweep(doc: Any, source: str) -> Sweep:
+    """Validate the sweep document's structure (not yet the grid points)."""
+    v = _V(source)
+    v.mapping(doc, "", SWEEP_KEYS, required=("base", "axes"))
+    name = doc.get("name", Path(source).stem)
+    if not isinstance(name, str) or not name.strip():
+        v.fail("name", f"expected a non-empty string, got {_describe(name)}")
+    if not isinstance(doc["base"], str) or not doc["base"].strip():
+        v.fail("base", f"expected the path of a maneuver file (relative to the sweep file), got {_describe(doc['base'])}")
+    base = Path(source).parent / doc["base"]
+    fixed_doc = doc.get("set", {}) or {}
+    v.mapping(fixed_doc, "set", fixed_doc.keys() if isinstance(fixed_doc, dict) else ())
+    fixed = tuple(_override(_dotted(v, k, f"set.{k}"), x) for k, x in fixed_doc.items())
+    axes_doc = doc["axes"]
+    if not isinstance(axes_doc, dict) or not axes_doc:
+        v.fail("axes", f"expected a non-empty mapping of dotted key -> values, got {_describe(axes_doc)}")
+    axes = tuple(_axis(v, k, s, _join("axes", k) if isinstance(k, str) and "." not in k else f"axes.{k}")
+                 for k, s in axes_doc.items())
+    reserved = {"point", "method", *RESULT_COLUMNS}
+    for a in axes:
+        if a.name in reserved:
+            v.fail(f"axes.{a.name}", f"expected an axis name other than the result columns {sorted(reserved)}")
+    keys = [k for a in axes for k, _ in a.sets[0]]
+    dup = next((k for i, k in enumerate(keys) if k in keys[:i] or k in fixed_doc), None)
+    if dup:
+        v.fail("axes", f"expected each maneuver key to be set once; {dup} is set twice")
+    methods = doc.get("methods", ["direct"])
+    if not isinstance(methods, (list, tuple)) or not methods:
+        v.fail("methods", f"expected a non-empty list of {', '.join(METHODS)}, got {_describe(methods)}")
+    methods = tuple(v.choice(m, f"methods[{i}]", METHODS) for i, m in enumerate(methods))
+    if len(set(methods)) != len(methods):
+        v.fail("methods", "expected each method once")
+    cont = doc.get("continuation", False)
+    if not isinstance(cont, bool):
+        v.fail("continuation", f"expected true or false, got {_describe(cont)}")
+    c_axis = 0
+    if "continuation_axis" in doc:
+        names = [a.name for a in axes]
+        c_axis = names.index(v.choice(doc["continuation_axis"], "continuation_axis", names))
+    return Sweep(source=source, name=name.strip(), base=base, fixed=fixed, axes=axes, methods=methods,
+                 continuation=cont, continuation_axis=c_axis, control_kind=None, doc=copy.deepcopy(doc))
+
+
+def load_sweep(path: str | Path) -> Sweep:
+    """Read and validate a sweep file, then every grid point through load_maneuver
+    (and the raw IPOPT options): raises ConfigError before any solve."""
+    source = str(path)
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise ConfigError(source, "", f"cannot read file ({e.strerror or e})") from None
+    try:
+        doc = yaml_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ConfigError(source, where, f"not valid YAML ({getattr(e, 'problem', None) or e})") from None
+    sw = parse_sweep(doc, source)
+    if not sw.base.is_file():
+        raise ConfigError(source, "base", f"expected a maneuver file; {sw.base} does not exist")
+    try:  # the base itself, so its own errors are reported as such
+        base_man = load_maneuver(sw.base)
+    except ConfigError as e:
+        raise ConfigError(source, "base", f"the base maneuver is invalid: {e}") from None
+    kind = base_man.control_kind
+    if kind is None:
+        raise ConfigError(source, "base", f"expected a maneuver with a control and a terminal block ({sw.base} has none)")
+    if kind == "impulsive" and "indirect" in sw.methods:
+        raise ConfigError(source, "methods", "the indirect method applies to smooth maneuvers; "
+                                             "impulsive maneuvers are swept with methods: [direct]")
+    checked = set()
+    for p in sw.points():
+        try:
+            man = load_maneuver(sw.base, p.overrides)
+        except ConfigError as e:
+            raise ConfigError(source, _blame(sw, p, e.field), f"grid point {_label(p.values)}: "
+                                                              f"{e.field or '<document>'}: {e.detail}") from None
+        if man.control_kind != kind:
+            raise ConfigError(source, _blame(sw, p, "control"), f"grid point {_label(p.values)}: "
+                                                                f"the control kind changes across the grid")
+        raw = json.dumps(man.direct.get("options") or {}, sort_keys=True, default=str)
+        if raw not in checked:
+            _check_raw_options(source, sw, p, man)
+            checked.add(raw)
+    return Sweep(**{**sw.__dict__, "control_kind": kind})
+
+
+def _check_raw_options(source, sw, p, man):
+    from transcription.direct import check_solver_options
+    from transcription.results import SolverOptionError
+
+    try:
+        check_solver_options(man.direct.get("options") or {})
+    except SolverOptionError as e:
+        f = "solver.direct.options" + (f".{e.option}" if e.option else "")
+        raise ConfigError(source, _blame(sw, p, f), f"grid point {_label(p.values)}: {f}: {e}") from None
+
+
+def _blame(sw: Sweep, p: Point, fieldname: str) -> str:
+    """The sweep-file field responsible for an error in a point's maneuver field."""
+    for a, c in zip(sw.axes, p.coords):
+        for k, _ in a.sets[c]:
+            if fieldname == k or fieldname.startswith(k + ".") or fieldname.startswith(k + "[") \
+                    or k.startswith(fieldname + "."):
+                return f"axes.{a.name}[{c}]" if k == a.name else f"axes.{a.name}.set.{k}[{c}]"
+    for a in sw.fixed:
+        k = a.partition("=")[0]
+        if fieldname == k or fieldname.startswith(k + ".") or fieldname.startswith(k + "["):
+            return f"set.{k}"
+    return "axes"
+
+
+def _label(values: dict) -> str:
+    return ", ".join(f"{k}={_fmt(x)}" for k, x in values.items())
+
+
+def _fmt(x) -> str:
+    return f"{x:g}" if isinstance(x, float) else json.dumps(x) if not isinstance(x, str) else x
+
+
+# ---------------------------------------------------------------------------- the task
+def _maneuver_from_text(source: str, text: str, overrides):
+    """load_maneuver on a file's text (workers of a remote cluster need not see the file)."""
+    doc = yaml_load(text) or {}
+    doc = copy.deepcopy(doc)
+    for a in overrides:
+        apply_override(doc, a)
+    return parse_maneuver(doc, source)
+
+
+def _warm_solution(problem, warm: dict):
+    """A Solution-like warm start for solve_direct from a payload {X, U, nu}, or None if it does not fit."""
+    from transcription.layout import NX
+    from transcription.results import Solution, Trajectory
+
+    X, U = np.asarray(warm.get("X")), np.asarray(warm.get("U"))
+    if X.shape != (problem.N + 1, NX) or U.shape != (6, problem.disc.n_controls(problem.N)):
+        return None
+    return Solution(method="direct", solver="ipopt", discretization=problem.disc.scheme, N=problem.N, h=problem.h,
+                    trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=X), status="warm_start",
+                    message="continuation payload", converged=True, cost=float("nan"), terminal_error=float("nan"),
+                    iterations=0, build_s=0.0, solve_s=0.0, controls=U,
+                    extra={"nlp_nu": warm.get("nu")} if warm.get("nu") is not None else {})
+
+
+def _payload(method: str, sol) -> dict | None:
+    if not sol.converged:
+        return None
+    if method == "direct":
+        return {"X": np.asarray(sol.trajectory.X), "U": np.asarray(sol.controls),
+                "nu": None if sol.extra.get("nlp_nu") is None else np.asarray(sol.extra["nlp_nu"])}
+    if method == "indirect":
+        lam = sol.extra.get("lam0")
+        return {"lam0": np.asarray(lam if lam is not None else sol.costates[0], float)}
+    return None
+
+
+def _solve(man, method: str, warm: dict | None):
+    """(final Solution, warm_started, start, iterations_total)."""
+    if method == "impulsive":
+        from transcription.impulsive import solve_impulsive
+
+        sol = solve_impulsive(man.impulsive_problem())
+        return sol, False, "cold", sol.iterations
+    if method == "direct":
+        from transcription.direct import solve_direct
+
+        problem = man.smooth_problem("direct")
+        ws = _warm_solution(problem, warm) if warm else None
+        cold = lambda: solve_direct(problem)  # noqa: E731
+        warm_solve = (lambda: solve_direct(problem, warm_start=ws)) if ws is not None else None
+    else:
+        from transcription.indirect import solve_indirect
+
+        problem = man.smooth_problem("indirect")
+        lam0 = np.asarray(warm["lam0"], float) if warm and warm.get("lam0") is not None else None
+        cold = lambda: solve_indirect(problem)  # noqa: E731
+        warm_solve = (lambda: solve_indirect(problem, lam0=lam0)) if lam0 is not None and lam0.shape == (12,) else None
+    if warm_solve is None:
+        sol = cold()
+        return sol, False, "cold" if not warm else "cold_warm_start_does_not_fit", sol.iterations
+    sol = warm_solve()
+    if sol.converged:
+        return sol, True, warm.get("kind", "neighbour"), sol.iterations
+    first = sol.iterations
+    sol = cold()
+    return sol, False, "cold_after_failed_warm", first + sol.iterations
+
+
+def solve_point(task: dict) -> dict:
+    """One grid point by one method: the unit of work sent to a pool or a Dask cluster.
+
+    task: {'source': base file name, 'text': its YAML text, 'overrides': [KEY=VALUE, ...],
+    'method': 'direct' | 'indirect' | 'impulsive', 'warm': None | payload (+ 'kind')}.
+    Returns {'row': result fields (RESULT_COLUMNS), 'payload': warm start for the next
+    point or None}.  Never raises for a failing solve: the error is the row's status.
+    """
+    t0 = time.perf_counter()
+    try:
+        man = _maneuver_from_text(task["source"], task["text"], task["overrides"])
+        sol, warm_started, start, total = _solve(man, task["method"], task.get("warm"))
+    except Exception as exc:  # a failing point is data; the sweep goes on
+        row = dict(status="error", converged=False, cost=float("nan"), terminal_error=float("nan"), iterations=0,
+                   iterations_total=0, build_s=0.0, solve_s=time.perf_counter() - t0, warm_started=False,
+                   start="cold" if not task.get("warm") else task["warm"].get("kind", "neighbour"),
+                   message=f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:500])
+        return {"row": row, "payload": None}
+    row = dict(status=sol.status, converged=bool(sol.converged), cost=float(sol.cost),
+               terminal_error=float(sol.terminal_error), iterations=int(sol.iterations), iterations_total=int(total),
+               build_s=float(sol.build_s), solve_s=float(sol.solve_s), warm_started=bool(warm_started), start=start,
+               message=" ".join(str(sol.message).split()))
+    return {"row": row, "payload": _payload(task["method"], sol)}
+
+
+# ---------------------------------------------------------------------------- executors
+def _ignore_sigint():  # pool workers: Ctrl-C is the driver's to handle
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class _Serial:
+    """In-process execution with the executor interface (``workers=1``)."""
+
+    kind = "serial"
+
+    def submit(self, fn, arg):
+        f = cf.Future()
+        try:
+            f.set_result(fn(arg))
+        except Exception as exc:
+            f.set_exception(exc)
+        return f
+
+    def wait_first(self, pending):
+        return cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+
+    def shutdown(self, interrupted=False):
+        pass
+
+
+class _Pool:
+    """A local ProcessPoolExecutor (forkserver context where available, else spawn)."""
+
+    kind = "local"
+
+    def __init__(self, workers: int):
+        methods = multiprocessing.get_all_start_methods()
+        ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+        self.workers = workers
+        self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_sigint)
+
+    def submit(self, fn, arg):
+        return self.pool.submit(fn, arg)
+
+    def wait_first(self, pending):
+        return cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+
+    def shutdown(self, interrupted=False):
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
+        if interrupted:  # do not wait for running solves: stop the workers
+            procs = list((getattr(self.pool, "_processes", None) or {}).values())
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                p.terminate()
+            for p in procs:
+                p.join(5)
+        else:
+            self.pool.shutdown(wait=True)
+
+
+class _Dask:
+    """Tasks submitted to an existing dask.distributed cluster (``Client(address)``)."""
+
+    kind = "dask"
+
+    def __init__(self, address: str, timeout: float = 10.0):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ConfigError("--scheduler", address, "dask.distributed is not installed; "
+                                                      "pip install 'dask[distributed]' (or se3ocp[sweep])") from None
+        try:
+            self.client = Client(address, timeout=timeout, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as e:
+            raise ConfigError("--scheduler", address, f"cannot connect to a Dask scheduler there ({e})") from None
+
+    def submit(self, fn, arg):
+        return self.client.submit(fn, arg, pure=False)
+
+    def wait_first(self, pending):
+        from distributed import wait
+
+        return wait(list(pending), return_when="FIRST_COMPLETED")
+
+    def shutdown(self, interrupted=False):
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
+        if interrupted:
+            try:
+                self.client.cancel(list(getattr(self, "_pending", [])))
+            except Exception:  # noqa: BLE001 - best effort on the way out
+                pass
+        self.client.close()
+
+
+def default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def make_executor(workers: int | None = None, scheduler: str | None = None):
+    """_Dask(scheduler) if given, else in-process for workers == 1, else a local pool
+    (default: one worker per available core)."""
+    if scheduler:
+        return _Dask(scheduler)
+    workers = workers or default_workers()
+    return _Serial() if workers == 1 else _Pool(workers)
+
+
+# ---------------------------------------------------------------------------- driver
+def _predict(history: list, value, numeric: bool) -> dict | None:
+    """Warm-start payload for the point at axis ``value`` from the last converged
+    (value, payload) pairs of its chain: the neighbour, or the secant extrapolation."""
+    if not history:
+        return None
+    v1, p1 = history[-1]
+    out = dict(p1, kind="neighbour")
+    if len(history) >= 2 and numeric:
+        v0, p0 = history[-2]
+        r = (value - v1) / (v1 - v0) if v1 != v0 else math.inf
+        if math.isfinite(r) and abs(r) <= MAX_SECANT_RATIO:
+            sec = {}
+            for k, a in p1.items():
+                b = p0.get(k)
+                if a is None or b is None or np.shape(a) != np.shape(b):
+                    break
+                sec[k] = np.asarray(a) + r * (np.asarray(a) - np.asarray(b))
+            else:
+                out = dict(sec, kind="secant")
+    return out
+
+
+@dataclass
+class SweepResult:
+    sweep: Sweep
+    rows: list            # dicts: point, method, axis values, RESULT_COLUMNS
+    continuation: bool
+    executor: str
+    workers: int | None
+    wall_s: float
+    interrupted: bool = False
+
+    @property
+    def n_tasks(self) -> int:
+        return len(self.sweep.points()) * len(self.sweep.row_methods())
+
+    def summary(self) -> dict:
+        rows = self.rows
+        by = {}
+        for m in self.sweep.row_methods():
+            r = [x for x in rows if x["method"] == m]
+            by[m] = {"points": len(r), "converged": sum(x["converged"] for x in r),
+                     "iterations": sum(x["iterations"] for x in r),
+                     "iterations_total": sum(x["iterations_total"] for x in r),
+                     "warm_started": sum(x["warm_started"] for x in r),
+                     "fallbacks_to_cold": sum(x["start"] == "cold_after_failed_warm" for x in r)}
+        return {"name": self.sweep.name, "sweep": self.sweep.source, "base": str(self.sweep.base),
+                "axes": {a.name: list(a.values) for a in self.sweep.axes}, "methods": list(self.sweep.row_methods()),
+                "continuation": self.continuation,
+                "continuation_axis": self.sweep.axes[self.sweep.continuation_axis].name if self.continuation else None,
+                "executor": self.executor, "workers": self.workers, "tasks": self.n_tasks, "finished": len(rows),
+                "converged": sum(x["converged"] for x in rows), "all_converged": self.all_converged,
+                "interrupted": self.interrupted, "wall_s": self.wall_s, "by_method": by}
+
+    @property
+    def all_converged(self) -> bool:
+        return len(self.rows) == self.n_tasks and all(r["converged"] for r in self.rows)
+
+
+def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None = None,
+              continuation: bool | None = None, progress: Callable[[dict, int, int], None] | None = None,
+              check_interrupt: Callable[[], None] | None = None, executor=None) -> SweepResult:
+    """Run every grid point by every method; failures are rows, never exceptions.
+
+    continuation: None -> the sweep file's setting.  progress(row, done, total) after each task.
+    On KeyboardInterrupt the workers are stopped and the exception carries the rows
+    finished so far as ``exc.partial`` (a SweepResult).
+    """
+    cont = sweep.continuation if continuation is None else bool(continuation)
+    pts = sweep.points()
+    methods = sweep.row_methods()
+    text = sweep.base.read_text()
+    chains = sweep.chains(cont)
+    ax = sweep.axes[sweep.continuation_axis]
+    ex = executor or make_executor(workers, scheduler)
+    n_workers = getattr(ex, "workers", 1 if isinstance(ex, _Serial) else None)
+    total = len(pts) * len(methods)
+    rows: list[dict] = []
+    t0 = time.perf_counter()
+    # chain state per (chain id, method): next position, converged history [(axis value, payload)]
+    state = {(c, m): {"pos": 0, "hist": []} for c in range(len(chains)) for m in methods}
+    pending: dict = {}
+
+    def submit(key):
+        c, m = key
+        st = state[key]
+        p = pts[chains[c][st["pos"]]]
+        warm = _predict(st["hist"], p.values[ax.name], ax.numeric) if cont else None
+        task = {"source": str(sweep.base), "text": text, "overrides": list(p.overrides), "method": m, "warm": warm}
+        pending[ex.submit(solve_point, task)] = (key, p, warm)
+
+    def finish(fut):
+        key, p, warm = pending.pop(fut)
+        try:
+            out = fut.result()
+        except Exception as exc:  # the worker itself died (not a solver failure: those are rows)
+            out = {"row": dict(status="worker_failed", converged=False, cost=float("nan"), terminal_error=float("nan"),
+                               iterations=0, iterations_total=0, build_s=0.0, solve_s=0.0, warm_started=False,
+                               start="cold" if not warm else warm["kind"],
+                               message=f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:500]),
+                   "payload": None}
+        row = {"point": p.index, "method": key[1], **p.values, **out["row"]}
+        rows.append(row)
+        st = state[key]
+        if out["payload"] is not None:
+            st["hist"] = (st["hist"] + [(p.values[ax.name], out["payload"])])[-2:]
+        st["pos"] += 1
+        if progress:
+            progress(row, len(rows), total)
+        if st["pos"] < len(chains[key[0]]):
+            submit(key)
+
+    interrupted = False
+    try:
+        for key in state:
+            submit(key)
+            if check_interrupt:
+                check_interrupt()
+        while pending:
+            done, _ = ex.wait_first(list(pending))
+            for f in done:
+                finish(f)
+            if check_interrupt:
+                check_interrupt()
+    except KeyboardInterrupt as exc:
+        interrupted = True
+        ex._pending = list(pending)
+        ex.shutdown(interrupted=True)
+        exc.partial = SweepResult(sweep, _sorted(rows, methods), cont, ex.kind, n_workers,
+                                  time.perf_counter() - t0, interrupted=True)
+        raise
+    finally:
+        if not interrupted and executor is None:
+            ex.shutdown()
+    return SweepResult(sweep, _sorted(rows, methods), cont, ex.kind, n_workers, time.perf_counter() - t0)
+
+
+def _sorted(rows, methods):
+    order = {m: i for i, m in enumerate(methods)}
+    return sorted(rows, key=lambda r: (r["point"], order[r["method"]]))
+
+
+# ---------------------------------------------------------------------------- command
+def cli_sweep(args, check_interrupt: Callable[[], None] | None = None) -> int:
+    """``se3ocp sweep``: validate, connect, run, write.  Exit 0 if every point converged,
+    1 if some did not (all rows are still written), ConfigError/ResultsDirError for bad
+    input; on Ctrl-C the finished rows are written and KeyboardInterrupt propagates."""
+    from .io import prepare_results_dir
+
+    say = (lambda *m: None) if args.quiet else (lambda *m: print(*m, flush=True))  # noqa: E731
+    sw = load_sweep(args.sweep)
+    cont = False if args.no_continuation else sw.continuation
+    ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
+    try:
+        out = prepare_results_dir(args.out, Path("results") / "sweeps" / _safe(sw.name), args.force)
+        n = len(sw.points())
+        where = {"serial": "in-process", "local": f"local pool of {getattr(ex, 'workers', '?')} workers",
+                 "dask": f"Dask cluster at {args.scheduler}"}[ex.kind]
+        axc = sw.axes[sw.continuation_axis].name
+        say(f"{sw.name}: {n} points x {len(sw.row_methods())} method(s) = {n * len(sw.row_methods())} tasks on {where}; "
+            f"continuation {'along ' + axc if cont else 'off'} -> {out}/")
+        bar = ProgressBar(quiet=args.quiet)
+        try:
+            res = run_sweep(sw, continuation=cont, progress=bar, check_interrupt=check_interrupt, executor=ex)
+        except KeyboardInterrupt as exc:
+            bar.close()
+            if getattr(exc, "partial", None) is not None:
+                write_results(out, exc.partial, figures=False)
+            raise
+        bar.close()
+        write_results(out, res)
+    finally:
+        ex.shutdown()
+    s = res.summary()
+    for m, b in s["by_method"].items():
+        say(f"  {m:<9} {b['converged']}/{b['points']} converged, {b['iterations_total']} iterations "
+            f"({b['warm_started']} warm-started, {b['fallbacks_to_cold']} fell back to a cold start)")
+    say(f"  {res.wall_s:.1f} s wall; results in {out}/ (results.csv, results.jsonl, figures)")
+    return 0 if res.all_converged else 1
+
+
+# ---------------------------------------------------------------------------- output
+class ProgressBar:
+    """One line redrawn in place on a terminal; one line per finished task otherwise."""
+
+    def __init__(self, stream=None, quiet: bool = False, width: int = 30):
+        self.stream = stream or sys.stderr
+        self.quiet, self.width = quiet, width
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.t0 = time.perf_counter()
+        self.bad = 0
+
+    def __call__(self, row: dict, done: int, total: int):
+        if self.quiet:
+            return
+        self.bad += not row["converged"]
+        el = time.perf_counter() - self.t0
+        if self.tty:
+            k = int(self.width * done / max(total, 1))
+            line = (f"\r[{'#' * k}{'.' * (self.width - k)}] {done}/{total} tasks, {self.bad} not converged, "
+                    f"{el:.0f} s")
+            self.stream.write(line + ("\n" if done == total else ""))
+        else:
+            vals = {k: v for k, v in row.items() if k not in ("point", "method", *RESULT_COLUMNS)}
+            self.stream.write(f"[{done:>{len(str(total))}}/{total}] {row['method']:<9} {_label(vals)}: "
+                              f"{row['status']}, cost {row['cost']:.10g}, {row['iterations']} it ({row['start']}), "
+                              f"{row['build_s'] + row['solve_s']:.2f} s\n")
+        self.stream.flush()
+
+    def close(self):
+        if self.tty and not self.quiet:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _cell(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (list, dict)):
+        return json.dumps(v)
+    return v
+
+
+def columns(sweep: Sweep) -> list[str]:
+    return ["point", "method", *(a.name for a in sweep.axes), *RESULT_COLUMNS]
+
+
+def write_results(out: Path, result: SweepResult, figures: bool = True) -> list[Path]:
+    """results.csv, results.jsonl, summary.json, sweep.resolved.yaml and the figures (atomic writes)."""
+    out = Path(out)
+    cols = columns(result.sweep)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for r in result.rows:
+        w.writerow([_cell(r.get(c)) for c in cols])
+    atomic_write_bytes(out / "results.csv", buf.getvalue().encode())
+    pts = result.sweep.points()
+    lines = [json.dumps({**{c: r.get(c) for c in cols}, "overrides": list(pts[r["point"]].overrides)},
+                        allow_nan=True) for r in result.rows]
+    atomic_write_bytes(out / "results.jsonl", ("\n".join(lines) + "\n" if lines else "").encode())
+    write_json(out / "summary.json", result.summary())
+    write_yaml(out / "sweep.resolved.yaml", {**result.sweep.doc, "base": str(result.sweep.base)})
+    written = [out / n for n in ("results.csv", "results.jsonl", "summary.json", "sweep.resolved.yaml")]
+    if figures and result.rows:
+        written += draw_sweep(out, result)
+    return written
+
+
+# ---------------------------------------------------------------------------- figures
+def _positions(axis: Axis):
+    """x positions and tick labels: the values if numeric, else their indices."""
+    if axis.numeric:
+        return np.array(axis.values, float), None
+    return np.arange(len(axis.values), dtype=float), [_fmt(v) for v in axis.values]
+
+
+def _save_png(fig, path: Path) -> Path:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120, bbox_inches="tight")
+    atomic_write_bytes(path, buf.getvalue())
+    return path
+
+
+def _safe(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in name)
+
+
+def draw_sweep(out: Path, result: SweepResult) -> list[Path]:
+    """cost_vs_<axis>.png for each axis (one line per method and per combination of the
+    other axes, non-converged points marked x); status_map.png for 2-D grids (cost over
+    the grid per method, non-converged cells marked)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .plots import COLORS
+
+    sw = result.sweep
+    pts = sw.points()
+    methods = sw.row_methods()
+    cost = {m: np.full(sw.shape, np.nan) for m in methods}
+    ok = {m: np.zeros(sw.shape, bool) for m in methods}
+    done = {m: np.zeros(sw.shape, bool) for m in methods}
+    for r in result.rows:
+        c = pts[r["point"]].coords
+        cost[r["method"]][c] = r["cost"]
+        ok[r["method"]][c] = r["converged"]
+        done[r["method"]][c] = True
+    written = []
+    for i, axis in enumerate(sw.axes):
+        x, ticks = _positions(axis)
+        fig, axp = plt.subplots(figsize=(6.4, 4.2))
+        others = [a for j, a in enumerate(sw.axes) if j != i]
+        combos = list(itertools.product(*(range(len(a.values)) for a in others)))
+        for m in methods:
+            c3 = np.moveaxis(cost[m], i, -1).reshape(-1, len(x))
+            k3 = np.moveaxis(ok[m], i, -1).reshape(-1, len(x))
+            d3 = np.moveaxis(done[m], i, -1).reshape(-1, len(x))
+            for ci, combo in enumerate(combos):
+                lab = m if not others else f"{m}: " + _label({a.name: a.values[j] for a, j in zip(others, combo)})
+                y = np.where(k3[ci], c3[ci], np.nan)
+                axp.plot(x, y, "o-" if m != "indirect" else "s--", color=COLORS.get(m) if len(combos) == 1 else f"C{ci % 10}",
+                         ms=4, label=lab if len(combos) * len(methods) <= 12 else None)
+                bad = d3[ci] & ~k3[ci]
+                if bad.any():
+                    yb = np.where(np.isfinite(c3[ci][bad]), c3[ci][bad], np.nanmin(np.where(k3[ci], c3[ci], np.nan))
+                                  if k3[ci].any() else 0.0)
+                    axp.plot(x[bad], yb, "x", color="k", ms=8, mew=2)
+        axp.plot([], [], "x", color="k", ms=8, mew=2, label="not converged")
+        if ticks:
+            axp.set_xticks(x, ticks)
+        axp.set_xlabel(axis.name)
+        axp.set_ylabel("cost J")
+        axp.set_title(f"{sw.name}: cost against {axis.name}")
+        axp.grid(alpha=0.3)
+        axp.legend(fontsize=7)
+        written.append(_save_png(fig, Path(out) / f"cost_vs_{_safe(axis.name)}.png"))
+        plt.close(fig)
+    if len(sw.axes) == 2:
+        fig, axs = plt.subplots(1, len(methods), figsize=(5.6 * len(methods), 4.4), squeeze=False)
+        (xa, xt), (ya, yt) = _positions(sw.axes[1]), _positions(sw.axes[0])
+        for axp, m in zip(axs[0], methods):
+            Z = np.where(ok[m], cost[m], np.nan)
+            ix, iy = np.arange(len(xa)), np.arange(len(ya))
+            im = axp.pcolormesh(ix, iy, np.ma.masked_invalid(Z), shading="nearest", cmap="viridis")
+            fig.colorbar(im, ax=axp, label="cost J")
+            bad_y, bad_x = np.nonzero(done[m] & ~ok[m])
+            axp.plot(bad_x, bad_y, "x", color="r", ms=12, mew=2.5, label="not converged")
+            miss_y, miss_x = np.nonzero(~done[m])
+            if miss_x.size:
+                axp.plot(miss_x, miss_y, "s", mfc="none", color="0.5", ms=10, label="not run")
+            axp.set_xticks(ix, [_fmt(v) for v in sw.axes[1].values], rotation=45)
+            axp.set_yticks(iy, [_fmt(v) for v in sw.axes[0].values])
+            axp.set_xlabel(sw.axes[1].name)
+            axp.set_ylabel(sw.axes[0].name)
+            axp.set_title(f"{m}: {int(ok[m].sum())}/{ok[m].size} converged")
+            if bad_x.size or miss_x.size:
+                axp.legend(fontsize=7, loc="upper right")
+        fig.suptitle(f"{sw.name}: status map")
+        written.append(_save_png(fig, Path(out) / "status_map.png"))
+        plt.close(fig)
+    return written
