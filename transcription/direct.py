@@ -75,6 +75,12 @@ from .results import Solution, SolverOptionError, Trajectory, terminal_error_ful
 NC = 3  # Cayley vector
 BALANCE = 1e-2  # smallest allowed ratio of scaled control cost curvatures (characteristic_scales)
 
+#: MUMPS settings for this (already scaled, banded) KKT system: no MUMPS scaling and AMD ordering.
+#: Measured on E3 first_order N = 1000: the linear-algebra share of an IPOPT solve fell 1.2 s -> 0.36 s
+#: (MUMPS' own scaling and automatic ordering cost more than they bring here).  Raw ``options``
+#: override them.
+MUMPS_DEFAULTS: dict[str, Any] = {"mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0}
+
 #: options read from ``problem.options`` (the YAML ``solver.direct`` block) and their defaults
 DIRECT_OPTION_DEFAULTS: dict[str, Any] = {
     "solver": "ipopt",
@@ -256,6 +262,154 @@ def shooting_defects(disc, h: float, Xs, Cs, Wst, sX: np.ndarray):
     return D / ca.repmat(ca.DM(gsc), 1, N), gsc
 
 
+# ------------------------------------------------------------- structured NLP
+def _assemble(nrow: int, ncol: int, rows, cols, vals):
+    """Sparse (nrow x ncol) MX from triplets (rows, cols, vals (ntrip,) MX); duplicates are summed.
+
+    The sparsity is fixed at build time; the nonzeros are one sparse constant product
+    P @ vals (P: nnz x ntrip, 0/1), linear in the number of triplets.
+    """
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    keys, mapping = np.unique(cols * nrow + rows, return_inverse=True)   # column-major = CasADi's nonzero order
+    sp = ca.Sparsity.triplet(nrow, ncol, (keys % nrow).tolist(), (keys // nrow).tolist())
+    ntrip = len(rows)
+    if len(np.unique(mapping)) == ntrip:            # no duplicates: a permutation
+        perm = np.empty(ntrip, dtype=np.int64)
+        perm[mapping] = np.arange(ntrip)
+        nz = vals[perm.tolist()]
+    else:
+        P = ca.DM(ca.Sparsity.triplet(sp.nnz(), ntrip, mapping.tolist(), list(range(ntrip))), 1.0)
+        nz = ca.mtimes(P, vals)
+    return ca.sparsity_cast(nz, sp)
+
+
+def _stage_functions(disc, h: float, sc: Scales, with_c: bool, sW: np.ndarray, jit: bool):
+    """Scaled stage defect, its Jacobian and its Hessian as small SX Functions (built once per problem).
+
+    Stage variables v = [X_k; c_k (with_c); w_k] (scaled), X_{k+1} (scaled) enters linearly:
+    d = step(X_k, c_k, w_k, h) / sX - X_{k+1} (18 rows) and G(c_k) / (h max sPi) (3 rows).
+    Returns (defect(v, X1) -> d, jac(v) -> nonzeros of dd/dv, hess(v, lam) -> nonzeros of
+    d^2 (lam^T d)/dv^2, Jacobian sparsity, Hessian sparsity, row scales).
+    """
+    nc = NC if with_c else 0
+    nv = NX + nc + disc.nw
+    v = ca.SX.sym("v", nv)
+    X1s = ca.SX.sym("X1s", NX)
+    X = v[:NX] * ca.DM(sc.X)
+    w = v[NX + nc:] * ca.DM(sW)
+    if with_c:
+        c = v[NX:NX + nc] * ca.DM(sc.C)
+        X1, G = disc.step_given_c(X, c, w, h)
+        gsc = np.concatenate([sc.X, np.full(NC, h * sc.X[X_ANG].max())])
+        d = ca.vertcat(X1 / ca.DM(sc.X) - X1s, G / ca.DM(gsc[NX:]))
+    else:
+        X1, _ = disc.step(X, w, h)
+        gsc = np.asarray(sc.X, dtype=float).copy()
+        d = X1 / ca.DM(sc.X) - X1s
+    nd = d.shape[0]
+    lam = ca.SX.sym("lam", nd)
+    Jv = ca.jacobian(d, v)
+    Hv = ca.hessian(ca.dot(lam, d), v)[0]
+    fopts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}} if jit else {}
+    defect = ca.Function("stage_defect", [v, X1s], [d], ["v", "X1"], ["d"])
+    jac = ca.Function("stage_jac", [v], [ca.vertcat(*Jv.nonzeros())], ["v"], ["jnz"], fopts)
+    hess = ca.Function("stage_hess", [v, lam], [ca.vertcat(*Hv.nonzeros())], ["v", "lam"], ["hnz"], fopts)
+    return defect, jac, hess, Jv.sparsity(), Hv.sparsity(), gsc
+
+
+def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale: np.ndarray, wq: np.ndarray,
+                    tsc: np.ndarray, ws, jit: bool = False):
+    """Constraints g(ws) and exact derivative Functions of the scaled NLP, assembled stage by stage.
+
+    Instead of SX-expanding the whole NLP and letting CasADi colour its Jacobian and
+    Hessian (build time ~10 s at N = 1000, dominated by the symbolic Hessian of a
+    graph N stages long), the stage defect's Jacobian and Hessian are formed once on
+    the small SX stage graph, ``map``-ped over the horizon and scattered into the
+    global sparse matrices with index maps fixed at build time.  Same NLP, same
+    scaling, same exact Hessian; build and evaluation are linear in N.
+
+    Returns (g (ng,) MX, defect row scales (nd,), dict with 'f' (MX objective) and the
+    nlpsol options 'grad_f', 'jac_g', 'hess_lag').
+    """
+    disc, N, h = problem.disc, problem.N, problem.h
+    with_c = lay.with_c
+    sW = np.asarray(disc.stage_controls(np.repeat(sc.U[:, None], 2, axis=1)), dtype=float)[:, 0]
+    defect, jac, hess, spJ, spH, gsc = _stage_functions(disc, h, sc, with_c, sW, jit)
+    nd = len(gsc)
+    # global indices of the stage variables v_k (nv x N)
+    iW = np.rint(np.asarray(disc.stage_controls(lay.iU.astype(float)))).astype(np.int64)
+    blocks = [lay.iX[:, :-1]] + ([lay.iC] if with_c else []) + [iW]
+    iV = np.vstack(blocks)
+    nv = iV.shape[0]
+    if not all(np.array_equal(np.argsort(iV[:, k]), np.argsort(iV[:, 0])) for k in (0, N - 1)):
+        raise AssertionError("stage variables are not ordered alike in every stage")
+    V = ca.reshape(ws[iV.ravel(order="F").tolist()], nv, N)
+    X1 = ca.reshape(ws[lay.iX[:, 1:].ravel(order="F").tolist()], NX, N)
+    XN = ws[lay.iX[:, -1].tolist()]
+
+    # terminal rows (scaled), as an SX Function of the scaled X_N
+    xN = ca.SX.sym("xN", NX)
+    term = terminal_residual(xN * ca.DM(sc.X), problem.Xd) / ca.DM(tsc)
+    lamT = ca.SX.sym("lamT", NZ)
+    JT = ca.jacobian(term, xN)
+    HT = ca.triu(ca.hessian(ca.dot(lamT, term), xN)[0])
+    term_f = ca.Function("terminal_rows", [xN], [term, ca.vertcat(*JT.nonzeros())])
+    term_h = ca.Function("terminal_hess", [xN, lamT], [ca.vertcat(*HT.nonzeros())])
+
+    ng = nd * N + NZ
+    n = lay.n
+    g = ca.vertcat(ca.vec(defect.map(N)(V, X1)), term_f(XN)[0])
+
+    # objective: 0.5 sum q_i ws_i^2 (q nonzero on the controls only)
+    q = np.zeros(n)
+    q[lay.iU] = wq * np.asarray(w_scale)[lay.iU] ** 2 / sc.objective
+    qd = ca.DM(q)
+    f = 0.5 * ca.dot(qd * ws, ws)
+
+    # ---- Jacobian triplets: stage blocks, the -I of X_{k+1}, terminal block
+    jr, jc = np.asarray(spJ.get_triplet()[0]), np.asarray(spJ.get_triplet()[1])
+    ks = np.arange(N)
+    rows = [(ks[None, :] * nd + jr[:, None]).ravel(order="F")]
+    cols = [iV[jc, :].ravel(order="F")]
+    rows.append((ks[None, :] * nd + np.arange(NX)[:, None]).ravel(order="F"))
+    cols.append(lay.iX[:, 1:].ravel(order="F"))
+    tr, tc = (np.asarray(a) for a in JT.sparsity().get_triplet())
+    rows.append(nd * N + tr)
+    cols.append(lay.iX[tc, -1])
+    Jmap = jac.map(N)(V)
+    jvals = ca.vertcat(ca.vec(Jmap), ca.DM.ones(NX * N) * -1.0, term_f(XN)[1])
+    Jg = _assemble(ng, n, np.concatenate(rows), np.concatenate(cols), jvals)
+
+    # ---- Hessian of lam_f f + lam_g^T g, upper triangle (row <= col) in the global order
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", ng)
+    hr, hc = (np.asarray(a) for a in spH.get_triplet())
+    keep = iV[hr, 0] <= iV[hc, 0]                          # same ordering in every stage (checked)
+    sel = np.flatnonzero(keep).tolist()
+    Hmap = hess.map(N)(V, ca.reshape(lam_g[: nd * N], nd, N))
+    Hsel = Hmap[sel, :]
+    hrows = [iV[hr[keep], :].ravel(order="F")]
+    hcols = [iV[hc[keep], :].ravel(order="F")]
+    ttr, ttc = (np.asarray(a) for a in HT.sparsity().get_triplet())
+    hrows.append(lay.iX[ttr, -1])
+    hcols.append(lay.iX[ttc, -1])
+    qi = np.flatnonzero(q)
+    hrows.append(qi)
+    hcols.append(qi)
+    hvals = ca.vertcat(ca.vec(Hsel), term_h(XN, lam_g[nd * N:]), lam_f * ca.DM(q[qi]))
+    H = _assemble(n, n, np.concatenate(hrows), np.concatenate(hcols), hvals)
+    p = ca.MX.sym("p", 0)
+    derivs = {
+        "f": f,
+        "grad_f": ca.Function("nlp_grad_f_s", [ws, p], [f, qd * ws], ["x", "p"], ["f", "grad_f_x"]),
+        "jac_g": ca.Function("nlp_jac_g_s", [ws, p], [g, Jg], ["x", "p"], ["g", "jac_g_x"]),
+        "hess_lag": ca.Function("nlp_hess_l_s", [ws, p, lam_f, lam_g], [H], ["x", "p", "lam_f", "lam_g"],
+                                ["triu_hess_gamma_x_x"]),
+    }
+    return g, gsc, derivs
+
+
 # ------------------------------------------------------------------ iteration hook
 class _Progress(ca.Callback):
     """IPOPT iteration callback forwarding {'iter', 'objective', 'inf_pr'} to a Python callable."""
@@ -305,7 +459,8 @@ class DirectNLP:
     (18, N) indices of the step defects in g.
     """
 
-    def __init__(self, problem: SmoothProblem, opts: dict[str, Any], progress: Callable[[dict], None] | None = None):
+    def __init__(self, problem: SmoothProblem, opts: dict[str, Any], progress: Callable[[dict], None] | None = None,
+                 structured: bool = True):
         disc, N, h = problem.disc, problem.N, problem.h
         self.problem = problem
         self.opts = opts
@@ -322,15 +477,21 @@ class DirectNLP:
         Xs, Us, Cs = lay.unpack(ws * ca.DM(self.w_scale))
         Wst = disc.stage_controls(Us)                         # nw x N stage controls
 
-        D, gsc = shooting_defects(disc, h, Xs, Cs, Wst, sc.X)
-        nd = D.shape[0]
-        term = terminal_residual(Xs[:, -1], problem.Xd)
         tsc = np.concatenate([sc.X[X_POS], sc.X[X_MOM], np.ones(3), sc.X[X_ANG]])
-        g = ca.vertcat(ca.vec(D), term / ca.DM(tsc))
+        wq = ca.DM(self.W[:, None] * self.omega[None, :])              # 6 x nU
+        derivs = {}
+        if structured:
+            g, gsc, derivs = _structured_nlp(problem, lay, sc, self.w_scale, wq.full(), tsc, ws, bool(opts.get("jit")))
+            f = derivs.pop("f")
+            nd = len(gsc)
+        else:
+            D, gsc = shooting_defects(disc, h, Xs, Cs, Wst, sc.X)
+            nd = D.shape[0]
+            term = terminal_residual(Xs[:, -1], problem.Xd)
+            g = ca.vertcat(ca.vec(D), term / ca.DM(tsc))
+            f = 0.5 * ca.sum1(ca.sum2(wq * Us**2)) / sc.objective
         self.g_scale = np.concatenate([np.tile(gsc, N), tsc])
         self.defect_rows = np.arange(nd * N).reshape(N, nd).T[:NX]      # (18, N)
-        wq = ca.DM(self.W[:, None] * self.omega[None, :])              # 6 x nU
-        f = 0.5 * ca.sum1(ca.sum2(wq * Us**2)) / sc.objective
 
         # bounds: X_0 fixed
         lbx = np.full(lay.n, -np.inf)
@@ -344,12 +505,14 @@ class DirectNLP:
         # constr_viol_tol: the defects are what the re-simulation accumulates over N steps, so they
         # are driven well below tol (one extra Newton iteration, typically to round-off)
         ipopt = {"tol": float(opts["tol"]), "constr_viol_tol": 1e-2 * float(opts["tol"]),
-                 "max_iter": int(opts["max_iter"]), "print_level": 0, "sb": "yes", "hessian_approximation": "exact"}
+                 "max_iter": int(opts["max_iter"]), "print_level": 0, "sb": "yes", "hessian_approximation": "exact",
+                 **MUMPS_DEFAULTS}
         # IPOPT has no boolean options: YAML's yes/no/true/false arrive as bools
         ipopt.update({k: ("yes" if v else "no") if isinstance(v, bool) else v for k, v in (opts.get("options") or {}).items()})
         if opts.get("warm_start_duals"):
             ipopt.setdefault("warm_start_init_point", "yes")
-        nlp_opts: dict[str, Any] = {"expand": True, "print_time": False, "ipopt": ipopt, "show_eval_warnings": False}
+        nlp_opts: dict[str, Any] = {"expand": not structured, "print_time": False, "ipopt": ipopt,
+                                    "show_eval_warnings": False, **derivs}
         self._progress = None
         if progress is not None:
             self._progress = _Progress(lay.n, g.shape[0], progress, sc.objective)
