@@ -507,24 +507,36 @@ class _Dask:
             self.client = Client(address, timeout=timeout, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
             raise ConfigError("--scheduler", address, f"cannot connect to a Dask scheduler there ({e})") from None
+        self._futures: dict = {}
 
     def submit(self, fn, arg):
-        return self.client.submit(fn, arg, pure=False)
+        """A concurrent.futures.Future completed from the Dask future's done callback,
+        so that the driver waits on every executor the same way (cf.wait)."""
+        dfut = self.client.submit(fn, arg, pure=False)
+        fut = cf.Future()
+
+        def done(d):
+            try:
+                fut.set_result(d.result())
+            except BaseException as exc:  # noqa: BLE001 - handed to the driver, which records it
+                fut.set_exception(exc)
+
+        dfut.add_done_callback(done)
+        self._futures[fut] = dfut
+        return fut
 
     def wait_first(self, pending):
-        from distributed import wait
-
-        return wait(list(pending), return_when="FIRST_COMPLETED")
+        done = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+        for f in done.done:
+            self._futures.pop(f, None)
+        return done
 
     def shutdown(self, interrupted=False):
         if getattr(self, "_closed", False):
             return
         self._closed = True
-        if interrupted:
-            try:
-                self.client.cancel(list(getattr(self, "_pending", [])))
-            except Exception:  # noqa: BLE001 - best effort on the way out
-                pass
+        if interrupted and self._futures:
+            self.client.cancel(list(self._futures.values()))
         self.client.close()
 
 
@@ -671,7 +683,6 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
                 check_interrupt()
     except KeyboardInterrupt as exc:
         interrupted = True
-        ex._pending = list(pending)
         ex.shutdown(interrupted=True)
         exc.partial = SweepResult(sweep, _sorted(rows, methods), cont, ex.kind, n_workers,
                                   time.perf_counter() - t0, interrupted=True)

@@ -1,0 +1,273 @@
+"""Sweeps (issue 8): sweep-file validation, local pool vs a Dask LocalCluster,
+continuation against cold solves, failures as rows, the ``se3ocp sweep`` command.
+
+Small grids at N <= 60 so the file runs in about a minute on 2 cores.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from problems import sweep as sw
+from problems.maneuvers import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+E3 = ROOT / "configs" / "e3_inclination_change.yaml"
+E1 = ROOT / "configs" / "e1_impulsive_tpbvp.yaml"
+N = 40
+
+
+def write_sweep(tmp_path: Path, body: str, name="s.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(f"base: {E3}\n" + body if "base:" not in body else body)
+    return p
+
+
+GRID_2x3 = f"""
+set: {{horizon.N: {N}}}
+axes:
+  horizon.T: [0.48, 0.53]
+  control.weights.moment: [5000.0, 10000.0, 20000.0]
+methods: [direct, indirect]
+continuation: true
+"""
+
+T_SWEEP = f"""
+set: {{horizon.N: {N}}}
+axes:
+  horizon.T: {{linspace: [0.46, 0.56, 6]}}
+methods: [direct, indirect]
+continuation: true
+"""
+
+
+# ------------------------------------------------------------------ validation
+BAD = [
+    ("axes: {horizon.T: [0.5]}\n", "base", "missing required key", True),
+    ("axes: {horizon.T: [0.5]}\nfoo: 1\n", "foo", "unknown key", False),
+    ("axes: {}\n", "axes", "non-empty mapping", False),
+    ("axes: {horizon.T: 0.5}\n", "axes.horizon.T", "expected a list of values", False),
+    ("axes: {horizon.T: []}\n", "axes.horizon.T", "at least one value", False),
+    ("axes: {horizon.T: [0.5, 0.5]}\n", "axes.horizon.T[1]", "distinct", False),
+    ("axes: {horizon.T: {linspace: [0.4, 0.5, 0]}}\n", "axes.horizon.T.linspace[2]", "positive integer", False),
+    ("axes: {horizon.T: {linspace: [0.4, 0.5]}}\n", "axes.horizon.T.linspace", "[start, stop, num]", False),
+    ("axes: {horizon.T: {geomspace: [-1, 0.5, 3]}}\n", "axes.horizon.T.geomspace", "positive start and stop", False),
+    ("axes: {horizon.T: {arange: [0.4, 0.5, 3]}}\n", "axes.horizon.T", "linspace", False),
+    ("axes: {horizon..T: [1]}\n", "axes.horizon..T", "dotted maneuver key", False),
+    ("axes: {horizon.T: [0.5, -0.1]}\n", "axes.horizon.T[1]", "horizon.T: expected a positive number", False),
+    ("axes: {horizon.N: [10, 2.5]}\n", "axes.horizon.N[1]", "expected an integer", False),
+    ("axes: {horizon.M: [1]}\n", "axes.horizon.M[0]", "unknown key", False),
+    ("axes: {horizon.T: [0.5]}\nmethods: [direct, shooting]\n", "methods[1]", "expected one of direct, indirect", False),
+    ("axes: {horizon.T: [0.5]}\nmethods: []\n", "methods", "non-empty list", False),
+    ("axes: {horizon.T: [0.5]}\ncontinuation: yes please\n", "continuation", "true or false", False),
+    ("axes: {horizon.T: [0.5]}\ncontinuation_axis: horizon.N\n", "continuation_axis", "expected one of horizon.T", False),
+    ("axes: {horizon.T: [0.5]}\nset: {horizon.T: 0.4}\n", "axes", "set twice", False),
+    ("axes: {status: [1]}\n", "axes.status", "other than the result columns", False),
+    ("axes:\n  inc:\n    values: [10, 20]\n    set: {terminal.velocity: [[0, -6, -1]]}\n",
+     "axes.inc.set.terminal.velocity", "list of 2 values", False),
+    ("axes:\n  inc:\n    values: [10, 20]\n    set: {terminal.velocity: [[0, -6, -1], [0, -6]]}\n",
+     "axes.inc.set.terminal.velocity[1]", "terminal.velocity: expected a list of 3 numbers", False),
+    ("axes: {solver.direct.options.no_such_ipopt_option: [1]}\n", "axes.solver.direct.options.no_such_ipopt_option[0]",
+     "unknown IPOPT option", False),
+    ("axes: {horizon.T: [0.5]\n", "line", "not valid YAML", False),
+]
+
+
+@pytest.mark.parametrize("body,fieldname,detail,no_base", BAD)
+def test_bad_sweep_files(tmp_path, body, fieldname, detail, no_base):
+    p = tmp_path / "bad.yaml"
+    p.write_text(body if no_base else f"base: {E3}\n" + body)
+    with pytest.raises(ConfigError) as ei:
+        sw.load_sweep(p)
+    msg = str(ei.value)
+    assert "\n" not in msg and msg.startswith(f"{p}: ")
+    assert ei.value.field.startswith(fieldname), msg
+    assert detail in msg, msg
+
+
+def test_base_errors(tmp_path):
+    p = write_sweep(tmp_path, "base: nowhere.yaml\naxes: {horizon.T: [0.5]}\n")
+    with pytest.raises(ConfigError, match="base: expected a maneuver file"):
+        sw.load_sweep(p)
+    p = write_sweep(tmp_path, f"base: {E1}\naxes: {{horizon.T: [0.8]}}\nmethods: [direct, indirect]\n")
+    with pytest.raises(ConfigError, match="methods: the indirect method applies to smooth maneuvers"):
+        sw.load_sweep(p)
+
+
+def test_grid_points_and_chains(tmp_path):
+    s = sw.load_sweep(write_sweep(tmp_path, GRID_2x3))
+    pts = s.points()
+    assert s.shape == (2, 3) and len(pts) == 6
+    assert pts[4].values == {"horizon.T": 0.53, "control.weights.moment": 10000.0}
+    assert pts[4].overrides == ("horizon.N=40", "horizon.T=0.53", "control.weights.moment=10000.0")
+    assert s.chains(False) == [[i] for i in range(6)]
+    assert sorted(s.chains(True)) == [[0, 3], [1, 4], [2, 5]]  # along T, one chain per weight
+    lin = sw.load_sweep(write_sweep(tmp_path, T_SWEEP, "t.yaml"))
+    assert lin.axes[0].values == (0.46, 0.48, 0.5, 0.52, 0.54, 0.56)  # no representation noise
+
+
+def test_secant_predictor_is_linear_extrapolation():
+    a, b = {"lam0": np.arange(3.0)}, {"lam0": np.arange(3.0) + 1.0}
+    p = sw._predict([(0.5, a), (0.6, b)], 0.75, numeric=True)
+    assert p["kind"] == "secant" and np.allclose(p["lam0"], np.arange(3.0) + 2.5)
+    assert sw._predict([(0.5, a)], 0.6, numeric=True)["kind"] == "neighbour"
+    assert sw._predict([(0.5, a), (0.6, b)], 2.0, numeric=True)["kind"] == "neighbour"  # too far: no extrapolation
+    assert sw._predict([], 0.6, numeric=True) is None
+
+
+# ------------------------------------------------------------------ execution
+@pytest.fixture(scope="module")
+def grid_file(tmp_path_factory):
+    return write_sweep(tmp_path_factory.mktemp("grid"), GRID_2x3)
+
+
+@pytest.fixture(scope="module")
+def local_result(grid_file):
+    return sw.run_sweep(sw.load_sweep(grid_file), workers=2)
+
+
+def _costs(res):
+    return {(r["point"], r["method"]): r["cost"] for r in res.rows}
+
+
+def test_local_pool_2x3(local_result):
+    res = local_result
+    assert res.executor == "local" and len(res.rows) == 12 and res.all_converged
+    assert [(r["point"], r["method"]) for r in res.rows] == [(i, m) for i in range(6) for m in ("direct", "indirect")]
+    for i in range(6):  # the two methods find the same extremal at every point
+        d, ind = res.rows[2 * i], res.rows[2 * i + 1]
+        assert abs(d["cost"] - ind["cost"]) <= 1e-8 * d["cost"]
+    # the second T value of each chain was warm-started from the first
+    assert [r["warm_started"] for r in res.rows if r["horizon.T"] == 0.53] == [True] * 6
+    assert {r["start"] for r in res.rows if r["horizon.T"] == 0.48} == {"cold"}
+
+
+def test_dask_local_cluster_identical(grid_file, local_result):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None, protocol="tcp") as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        res = sw.run_sweep(sw.load_sweep(grid_file), scheduler=cluster.scheduler_address)
+    assert res.executor == "dask" and res.all_converged
+    a, b = _costs(local_result), _costs(res)
+    assert a.keys() == b.keys()
+    for k in a:
+        assert abs(a[k] - b[k]) <= 1e-10 * abs(a[k]), (k, a[k], b[k])
+    assert [r["iterations"] for r in res.rows] == [r["iterations"] for r in local_result.rows]
+
+
+def test_continuation_same_costs_fewer_iterations(tmp_path):
+    s = sw.load_sweep(write_sweep(tmp_path, T_SWEEP))
+    warm = sw.run_sweep(s, workers=2)
+    cold = sw.run_sweep(s, workers=2, continuation=False)
+    assert warm.all_converged and cold.all_converged
+    a, b = _costs(warm), _costs(cold)
+    for k in a:
+        assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
+    for m in ("direct", "indirect"):
+        it_w = sum(r["iterations_total"] for r in warm.rows if r["method"] == m)
+        it_c = sum(r["iterations_total"] for r in cold.rows if r["method"] == m)
+        assert it_w < it_c, (m, it_w, it_c)
+    assert {r["start"] for r in warm.rows if r["horizon.T"] >= 0.5} == {"secant"}
+    assert not any(r["warm_started"] for r in cold.rows)
+
+
+def test_failing_point_recorded_chain_continues(tmp_path):
+    """A point that cannot converge (max_iter 1) in the middle of a chain: its warm start fails,
+    the cold fallback fails too (both recorded), and the next point starts from the last converged one."""
+    s = sw.load_sweep(write_sweep(tmp_path, f"""
+set: {{horizon.N: {N}}}
+axes:
+  case:
+    values: [1, 2, 3]
+    set: {{horizon.T: [0.5, 0.52, 0.54], solver.direct.max_iter: [3000, 1, 3000]}}
+continuation: true
+"""))
+    res = sw.run_sweep(s, workers=1)
+    assert [r["converged"] for r in res.rows] == [True, False, True]
+    bad = res.rows[1]
+    assert bad["status"] == "Maximum_Iterations_Exceeded" and bad["start"] == "cold_after_failed_warm"
+    assert bad["iterations_total"] == 2 and bad["warm_started"] is False
+    assert res.rows[2]["start"] == "neighbour" and res.rows[2]["warm_started"] is True
+    assert not res.all_converged
+
+
+def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
+    s = sw.load_sweep(write_sweep(tmp_path, f"set: {{horizon.N: 20}}\naxes: {{horizon.T: [0.5, 0.52]}}\n"))
+    real = sw._solve
+
+    def flaky(man, method, warm):
+        if man.T == 0.5:
+            raise RuntimeError("solver blew up\nwith a two-line message")
+        return real(man, method, warm)
+
+    monkeypatch.setattr(sw, "_solve", flaky)
+    res = sw.run_sweep(s, workers=1)
+    assert [r["status"] for r in res.rows] == ["error", "Solve_Succeeded"]
+    assert res.rows[0]["message"] == "RuntimeError: solver blew up with a two-line message"
+
+
+def test_bad_scheduler_is_bad_input():
+    pytest.importorskip("distributed")
+    with pytest.raises(ConfigError, match="cannot connect"):
+        sw._Dask("tcp://127.0.0.1:9", timeout=1)
+
+
+# ------------------------------------------------------------------ the command
+def run(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "problems.cli", "sweep", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_cli_end_to_end(tmp_path):
+    f = write_sweep(tmp_path, f"""
+set: {{horizon.N: {N}}}
+axes:
+  horizon.T: [0.5, 0.52]
+  inclination_deg:
+    values: [20, 30]
+    set:
+      terminal.velocity: [[0.0, -5.904262868187098, -2.148975939303298], [0.0, -5.441398092702654, -3.1415926535897927]]
+      terminal.attitude: [{{rotations: [[x, 20], [z, 180]]}}, {{rotations: [[x, 30], [z, 180]]}}]
+methods: [direct]
+continuation: true
+""")
+    out = tmp_path / "out"
+    r = run(f, "--out", out, "--workers", "2")
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr
+    assert r.stderr.count("\n[") + r.stderr.startswith("[") == 4  # one progress line per task (not a TTY)
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert list(rows[0]) == ["point", "method", "horizon.T", "inclination_deg", *sw.RESULT_COLUMNS]
+    assert len(rows) == 4 and all(x["converged"] == "true" for x in rows)
+    lines = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert len(lines) == 4 and lines[0]["overrides"][0] == f"horizon.N={N}"
+    for name in ("summary.json", "sweep.resolved.yaml", "cost_vs_horizon.T.png", "cost_vs_inclination_deg.png",
+                 "status_map.png"):
+        assert (out / name).stat().st_size > 0, name
+    assert not list(out.glob(".*.tmp"))
+    # a non-empty results directory needs --force
+    r = run(f, "--out", out, "--workers", "1", "--quiet")
+    assert r.returncode == 2 and "--force" in r.stderr
+
+
+def test_cli_exit_codes(tmp_path):
+    bad = write_sweep(tmp_path, "axes: {horizon.T: [0.5, -1]}\n", "bad.yaml")
+    r = run(bad, "--out", tmp_path / "o2")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"{bad}: axes.horizon.T[1]: grid point horizon.T=-1: horizon.T: expected a positive number" in r.stderr
+    assert not (tmp_path / "o2").exists()  # nothing written for bad input
+    r = run(bad, "--workers", "0")
+    assert r.returncode == 2 and "positive integer" in r.stderr
+    some_fail = write_sweep(tmp_path, f"set: {{horizon.N: 20}}\naxes: {{solver.direct.max_iter: [2, 3000]}}\n", "f.yaml")
+    r = run(some_fail, "--out", tmp_path / "o3", "--workers", "1", "--quiet")
+    assert r.returncode == 1, r.stderr
+    assert r.stdout == "" and "Traceback" not in r.stderr
+    rows = list(csv.DictReader((tmp_path / "o3" / "results.csv").open()))
+    assert [x["converged"] for x in rows] == ["false", "true"]
