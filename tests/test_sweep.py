@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -154,6 +155,12 @@ def test_dask_local_cluster_identical(grid_file, local_result):
                                   dashboard_address=None, protocol="tcp") as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
         res = sw.run_sweep(sw.load_sweep(grid_file), scheduler=cluster.scheduler_address)
+        out = grid_file.parent / "dask_cli"
+        r = run(grid_file, "--out", out, "--scheduler", cluster.scheduler_address, "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((out / "summary.json").read_text())["executor"] == "dask"
+    cli_costs = [float(x["cost"]) for x in csv.DictReader((out / "results.csv").open())]
+    assert cli_costs == [r["cost"] for r in res.rows]  # repr round-trips the floats
     assert res.executor == "dask" and res.all_converged
     a, b = _costs(local_result), _costs(res)
     assert a.keys() == b.keys()
@@ -271,3 +278,24 @@ def test_cli_exit_codes(tmp_path):
     assert r.stdout == "" and "Traceback" not in r.stderr
     rows = list(csv.DictReader((tmp_path / "o3" / "results.csv").open()))
     assert [x["converged"] for x in rows] == ["false", "true"]
+
+
+def test_cli_ctrl_c_writes_finished_rows(tmp_path):
+    """SIGINT during a pool sweep: exit 130 promptly (workers stopped), the rows finished so far are written."""
+    f = write_sweep(tmp_path, f"set: {{horizon.N: {N}}}\naxes: {{horizon.T: {{linspace: [0.45, 0.63, 10]}}}}\n"
+                              "methods: [direct, indirect]\n")
+    out = tmp_path / "o"
+    p = subprocess.Popen([sys.executable, "-m", "problems.cli", "sweep", str(f), "--out", str(out), "--workers", "2"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = p.stderr.readline()  # the first finished task
+        assert first.startswith("[ 1/20]"), first
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+    finally:
+        p.kill()
+    assert p.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert 1 <= len(rows) < 20
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
