@@ -716,7 +716,7 @@ def cli_sweep(args, check_interrupt: Callable[[], None] | None = None) -> int:
                  "dask": f"Dask cluster at {args.scheduler}"}[ex.kind]
         axc = sw.axes[sw.continuation_axis].name
         say(f"{sw.name}: {n} points x {len(sw.row_methods())} method(s) = {n * len(sw.row_methods())} tasks on {where}; "
-            f"continuation {'along ' + axc if cont else 'off'} -> {out}/")
+            f"continuation {('along ' + axc) if cont and sw.control_kind != 'impulsive' else 'off'} -> {out}/")
         bar = ProgressBar(quiet=args.quiet)
         try:
             res = run_sweep(sw, continuation=cont, progress=bar, check_interrupt=check_interrupt, executor=ex)
@@ -747,6 +747,7 @@ class ProgressBar:
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.t0 = time.perf_counter()
         self.bad = 0
+        self.ended = False
 
     def __call__(self, row: dict, done: int, total: int):
         if self.quiet:
@@ -757,7 +758,8 @@ class ProgressBar:
             k = int(self.width * done / max(total, 1))
             line = (f"\r[{'#' * k}{'.' * (self.width - k)}] {done}/{total} tasks, {self.bad} not converged, "
                     f"{el:.0f} s")
-            self.stream.write(line + ("\n" if done == total else ""))
+            self.ended = done == total
+            self.stream.write(line + ("\n" if self.ended else ""))
         else:
             vals = {k: v for k, v in row.items() if k not in ("point", "method", *RESULT_COLUMNS)}
             self.stream.write(f"[{done:>{len(str(total))}}/{total}] {row['method']:<9} {_label(vals)}: "
@@ -766,7 +768,7 @@ class ProgressBar:
         self.stream.flush()
 
     def close(self):
-        if self.tty and not self.quiet:
+        if self.tty and not self.quiet and not self.ended:
             self.stream.write("\n")
             self.stream.flush()
 
@@ -779,6 +781,11 @@ def _cell(v):
     if isinstance(v, (list, dict)):
         return json.dumps(v)
     return v
+
+
+def _finite_or_none(v):
+    """JSON lines stay strict JSON: NaN/inf (a failed point's cost) become null."""
+    return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
 def columns(sweep: Sweep) -> list[str]:
@@ -796,8 +803,8 @@ def write_results(out: Path, result: SweepResult, figures: bool = True) -> list[
         w.writerow([_cell(r.get(c)) for c in cols])
     atomic_write_bytes(out / "results.csv", buf.getvalue().encode())
     pts = result.sweep.points()
-    lines = [json.dumps({**{c: r.get(c) for c in cols}, "overrides": list(pts[r["point"]].overrides)},
-                        allow_nan=True) for r in result.rows]
+    lines = [json.dumps({**{c: _finite_or_none(r.get(c)) for c in cols}, "overrides": list(pts[r["point"]].overrides)},
+                        allow_nan=False) for r in result.rows]
     atomic_write_bytes(out / "results.jsonl", ("\n".join(lines) + "\n" if lines else "").encode())
     write_json(out / "summary.json", result.summary())
     write_yaml(out / "sweep.resolved.yaml", {**result.sweep.doc, "base": str(result.sweep.base)})
