@@ -75,11 +75,11 @@ from .results import Solution, SolverOptionError, Trajectory, terminal_error_ful
 NC = 3  # Cayley vector
 BALANCE = 1e-2  # smallest allowed ratio of scaled control cost curvatures (characteristic_scales)
 
-#: MUMPS settings for this (already scaled, banded) KKT system: no MUMPS scaling and AMD ordering.
-#: Measured on E3 first_order N = 1000: the linear-algebra share of an IPOPT solve fell 1.2 s -> 0.36 s
-#: (MUMPS' own scaling and automatic ordering cost more than they bring here).  Raw ``options``
+#: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling.
+#: Measured on E3 first_order N = 1000: the IPOPT call fell 1.9 s -> 0.7 s (MUMPS' automatic
+#: ordering and its maximum-transversal scaling cost more than they bring here).  Raw ``options``
 #: override them.
-MUMPS_DEFAULTS: dict[str, Any] = {"mumps_scaling": 0, "mumps_permuting_scaling": 0, "mumps_pivot_order": 0}
+MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_order": 0}
 
 #: options read from ``problem.options`` (the YAML ``solver.direct`` block) and their defaults
 DIRECT_OPTION_DEFAULTS: dict[str, Any] = {

@@ -24,6 +24,9 @@ Functions built (all SX, inputs/outputs named):
     step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])       explicit step
     step            (X[18], w[nw], h)       -> (X1[18], res)         solved step
     variation       (X[18], w[nw], h)       -> (A[12x12], B[12xnw])  SPEC §4 (18)
+    step_seeded     (X, w, h, c0[3])        -> (X1)   two Newton iterations from c0 (derivatives)
+    variation_seeded(X, w, h, c0[3])        -> (A, B) the same from c0; with c0 = the root of
+                                               step X's Cayley equation, equal to variation
     rollout(N)      (X0[18], W[nw x N], h)  -> (X[18 x N], res[1 x N])  mapaccum
 """
 from __future__ import annotations
@@ -114,6 +117,7 @@ class Discretization:
         self.cayley_residual = ca.Function("cayley_residual", [c, g], [G], ["c", "g"], ["G"])
         dG = hat(g) + ca.dot(g, c) * ca.DM.eye(3) + ca.mtimes(c, g.T) - 2 * ca.DM(J)
         newton_map = ca.Function("cayley_newton_map", [c, g], [c - _solve3(dG, G)])
+        self.cayley_newton_map = newton_map
 
         gnorm = ca.fmax(ca.norm_2(g), 1e-300)
         ck = ca.mtimes(ca.DM(np.linalg.inv(2 * J)), g)
@@ -141,6 +145,23 @@ class Discretization:
         AB = tangent_readback(X1s, dX1)
         self.variation = ca.Function(
             f"{scheme}_variation", [X, w, h], [AB[:, :NZ], AB[:, NZ:]], ["X", "w", "h"], ["A", "B"]
+        )
+
+        # Seeded versions for derivatives (speed): the Cayley root c0 of the *unperturbed* step is an
+        # input and the step uses two Newton iterations from it.  With c0 = the root, N^2(c0, g) agrees
+        # with the implicit function c(g) to O(|dg|^4) (quadratic convergence), so values and first
+        # to third derivatives in X, w are exact, while the graph is ~5x smaller than through the
+        # 8 unrolled iterations of cayley_solve (whose derivatives vanish at the root anyway).
+        c0 = ca.SX.sym("c0", 3)
+        X1c, _ = self.step_given_c(X, newton_map(newton_map(c0, gvec), gvec), w, h)
+        self.step_seeded = ca.Function(
+            f"{scheme}_step_seeded", [X, w, h, c0], [X1c], ["X", "w", "h", "c0"], ["X1"]
+        )
+        X1zc = self.step_seeded(chart(X, z), w, h, c0)
+        dX1c = ca.substitute(ca.jacobian(X1zc, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
+        ABc = tangent_readback(X1c, dX1c)
+        self.variation_seeded = ca.Function(
+            f"{scheme}_variation_seeded", [X, w, h, c0], [ABc[:, :NZ], ABc[:, NZ:]], ["X", "w", "h", "c0"], ["A", "B"]
         )
 
     # ------------------------------------------------------------------ steps
