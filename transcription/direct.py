@@ -61,11 +61,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
 
+from . import codegen
 from .guess import Guess, cayley_vectors, make_guess
 from .layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, split_state, unpack_states
 from .lie import hat, log_so3
@@ -90,6 +92,7 @@ DIRECT_OPTION_DEFAULTS: dict[str, Any] = {
     "options": {},               # raw IPOPT options (e.g. {'print_level': 5, 'linear_solver': 'ma27'})
     "cayley_variables": True,    # c_k as decision variables with G(c_k) = 0 as constraints
     "terminal_tol": 1e-6,        # re-simulated terminal error above which the solve is not "converged"
+    "jit": False,                # compile the stage Jacobian/Hessian to C (transcription/codegen.py; cached on disk)
 }
 
 
@@ -284,38 +287,60 @@ def _assemble(nrow: int, ncol: int, rows, cols, vals):
     return ca.sparsity_cast(nz, sp)
 
 
-def _stage_functions(disc, h: float, sc: Scales, with_c: bool, sW: np.ndarray, jit: bool):
-    """Scaled stage defect, its Jacobian and its Hessian as small SX Functions (built once per problem).
+@lru_cache(maxsize=None)
+def _stage_functions(disc, with_c: bool, jit: bool):
+    """Scaled stage defect, its Jacobian and its Hessian as small SX Functions, built once per scheme.
 
     Stage variables v = [X_k; c_k (with_c); w_k] (scaled), X_{k+1} (scaled) enters linearly:
-    d = step(X_k, c_k, w_k, h) / sX - X_{k+1} (18 rows) and G(c_k) / (h max sPi) (3 rows).
-    Returns (defect(v, X1) -> d, jac(v) -> nonzeros of dd/dv, hess(v, lam) -> nonzeros of
-    d^2 (lam^T d)/dv^2, Jacobian sparsity, Hessian sparsity, row scales).
+    d = step(X_k, c_k, w_k, h) / sX - X_{k+1} (18 rows) and G(c_k) / sG (3 rows).  The step and
+    the scales are a parameter vector prm = [h; sX (18); sC (3, with_c); sW (nw); sG (3, with_c)]
+    (:func:`_stage_parameters`), so the Functions (and their compiled code, with ``jit``) serve
+    every problem of the scheme.  Returns (defect(v, X1, prm) -> d, jac(v, prm) -> nonzeros of
+    dd/dv, hess(v, lam, prm) -> nonzeros of d^2 (lam^T d)/dv^2, Jacobian sparsity, Hessian sparsity,
+    compiled flag).
     """
     nc = NC if with_c else 0
     nv = NX + nc + disc.nw
+    npar = 1 + NX + nc + disc.nw + nc
     v = ca.SX.sym("v", nv)
     X1s = ca.SX.sym("X1s", NX)
-    X = v[:NX] * ca.DM(sc.X)
-    w = v[NX + nc:] * ca.DM(sW)
+    prm = ca.SX.sym("prm", npar)
+    h = prm[0]
+    sX = prm[1:1 + NX]
+    sC = prm[1 + NX:1 + NX + nc]
+    sW = prm[1 + NX + nc:1 + NX + nc + disc.nw]
+    X = v[:NX] * sX
+    w = v[NX + nc:] * sW
     if with_c:
-        c = v[NX:NX + nc] * ca.DM(sc.C)
-        X1, G = disc.step_given_c(X, c, w, h)
-        gsc = np.concatenate([sc.X, np.full(NC, h * sc.X[X_ANG].max())])
-        d = ca.vertcat(X1 / ca.DM(sc.X) - X1s, G / ca.DM(gsc[NX:]))
+        X1, G = disc.step_given_c(X, v[NX:NX + nc] * sC, w, h)
+        d = ca.vertcat(X1 / sX - X1s, G / prm[npar - nc:])
     else:
         X1, _ = disc.step(X, w, h)
-        gsc = np.asarray(sc.X, dtype=float).copy()
-        d = X1 / ca.DM(sc.X) - X1s
+        d = X1 / sX - X1s
     nd = d.shape[0]
     lam = ca.SX.sym("lam", nd)
     Jv = ca.jacobian(d, v)
     Hv = ca.hessian(ca.dot(lam, d), v)[0]
-    fopts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}} if jit else {}
-    defect = ca.Function("stage_defect", [v, X1s], [d], ["v", "X1"], ["d"])
-    jac = ca.Function("stage_jac", [v], [ca.vertcat(*Jv.nonzeros())], ["v"], ["jnz"], fopts)
-    hess = ca.Function("stage_hess", [v, lam], [ca.vertcat(*Hv.nonzeros())], ["v", "lam"], ["hnz"], fopts)
-    return defect, jac, hess, Jv.sparsity(), Hv.sparsity(), gsc
+    tag = f"{disc.scheme}{'_c' if with_c else ''}"
+    defect = ca.Function(f"stage_defect_{tag}", [v, X1s, prm], [d], ["v", "X1", "prm"], ["d"])
+    jac = ca.Function(f"stage_jac_{tag}", [v, prm], [ca.vertcat(*Jv.nonzeros())], ["v", "prm"], ["jnz"],
+                      {"cse": True})
+    hess = ca.Function(f"stage_hess_{tag}", [v, lam, prm], [ca.vertcat(*Hv.nonzeros())], ["v", "lam", "prm"],
+                       ["hnz"], {"cse": True})
+    compiled = False
+    if jit:
+        jac, hess = codegen.compiled(jac), codegen.compiled(hess)
+        compiled = jac.class_name() == "External" and hess.class_name() == "External"
+    return defect, jac, hess, Jv.sparsity(), Hv.sparsity(), compiled
+
+
+def _stage_parameters(disc, h: float, sc: Scales, with_c: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(prm for :func:`_stage_functions`, defect row scales gsc (nd,))."""
+    sW = np.asarray(disc.stage_controls(np.repeat(sc.U[:, None], 2, axis=1)), dtype=float)[:, 0]
+    if with_c:
+        sG = np.full(NC, h * sc.X[X_ANG].max())          # G ~ h Pi
+        return np.concatenate([[h], sc.X, sc.C, sW, sG]), np.concatenate([sc.X, sG])
+    return np.concatenate([[h], sc.X, sW]), np.asarray(sc.X, dtype=float).copy()
 
 
 def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale: np.ndarray, wq: np.ndarray,
@@ -334,8 +359,9 @@ def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale:
     """
     disc, N, h = problem.disc, problem.N, problem.h
     with_c = lay.with_c
-    sW = np.asarray(disc.stage_controls(np.repeat(sc.U[:, None], 2, axis=1)), dtype=float)[:, 0]
-    defect, jac, hess, spJ, spH, gsc = _stage_functions(disc, h, sc, with_c, sW, jit)
+    defect, jac, hess, spJ, spH, compiled = _stage_functions(disc, with_c, bool(jit))
+    prm_np, gsc = _stage_parameters(disc, h, sc, with_c)
+    prm = ca.DM(prm_np)
     nd = len(gsc)
     # global indices of the stage variables v_k (nv x N)
     iW = np.rint(np.asarray(disc.stage_controls(lay.iU.astype(float)))).astype(np.int64)
@@ -359,7 +385,7 @@ def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale:
 
     ng = nd * N + NZ
     n = lay.n
-    g = ca.vertcat(ca.vec(defect.map(N)(V, X1)), term_f(XN)[0])
+    g = ca.vertcat(ca.vec(defect.map(N)(V, X1, prm)), term_f(XN)[0])
 
     # objective: 0.5 sum q_i ws_i^2 (q nonzero on the controls only)
     q = np.zeros(n)
@@ -377,7 +403,7 @@ def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale:
     tr, tc = (np.asarray(a) for a in JT.sparsity().get_triplet())
     rows.append(nd * N + tr)
     cols.append(lay.iX[tc, -1])
-    Jmap = jac.map(N)(V)
+    Jmap = jac.map(N)(V, prm)
     jvals = ca.vertcat(ca.vec(Jmap), ca.DM.ones(NX * N) * -1.0, term_f(XN)[1])
     Jg = _assemble(ng, n, np.concatenate(rows), np.concatenate(cols), jvals)
 
@@ -387,7 +413,7 @@ def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale:
     hr, hc = (np.asarray(a) for a in spH.get_triplet())
     keep = iV[hr, 0] <= iV[hc, 0]                          # same ordering in every stage (checked)
     sel = np.flatnonzero(keep).tolist()
-    Hmap = hess.map(N)(V, ca.reshape(lam_g[: nd * N], nd, N))
+    Hmap = hess.map(N)(V, ca.reshape(lam_g[: nd * N], nd, N), prm)
     Hsel = Hmap[sel, :]
     hrows = [iV[hr[keep], :].ravel(order="F")]
     hcols = [iV[hc[keep], :].ravel(order="F")]
@@ -402,6 +428,7 @@ def _structured_nlp(problem: SmoothProblem, lay: NLPLayout, sc: Scales, w_scale:
     p = ca.MX.sym("p", 0)
     derivs = {
         "f": f,
+        "compiled": compiled,
         "grad_f": ca.Function("nlp_grad_f_s", [ws, p], [f, qd * ws], ["x", "p"], ["f", "grad_f_x"]),
         "jac_g": ca.Function("nlp_jac_g_s", [ws, p], [g, Jg], ["x", "p"], ["g", "jac_g_x"]),
         "hess_lag": ca.Function("nlp_hess_l_s", [ws, p, lam_f, lam_g], [H], ["x", "p", "lam_f", "lam_g"],
@@ -480,9 +507,11 @@ class DirectNLP:
         tsc = np.concatenate([sc.X[X_POS], sc.X[X_MOM], np.ones(3), sc.X[X_ANG]])
         wq = ca.DM(self.W[:, None] * self.omega[None, :])              # 6 x nU
         derivs = {}
+        self.compiled = False
         if structured:
             g, gsc, derivs = _structured_nlp(problem, lay, sc, self.w_scale, wq.full(), tsc, ws, bool(opts.get("jit")))
             f = derivs.pop("f")
+            self.compiled = derivs.pop("compiled")
             nd = len(gsc)
         else:
             D, gsc = shooting_defects(disc, h, Xs, Cs, Wst, sc.X)
@@ -683,6 +712,7 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
         "max_defect": float(np.abs(g_phys[nlp.defect_rows.ravel()]).max()),
         "nlp_terminal_error": terminal_error_full(Xn[:, -1], problem.Xd),
         "max_cayley_residual": worst_cayley,
+        "jit": bool(nlp.compiled),
         "nlp_nu": nlp.scales.objective * lam_g / nlp.g_scale,  # physical multipliers, for warm starts
     }
     return Solution(method="direct", solver="ipopt", discretization=problem.disc.scheme, N=problem.N, h=problem.h,
