@@ -74,6 +74,9 @@ RESULT_COLUMNS = ("status", "converged", "cost", "terminal_error", "iterations",
                   "build_s", "solve_s", "warm_started", "start", "message")
 #: a secant step larger than this multiple of the last spacing falls back to the neighbour
 MAX_SECANT_RATIO = 3.0
+#: limits that keep a typo from expanding into millions of solves
+MAX_AXIS_VALUES = 10_000
+MAX_GRID_POINTS = 100_000
 
 
 # ---------------------------------------------------------------------------- schema
@@ -146,8 +149,19 @@ class Sweep:
 
 
 def _override(key: str, value) -> str:
-    # JSON is YAML flow syntax, and round-trips floats exactly (repr)
-    return f"{key}={json.dumps(value)}"
+    return f"{key}={_flow(value)}"
+
+
+def _flow(x) -> str:
+    """YAML flow text of a plain value: JSON (floats round-trip exactly by repr), except
+    non-finite floats, written the YAML way (.nan, .inf) so the validator names them."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return ".nan" if math.isnan(x) else (".inf" if x > 0 else "-.inf")
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(_flow(a) for a in x) + "]"
+    if isinstance(x, dict):
+        return "{" + ", ".join(f"{json.dumps(str(k))}: {_flow(a)}" for k, a in x.items()) + "}"
+    return json.dumps(x)
 
 
 def _clean(x: float) -> float:
@@ -168,6 +182,8 @@ def _axis_values(v: _V, spec, where) -> list:
         a = v.number(args[0], f"{w}[0]")
         b = v.number(args[1], f"{w}[1]")
         n = v.number(args[2], f"{w}[2]", integer=True, positive=True)
+        if n > MAX_AXIS_VALUES:
+            v.fail(f"{w}[2]", f"expected at most {MAX_AXIS_VALUES} values, got {n}")
         if form == "geomspace":
             if not (a > 0 and b > 0):
                 v.fail(w, f"expected positive start and stop for geomspace, got {a!r}, {b!r}")
@@ -181,6 +197,8 @@ def _axis_values(v: _V, spec, where) -> list:
         v.fail(where, f"expected a list of values or {{linspace: [start, stop, num]}}, got {_describe(spec)}")
     if not vals:
         v.fail(where, "expected at least one value")
+    if len(vals) > MAX_AXIS_VALUES:
+        v.fail(where, f"expected at most {MAX_AXIS_VALUES} values, got {len(vals)}")
     for i, x in enumerate(vals):
         if x is None:
             v.fail(f"{where}[{i}]", "expected a value, got nothing (null)")
@@ -202,9 +220,9 @@ def _axis(v: _V, name, spec, where) -> Axis:
             v.fail(where, "expected a printable axis name")
         v.mapping(spec, where, ("values", "set"), required=("values", "set"))
         vals = _axis_values(v, spec["values"], _join(where, "values"))
-        sets = v.mapping(spec["set"], _join(where, "set"), spec["set"].keys() if isinstance(spec["set"], dict) else ())
-        if not sets:
-            v.fail(_join(where, "set"), "expected at least one dotted key -> list of values")
+        sets = spec["set"]
+        if not isinstance(sets, dict) or not sets:
+            v.fail(_join(where, "set"), f"expected a non-empty mapping of dotted key -> list of values, got {_describe(sets)}")
         per_key = {}
         for k, lst in sets.items():
             wk = f"{where}.set.{k}"
@@ -232,13 +250,17 @@ def parse_sweep(doc: Any, source: str) -> Sweep:
         v.fail("base", f"expected the path of a maneuver file (relative to the sweep file), got {_describe(doc['base'])}")
     base = Path(source).parent / doc["base"]
     fixed_doc = doc.get("set", {}) or {}
-    v.mapping(fixed_doc, "set", fixed_doc.keys() if isinstance(fixed_doc, dict) else ())
+    if not isinstance(fixed_doc, dict):
+        v.fail("set", f"expected a mapping of dotted key -> value, got {_describe(fixed_doc)}")
     fixed = tuple(_override(_dotted(v, k, f"set.{k}"), x) for k, x in fixed_doc.items())
     axes_doc = doc["axes"]
     if not isinstance(axes_doc, dict) or not axes_doc:
         v.fail("axes", f"expected a non-empty mapping of dotted key -> values, got {_describe(axes_doc)}")
     axes = tuple(_axis(v, k, s, _join("axes", k) if isinstance(k, str) and "." not in k else f"axes.{k}")
                  for k, s in axes_doc.items())
+    size = math.prod(len(a.values) for a in axes)
+    if size > MAX_GRID_POINTS:
+        v.fail("axes", f"expected at most {MAX_GRID_POINTS} grid points, got {size}")
     reserved = {"point", "method", *RESULT_COLUMNS}
     for a in axes:
         if a.name in reserved:
@@ -278,6 +300,12 @@ def load_sweep(path: str | Path) -> Sweep:
         mark = getattr(e, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         raise ConfigError(source, where, f"not valid YAML ({getattr(e, 'problem', None) or e})") from None
+    return sweep_from_doc(doc, source)
+
+
+def sweep_from_doc(doc: Any, source: str) -> Sweep:
+    """parse_sweep, then the base maneuver and every grid point (load_maneuver) and the
+    raw IPOPT options: a valid Sweep or a ConfigError, before any solve."""
     sw = parse_sweep(doc, source)
     if not sw.base.is_file():
         raise ConfigError(source, "base", f"expected a maneuver file; {sw.base} does not exist")

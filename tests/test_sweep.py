@@ -299,3 +299,45 @@ def test_cli_ctrl_c_writes_finished_rows(tmp_path):
     rows = list(csv.DictReader((out / "results.csv").open()))
     assert 1 <= len(rows) < 20
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+
+
+# ------------------------------------------------------------------ fuzz
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**4, 10**4), st.floats(allow_nan=True, allow_infinity=True),
+                     st.text(max_size=6), st.sampled_from(["direct", "indirect", "horizon.T", "linspace", "lgvi"]))
+_values = st.recursive(_scalars, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                         st.dictionaries(st.text(max_size=6), inner, max_size=3)),
+                       max_leaves=10)
+_keys = st.sampled_from(["horizon.T", "horizon.N", "control.weights.moment", "terminal.velocity", "discretization",
+                         "solver.direct.max_iter", "solver.indirect.alpha", "inc", "horizon", "a..b", "status"])
+_axis_specs = st.one_of(
+    _values,
+    st.lists(st.floats(0.01, 2.0), min_size=1, max_size=4),
+    st.fixed_dictionaries({st.sampled_from(["linspace", "geomspace", "range"]): st.lists(_scalars, max_size=4)}),
+    st.fixed_dictionaries({"values": st.lists(_scalars, max_size=3), "set": st.dictionaries(_keys, _values, max_size=2)}),
+)
+_docs = st.fixed_dictionaries(
+    {"base": st.just(str(E3)), "axes": st.one_of(
+        _values, st.dictionaries(_keys, _axis_specs, max_size=3),
+        st.fixed_dictionaries({"horizon.T": st.lists(st.floats(0.05, 2.0), min_size=1, max_size=3, unique=True)},
+                              optional={"horizon.N": st.lists(st.integers(-2, 300), min_size=1, max_size=2, unique=True),
+                                        "inc": _axis_specs}))},
+    optional={"methods": st.one_of(_values, st.lists(st.sampled_from(["direct", "indirect", "x"]), max_size=3)),
+              "continuation": st.one_of(st.booleans(), _values),
+              "continuation_axis": st.one_of(_keys, _values),
+              "set": st.one_of(_values, st.dictionaries(_keys, _values, max_size=2)),
+              "name": st.one_of(st.text(min_size=1, max_size=6), _values)})
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_docs)
+def test_random_sweep_documents(doc):
+    """Any document: a Sweep whose points all load, or a one-line ConfigError naming the file."""
+    try:
+        s = sw.sweep_from_doc(doc, "fuzz.yaml")
+    except ConfigError as e:
+        assert str(e).startswith("fuzz.yaml: ") and "\n" not in str(e), str(e)
+        return
+    assert len(s.points()) == int(np.prod(s.shape)) >= 1
