@@ -914,12 +914,15 @@ def draw_sweep(out: Path, result: SweepResult) -> list[Path]:
         written.append(_save_png(fig, Path(out) / f"cost_vs_{_safe(axis.name)}.png"))
         plt.close(fig)
     if len(sw.axes) == 2:
-        fig, axs = plt.subplots(1, len(methods), figsize=(5.6 * len(methods), 4.4), squeeze=False)
+        fig, axs = plt.subplots(1, len(methods), figsize=(6.2 * len(methods), 4.6), squeeze=False,
+                                layout="constrained")
         (xa, xt), (ya, yt) = _positions(sw.axes[1]), _positions(sw.axes[0])
+        good = np.concatenate([cost[m][ok[m]] for m in methods])
+        lims = dict(vmin=good.min(), vmax=good.max()) if good.size else {}  # one colour scale for all methods
         for axp, m in zip(axs[0], methods):
             Z = np.where(ok[m], cost[m], np.nan)
             ix, iy = np.arange(len(xa)), np.arange(len(ya))
-            im = axp.pcolormesh(ix, iy, np.ma.masked_invalid(Z), shading="nearest", cmap="viridis")
+            im = axp.pcolormesh(ix, iy, np.ma.masked_invalid(Z), shading="nearest", cmap="viridis", **lims)
             fig.colorbar(im, ax=axp, label="cost J")
             bad_y, bad_x = np.nonzero(done[m] & ~ok[m])
             axp.plot(bad_x, bad_y, "x", color="r", ms=12, mew=2.5, label="not converged")

@@ -273,11 +273,13 @@ def test_cli_exit_codes(tmp_path):
     r = run(bad, "--workers", "0")
     assert r.returncode == 2 and "positive integer" in r.stderr
     some_fail = write_sweep(tmp_path, f"set: {{horizon.N: 20}}\naxes: {{solver.direct.max_iter: [2, 3000]}}\n", "f.yaml")
-    r = run(some_fail, "--out", tmp_path / "o3", "--workers", "1", "--quiet")
+    r = run(some_fail, "--out", tmp_path / "o3", "--workers", "1", "--quiet", "--no-continuation")
     assert r.returncode == 1, r.stderr
     assert r.stdout == "" and "Traceback" not in r.stderr
     rows = list(csv.DictReader((tmp_path / "o3" / "results.csv").open()))
     assert [x["converged"] for x in rows] == ["false", "true"]
+    assert [x["start"] for x in rows] == ["cold", "cold"]
+    assert json.loads((tmp_path / "o3" / "summary.json").read_text())["continuation"] is False
 
 
 def test_cli_ctrl_c_writes_finished_rows(tmp_path):
