@@ -430,10 +430,13 @@ def _solve(man, method: str, warm: dict | None):
     if warm_solve is None:
         sol = cold()
         return sol, False, "cold" if not warm else "cold_warm_start_does_not_fit", sol.iterations
-    sol = warm_solve()
-    if sol.converged:
+    try:
+        sol = warm_solve()
+    except Exception:  # noqa: BLE001 - a warm start that breaks the solver is a failed warm start
+        sol = None
+    if sol is not None and sol.converged:
         return sol, True, warm.get("kind", "neighbour"), sol.iterations
-    first = sol.iterations
+    first = sol.iterations if sol is not None else 0
     sol = cold()
     return sol, False, "cold_after_failed_warm", first + sol.iterations
 

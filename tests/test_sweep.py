@@ -220,6 +220,23 @@ def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
     assert res.rows[0]["message"] == "RuntimeError: solver blew up with a two-line message"
 
 
+def test_warm_start_that_raises_falls_back_cold(tmp_path, monkeypatch):
+    import transcription.direct as direct
+
+    real = direct.solve_direct
+
+    def no_warm(problem, progress=None, warm_start=None):
+        if warm_start is not None:
+            raise RuntimeError("warm start broke the solver")
+        return real(problem, progress=progress)
+
+    monkeypatch.setattr(direct, "solve_direct", no_warm)
+    s = sw.load_sweep(write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {horizon.T: [0.5, 0.52]}\ncontinuation: true\n"))
+    res = sw.run_sweep(s, workers=1)
+    assert [r["start"] for r in res.rows] == ["cold", "cold_after_failed_warm"]
+    assert res.all_converged and res.rows[1]["iterations_total"] == res.rows[1]["iterations"]
+
+
 def test_bad_scheduler_is_bad_input():
     pytest.importorskip("distributed")
     with pytest.raises(ConfigError, match="cannot connect"):
