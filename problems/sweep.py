@@ -919,12 +919,12 @@ def draw_sweep(out: Path, result: SweepResult) -> list[Path]:
     if len(sw.axes) == 2:
         fig, axs = plt.subplots(1, len(methods), figsize=(6.2 * len(methods), 4.6), squeeze=False,
                                 layout="constrained")
-        (xa, xt), (ya, yt) = _positions(sw.axes[1]), _positions(sw.axes[0])
+        nx, ny = len(sw.axes[1].values), len(sw.axes[0].values)
         good = np.concatenate([cost[m][ok[m]] for m in methods])
         lims = dict(vmin=good.min(), vmax=good.max()) if good.size else {}  # one colour scale for all methods
         for axp, m in zip(axs[0], methods):
             Z = np.where(ok[m], cost[m], np.nan)
-            ix, iy = np.arange(len(xa)), np.arange(len(ya))
+            ix, iy = np.arange(nx), np.arange(ny)
             im = axp.pcolormesh(ix, iy, np.ma.masked_invalid(Z), shading="nearest", cmap="viridis", **lims)
             fig.colorbar(im, ax=axp, label="cost J")
             bad_y, bad_x = np.nonzero(done[m] & ~ok[m])
