@@ -98,8 +98,9 @@ class ConfigError(ValueError):
 
 
 # ----------------------------------------------------------------- validators
-class _V:
-    """Validation context: the file name, for messages."""
+class Validator:
+    """Validation helpers bound to a file name: each check returns the parsed value or raises
+    ConfigError("FILE: FIELD: expected ..."). Shared by the maneuver and sweep schemas."""
 
     def __init__(self, source: str):
         self.source = source
@@ -109,18 +110,18 @@ class _V:
 
     def mapping(self, d, where, allowed, required=()):
         if not isinstance(d, dict):
-            self.fail(where, f"expected a mapping with keys {sorted(allowed)}, got {_describe(d)}")
+            self.fail(where, f"expected a mapping with keys {sorted(allowed)}, got {describe(d)}")
         for k in d:
             if not isinstance(k, str) or k not in allowed:
-                self.fail(_join(where, k), f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
+                self.fail(join_field(where, k), f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
         for k in required:
             if k not in d:
-                self.fail(_join(where, k), "missing required key")
+                self.fail(join_field(where, k), "missing required key")
         return d
 
     def number(self, v, where, *, positive=False, nonneg=False, integer=False, lo=None, hi=None):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(where, f"expected {'an integer' if integer else 'a number'}, got {_describe(v)}")
+            self.fail(where, f"expected {'an integer' if integer else 'a number'}, got {describe(v)}")
         if integer and not (isinstance(v, int) or float(v).is_integer()):
             self.fail(where, f"expected an integer, got {v!r}")
         if not math.isfinite(v):
@@ -137,7 +138,7 @@ class _V:
 
     def vec3(self, v, where):
         if not isinstance(v, (list, tuple)) or len(v) != 3:
-            self.fail(where, f"expected a list of 3 numbers, got {_describe(v)}")
+            self.fail(where, f"expected a list of 3 numbers, got {describe(v)}")
         return np.array([self.number(a, f"{where}[{i}]") for i, a in enumerate(v)])
 
     def weights(self, v, where):
@@ -151,7 +152,7 @@ class _V:
 
     def choice(self, v, where, options):
         if not isinstance(v, str) or v not in options:
-            self.fail(where, f"expected one of {', '.join(options)}, got {_describe(v)}")
+            self.fail(where, f"expected one of {', '.join(options)}, got {describe(v)}")
         return v
 
     def attitude(self, v, where) -> np.ndarray:
@@ -159,12 +160,12 @@ class _V:
             return np.eye(3)
         forms = "'identity', {matrix: 3x3}, {axis_angle: [ax, ay, az, deg]} or {rotations: [[x|y|z, deg], ...]}"
         if not isinstance(v, dict) or len(v) != 1:
-            self.fail(where, f"expected one of {forms}, got {_describe(v)}")
+            self.fail(where, f"expected one of {forms}, got {describe(v)}")
         (kind, val), = v.items()
-        w = _join(where, kind)
+        w = join_field(where, kind)
         if kind == "matrix":
             if not isinstance(val, (list, tuple)) or len(val) != 3:
-                self.fail(w, f"expected a 3x3 matrix as 3 rows of 3 numbers, got {_describe(val)}")
+                self.fail(w, f"expected a 3x3 matrix as 3 rows of 3 numbers, got {describe(val)}")
             R = np.array([self.vec3(r, f"{w}[{i}]") for i, r in enumerate(val)])
             err = np.linalg.norm(R.T @ R - np.eye(3))
             if err > ORTHOGONALITY_TOL or np.linalg.det(R) <= 0:
@@ -174,7 +175,7 @@ class _V:
             return Uu @ Vt
         if kind == "axis_angle":
             if not isinstance(val, (list, tuple)) or len(val) != 4:
-                self.fail(w, f"expected [ax, ay, az, angle_deg], got {_describe(val)}")
+                self.fail(w, f"expected [ax, ay, az, angle_deg], got {describe(val)}")
             a = np.array([self.number(x, f"{w}[{i}]") for i, x in enumerate(val)])
             n = np.linalg.norm(a[:3])
             if n == 0:
@@ -184,25 +185,25 @@ class _V:
             return np.asarray(exp_so3(a[:3] / n * np.deg2rad(a[3])))
         if kind == "rotations":
             if not isinstance(val, (list, tuple)) or not val:
-                self.fail(w, f"expected a non-empty list of [x|y|z, deg] pairs, got {_describe(val)}")
+                self.fail(w, f"expected a non-empty list of [x|y|z, deg] pairs, got {describe(val)}")
             R = np.eye(3)
             elem = {"x": rot_x, "y": rot_y, "z": rot_z}
             for i, pair in enumerate(val):
                 if not isinstance(pair, (list, tuple)) or len(pair) != 2 or not isinstance(pair[0], str) or pair[0] not in elem:
-                    self.fail(f"{w}[{i}]", f"expected a pair [x|y|z, angle_deg], got {_describe(pair)}")
+                    self.fail(f"{w}[{i}]", f"expected a pair [x|y|z, angle_deg], got {describe(pair)}")
                 R = R @ elem[pair[0]](self.number(pair[1], f"{w}[{i}][1]"))
             return R
         self.fail(where, f"unknown attitude form {kind!r}; expected one of {forms}")
 
 
-def _join(where, key):
+def join_field(where, key):
     key = str(key)
     if not key.isprintable() or not key or any(ch in key for ch in " .[]"):
         key = repr(key)  # keep messages on one line and unambiguous
     return f"{where}.{key}" if where else key
 
 
-def _describe(v) -> str:
+def describe(v) -> str:
     if v is None:
         return "nothing (null)"
     if isinstance(v, bool):
@@ -338,11 +339,11 @@ def load_maneuver(path: str | Path, overrides: tuple[str, ...] | list[str] = ())
 
 def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     """Validate a parsed YAML document; return a :class:`Maneuver` or raise ConfigError."""
-    v = _V(source)
+    v = Validator(source)
     v.mapping(doc, "", TOP_KEYS, required=("name", "horizon", "initial"))
     name = doc["name"]
     if not isinstance(name, str) or not name.strip():
-        v.fail("name", f"expected a non-empty string, got {_describe(name)}")
+        v.fail("name", f"expected a non-empty string, got {describe(name)}")
 
     m = dict(MODEL_DEFAULTS)
     mdoc = v.mapping(doc.get("model", {"kind": "dumbbell"}), "model", MODEL_DEFAULTS.keys(), required=("kind",))
@@ -418,7 +419,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                     W_f=W_f, W_m=W_m, direct=direct, indirect=indirect, resolved=resolved)
 
 
-def _state(v: _V, d, where, body: Dumbbell, central_radius: float, all_required: bool) -> StateSpec:
+def _state(v: Validator, d, where, body: Dumbbell, central_radius: float, all_required: bool) -> StateSpec:
     v.mapping(d, where, STATE_KEYS, required=("position", "velocity", "angular_velocity") if all_required else ())
     x = v.vec3(d["position"], f"{where}.position")
     vel = v.vec3(d["velocity"], f"{where}.velocity")
@@ -441,7 +442,7 @@ def _state(v: _V, d, where, body: Dumbbell, central_radius: float, all_required:
 _CHOICES = {"solver": ("ipopt", "fatrop"), "initial_guess": ("rollout", "interpolate")}
 
 
-def _solver_block(v: _V, d, where, defaults) -> dict[str, Any]:
+def _solver_block(v: Validator, d, where, defaults) -> dict[str, Any]:
     """Validate a solver.<method> block against the method's option defaults (by type)."""
     v.mapping(d, where, defaults.keys())
     out = copy.deepcopy(defaults)
@@ -460,10 +461,10 @@ def _solver_block(v: _V, d, where, defaults) -> dict[str, Any]:
             elif isinstance(val, (list, tuple)) and len(val) == 12:
                 out[k] = [v.number(a, f"{w}[{i}]") for i, a in enumerate(val)]
             else:
-                v.fail(w, f"expected zero, from_direct or a list of 12 numbers, got {_describe(val)}")
+                v.fail(w, f"expected zero, from_direct or a list of 12 numbers, got {describe(val)}")
         elif isinstance(default, bool):
             if not isinstance(val, bool):
-                v.fail(w, f"expected true or false, got {_describe(val)}")
+                v.fail(w, f"expected true or false, got {describe(val)}")
             out[k] = val
         elif isinstance(default, int):
             out[k] = v.number(val, w, positive=True, integer=True)

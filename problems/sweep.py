@@ -64,7 +64,7 @@ import numpy as np
 import yaml
 
 from .io import atomic_write_bytes, write_json, write_yaml
-from .maneuvers import ConfigError, _describe, _join, _V, apply_override, load_maneuver, parse_maneuver, yaml_load
+from .maneuvers import ConfigError, Validator, apply_override, describe, join_field, load_maneuver, parse_maneuver, yaml_load
 
 SWEEP_KEYS = ("name", "base", "set", "axes", "methods", "continuation", "continuation_axis")
 METHODS = ("direct", "indirect")
@@ -169,16 +169,16 @@ def _clean(x: float) -> float:
     return float(f"{x:.15g}")
 
 
-def _axis_values(v: _V, spec, where) -> list:
+def _axis_values(v: Validator, spec, where) -> list:
     """A list, or ``{linspace|geomspace: [start, stop, num]}``."""
     if isinstance(spec, dict):
         if len(spec) != 1 or next(iter(spec)) not in RANGE_FORMS:
             v.fail(where, f"expected a list of values or one of {{linspace: [start, stop, num]}}, "
                           f"{{geomspace: [start, stop, num]}}, got a mapping with keys {sorted(map(str, spec))}")
         (form, args), = spec.items()
-        w = _join(where, form)
+        w = join_field(where, form)
         if not isinstance(args, (list, tuple)) or len(args) != 3:
-            v.fail(w, f"expected [start, stop, num], got {_describe(args)}")
+            v.fail(w, f"expected [start, stop, num], got {describe(args)}")
         a = v.number(args[0], f"{w}[0]")
         b = v.number(args[1], f"{w}[1]")
         n = v.number(args[2], f"{w}[2]", integer=True, positive=True)
@@ -194,7 +194,7 @@ def _axis_values(v: _V, spec, where) -> list:
     elif isinstance(spec, (list, tuple)):
         vals = list(spec)
     else:
-        v.fail(where, f"expected a list of values or {{linspace: [start, stop, num]}}, got {_describe(spec)}")
+        v.fail(where, f"expected a list of values or {{linspace: [start, stop, num]}}, got {describe(spec)}")
     if not vals:
         v.fail(where, "expected at least one value")
     if len(vals) > MAX_AXIS_VALUES:
@@ -208,27 +208,27 @@ def _axis_values(v: _V, spec, where) -> list:
     return vals
 
 
-def _dotted(v: _V, key, where) -> str:
+def _dotted(v: Validator, key, where) -> str:
     if not isinstance(key, str) or not all(p and p.isidentifier() for p in key.split(".")):
-        v.fail(where, f"expected a dotted maneuver key such as horizon.T, got {_describe(key)}")
+        v.fail(where, f"expected a dotted maneuver key such as horizon.T, got {describe(key)}")
     return key
 
 
-def _axis(v: _V, name, spec, where) -> Axis:
+def _axis(v: Validator, name, spec, where) -> Axis:
     if isinstance(spec, dict) and ("values" in spec or "set" in spec):  # linked axis
         if not isinstance(name, str) or not name or not name.isprintable():
             v.fail(where, "expected a printable axis name")
         v.mapping(spec, where, ("values", "set"), required=("values", "set"))
-        vals = _axis_values(v, spec["values"], _join(where, "values"))
+        vals = _axis_values(v, spec["values"], join_field(where, "values"))
         sets = spec["set"]
         if not isinstance(sets, dict) or not sets:
-            v.fail(_join(where, "set"), f"expected a non-empty mapping of dotted key -> list of values, got {_describe(sets)}")
+            v.fail(join_field(where, "set"), f"expected a non-empty mapping of dotted key -> list of values, got {describe(sets)}")
         per_key = {}
         for k, lst in sets.items():
             wk = f"{where}.set.{k}"
             _dotted(v, k, wk)
             if not isinstance(lst, (list, tuple)) or len(lst) != len(vals):
-                v.fail(wk, f"expected a list of {len(vals)} values (one per axis value), got {_describe(lst)}")
+                v.fail(wk, f"expected a list of {len(vals)} values (one per axis value), got {describe(lst)}")
             per_key[k] = list(lst)
         assigns = tuple(tuple((k, per_key[k][i]) for k in per_key) for i in range(len(vals)))
     else:
@@ -241,22 +241,22 @@ def _axis(v: _V, name, spec, where) -> Axis:
 
 def parse_sweep(doc: Any, source: str) -> Sweep:
     """Validate the sweep document's structure (not yet the grid points)."""
-    v = _V(source)
+    v = Validator(source)
     v.mapping(doc, "", SWEEP_KEYS, required=("base", "axes"))
     name = doc.get("name", Path(source).stem)
     if not isinstance(name, str) or not name.strip():
-        v.fail("name", f"expected a non-empty string, got {_describe(name)}")
+        v.fail("name", f"expected a non-empty string, got {describe(name)}")
     if not isinstance(doc["base"], str) or not doc["base"].strip():
-        v.fail("base", f"expected the path of a maneuver file (relative to the sweep file), got {_describe(doc['base'])}")
+        v.fail("base", f"expected the path of a maneuver file (relative to the sweep file), got {describe(doc['base'])}")
     base = Path(source).parent / doc["base"]
     fixed_doc = doc.get("set", {}) or {}
     if not isinstance(fixed_doc, dict):
-        v.fail("set", f"expected a mapping of dotted key -> value, got {_describe(fixed_doc)}")
+        v.fail("set", f"expected a mapping of dotted key -> value, got {describe(fixed_doc)}")
     fixed = tuple(_override(_dotted(v, k, f"set.{k}"), x) for k, x in fixed_doc.items())
     axes_doc = doc["axes"]
     if not isinstance(axes_doc, dict) or not axes_doc:
-        v.fail("axes", f"expected a non-empty mapping of dotted key -> values, got {_describe(axes_doc)}")
-    axes = tuple(_axis(v, k, s, _join("axes", k) if isinstance(k, str) and "." not in k else f"axes.{k}")
+        v.fail("axes", f"expected a non-empty mapping of dotted key -> values, got {describe(axes_doc)}")
+    axes = tuple(_axis(v, k, s, join_field("axes", k) if isinstance(k, str) and "." not in k else f"axes.{k}")
                  for k, s in axes_doc.items())
     size = math.prod(len(a.values) for a in axes)
     if size > MAX_GRID_POINTS:
@@ -271,13 +271,13 @@ def parse_sweep(doc: Any, source: str) -> Sweep:
         v.fail("axes", f"expected each maneuver key to be set once; {dup} is set twice")
     methods = doc.get("methods", ["direct"])
     if not isinstance(methods, (list, tuple)) or not methods:
-        v.fail("methods", f"expected a non-empty list of {', '.join(METHODS)}, got {_describe(methods)}")
+        v.fail("methods", f"expected a non-empty list of {', '.join(METHODS)}, got {describe(methods)}")
     methods = tuple(v.choice(m, f"methods[{i}]", METHODS) for i, m in enumerate(methods))
     if len(set(methods)) != len(methods):
         v.fail("methods", "expected each method once")
     cont = doc.get("continuation", False)
     if not isinstance(cont, bool):
-        v.fail("continuation", f"expected true or false, got {_describe(cont)}")
+        v.fail("continuation", f"expected true or false, got {describe(cont)}")
     c_axis = 0
     if "continuation_axis" in doc:
         names = [a.name for a in axes]
