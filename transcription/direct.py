@@ -75,6 +75,7 @@ from .problem import SmoothProblem
 from .results import Solution, SolverOptionError, Trajectory, terminal_error_full
 
 NC = 3  # Cayley vector
+SOLVERS = ("ipopt", "fatrop")
 BALANCE = 1e-2  # smallest allowed ratio of scaled control cost curvatures (characteristic_scales)
 
 #: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling.
@@ -92,6 +93,8 @@ DIRECT_OPTION_DEFAULTS: dict[str, Any] = {
     "options": {},               # raw IPOPT options (e.g. {'print_level': 5, 'linear_solver': 'ma27'})
     "cayley_variables": True,    # c_k as decision variables with G(c_k) = 0 as constraints
     "terminal_tol": 1e-6,        # re-simulated terminal error above which the solve is not "converged"
+    "fatrop_options": {},        # raw fatrop options (solver: fatrop), e.g. {'mu_init': 0.1}
+    "fatrop_expand": False,      # fatrop: SX-expand the whole NLP (slower build, faster evaluations)
     "jit": False,                # compile the stage Jacobian/Hessian to C (transcription/codegen.py; cached on disk)
 }
 
@@ -521,6 +524,7 @@ class DirectNLP:
             f = 0.5 * ca.sum1(ca.sum2(wq * Us**2)) / sc.objective
         self.g_scale = np.concatenate([np.tile(gsc, N), tsc])
         self.defect_rows = np.arange(nd * N).reshape(N, nd).T[:NX]      # (18, N)
+        self.gap_rows = self.defect_rows
 
         # bounds: X_0 fixed
         lbx = np.full(lay.n, -np.inf)
@@ -565,6 +569,150 @@ class DirectNLP:
         """
         nu_all = self.scales.objective * lam_g / self.g_scale
         nu = nu_all[self.defect_rows]                                   # (18, N)
+        return np.stack([tangent_basis(X[:, k + 1]).T @ nu[:, k] for k in range(self.problem.N)])
+
+
+# ------------------------------------------------------------------------ fatrop
+class StageLayout:
+    """Stage-ordered decision vector for fatrop: [s_0, q_0, s_1, q_1, ..., s_N].
+
+    first_order: state s_k = X_k (18), stage control q_k = [u_{k+1} (6); c_k (3)].
+    lgvi: the step couples u_k and u_{k+1}, so u_k is lifted into the state: s_k = [X_k; v_k]
+    (24, v_k = u_k) and q_k = [u'_{k+1}; c_k] with the gap v_{k+1} - u'_{k+1} = 0, i.e. u_{k+1}
+    appears twice (v_{k+1} and its copy u'_{k+1}); the cost prices v_j.
+    Index arrays as in :class:`NLPLayout`: iX (18, N+1), iU (6, n_controls) (lgvi: the v_j),
+    iC (3, N); lgvi also iUp (6, N), the copies u'_{k+1}.  ns, nq: state and stage-control sizes.
+    """
+
+    def __init__(self, N: int, scheme: str):
+        self.N, self.scheme = int(N), scheme
+        lift = scheme == "lgvi"
+        self.ns = NX + (NU if lift else 0)
+        self.nq = NU + NC
+        self.with_c = True
+        iX = np.zeros((NX, N + 1), dtype=int)
+        iV = np.zeros((NU, N + 1), dtype=int)
+        iQ = np.zeros((NU, N), dtype=int)
+        iC = np.zeros((NC, N), dtype=int)
+        pos = 0
+        for k in range(N + 1):
+            iX[:, k] = np.arange(pos, pos + NX)
+            pos += NX
+            if lift:
+                iV[:, k] = np.arange(pos, pos + NU)
+                pos += NU
+            if k < N:
+                iQ[:, k] = np.arange(pos, pos + NU)
+                pos += NU
+                iC[:, k] = np.arange(pos, pos + NC)
+                pos += NC
+        self.n = pos
+        self.iX, self.iC = iX, iC
+        self.iU = iV if lift else iQ
+        self.iUp = iQ if lift else None
+        self.control_nodes = list(range(N + 1)) if lift else list(range(1, N + 1))
+
+    def unpack(self, w):
+        w = np.asarray(w, dtype=float).ravel()
+        return w[self.iX], w[self.iU], w[self.iC]
+
+    def pack(self, X, U, C) -> np.ndarray:
+        w = np.full(self.n, np.nan)
+        w[self.iX] = np.asarray(X, dtype=float)
+        w[self.iU] = np.asarray(U, dtype=float)
+        w[self.iC] = np.asarray(C, dtype=float)
+        if self.iUp is not None:
+            w[self.iUp] = np.asarray(U, dtype=float)[:, 1:]
+        if np.isnan(w).any():
+            raise ValueError("pack: some entries were not filled (shape mismatch?)")
+        return w
+
+
+class FatropNLP:
+    """The same scaled NLP as :class:`DirectNLP` in fatrop's stage form (``structure_detection: auto``).
+
+    Rows [gap_0, path_0, gap_1, path_1, ..., gap_{N-1}, path_{N-1}, path_N] with
+    gap_k = s_{k+1} - Phi(s_k, q_k) (scaled by the state scales; for the LGVI the lifted rows are
+    v_{k+1} - u'_{k+1}), path_k = G(c_k) (the Cayley equation, scaled as in DirectNLP), path_0 also
+    X_0 - X0 (the initial state is a constraint row, not a bound), path_N the terminal residual.
+    Every row is an equality (``equality`` flags).  No row depends on an earlier stage and the
+    Hessian is block diagonal per stage.  The graph is MX with the stage Function mapped over the
+    horizon; fatrop's interface derives the Jacobian and Hessian from it (``expand`` option:
+    SX-expand the whole NLP first).
+    Multipliers: nu_k (of step - X_{k+1}, as in DirectNLP) = -objective * lam_gap / row scale.
+    """
+
+    def __init__(self, problem: SmoothProblem, opts: dict[str, Any], expand: bool = False):
+        disc, N, h = problem.disc, problem.N, problem.h
+        self.problem, self.opts = problem, opts
+        self.layout = lay = StageLayout(N, disc.scheme)
+        self.scales = sc = characteristic_scales(problem)
+        self.omega = quadrature_weights(disc, N, h)
+        self.W = np.concatenate([np.asarray(problem.W_f, float).ravel(), np.asarray(problem.W_m, float).ravel()])
+        lift = disc.scheme == "lgvi"
+        nU = len(lay.control_nodes)
+        ws_np = np.full(lay.n, np.nan)
+        ws_np[lay.iX] = sc.X[:, None]
+        ws_np[lay.iU] = sc.U[:, None]
+        ws_np[lay.iC] = sc.C[:, None]
+        if lift:
+            ws_np[lay.iUp] = sc.U[:, None]
+        self.w_scale = ws_np
+        prm_np, gsc = _stage_parameters(disc, h, sc, True)
+        defect = _stage_functions(disc, True, False)[0]
+        ws = ca.MX.sym("w", lay.n)
+        # stage variables v_k = [X_k; c_k; w_k] of the stage Function (scaled)
+        iW = np.vstack([lay.iU[:, :-1], lay.iUp]) if lift else lay.iU
+        iV = np.vstack([lay.iX[:, :-1], lay.iC, iW])
+        V = ca.reshape(ws[iV.ravel(order="F").tolist()], iV.shape[0], N)
+        X1 = ca.reshape(ws[lay.iX[:, 1:].ravel(order="F").tolist()], NX, N)
+        D = -defect.map(N)(V, X1, ca.DM(prm_np))               # rows: X_{k+1} - step (18), -G (3)
+        blocks = [D[:NX, :]]
+        rs = [sc.X]
+        if lift:
+            blocks.append(ca.reshape(ws[lay.iU[:, 1:].ravel(order="F").tolist()] -
+                                     ws[lay.iUp.ravel(order="F").tolist()], NU, N))
+            rs.append(sc.U)
+        blocks.append(D[NX:, :])
+        rs.append(gsc[NX:])
+        S = ca.vertcat(*blocks)                                  # per stage: gap (ns), path (3)
+        nrow = S.shape[0]
+        x0s = np.asarray(problem.X0, float) / sc.X
+        init = ws[lay.iX[:, 0].tolist()] - ca.DM(x0s)
+        tsc = np.concatenate([sc.X[X_POS], sc.X[X_MOM], np.ones(3), sc.X[X_ANG]])
+        term = terminal_residual(ws[lay.iX[:, -1].tolist()] * ca.DM(sc.X), problem.Xd) / ca.DM(tsc)
+        g = ca.vertcat(S[:, 0], init, ca.vec(S[:, 1:]), term)
+        row_sc = np.concatenate(rs)
+        self.g_scale = np.concatenate([row_sc, sc.X, np.tile(row_sc, N - 1), tsc])
+        # gap rows of X (the 18 step rows) in g, per stage
+        start = np.array([0] + [nrow + NX + (k - 1) * nrow for k in range(1, N)])
+        self.gap_rows = start[None, :] + np.arange(NX)[:, None]           # (18, N)
+        self.sign = -1.0
+        wq = self.W[:, None] * self.omega[None, :]
+        q = np.zeros(lay.n)
+        q[lay.iU] = wq * ws_np[lay.iU] ** 2 / sc.objective
+        f = 0.5 * ca.dot(ca.DM(q) * ws, ws)
+        self.lbx = np.full(lay.n, -np.inf)
+        self.ubx = np.full(lay.n, np.inf)
+        self.lbg = self.ubg = np.zeros(g.shape[0])
+        fat = {"tol": float(opts["tol"]), "constr_viol_tol": 1e-2 * float(opts["tol"]), "max_iter": int(opts["max_iter"]),
+               "print_level": 0}
+        fat.update({k: v for k, v in (opts.get("fatrop_options") or {}).items()})
+        nlp_opts = {"equality": [True] * g.shape[0], "expand": bool(expand), "print_time": False, "fatrop": fat}
+        if opts.get("fatrop_structure", "manual") == "auto":
+            nlp_opts["structure_detection"] = "auto"
+        else:  # the same structure stated: auto detection costs O(N^2) at build (12 s at N = 1000)
+            npath = nrow - lay.ns
+            nlp_opts.update({"structure_detection": "manual", "N": N, "nx": [lay.ns] * (N + 1),
+                             "nu": [lay.nq] * N + [0], "ng": [npath + NX] + [npath] * (N - 1) + [NZ]})
+        self.solver = ca.nlpsol("direct_fatrop", "fatrop", {"x": ws, "f": f, "g": g}, nlp_opts)
+
+    def initial_point(self, guess: Guess) -> np.ndarray:
+        return self.layout.pack(guess.X.T, guess.U, guess.C.T) / self.w_scale
+
+    def costates(self, X: np.ndarray, lam_g: np.ndarray) -> np.ndarray:
+        nu = self.sign * self.scales.objective * lam_g / self.g_scale
+        nu = nu[self.gap_rows]
         return np.stack([tangent_basis(X[:, k + 1]).T @ nu[:, k] for k in range(self.problem.N)])
 
 
@@ -649,9 +797,9 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
     Raises :class:`SolverOptionError` for raw IPOPT options the plugin rejects.
     """
     opts = _options(problem)
-    if opts["solver"] != "ipopt":
+    if opts["solver"] not in SOLVERS:
         return _failure(problem, opts, "unsupported_solver",
-                        f"solver {opts['solver']!r} is not available for the direct method yet (use 'ipopt')")
+                        f"solver {opts['solver']!r} is not available for the direct method (use one of {SOLVERS})")
     warm = _warm_guess(problem, warm_start)
     try:
         guess = warm or make_guess(opts["initial_guess"], problem.disc, problem.X0, problem.Xd, problem.N, problem.T)
@@ -664,6 +812,11 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
     nu0 = warm_start.extra.get("nlp_nu") if warm is not None else None
     if nu0 is not None:
         opts = dict(opts, warm_start_duals=True)
+    fat_extra: dict[str, Any] = {}
+    if opts["solver"] == "fatrop":
+        fsol, fat_extra = _solve_fatrop(problem, opts, guess)
+        if fsol is not None:
+            return fsol
     t0 = time.perf_counter()
     nlp = DirectNLP(problem, opts, progress)
     build_s = time.perf_counter() - t0
@@ -676,6 +829,49 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
     solve_s = time.perf_counter() - t0
     stats = nlp.solver.stats()
     status = str(stats.get("return_status", "unknown"))
+    sol_out = _solution(problem, opts, nlp, sol, stats, status, "ipopt", build_s, solve_s)
+    if fat_extra:
+        sol_out.extra.update(fat_extra)
+        sol_out.message = f"{fat_extra['fatrop_message']}; IPOPT fallback: {sol_out.message}"
+        sol_out.build_s += fat_extra["fatrop_build_s"]
+        sol_out.solve_s += fat_extra["fatrop_solve_s"]
+    return sol_out
+
+
+def _solve_fatrop(problem: SmoothProblem, opts, guess: Guess) -> tuple[Solution | None, dict[str, Any]]:
+    """fatrop on the stage-ordered NLP; (Solution, {}) if it converged, else (None, fallback info)."""
+    t0 = time.perf_counter()
+    try:
+        nlp = FatropNLP(problem, opts, expand=bool(opts.get("fatrop_expand", False)))
+    except RuntimeError as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
+        return None, {"fatrop_fallback": True, "fatrop_status": "build_failed", "fatrop_message":
+                      f"fatrop could not be set up ({msg[:300]})", "fatrop_build_s": time.perf_counter() - t0,
+                      "fatrop_solve_s": 0.0}
+    build_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    try:
+        sol = nlp.solver(x0=nlp.initial_point(guess), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+        stats = nlp.solver.stats()
+        status = "Solve_Succeeded" if stats.get("success") else f"fatrop_{stats.get('return_status', 'failed')}"
+    except RuntimeError as exc:
+        sol, stats, status = None, {}, f"fatrop_error: {str(exc).strip().splitlines()[-1][:200] if str(exc).strip() else ''}"
+    solve_s = time.perf_counter() - t0
+    out = None
+    if sol is not None and all(np.all(np.isfinite(np.array(sol[k]))) for k in ("x", "lam_g")):
+        out = _solution(problem, opts, nlp, sol, stats, status, "fatrop", build_s, solve_s)
+        if out.converged:
+            out.extra["fatrop_fallback"] = False
+            return out, {}
+    why = out.message if out is not None else status
+    return None, {"fatrop_fallback": True, "fatrop_status": status,
+                  "fatrop_message": f"fatrop did not converge ({why})", "fatrop_build_s": build_s,
+                  "fatrop_solve_s": solve_s}
+
+
+def _solution(problem: SmoothProblem, opts, nlp, sol, stats, status: str, solver: str, build_s: float,
+              solve_s: float) -> Solution:
+    """The Solution of a finished NLP solve (IPOPT or fatrop): re-simulation, checks, costates."""
 
     w = np.array(sol["x"]).ravel() * nlp.w_scale
     Xn, U, _ = nlp.layout.unpack(w)
@@ -685,13 +881,14 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
     err = terminal_error_full(Xsim[-1], problem.Xd)
     cost = control_cost(U, nlp.W, nlp.omega)
     ok = status == "Solve_Succeeded" and err <= float(opts["terminal_tol"])
+    label = "IPOPT" if solver == "ipopt" else solver
     if ok:
-        message = f"IPOPT: {status}; re-simulated terminal error {err:.2e}"
+        message = f"{label}: {status}; re-simulated terminal error {err:.2e}"
     elif status == "Solve_Succeeded":
-        message = (f"IPOPT: {status}, but the re-simulated terminal error {err:.2e} exceeds terminal_tol "
+        message = (f"{label}: {status}, but the re-simulated terminal error {err:.2e} exceeds terminal_tol "
                    f"{opts['terminal_tol']:.1e} (max Cayley residual {float(np.max(res)):.1e})")
     else:
-        message = f"IPOPT did not converge: {status}; re-simulated terminal error {err:.2e}"
+        message = f"{label} did not converge: {status}; re-simulated terminal error {err:.2e}"
     worst_cayley = float(np.max(res)) if res.size else 0.0
     if not ok and not worst_cayley <= 1e-10:
         message += (f"; the Cayley equation was not solved in the re-simulation (relative residual "
@@ -703,19 +900,19 @@ def solve_direct(problem: SmoothProblem, progress: Callable[[dict], None] | None
         for i, (o, p, d, m) in enumerate(zip(it.get("obj", []), it.get("inf_pr", []), it.get("inf_du", []), it.get("mu", [])))
     ]
     extra = {
-        "ipopt_return_status": status,
+        "ipopt_return_status" if solver == "ipopt" else "fatrop_return_status": status,
         "kkt_tol": float(opts["tol"]),
         "initial_guess": opts["initial_guess"],
-        "cayley_variables": nlp.with_c,
+        "cayley_variables": nlp.layout.with_c,
         "n_variables": int(nlp.layout.n),
         "n_constraints": int(len(nlp.lbg)),
-        "max_defect": float(np.abs(g_phys[nlp.defect_rows.ravel()]).max()),
+        "max_defect": float(np.abs(g_phys[nlp.gap_rows.ravel()]).max()),
         "nlp_terminal_error": terminal_error_full(Xn[:, -1], problem.Xd),
         "max_cayley_residual": worst_cayley,
-        "jit": bool(nlp.compiled),
+        "jit": bool(getattr(nlp, "compiled", False)),
         "nlp_nu": nlp.scales.objective * lam_g / nlp.g_scale,  # physical multipliers, for warm starts
     }
-    return Solution(method="direct", solver="ipopt", discretization=problem.disc.scheme, N=problem.N, h=problem.h,
+    return Solution(method="direct", solver=solver, discretization=problem.disc.scheme, N=problem.N, h=problem.h,
                     trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=Xsim), status=status,
                     message=message, converged=bool(ok), cost=cost, terminal_error=err,
                     iterations=int(stats.get("iter_count", len(history))), build_s=build_s, solve_s=solve_s,
