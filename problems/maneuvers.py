@@ -315,19 +315,26 @@ def apply_override(doc: dict, assignment: str, source: str = "--set") -> None:
     node[parts[-1]] = value
 
 
-def load_maneuver(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Maneuver:
-    """Read, override (``--set``) and validate a maneuver file."""
+def read_yaml_file(path: str | Path) -> Any:
+    """Read and parse a YAML file; unreadable files and syntax errors become ConfigError
+    naming the file (and the line and column of a syntax error)."""
     source = str(path)
     try:
         text = Path(path).read_text()
     except OSError as e:
         raise ConfigError(source, "", f"cannot read file ({e.strerror or e})") from None
     try:
-        doc = yaml_load(text)
+        return yaml_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         raise ConfigError(source, where, f"not valid YAML ({getattr(e, 'problem', None) or e})") from None
+
+
+def load_maneuver(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Maneuver:
+    """Read, override (``--set``) and validate a maneuver file."""
+    source = str(path)
+    doc = read_yaml_file(path)
     if doc is None:
         doc = {}
     if isinstance(doc, dict):

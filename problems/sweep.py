@@ -61,10 +61,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-import yaml
 
 from .io import atomic_write_bytes, write_json, write_yaml
-from .maneuvers import ConfigError, Validator, apply_override, describe, join_field, load_maneuver, parse_maneuver, yaml_load
+from .maneuvers import ConfigError, Validator, apply_override, describe, join_field, read_yaml_file, load_maneuver, parse_maneuver, yaml_load
 
 SWEEP_KEYS = ("name", "base", "set", "axes", "methods", "continuation", "continuation_axis")
 METHODS = ("direct", "indirect")
@@ -289,18 +288,7 @@ def parse_sweep(doc: Any, source: str) -> Sweep:
 def load_sweep(path: str | Path) -> Sweep:
     """Read and validate a sweep file, then every grid point through load_maneuver
     (and the raw IPOPT options): raises ConfigError before any solve."""
-    source = str(path)
-    try:
-        text = Path(path).read_text()
-    except OSError as e:
-        raise ConfigError(source, "", f"cannot read file ({e.strerror or e})") from None
-    try:
-        doc = yaml_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ConfigError(source, where, f"not valid YAML ({getattr(e, 'problem', None) or e})") from None
-    return sweep_from_doc(doc, source)
+    return sweep_from_doc(read_yaml_file(path), str(path))
 
 
 def sweep_from_doc(doc: Any, source: str) -> Sweep:

@@ -206,7 +206,7 @@ continuation: true
 
 
 def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
-    s = sw.load_sweep(write_sweep(tmp_path, f"set: {{horizon.N: 20}}\naxes: {{horizon.T: [0.5, 0.52]}}\n"))
+    s = sw.load_sweep(write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {horizon.T: [0.5, 0.52]}\n"))
     real = sw._solve
 
     def flaky(man, method, warm):
@@ -289,7 +289,7 @@ def test_cli_exit_codes(tmp_path):
     assert not (tmp_path / "o2").exists()  # nothing written for bad input
     r = run(bad, "--workers", "0")
     assert r.returncode == 2 and "positive integer" in r.stderr
-    some_fail = write_sweep(tmp_path, f"set: {{horizon.N: 20}}\naxes: {{solver.direct.max_iter: [2, 3000]}}\n", "f.yaml")
+    some_fail = write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {solver.direct.max_iter: [2, 3000]}\n", "f.yaml")
     r = run(some_fail, "--out", tmp_path / "o3", "--workers", "1", "--quiet", "--no-continuation")
     assert r.returncode == 1, r.stderr
     assert r.stdout == "" and "Traceback" not in r.stderr
