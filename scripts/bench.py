@@ -49,6 +49,12 @@ sys.path.insert(0, str(ROOT))
 METHODS = ("direct-ipopt", "direct-ipopt-jit", "direct-fatrop", "indirect", "indirect-jit", "rockit")
 DEFAULT_METHODS = ("direct-ipopt", "direct-fatrop", "indirect", "indirect-jit", "rockit")
 FULL_N = (250, 500, 1000, 2000, 4000)
+#: largest N per method in the full run (so that it ends within the hour on 2 shared cores): the
+#: rockit peer's build grows to 75 s at N = 1000 (SX expansion of the whole RK4 NLP), fatrop's
+#: build is quadratic in N inside CasADi's fatrop interface (12 s at N = 1000, first order) and the
+#: interpreted indirect method takes 10 s per solve at N = 1000 (its jit variant covers 4000)
+CAPS = {"rockit": 500, "direct-fatrop": 1000, "indirect": 2000}
+QUICK_CAPS = {"rockit": 250}
 QUICK_N = (250, 1000)
 KEYS = ("case", "scheme", "method", "solver", "N", "build_s", "solve_s", "iterations", "time_per_iter_s", "converged",
         "status", "cost", "terminal_error")
@@ -234,6 +240,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=None, help="timed runs per configuration (after one warm-up)")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per run (process)")
     ap.add_argument("--out", default=None, help="output stem (default docs/bench or docs/bench_quick)")
+    ap.add_argument("--cap", default=None,
+                    help="largest N per method, e.g. 'rockit=500,direct-fatrop=1000' (default: see CAPS)")
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--one", nargs=4, metavar=("CASE", "SCHEME", "METHOD", "N"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
@@ -245,20 +253,23 @@ def main(argv=None) -> int:
     Ns = [int(n) for n in a.N.split(",")] if a.N else list(QUICK_N if a.quick else FULL_N)
     runs = a.runs or (3 if a.quick else 5)
     methods = [m for m in a.methods.split(",") if m]
+    caps = dict(QUICK_CAPS if a.quick else CAPS)
+    if a.cap:
+        caps.update({k: int(v) for k, v in (kv.split("=") for kv in a.cap.split(",") if kv)})
     for m in methods:
         if m not in METHODS:
             ap.error(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
     if "rockit" in methods:
-        try:
-            import rockit  # noqa: F401
-        except ImportError:
+        import importlib.util
+
+        if importlib.util.find_spec("rockit") is None:
             print("rockit not installed (pip install rockit-meco): peer skipped", file=sys.stderr)
             methods.remove("rockit")
     log = sys.stderr
     mach = machine()
     print(f"machine: {mach['cores']} cores, {mach['cpu']}, {mach['platform']}, casadi {mach['casadi']}, "
           f"load average {mach['loadavg']}", file=log)
-    print(f"protocol: fresh process per run, 1 warm-up + {runs} timed runs, medians; N = {Ns}", file=log)
+    print(f"protocol: fresh process per run, 1 warm-up + {runs} timed runs, medians; N = {Ns}; N caps {caps}", file=log)
     records = []
     t_start = time.perf_counter()
     for case in a.cases.split(","):
@@ -267,6 +278,8 @@ def main(argv=None) -> int:
                 if method == "rockit" and scheme != "first_order":
                     continue  # the peer has no discrete scheme: one row per case
                 for N in Ns:
+                    if N > caps.get(method, N):
+                        continue
                     warm = spawn(case, scheme, method, N, a.timeout)
                     rs = [warm] if str(warm.get("status", "")).startswith(("timeout", "error")) else \
                         [spawn(case, scheme, method, N, a.timeout) for _ in range(runs)]
@@ -277,7 +290,7 @@ def main(argv=None) -> int:
                           f"{'ok' if rec.get('converged') else 'NOT converged: ' + str(rec.get('status'))}", file=log)
     mach["loadavg_end"] = os.getloadavg() if hasattr(os, "getloadavg") else None
     sl = slopes(records)
-    summary = {"machine": mach, "protocol": {"runs": runs, "warmup": 1, "fresh_process_per_run": True, "N": Ns,
+    summary = {"machine": mach, "protocol": {"runs": runs, "warmup": 1, "fresh_process_per_run": True, "N": Ns, "caps": caps,
                                              "elapsed_s": time.perf_counter() - t_start},
                "records": records, "slopes": sl}
     md = table(records)

@@ -326,10 +326,8 @@ def _stage_functions(disc, with_c: bool, jit: bool):
     Hv = ca.hessian(ca.dot(lam, d), v)[0]
     tag = f"{disc.scheme}{'_c' if with_c else ''}"
     defect = ca.Function(f"stage_defect_{tag}", [v, X1s, prm], [d], ["v", "X1", "prm"], ["d"])
-    jac = ca.Function(f"stage_jac_{tag}", [v, prm], [ca.vertcat(*Jv.nonzeros())], ["v", "prm"], ["jnz"],
-                      {"cse": True})
-    hess = ca.Function(f"stage_hess_{tag}", [v, lam, prm], [ca.vertcat(*Hv.nonzeros())], ["v", "lam", "prm"],
-                       ["hnz"], {"cse": True})
+    jac = ca.Function(f"stage_jac_{tag}", [v, prm], [ca.vertcat(*Jv.nonzeros())], ["v", "prm"], ["jnz"])
+    hess = ca.Function(f"stage_hess_{tag}", [v, lam, prm], [ca.vertcat(*Hv.nonzeros())], ["v", "lam", "prm"], ["hnz"])
     compiled = False
     if jit:
         jac, hess = codegen.compiled(jac), codegen.compiled(hess)
@@ -650,7 +648,6 @@ class FatropNLP:
         self.omega = quadrature_weights(disc, N, h)
         self.W = np.concatenate([np.asarray(problem.W_f, float).ravel(), np.asarray(problem.W_m, float).ravel()])
         lift = disc.scheme == "lgvi"
-        nU = len(lay.control_nodes)
         ws_np = np.full(lay.n, np.nan)
         ws_np[lay.iX] = sc.X[:, None]
         ws_np[lay.iU] = sc.U[:, None]

@@ -359,7 +359,7 @@ class ShootingFunctions:
         # the per-step Functions evaluated N times per rollout; compiled to C with jit (values only)
         step_map, lin_map = self.costate_map, self.linearized_map
         if self.jit:
-            step_map, lin_map = (codegen.compiled(_cse(f)) for f in (step_map, lin_map))
+            step_map, lin_map = (codegen.compiled(f) for f in (step_map, lin_map))
         self.compiled = self.jit and isinstance(lin_map, ca.Function) and lin_map.class_name() == "External"
         self.terminal_residual = terminal_residual_function()
 
@@ -432,11 +432,6 @@ def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> Shoot
     """Cached :class:`ShootingFunctions` (one per Discretization object, N and jit)."""
     return ShootingFunctions(disc, N, jit)
 
-
-def _cse(fn: ca.Function) -> ca.Function:
-    """The same SX Function with common subexpressions eliminated (smaller generated code)."""
-    ins = fn.sx_in()
-    return ca.Function(fn.name(), ins, fn.call(ins), fn.name_in(), fn.name_out(), {"cse": True})
 
 
 # ------------------------------------------------------------------------- helpers
