@@ -198,7 +198,7 @@ def test_failure_is_data():
     s = solve_direct(ex.e3(N=20, max_iter=2))
     assert not s.converged and s.status == "Maximum_Iterations_Exceeded"
     assert "did not converge" in s.message
-    s = solve_direct(ex.e3(N=20, solver="fatrop"))
+    s = solve_direct(ex.e3(N=20, solver="snopt"))
     assert not s.converged and s.status == "unsupported_solver"
     s = solve_direct(ex.e3(N=20, initial_guess="nonsense"))
     assert not s.converged and s.status == "invalid_option"

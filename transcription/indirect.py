@@ -399,7 +399,8 @@ class ShootingFunctions:
         self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"])
         # Psi = dzN/dlam0 by the linearized coupled recursion (forward sensitivities carried step by
         # step, see linearized_map): the same derivative as forward AD through the rollout, ~6x cheaper
-        lin_acc = lin_map.mapaccum(f"{sch}_linearized_acc{N}", N if sch == "lgvi" else N - 1, 4)
+        n_lin = N if sch == "lgvi" else N - 1  # first_order: step 0 is handled below; N = 1 has none left
+        lin_acc = lin_map.mapaccum(f"{sch}_linearized_acc{N}", n_lin, 4) if n_lin > 0 else None
         if sch == "first_order":
             dX1 = ca.jacobian(X1, lam0)                      # first step: u_1 linear in lam0, c_0 independent
             XN, dXN = X1, dX1
