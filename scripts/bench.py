@@ -203,10 +203,12 @@ def plot(records: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cases = sorted({(r["case"], r["scheme"]) for r in records})
+    cases = sorted({(r["case"], r["scheme"]) for r in records if r["scheme"] != "rk4"}) or \
+        sorted({(r["case"], r["scheme"]) for r in records})
     fig, axes = plt.subplots(2, len(cases), figsize=(4.2 * len(cases), 7.5), squeeze=False)
     for j, (case, scheme) in enumerate(cases):
-        rs = [r for r in records if r["case"] == case and r["scheme"] == scheme]
+        # the peer (scheme 'rk4') is drawn in every panel of its case
+        rs = [r for r in records if r["case"] == case and r["scheme"] in (scheme, "rk4")]
         for key, ax, label in (("solve_s", axes[0, j], "solve [s]"), ("build_s", axes[1, j], "build [s]")):
             for m in sorted({(r["method"], r.get("solver")) for r in rs}, key=str):
                 pts = sorted((r["N"], r.get(key)) for r in rs if (r["method"], r.get("solver")) == m and r.get(key))
@@ -243,8 +245,12 @@ def main(argv=None) -> int:
     ap.add_argument("--cap", default=None,
                     help="largest N per method, e.g. 'rockit=500,direct-fatrop=1000' (default: see CAPS)")
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--replot", default=None, help="only redraw the plot of a written JSON (stem.json -> stem.png)")
     ap.add_argument("--one", nargs=4, metavar=("CASE", "SCHEME", "METHOD", "N"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    if a.replot:
+        plot(json.loads(Path(a.replot).read_text())["records"], Path(a.replot).with_suffix(".png"))
+        return 0
     if a.one:
         case, scheme, method, N = a.one
         print(json.dumps(run_one(case, scheme, method, int(N))))
