@@ -181,6 +181,12 @@ def orthonormalized(X):
     return join_state(x, gamma, Rp, Pi)
 
 
+def _costate_back_solve(A, lam_prev):
+    """lambda_k from lambda_{k-1} = A_k^T lambda_k (SPEC eq. 28), with its relative residual."""
+    lam = solve_unpivoted(A.T, lam_prev)
+    return lam, ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+
+
 def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
     """The forward map of the necessary conditions for ``disc``.
 
@@ -216,8 +222,7 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
         def control(lam):
             return -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
 
-        lam = solve_unpivoted(A.T, lam_prev)
-        lam_res = ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+        lam, lam_res = _costate_back_solve(A, lam_prev)
         u = control(lam)
         X1, res = disc.step(X, u, h)
         costate_map = ca.Function(
@@ -247,8 +252,7 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
 
     uk = control(lam_prev)
     A, _ = disc.variation(Xo, ca.vertcat(uk, ca.DM.zeros(NU)), h)
-    lam = solve_unpivoted(A.T, lam_prev)
-    lam_res = ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+    lam, lam_res = _costate_back_solve(A, lam_prev)
     uk1 = control(lam)
     X1, res = disc.step(X, ca.vertcat(uk, uk1), h)
     costate_map = ca.Function(
