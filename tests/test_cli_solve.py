@@ -91,3 +91,25 @@ def test_not_converged_exit_1_results_flagged(tmp_path):
     s = json.loads(r.stdout)
     assert s["converged"] is False and s["methods"]["direct"]["status"] == "Maximum_Iterations_Exceeded"
     assert (tmp_path / "o" / "direct.npz").is_file()
+
+
+def test_compare_reports_different_extremals():
+    """Two converged solutions with different costs are flagged, the lower one named (issue 4)."""
+    import dataclasses
+
+    from problems.cli import compare_solutions
+    from transcription.results import Solution, Trajectory
+
+    base = Solution(method="direct", solver="ipopt", discretization="first_order", N=2, h=0.1,
+                    trajectory=Trajectory(t=np.zeros(3), X=np.zeros((3, 18))), status="Solve_Succeeded",
+                    message="", converged=True, cost=9.47, terminal_error=1e-14, iterations=7, build_s=0.0,
+                    solve_s=0.0, controls=np.ones((6, 2)))
+    other = dataclasses.replace(base, method="indirect", cost=3.2 * 9.47, controls=-np.ones((6, 2)))
+    c = compare_solutions(base, other)
+    assert c["same_extremal"] is False and c["verdict"].startswith("MISMATCH")
+    assert "direct cost 9.47" in c["verdict"] and "ratio 3.2" in c["verdict"]
+    assert c["control_max_difference_relative"] == 2.0
+    same = compare_solutions(base, dataclasses.replace(other, cost=9.47 * (1 + 1e-9), controls=base.controls))
+    assert same["same_extremal"] is True and same["verdict"].startswith("agree")
+    failed = compare_solutions(base, dataclasses.replace(other, converged=False))
+    assert failed["same_extremal"] is False and failed["verdict"].startswith("not comparable")
