@@ -53,26 +53,14 @@ def cayley_vectors(X: np.ndarray) -> np.ndarray:
 
 
 def log_so3_any(R: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
-    """vee log R for every rotation, including angles at or near pi.
-
-    Near pi (where vee(R - R^T) loses the axis) the axis is read from
-    (R + I)/2 = n n^T; its sign is chosen by ``prefer`` (n^T prefer >= 0) when given.
-    """
+    """vee log R for every rotation (lie.log_so3, accurate up to pi), with the sign of the
+    axis at exactly pi -- where the skew part carries no sign -- chosen so that n^T prefer >= 0."""
     R = np.asarray(R, dtype=float)
-    cos_t = np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)
-    if cos_t > -0.99:
-        return np.asarray(log_so3(R), dtype=float)
-    theta = np.arccos(cos_t)
-    B = 0.5 * (R + np.eye(3))
-    i = int(np.argmax(np.diag(B)))
-    n = B[:, i] / np.sqrt(max(B[i, i], 1e-300))
-    # sign from the (small) skew part when it is informative
-    s = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if np.linalg.norm(s) > 1e-9:
-        n = n if n @ s >= 0 else -n
-    elif prefer is not None and n @ prefer < 0:
-        n = -n
-    return theta * n / np.linalg.norm(n)
+    w = np.asarray(log_so3(R), dtype=float)
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if prefer is not None and np.linalg.norm(skew) <= 1e-9 and w @ prefer < 0:
+        w = -w
+    return w
 
 
 def rollout_guess(disc, X0: np.ndarray, N: int, h: float) -> Guess:
