@@ -341,8 +341,12 @@ def _table(sols) -> list[str]:
     return rows
 
 
+def _option_config_error(man: Maneuver, e: SolverOptionError) -> ConfigError:
+    """A raw solver option the plugin rejected, as bad input naming solver.direct.options.NAME."""
+    return ConfigError(man.source, "solver.direct.options" + (f".{e.option}" if e.option else ""), str(e))
+
+
 def cmd_solve(args) -> int:
-    from .io import write_json as _wj
     from .plots import animate, draw_all
 
     man = _load(args)
@@ -358,7 +362,7 @@ def cmd_solve(args) -> int:
     try:  # before anything is written: bad raw solver options are bad input
         check_solver_options(man.direct.get("options") or {})
     except SolverOptionError as e:
-        raise ConfigError(man.source, "solver.direct.options" + (f".{e.option}" if e.option else ""), str(e)) from None
+        raise _option_config_error(man, e) from None
     out = _outdir(args, man)
     write_yaml(out / "config.resolved.yaml", man.resolved)
     _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} -> {out}/")
@@ -374,7 +378,7 @@ def cmd_solve(args) -> int:
         try:
             sol = _run_method(args, man, method, lam0)
         except SolverOptionError as e:
-            raise ConfigError(man.source, "solver.direct.options" + (f".{e.option}" if e.option else ""), str(e)) from None
+            raise _option_config_error(man, e) from None
         _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols[method] = sol
         write_npz(out / f"{method}.npz", sol.arrays())
@@ -386,7 +390,7 @@ def cmd_solve(args) -> int:
                "methods": {m: dict(s.summary(), history=s.history) for m, s in sols.items()}}
     if len(sols) == 2:
         summary["comparison"] = compare_solutions(sols["direct"], sols["indirect"])
-    _wj(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     if not args.no_figures:
         draw_all(out)
         if args.animate:
