@@ -28,7 +28,10 @@ shared machine the ratios are what count.
 
 Record keys (``--json``): case, scheme, method, solver, N, build_s, solve_s, iterations,
 time_per_iter_s, converged, status, cost, terminal_error, runs, build_s_all, solve_s_all,
-cold_build_s, wall_s, and for the peer orthogonality / unit-norm drift.
+cold_build_s, wall_s, for the direct methods evaluations_s / solver_internal_s (solve_s split into
+the NLP Function evaluations and the solver's own work, from CasADi's t_wall_nlp_* stats: how far
+a faster linear algebra can go; fatrop_own_s: fatrop's own share of solver_internal_s, without
+CasADi's interface), and for the peer orthogonality / unit-norm drift.
 """
 from __future__ import annotations
 
@@ -82,7 +85,8 @@ def run_one(case: str, scheme: str, method: str, N: int) -> dict:
         name = sol.solver
         if method.endswith("-jit"):
             name += "+jit" if sol.extra.get("jit") else "(jit unavailable)"
-        rec = {"method": "direct", "solver": name}
+        rec = {"method": "direct", "solver": name, "evaluations_s": sol.extra.get("evaluations_s"),
+               "solver_internal_s": sol.extra.get("solver_internal_s"), "fatrop_own_s": sol.extra.get("fatrop_own_s")}
     elif method.startswith("indirect"):
         from transcription.indirect import solve_indirect
 
@@ -147,6 +151,8 @@ def summarize(runs: list[dict], warm: dict | None) -> dict:
     base["build_s"] = _median(base["build_s_all"])
     base["solve_s"] = _median(base["solve_s_all"])
     base["wall_s"] = _median([r.get("wall_s") for r in ok])
+    for key in ("evaluations_s", "solver_internal_s", "fatrop_own_s"):   # direct methods: where the solve time went
+        base[key] = _median([r.get(key) for r in ok])
     it = base.get("iterations")
     base["time_per_iter_s"] = base["solve_s"] / it if (base["solve_s"] is not None and it) else None
     base["cold_build_s"] = warm.get("build_s") if warm else None
@@ -186,12 +192,16 @@ def _fmt(v, spec):
 
 
 def table(records: list[dict]) -> str:
-    head = "| case | scheme | method | solver | N | build s | solve s | iter | s/iter | conv | cost | term. err |"
-    lines = [head, "|" + "---|" * 12]
+    head = ("| case | scheme | method | solver | N | build s | solve s | (evals s | solver s) | iter | s/iter | conv | "
+            "cost | term. err |")
+    lines = [head, "|" + "---|" * 14]
     for r in records:
         lines.append(
             f"| {r['case']} | {r['scheme']} | {r['method']} | {r.get('solver') or '-'} | {r['N']} | "
-            f"{_fmt(r.get('build_s'), '.3f')} | {_fmt(r.get('solve_s'), '.3f')} | {r.get('iterations') or '-'} | "
+            f"{_fmt(r.get('build_s'), '.3f')} | {_fmt(r.get('solve_s'), '.3f')} | {_fmt(r.get('evaluations_s'), '.3f')} | "
+            f"{_fmt(r.get('solver_internal_s'), '.3f')}"
+            f"{'' if r.get('fatrop_own_s') is None else ' (fatrop ' + _fmt(r['fatrop_own_s'], '.3f') + ')'} | "
+            f"{r.get('iterations') or '-'} | "
             f"{_fmt(r.get('time_per_iter_s'), '.4f')} | {'yes' if r.get('converged') else 'no: ' + str(r.get('status'))} | "
             f"{_fmt(r.get('cost'), '.10g')} | {_fmt(r.get('terminal_error'), '.1e')} |")
     return "\n".join(lines)
@@ -310,7 +320,7 @@ def main(argv=None) -> int:
         stem.parent.mkdir(parents=True, exist_ok=True)
         Path(f"{stem}.json").write_text(json.dumps(summary, indent=1))
         with open(f"{stem}.csv", "w", newline="") as fh:
-            cols = list(KEYS) + ["time_per_iter_s", "runs", "cold_build_s", "wall_s"]
+            cols = list(KEYS) + ["time_per_iter_s", "runs", "cold_build_s", "wall_s", "evaluations_s", "solver_internal_s", "fatrop_own_s"]
             cols = list(dict.fromkeys(cols))
             w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
             w.writeheader()

@@ -97,3 +97,28 @@ def test_compiled_runs_equal_interpreted(scheme):
     d = solve_indirect(ex.e4(N=60, scheme=scheme, jit=True))
     assert d.extra["jit"] and c.converged and d.converged
     assert abs(c.cost - d.cost) <= 1e-10 * c.cost
+
+
+@pytest.mark.parametrize("solver", ["ipopt", "fatrop"])
+def test_solve_time_split_accounts_for_the_solve(solver):
+    """extra['evaluations_s'] + extra['solver_internal_s'] = solve_s, split over the NLP Functions."""
+    s = direct.solve_direct(ex.e3(N=20, scheme="first_order", solver=solver))
+    assert s.converged and s.solver == solver
+    by = s.extra["evaluations_by_function"]
+    assert {"nlp_jac_g", "nlp_hess_l", "nlp_g"} <= set(by) and all(v >= 0.0 for v in by.values())
+    assert by["nlp_hess_l"] > 0.0 and by["nlp_jac_g"] > 0.0
+    assert s.extra["evaluations_s"] == pytest.approx(sum(by.values()), rel=1e-12)
+    assert 0.0 < s.extra["evaluations_s"] <= s.solve_s
+    assert s.extra["evaluations_s"] + s.extra["solver_internal_s"] == pytest.approx(s.solve_s, rel=1e-9)
+
+
+def test_solve_time_split_without_stats():
+    """A failed solver call (no stats) gives zeros, never a negative solver share."""
+    out = direct.solve_time_split({}, 0.5)
+    assert out == {"evaluations_s": 0.0, "solver_internal_s": 0.5, "evaluations_by_function": {}}
+    assert direct.solve_time_split({"t_wall_nlp_f": 2.0}, 1.0)["solver_internal_s"] == 0.0
+
+
+def test_fatrop_own_time_is_part_of_the_solver_share():
+    s = direct.solve_direct(ex.e3(N=20, scheme="first_order", solver="fatrop"))
+    assert s.solver == "fatrop" and 0.0 < s.extra["fatrop_own_s"] <= s.extra["solver_internal_s"]

@@ -866,6 +866,28 @@ def _solve_fatrop(problem: SmoothProblem, opts, guess: Guess) -> tuple[Solution 
                   "fatrop_solve_s": solve_s}
 
 
+def solve_time_split(stats: dict, solve_s: float) -> dict[str, Any]:
+    """Where a solve's wall time went, from CasADi's solver stats (IPOPT and fatrop alike).
+
+    ``evaluations_s`` is the wall time spent in the NLP Functions (objective, constraints, their
+    Jacobian and the Lagrangian Hessian: the ``t_wall_nlp_*`` stats), ``solver_internal_s`` the rest
+    of ``solve_s`` (the solver's own linear algebra, line search and bookkeeping),
+    ``evaluations_by_function`` the split of ``evaluations_s``.  For fatrop also ``fatrop_own_s``:
+    fatrop's own time (its ``time_total`` less its evaluation callbacks), i.e. ``solver_internal_s``
+    without the work of CasADi's interface (projecting the NLP Jacobian and Hessian into fatrop's
+    stage blocks).
+    """
+    by = {k[len("t_wall_"):]: float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_")}
+    ev = float(sum(by.values()))
+    out = {"evaluations_s": ev, "solver_internal_s": max(float(solve_s) - ev, 0.0), "evaluations_by_function": by}
+    fat = stats.get("fatrop")
+    if isinstance(fat, dict) and "time_total" in fat:
+        cb = sum(float(fat.get(k, 0.0)) for k in ("eval_hess_time", "eval_jac_time", "eval_cv_time", "eval_grad_time",
+                                                   "eval_obj_time"))
+        out["fatrop_own_s"] = max(float(fat["time_total"]) - cb, 0.0)
+    return out
+
+
 def _solution(problem: SmoothProblem, opts, nlp, sol, stats, status: str, solver: str, build_s: float,
               solve_s: float) -> Solution:
     """The Solution of a finished NLP solve (IPOPT or fatrop): re-simulation, checks, costates."""
@@ -908,6 +930,7 @@ def _solution(problem: SmoothProblem, opts, nlp, sol, stats, status: str, solver
         "max_cayley_residual": worst_cayley,
         "jit": bool(getattr(nlp, "compiled", False)),
         "nlp_nu": nlp.scales.objective * lam_g / nlp.g_scale,  # physical multipliers, for warm starts
+        **solve_time_split(stats, solve_s),
     }
     return Solution(method="direct", solver=solver, discretization=problem.disc.scheme, N=problem.N, h=problem.h,
                     trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=Xsim), status=status,
