@@ -157,6 +157,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:  # not the main thread
         pass
     args = build_parser().parse_args(argv)
+    from transcription import codegen
+
+    codegen.notify = lambda msg: _say(args, f"  [jit] {msg}")
     try:
         return args.func(args)
     except (ConfigError, ResultsDirError) as e:

@@ -21,6 +21,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Callable
 
 import casadi as ca
 
@@ -30,6 +31,10 @@ CFLAGS = ["-O1", "-fPIC", "-shared"]
 
 #: last failure reason (None when the last call compiled or loaded successfully); for reports
 last_error: str | None = None
+
+#: optional callable told (one line) before a cache miss is compiled, so that a front end can say why
+#: the first run pauses; the CLI sets it, the library itself prints nothing
+notify: Callable[[str], None] | None = None
 
 
 def cache_dir() -> Path:
@@ -70,6 +75,8 @@ def compiled(fn: ca.Function, timeout: float = 600.0, cse: bool = True) -> ca.Fu
         lib = cache_dir() / f"{name}_{key}.so"
         if not lib.exists():
             lib.parent.mkdir(parents=True, exist_ok=True)
+            if notify is not None:
+                notify(f"compiling {name} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
             if cse and fn.is_a("SXFunction"):
                 ins = fn.sx_in()
                 fn = ca.Function(name, ins, fn.call(ins), fn.name_in(), fn.name_out(), {"cse": True})

@@ -95,7 +95,9 @@ DIRECT_OPTION_DEFAULTS: dict[str, Any] = {
     "terminal_tol": 1e-6,        # re-simulated terminal error above which the solve is not "converged"
     "fatrop_options": {},        # raw fatrop options (solver: fatrop), e.g. {'mu_init': 0.1}
     "fatrop_expand": False,      # fatrop: SX-expand the whole NLP (slower build, faster evaluations)
-    "jit": False,                # compile the stage Jacobian/Hessian to C (transcription/codegen.py; cached on disk)
+    # compile the stage Jacobian/Hessian to C (transcription/codegen.py): 1-2 s once per machine (cached on
+    # disk), then every solve 1.4-1.8x faster; without a compiler (or SE3OCP_NO_JIT=1) the interpreter is used
+    "jit": True,
 }
 
 
