@@ -122,3 +122,27 @@ def test_solve_time_split_without_stats():
 def test_fatrop_own_time_is_part_of_the_solver_share():
     s = direct.solve_direct(ex.e3(N=20, scheme="first_order", solver="fatrop"))
     assert s.solver == "fatrop" and 0.0 < s.extra["fatrop_own_s"] <= s.extra["solver_internal_s"]
+
+
+def test_direct_default_compiles_when_it_can():
+    """jit is on by default for the direct method (and off with SE3OCP_NO_JIT, see the fallback test)."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    assert direct.DIRECT_OPTION_DEFAULTS["jit"] is True
+    s = direct.solve_direct(ex.e3(N=10, scheme="first_order"))
+    assert s.converged and s.extra["jit"] is True
+
+
+def test_codegen_notifies_on_a_cache_miss_only(monkeypatch, tmp_path):
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    said: list[str] = []
+    monkeypatch.setattr(codegen, "notify", said.append)
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("notify_probe", [x], [ca.sin(x) * x[0]])
+    g = codegen.compiled(f)
+    assert g.class_name() == "External" and len(said) == 1 and "notify_probe" in said[0]
+    h = codegen.compiled(f)                       # cache hit: loaded, nothing said
+    assert h.class_name() == "External" and len(said) == 1
+    assert np.allclose(np.array(h([0.3, -1.2])), np.array(f([0.3, -1.2])), rtol=0, atol=1e-15)
