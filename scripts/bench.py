@@ -7,8 +7,9 @@
 
 Methods (``--methods``, comma separated):
 
-    direct-ipopt       solve_direct, IPOPT (the default solver)
-    direct-ipopt-jit   the same with the stage derivative Functions compiled to C (options.jit)
+    direct-ipopt       solve_direct, IPOPT (the default solver), interpreted stage Functions (jit: false)
+    direct-ipopt-jit   the same with the stage derivative Functions compiled to C (jit: true, the
+                       direct method's default)
     direct-fatrop      solve_direct with solver 'fatrop' (IPOPT fallback is *reported*: solver field
                        'fatrop->ipopt', and such a run is not counted as a fatrop time)
     indirect           solve_indirect from lambda_0 = 0 (Newton-Armijo), interpreted CasADi Functions
