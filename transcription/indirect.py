@@ -187,6 +187,12 @@ def _costate_back_solve(A, lam_prev):
     return lam, ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
 
 
+def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res), one signature for both schemes."""
+    return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv"],
+                       ["X1", "lam", "u", "res", "lam_res"])
+
+
 def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
     """The forward map of the necessary conditions for ``disc``.
 
@@ -225,13 +231,7 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
         lam, lam_res = _costate_back_solve(A, lam_prev)
         u = control(lam)
         X1, res = disc.step(X, u, h)
-        costate_map = ca.Function(
-            "first_order_costate_map",
-            [X, lam_prev, h, Winv],
-            [X1, lam, u, res, lam_res],
-            ["X", "lam_prev", "h", "Winv"],
-            ["X1", "lam", "u", "res", "lam_res"],
-        )
+        costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv], [X1, lam, u, res, lam_res])
         u0 = control(lam0)
         X1, res = disc.step(X, u0, h)
         first_step = ca.Function(
@@ -255,13 +255,7 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     lam, lam_res = _costate_back_solve(A, lam_prev)
     uk1 = control(lam)
     X1, res = disc.step(X, ca.vertcat(uk, uk1), h)
-    costate_map = ca.Function(
-        "lgvi_costate_map",
-        [X, lam_prev, h, Winv],
-        [X1, lam, uk1, res, lam_res],
-        ["X", "lam_prev", "h", "Winv"],
-        ["X1", "lam", "u", "res", "lam_res"],
-    )
+    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv], [X1, lam, uk1, res, lam_res])
     return costate_map, None
 
 
