@@ -60,6 +60,8 @@ FULL_N = (250, 500, 1000, 2000, 4000)
 CAPS = {"rockit": 500, "direct-fatrop": 1000, "indirect": 2000}
 QUICK_CAPS = {"rockit": 250}
 QUICK_N = (250, 1000)
+#: the direct methods' split of solve_s (Solution.extra, see transcription.direct.solve_time_split)
+SPLIT_KEYS = ("evaluations_s", "solver_internal_s", "fatrop_own_s")
 KEYS = ("case", "scheme", "method", "solver", "N", "build_s", "solve_s", "iterations", "time_per_iter_s", "converged",
         "status", "cost", "terminal_error")
 
@@ -86,8 +88,7 @@ def run_one(case: str, scheme: str, method: str, N: int) -> dict:
         name = sol.solver
         if method.endswith("-jit"):
             name += "+jit" if sol.extra.get("jit") else "(jit unavailable)"
-        rec = {"method": "direct", "solver": name, "evaluations_s": sol.extra.get("evaluations_s"),
-               "solver_internal_s": sol.extra.get("solver_internal_s"), "fatrop_own_s": sol.extra.get("fatrop_own_s")}
+        rec = {"method": "direct", "solver": name, **{k: sol.extra.get(k) for k in SPLIT_KEYS}}
     elif method.startswith("indirect"):
         from transcription.indirect import solve_indirect
 
@@ -152,7 +153,7 @@ def summarize(runs: list[dict], warm: dict | None) -> dict:
     base["build_s"] = _median(base["build_s_all"])
     base["solve_s"] = _median(base["solve_s_all"])
     base["wall_s"] = _median([r.get("wall_s") for r in ok])
-    for key in ("evaluations_s", "solver_internal_s", "fatrop_own_s"):   # direct methods: where the solve time went
+    for key in SPLIT_KEYS:   # direct methods: where the solve time went
         base[key] = _median([r.get(key) for r in ok])
     it = base.get("iterations")
     base["time_per_iter_s"] = base["solve_s"] / it if (base["solve_s"] is not None and it) else None
@@ -321,7 +322,7 @@ def main(argv=None) -> int:
         stem.parent.mkdir(parents=True, exist_ok=True)
         Path(f"{stem}.json").write_text(json.dumps(summary, indent=1))
         with open(f"{stem}.csv", "w", newline="") as fh:
-            cols = list(KEYS) + ["time_per_iter_s", "runs", "cold_build_s", "wall_s", "evaluations_s", "solver_internal_s", "fatrop_own_s"]
+            cols = list(KEYS) + ["time_per_iter_s", "runs", "cold_build_s", "wall_s", *SPLIT_KEYS]
             cols = list(dict.fromkeys(cols))
             w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
             w.writeheader()
