@@ -698,12 +698,11 @@ class FatropNLP:
                "print_level": 0}
         fat.update({k: v for k, v in (opts.get("fatrop_options") or {}).items()})
         nlp_opts = {"equality": [True] * g.shape[0], "expand": bool(expand), "print_time": False, "fatrop": fat}
-        if opts.get("fatrop_structure", "manual") == "auto":
-            nlp_opts["structure_detection"] = "auto"
-        else:  # the same structure stated: auto detection costs O(N^2) at build (12 s at N = 1000)
-            npath = nrow - lay.ns
-            nlp_opts.update({"structure_detection": "manual", "N": N, "nx": [lay.ns] * (N + 1),
-                             "nu": [lay.nq] * N + [0], "ng": [npath + NX] + [npath] * (N - 1) + [NZ]})
+        # the structure stated rather than auto-detected (the same blocks either way); the interface's
+        # setup is quadratic in N in both modes (scripts/fatrop_build_probe.py)
+        npath = nrow - lay.ns
+        nlp_opts.update({"structure_detection": "manual", "N": N, "nx": [lay.ns] * (N + 1),
+                         "nu": [lay.nq] * N + [0], "ng": [npath + NX] + [npath] * (N - 1) + [NZ]})
         self.solver = ca.nlpsol("direct_fatrop", "fatrop", {"x": ws, "f": f, "g": g}, nlp_opts)
 
     def initial_point(self, guess: Guess) -> np.ndarray:
@@ -874,7 +873,9 @@ def solve_time_split(stats: dict, solve_s: float) -> dict[str, Any]:
     ``evaluations_s`` is the wall time spent in the NLP Functions (objective, constraints, their
     Jacobian and the Lagrangian Hessian: the ``t_wall_nlp_*`` stats), ``solver_internal_s`` the rest
     of ``solve_s`` (the solver's own linear algebra, line search and bookkeeping),
-    ``evaluations_by_function`` the split of ``evaluations_s``.  For fatrop also ``fatrop_own_s``:
+    ``evaluations_by_function`` the split of ``evaluations_s``.  After a fatrop -> IPOPT fallback the
+    split describes the IPOPT call only (the failed attempt is ``extra['fatrop_solve_s']``, included in
+    the Solution's solve_s).  For fatrop also ``fatrop_own_s``:
     fatrop's own time (its ``time_total`` less its evaluation callbacks), i.e. ``solver_internal_s``
     without the work of CasADi's interface (projecting the NLP Jacobian and Hessian into fatrop's
     stage blocks).
