@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 
 from .io import ResultsDirError, prepare_results_dir, write_json, write_npz, write_yaml  # noqa: E402
 from .maneuvers import ConfigError, Maneuver, load_maneuver  # noqa: E402
-from transcription.results import SolverOptionError  # noqa: E402
+from ..transcription.results import SolverOptionError  # noqa: E402
 
 #: Cayley solves whose relative residual exceeds this are reported as failed.
 CAYLEY_RESIDUAL_TOL = 1e-10
@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:  # not the main thread
         pass
     args = build_parser().parse_args(argv)
-    from transcription import codegen
+    from ..transcription import codegen
 
     codegen.notify = lambda msg: _say(args, f"  [jit] {msg}")
     try:
@@ -213,8 +213,8 @@ def cmd_validate(args) -> int:
 
 def free_motion(man: Maneuver):
     """Simulate uncontrolled motion; returns (t, X (N+1,18), summary dict)."""
-    from transcription.lie import orthogonality_error
-    from transcription.layout import unpack_states
+    from ..transcription.lie import orthogonality_error
+    from ..transcription.layout import unpack_states
 
     t0 = time.perf_counter()
     disc = man.discretization_object()
@@ -254,7 +254,7 @@ def free_motion(man: Maneuver):
 
 
 def cmd_simulate(args) -> int:
-    from transcription.layout import unpack_states
+    from ..transcription.layout import unpack_states
 
     man = _load(args)
     out = _outdir(args, man)
@@ -302,14 +302,14 @@ class Progress:
 def _run_method(args, man: Maneuver, method: str, lam0=None):
     """Build the problem for ``method`` and solve it; returns a Solution (failures are data)."""
     if man.control_kind == "impulsive":
-        from transcription.impulsive import solve_impulsive
+        from ..transcription.impulsive import solve_impulsive
 
         return solve_impulsive(man.impulsive_problem(), progress=Progress(args, "impulsive"))
     if method == "direct":
-        from transcription.direct import solve_direct
+        from ..transcription.direct import solve_direct
 
         return solve_direct(man.smooth_problem("direct"), progress=Progress(args, "direct"))
-    from transcription.indirect import solve_indirect
+    from ..transcription.indirect import solve_indirect
 
     return solve_indirect(man.smooth_problem("indirect"), lam0=lam0, progress=Progress(args, "indirect"))
 
@@ -360,7 +360,7 @@ def cmd_solve(args) -> int:
             raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
                                                           "impulsive maneuvers are solved by --method direct")
         methods = ["direct"]
-    from transcription.direct import check_solver_options
+    from ..transcription.direct import check_solver_options
 
     try:  # before anything is written: bad raw solver options are bad input
         check_solver_options(man.direct.get("options") or {})
@@ -374,7 +374,7 @@ def cmd_solve(args) -> int:
         lam0 = None
         if method == "indirect" and man.indirect.get("initial_costate") == "from_direct" and "direct" in sols \
                 and sols["direct"].costates is not None:
-            from transcription.indirect import lam0_from_direct
+            from ..transcription.indirect import lam0_from_direct
 
             lam0 = lam0_from_direct(man.smooth_problem("indirect"), sols["direct"])  # reuse, don't re-solve
         _say(args, f"solving by the {method} method ...")

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from transcription.model import BodyModel
+from ..transcription.model import BodyModel
 
 GM_NORMALIZED = 4.0 * np.pi**2
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from transcription.results import to_jsonable
+from ..transcription.results import to_jsonable
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:

@@ -35,12 +35,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from transcription.direct import DIRECT_OPTION_DEFAULTS
-from transcription.indirect import DEFAULT_OPTIONS as INDIRECT_OPTION_DEFAULTS
-from transcription.layout import pack_state
-from transcription.lgvi import SCHEMES, Discretization
-from transcription.lie import rot_x, rot_y, rot_z
-from transcription.problem import ImpulsiveProblem, OrbitTarget, SmoothProblem
+from ..transcription.direct import DIRECT_OPTION_DEFAULTS
+from ..transcription.indirect import DEFAULT_OPTIONS as INDIRECT_OPTION_DEFAULTS
+from ..transcription.layout import pack_state
+from ..transcription.lgvi import SCHEMES, Discretization
+from ..transcription.lie import rot_x, rot_y, rot_z
+from ..transcription.problem import ImpulsiveProblem, OrbitTarget, SmoothProblem
 
 from .dumbbell import GM_NORMALIZED, Dumbbell
 
@@ -180,7 +180,7 @@ class Validator:
             n = np.linalg.norm(a[:3])
             if n == 0:
                 self.fail(w, "expected a non-zero rotation axis")
-            from transcription.lie import exp_so3
+            from ..transcription.lie import exp_so3
 
             return np.asarray(exp_so3(a[:3] / n * np.deg2rad(a[3])))
         if kind == "rotations":

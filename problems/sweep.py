@@ -325,8 +325,8 @@ def sweep_from_doc(doc: Any, source: str) -> Sweep:
 
 
 def _check_raw_options(source, sw, p, man):
-    from transcription.direct import check_solver_options
-    from transcription.results import SolverOptionError
+    from ..transcription.direct import check_solver_options
+    from ..transcription.results import SolverOptionError
 
     try:
         check_solver_options(man.direct.get("options") or {})
@@ -369,8 +369,8 @@ def _maneuver_from_text(source: str, text: str, overrides):
 
 def _warm_solution(problem, warm: dict):
     """A Solution-like warm start for solve_direct from a payload {X, U, nu}, or None if it does not fit."""
-    from transcription.layout import NX
-    from transcription.results import Solution, Trajectory
+    from ..transcription.layout import NX
+    from ..transcription.results import Solution, Trajectory
 
     X, U = np.asarray(warm.get("X")), np.asarray(warm.get("U"))
     if X.shape != (problem.N + 1, NX) or U.shape != (6, problem.disc.n_controls(problem.N)):
@@ -397,19 +397,19 @@ def _payload(method: str, sol) -> dict | None:
 def _solve(man, method: str, warm: dict | None):
     """(final Solution, warm_started, start, iterations_total)."""
     if method == "impulsive":
-        from transcription.impulsive import solve_impulsive
+        from ..transcription.impulsive import solve_impulsive
 
         sol = solve_impulsive(man.impulsive_problem())
         return sol, False, "cold", sol.iterations
     if method == "direct":
-        from transcription.direct import solve_direct
+        from ..transcription.direct import solve_direct
 
         problem = man.smooth_problem("direct")
         ws = _warm_solution(problem, warm) if warm else None
         cold = lambda: solve_direct(problem)  # noqa: E731
         warm_solve = (lambda: solve_direct(problem, warm_start=ws)) if ws is not None else None
     else:
-        from transcription.indirect import solve_indirect
+        from ..transcription.indirect import solve_indirect
 
         problem = man.smooth_problem("indirect")
         lam0 = np.asarray(warm["lam0"], float) if warm and warm.get("lam0") is not None else None

@@ -81,7 +81,7 @@ def run_one(case: str, scheme: str, method: str, N: int) -> dict:
 
     make = {"e3": e3, "e4": e4}[case]
     if method.startswith("direct"):
-        from transcription.direct import solve_direct
+        from se3ocp.transcription.direct import solve_direct
 
         solver = "fatrop" if method == "direct-fatrop" else "ipopt"
         sol = solve_direct(make(N=N, scheme=scheme, solver=solver, jit=method.endswith("-jit")))
@@ -90,7 +90,7 @@ def run_one(case: str, scheme: str, method: str, N: int) -> dict:
             name += "+jit" if sol.extra.get("jit") else "(jit unavailable)"
         rec = {"method": "direct", "solver": name, **{k: sol.extra.get(k) for k in SPLIT_KEYS}}
     elif method.startswith("indirect"):
-        from transcription.indirect import solve_indirect
+        from se3ocp.transcription.indirect import solve_indirect
 
         sol = solve_indirect(make(N=N, scheme=scheme, jit=method.endswith("-jit")))
         name = sol.solver + ("+jit" if sol.extra.get("jit") else "")

@@ -28,9 +28,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from problems import sweep as sw  # noqa: E402
-from problems.maneuvers import yaml_load  # noqa: E402
-from problems.io import write_yaml  # noqa: E402
+from se3ocp.problems import sweep as sw  # noqa: E402
+from se3ocp.problems.maneuvers import yaml_load  # noqa: E402
+from se3ocp.problems.io import write_yaml  # noqa: E402
 
 
 def grid12(tmp: Path, N: int) -> Path:

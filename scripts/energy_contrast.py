@@ -25,10 +25,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from problems.dumbbell import Dumbbell  # noqa: E402
-from transcription.layout import NX, join_state, pack_state, split_state, unpack_states  # noqa: E402
-from transcription.lgvi import Discretization  # noqa: E402
-from transcription.lie import hat, orthogonality_error  # noqa: E402
+from se3ocp.problems.dumbbell import Dumbbell  # noqa: E402
+from se3ocp.transcription.layout import NX, join_state, pack_state, split_state, unpack_states  # noqa: E402
+from se3ocp.transcription.lgvi import Discretization  # noqa: E402
+from se3ocp.transcription.lie import hat, orthogonality_error  # noqa: E402
 
 H = 1e-3
 CHUNK = 2000

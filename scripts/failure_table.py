@@ -333,7 +333,7 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
     if case.interrupt is None:
-        r = subprocess.run([sys.executable, "-m", "problems.cli", *argv], cwd=workdir, capture_output=True, text=True,
+        r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", *argv], cwd=workdir, capture_output=True, text=True,
                            timeout=timeout, env=env)
         rc, out, err = r.returncode, r.stdout, r.stderr
     else:
@@ -350,7 +350,7 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
 
 
 def _run_interrupted(case: Case, argv, workdir: Path, env, timeout):
-    p = subprocess.Popen([sys.executable, "-m", "problems.cli", *argv], cwd=workdir, stdout=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "se3ocp.problems.cli", *argv], cwd=workdir, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, env=env)
     lines = []
     kind = case.interrupt[0]

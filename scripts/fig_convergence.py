@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from tests.examples import e3, e4  # noqa: E402
-from transcription.indirect import solve_indirect  # noqa: E402
+from se3ocp.transcription.indirect import solve_indirect  # noqa: E402
 
 
 def draw(ax, sol, title):

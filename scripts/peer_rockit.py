@@ -37,8 +37,8 @@ WALL_CAP_S = 120.0
 
 def _rhs_functions(model):
     """(X[18], u[6]) -> dX/dt as a CasADi Function (layout of transcription.layout)."""
-    from transcription.layout import join_state, split_state
-    from transcription.lie import hat
+    from se3ocp.transcription.layout import join_state, split_state
+    from se3ocp.transcription.lie import hat
 
     X = ca.SX.sym("X", 18)
     u = ca.SX.sym("u", 6)
@@ -67,7 +67,7 @@ def resimulate(model, X0, U, T, rtol=1e-12, atol=1e-12):
 
 
 def orthogonality(X):
-    from transcription.layout import unpack_states
+    from se3ocp.transcription.layout import unpack_states
 
     R = unpack_states(np.asarray(X)).R
     E = np.einsum("kji,kjl->kil", R, R) - np.eye(3)
@@ -79,10 +79,10 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
     from rockit import MultipleShooting, Ocp
 
     from tests.examples import e3, e4
-    from transcription.guess import rollout_guess
-    from transcription.layout import split_state
-    from transcription.lie import log_so3
-    from transcription.results import terminal_error_full
+    from se3ocp.transcription.guess import rollout_guess
+    from se3ocp.transcription.layout import split_state
+    from se3ocp.transcription.lie import log_so3
+    from se3ocp.transcription.results import terminal_error_full
 
     prob = {"e3": e3, "e4": e4}[case](N=N, scheme="first_order")
     model, T = prob.disc.model, prob.T

@@ -33,7 +33,7 @@ FIGS = ("maneuver", "convergence", "velocity", "angular_velocity", "force", "mom
 
 def run(label, config, command, sets, N, work: Path):
     out = work / config / ("from_direct" if sets else "default")
-    args = [sys.executable, "-m", "problems.cli", command, str(ROOT / "configs" / f"{config}.yaml"),
+    args = [sys.executable, "-m", "se3ocp.problems.cli", command, str(ROOT / "configs" / f"{config}.yaml"),
             "--out", str(out), "--force", "--json"]
     for s in sets + ([f"horizon.N={N}"] if N else []):
         args += ["--set", s]

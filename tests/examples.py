@@ -15,11 +15,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from problems.dumbbell import Dumbbell
-from transcription.layout import pack_state
-from transcription.lgvi import Discretization
-from transcription.lie import rot_x, rot_y, rot_z
-from transcription.problem import ImpulsiveProblem, OrbitTarget, SmoothProblem
+from se3ocp.problems.dumbbell import Dumbbell
+from se3ocp.transcription.layout import pack_state
+from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.lie import rot_x, rot_y, rot_z
+from se3ocp.transcription.problem import ImpulsiveProblem, OrbitTarget, SmoothProblem
 
 TWO_PI = 2.0 * np.pi
 BODY = Dumbbell()

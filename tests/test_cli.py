@@ -13,7 +13,7 @@ CONFIGS = ROOT / "configs"
 
 
 def run(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "problems.cli", *map(str, args)], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", *map(str, args)], cwd=cwd,
                           capture_output=True, text=True, timeout=600)
 
 

@@ -18,7 +18,7 @@ METHOD_KEYS = {"status", "converged", "cost", "terminal_error", "max_orthogonali
 
 
 def se3ocp(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "problems.cli", *map(str, args)], cwd=cwd, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", *map(str, args)], cwd=cwd, capture_output=True,
                           text=True, timeout=900)
 
 
@@ -97,8 +97,8 @@ def test_compare_reports_different_extremals():
     """Two converged solutions with different costs are flagged, the lower one named (issue 4)."""
     import dataclasses
 
-    from problems.cli import compare_solutions
-    from transcription.results import Solution, Trajectory
+    from se3ocp.problems.cli import compare_solutions
+    from se3ocp.transcription.results import Solution, Trajectory
 
     base = Solution(method="direct", solver="ipopt", discretization="first_order", N=2, h=0.1,
                     trajectory=Trajectory(t=np.zeros(3), X=np.zeros((3, 18))), status="Solve_Succeeded",

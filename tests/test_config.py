@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import yaml
 
-from problems.dumbbell import Dumbbell
-from problems.maneuvers import ConfigError, load_maneuver, parse_maneuver, yaml_load
-from transcription.layout import unpack_states
-from transcription.lie import rot_x, rot_y, rot_z
+from se3ocp.problems.dumbbell import Dumbbell
+from se3ocp.problems.maneuvers import ConfigError, load_maneuver, parse_maneuver, yaml_load
+from se3ocp.transcription.layout import unpack_states
+from se3ocp.transcription.lie import rot_x, rot_y, rot_z
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 E3 = CONFIGS / "e3_inclination_change.yaml"

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import examples as ex
-from transcription.direct import NLPLayout, control_cost, quadrature_weights, solve_direct, tangent_basis
-from transcription.guess import interpolation_guess, log_so3_any, rollout_guess
-from transcription.layout import NU, NX, pack_state, unpack_states
-from transcription.lie import exp_so3, log_so3, orthogonality_error, rot_x, rot_z
+from se3ocp.transcription.direct import NLPLayout, control_cost, quadrature_weights, solve_direct, tangent_basis
+from se3ocp.transcription.guess import interpolation_guess, log_so3_any, rollout_guess
+from se3ocp.transcription.layout import NU, NX, pack_state, unpack_states
+from se3ocp.transcription.lie import exp_so3, log_so3, orthogonality_error, rot_x, rot_z
 
 SCHEMES = ("lgvi", "first_order")
 

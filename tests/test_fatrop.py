@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import examples as ex
-from transcription.direct import StageLayout, solve_direct
-from transcription.layout import NU, NX
+from se3ocp.transcription.direct import StageLayout, solve_direct
+from se3ocp.transcription.layout import NU, NX
 
 N = 40
 

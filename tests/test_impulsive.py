@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import examples as ex
-from transcription.direct import DIRECT_OPTION_DEFAULTS
-from transcription.impulsive import (P_COLS, orbit_plane_basis, relaxed_jacobian, relaxed_terminal, right_jacobian_inv, sensitivity,
+from se3ocp.transcription.direct import DIRECT_OPTION_DEFAULTS
+from se3ocp.transcription.impulsive import (P_COLS, orbit_plane_basis, relaxed_jacobian, relaxed_terminal, right_jacobian_inv, sensitivity,
                                      sensitivity_ad, solve_impulsive, tpbvp_jacobian, tpbvp_residual, with_momenta)
-from transcription.layout import pack_state, unpack_states
-from transcription.lie import exp_so3, hat, log_so3
+from se3ocp.transcription.layout import pack_state, unpack_states
+from se3ocp.transcription.lie import exp_so3, hat, log_so3
 
 SCHEMES = ("lgvi", "first_order")
 SEEDS = (0, 1, 2)

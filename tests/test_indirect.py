@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from tests.examples import e3, e4
-from transcription.indirect import (
+from se3ocp.transcription.indirect import (
     control_cost,
     outer_errors,
     quadratic_constant,
@@ -22,7 +22,7 @@ from transcription.indirect import (
     terminal_residual_function,
     weight_inverse,
 )
-from transcription.layout import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
+from se3ocp.transcription.layout import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
 
 EXAMPLES = {"E3": e3, "E4": e4}
 
@@ -253,7 +253,7 @@ def _agreement(name, N, dsol, isol, rsol):
 
 
 def _direct(p):
-    from transcription.direct import solve_direct
+    from se3ocp.transcription.direct import solve_direct
 
     return solve_direct(dataclasses.replace(p, options={}))
 

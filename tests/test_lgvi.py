@@ -26,10 +26,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from problems.dumbbell import Dumbbell
-from transcription.layout import NZ, pack_state, unpack_states
-from transcription.lgvi import Discretization
-from transcription.lie import cayley, exp_so3, hat, log_so3, orthogonality_error
+from se3ocp.problems.dumbbell import Dumbbell
+from se3ocp.transcription.layout import NZ, pack_state, unpack_states
+from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.lie import cayley, exp_so3, hat, log_so3, orthogonality_error
 
 SCHEMES = ("lgvi", "first_order")
 TWO_PI = 2.0 * np.pi

@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from transcription.lie import (
+from se3ocp.transcription.lie import (
     cayley,
     cayley_inv,
     exp_so3,

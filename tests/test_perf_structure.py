@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import examples as ex
-from transcription import codegen, direct
-from transcription.indirect import shooting_functions, weight_inverse
+from se3ocp.transcription import codegen, direct
+from se3ocp.transcription.indirect import shooting_functions, weight_inverse
 
 SCHEMES = ("first_order", "lgvi")
 
@@ -91,7 +91,7 @@ def test_compiled_runs_equal_interpreted(scheme):
     b = direct.solve_direct(ex.e4(N=60, scheme=scheme, jit=True))
     assert b.extra["jit"] and a.iterations == b.iterations
     assert abs(a.cost - b.cost) <= 1e-12 * a.cost
-    from transcription.indirect import solve_indirect
+    from se3ocp.transcription.indirect import solve_indirect
 
     c = solve_indirect(ex.e4(N=60, scheme=scheme))
     d = solve_indirect(ex.e4(N=60, scheme=scheme, jit=True))

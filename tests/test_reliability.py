@@ -78,7 +78,7 @@ def test_every_bad_input_class_of_issue_7_is_in_the_catalogue():
 
 def test_orbit_normal_is_normalized_and_near_rotation_projected():
     """Documented choices: a non-unit orbit normal is normalized; a matrix within 1e-6 of SO(3) is projected onto it."""
-    from problems.maneuvers import load_maneuver
+    from se3ocp.problems.maneuvers import load_maneuver
 
     m = load_maneuver(CONFIGS / "e2_impulsive_relaxed.yaml", ["terminal.orbit.normal=[0, 0, 2.5]"])
     assert np.allclose(m.terminal.normal, [0, 0, 1], atol=0, rtol=1e-15)
@@ -92,7 +92,7 @@ def test_orbit_normal_is_normalized_and_near_rotation_projected():
 @pytest.mark.parametrize("case", _params("solver failure"))
 def test_solver_failure_is_data(case, tmp_path):
     if case.config in (ft.E1, ft.E2):
-        pytest.importorskip("transcription.impulsive")
+        pytest.importorskip("se3ocp.transcription.impulsive")
     o = ft.run_case(case, tmp_path)
     assert ft.check(o) == [], _explain(o)
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -111,9 +111,9 @@ def test_solver_failure_is_data(case, tmp_path):
 
 def _nan_model_problem(method: str):
     """E3 at N = 10 with a potential whose gradient is NaN everywhere in the orbit (sqrt of x_1 - 5 < 0)."""
-    from problems.maneuvers import load_maneuver
-    from transcription.lgvi import Discretization
-    from transcription.model import BodyModel
+    from se3ocp.problems.maneuvers import load_maneuver
+    from se3ocp.transcription.lgvi import Discretization
+    from se3ocp.transcription.model import BodyModel
 
     man = load_maneuver(CONFIGS / "e3_inclination_change.yaml", ["horizon.N=10"])
     x = ca.SX.sym("x", 3)
@@ -125,7 +125,7 @@ def _nan_model_problem(method: str):
 
 
 def _assert_failed_solution_writable(sol, tmp_path):
-    from problems.io import write_json, write_npz
+    from se3ocp.problems.io import write_json, write_npz
 
     assert sol.converged is False and sol.status and sol.message
     write_npz(tmp_path / "s.npz", sol.arrays())
@@ -136,7 +136,7 @@ def _assert_failed_solution_writable(sol, tmp_path):
 
 
 def test_nan_potential_indirect_is_data(tmp_path):
-    from transcription.indirect import solve_indirect
+    from se3ocp.transcription.indirect import solve_indirect
 
     sol = solve_indirect(_nan_model_problem("indirect"))
     assert sol.status == "nan", sol.message
@@ -144,7 +144,7 @@ def test_nan_potential_indirect_is_data(tmp_path):
 
 
 def test_nan_potential_direct_is_data(tmp_path):
-    from transcription.direct import solve_direct
+    from se3ocp.transcription.direct import solve_direct
 
     sol = solve_direct(_nan_model_problem("direct"))
     assert sol.status in ("nan", "Invalid_Number_Detected"), sol.message
@@ -152,7 +152,7 @@ def test_nan_potential_direct_is_data(tmp_path):
 
 
 def test_solve_default_method_is_direct(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "problems.cli", "solve", str(CONFIGS / "e3_inclination_change.yaml"),
+    r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "solve", str(CONFIGS / "e3_inclination_change.yaml"),
                            "--set", "horizon.N=20", "--out", str(tmp_path / "o"), "--no-figures", "--quiet"],
                           capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr

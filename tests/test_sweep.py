@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from problems import sweep as sw
-from problems.maneuvers import ConfigError
+from se3ocp.problems import sweep as sw
+from se3ocp.problems.maneuvers import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 E3 = ROOT / "configs" / "e3_inclination_change.yaml"
@@ -221,7 +221,7 @@ def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
 
 
 def test_warm_start_that_raises_falls_back_cold(tmp_path, monkeypatch):
-    import transcription.direct as direct
+    import se3ocp.transcription.direct as direct
 
     real = direct.solve_direct
 
@@ -245,7 +245,7 @@ def test_bad_scheduler_is_bad_input():
 
 # ------------------------------------------------------------------ the command
 def run(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "problems.cli", "sweep", *map(str, args)], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "sweep", *map(str, args)], cwd=cwd,
                           capture_output=True, text=True, timeout=600)
 
 
@@ -304,7 +304,7 @@ def test_cli_ctrl_c_writes_finished_rows(tmp_path):
     f = write_sweep(tmp_path, f"set: {{horizon.N: {N}}}\naxes: {{horizon.T: {{linspace: [0.45, 0.63, 10]}}}}\n"
                               "methods: [direct, indirect]\n")
     out = tmp_path / "o"
-    p = subprocess.Popen([sys.executable, "-m", "problems.cli", "sweep", str(f), "--out", str(out), "--workers", "2"],
+    p = subprocess.Popen([sys.executable, "-m", "se3ocp.problems.cli", "sweep", str(f), "--out", str(out), "--workers", "2"],
                          cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         first = p.stderr.readline()  # the first finished task
