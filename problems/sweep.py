@@ -63,7 +63,8 @@ from typing import Any, Callable
 import numpy as np
 
 from .io import atomic_write_bytes, write_json, write_yaml
-from .maneuvers import ConfigError, Validator, apply_override, describe, join_field, read_yaml_file, load_maneuver, parse_maneuver, yaml_load
+from .maneuvers import load_maneuver, parse_maneuver
+from .schema import ConfigError, Validator, apply_override, describe, join_field, read_yaml_file, yaml_load
 
 SWEEP_KEYS = ("name", "base", "set", "axes", "methods", "continuation", "continuation_axis")
 METHODS = ("direct", "indirect")
