@@ -1,13 +1,13 @@
 """State and control layout: defined here once, used everywhere.
 
-State vector X in R^18 (SPEC §1), stacked as
+State vector X in R^18 (docs/mathematics.md §1), stacked as
 
     X = [x (3, inertial position); gamma (3, inertial linear momentum);
          vec(R) (9, column-major: R[:, 0], R[:, 1], R[:, 2]); Pi (3, body angular momentum)]
 
 Control vector u in R^6: [u_f (3, inertial force); u_m (3, body moment)].
 
-Tangent (variation) vector z in R^12 (SPEC §4): [dx; dgamma; zeta; dPi] with
+Tangent (variation) vector z in R^12 (docs/mathematics.md §4): [dx; dgamma; zeta; dPi] with
 dR = R S(zeta).
 
 Trajectories are stored node-major as arrays of shape (N+1, 18) on the NumPy side
@@ -39,13 +39,18 @@ Z_ANG = slice(9, 12)
 
 
 def split_state(X):
-    """CasADi (18,1) -> (x, gamma, R (3x3), Pi)."""
-    return X[X_POS], X[X_MOM], ca.reshape(X[X_ROT], 3, 3), X[X_ANG]
+    """One state (18,) -> (x, gamma, R (3x3), Pi); CasADi (18,1) or NumPy (18,) alike."""
+    if isinstance(X, (ca.SX, ca.MX, ca.DM)):
+        return X[X_POS], X[X_MOM], ca.reshape(X[X_ROT], 3, 3), X[X_ANG]
+    X = np.asarray(X, dtype=float).reshape(NX)
+    return X[X_POS], X[X_MOM], X[X_ROT].reshape(3, 3, order="F"), X[X_ANG]
 
 
 def join_state(x, gamma, R, Pi):
-    """CasADi (x, gamma, R (3x3), Pi) -> (18,1)."""
-    return ca.vertcat(x, gamma, ca.reshape(R, 9, 1), Pi)
+    """(x, gamma, R (3x3), Pi) -> one state: CasADi (18,1) if any part is CasADi, else NumPy (18,)."""
+    if any(isinstance(a, (ca.SX, ca.MX, ca.DM)) for a in (x, gamma, R, Pi)):
+        return ca.vertcat(x, gamma, ca.reshape(R, 9, 1), Pi)
+    return pack_state(x, gamma, R, Pi)
 
 
 def pack_state(x, gamma, R, Pi) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Lie group variational integrators on SE(3) as CasADi Functions.
 
-Two discretizations of SPEC §2-§3, built once per (model, scheme) as named,
+Two discretizations of docs/mathematics.md §2-§3, built once per (model, scheme) as named,
 SX-expanded CasADi Functions:
 
 * ``lgvi``        second-order LGVI, eqs. (7)-(11); controls at both nodes,
@@ -15,7 +15,7 @@ derivatives of the solved step are those of the implicit function (the Newton
 map has zero derivative in c at its root) and the step stays a plain SX
 expression (fast, mappable, code-generatable).  The relative residual
 |G(c)|/|g| is an output of every solved step so callers can detect a step too
-large for the solve (see :meth:`Discretization.check_residual`).
+large for the solve (reported against :data:`CAYLEY_TOL`).
 
 Functions built (all SX, inputs/outputs named):
 
@@ -23,7 +23,7 @@ Functions built (all SX, inputs/outputs named):
     cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])
     step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])       explicit step
     step            (X[18], w[nw], h)       -> (X1[18], res)         solved step
-    variation       (X[18], w[nw], h)       -> (A[12x12], B[12xnw])  SPEC §4 (18)
+    variation       (X[18], w[nw], h)       -> (A[12x12], B[12xnw])  §4 eq. (18)
     step_seeded     (X, w, h, c0[3])        -> (X1)   two Newton iterations from c0 (derivatives)
     variation_seeded(X, w, h, c0[3])        -> (A, B) the same from c0; with c0 = the root of
                                                step X's Cayley equation, equal to variation
@@ -36,8 +36,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, join_state, split_state
-from .lie import cayley, hat, vee_skew
+from .layout import NU, NX, NZ, join_state, split_state
+from .lie import cayley, chart, hat, tangent_readback
 from .model import BodyModel
 
 SCHEMES = ("lgvi", "first_order")
@@ -50,6 +50,10 @@ SCHEMES = ("lgvi", "first_order")
 #: suffice (~3e-4 of directions at s = 1; more for s > 1); the residual output
 #: reports it.
 DEFAULT_NEWTON_ITERS = 8
+
+#: a step whose Cayley equation is left with a relative residual |G|/|g| above this is not a step of
+#: the scheme (the rotation per step is too large for h): every method and the simulator use this bound
+CAYLEY_TOL = 1e-10
 
 
 def _solve3(A, b):
@@ -64,29 +68,19 @@ def _solve3(A, b):
     return ca.mtimes(cof, b) / det
 
 
-def chart(X, z):
-    """Left-trivialized chart around X (SPEC §4): additive on x, gamma, Pi; R -> R cay(zeta/2).
+def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS) -> "Discretization":
+    """The :class:`Discretization` of ``model`` and ``scheme``, built once per process for a model
+    with a ``key`` (models equal by value share their Functions and everything cached on them:
+    NLP stage Functions, shooting Functions, compiled code)."""
+    if model.key is None:
+        return Discretization(model, scheme, newton_iters)
+    k = (model.key, scheme, int(newton_iters))
+    if k not in _DISCRETIZATIONS:
+        _DISCRETIZATIONS[k] = Discretization(model, scheme, newton_iters)
+    return _DISCRETIZATIONS[k]
 
-    The Cayley map here is (I + S(c))(I - S(c))^-1 = I + 2 S(c) + O(c^2), so the
-    argument is halved to make dR = R S(zeta) to first order (the coordinates read
-    back by :func:`tangent_readback`); with cay(zeta) the zeta-columns of A would be
-    twice the left-trivialized Jacobian.
-    """
-    x, gamma, R, Pi = split_state(X)
-    return join_state(x + z[0:3], gamma + z[3:6], ca.mtimes(R, cayley(0.5 * z[6:9])), Pi + z[9:12])
 
-
-def tangent_readback(Xbar, dX):
-    """Map a differential dX (18 x n) at Xbar to the tangent coordinates z (12 x n).
-
-    dzeta = vee(skew(Rbar^T dR)); the other blocks are copied.
-    """
-    Rbar = ca.reshape(Xbar[X_ROT], 3, 3)
-    cols = []
-    for j in range(dX.shape[1]):
-        dR = ca.reshape(dX[X_ROT, j], 3, 3)
-        cols.append(ca.vertcat(dX[X_POS, j], dX[X_MOM, j], vee_skew(ca.mtimes(Rbar.T, dR)), dX[X_ANG, j]))
-    return ca.horzcat(*cols)
+_DISCRETIZATIONS: dict = {}
 
 
 class Discretization:

@@ -1,6 +1,12 @@
-"""SO(3) helpers for symbolic (CasADi SX/MX) and numeric (NumPy) use.
+"""The Lie group helpers of the project, in one place: SO(3) maps and the charts of the state space.
 
-Conventions (SPEC §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on
+SO(3) (symbolic CasADi SX/MX and numeric NumPy alike): hat/vee, the Cayley map and its
+inverse, exp/log (log also at exactly pi, with a chosen sign), the inverse right Jacobian,
+elementary rotations, orthogonality errors.  State space T*SE(3) (docs/mathematics.md §4): the
+left-trivialized chart ``chart`` around a state, its read-back ``tangent_readback`` and the
+tangent basis ``tangent_basis`` (dX = D(X) z).
+
+Conventions (docs/mathematics.md §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on
 skew matrices.  The Cayley map is ``cay(c) = (I + S(c)) (I - S(c))^-1``, written in
 closed form ``I + 2/(1 + |c|^2) (S(c) + S(c)^2)`` so that it is exactly the same
 expression whatever the backend.  ``exp``/``log`` handle small angles by computing
@@ -14,6 +20,8 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+
+from .layout import NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, join_state, split_state
 
 # Below this theta^2 the Taylor branches are used (their truncation error is
 # O(theta^6) relative, i.e. < 1e-18 here).
@@ -68,7 +76,7 @@ def _mm(A, B):
 
 
 def cayley(c):
-    """Cayley map R^3 -> SO(3): ``(I + S(c))(I - S(c))^-1`` (SPEC §2).
+    """Cayley map R^3 -> SO(3): ``(I + S(c))(I - S(c))^-1`` (docs/mathematics.md §2).
 
     Exactly orthogonal in exact arithmetic for every c; rotation angle 2 atan|c|.
     """
@@ -77,7 +85,15 @@ def cayley(c):
 
 
 def cayley_inv(F):
-    """Inverse Cayley map SO(3) -> R^3 (F must not be a rotation by pi)."""
+    """Inverse Cayley map SO(3) -> R^3 (F must not be a rotation by pi).
+
+    cay^-1(F) = vee(F - F^T) / (1 + tr F).  NumPy: F may be a stack (..., 3, 3) -> (..., 3).
+    """
+    if not _is_casadi(F) and np.ndim(F) > 2:
+        F = np.asarray(F, dtype=float)
+        A = F - np.swapaxes(F, -1, -2)
+        tr = np.trace(F, axis1=-2, axis2=-1)
+        return np.stack([A[..., 2, 1], A[..., 0, 2], A[..., 1, 0]], axis=-1) / (1.0 + tr)[..., None]
     tr = F[0, 0] + F[1, 1] + F[2, 2]
     return vee(F - F.T) / (1.0 + tr)
 
@@ -148,6 +164,29 @@ def _log_so3_np(R: np.ndarray) -> np.ndarray:
     return t * n
 
 
+def log_so3_any(R: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
+    """vee log R for every rotation (accurate up to pi), with the sign of the axis at exactly pi --
+    where the skew part carries no sign -- chosen so that n^T prefer >= 0 (NumPy only)."""
+    R = np.asarray(R, dtype=float)
+    w = np.asarray(log_so3(R), dtype=float)
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if prefer is not None and np.linalg.norm(skew) <= 1e-9 and w @ prefer < 0:
+        w = -w
+    return w
+
+
+def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
+    """Jr^-1(phi) (3x3, NumPy): Log(Exp(phi) Exp(d)) = phi + Jr^-1(phi) d + O(d^2)."""
+    t2 = float(phi @ phi)
+    S = hat(phi)
+    if t2 < 1e-8:
+        coef = 1.0 / 12.0 + t2 / 720.0
+    else:
+        t = np.sqrt(t2)
+        coef = 1.0 / t2 - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t))
+    return np.eye(3) + 0.5 * S + coef * (S @ S)
+
+
 def rot_x(deg: float) -> np.ndarray:
     """Elementary rotation about e1 by ``deg`` degrees."""
     t = np.deg2rad(deg)
@@ -174,3 +213,42 @@ def orthogonality_error(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     R = np.asarray(R, dtype=float)
     E = np.einsum("...ji,...jk->...ik", R, R) - np.eye(3)
     return np.linalg.norm(E, axis=(-2, -1)), np.abs(np.linalg.det(R) - 1.0)
+
+
+# ------------------------------------------------------------- charts of the state space
+def chart(X, z):
+    """Left-trivialized chart around a state X (18) (docs/mathematics.md §4): additive on x, gamma,
+    Pi; R -> R cay(zeta/2).  CasADi.
+
+    The Cayley map here is (I + S(c))(I - S(c))^-1 = I + 2 S(c) + O(c^2), so the argument is
+    halved to make dR = R S(zeta) to first order (the coordinates read back by
+    :func:`tangent_readback`); with cay(zeta) the zeta-columns of A_k would be twice the
+    left-trivialized Jacobian.
+    """
+    x, gamma, R, Pi = split_state(X)
+    return join_state(x + z[0:3], gamma + z[3:6], ca.mtimes(R, cayley(0.5 * z[6:9])), Pi + z[9:12])
+
+
+def tangent_readback(Xbar, dX):
+    """Map a differential dX (18 x n) at Xbar to tangent coordinates z (12 x n) (CasADi).
+
+    dzeta = vee(skew(Rbar^T dR)); the other blocks are copied.
+    """
+    Rbar = ca.reshape(Xbar[X_ROT], 3, 3)
+    cols = []
+    for j in range(dX.shape[1]):
+        dR = ca.reshape(dX[X_ROT, j], 3, 3)
+        cols.append(ca.vertcat(dX[X_POS, j], dX[X_MOM, j], vee_skew(ca.mtimes(Rbar.T, dR)), dX[X_ANG, j]))
+    return ca.horzcat(*cols)
+
+
+def tangent_basis(X: np.ndarray) -> np.ndarray:
+    """D(X) (18 x 12, NumPy): dX = D z for z = [dx; dgamma; zeta; dPi], dR = R S(zeta), vec column-major."""
+    R = np.asarray(X, dtype=float)[X_ROT].reshape(3, 3, order="F")
+    D = np.zeros((NX, NZ))
+    D[X_POS, 0:3] = np.eye(3)
+    D[X_MOM, 3:6] = np.eye(3)
+    D[X_ANG, 9:12] = np.eye(3)
+    for i in range(3):
+        D[X_ROT, 6 + i] = (R @ hat(np.eye(3)[i])).ravel(order="F")
+    return D

@@ -1,12 +1,13 @@
 """The rigid-body model seen by the method layer.
 
-The method layer needs only the mass, the inertia matrix and a potential
-U(x, R) as a CasADi Function; force and moment (SPEC §1 eqs. 5-6) are derived
-from U by automatic differentiation here, so any potential works.
+The method layer needs only the mass, the inertia matrix and a potential U(x, R) as a CasADi
+Function; force and moment (docs/mathematics.md §1, eqs. 5-6) are derived from U by automatic
+differentiation here, so any potential works.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Hashable
 
 import casadi as ca
 import numpy as np
@@ -30,32 +31,47 @@ def forces_from_potential(potential: ca.Function) -> ca.Function:
     return ca.Function("forces", [x, R], [f, M], ["x", "R"], ["f", "M"])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BodyModel:
     """A rigid body in a potential field.
 
     mass: m > 0.  inertia: J (3x3, body frame, symmetric positive definite).
     potential: CasADi Function U(x[3] inertial, R[3x3] body->inertial) -> scalar.
     forces: (x, R) -> (f inertial, M body), derived from ``potential`` unless given.
+    mu: gravitational parameter GM of a central body at the origin, or None (no central body);
+        used for orbit targets and orbital elements, never by the dynamics (U carries the gravity).
+    markers: body-fixed points (k, 3) drawn by the figures (e.g. the dumbbell's spheres); empty:
+        the figures draw the principal axes.
+    key: a hashable description of the model (e.g. its kind and parameters); models with a key
+        share one Discretization per scheme (lgvi.discretization), so that Functions built and
+        compiled for one are reused by every equal model.  None: no sharing.
+    name: a label for reports.
     """
 
     mass: float
     inertia: np.ndarray
     potential: ca.Function
     forces: ca.Function = field(default=None)  # type: ignore[assignment]
+    mu: float | None = None
+    markers: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    key: Hashable | None = None
+    name: str = "rigid body"
 
     def __post_init__(self):
         J = np.asarray(self.inertia, dtype=float)
-        if J.shape != (3, 3) or not np.allclose(J, J.T) or np.min(np.linalg.eigvalsh(J)) <= 0:
+        if J.shape != (3, 3) or not np.all(np.isfinite(J)) or not np.allclose(J, J.T) or np.min(np.linalg.eigvalsh(J)) <= 0:
             raise ValueError("inertia must be a symmetric positive definite 3x3 matrix")
-        if not self.mass > 0:
-            raise ValueError("mass must be positive")
+        if not self.mass > 0 or not np.isfinite(self.mass):
+            raise ValueError("mass must be a positive number")
+        if self.mu is not None and not (self.mu >= 0 and np.isfinite(self.mu)):
+            raise ValueError("mu must be a non-negative number or None")
         object.__setattr__(self, "inertia", J)
+        object.__setattr__(self, "markers", np.asarray(self.markers, dtype=float).reshape(-1, 3))
         if self.forces is None:
             object.__setattr__(self, "forces", forces_from_potential(self.potential))
 
     def energy(self) -> ca.Function:
-        """E(X) = |gamma|^2/2m + Pi^T J^-1 Pi / 2 + U(x, R)  (SPEC §8)."""
+        """E(X) = |gamma|^2/2m + Pi^T J^-1 Pi / 2 + U(x, R)  (docs/mathematics.md §8)."""
         from .layout import NX, split_state
 
         X = ca.SX.sym("X", NX)
