@@ -1,67 +1,307 @@
-"""Method-level problem statements: what the direct and indirect methods solve.
+"""The optimal control problem: physics, boundary conditions and cost -- no method.
 
-They carry numbers and a :class:`~transcription.lgvi.Discretization` only; the
-YAML layer (``problems.maneuvers``) builds them.  All states are 18-vectors in the
-layout of :mod:`transcription.layout` (momenta, not velocities).
+A :class:`Problem` is what every method solves (rockit's shape: the problem apart from the
+method; the method and its options are chosen at ``solve`` time).  It carries numbers and a
+:class:`~transcription.lgvi.Discretization` (the body model and the scheme: both methods solve
+the *same* discrete problem).  States are 18-vectors in the layout of
+:mod:`transcription.layout` (momenta, not velocities); ``state_from_velocities`` builds them from
+velocities.  The maneuver files (``problems.maneuvers``) build Problems; so can a Python user.
+
+The terminal conditions, the cost and their weights are defined here once and used by every
+method, the re-simulation and the reports (docs/mathematics.md §5-§6):
+
+* :func:`terminal_residual` -- [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d]
+  (the components a target leaves free are dropped), CasADi or NumPy alike;
+* :func:`orbit_conditions` -- the relaxed target (any point of a circular orbit);
+* :func:`quadrature_weights` and :func:`effort_cost` -- sum_j omega_j (1/2) u_j^T W u_j;
+* :func:`impulse_cost` -- the sum of the impulse norms.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Union
 
+import casadi as ca
 import numpy as np
 
+from .layout import NU, NX, U_FORCE, U_MOMENT, pack_state, split_state
 from .lgvi import Discretization
+from .lie import log_so3
+
+#: the components of a state target, in the order of the terminal residual's blocks
+STATE_COMPONENTS = ("position", "velocity", "attitude", "angular_velocity")
 
 
+class ProblemError(ValueError):
+    """An inconsistent Problem: ``field`` names the offending attribute."""
+
+    def __init__(self, fieldname: str, message: str):
+        self.field = fieldname
+        super().__init__(f"{fieldname}: {message}")
+
+
+# ----------------------------------------------------------------------------- targets
 @dataclass(frozen=True)
-class SmoothProblem:
-    """SPEC §6: min sum (h/2)(u_f^T W_f u_f + u_m^T W_m u_m) s.t. the discrete
-    dynamics, X_0 = X0 and X_N = Xd (x, gamma, Pi equal; R: vee log(Rd^T R_N) = 0).
+class TargetState:
+    """Terminal target: the state X (18) with the components named in ``free`` left free
+    (a subset of :data:`STATE_COMPONENTS`; 'velocity' frees gamma_N, 'angular_velocity' Pi_N)."""
 
-    disc: the scheme (first_order: controls u_1..u_N; lgvi: u_0..u_N, trapezoidal
-    weights h/2 at both ends of each step).  W_f, W_m: diagonal weights (3,).
-    """
+    X: np.ndarray
+    free: frozenset = frozenset()
 
-    disc: Discretization
-    N: int
-    T: float
-    X0: np.ndarray
-    Xd: np.ndarray
-    W_f: np.ndarray
-    W_m: np.ndarray
-    options: dict[str, Any] = field(default_factory=dict)
+    def __post_init__(self):
+        X = np.asarray(self.X, dtype=float).reshape(-1)
+        if X.shape != (NX,) or not np.all(np.isfinite(X)):
+            raise ProblemError("terminal.X", f"expected a finite state of {NX} numbers")
+        object.__setattr__(self, "X", X)
+        free = frozenset(self.free)
+        unknown = free - set(STATE_COMPONENTS)
+        if unknown:
+            raise ProblemError("terminal.free", f"unknown components {sorted(unknown)}; expected some of {STATE_COMPONENTS}")
+        if free == set(STATE_COMPONENTS):
+            raise ProblemError("terminal.free", "at least one terminal component must be given")
+        object.__setattr__(self, "free", free)
 
     @property
-    def h(self) -> float:
-        return self.T / self.N
+    def fixed(self) -> tuple[str, ...]:
+        return tuple(c for c in STATE_COMPONENTS if c not in self.free)
 
 
 @dataclass(frozen=True)
-class OrbitTarget:
-    """Relaxed terminal set of SPEC §5: circular orbit of radius r about unit normal e_n."""
+class TargetOrbit:
+    """Relaxed terminal set: any point of the circular orbit of radius ``radius`` about the unit
+    ``normal`` (through the central body at the origin), the body axis ``body_axis`` along
+    +-normal, at rest in attitude after the terminal impulse (docs/mathematics.md §5)."""
 
     radius: float
     normal: np.ndarray
+    body_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+
+    def __post_init__(self):
+        if not (np.isfinite(self.radius) and self.radius > 0):
+            raise ProblemError("terminal.radius", "expected a positive number")
+        for name in ("normal", "body_axis"):
+            v = np.asarray(getattr(self, name), dtype=float).reshape(-1)
+            n = np.linalg.norm(v) if v.shape == (3,) and np.all(np.isfinite(v)) else 0.0
+            if not n > 0:
+                raise ProblemError(f"terminal.{name}", "expected a non-zero finite 3-vector")
+            object.__setattr__(self, name, v / n)
+
+    def plane_basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The unit normal e_n and an orthonormal basis (a, b) of the orbit plane."""
+        n = self.normal
+        t = np.eye(3)[int(np.argmin(np.abs(n)))]
+        a = np.cross(n, t)
+        a /= np.linalg.norm(a)
+        return n, a, np.cross(n, a)
+
+
+Target = Union[TargetState, TargetOrbit]
+
+
+# ----------------------------------------------------------------------------- controls
+def _spd(W, name: str) -> np.ndarray:
+    """A weight given as a scalar, a diagonal (3,) or a 3x3 matrix -> a 3x3 SPD matrix."""
+    W = np.asarray(W, dtype=float)
+    if W.ndim == 0:
+        W = W * np.eye(3)
+    elif W.shape == (3,):
+        W = np.diag(W)
+    if W.shape != (3, 3) or not np.all(np.isfinite(W)):
+        raise ProblemError(name, "expected a positive number, 3 positive numbers or a symmetric positive definite 3x3 matrix")
+    if not np.allclose(W, W.T, rtol=1e-12, atol=0.0) or np.linalg.eigvalsh(0.5 * (W + W.T)).min() <= 0:
+        raise ProblemError(name, "expected a symmetric positive definite weight")
+    return 0.5 * (W + W.T)
 
 
 @dataclass(frozen=True)
-class ImpulsiveProblem:
-    """SPEC §5: impulses at t = 0 and t = T, free motion between (u = 0).
+class SmoothControl:
+    """Controls u_f (inertial force) and u_m (body moment) at the nodes of the scheme.
 
-    terminal is either an 18-vector Xd (TPBVP: R_N, x_N given, gamma_N^+ and
-    Pi_N^+ the momenta required after the terminal impulse) or an OrbitTarget.
-    mu: gravitational parameter, needed for the circular velocity of the relaxed case.
+    objective 'effort': min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m), W_f, W_m
+    symmetric positive definite (given as scalars, diagonals or matrices).
+    """
+
+    W_f: np.ndarray = field(default_factory=lambda: np.eye(3))
+    W_m: np.ndarray = field(default_factory=lambda: np.eye(3))
+    objective: str = "effort"
+
+    def __post_init__(self):
+        object.__setattr__(self, "W_f", _spd(self.W_f, "control.W_f"))
+        object.__setattr__(self, "W_m", _spd(self.W_m, "control.W_m"))
+        if self.objective != "effort":
+            raise ProblemError("control.objective", f"expected 'effort', got {self.objective!r}")
+
+    @property
+    def W(self) -> np.ndarray:
+        """blkdiag(W_f, W_m) (6x6)."""
+        W = np.zeros((NU, NU))
+        W[U_FORCE, U_FORCE] = self.W_f
+        W[U_MOMENT, U_MOMENT] = self.W_m
+        return W
+
+
+@dataclass(frozen=True)
+class ImpulsiveControl:
+    """Impulses on the momenta at t = 0 and t = T, free motion between; cost: the sum of their norms."""
+
+
+Control = Union[SmoothControl, ImpulsiveControl]
+
+
+# ----------------------------------------------------------------------------- problem
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """An optimal control problem on the discretization ``disc`` (body model and scheme).
+
+    N steps of size h = T/N from the initial state X0 (18) to ``terminal`` under ``control``.
+    ``terminal`` and ``control`` may both be None: a motion to simulate only.
     """
 
     disc: Discretization
     N: int
     T: float
     X0: np.ndarray
-    terminal: np.ndarray | OrbitTarget
-    mu: float
-    options: dict[str, Any] = field(default_factory=dict)
+    terminal: Target | None = None
+    control: Control | None = None
+    name: str = ""
+
+    def __post_init__(self):
+        if isinstance(self.N, bool) or not isinstance(self.N, (int, np.integer)) or self.N < 1:
+            raise ProblemError("N", f"expected a positive integer, got {self.N!r}")
+        object.__setattr__(self, "N", int(self.N))
+        if not (np.isfinite(self.T) and self.T > 0):
+            raise ProblemError("T", f"expected a positive number, got {self.T!r}")
+        X0 = np.asarray(self.X0, dtype=float).reshape(-1)
+        if X0.shape != (NX,) or not np.all(np.isfinite(X0)):
+            raise ProblemError("X0", f"expected a finite state of {NX} numbers")
+        object.__setattr__(self, "X0", X0)
+        if (self.terminal is None) != (self.control is None):
+            raise ProblemError("terminal" if self.terminal is None else "control",
+                               "a terminal target and a control go together (both, or neither for a simulation)")
+        if isinstance(self.terminal, TargetOrbit) and self.disc.model.mu is None:
+            raise ProblemError("terminal", "an orbit target needs a model with a central body (mu)")
+        if isinstance(self.control, SmoothControl) and isinstance(self.terminal, TargetOrbit):
+            raise ProblemError("terminal", "an orbit target is supported for impulsive control only")
+        if isinstance(self.control, ImpulsiveControl) and isinstance(self.terminal, TargetState) and self.terminal.free:
+            raise ProblemError("terminal.free", "an impulsive state target must give every component")
 
     @property
     def h(self) -> float:
         return self.T / self.N
+
+    @property
+    def kind(self) -> str | None:
+        """'smooth', 'impulsive' or None (simulation only)."""
+        if isinstance(self.control, SmoothControl):
+            return "smooth"
+        if isinstance(self.control, ImpulsiveControl):
+            return "impulsive"
+        return None
+
+    @property
+    def model(self):
+        return self.disc.model
+
+    @property
+    def scheme(self) -> str:
+        return self.disc.scheme
+
+    @property
+    def Xd(self) -> np.ndarray | None:
+        """The target state (18) of a state target, else None."""
+        return self.terminal.X if isinstance(self.terminal, TargetState) else None
+
+    def replace(self, **changes) -> "Problem":
+        """A copy with some fields changed (e.g. ``N``)."""
+        import dataclasses
+
+        return dataclasses.replace(self, **changes)
+
+
+def state_from_velocities(model, position, velocity, R, omega) -> np.ndarray:
+    """The 18-vector of a state given by position, inertial velocity, attitude (body -> inertial)
+    and body angular velocity: gamma = m v, Pi = J Omega."""
+    return pack_state(np.asarray(position, float), model.mass * np.asarray(velocity, float), np.asarray(R, float),
+                      model.inertia @ np.asarray(omega, float))
+
+
+# ------------------------------------------------------------------ terminal conditions
+def _mm(A, B):
+    if isinstance(A, (ca.SX, ca.MX, ca.DM)) or isinstance(B, (ca.SX, ca.MX, ca.DM)):
+        return ca.mtimes(ca.DM(A) if isinstance(A, np.ndarray) else A, B)
+    return A @ B
+
+
+def state_residual(XN, Xd, fixed=STATE_COMPONENTS):
+    """The terminal conditions of a state target (docs/mathematics.md §6): the blocks
+    x_N - x_d, gamma_N - gamma_d (inertial), vee log(R_d^T R_N) (body frame at the target: three
+    conditions, never nine) and Pi_N - Pi_d (body) of the ``fixed`` components, stacked.
+    XN (and Xd): CasADi (18,1) (symbolic, differentiable) or NumPy (18,) (log accurate up to pi)."""
+    x, g, R, P = split_state(XN)
+    xd, gd, Rd, Pd = split_state(Xd)
+    parts = {"position": x - xd, "velocity": g - gd, "attitude": log_so3(_mm(Rd.T, R)), "angular_velocity": P - Pd}
+    rows = [parts[c] for c in fixed]
+    if isinstance(XN, (ca.SX, ca.MX, ca.DM)) or isinstance(Xd, (ca.SX, ca.MX, ca.DM)):
+        return ca.vertcat(*rows)
+    return np.concatenate([np.asarray(r, dtype=float).ravel() for r in rows])
+
+
+def terminal_residual(XN, target: TargetState):
+    """:func:`state_residual` of a :class:`TargetState` (its fixed components)."""
+    return state_residual(XN, target.X, target.fixed)
+
+
+def orbit_conditions(XN, target: TargetOrbit, mass: float, mu: float):
+    """Relaxed terminal set (docs/mathematics.md §5): (C (4), gamma_N^+ (3), Pi_N^+ (3)).
+
+    C = [|x_N| - r_d; e_n^T x_N; a^T R_N b; b'^T R_N b] with (a, b') a basis of the orbit plane and b
+    the body axis; gamma_N^+ = m sqrt(mu/r_d) (e_n x x_N)/r_d (inertial) the momentum of the
+    circular orbit after the terminal impulse; Pi_N^+ = 0 (body).  CasADi or NumPy alike.
+    """
+    n, a, b = target.plane_basis()
+    rd = float(target.radius)
+    x, _, R, _ = split_state(XN)
+    axis = _mm(R, target.body_axis)
+    vc = mass * np.sqrt(mu / rd) / rd
+    if isinstance(XN, (ca.SX, ca.MX, ca.DM)):
+        C = ca.vertcat(ca.norm_2(x) - rd, ca.dot(ca.DM(n), x), ca.dot(ca.DM(a), axis), ca.dot(ca.DM(b), axis))
+        return C, vc * ca.cross(ca.DM(n), x), ca.DM.zeros(3)
+    return np.array([np.linalg.norm(x) - rd, n @ x, a @ axis, b @ axis]), vc * np.cross(n, x), np.zeros(3)
+
+
+def terminal_error(XN: np.ndarray, problem: Problem, XN_plus: np.ndarray | None = None) -> float:
+    """The terminal error of docs/mathematics.md §8 (NumPy): the max-norm of the terminal residual
+    of a state target (for impulsive control evaluated after the terminal impulse, ``XN_plus``),
+    or max |C| of an orbit target."""
+    if isinstance(problem.terminal, TargetOrbit):
+        return float(np.abs(orbit_conditions(XN, problem.terminal, problem.model.mass, problem.model.mu)[0]).max())
+    if isinstance(problem.terminal, TargetState):
+        X = XN if XN_plus is None else XN_plus
+        if not np.all(np.isfinite(X)):
+            return float("inf")
+        return float(np.abs(terminal_residual(np.asarray(X, float), problem.terminal)).max())
+    return float("nan")
+
+
+# ----------------------------------------------------------------------------- costs
+def quadrature_weights(scheme: str, N: int, h: float) -> np.ndarray:
+    """omega_j of the controls (in the order of their nodes): first_order, controls u_1..u_N:
+    h (1, ..., 1); lgvi, node controls u_0..u_N: the trapezoidal h (1/2, 1, ..., 1, 1/2), so that
+    both approximate the integral of (1/2) u^T W u."""
+    if scheme == "lgvi":
+        om = np.full(N + 1, float(h))
+        om[[0, -1]] = 0.5 * h
+        return om
+    return np.full(N, float(h))
+
+
+def effort_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> float:
+    """sum_j omega_j (1/2) u_j^T W u_j for U (6, n_controls), W = blkdiag(W_f, W_m)."""
+    U = np.asarray(U, dtype=float)
+    return float(0.5 * np.einsum("k,ik,ij,jk->", omega, U, control.W, U))
+
+
+def impulse_cost(impulses: dict[str, np.ndarray]) -> float:
+    """The sum of the norms of the impulses (docs/mathematics.md §5)."""
+    return float(sum(np.linalg.norm(v) for v in impulses.values()))

@@ -1,20 +1,102 @@
-"""Result types shared by every method.
+"""What every method returns: one result code, one progress record, one Solution.
 
-A :class:`Solution` is data: a failed solve is a Solution with ``converged =
-False`` and a readable ``message``, never an exception.  Its trajectory is the
-**re-simulation** of the discrete equations from the initial state with the
-returned controls or impulses (SPEC §8), so it lies on SO(3) to round-off and
-``terminal_error`` is measured on it.
+A :class:`Solution` is data: a failed solve is a Solution whose ``result`` says why (and whose
+``message`` says it in words), never an exception -- unless the caller of ``solve`` asks for one
+(``throw=True`` raises :class:`SolveError` carrying the Solution).  Its trajectory is the
+**re-simulation** of the discrete equations from the initial state with the returned controls or
+impulses (docs/mathematics.md §8), so it lies on SO(3) to round-off and ``terminal_error`` is
+measured on what a user would fly.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import Any
+import enum
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .layout import States, unpack_states
-from .lie import log_so3, orthogonality_error
+from .layout import U_FORCE, U_MOMENT, States, unpack_states
+from .lie import orthogonality_error
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .problem import Problem
+
+
+class Result(str, enum.Enum):
+    """The outcome of a solve, shared by every method.  ``str(Result.x)`` is the code,
+    ``Result.x.message`` a sentence, ``Result.x.successful`` whether the solution can be used."""
+
+    converged = "converged"
+    round_off_floor = "round_off_floor"
+    max_iterations = "max_iterations"
+    time_limit = "time_limit"
+    acceptable = "acceptable"
+    infeasible = "infeasible"
+    terminal_error = "terminal_error"
+    cayley_failed = "cayley_failed"
+    line_search_failed = "line_search_failed"
+    singular_jacobian = "singular_jacobian"
+    stagnated = "stagnated"
+    floor_too_high = "floor_too_high"
+    non_finite = "non_finite"
+    kink = "kink"
+    solver_failed = "solver_failed"
+    invalid_option = "invalid_option"
+    interrupted = "interrupted"
+
+    def __str__(self) -> str:
+        return self.value
+
+    @property
+    def successful(self) -> bool:
+        return self in (Result.converged, Result.round_off_floor)
+
+    @property
+    def message(self) -> str:
+        return _MESSAGES[self]
+
+
+_MESSAGES = {
+    Result.converged: "converged to the requested tolerance",
+    Result.round_off_floor: "converged to the measured round-off floor of the residual",
+    Result.max_iterations: "stopped at the iteration limit without converging",
+    Result.time_limit: "stopped at the time limit without converging",
+    Result.acceptable: "stopped at the solver's 'acceptable' level, short of the requested tolerance",
+    Result.infeasible: "the solver found the problem (locally) infeasible",
+    Result.terminal_error: "the solver converged, but the re-simulated trajectory misses the terminal conditions",
+    Result.cayley_failed: "the implicit Cayley equation of a step was not solved: the rotation per step is too large",
+    Result.line_search_failed: "the line search found no decrease",
+    Result.singular_jacobian: "the Newton matrix is singular or ill-conditioned",
+    Result.stagnated: "the iteration stagnated",
+    Result.floor_too_high: "stopped at a round-off floor above the accepted level",
+    Result.non_finite: "a residual, a derivative or a state became non-finite",
+    Result.kink: "the optimum lies at a kink of a non-smooth cost, where the smooth formulation does not apply",
+    Result.solver_failed: "the solver failed",
+    Result.invalid_option: "an option or an initial guess is not usable",
+    Result.interrupted: "interrupted by the user",
+}
+
+#: IPOPT's (and fatrop's) return statuses as results
+_SOLVER_STATUS = {
+    "Solve_Succeeded": Result.converged,
+    "Solved_To_Acceptable_Level": Result.acceptable,
+    "Maximum_Iterations_Exceeded": Result.max_iterations,
+    "Maximum_CpuTime_Exceeded": Result.time_limit,
+    "Maximum_WallTime_Exceeded": Result.time_limit,
+    "Infeasible_Problem_Detected": Result.infeasible,
+    "Restoration_Failed": Result.solver_failed,
+    "Error_In_Step_Computation": Result.solver_failed,
+    "Search_Direction_Becomes_Too_Small": Result.stagnated,
+    "Diverging_Iterates": Result.non_finite,
+    "Invalid_Number_Detected": Result.non_finite,
+    "User_Requested_Stop": Result.interrupted,
+}
+
+
+def result_of_solver_status(status: str) -> Result:
+    """The :class:`Result` of an NLP solver's return status (unknown statuses: solver_failed)."""
+    return _SOLVER_STATUS.get(status, Result.solver_failed)
 
 
 class SolverOptionError(ValueError):
@@ -25,67 +107,193 @@ class SolverOptionError(ValueError):
         super().__init__(message)
 
 
+class SolveError(RuntimeError):
+    """Raised by ``solve(..., throw=True)`` for a Solution that is not successful; ``.solution`` is it."""
+
+    def __init__(self, solution: "Solution"):
+        self.solution = solution
+        super().__init__(f"{solution.method}: {solution.result}: {solution.message}")
+
+
+@dataclass(frozen=True)
+class Iterate:
+    """One progress record, the same for every method (history entries and progress callbacks).
+
+    iteration: outer iteration (NLP iteration, Newton step); trial: 0 for the iterate itself,
+    1, 2, ... for the line-search trials of a Newton step; residual: the 2-norm of the shooting
+    residual (Newton) or the primal infeasibility (NLP); residual_inf: its max-norm where known;
+    cost: the objective (NLP; nan for Newton); dual: the dual infeasibility (NLP); step: the
+    line-search step (Newton: c; IPOPT: alpha_pr); accepted: whether the trial became the next
+    iterate; aux: the largest relative Cayley residual of the trial's rollout (Newton);
+    phase: a label for multi-phase solves (e.g. 'start', 'nlp'); elapsed_s: seconds since the
+    solve started.  Absent values are nan.
+    """
+
+    iteration: int
+    residual: float = math.nan
+    residual_inf: float = math.nan
+    cost: float = math.nan
+    dual: float = math.nan
+    step: float = math.nan
+    trial: int = 0
+    accepted: bool = True
+    aux: float = math.nan
+    phase: str = ""
+    elapsed_s: float = math.nan
+
+    def as_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def line(self) -> str:
+        """One readable line with the fields that are known (progress output)."""
+        parts = [f"iter {self.iteration:4d}"]
+        if math.isfinite(self.cost):
+            parts.append(f"cost {self.cost:.10g}")
+        if not math.isnan(self.residual):
+            parts.append(f"residual {self.residual:.3e}")
+        if math.isfinite(self.dual):
+            parts.append(f"dual {self.dual:.2e}")
+        if math.isfinite(self.step):
+            parts.append(f"step {self.step:.3g}")
+        if self.phase:
+            parts.append(f"({self.phase})")
+        return "  ".join(parts)
+
+
 @dataclass(frozen=True)
 class Trajectory:
-    """Node values t (N+1,), X (N+1, 18) in the layout of transcription.layout."""
+    """Node values of a motion: times t (N+1,), states X (N+1, 18) (layout of transcription.layout),
+    and the body's mass and inertia, so that velocities are at hand.
+
+    Properties (node-major): x (N+1, 3) inertial position; v = gamma/m inertial velocity;
+    gamma linear momentum; R (N+1, 3, 3) body -> inertial; Pi body angular momentum;
+    Omega = J^-1 Pi body angular velocity.
+    """
 
     t: np.ndarray
     X: np.ndarray
+    mass: float = 1.0
+    inertia: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     @property
     def states(self) -> States:
         return unpack_states(self.X)
 
+    @property
+    def x(self) -> np.ndarray:
+        return self.states.x
+
+    @property
+    def gamma(self) -> np.ndarray:
+        return self.states.gamma
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.states.gamma / self.mass
+
+    @property
+    def R(self) -> np.ndarray:
+        return self.states.R
+
+    @property
+    def Pi(self) -> np.ndarray:
+        return self.states.Pi
+
+    @property
+    def Omega(self) -> np.ndarray:
+        return np.linalg.solve(self.inertia, self.states.Pi.T).T
+
     def orthogonality(self) -> dict[str, float]:
-        """max_k |R_k^T R_k - I|_F and max_k |det R_k - 1| (SPEC §8)."""
+        """max_k |R_k^T R_k - I|_F and max_k |det R_k - 1| (docs/mathematics.md §8)."""
         orth, det = orthogonality_error(self.states.R)
         return {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max())}
 
 
-def terminal_error_full(X_N: np.ndarray, Xd: np.ndarray) -> float:
-    """SPEC §8: max of the inf-norms of the x, gamma, Pi differences and of vee log(Rd^T R_N)."""
-    a = unpack_states(X_N)
-    d = unpack_states(Xd)
-    e_rot = log_so3(d.R[0].T @ a.R[0])
-    return float(max(np.abs(a.x - d.x).max(), np.abs(a.gamma - d.gamma).max(), np.abs(a.Pi - d.Pi).max(), np.abs(e_rot).max()))
-
-
 @dataclass
 class Solution:
-    """Outcome of one solve.
+    """Outcome of one solve (or one simulation).
 
-    method: 'direct' | 'indirect' | 'impulsive'; solver: e.g. 'ipopt', 'newton-armijo'.
-    controls: (6, n_controls) [u_f (inertial); u_m (body)] or None.
-    impulses: for impulsive maneuvers, dict with dgamma0, dPi0, dgammaN, dPiN (3,) each.
-    costates: (N, 12) multipliers lambda_k (indirect, or mapped from the direct NLP) or None.
-    history: per-iteration records (dicts), e.g. Newton-Armijo trials.
+    method: 'direct' | 'indirect' | 'simulate'; solver: 'ipopt', 'fatrop', 'newton-armijo', ...
+    result: a :class:`Result`; message: what happened, in words (with numbers).
+    trajectory: the re-simulation (:class:`Trajectory`).
+    controls: (6, n_controls) [u_f (inertial); u_m (body)] at ``control_times`` or None.
+    impulses: impulsive maneuvers: {dgamma0, dPi0 (at t = 0), dgammaN, dPiN (at t = T)} (3,) each.
+    costates: (N, 12) discrete costates lambda_k (indirect; for the direct method mapped from the
+    NLP multipliers) or None.  history: the :class:`Iterate` records.  stats: method-specific
+    numbers (the solver's own status, split times, residuals, ...).
+    problem: the :class:`~transcription.problem.Problem` solved (for figures and reports).
     """
 
     method: str
     solver: str
-    discretization: str
-    N: int
-    h: float
-    trajectory: Trajectory
-    status: str
+    result: Result
     message: str
-    converged: bool
+    trajectory: Trajectory
     cost: float
     terminal_error: float
     iterations: int
     build_s: float
     solve_s: float
+    problem: "Problem | None" = field(default=None, repr=False, compare=False)
     controls: np.ndarray | None = None
     impulses: dict[str, np.ndarray] | None = None
     costates: np.ndarray | None = None
-    history: list[dict[str, Any]] = field(default_factory=list)
-    extra: dict[str, Any] = field(default_factory=dict)
+    history: list[Iterate] = field(default_factory=list)
+    stats: dict[str, Any] = field(default_factory=dict)
 
+    # ------------------------------------------------------------------ views
+    @property
+    def converged(self) -> bool:
+        return self.result.successful
+
+    @property
+    def status(self) -> str:
+        return self.result.value
+
+    @property
+    def N(self) -> int:
+        return len(self.trajectory.t) - 1
+
+    @property
+    def T(self) -> float:
+        return float(self.trajectory.t[-1])
+
+    @property
+    def h(self) -> float:
+        return self.T / self.N
+
+    @property
+    def discretization(self) -> str:
+        return self.problem.disc.scheme if self.problem is not None else ""
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.trajectory.t
+
+    @property
+    def control_times(self) -> np.ndarray | None:
+        """Times of the controls: t_0..t_N (lgvi: node controls) or t_1..t_N (first_order)."""
+        if self.controls is None:
+            return None
+        t = self.trajectory.t
+        return t[1:] if self.controls.shape[1] == len(t) - 1 else t
+
+    @property
+    def u_f(self) -> np.ndarray | None:
+        """Control force (n_controls, 3), inertial frame."""
+        return None if self.controls is None else self.controls[U_FORCE].T
+
+    @property
+    def u_m(self) -> np.ndarray | None:
+        """Control moment (n_controls, 3), body frame."""
+        return None if self.controls is None else self.controls[U_MOMENT].T
+
+    # ------------------------------------------------------------------ output
     def summary(self) -> dict[str, Any]:
         """JSON-ready scalar summary (the per-method block of summary.json)."""
         out = {
             "method": self.method,
-            "status": self.status,
+            "status": self.result.value,
             "message": self.message,
             "converged": bool(self.converged),
             "cost": float(self.cost),
@@ -94,21 +302,22 @@ class Solution:
             "build_s": float(self.build_s),
             "solve_s": float(self.solve_s),
             "N": int(self.N),
+            "T": float(self.T),
             "h": float(self.h),
             "discretization": self.discretization,
             "solver": self.solver,
         }
         out.update(self.trajectory.orthogonality())
-        out.update({k: v for k, v in self.extra.items() if isinstance(v, (int, float, str, bool, type(None)))})
+        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None)))})
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Arrays for the .npz file: t, x, gamma, Pi (N+1,3), R (N+1,3,3), u_f, u_m, lam, ..."""
-        s = self.trajectory.states
-        out = {"t": self.trajectory.t, "x": s.x, "gamma": s.gamma, "Pi": s.Pi, "R": s.R}
+        """Arrays for the .npz file: t, x, v, gamma, R, Omega, Pi (nodes); u_f, u_m, t_u (controls);
+        lam (costates); impulses."""
+        tr = self.trajectory
+        out = {"t": tr.t, "x": tr.x, "v": tr.v, "gamma": tr.gamma, "R": tr.R, "Omega": tr.Omega, "Pi": tr.Pi}
         if self.controls is not None:
-            out["u_f"] = self.controls[0:3].T
-            out["u_m"] = self.controls[3:6].T
+            out["u_f"], out["u_m"], out["t_u"] = self.u_f, self.u_m, self.control_times
         if self.impulses is not None:
             out.update({k: np.asarray(v) for k, v in self.impulses.items()})
         if self.costates is not None:
@@ -117,7 +326,9 @@ class Solution:
 
 
 def to_jsonable(obj):
-    """Convert numpy scalars/arrays inside dicts/lists to plain Python for json.dump."""
+    """Convert numpy scalars/arrays, enums and dataclasses inside dicts/lists to plain Python."""
+    if isinstance(obj, enum.Enum):
+        return obj.value
     if isinstance(obj, dict):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -130,6 +341,8 @@ def to_jsonable(obj):
         return int(obj)
     if isinstance(obj, (np.bool_,)):
         return bool(obj)
+    if isinstance(obj, Iterate):
+        return to_jsonable(obj.as_dict())
     if hasattr(obj, "__dataclass_fields__"):
         return to_jsonable(asdict(obj))
     return obj

@@ -1,0 +1,222 @@
+"""The options of each method: frozen dataclasses, validated when they are made.
+
+``DirectOptions`` and ``IndirectOptions`` are the YAML blocks ``solver.direct`` and
+``solver.indirect``; :meth:`Options.from_mapping` builds one from such a block (unknown keys
+rejected) and ``Options.replace(**changes)`` derives a variant.  Every check raises
+:class:`OptionError` naming the option, so a Python caller and a maneuver file get the same
+message (the file layer adds the file name and the block).
+
+Each field states its check in its metadata (``_opt``): the kind of value and its range.  That
+is the only place where an option's type, range and default are written.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Mapping
+
+#: integer options are bounded (a typo such as 1e30 iterations must not overflow into 0)
+MAX_INT_OPTION = 10**7
+
+
+class OptionError(ValueError):
+    """A bad option value: ``field`` names the option, ``detail`` says what was expected."""
+
+    def __init__(self, fieldname: str, detail: str):
+        self.field, self.detail = fieldname, detail
+        super().__init__(f"{fieldname}: {detail}")
+
+
+def _describe(v) -> str:
+    if v is None:
+        return "nothing (null)"
+    if isinstance(v, bool):
+        return f"a boolean ({v})"
+    if isinstance(v, str):
+        return f"the string {v!r}"
+    if isinstance(v, Mapping):
+        return "a mapping"
+    if isinstance(v, (list, tuple)):
+        return f"a list of length {len(v)}"
+    return f"{type(v).__name__} {v!r}"
+
+
+def _opt(default, kind: str, *, lo=None, hi=None, choices=(), lo_closed: bool = False, doc: str = ""):
+    """A dataclass field with its check: kind in 'float', 'int', 'bool', 'choice', 'mapping', 'costate'.
+    float: lo < v < hi (open bounds, None = unbounded; lo <= v with ``lo_closed``); int: lo <= v <= hi."""
+    meta = {"kind": kind, "lo": lo, "hi": hi, "choices": tuple(choices), "doc": doc, "lo_closed": lo_closed}
+    if isinstance(default, dict):
+        return field(default_factory=lambda: dict(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def _check(name: str, meta: dict, v):
+    kind = meta["kind"]
+    if kind == "bool":
+        if not isinstance(v, bool):
+            raise OptionError(name, f"expected true or false, got {_describe(v)}")
+        return v
+    if kind == "choice":
+        if not isinstance(v, str) or v not in meta["choices"]:
+            raise OptionError(name, f"expected one of {', '.join(meta['choices'])}, got {_describe(v)}")
+        return v
+    if kind == "mapping":
+        if not isinstance(v, Mapping):
+            raise OptionError(name, f"expected a mapping of option names to values, got {_describe(v)}")
+        for k, x in v.items():
+            if not isinstance(k, str):
+                raise OptionError(name, f"expected option names, got {_describe(k)}")
+            if x is None or not isinstance(x, (bool, int, float, str)) or (isinstance(x, float) and not math.isfinite(x)):
+                raise OptionError(f"{name}.{k}", f"expected a number, a string or true/false, got {_describe(x)}")
+        return dict(v)
+    if kind == "costate":
+        if isinstance(v, str):
+            if v not in ("zero", "from_direct"):
+                raise OptionError(name, f"expected zero, from_direct or a list of 12 numbers, got {_describe(v)}")
+            return v
+        if isinstance(v, (list, tuple)) or hasattr(v, "__array__"):
+            vals = list(v.ravel()) if hasattr(v, "ravel") else list(v)
+            if len(vals) == 12:
+                return tuple(_number(f"{name}[{i}]", x, "float", None, None) for i, x in enumerate(vals))
+        raise OptionError(name, f"expected zero, from_direct or a list of 12 numbers, got {_describe(v)}")
+    return _number(name, v, kind, meta["lo"], meta["hi"], meta["lo_closed"])
+
+
+def _number(name, v, kind, lo, hi, lo_closed=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) and not hasattr(v, "__float__"):
+        raise OptionError(name, f"expected {'an integer' if kind == 'int' else 'a number'}, got {_describe(v)}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise OptionError(name, f"expected a finite number, got {v!r}")
+    if kind == "int":
+        hi = MAX_INT_OPTION if hi is None else hi
+        if not x.is_integer():
+            raise OptionError(name, f"expected an integer, got {v!r}")
+        if (lo is not None and x < lo) or x > hi:
+            raise OptionError(name, f"expected an integer from {lo} to {hi}, got {v!r}")
+        return int(x)
+    if lo is not None and not (x >= lo if lo_closed else x > lo):
+        raise OptionError(name, f"expected a number {'>=' if lo_closed else '>'} {lo:g}, got {v!r}")
+    if hi is not None and not x < hi:
+        raise OptionError(name, f"expected a number < {hi:g}, got {v!r}")
+    return x
+
+
+_CASADI_HINTS = {"is_double": "expected a number", "is_int": "expected an integer", "is_string": "expected a string",
+                 "No such IPOPT option": "unknown IPOPT option", "option not supported": "unknown fatrop option"}
+
+
+def raw_solver_value(v):
+    """IPOPT and fatrop have no boolean options: YAML's true/false become 'yes'/'no'."""
+    return ("yes" if v else "no") if isinstance(v, bool) else v
+
+
+def check_raw_options(solver: str, raw: Mapping, name: str) -> None:
+    """Raise OptionError ``name.KEY`` for a raw option the solver plugin rejects or cannot honour.
+
+    Each option is tried alone on a one-variable problem solved once (milliseconds): unknown
+    names and wrong types fail when the solver is made, unavailable choices (e.g. a linear solver
+    that is not installed) when it runs ('Invalid_Option').
+    """
+    for k, v in raw.items():
+        _check_raw_option(solver, k, v, name)
+
+
+@lru_cache(maxsize=4096)
+def _check_raw_option(solver: str, k: str, v, name: str) -> None:
+    """One raw option (cached: a sweep checks the same options at every grid point)."""
+    import casadi as ca
+
+    x = ca.SX.sym("x")
+    quiet = {"ipopt": {"print_level": 0, "sb": "yes"}, "fatrop": {"print_level": 0}}[solver]
+    try:
+        nlp = ca.nlpsol("option_check", solver, {"x": x, "f": (x - 1) ** 2},
+                        {solver: {**quiet, k: raw_solver_value(v)}, "print_time": False})
+        nlp(x0=0.0)
+        status = str(nlp.stats().get("return_status", ""))
+    except RuntimeError as exc:
+        text = str(exc)
+        hint = next((h for key, h in _CASADI_HINTS.items() if key in text), None)
+        last = text.strip().splitlines()[-1] if text.strip() else "unknown reason"
+        raise OptionError(f"{name}.{k}", f"{hint or 'rejected by ' + solver + ': ' + last} (value {v!r})") from None
+    if status == "Invalid_Option":
+        raise OptionError(f"{name}.{k}", f"{solver} cannot use the value {v!r} here (Invalid_Option: e.g. a linear "
+                                         "solver that is not installed)")
+
+
+class Options:
+    """Behaviour shared by the method option classes (they are frozen dataclasses)."""
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _check(f.name, f.metadata, getattr(self, f.name)))
+
+    @classmethod
+    def from_mapping(cls, d: Mapping[str, Any] | None):
+        """An instance from a mapping (a YAML block); unknown keys raise OptionError."""
+        d = dict(d or {})
+        names = [f.name for f in dataclasses.fields(cls)]
+        for k in d:
+            if k not in names:
+                raise OptionError(str(k), f"unknown option; allowed here: {', '.join(sorted(names))}")
+        return cls(**d)
+
+    def replace(self, **changes):
+        """A copy with some options changed (validated)."""
+        names = [f.name for f in dataclasses.fields(self)]
+        for k in changes:
+            if k not in names:
+                raise OptionError(k, f"unknown option; allowed here: {', '.join(sorted(names))}")
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain values (for the resolved config and summaries)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = dict(v) if isinstance(v, Mapping) else list(v) if isinstance(v, tuple) else v
+        return out
+
+
+@dataclass(frozen=True)
+class DirectOptions(Options):
+    """Options of the direct method (YAML ``solver.direct``)."""
+
+    solver: str = _opt("ipopt", "choice", choices=("ipopt", "fatrop"), doc="NLP solver (fatrop: fixed-time effort problems; IPOPT is its fallback)")
+    tol: float = _opt(1e-10, "float", lo=0.0, doc="the NLP solver's KKT tolerance")
+    max_iter: int = _opt(3000, "int", lo=1, doc="iteration limit of the NLP solver (and of the impulsive TPBVP's Newton, at most 50)")
+    initial_guess: str = _opt("rollout", "choice", choices=("rollout", "interpolate"),
+                              doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target")
+    options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
+    cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
+    terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")
+    fatrop_options: Mapping = _opt({}, "mapping", doc="raw fatrop options")
+    fatrop_expand: bool = _opt(False, "bool", doc="fatrop: SX-expand the whole NLP")
+    jit: bool = _opt(True, "bool", doc="compile the stage derivatives to C (cached on disk; interpreter without a compiler)")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.options:
+            check_raw_options("ipopt", self.options, "options")
+        if self.fatrop_options:
+            check_raw_options("fatrop", self.fatrop_options, "fatrop_options")
+
+
+@dataclass(frozen=True)
+class IndirectOptions(Options):
+    """Options of the indirect method (YAML ``solver.indirect``)."""
+
+    alpha: float = _opt(1e-4, "float", lo=0.0, hi=1.0, doc="Armijo constant")
+    eps_S: float = _opt(1e-12, "float", lo=0.0, lo_closed=True, doc="tolerance on |z_N|_2 (0: run to the round-off floor)")
+    max_iter: int = _opt(50, "int", lo=1, doc="Newton iterations")
+    max_halvings: int = _opt(30, "int", lo=0, hi=200, doc="line-search halvings per iteration")
+    initial_costate: Any = _opt("zero", "costate", doc="zero, from_direct (the direct solution's multipliers) or 12 numbers")
+    floor_factor: float = _opt(10.0, "float", lo=1.0, doc="round-off floor: |z_N| within this factor of the measured noise")
+    floor_accept: float = _opt(1e-8, "float", lo=0.0, doc="a round-off floor above this is not accepted as convergence")
+    cayley_tol: float = _opt(1e-10, "float", lo=0.0, doc="trials whose rollout leaves a larger Cayley residual are rejected")
+    jit: bool = _opt(False, "bool", doc="compile the per-step maps to C (cached on disk)")
+
+
+METHOD_OPTIONS = {"direct": DirectOptions, "indirect": IndirectOptions}
