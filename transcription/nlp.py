@@ -1,0 +1,302 @@
+"""The one NLP builder: a structured NLP assembled from small SX block Functions.
+
+Every multiple-shooting NLP of the project (smooth control, the relaxed impulsive problem, the
+fatrop form) is a sum of *blocks*.  A block is one SX Function of a few local variables,
+
+    fn(v[nv], p[np]) -> (cost (1x1), rows (nr x 1))
+
+instantiated M times (e.g. once per step of the horizon): instance k gathers its local
+variables from the global decision vector by an index map ``idx[:, k]`` and gets its constant
+data ``data[:, k]`` (step size, scales, weights, targets: data, not constants of the graph, so
+that one Function -- and its compiled code -- serves every problem of the same structure).
+The NLP is
+
+    min  sum_b sum_k cost_b(v_bk, p_bk)   s.t.  lbg <= rows_b(v_bk, p_bk) <= ubg,  lbx <= w <= ubx.
+
+Instead of SX-expanding the whole NLP and letting CasADi colour its Jacobian and Hessian (build
+time ~10 s at N = 1000), each block's gradient, Jacobian and Hessian of (sigma cost + lam^T rows)
+are formed once on its small SX graph, ``map``-ped over its instances and scattered into the
+global sparse matrices by index maps fixed at build time (duplicates summed).  The result is the
+exact Hessian; build and evaluation are linear in the number of instances.  Blocks marked
+``compile`` get their derivative Functions compiled to C (transcription.codegen, cached on disk).
+
+Rows are ordered block by block, instance-major inside a block (:meth:`StructuredNLP.rows`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+
+from . import codegen
+from .results import Iterate
+
+
+@dataclass
+class Block:
+    """One kind of NLP term, instantiated M times.
+
+    fn: SX Function (v[nv], p[np]) -> (cost (1x1), rows (nr x 1)), in scaled variables and rows.
+    idx: (nv, M) global indices of v per instance.  data: (np, M) (or (np,) shared) constants.
+    lbg, ubg: (nr, M) (or (nr,) shared, or scalars) row bounds.  compile: jit the derivatives.
+    """
+
+    name: str
+    fn: ca.Function
+    idx: np.ndarray
+    data: np.ndarray
+    lbg: np.ndarray | float = 0.0
+    ubg: np.ndarray | float = 0.0
+    compile: bool = False
+
+    def __post_init__(self):
+        self.idx = np.asarray(self.idx, dtype=np.int64)
+        if self.idx.ndim == 1:
+            self.idx = self.idx[:, None]
+        nv, M = self.idx.shape
+        data = np.asarray(self.data, dtype=float)
+        self.data = np.repeat(data.reshape(-1, 1), M, axis=1) if data.ndim <= 1 else data
+        if self.fn.size1_in(0) != nv or self.data.shape != (self.fn.size1_in(1), M):
+            raise ValueError(f"block {self.name}: shapes of idx {self.idx.shape} / data {self.data.shape} do not match "
+                             f"{self.fn.name()} (nv = {self.fn.size1_in(0)}, np = {self.fn.size1_in(1)})")
+        nr = self.nr
+        self.lbg = np.broadcast_to(np.asarray(self.lbg, dtype=float).reshape(-1, 1) if np.ndim(self.lbg) == 1
+                                   else np.asarray(self.lbg, dtype=float), (nr, M)).copy()
+        self.ubg = np.broadcast_to(np.asarray(self.ubg, dtype=float).reshape(-1, 1) if np.ndim(self.ubg) == 1
+                                   else np.asarray(self.ubg, dtype=float), (nr, M)).copy()
+
+    @property
+    def M(self) -> int:
+        return self.idx.shape[1]
+
+    @property
+    def nr(self) -> int:
+        return self.fn.size1_out(1)
+
+
+class _Derivatives:
+    """The gradient, Jacobian and Hessian Functions of one block Function (built once per Function)."""
+
+    def __init__(self, fn: ca.Function, jit: bool):
+        nv, npar = fn.size1_in(0), fn.size1_in(1)
+        v, p = ca.SX.sym("v", nv), ca.SX.sym("p", npar)
+        sigma = ca.SX.sym("sigma")
+        cost, rows = fn(v, p)
+        lam = ca.SX.sym("lam", rows.shape[0])
+        Jv = ca.jacobian(rows, v)
+        gv = ca.jacobian(cost, v)
+        Hv = ca.triu(ca.hessian(sigma * cost + ca.dot(lam, rows), v)[0])
+        name = fn.name()
+        self.spJ, self.spg, self.spH = Jv.sparsity(), gv.sparsity(), Hv.sparsity()
+        self.grad = ca.Function(f"{name}_grad", [v, p], [ca.vertcat(*gv.nonzeros()) if gv.nnz() else ca.SX(0, 1)],
+                                ["v", "p"], ["gnz"])
+        self.jac = ca.Function(f"{name}_jac", [v, p], [ca.vertcat(*Jv.nonzeros()) if Jv.nnz() else ca.SX(0, 1)],
+                               ["v", "p"], ["jnz"])
+        self.hess = ca.Function(f"{name}_hess", [v, p, sigma, lam],
+                                [ca.vertcat(*Hv.nonzeros()) if Hv.nnz() else ca.SX(0, 1)], ["v", "p", "sigma", "lam"],
+                                ["hnz"])
+        self.compiled = False
+        if jit:
+            self.jac, self.hess = codegen.compiled(self.jac), codegen.compiled(self.hess)
+            self.compiled = self.jac.class_name() == "External" and self.hess.class_name() == "External"
+
+
+_DERIVATIVES: dict[tuple[int, bool], tuple[ca.Function, _Derivatives]] = {}
+
+
+def derivatives(fn: ca.Function, jit: bool) -> _Derivatives:
+    """Cached :class:`_Derivatives` of a block Function (keyed by the Function object)."""
+    key = (id(fn), bool(jit))
+    hit = _DERIVATIVES.get(key)
+    if hit is None or hit[0] is not fn:
+        hit = (fn, _Derivatives(fn, jit))
+        _DERIVATIVES[key] = hit
+    return hit[1]
+
+
+def assemble(nrow: int, ncol: int, rows, cols, vals):
+    """Sparse (nrow x ncol) MX from triplets (rows, cols, vals (ntrip,) MX); duplicates are summed.
+
+    The sparsity is fixed at build time; the nonzeros are one sparse constant product
+    P @ vals (P: nnz x ntrip, 0/1), linear in the number of triplets.
+    """
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    keys, mapping = np.unique(cols * nrow + rows, return_inverse=True)   # column-major = CasADi's nonzero order
+    sp = ca.Sparsity.triplet(nrow, ncol, (keys % nrow).tolist(), (keys // nrow).tolist())
+    ntrip = len(rows)
+    if ntrip == 0:
+        return ca.MX(nrow, ncol)
+    if len(keys) == ntrip:            # no duplicates: a permutation
+        perm = np.empty(ntrip, dtype=np.int64)
+        perm[mapping] = np.arange(ntrip)
+        nz = vals[perm.tolist()]
+    else:
+        P = ca.DM(ca.Sparsity.triplet(sp.nnz(), ntrip, mapping.tolist(), list(range(ntrip))), 1.0)
+        nz = ca.mtimes(P, vals)
+    return ca.sparsity_cast(nz, sp)
+
+
+class StructuredNLP:
+    """The NLP of a list of :class:`Block` over n decision variables.
+
+    ``f``, ``g`` (MX of the symbol ``w``), ``lbg``, ``ubg``; :meth:`rows` gives a block's row
+    indices in g; :meth:`derivative_functions` the nlpsol options 'grad_f', 'jac_g', 'hess_lag'
+    (exact, assembled block by block).  ``compiled``: every block asked to compile did.
+    """
+
+    def __init__(self, n: int, blocks: list[Block], jit: bool = False):
+        self.n = int(n)
+        self.blocks = list(blocks)
+        self.w = ca.MX.sym("w", self.n)
+        self._offsets = {}
+        off = 0
+        for b in self.blocks:
+            if b.name in self._offsets:
+                raise ValueError(f"two blocks named {b.name}")
+            if b.idx.size and (b.idx.min() < 0 or b.idx.max() >= self.n):
+                raise ValueError(f"block {b.name}: variable index out of range")
+            self._offsets[b.name] = off
+            off += b.nr * b.M
+        self.ng = off
+        self.lbg = np.concatenate([b.lbg.ravel(order="F") for b in self.blocks]) if self.blocks else np.zeros(0)
+        self.ubg = np.concatenate([b.ubg.ravel(order="F") for b in self.blocks]) if self.blocks else np.zeros(0)
+        self._d = {b.name: derivatives(b.fn, jit and b.compile) for b in self.blocks}
+        self.compiled = all(self._d[b.name].compiled for b in self.blocks if b.compile) and jit
+        self._V = {b.name: self._gather(b) for b in self.blocks}
+        f = ca.MX(0)
+        g = []
+        for b in self.blocks:
+            cost, rows = b.fn.map(b.M)(self._V[b.name], ca.DM(b.data))
+            f = f + ca.sum2(cost)
+            if b.nr:
+                g.append(ca.vec(rows))
+        self.f = f
+        self.g = ca.vertcat(*g) if g else ca.MX(0, 1)
+
+    def _gather(self, b: Block):
+        return ca.reshape(self.w[b.idx.ravel(order="F").tolist()], b.idx.shape[0], b.M)
+
+    def rows(self, name: str) -> np.ndarray:
+        """Row indices (nr, M) of block ``name`` in g."""
+        b = next(b for b in self.blocks if b.name == name)
+        return self._offsets[name] + np.arange(b.nr * b.M).reshape(b.M, b.nr).T
+
+    def derivative_functions(self) -> dict[str, ca.Function]:
+        """nlpsol options: grad_f (x, p) -> (f, grad_f_x), jac_g (x, p) -> (g, jac_g_x),
+        hess_lag (x, p, lam_f, lam_g) -> triu_hess_gamma_x_x."""
+        n, w = self.n, self.w
+        lam_f = ca.MX.sym("lam_f")
+        lam_g = ca.MX.sym("lam_g", self.ng)
+        gr, gv, jr, jc, jv, hr, hc, hv = [], [], [], [], [], [], [], []
+        for b in self.blocks:
+            d, V, P, M = self._d[b.name], self._V[b.name], ca.DM(b.data), b.M
+            ks = np.arange(M)
+            if d.spg.nnz():
+                _, gc = d.spg.get_triplet()                     # gradient: 1 x nv, columns are the variables
+                gr.append(b.idx[np.asarray(gc), :].ravel(order="F"))
+                gv.append(ca.vec(d.grad.map(M)(V, P)))
+            if b.nr and d.spJ.nnz():
+                r, c = (np.asarray(a) for a in d.spJ.get_triplet())
+                jr.append((self._offsets[b.name] + ks[None, :] * b.nr + r[:, None]).ravel(order="F"))
+                jc.append(b.idx[c, :].ravel(order="F"))
+                jv.append(ca.vec(d.jac.map(M)(V, P)))
+            if d.spH.nnz():
+                r, c = (np.asarray(a) for a in d.spH.get_triplet())
+                gi, gj = b.idx[r, :], b.idx[c, :]
+                hr.append(np.minimum(gi, gj).ravel(order="F"))
+                hc.append(np.maximum(gi, gj).ravel(order="F"))
+                lam = ca.reshape(lam_g[self.rows(b.name).ravel(order="F").tolist()], b.nr, M) if b.nr \
+                    else ca.MX(0, M)
+                hv.append(ca.vec(d.hess.map(M)(V, P, ca.repmat(lam_f, 1, M), lam)))
+
+        def cat(parts, empty):
+            return np.concatenate(parts) if parts else empty
+
+        none = np.zeros(0, dtype=np.int64)
+        grad = assemble(n, 1, cat(gr, none), np.zeros(len(cat(gr, none)), dtype=np.int64),
+                        ca.vertcat(*gv) if gv else ca.MX(0, 1))
+        Jg = assemble(self.ng, n, cat(jr, none), cat(jc, none), ca.vertcat(*jv) if jv else ca.MX(0, 1))
+        H = assemble(n, n, cat(hr, none), cat(hc, none), ca.vertcat(*hv) if hv else ca.MX(0, 1))
+        p = ca.MX.sym("p", 0)
+        return {
+            "grad_f": ca.Function("nlp_grad_f", [w, p], [self.f, ca.densify(grad)], ["x", "p"], ["f", "grad_f_x"]),
+            "jac_g": ca.Function("nlp_jac_g", [w, p], [self.g, Jg], ["x", "p"], ["g", "jac_g_x"]),
+            "hess_lag": ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [H], ["x", "p", "lam_f", "lam_g"],
+                                    ["triu_hess_gamma_x_x"]),
+        }
+
+
+class ProgressCallback(ca.Callback):
+    """NLP iteration callback: one :class:`~transcription.results.Iterate` per iteration to ``fn``
+    (cost = objective x ``obj_scale``, residual = max |g - bounds violation| of the scaled rows)."""
+
+    def __init__(self, nx: int, ng: int, fn: Callable[[Iterate], None], obj_scale: float, lbg, ubg, phase: str = ""):
+        ca.Callback.__init__(self)
+        self.nx, self.ng, self.fn, self.obj_scale, self.k = nx, ng, fn, obj_scale, 0
+        self.lbg, self.ubg, self.phase = np.asarray(lbg, float), np.asarray(ubg, float), phase
+        self.construct("nlp_progress", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.ng)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
+        viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
+        f = float(arg[ca.nlpsol_out().index("f")])
+        self.fn(Iterate(iteration=self.k, cost=f * self.obj_scale, residual=float(viol.max()) if viol.size else 0.0,
+                        phase=self.phase))
+        self.k += 1
+        return [0]
+
+
+def ipopt_history(stats: dict, obj_scale: float, phase: str = "") -> list[Iterate]:
+    """The IPOPT (or fatrop) iterations recorded in a solver's stats as Iterates."""
+    it = stats.get("iterations", {}) or {}
+    keys = ("obj", "inf_pr", "inf_du", "alpha_pr")
+    cols = [it.get(k, []) for k in keys]
+    n = max((len(c) for c in cols), default=0)
+    cols = [list(c) + [float("nan")] * (n - len(c)) for c in cols]
+    return [Iterate(iteration=i, cost=float(o) * obj_scale, residual=float(p), dual=float(d), step=float(a), phase=phase)
+            for i, (o, p, d, a) in enumerate(zip(*cols))]
+
+
+def solve_time_split(stats: dict, solve_s: float) -> dict:
+    """Where a solve's wall time went, from CasADi's solver stats (IPOPT and fatrop alike).
+
+    ``evaluations_s`` is the wall time spent in the NLP Functions (objective, constraints, their
+    Jacobian and the Lagrangian Hessian: the ``t_wall_nlp_*`` stats), ``solver_internal_s`` the rest
+    of ``solve_s`` (the solver's own linear algebra, line search and bookkeeping),
+    ``evaluations_by_function`` the split of ``evaluations_s``.  For fatrop also ``fatrop_own_s``:
+    fatrop's own time (its ``time_total`` less its evaluation callbacks).
+    """
+    by = {k[len("t_wall_"):]: float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_")}
+    ev = float(sum(by.values()))
+    out = {"evaluations_s": ev, "solver_internal_s": max(float(solve_s) - ev, 0.0), "evaluations_by_function": by}
+    fat = stats.get("fatrop")
+    if isinstance(fat, dict) and "time_total" in fat:
+        cb = sum(float(fat.get(k, 0.0)) for k in ("eval_hess_time", "eval_jac_time", "eval_cv_time", "eval_grad_time",
+                                                   "eval_obj_time"))
+        out["fatrop_own_s"] = max(float(fat["time_total"]) - cb, 0.0)
+    return out
