@@ -1,7 +1,6 @@
 """Initial guesses for the direct method (node states, controls, Cayley vectors).
 
-Two kinds, selected by ``options['initial_guess']`` of a
-:class:`~transcription.problem.SmoothProblem`:
+Two kinds, selected by :attr:`~transcription.options.DirectOptions.initial_guess`:
 
 * ``'rollout'`` (default): free motion (all controls zero) of the problem's own
   discretization from X0.  Every node then satisfies the discrete dynamics exactly,
@@ -19,7 +18,7 @@ Two kinds, selected by ``options['initial_guess']`` of a
   x_0 x gamma_0 (or, failing that, with Pi_0 in the inertial frame) is chosen.
 
 Both return a :class:`Guess`; Cayley vectors are c_k = cay^-1(R_k^T R_{k+1})
-(SPEC §2), consistent with the node attitudes.
+(docs/mathematics.md §2), consistent with the node attitudes.
 """
 from __future__ import annotations
 
@@ -28,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .layout import NU, pack_state, unpack_states
-from .lie import exp_so3, log_so3
+from .lie import cayley_inv, exp_so3, log_so3_any
 
 
 @dataclass(frozen=True)
@@ -41,26 +40,9 @@ class Guess:
 
 
 def cayley_vectors(X: np.ndarray) -> np.ndarray:
-    """c_k = cay^-1(R_k^T R_{k+1}) for the node states X (N+1, 18) -> (N, 3).
-
-    cay^-1(F) = vee(F - F^T) / (1 + tr F) for cay(c) = (I + S(c))(I - S(c))^-1.
-    """
+    """c_k = cay^-1(R_k^T R_{k+1}) (N, 3) of node states X (N+1, 18): consistent with the attitudes."""
     R = unpack_states(X).R
-    F = np.einsum("kji,kjl->kil", R[:-1], R[1:])
-    tr = np.trace(F, axis1=1, axis2=2)
-    A = F - np.swapaxes(F, 1, 2)
-    return np.stack([A[:, 2, 1], A[:, 0, 2], A[:, 1, 0]], axis=1) / (1.0 + tr)[:, None]
-
-
-def log_so3_any(R: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
-    """vee log R for every rotation (lie.log_so3, accurate up to pi), with the sign of the
-    axis at exactly pi -- where the skew part carries no sign -- chosen so that n^T prefer >= 0."""
-    R = np.asarray(R, dtype=float)
-    w = np.asarray(log_so3(R), dtype=float)
-    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if prefer is not None and np.linalg.norm(skew) <= 1e-9 and w @ prefer < 0:
-        w = -w
-    return w
+    return cayley_inv(np.einsum("kji,kjl->kil", R[:-1], R[1:]))
 
 
 def rollout_guess(disc, X0: np.ndarray, N: int, h: float) -> Guess:
@@ -125,4 +107,4 @@ def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float
     raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
 
 
-__all__ = ["Guess", "cayley_vectors", "log_so3_any", "rollout_guess", "interpolation_guess", "make_guess", "screw_path"]
+__all__ = ["Guess", "cayley_vectors", "rollout_guess", "interpolation_guess", "make_guess", "screw_path"]

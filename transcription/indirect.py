@@ -1,22 +1,22 @@
-"""Indirect method: discrete necessary conditions and Newton-Armijo shooting (SPEC §6).
+"""Indirect method: discrete necessary conditions and Newton-Armijo shooting (docs/mathematics.md §6).
 
-Scheme: the first-order modified scheme of SPEC §3, eqs. (21)-(25), one control
+Scheme: the first-order modified scheme of docs/mathematics.md §3, eqs. (21)-(25), one control
 per step, ``X_{k+1} = step(X_k, u_{k+1}, h)``, k = 0 .. N-1 (the second-order LGVI
 is also supported, see the end of this docstring).  States X (18) in the
 layout of :mod:`transcription.layout`; controls u = [u_f (inertial); u_m (body)];
-tangent coordinates z = [dx; dgamma; zeta; dPi] with dR = R S(zeta) (SPEC §4).
+tangent coordinates z = [dx; dgamma; zeta; dPi] with dR = R S(zeta) (docs/mathematics.md §4).
 
 Lagrangian and sign convention
 ------------------------------
 With z-coordinates for the step defect (the difference ``step(X_k, u_{k+1}) ⊖
-X_{k+1}`` read in the left-trivialized chart of SPEC §4 around X_{k+1}),
+X_{k+1}`` read in the left-trivialized chart of docs/mathematics.md §4 around X_{k+1}),
 
     L = sum_{k=0}^{N-1} [ (h/2) u_{k+1}^T W u_{k+1}
                           + lambda_k^T ( step(X_k, u_{k+1}) ⊖ X_{k+1} ) ],
     W = blkdiag(W_f, W_m),
 
 lambda_k in R^12 the multiplier of step k (X_k -> X_{k+1}).  First variation with
-z_{k+1} = A_k z_k + B_k du_{k+1} (SPEC §4 eq. 18, A_k, B_k from
+z_{k+1} = A_k z_k + B_k du_{k+1} (eq. 18, A_k, B_k from
 ``Discretization.variation``):
 
     dL = sum_k [ h u_{k+1}^T W du_{k+1} + lambda_k^T (A_k z_k + B_k du_{k+1} - z_{k+1}) ].
@@ -57,11 +57,11 @@ Functions built once per (Discretization, N) (see :func:`shooting_functions`):
 Winv = blkdiag(W_f, W_m)^-1; X0, Xd, h, Winv are inputs, so one build serves
 every problem with the same scheme, model and N.
 
-Newton-Armijo (SPEC §6, Kelley 1995) is :func:`solve_indirect`.
+Newton-Armijo (transcription.newton, shared with the impulsive TPBVP) runs in :func:`solve_indirect`.
 
 Second-order LGVI (beyond the paper)
 ------------------------------------
-For the scheme of SPEC §2 (node controls u_0..u_N, trapezoidal cost weights) the
+For the scheme of docs/mathematics.md §2 (node controls u_0..u_N, trapezoidal cost weights) the
 same Lagrangian gives explicit conditions too, because u_k enters step k as a
 momentum kick: u_j = -W^-1 [lambda^2_{j-1}; lambda^4_{j-1}] for j = 0..N with
 lambda_{-1} = A_0^T lambda_0, and lambda_k = A_k(X_k, u_k)^-T lambda_{k-1}.  The
@@ -79,59 +79,29 @@ the floor was ~1e-11 at N = 500, with it ~6e-13).  The floor is *measured*
 """
 from __future__ import annotations
 
-import dataclasses
 import time
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Callable
 
 import casadi as ca
 import numpy as np
 
-from .layout import NU, NX, NZ, U_FORCE, U_MOMENT, join_state, split_state
 from . import codegen
+from .layout import NU, NX, NZ, join_state, split_state
 from .lgvi import Discretization
-from .lie import log_so3
-from .problem import SmoothProblem
-from .results import Solution, Trajectory, terminal_error_full
-
-#: defaults for the ``solver.indirect`` options block
-DEFAULT_OPTIONS: dict[str, Any] = {
-    "alpha": 1e-4,  # Armijo constant
-    "eps_S": 1e-12,  # tolerance on |z_N|_2
-    "max_iter": 50,  # outer (Newton) iterations
-    "max_halvings": 30,  # line-search halvings per outer iteration
-    "initial_costate": "zero",
-    # the round-off floor is declared when the full Newton step fails Armijo and
-    # |z_N| <= floor_factor * (round-off level of z_N), see noise_level
-    "floor_factor": 10.0,
-    # a floor above this is not accepted as convergence (something is broken)
-    "floor_accept": 1e-8,
-    # line-search trials whose rollout leaves a relative Cayley residual above this are rejected
-    "cayley_tol": 1e-10,
-    # compile the per-step costate map and its linearization to C (transcription/codegen.py; cached on
-    # disk, first build ~10 s; falls back to the interpreted Functions without a compiler)
-    "jit": False,
-}
-
-_EPS = np.finfo(float).eps
-#: near the floor (|z_N| <= floor_factor^2 x the measured round-off level) the line search
-#: gives up after this many halvings instead of max_halvings
-NEAR_FLOOR_HALVINGS = 3
+from .newton import newton_armijo
+from .options import DirectOptions, IndirectOptions
+from .problem import Problem, TargetState, effort_cost, quadrature_weights, state_residual, terminal_error
+from .results import Iterate, Result, Solution, Trajectory
 
 
-# --------------------------------------------------------------------------- graph
 def terminal_residual_function() -> ca.Function:
-    """(XN[18], Xd[18]) -> zN[12] = [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d].
-
-    Positions and linear momenta inertial, Pi body; the attitude error is the
-    rotation vector of R_d^T R_N (body frame at the target), three conditions.
-    """
+    """(XN[18], Xd[18]) -> zN[12]: :func:`~transcription.problem.state_residual` with every component
+    (positions and linear momenta inertial, Pi body; the attitude error the rotation vector of
+    R_d^T R_N, body frame at the target, three conditions)."""
     XN = ca.SX.sym("XN", NX)
     Xd = ca.SX.sym("Xd", NX)
-    x, g, R, P = split_state(XN)
-    xd, gd, Rd, Pd = split_state(Xd)
-    z = ca.vertcat(x - xd, g - gd, log_so3(ca.mtimes(Rd.T, R)), P - Pd)
-    return ca.Function("terminal_residual", [XN, Xd], [z], ["XN", "Xd"], ["zN"])
+    return ca.Function("terminal_residual", [XN, Xd], [state_residual(XN, Xd)], ["XN", "Xd"], ["zN"])
 
 
 def solve_unpivoted(M, b):
@@ -171,7 +141,7 @@ def orthonormalized(X):
     Identity on SO(3) (and its derivative is the identity on tangent vectors R S(zeta)),
     so it changes nothing in exact arithmetic; off the manifold by E = R^T R - I it
     leaves O(E^2).  Used only for the argument of A_k: the readback vee(skew(Rbar^T dR))
-    of SPEC §4 is sensitive to R^T R != I, and the round-off drift of R^T R, which
+    of docs/mathematics.md §4 is sensitive to R^T R != I, and the round-off drift of R^T R, which
     persists from step to step, would otherwise dominate the round-off floor of the
     shooting residual (measured on E3, N = 100: 1-ulp per-step perturbations of R normal
     to SO(3) moved z_N 4x more than tangent ones).
@@ -182,7 +152,7 @@ def orthonormalized(X):
 
 
 def _costate_back_solve(A, lam_prev):
-    """lambda_k from lambda_{k-1} = A_k^T lambda_k (SPEC eq. 28), with its relative residual."""
+    """lambda_k from lambda_{k-1} = A_k^T lambda_k (eq. 28), with its relative residual."""
     lam = solve_unpivoted(A.T, lam_prev)
     return lam, ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
 
@@ -260,7 +230,7 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
 
 
 def linearized_map(disc: Discretization) -> ca.Function:
-    """The costate forward map and its linearization (SPEC §6 (29)-(31)) as one SX Function.
+    """The costate forward map and its linearization (docs/mathematics.md §6, (29)-(31)) as one SX Function.
 
     linearized_map (X[18], lam_prev[12], dX[18x12], dlam[12x12], h, Winv[6x6])
         -> (X1[18], lam[12], dX1[18x12], dlam1[12x12])
@@ -311,7 +281,7 @@ def linearized_map(disc: Discretization) -> ca.Function:
                        ["X", "lam_prev", "dX", "dlam", "h", "Winv"], ["X1", "lam", "dX1", "dlam1"])
 
 
-#: The second-order LGVI (SPEC §2, node controls u_0..u_N, stage control w_k = [u_k; u_{k+1}],
+#: The second-order LGVI (docs/mathematics.md §2, node controls u_0..u_N, stage control w_k = [u_k; u_{k+1}],
 #: cost sum_j omega_j (1/2) u_j^T W u_j with trapezoidal omega = h (1/2, 1, ..., 1, 1/2), as in
 #: the direct method), derived with the same Lagrangian L = J + sum_k lambda_k^T (step ⊖ X_{k+1}).
 LGVI_CONDITIONS = """
@@ -434,347 +404,165 @@ def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> Shoot
 
 
 # ------------------------------------------------------------------------- helpers
-def weight_inverse(problem: SmoothProblem) -> np.ndarray:
-    """blkdiag(W_f, W_m)^-1 (6x6); W_f, W_m given as diagonals (3,) or as 3x3 matrices."""
-    blocks = []
-    for W in (problem.W_f, problem.W_m):
-        W = np.asarray(W, dtype=float)
-        W = np.diag(W) if W.ndim == 1 else W
-        if W.shape != (3, 3):
-            raise ValueError(f"weights must be (3,) or (3,3), got {W.shape}")
-        blocks.append(np.linalg.inv(W))
-    out = np.zeros((NU, NU))
-    out[U_FORCE, U_FORCE] = blocks[0]
-    out[U_MOMENT, U_MOMENT] = blocks[1]
-    return out
+def weight_inverse(problem: Problem) -> np.ndarray:
+    """blkdiag(W_f, W_m)^-1 (6x6) of a smooth-control problem."""
+    return np.linalg.inv(problem.control.W)
 
 
-def control_cost(problem: SmoothProblem, U: np.ndarray) -> float:
-    """sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m) (SPEC §6).
-
-    first_order: U (6 x N) = u_1..u_N, omega_j = h.  lgvi: U (6 x N+1) = u_0..u_N with
-    trapezoidal omega = h (1/2, 1, ..., 1, 1/2) (the direct method's weights).
-    """
-    W = np.linalg.inv(weight_inverse(problem))
-    omega = np.full(U.shape[1], problem.h)
-    if problem.disc.scheme == "lgvi":
-        omega[[0, -1]] *= 0.5
-    return float(0.5 * np.einsum("k,ik,ij,jk->", omega, U, W, U))
+def control_cost(problem: Problem, U: np.ndarray) -> float:
+    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme."""
+    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.h))
 
 
-def noise_level(residual: Callable[[np.ndarray], np.ndarray], lam0: np.ndarray, z: np.ndarray, Psi: np.ndarray,
-                n: int = 3, ulps: float = 4.0, seed: int = 0) -> float:
-    """Measured round-off level of |z_N|_2 at lambda_0.
-
-    Perturbs lambda_0 by a few ulps (relative ``ulps * eps``, seeded) and returns the
-    largest |z(lam') - z(lam) - Psi (lam' - lam)|_2 over ``n`` draws: what is left
-    after the linear part is evaluation noise of the rollout.  For E3/E4 it is far
-    above the a-priori eps * |Psi||lambda_0| because the rod-axis rotation (tiny J_11)
-    amplifies the rounding of the costate recursion.
-    """
-    rng = np.random.default_rng(seed)
-    out = 0.0
-    for _ in range(n):
-        lp = lam0 * (1.0 + ulps * _EPS * rng.standard_normal(lam0.size))
-        zp = residual(lp)
-        out = max(out, float(np.linalg.norm(zp - z - Psi @ (lp - lam0))))
-    return out
-
-
-def lam0_from_direct(problem: SmoothProblem, dsol: Solution) -> np.ndarray:
-    """The shooting unknown from a direct solution's mapped multipliers (SPEC §6 hand-off).
+def lam0_from_direct(problem: Problem, dsol: Solution) -> np.ndarray:
+    """The shooting unknown from a direct solution's mapped multipliers (docs/mathematics.md §6).
 
     first_order: lambda_0 = dsol.costates[0]; lgvi: lambda_{-1} = A_0(X_0, u_0)^T lambda_0.
     Raises ValueError if the direct solution carries no costates.
     """
-    if dsol.costates is None:
+    if dsol.costates is None or dsol.controls is None:
         raise ValueError("the direct solution carries no costates")
     lam = np.asarray(dsol.costates[0], dtype=float).reshape(NZ)
-    if problem.disc.scheme == "lgvi":  # the unknown is lambda_{-1} = A_0(X_0, u_0)^T lambda_0
+    if problem.scheme == "lgvi":  # the unknown is lambda_{-1} = A_0(X_0, u_0)^T lambda_0
         w0 = np.r_[dsol.controls[:, 0], np.zeros(NU)]
         A0 = np.array(problem.disc.variation(problem.X0, w0, problem.h)[0])
         lam = A0.T @ lam
     return lam
 
 
-def _initial_costate(problem: SmoothProblem, lam0, opts) -> tuple[np.ndarray, str, Any]:
-    """lambda_0 from the argument or options.initial_costate ('zero', 'from_direct', 12-list)."""
-    if lam0 is not None:
-        return np.asarray(lam0, dtype=float).reshape(NZ), "argument", None
-    spec = opts.get("initial_costate", "zero")
-    if isinstance(spec, str):
-        if spec == "zero":
-            return np.zeros(NZ), "zero", None
-        if spec == "from_direct":
-            from .direct import solve_direct  # lazy: the direct method is optional here
+def _initial_costate(problem: Problem, opts: IndirectOptions, warm_start, direct_options: DirectOptions | None):
+    """(lambda_0, source, direct Solution or None) from ``warm_start`` (an array, an indirect Solution
+    or a direct Solution with costates) or ``opts.initial_costate``: 'zero', 12 numbers, or
+    'from_direct' -- the direct method is run here unless its solution is passed as warm_start
+    (the one place of the direct -> indirect hand-off)."""
+    if isinstance(warm_start, Solution):
+        if warm_start.method == "indirect" and warm_start.stats.get("lam0") is not None:
+            return np.asarray(warm_start.stats["lam0"], float).reshape(NZ), "warm_start", None
+        return lam0_from_direct(problem, warm_start), "from_direct", warm_start
+    if warm_start is not None:
+        return np.asarray(warm_start, dtype=float).reshape(NZ), "argument", None
+    spec = opts.initial_costate
+    if spec == "zero":
+        return np.zeros(NZ), "zero", None
+    if spec == "from_direct":
+        from .direct import solve_direct  # the direct method is needed only here
 
-            # the direct method reads its own option block; the indirect one (max_iter, ...) must not leak into it
-            dsol = solve_direct(dataclasses.replace(problem, options=dict(opts.get("direct_options") or {})))
-            lam = lam0_from_direct(problem, dsol)
-            return lam, "from_direct", dsol
-        raise ValueError(f"initial_costate must be 'zero', 'from_direct' or 12 numbers, got {spec!r}")
-    arr = np.asarray(spec, dtype=float).ravel()
-    if arr.size != NZ:
-        raise ValueError(f"initial_costate needs {NZ} numbers, got {arr.size}")
-    return arr, "explicit", None
+        dsol = solve_direct(problem, direct_options or DirectOptions())
+        return lam0_from_direct(problem, dsol), "from_direct", dsol
+    return np.asarray(spec, dtype=float).reshape(NZ), "explicit", None
 
 
-def _failure(problem: SmoothProblem, status: str, message: str, build_s: float = 0.0) -> Solution:
-    """A Solution for a solve that could not start: the free rollout, converged False."""
+def _failure(problem: Problem, result: Result, message: str, build_s: float = 0.0) -> Solution:
+    """A Solution for a solve that could not start: the free rollout."""
     X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
-    return Solution(method="indirect", solver="newton-armijo", discretization=problem.disc.scheme, N=problem.N,
-                    h=problem.h, trajectory=Trajectory(t=np.linspace(0.0, problem.T, problem.N + 1), X=X),
-                    status=status, message=message, converged=False, cost=float("nan"),
-                    terminal_error=terminal_error_full(X[-1], problem.Xd), iterations=0, build_s=build_s, solve_s=0.0)
+    m = problem.model
+    return Solution(method="indirect", solver="newton-armijo", result=result, message=message,
+                    trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=X, mass=m.mass, inertia=m.inertia),
+                    cost=float("nan"), terminal_error=terminal_error(X[-1], problem), iterations=0, build_s=build_s,
+                    solve_s=0.0, problem=problem)
 
 
 # -------------------------------------------------------------------------- solver
-def solve_indirect(
-    problem: SmoothProblem, lam0=None, progress: Callable[[dict], None] | None = None
-) -> Solution:
-    """Newton-Armijo shooting on lambda_0 (SPEC §6).
+def solve_indirect(problem: Problem, options: IndirectOptions | None = None,
+                   progress: Callable[[Iterate], None] | None = None, warm_start=None,
+                   direct_options: DirectOptions | None = None) -> Solution:
+    """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6) for a smooth-control problem
+    with a state target ('first_order' or 'lgvi'; for 'lgvi' the unknown is lambda_{-1}, see
+    LGVI_CONDITIONS).
 
-    problem: a :class:`SmoothProblem` ('first_order' or 'lgvi' discretization; for
-    'lgvi' the shooting unknown lam0 is lambda_{-1}, see LGVI_CONDITIONS);
-    ``problem.options`` = the ``solver.indirect`` block (alpha, eps_S, max_iter,
-    max_halvings, initial_costate; also floor_factor, floor_accept, cayley_tol,
-    direct_options (for initial_costate 'from_direct'); defaults in DEFAULT_OPTIONS).
-    lam0: optional initial lambda_0 (12,) (lgvi: lambda_{-1}) overriding options.initial_costate.
-    progress: optional callable(dict) called once per outer iteration with
-    {iteration, error, error_inf, step, halvings, elapsed_s}.
+    The initial costate comes from ``warm_start`` (12 numbers, an indirect Solution, or a direct
+    Solution whose multipliers are mapped to the costates) or from ``options.initial_costate``
+    (with 'from_direct' the direct method runs first, with ``direct_options``).  The iteration is
+    :func:`~transcription.newton.newton_armijo` on z_N(lambda_0) with the exact Jacobian Psi, the
+    round-off floor detection (``floor_factor``, ``floor_accept``) and trials whose rollout does
+    not solve the Cayley equation to ``cayley_tol`` rejected.
 
-    Iteration (e = |z_N|_2):  D = -Psi^-1 z_N;  c = 1, 1/2, ... until
-    e~ <= (1 - alpha c) e;  stop when e <= eps_S.  Statuses:
-
-    * 'converged'        e <= eps_S.
-    * 'round_off_floor'  the full Newton step does not satisfy Armijo while e is
-                         within floor_factor of the measured round-off level of
-                         z_N (:func:`noise_level`): no further decrease is
-                         possible; stops at once (converged = True, the floor is
-                         reported in message and extra['roundoff_floor']).
-                         Also after NEAR_FLOOR_HALVINGS failed halvings when e is within
-                         floor_factor^2 of that level (no long runs of halvings).
-    * 'floor_too_high'   as above but e > floor_accept (converged = False).
-    * 'stagnated'        the trial step no longer changes lambda_0 in floating point.
-    * 'line_search_failed' max_halvings exhausted away from the floor.
-    * 'max_iter', 'singular_jacobian', 'nan' (non-finite rollout or residual).
-    * 'invalid_initial_costate' bad initial_costate, or its rollout breaks the Cayley solve.
-
-    The returned Solution (method 'indirect', solver 'newton-armijo') has the
-    controls U (6 x N) = u_1..u_N (lgvi: 6 x N+1, u_0..u_N) from the lambda_k, costates (N, 12) = lambda_0..lambda_{N-1},
-    the trajectory re-simulated with ``disc.simulate`` from those controls, the
-    SPEC §8 terminal error measured on it, the cost sum (h/2) u^T W u, and the
-    history: one dict per rollout (the initial one, then every line-search
-    trial) with keys outer, trial, c, error, error_inf, accepted, cayley_residual
-    (a trial whose rollout does not solve the Cayley equation to cayley_tol, i.e. the
-    controls spin the body too fast for h, counts as error = inf).
+    The Solution (method 'indirect', solver 'newton-armijo') has the controls (6 x N, u_1..u_N;
+    lgvi 6 x N+1, u_0..u_N) from the lambda_k, the costates (N, 12) lambda_0..lambda_{N-1}, the
+    trajectory re-simulated from those controls, the terminal error measured on it, the cost, and
+    the history (the initial rollout and every line-search trial).
     """
-    opts = dict(DEFAULT_OPTIONS)
-    opts.update(problem.options or {})
-    alpha = float(opts["alpha"])
-    eps_S = float(opts["eps_S"])
-    max_iter = int(opts["max_iter"])
-    max_halvings = int(opts["max_halvings"])
-    floor_factor = float(opts["floor_factor"])
-    floor_accept = float(opts["floor_accept"])
-    cayley_tol = float(opts["cayley_tol"])
+    opts = options or IndirectOptions()
+    if problem.kind != "smooth" or not isinstance(problem.terminal, TargetState) or problem.terminal.free:
+        raise ValueError("the indirect method solves smooth-control problems with every terminal component given")
     disc, N, h = problem.disc, problem.N, problem.h
-
     t0 = time.perf_counter()
-    fns = shooting_functions(disc, N, bool(opts.get("jit", False)))
+    fns = shooting_functions(disc, N, bool(opts.jit))
     build_s = time.perf_counter() - t0
-
-    X0 = np.asarray(problem.X0, dtype=float).reshape(NX)
-    Xd = np.asarray(problem.Xd, dtype=float).reshape(NX)
-    Winv = weight_inverse(problem)
-    extra: dict[str, Any] = {}
+    X0, Xd, Winv = problem.X0, problem.terminal.X, weight_inverse(problem)
+    stats: dict = {"jit": bool(fns.compiled)}
     t_init = time.perf_counter()
     try:
-        lam, source, dsol = _initial_costate(problem, lam0, opts)
-    except (ValueError, ImportError) as exc:
-        return _failure(problem, "invalid_initial_costate", str(exc), build_s)
-    extra["initial_costate"] = source
-    extra["jit"] = bool(fns.compiled)
-    if dsol is not None:
-        extra["direct_solve_s"] = float(time.perf_counter() - t_init)
-        extra["direct_status"] = dsol.status
-        extra["direct_cost"] = float(dsol.cost)
+        lam, source, dsol = _initial_costate(problem, opts, warm_start, direct_options)
+    except ValueError as exc:
+        return _failure(problem, Result.invalid_option, str(exc), build_s)
+    stats["initial_costate"] = source
+    if dsol is not None and source == "from_direct" and warm_start is None:
+        stats.update(direct_solve_s=float(time.perf_counter() - t_init), direct_status=dsol.result.value,
+                     direct_cost=float(dsol.cost))
     t1 = time.perf_counter()
 
-    def residual_checked(l):
+    def residual(l):
         z, r = fns.residual(l, X0, Xd, h, Winv)
         return np.array(z).ravel(), float(r)
-
-    def residual(l):
-        return residual_checked(l)[0]
 
     def jacobian(l):
         # Psi only: z always comes from ``residual`` (one rounding for all comparisons)
         return np.array(fns.shoot_jac(l, X0, Xd, h, Winv)[1])
 
-    history: list[dict[str, Any]] = []
-    z, r0 = residual_checked(lam)
-    Psi = jacobian(lam)
-    e = float(np.linalg.norm(z))
-    history.append({"outer": 0, "trial": 0, "c": 0.0, "error": e, "error_inf": float(np.abs(z).max()), "accepted": True,
-                    "cayley_residual": r0})
-    if not r0 <= cayley_tol:
-        return _failure(problem, "invalid_initial_costate",
+    z0, r0 = residual(lam)
+    if not r0 <= opts.cayley_tol:
+        return _failure(problem, Result.invalid_option,
                         f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual {r0:.1e} > "
-                        f"cayley_tol {cayley_tol:.0e}): the rotation per step is too large; use a smaller step "
-                        f"h = T/N (increase horizon.N) or another initial costate",
-                        build_s)
-    status, message = "max_iter", f"no convergence in {max_iter} outer iterations"
-    it = 0
-    floor = None
-    noise = None
-    while True:
-        if not np.all(np.isfinite(z)) or not np.all(np.isfinite(Psi)):
-            status, message = "nan", f"non-finite residual or Jacobian at outer iteration {it}"
-            break
-        if e <= eps_S:
-            status, message = "converged", f"|z_N| = {e:.3e} <= eps_S = {eps_S:.1e} after {it} outer iterations"
-            break
-        if it >= max_iter:
-            status, message = "max_iter", f"no convergence in {max_iter} outer iterations (|z_N| = {e:.3e})"
-            break
-        try:
-            D = -np.linalg.solve(Psi, z)
-        except np.linalg.LinAlgError:
-            status, message = "singular_jacobian", f"Psi_12 singular at outer iteration {it} (|z_N| = {e:.3e})"
-            break
-        if not np.all(np.isfinite(D)):
-            status, message = "singular_jacobian", f"Psi_12 ill-conditioned at outer iteration {it} (|z_N| = {e:.3e})"
-            break
-        it += 1
-        c = 1.0
-        accepted = False
-        stop = None
-        for j in range(max_halvings + 1):
-            lt = lam + c * D
-            if np.array_equal(lt, lam):
-                stop = ("stagnated", f"the line-search step no longer changes lambda_0 (|z_N| = {e:.3e}, c = {c:.1e})")
-                break
-            zt, rt = residual_checked(lt)
-            valid = bool(np.all(np.isfinite(zt)) and rt <= cayley_tol)
-            et = float(np.linalg.norm(zt)) if valid else float("inf")
-            ok = et <= (1.0 - alpha * c) * e
-            history.append(
-                {"outer": it, "trial": j + 1, "c": c, "error": et, "error_inf": float(np.abs(zt).max()) if valid else et,
-                 "accepted": bool(ok), "cayley_residual": rt}
-            )
-            if ok:
-                accepted = True
-                break
-            if j == 0:
-                noise = noise_level(residual, lam, z, Psi)
-                if e <= floor_factor * noise:
-                    floor = e
-                    stop = (
-                        "round_off_floor",
-                        f"round-off floor reached after {it - 1} outer iterations: |z_N| = {e:.3e} "
-                        f"(measured round-off level {noise:.1e}); the full Newton step gives {et:.3e}, "
-                        "no further decrease possible",
-                    )
-                    break
-            elif j == NEAR_FLOOR_HALVINGS and e <= floor_factor**2 * noise:
-                # within 100x of the measured level and still no decrease: the direction is noise
-                floor = e
-                stop = (
-                    "round_off_floor",
-                    f"round-off floor reached after {it - 1} outer iterations: |z_N| = {e:.3e} "
-                    f"(measured round-off level {noise:.1e}); {j + 1} line-search trials, none decreases it",
-                )
-                break
-            c *= 0.5
-        if not accepted:
-            if stop is None:
-                stop = ("line_search_failed", f"line search failed after {max_halvings} halvings at outer iteration {it} (|z_N| = {e:.3e})")
-            status, message = stop
-            it -= 1  # the failed iteration did not change lambda_0
-            break
-        lam = lt
-        z = zt
-        Psi = jacobian(lam)
-        e = float(np.linalg.norm(z))
-        if progress is not None:
-            progress(
-                {
-                    "iteration": it,
-                    "error": e,
-                    "error_inf": float(np.abs(z).max()),
-                    "step": c,
-                    "halvings": j,
-                    "elapsed_s": time.perf_counter() - t1,
-                }
-            )
-
+                        f"cayley_tol {opts.cayley_tol:.0e}): the rotation per step is too large; use a smaller step "
+                        f"h = T/N (increase horizon.N) or another initial costate", build_s)
+    nr = newton_armijo(lam, residual, jacobian, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
+                       max_halvings=opts.max_halvings, aux_tol=opts.cayley_tol, floor_factor=opts.floor_factor,
+                       floor_accept=opts.floor_accept, progress=progress)
+    lam = nr.x
     # final rollout: controls and costates from lambda_0, re-simulated trajectory
-    zN, _, lams, U, _, lres = fns.shoot(lam, X0, Xd, h, Winv)
+    _, _, lams, U, _, lres = fns.shoot(lam, X0, Xd, h, Winv)
     U = np.array(U)
     lams = np.array(lams).T
     Xsim, res = disc.simulate(X0, U, h, N)
     solve_s = time.perf_counter() - t1
-    finite = np.all(np.isfinite(Xsim))
-    term = terminal_error_full(Xsim[-1], Xd) if finite else float("inf")
-    rejected = [r["cayley_residual"] for r in history if r["trial"] > 0 and not r["cayley_residual"] <= cayley_tol]
-    if not status.startswith(("converged", "round_off")) and rejected:
-        message += (f"; {len(rejected)} line-search trials were rejected because their controls turned the body "
-                    f"too far per step for the Cayley solve (residual up to {max(rejected):.1e} > cayley_tol "
-                    f"{cayley_tol:.0e}): a smaller step h = T/N (increase horizon.N) or a better initial costate "
+    finite = bool(np.all(np.isfinite(Xsim)))
+    result, message = nr.result, nr.message.replace("|F|", "|z_N|").replace(" x ", " lambda_0 ")
+    if not result.successful and nr.rejected_aux:
+        message += (f"; {len(nr.rejected_aux)} line-search trials were rejected because their controls turned the body "
+                    f"too far per step for the Cayley solve (residual up to {max(nr.rejected_aux):.1e} > cayley_tol "
+                    f"{opts.cayley_tol:.0e}): a smaller step h = T/N (increase horizon.N) or a better initial costate "
                     "(initial_costate: from_direct) may help")
-    if status == "round_off_floor" and e > floor_accept:
-        status = "floor_too_high"
-        message += f"; the floor is above floor_accept = {floor_accept:.0e}: not accepted"
-    converged = status in ("converged", "round_off_floor")
-    if converged and not finite:
-        converged, status, message = False, "nan", "re-simulation produced non-finite states"
-    extra.update(
-        {
-            "residual_norm": e,
-            "roundoff_floor": floor,
-            "noise_level": noise,
-            "max_cayley_residual": float(np.max(res)) if res.size else 0.0,
-            "max_costate_solve_residual": float(np.max(np.array(lres))),
-            "lam0": lam.copy(),
-            "quadratic_C": quadratic_constant(history, floor=10.0 * noise if noise else 0.0),
-        }
+    if result.successful and not finite:
+        result, message = Result.non_finite, "re-simulation produced non-finite states"
+    stats.update(
+        residual_norm=float(np.linalg.norm(nr.F)),
+        roundoff_floor=nr.floor,
+        noise_level=nr.noise,
+        max_cayley_residual=float(np.max(res)) if res.size else 0.0,
+        max_costate_solve_residual=float(np.max(np.array(lres))),
+        lam0=lam.copy(),
+        quadratic_C=quadratic_constant(nr.history, floor=10.0 * nr.noise if nr.noise else 0.0),
     )
-    return Solution(
-        method="indirect",
-        solver="newton-armijo",
-        discretization=disc.scheme,
-        N=N,
-        h=h,
-        trajectory=Trajectory(t=np.linspace(0.0, problem.T, N + 1), X=Xsim),
-        status=status,
-        message=message,
-        converged=bool(converged),
-        cost=control_cost(problem, U) if np.all(np.isfinite(U)) else float("inf"),
-        terminal_error=term,
-        iterations=it,
-        build_s=build_s,
-        solve_s=solve_s,
-        controls=U,
-        costates=lams,
-        history=history,
-        extra=extra,
-    )
+    return Solution(method="indirect", solver="newton-armijo", result=result, message=message,
+                    trajectory=Trajectory(t=h * np.arange(N + 1), X=Xsim, mass=problem.model.mass,
+                                          inertia=problem.model.inertia),
+                    cost=control_cost(problem, U) if np.all(np.isfinite(U)) else float("inf"),
+                    terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
+                    iterations=nr.iterations, build_s=build_s, solve_s=solve_s, problem=problem, controls=U,
+                    costates=lams, history=nr.history, stats=stats)
 
 
-def outer_errors(history: list[dict]) -> np.ndarray:
+def outer_errors(history: list[Iterate]) -> np.ndarray:
     """|z_N|_2 after each outer iteration (index 0: the initial guess) from a history."""
-    return np.array([r["error"] for r in history if r["accepted"]])
+    return np.array([r.residual for r in history if r.accepted])
 
 
-def quadratic_constant(history: list[dict], floor: float = 0.0, tail_from: float = 0.1) -> float | None:
+def quadratic_constant(history: list[Iterate], floor: float = 0.0, tail_from: float = 0.1) -> float | None:
     """max e_{i+1}/e_i^2 over the full-step (c = 1) outer iterations of the local phase
     (e_i <= tail_from) that end above ``floor`` (iterations that land at the round-off
     floor measure the noise, not the convergence rate).  None if there is none."""
-    acc = [r for r in history if r["accepted"]]
-    ratios = [
-        b["error"] / a["error"] ** 2
-        for a, b in zip(acc[:-1], acc[1:])
-        if b["c"] == 1.0 and 0 < a["error"] <= tail_from and b["error"] > floor
-    ]
+    acc = [r for r in history if r.accepted]
+    ratios = [b.residual / a.residual ** 2 for a, b in zip(acc[:-1], acc[1:])
+              if b.step == 1.0 and 0 < a.residual <= tail_from and b.residual > floor]
     return float(max(ratios)) if ratios else None
