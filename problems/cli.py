@@ -17,24 +17,24 @@ def _interrupted_at_startup(signum, frame):  # pragma: no cover - timing depende
     os._exit(130)
 
 
-# Only when running as the program (python -m problems.cli, or the se3ocp script),
-# never when merely imported: main() replaces it once the modules are loaded.
+# Only when running as the program (python -m se3ocp.problems.cli, or the se3ocp script), never when
+# merely imported: main() replaces it once the modules are loaded.  The package's __init__ imports
+# nothing heavy, so this runs before NumPy and CasADi load.  A Ctrl-C that arrived while SIGINT was
+# blocked (a test starts the program that way) is delivered here, once the handler is in place.
 if __name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "se3ocp":
     signal.signal(signal.SIGINT, _interrupted_at_startup)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import numpy as np  # noqa: E402
 
-from .io import ResultsDirError, prepare_results_dir, write_json, write_npz, write_yaml  # noqa: E402
-from .maneuvers import ConfigError, Maneuver, load_maneuver  # noqa: E402
-from ..transcription.results import SolverOptionError  # noqa: E402
-
-#: Cayley solves whose relative residual exceeds this are reported as failed.
-CAYLEY_RESIDUAL_TOL = 1e-10
+from .io import ResultsDirError, prepare_results_dir  # noqa: E402
+from .maneuvers import Maneuver, load_maneuver  # noqa: E402
+from .schema import ConfigError  # noqa: E402
 
 EPILOG = """examples:
   se3ocp validate configs/e3_inclination_change.yaml
@@ -44,9 +44,6 @@ EPILOG = """examples:
   se3ocp plot results/e3_inclination_change
   se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
 """
-
-#: relative cost difference above which compare reports different extremals
-MISMATCH_COST_RTOL = 1e-6
 
 
 def _common(p: argparse.ArgumentParser, out=True):
@@ -211,201 +208,95 @@ def cmd_validate(args) -> int:
     return 0
 
 
-def free_motion(man: Maneuver):
-    """Simulate uncontrolled motion; returns (t, X (N+1,18), summary dict)."""
-    from ..transcription.lie import orthogonality_error
-    from ..transcription.layout import unpack_states
-
-    t0 = time.perf_counter()
-    disc = man.discretization_object()
-    model = disc.model
-    build_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    X, res = disc.simulate(man.X0(), None, man.h, man.N)
-    _Interrupt.check()
-    run_s = time.perf_counter() - t0
-    E = np.array(model.energy().map(X.shape[0])(X.T)).ravel()
-    rel = np.abs(E - E[0]) / abs(E[0])
-    orth, det = orthogonality_error(unpack_states(X).R)
-    worst = float(res.max()) if res.size else 0.0
-    finite = np.all(np.isfinite(X), axis=1)
-    ok = bool(finite.all()) and worst <= CAYLEY_RESIDUAL_TOL
-    if ok:
-        status, message = "ok", "free motion simulated"
-    elif not finite.all() and (not np.isfinite(res).all() or res[np.isfinite(res)].max(initial=0) <= CAYLEY_RESIDUAL_TOL):
-        k = int(np.argmin(finite))
-        status = "nan"
-        message = (f"the state became non-finite at node {k} (overflow or a singular potential: check the model "
-                   f"parameters and that the body stays away from the central mass)")
-    else:
-        k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf)))
-        status = "cayley_not_converged"
-        message = (f"the implicit Cayley equation was not solved at step {k} (relative residual {res[k]:.2e}): "
-                   f"the rotation per step is too large; use a smaller step h = T/N (increase horizon.N)")
-    summary = {
-        "command": "simulate", "name": man.name, "status": status, "message": message, "converged": ok,
-        "discretization": man.discretization, "N": man.N, "T": man.T, "h": man.h,
-        "max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max()),
-        "energy_initial": float(E[0]), "max_relative_energy_error": float(rel.max()),
-        "final_relative_energy_error": float(rel[-1]), "max_cayley_residual": worst,
-        "build_s": build_s, "run_s": run_s,
-    }
-    return man.h * np.arange(man.N + 1), X, summary
-
-
 def cmd_simulate(args) -> int:
-    from ..transcription.layout import unpack_states
+    from . import api, store
 
     man = _load(args)
     out = _outdir(args, man)
-    t, X, summary = free_motion(man)
-    s = unpack_states(X)
-    write_yaml(out / "config.resolved.yaml", man.resolved)
-    write_npz(out / "trajectory.npz", {"t": t, "x": s.x, "gamma": s.gamma, "Pi": s.Pi, "R": s.R})
-    write_json(out / "summary.json", summary)
-    _say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, "
-               f"{summary['run_s']:.2f} s")
-    _say(args, f"  max |R^T R - I|          {summary['max_orthogonality_error']:.2e}")
-    _say(args, f"  max |det R - 1|          {summary['max_determinant_error']:.2e}")
-    _say(args, f"  max relative energy err  {summary['max_relative_energy_error']:.2e}")
-    _say(args, f"  status                   {summary['status']}: {summary['message']}")
+    sol = api.simulate(man)
+    _Interrupt.check()
+    store.write_run(out, man, sol)
+    st = sol.stats
+    _say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, {sol.solve_s:.2f} s")
+    _say(args, f"  max |R^T R - I|          {st['max_orthogonality_error']:.2e}")
+    _say(args, f"  max |det R - 1|          {st['max_determinant_error']:.2e}")
+    _say(args, f"  max relative energy err  {st['max_relative_energy_error']:.2e}")
+    if sol.problem.terminal is not None:
+        _say(args, f"  miss at the target       {sol.terminal_error:.3e} (terminal error of the free motion)")
+    _say(args, f"  status                   {sol.result}: {sol.message}")
     _say(args, f"  results in {out}/")
-    _emit_summary(args, summary)
-    return 0 if summary["converged"] else 1
+    _emit_summary(args, store.summary(man, sol))
+    return 0 if sol.converged else 1
 
 
 class Progress:
-    """One line per Newton-Armijo outer iteration, and per block of NLP iterations
-    (at most one line a second after the first ten), so long solves show life without flooding."""
+    """One line per iteration of any method (at most one a second after the first ten, and every
+    Newton step), so long solves show life without flooding; Ctrl-C is honoured here."""
 
-    def __init__(self, args, label: str):
-        self.args, self.label = args, label
+    def __init__(self, args):
+        self.args = args
         self.last = 0.0
         self.count = 0
 
-    def __call__(self, rec: dict):
+    def __call__(self, method: str, rec):
         _Interrupt.check()
         self.count += 1
         now = time.perf_counter()
-        if self.count > 10 and now - self.last < 1.0 and "step" not in rec:
+        if self.count > 10 and now - self.last < 1.0 and rec.trial == 0 and math.isnan(rec.step):
             return
         self.last = now
-        if "iteration" in rec:  # Newton-Armijo
-            _say(self.args, f"  [{self.label}] iter {rec['iteration']:3d}  |z_N| = {rec.get('error', float('nan')):.3e}"
-                            f"  step = {rec.get('step', float('nan')):.3g}  halvings = {rec.get('halvings', 0)}")
-        else:
-            inf = rec.get("inf_pr", rec.get("inf_pr_scaled", float("nan")))
-            _say(self.args, f"  [{self.label}] iter {rec.get('iter', self.count - 1):4d}  cost = {rec.get('objective', float('nan')):.8e}"
-                            f"  infeasibility = {inf:.2e}")
-
-
-def _run_method(args, man: Maneuver, method: str, lam0=None):
-    """Build the problem for ``method`` and solve it; returns a Solution (failures are data)."""
-    if man.control_kind == "impulsive":
-        from ..transcription.impulsive import solve_impulsive
-
-        return solve_impulsive(man.impulsive_problem(), progress=Progress(args, "impulsive"))
-    if method == "direct":
-        from ..transcription.direct import solve_direct
-
-        return solve_direct(man.smooth_problem("direct"), progress=Progress(args, "direct"))
-    from ..transcription.indirect import solve_indirect
-
-    return solve_indirect(man.smooth_problem("indirect"), lam0=lam0, progress=Progress(args, "indirect"))
-
-
-def compare_solutions(a, b) -> dict:
-    """Cost and control differences between two solutions; flags different extremals."""
-    out = {"cost_relative_difference": abs(a.cost - b.cost) / max(abs(a.cost), abs(b.cost), 1e-300)}
-    if a.controls is not None and b.controls is not None and a.controls.shape == b.controls.shape:
-        scale = max(np.abs(a.controls).max(), 1e-300)
-        out["control_max_difference_relative"] = float(np.abs(a.controls - b.controls).max() / scale)
-    both = a.converged and b.converged
-    out["same_extremal"] = bool(both and out["cost_relative_difference"] <= MISMATCH_COST_RTOL)
-    if not both:
-        out["verdict"] = "not comparable: at least one method did not converge"
-    elif out["same_extremal"]:
-        out["verdict"] = "agree: same extremal"
-    else:
-        lo, hi = sorted([a, b], key=lambda s: s.cost)
-        out["verdict"] = (f"MISMATCH: the methods reached different extremals ({lo.method} cost {lo.cost:.6g} vs "
-                          f"{hi.method} cost {hi.cost:.6g}, ratio {hi.cost / lo.cost:.3g}); the higher one is not the "
-                          f"optimum. Try solver.indirect.initial_costate=from_direct.")
-    return out
+        _say(self.args, f"  [{method}] {rec.line()}")
 
 
 def _table(sols) -> list[str]:
-    head = f"{'method':<10} {'status':<20} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} {'build s':>8} {'solve s':>8}"
+    head = (f"{'method':<10} {'status':<20} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
+            f"{'build s':>8} {'solve s':>8}")
     rows = [head, "-" * len(head)]
     for s in sols:
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
-        rows.append(f"{s.method:<10} {s.status[:20]:<20} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
+        rows.append(f"{s.method:<10} {s.result.value:<20} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
                     f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
     return rows
 
 
-def _option_config_error(man: Maneuver, e: SolverOptionError) -> ConfigError:
-    """A raw solver option the plugin rejected, as bad input naming solver.direct.options.NAME."""
-    return ConfigError(man.source, "solver.direct.options" + (f".{e.option}" if e.option else ""), str(e))
-
-
 def cmd_solve(args) -> int:
+    from ..transcription.solve import solve
+    from . import api, store
     from .plots import animate, draw_all
 
     man = _load(args)
-    man.require_terminal()
-    methods = ["direct", "indirect"] if args.method == "both" else [args.method]
+    if man.control_kind is None:
+        raise ConfigError(man.source, "control/terminal",
+                          "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
+    method = args.method
     if man.control_kind == "impulsive":
-        if "indirect" in methods and args.method != "both":
+        if method == "indirect":
             raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
                                                           "impulsive maneuvers are solved by --method direct")
-        methods = ["direct"]
-    from ..transcription.direct import check_solver_options
-
-    try:  # before anything is written: bad raw solver options are bad input
-        check_solver_options(man.direct.get("options") or {})
-    except SolverOptionError as e:
-        raise _option_config_error(man, e) from None
+        method = "direct"
+    problem, d, i = api.resolve(man, method)
     out = _outdir(args, man)
-    write_yaml(out / "config.resolved.yaml", man.resolved)
     _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} -> {out}/")
-    sols = {}
-    for method in methods:
-        lam0 = None
-        if method == "indirect" and man.indirect.get("initial_costate") == "from_direct" and "direct" in sols \
-                and sols["direct"].costates is not None:
-            from ..transcription.indirect import lam0_from_direct
-
-            lam0 = lam0_from_direct(man.smooth_problem("indirect"), sols["direct"])  # reuse, don't re-solve
-        _say(args, f"solving by the {method} method ...")
-        try:
-            sol = _run_method(args, man, method, lam0)
-        except SolverOptionError as e:
-            raise _option_config_error(man, e) from None
-        _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
-        sols[method] = sol
-        write_npz(out / f"{method}.npz", sol.arrays())
-        _say(args, f"  {method}: {sol.status} ({sol.message}); cost {sol.cost:.10g}, terminal error "
-                   f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, solve {sol.solve_s:.2f} s")
-    summary = {"name": man.name, "config": man.source, "control": man.control_kind,
-               "discretization": man.discretization, "N": man.N, "T": man.T,
-               "converged": all(s.converged for s in sols.values()),
-               "methods": {m: dict(s.summary(), history=s.history) for m, s in sols.items()}}
-    if len(sols) == 2:
-        summary["comparison"] = compare_solutions(sols["direct"], sols["indirect"])
-    write_json(out / "summary.json", summary)
+    _say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
+    result = solve(problem, method, direct=d, indirect=i, progress=Progress(args))
+    _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
+    sols = store.solutions_of(result)
+    for m, sol in sols.items():
+        _say(args, f"  {m}: {sol.result} ({sol.message}); cost {sol.cost:.10g}, terminal error "
+                   f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
+                   f"solve {sol.solve_s:.2f} s")
+    store.write_run(out, man, result)
     if not args.no_figures:
         draw_all(out)
         if args.animate:
             animate(out)
     for line in _table(sols.values()):
         _say(args, line)
-    if "comparison" in summary:
-        _say(args, f"comparison: {summary['comparison']['verdict']}")
+    if hasattr(result, "verdict"):
+        _say(args, f"comparison: {result.verdict}")
     _say(args, f"results in {out}/")
-    _emit_summary(args, {k: v for k, v in summary.items() if k != "methods"} | {
-        "methods": {m: s.summary() for m, s in sols.items()}})
-    return 0 if summary["converged"] else 1
+    _emit_summary(args, store.summary(man, result, with_history=False))
+    return 0 if all(s.converged for s in sols.values()) else 1
 
 
 def cmd_plot(args) -> int:
@@ -414,6 +305,10 @@ def cmd_plot(args) -> int:
     d = Path(args.results)
     if not (d / "summary.json").exists() or not (d / "config.resolved.yaml").exists():
         print(f"se3ocp: error: {d}: not a results directory (needs summary.json and config.resolved.yaml)", file=sys.stderr)
+        return 2
+    if not any((d / n).is_file() for n in ("direct.npz", "indirect.npz", "trajectory.npz")):
+        print(f"se3ocp: error: {d}: not a results directory (no direct.npz, indirect.npz or trajectory.npz)",
+              file=sys.stderr)
         return 2
     written = [str(p) for p in draw_all(d)]
     if args.animate:

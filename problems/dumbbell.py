@@ -1,4 +1,4 @@
-"""The dumbbell spacecraft in a central gravity field (SPEC §1).
+"""The dumbbell spacecraft in a central gravity field (docs/mathematics.md §1).
 
 Two equal spheres of mass m/2 and radius r_s at body-fixed rho_1 = +(l/2) e1,
 rho_2 = -(l/2) e1, joined by a massless rod; a fixed central body of
@@ -49,7 +49,7 @@ class Dumbbell:
         return ca.Function("dumbbell_potential", [x, R], [U], ["x", "R"], ["U"])
 
     def moment_point_masses(self) -> ca.Function:
-        """The alternative moment formula M = sum_q rho_q x (R^T f_q) (SPEC §1), for checks."""
+        """The alternative moment formula M = sum_q rho_q x (R^T f_q) (docs/mathematics.md §1), for checks."""
         x = ca.SX.sym("x", 3)
         R = ca.SX.sym("R", 3, 3)
         M = ca.SX.zeros(3, 1)
@@ -60,4 +60,8 @@ class Dumbbell:
         return ca.Function("dumbbell_moment_pm", [x, R], [M], ["x", "R"], ["M"])
 
     def body_model(self) -> BodyModel:
-        return BodyModel(mass=self.mass, inertia=self.inertia, potential=self.potential())
+        """The BodyModel: U by this potential, mu for orbit targets, the sphere centres as markers
+        for the figures, and a key so that equal dumbbells share their Functions."""
+        return BodyModel(mass=self.mass, inertia=self.inertia, potential=self.potential(), mu=self.mu,
+                         markers=self.rho, key=("dumbbell", self.mass, self.length, self.sphere_radius, self.mu),
+                         name="dumbbell")

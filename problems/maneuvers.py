@@ -9,7 +9,7 @@ Schema (unknown keys are rejected everywhere; see README "Maneuver files")::
     discretization: lgvi | first_order                         # default lgvi
     initial: {position: [3], velocity: [3], attitude: ATT, angular_velocity: [3]}
     terminal: {position, velocity, attitude, angular_velocity} | {orbit: {radius: r, normal: [3]}}
-    control: {kind: smooth | impulsive, weights: {force: [3] | scalar, moment: [3] | scalar}}
+    control: {kind: smooth | impulsive, weights: {force: W, moment: W}}   # W: scalar | [3] | 3x3 SPD
     solver: {direct: {...}, indirect: {...}}
 
 Velocities are inertial, angular velocities body-frame; momenta follow as
@@ -32,20 +32,14 @@ from typing import Any
 
 import numpy as np
 
-from ..transcription.direct import DIRECT_OPTION_DEFAULTS
-from ..transcription.indirect import DEFAULT_OPTIONS as INDIRECT_OPTION_DEFAULTS
 from ..transcription.layout import pack_state
-from ..transcription.lgvi import SCHEMES, Discretization
-from ..transcription.problem import ImpulsiveProblem, OrbitTarget, SmoothProblem
+from ..transcription.lgvi import SCHEMES, discretization
+from ..transcription.options import DirectOptions, IndirectOptions, OptionError
+from ..transcription.problem import ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, _spd
 
 from .dumbbell import GM_NORMALIZED, Dumbbell
 from .schema import ConfigError, Validator, apply_override, describe, join_field, read_yaml_file, yaml_load  # noqa: F401
 
-
-#: solver option blocks: the keys and defaults are the method modules' own, so the
-#: schema and the solvers cannot disagree; values are type-checked in _solver_block.
-DIRECT_DEFAULTS: dict[str, Any] = dict(DIRECT_OPTION_DEFAULTS)
-INDIRECT_DEFAULTS: dict[str, Any] = {k: v for k, v in INDIRECT_OPTION_DEFAULTS.items() if k != "direct_options"}
 MODEL_DEFAULTS: dict[str, Any] = {
     "kind": "dumbbell",
     "mass": 1.0,
@@ -72,61 +66,42 @@ class StateSpec:
 
 
 @dataclass(frozen=True)
-class OrbitSpec:
-    radius: float
-    normal: np.ndarray  # unit
-
-
-@dataclass(frozen=True)
 class Maneuver:
-    """A validated maneuver.  ``resolved`` is the config after defaults and overrides."""
+    """A validated maneuver file: the :class:`~transcription.problem.Problem` it states, the options
+    of each method (its ``solver`` blocks), and the resolved document (defaults and overrides
+    applied; itself a valid maneuver file).  ``initial`` and ``terminal`` are the states as given
+    (velocities), ``body`` the dumbbell."""
 
     name: str
     source: str
+    problem: Problem
+    direct: DirectOptions
+    indirect: IndirectOptions
     body: Dumbbell
     central_body_radius: float
-    T: float
-    N: int
-    discretization: str
     initial: StateSpec
-    terminal: StateSpec | OrbitSpec | None
-    control_kind: str | None
-    W_f: np.ndarray
-    W_m: np.ndarray
-    direct: dict[str, Any]
-    indirect: dict[str, Any]
+    terminal: StateSpec | TargetOrbit | None
     resolved: dict[str, Any] = field(repr=False)
 
     @property
+    def control_kind(self) -> str | None:
+        return self.problem.kind
+
+    @property
+    def discretization(self) -> str:
+        return self.problem.scheme
+
+    @property
+    def N(self) -> int:
+        return self.problem.N
+
+    @property
+    def T(self) -> float:
+        return self.problem.T
+
+    @property
     def h(self) -> float:
-        return self.T / self.N
-
-    def discretization_object(self, scheme: str | None = None) -> Discretization:
-        return Discretization(self.body.body_model(), scheme or self.discretization)
-
-    def X0(self) -> np.ndarray:
-        return self.initial.vector(self.body)
-
-    def require_terminal(self, kinds=("smooth", "impulsive")):
-        if self.control_kind not in kinds or self.terminal is None:
-            raise ConfigError(self.source, "control/terminal",
-                              "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
-
-    def smooth_problem(self, method: str = "direct", disc: Discretization | None = None) -> SmoothProblem:
-        """The smooth-control problem, carrying the ``solver.<method>`` options."""
-        self.require_terminal(("smooth",))
-        disc = disc or self.discretization_object()
-        opts = self.direct if method == "direct" else dict(self.indirect, direct_options=dict(self.direct))
-        return SmoothProblem(disc=disc, N=self.N, T=self.T, X0=self.X0(), Xd=self.terminal.vector(self.body),
-                             W_f=self.W_f, W_m=self.W_m, options=dict(opts))
-
-    def impulsive_problem(self, disc: Discretization | None = None) -> ImpulsiveProblem:
-        self.require_terminal(("impulsive",))
-        disc = disc or self.discretization_object()
-        term = self.terminal
-        target = OrbitTarget(term.radius, term.normal) if isinstance(term, OrbitSpec) else term.vector(self.body)
-        return ImpulsiveProblem(disc=disc, N=self.N, T=self.T, X0=self.X0(), terminal=target,
-                                mu=self.body.mu, options=dict(self.direct))
+        return self.problem.h
 
 
 # ------------------------------------------------------------------ loading
@@ -185,10 +160,10 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                 v.fail("control.weights", "weights apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
             wd = v.mapping(c["weights"], "control.weights", ("force", "moment"))
             if "force" in wd:
-                W_f = v.weights(wd["force"], "control.weights.force")
+                W_f = _weight(v, wd["force"], "control.weights.force")
                 weights_doc["force"] = wd["force"]
             if "moment" in wd:
-                W_m = v.weights(wd["moment"], "control.weights.moment")
+                W_m = _weight(v, wd["moment"], "control.weights.moment")
                 weights_doc["moment"] = wd["moment"]
 
     terminal = None
@@ -203,7 +178,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                 v.fail("terminal.orbit.normal", "expected a non-zero vector (it is normalized)")
             if not r > m["central_body_radius"] + body.sphere_radius + 0.5 * body.length:
                 v.fail("terminal.orbit.radius", "expected an orbit outside the central body")
-            terminal = OrbitSpec(r, n / np.linalg.norm(n))
+            terminal = TargetOrbit(r, n / np.linalg.norm(n))
             if control_kind == "smooth":
                 v.fail("terminal.orbit", "a relaxed orbit target is supported for impulsive maneuvers only; "
                                          "give position, velocity, attitude and angular_velocity for smooth control")
@@ -215,18 +190,31 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
         v.fail("control", "a terminal block needs a control block (kind: smooth or impulsive)")
 
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
-    direct = _solver_block(v, sdoc.get("direct", {}), "solver.direct", DIRECT_DEFAULTS)
-    indirect = _solver_block(v, sdoc.get("indirect", {}), "solver.indirect", INDIRECT_DEFAULTS)
+    direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
+    indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
+
+    disc_obj = discretization(body.body_model(), disc)
+    X0 = initial.vector(body)
+    if isinstance(terminal, StateSpec):
+        target = TargetState(terminal.vector(body))
+    else:
+        target = terminal
+    control = None
+    if control_kind == "smooth":
+        control = SmoothControl(W_f=W_f, W_m=W_m)
+    elif control_kind == "impulsive":
+        control = ImpulsiveControl()
+    problem = Problem(disc=disc_obj, N=N, T=T, X0=X0, terminal=target, control=control, name=name.strip())
 
     resolved = copy.deepcopy(doc)
     resolved["model"] = dict(m)
     resolved["discretization"] = disc
     if control_kind == "smooth":
         resolved["control"] = {"kind": control_kind, "weights": weights_doc}
-    resolved["solver"] = {"direct": _plain(direct), "indirect": _plain(indirect)}
-    return Maneuver(name=name.strip(), source=source, body=body, central_body_radius=m["central_body_radius"],
-                    T=T, N=N, discretization=disc, initial=initial, terminal=terminal, control_kind=control_kind,
-                    W_f=W_f, W_m=W_m, direct=direct, indirect=indirect, resolved=resolved)
+    resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict()}
+    return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
+                    central_body_radius=m["central_body_radius"], initial=initial, terminal=terminal,
+                    resolved=resolved)
 
 
 def _state(v: Validator, d, where, body: Dumbbell, central_radius: float, all_required: bool) -> StateSpec:
@@ -249,43 +237,22 @@ def _state(v: Validator, d, where, body: Dumbbell, central_radius: float, all_re
     return StateSpec(x, vel, R, w)
 
 
-_CHOICES = {"solver": ("ipopt", "fatrop"), "initial_guess": ("rollout", "interpolate")}
+def _weight(v: Validator, val, where) -> np.ndarray:
+    """A weight: a positive number, 3 positive numbers (a diagonal) or a symmetric positive definite
+    3x3 matrix (3 rows of 3 numbers), the forms every method accepts."""
+    if isinstance(val, (list, tuple)) and len(val) == 3 and all(isinstance(r, (list, tuple)) for r in val):
+        W = np.array([v.vec3(r, f"{where}[{i}]") for i, r in enumerate(val)])
+        try:
+            return _spd(W, where)
+        except ProblemError as e:
+            v.fail(where, str(e).split(": ", 1)[1])
+    return v.weights(val, where)
 
 
-def _solver_block(v: Validator, d, where, defaults) -> dict[str, Any]:
-    """Validate a solver.<method> block against the method's option defaults (by type)."""
-    v.mapping(d, where, defaults.keys())
-    out = copy.deepcopy(defaults)
-    for k, val in d.items():
-        w = f"{where}.{k}"
-        default = defaults[k]
-        if k in _CHOICES:
-            out[k] = v.choice(val, w, _CHOICES[k])
-        elif k == "alpha":
-            out[k] = v.number(val, w, lo=0.0, hi=1.0)
-        elif k == "eps_S":
-            out[k] = v.number(val, w, nonneg=True)
-        elif k == "initial_costate":
-            if isinstance(val, str):
-                out[k] = v.choice(val, w, ("zero", "from_direct"))
-            elif isinstance(val, (list, tuple)) and len(val) == 12:
-                out[k] = [v.number(a, f"{w}[{i}]") for i, a in enumerate(val)]
-            else:
-                v.fail(w, f"expected zero, from_direct or a list of 12 numbers, got {describe(val)}")
-        elif isinstance(default, bool):
-            if not isinstance(val, bool):
-                v.fail(w, f"expected true or false, got {describe(val)}")
-            out[k] = val
-        elif isinstance(default, int):
-            out[k] = v.number(val, w, positive=True, integer=True)
-        elif isinstance(default, float):
-            out[k] = v.number(val, w, positive=True)
-        elif isinstance(default, dict):
-            out[k] = dict(v.mapping(val, w, val.keys() if isinstance(val, dict) else ()))
-        else:  # pragma: no cover - a new option type in a method module
-            v.fail(w, f"option of unsupported type {type(default).__name__}")
-    return out
-
-
-def _plain(d):
-    return {k: (list(x) if isinstance(x, tuple) else x) for k, x in d.items()}
+def _options(v: Validator, cls, d, where):
+    """A method's options from its YAML block; an OptionError becomes a ConfigError naming the field."""
+    v.mapping(d, where, [f for f in cls.__dataclass_fields__])
+    try:
+        return cls.from_mapping(d)
+    except OptionError as e:
+        v.fail(join_field(where, e.field) if "." not in e.field else f"{where}.{e.field}", e.detail)

@@ -1,25 +1,24 @@
-"""Figures of a maneuver, in the style of the paper's Figs. 1-4, drawn from saved results.
+"""Figures of a maneuver, drawn from Solutions (in memory, or read back from a results directory).
 
-Every function takes ``runs``: a list of :class:`Run` (one per method, so that
-``compare`` overlays them) and returns a matplotlib Figure.  Units are the
-normalized ones of SPEC §1: length in reference-orbit radii, time in orbital
-periods, mass in dumbbell masses.
+:func:`figures` takes a Solution or a Comparison and returns {name: matplotlib Figure}; every
+figure function takes ``runs`` (one :class:`Run` per method, so that both methods overlay) and the
+Problem.  Importing this module does not choose a matplotlib backend (the CLI picks a
+non-interactive one itself).  Units are the normalized ones of docs/mathematics.md §1: length in
+reference-orbit radii, time in orbital periods, mass in body masses.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .dumbbell import Dumbbell  # noqa: E402
-from .io import save_figure  # noqa: E402
+from ..transcription.problem import Problem, TargetOrbit, TargetState
+from ..transcription.results import Solution
+from ..transcription.solve import Comparison
+from .io import save_figure
 
 COLORS = {"direct": "#1f77b4", "indirect": "#d62728", "impulsive": "#2ca02c", "simulate": "#555555"}
 STYLES = {"direct": "-", "indirect": "--", "impulsive": "-", "simulate": "-"}
@@ -28,12 +27,16 @@ T_LABEL = "time t (orbital periods)"
 
 @dataclass
 class Run:
-    """One method's saved result: arrays of its .npz and its summary block."""
+    """One method's solution as the figures see it: its label, arrays (Solution.arrays) and history."""
 
     label: str
     arrays: dict[str, np.ndarray]
     summary: dict[str, Any] = field(default_factory=dict)
     history: list[dict[str, Any]] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, sol: Solution) -> "Run":
+        return cls(sol.method, sol.arrays(), sol.summary(), [h.as_dict() for h in sol.history])
 
     @property
     def color(self):
@@ -44,10 +47,6 @@ class Run:
         return STYLES.get(self.label, "-")
 
 
-def _body(config: dict) -> Dumbbell:
-    m = config.get("model", {})
-    return Dumbbell(mass=m.get("mass", 1.0), length=m.get("length", 0.1),
-                    sphere_radius=m.get("sphere_radius", 0.02), mu=m.get("mu", Dumbbell().mu))
 
 
 def _orbit_circle(x, v, mu, n=200):
@@ -79,42 +78,57 @@ def _circle(radius, normal, n=200):
     return radius * (np.cos(t)[:, None] * a + np.sin(t)[:, None] * b)
 
 
-def fig_maneuver(runs: list[Run], config: dict, *, n_bodies: int = 9):
-    """3-D maneuver: central body, initial and desired orbits, path, dumbbell drawn at intervals."""
-    body = _body(config)
+def _body_points(problem: Problem) -> tuple[np.ndarray, float]:
+    """Body-fixed points to draw (the model's markers, or the tips of its principal axes) and a
+    characteristic size of the body (the largest point distance)."""
+    pts = problem.model.markers
+    if not len(pts):
+        J = problem.model.inertia
+        size = float(np.sqrt(np.trace(J) / problem.model.mass))
+        pts = size * np.vstack([np.eye(3), -np.eye(3)])
+    return pts, float(np.linalg.norm(pts, axis=1).max())
+
+
+def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 9):
+    """3-D maneuver: central body, initial and desired orbits, path, the body drawn at intervals."""
+    model = problem.model
+    pts, size = _body_points(problem)
     fig = plt.figure(figsize=(6.4, 5.6))
     ax = fig.add_subplot(projection="3d")
-    ax.scatter([0], [0], [0], s=120, color="#3b6ea8", label="central body")
     first = runs[0].arrays
-    x0, v0 = first["x"][0], first["gamma"][0] / body.mass
-    orb = _orbit_circle(x0, v0, body.mu)
-    if orb is not None:
-        ax.plot(*orb.T, color="0.6", lw=1, ls=":", label="initial orbit")
-    term = config.get("terminal") or {}
-    if "orbit" in term:
-        c = _circle(term["orbit"]["radius"], term["orbit"]["normal"])
+    if model.mu is not None:
+        ax.scatter([0], [0], [0], s=120, color="#3b6ea8", label="central body")
+        orb = _orbit_circle(first["x"][0], first["gamma"][0] / model.mass, model.mu)
+        if orb is not None:
+            ax.plot(*orb.T, color="0.6", lw=1, ls=":", label="initial orbit")
+    term = problem.terminal
+    if isinstance(term, TargetOrbit):
+        c = _circle(term.radius, term.normal)
         ax.plot(*c.T, color="k", lw=1, ls="--", label="desired orbit")
-    elif "position" in term:
-        orb = _orbit_circle(term["position"], term["velocity"], body.mu)
+    elif isinstance(term, TargetState) and "position" in term.fixed:
+        xd, vd = term.X[0:3], term.X[3:6] / model.mass
+        orb = _orbit_circle(xd, vd, model.mu) if model.mu is not None and "velocity" in term.fixed else None
         if orb is not None:
             ax.plot(*orb.T, color="k", lw=1, ls="--", label="desired orbit")
-        ax.scatter(*np.asarray(term["position"], float), marker="x", s=60, color="k", label="desired position")
-    scale = 1.0
+        ax.scatter(*xd, marker="x", s=60, color="k", label="desired position")
     for run in runs:
-        X, R = run.arrays["x"], run.arrays["R"]
-        ax.plot(*X.T, color=run.color, ls=run.ls, lw=1.6, label=f"{run.label} path")
-    # dumbbells of the first run, enlarged to be visible at orbit scale
+        ax.plot(*run.arrays["x"].T, color=run.color, ls=run.ls, lw=1.6, label=f"{run.label} path")
+    # the body of the first run, enlarged to be visible at orbit scale
     X, R = first["x"], first["R"]
-    span = np.ptp(np.vstack([X, [[0, 0, 0]]]), axis=0).max()
-    scale = max(1.0, round(0.1 * span / body.length))
+    span = max(np.ptp(np.vstack([X, [[0, 0, 0]]]), axis=0).max(), 1e-12)
+    scale = max(1.0, round(0.05 * span / size))
     idx = np.linspace(0, len(X) - 1, n_bodies).round().astype(int)
     for k in idx:
-        ends = np.array([X[k] + scale * R[k] @ q for q in body.rho])
-        ax.plot(*ends.T, color="0.2", lw=1.2)
-        ax.scatter(*ends.T, s=14, color=["#e67e22", "#8e44ad"])
+        ends = X[k] + scale * pts @ R[k].T
+        if len(model.markers):
+            ax.plot(*ends.T, color="0.2", lw=1.2)
+            ax.scatter(*ends.T, s=14, color=["#e67e22", "#8e44ad"][: len(ends)] if len(ends) <= 2 else "#e67e22")
+        else:
+            for i, col in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
+                ax.plot(*np.vstack([X[k], ends[i]]).T, color=col, lw=1.2)
     if "dgamma0" in first:
         for k, key in ((0, "dgamma0"), (-1, "dgammaN")):
-            d = np.asarray(first[key], float) / body.mass
+            d = np.asarray(first[key], float) / model.mass
             n = np.linalg.norm(d)
             if n > 0:
                 L = 0.25 * span * d / n
@@ -128,7 +142,7 @@ def fig_maneuver(runs: list[Run], config: dict, *, n_bodies: int = 9):
     ax.set_ylim(-lim, lim)
     ax.set_zlim(-lim, lim)
     ax.set_box_aspect((1, 1, 1))
-    ax.set_title(f"{config.get('name', '')}: maneuver (dumbbell drawn ×{scale:.0f})")
+    ax.set_title(f"{problem.name}: maneuver ({model.name} drawn ×{scale:.0f})")
     ax.legend(loc="upper left", fontsize=8)
     return fig
 
@@ -176,8 +190,8 @@ def _no_offset(ax):
         ax.set_ylim(mid - w, mid + w)
 
 
-def fig_velocity(runs, config):
-    m = _body(config).mass
+def fig_velocity(runs, problem: Problem):
+    m = problem.model.mass
 
     def after(run):
         a = run.arrays
@@ -191,8 +205,8 @@ def fig_velocity(runs, config):
                        "velocity v = γ/m, inertial (radii/period)", imp)
 
 
-def fig_angular_velocity(runs, config):
-    Jinv = np.linalg.inv(_body(config).inertia)
+def fig_angular_velocity(runs, problem: Problem):
+    Jinv = np.linalg.inv(problem.model.inertia)
 
     def after(run):
         a = run.arrays
@@ -213,13 +227,13 @@ def _control_time(run):
     return t[1:] if n == len(t) - 1 else t  # first-order scheme: u_1..u_N at t_1..t_N
 
 
-def fig_force(runs, config):
+def fig_force(runs, problem: Problem):
     return _components([r for r in runs if "u_f" in r.arrays],
                        lambda r: (_control_time(r), r.arrays["u_f"]), "$u_{f,#}$",
                        "control force u_f, inertial (mass·radii/period²)")
 
 
-def fig_moment(runs, config):
+def fig_moment(runs, problem: Problem):
     return _components([r for r in runs if "u_m" in r.arrays],
                        lambda r: (_control_time(r), r.arrays["u_m"]), "$u_{m,#}$",
                        "control moment u_m, body (mass·radii²/period²)")
@@ -232,34 +246,32 @@ def _positive(values):
     return y
 
 
-def fig_convergence(runs, config):
-    """Error (log) against iterations; for Newton-Armijo every line-search trial, outer iterations marked."""
+def fig_convergence(runs, problem: Problem):
+    """Residual (log) against iterations; for Newton-Armijo every line-search trial, iterations circled."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     drew = False
     for run in runs:
         hist = run.history
         if not hist:
             continue
-        if any("trial" in h for h in hist):  # Newton-Armijo: one record per trial
-            errs = _positive([h.get("error", np.nan) for h in hist])
+        if any(h.get("trial", 0) > 0 for h in hist):  # Newton-Armijo: one record per rollout
+            errs = _positive([h.get("residual") for h in hist])
             ax.semilogy(np.arange(len(errs)), errs, ".-", color=run.color, lw=1, ms=4,
                         label=f"{run.label}: all line-search trials")
             acc = [i for i, h in enumerate(hist) if h.get("accepted")]
-            ax.semilogy(acc, errs[acc], "o", mfc="none", color=run.color, ms=8,
-                        label=f"{run.label}: outer iterations")
-        else:  # NLP solver or Newton: one record per iteration
-            it = np.array([h.get("iter", i) for i, h in enumerate(hist)])
-            for key, mark, lab in (("inf_pr", "-", "primal infeasibility"), ("inf_du", ":", "dual infeasibility"),
-                                   ("residual_inf", "-", "residual (max norm)")):
-                y = _positive([h.get(key, np.nan) for h in hist])
+            ax.semilogy(acc, errs[acc], "o", mfc="none", color=run.color, ms=8, label=f"{run.label}: iterations")
+        else:  # NLP solver: one record per iteration
+            x = np.arange(len(hist))
+            for key, mark, lab in (("residual", "-", "primal infeasibility"), ("dual", ":", "dual infeasibility")):
+                y = _positive([h.get(key) for h in hist])
                 if np.isfinite(y).any():
-                    ax.semilogy(it, y, mark, color=run.color, lw=1.4, label=f"{run.label}: {lab}")
+                    ax.semilogy(x, y, mark, color=run.color, lw=1.4, label=f"{run.label}: {lab}")
         drew = True
     if not drew:
         ax.text(0.5, 0.5, "no iteration history recorded", ha="center", va="center", transform=ax.transAxes)
     ax.set_xlabel("iteration (Newton–Armijo: line-search trial)")
-    ax.set_ylabel("error (log scale)")
-    ax.set_title(f"{config.get('name', '')}: convergence")
+    ax.set_ylabel("residual (log scale)")
+    ax.set_title(f"{problem.name}: convergence")
     ax.grid(alpha=0.3, which="both")
     if drew:
         ax.legend(fontsize=8)
@@ -277,33 +289,12 @@ FIGURES = {
 }
 
 
-def load_runs(results_dir: Path) -> tuple[list[Run], dict, dict]:
-    """Read a results directory: (runs, resolved config, summary)."""
-    import yaml
-
-    d = Path(results_dir)
-    summary = json.loads((d / "summary.json").read_text())
-    config = yaml.safe_load((d / "config.resolved.yaml").read_text())
-    runs = []
-    for label in ("direct", "indirect", "impulsive"):
-        p = d / f"{label}.npz"
-        if p.exists():
-            with np.load(p) as z:
-                arrays = {k: z[k] for k in z.files}
-            block = summary.get("methods", {}).get(label, {})
-            runs.append(Run(label, arrays, block, block.get("history", [])))
-    if not runs and (d / "trajectory.npz").exists():
-        with np.load(d / "trajectory.npz") as z:
-            runs.append(Run("simulate", {k: z[k] for k in z.files}, summary))
-    return runs, config, summary
-
-
-def draw_all(results_dir: Path, which: tuple[str, ...] | None = None) -> list[Path]:
-    """(Re)draw every figure of a results directory as PNG and PDF; returns the paths written."""
-    runs, config, _ = load_runs(results_dir)
-    if not runs:
-        raise FileNotFoundError(f"{results_dir}: no direct.npz, indirect.npz, impulsive.npz or trajectory.npz")
-    written = []
+def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:
+    """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory."""
+    sols = list(result.solutions.values()) if isinstance(result, Comparison) else [result]
+    runs = [Run.of(s) for s in sols]
+    problem = sols[0].problem
+    out = {}
     for name, fn in FIGURES.items():
         if which and name not in which:
             continue
@@ -311,7 +302,17 @@ def draw_all(results_dir: Path, which: tuple[str, ...] | None = None) -> list[Pa
             continue
         if name == "convergence" and not any(r.history for r in runs):
             continue
-        fig = fn(runs, config)
+        out[name] = fn(runs, problem)
+    return out
+
+
+def draw_all(results_dir: Path, which: tuple[str, ...] | None = None) -> list[Path]:
+    """(Re)draw every figure of a results directory as PNG and PDF; returns the paths written."""
+    from .store import read_run
+
+    run = read_run(results_dir)
+    written = []
+    for name, fig in figures(run.result, which).items():
         written += save_figure(fig, Path(results_dir) / f"fig_{name}")
         plt.close(fig)
     return written
@@ -321,19 +322,22 @@ def animate(results_dir: Path, frames: int = 80) -> Path:
     """Write an animated GIF of the maneuver (Pillow writer, ships with matplotlib)."""
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    runs, config, _ = load_runs(results_dir)
-    body = _body(config)
-    run = runs[0]
-    X, R = run.arrays["x"], run.arrays["R"]
+    from .store import read_run
+
+    rd = read_run(results_dir)
+    sol = next(iter(rd.solutions.values()))
+    problem = sol.problem
+    pts, size = _body_points(problem)
+    X, R, t = sol.trajectory.x, sol.trajectory.R, sol.trajectory.t
     fig = plt.figure(figsize=(5, 5))
     ax = fig.add_subplot(projection="3d")
     lim = np.abs(X).max() * 1.1
     ax.scatter([0], [0], [0], s=100, color="#3b6ea8")
     ax.plot(*X.T, color="0.7", lw=1)
     span = 2 * lim
-    scale = max(1.0, 0.06 * span / body.length)
+    scale = max(1.0, 0.03 * span / size)
     (rod,) = ax.plot([], [], [], color="k", lw=2)
-    (pts,) = ax.plot([], [], [], "o", color="#e67e22", ms=5)
+    (dots,) = ax.plot([], [], [], "o", color="#e67e22", ms=5)
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)
     ax.set_zlim(-lim, lim)
@@ -345,11 +349,11 @@ def animate(results_dir: Path, frames: int = 80) -> Path:
 
     def update(i):
         k = idx[i]
-        ends = np.array([X[k] + scale * R[k] @ q for q in body.rho])
+        ends = X[k] + scale * pts @ R[k].T
         rod.set_data_3d(ends[:, 0], ends[:, 1], ends[:, 2])
-        pts.set_data_3d(ends[:, 0], ends[:, 1], ends[:, 2])
-        ax.set_title(f"{config.get('name', '')}  t = {run.arrays['t'][k]:.3f}")
-        return rod, pts
+        dots.set_data_3d(ends[:, 0], ends[:, 1], ends[:, 2])
+        ax.set_title(f"{problem.name} ({sol.method})  t = {t[k]:.3f}")
+        return rod, dots
 
     anim = FuncAnimation(fig, update, frames=len(idx), blit=False)
     out = Path(results_dir) / "maneuver.gif"

@@ -144,8 +144,8 @@ class Sweep:
         return [sorted(g, key=lambda i: pts[i].coords[c]) for g in groups.values()]
 
     def row_methods(self) -> tuple:
-        """Method labels of the rows: 'impulsive' for impulsive maneuvers."""
-        return ("impulsive",) if self.control_kind == "impulsive" else self.methods
+        """Method labels of the rows (impulsive sweeps are validated to use the direct method only)."""
+        return self.methods
 
 
 def _override(key: str, value) -> str:
@@ -308,7 +308,6 @@ def sweep_from_doc(doc: Any, source: str) -> Sweep:
     if kind == "impulsive" and "indirect" in sw.methods:
         raise ConfigError(source, "methods", "the indirect method applies to smooth maneuvers; "
                                              "impulsive maneuvers are swept with methods: [direct]")
-    checked = set()
     for p in sw.points():
         try:
             man = load_maneuver(sw.base, p.overrides)
@@ -318,22 +317,7 @@ def sweep_from_doc(doc: Any, source: str) -> Sweep:
         if man.control_kind != kind:
             raise ConfigError(source, _blame(sw, p, "control"), f"grid point {_label(p.values)}: "
                                                                 f"the control kind changes across the grid")
-        raw = json.dumps(man.direct.get("options") or {}, sort_keys=True, default=str)
-        if raw not in checked:
-            _check_raw_options(source, sw, p, man)
-            checked.add(raw)
     return Sweep(**{**sw.__dict__, "control_kind": kind})
-
-
-def _check_raw_options(source, sw, p, man):
-    from ..transcription.direct import check_solver_options
-    from ..transcription.results import SolverOptionError
-
-    try:
-        check_solver_options(man.direct.get("options") or {})
-    except SolverOptionError as e:
-        f = "solver.direct.options" + (f".{e.option}" if e.option else "")
-        raise ConfigError(source, _blame(sw, p, f), f"grid point {_label(p.values)}: {f}: {e}") from None
 
 
 def _blame(sw: Sweep, p: Point, fieldname: str) -> str:
@@ -369,64 +353,60 @@ def _maneuver_from_text(source: str, text: str, overrides):
 
 
 def _warm_solution(problem, warm: dict):
-    """A Solution-like warm start for solve_direct from a payload {X, U, nu}, or None if it does not fit."""
+    """A direct warm start (a Solution carrying X, U and the NLP multipliers) from a payload
+    {X, U, nu}, or None if it does not fit the problem."""
+    from ..transcription.direct import trajectory
     from ..transcription.layout import NX
-    from ..transcription.results import Solution, Trajectory
+    from ..transcription.results import Result, Solution
 
     X, U = np.asarray(warm.get("X")), np.asarray(warm.get("U"))
     if X.shape != (problem.N + 1, NX) or U.shape != (6, problem.disc.n_controls(problem.N)):
         return None
-    return Solution(method="direct", solver="ipopt", discretization=problem.disc.scheme, N=problem.N, h=problem.h,
-                    trajectory=Trajectory(t=problem.h * np.arange(problem.N + 1), X=X), status="warm_start",
-                    message="continuation payload", converged=True, cost=float("nan"), terminal_error=float("nan"),
-                    iterations=0, build_s=0.0, solve_s=0.0, controls=U,
-                    extra={"nlp_nu": warm.get("nu")} if warm.get("nu") is not None else {})
+    return Solution(method="direct", solver="ipopt", result=Result.converged, message="continuation payload",
+                    trajectory=trajectory(problem, X), cost=float("nan"), terminal_error=float("nan"), iterations=0,
+                    build_s=0.0, solve_s=0.0, problem=problem, controls=U,
+                    stats={"nlp_nu": warm.get("nu")} if warm.get("nu") is not None else {})
 
 
 def _payload(method: str, sol) -> dict | None:
-    if not sol.converged:
+    if not sol.converged or sol.controls is None:
         return None
     if method == "direct":
         return {"X": np.asarray(sol.trajectory.X), "U": np.asarray(sol.controls),
-                "nu": None if sol.extra.get("nlp_nu") is None else np.asarray(sol.extra["nlp_nu"])}
+                "nu": None if sol.stats.get("nlp_nu") is None else np.asarray(sol.stats["nlp_nu"])}
     if method == "indirect":
-        lam = sol.extra.get("lam0")
+        lam = sol.stats.get("lam0")
         return {"lam0": np.asarray(lam if lam is not None else sol.costates[0], float)}
     return None
 
 
 def _solve(man, method: str, warm: dict | None):
-    """(final Solution, warm_started, start, iterations_total)."""
-    if method == "impulsive":
-        from ..transcription.impulsive import solve_impulsive
+    """(final Solution, warm_started, start, iterations_total): a warm solve from the payload, and a
+    cold one if there is none or it fails (through the one dispatcher, transcription.solve)."""
+    from ..transcription.solve import solve
 
-        sol = solve_impulsive(man.impulsive_problem())
-        return sol, False, "cold", sol.iterations
-    if method == "direct":
-        from ..transcription.direct import solve_direct
+    problem = man.problem
 
-        problem = man.smooth_problem("direct")
-        ws = _warm_solution(problem, warm) if warm else None
-        cold = lambda: solve_direct(problem)  # noqa: E731
-        warm_solve = (lambda: solve_direct(problem, warm_start=ws)) if ws is not None else None
-    else:
-        from ..transcription.indirect import solve_indirect
+    def run(ws=None):
+        return solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws)
 
-        problem = man.smooth_problem("indirect")
-        lam0 = np.asarray(warm["lam0"], float) if warm and warm.get("lam0") is not None else None
-        cold = lambda: solve_indirect(problem)  # noqa: E731
-        warm_solve = (lambda: solve_indirect(problem, lam0=lam0)) if lam0 is not None and lam0.shape == (12,) else None
-    if warm_solve is None:
-        sol = cold()
+    ws = None
+    if warm and man.control_kind == "smooth":
+        if method == "direct":
+            ws = _warm_solution(problem, warm)
+        elif warm.get("lam0") is not None and np.shape(warm["lam0"]) == (12,):
+            ws = np.asarray(warm["lam0"], float)
+    if ws is None:
+        sol = run()
         return sol, False, "cold" if not warm else "cold_warm_start_does_not_fit", sol.iterations
     try:
-        sol = warm_solve()
+        sol = run(ws)
     except Exception:  # noqa: BLE001 - a warm start that breaks the solver is a failed warm start
         sol = None
     if sol is not None and sol.converged:
         return sol, True, warm.get("kind", "neighbour"), sol.iterations
     first = sol.iterations if sol is not None else 0
-    sol = cold()
+    sol = run()
     return sol, False, "cold_after_failed_warm", first + sol.iterations
 
 
@@ -434,7 +414,7 @@ def solve_point(task: dict) -> dict:
     """One grid point by one method: the unit of work sent to a pool or a Dask cluster.
 
     task: {'source': base file name, 'text': its YAML text, 'overrides': [KEY=VALUE, ...],
-    'method': 'direct' | 'indirect' | 'impulsive', 'warm': None | payload (+ 'kind')}.
+    'method': 'direct' | 'indirect', 'warm': None | payload (+ 'kind')}.
     Returns {'row': result fields (RESULT_COLUMNS), 'payload': warm start for the next
     point or None}.  Never raises for a failing solve: the error is the row's status.
     """

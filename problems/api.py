@@ -1,0 +1,101 @@
+"""The Python API: ``load``, ``solve``, ``simulate``, ``plot`` (re-exported as ``se3ocp.*``).
+
+    import se3ocp
+    man = se3ocp.load("configs/e3_inclination_change.yaml", ["horizon.N=200"])
+    sol = se3ocp.solve(man, method="direct")          # a Solution (failure is data: sol.result)
+    both = se3ocp.solve(man, method="both")           # a Comparison: both.direct, both.indirect, both.verdict
+    figs = se3ocp.plot(both)                          # matplotlib Figures, drawn from memory
+
+``solve`` and ``simulate`` take a :class:`~se3ocp.problems.maneuvers.Maneuver` (a loaded file: its
+Problem and its ``solver`` blocks as default options) or a
+:class:`~se3ocp.transcription.problem.Problem` built in Python (default options).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from ..transcription.options import DirectOptions, IndirectOptions, Options
+from ..transcription.problem import Problem
+from ..transcription.results import Iterate, Solution
+from ..transcription.solve import Comparison
+from ..transcription import solve as _solve
+from .maneuvers import Maneuver, load_maneuver
+
+
+def load(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Maneuver:
+    """Read and validate a maneuver file; ``overrides`` are ``dotted.key=value`` strings (the CLI's
+    ``--set``).  Bad input raises ConfigError with one line ``FILE: FIELD: what was expected``."""
+    return load_maneuver(path, tuple(overrides))
+
+
+def _merge(base: Options, given: Options | Mapping[str, Any] | None) -> Options:
+    if given is None:
+        return base
+    if isinstance(given, Options):
+        return given
+    return base.replace(**dict(given))
+
+
+def _printer(method: str, rec: Iterate) -> None:
+    print(f"  [{method}] {rec.line()}", file=sys.stderr, flush=True)
+
+
+def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, indirect=None,
+            options: Mapping[str, Any] | None = None) -> tuple[Problem, DirectOptions, IndirectOptions]:
+    """The Problem and the options of each method for a solve: a Maneuver's solver blocks (or the
+    defaults), replaced by ``direct``/``indirect`` (options objects or mappings of changes) and
+    by ``options`` (changes for the single method chosen)."""
+    if isinstance(problem, Maneuver):
+        prob, d, i = problem.problem, problem.direct, problem.indirect
+    elif isinstance(problem, Problem):
+        prob, d, i = problem, DirectOptions(), IndirectOptions()
+    else:
+        raise TypeError(f"expected a Maneuver (se3ocp.load) or a Problem, got {type(problem).__name__}")
+    d, i = _merge(d, direct), _merge(i, indirect)
+    if options:
+        if method == "direct":
+            d = d.replace(**options)
+        elif method == "indirect":
+            i = i.replace(**options)
+        else:
+            raise TypeError("with method='both' give the options of each method as direct={...} and indirect={...}")
+    return prob, d, i
+
+
+def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: DirectOptions | Mapping | None = None,
+          indirect: IndirectOptions | Mapping | None = None,
+          progress: bool | Callable[[str, Iterate], None] | None = None, warm_start=None, throw: bool = False,
+          **options) -> Solution | Comparison:
+    """Solve a maneuver (or a Problem) by ``method``: 'direct', 'indirect' or 'both'.
+
+    Options: a Maneuver's ``solver`` blocks are the defaults; ``direct=`` / ``indirect=`` replace
+    them (a DirectOptions/IndirectOptions, or a mapping of changes, e.g. ``direct={"tol": 1e-8}``);
+    keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
+    initial_costate="from_direct")``).  ``progress``: True prints one line per iteration on stderr,
+    or a callable(method, Iterate).  ``warm_start``: a previous Solution of the same size.
+
+    Returns a :class:`~se3ocp.transcription.results.Solution` (for 'both' a
+    :class:`~se3ocp.transcription.solve.Comparison` of the two).  A solver that fails returns a
+    Solution saying why (``sol.result``, ``sol.message``); ``throw=True`` raises SolveError instead.
+    """
+    prob, d, i = resolve(problem, method, direct, indirect, options)
+    cb = _printer if progress is True else (progress or None)
+    return _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, throw=throw)
+
+
+def simulate(problem: Maneuver | Problem, controls=None) -> Solution:
+    """The motion of a maneuver's discretization from its initial state (free motion, or under
+    ``controls`` (6 x n_controls)) over its horizon, with orthogonality and energy diagnostics and
+    the miss distance to its terminal target (``terminal_error``)."""
+    prob = problem.problem if isinstance(problem, Maneuver) else problem
+    return _solve.simulate(prob, controls)
+
+
+def plot(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:
+    """The figures of a Solution or a Comparison, drawn from memory: {name: matplotlib Figure}.
+    Does not change the matplotlib backend."""
+    from .plots import figures
+
+    return figures(result, which)
