@@ -7,12 +7,12 @@
 
 Methods (``--methods``, comma separated):
 
-    direct-ipopt       solve_direct, IPOPT (the default solver), interpreted stage Functions (jit: false)
+    direct-ipopt       the direct method, IPOPT (the default solver), interpreted stage Functions (jit: false)
     direct-ipopt-jit   the same with the stage derivative Functions compiled to C (jit: true, the
                        direct method's default)
-    direct-fatrop      solve_direct with solver 'fatrop' (IPOPT fallback is *reported*: solver field
+    direct-fatrop      the direct method with solver 'fatrop' (IPOPT fallback is *reported*: solver field
                        'fatrop->ipopt', and such a run is not counted as a fatrop time)
-    indirect           solve_indirect from lambda_0 = 0 (Newton-Armijo), interpreted CasADi Functions
+    indirect           the indirect method from lambda_0 = 0 (Newton-Armijo), interpreted CasADi Functions
     indirect-jit       the same with the per-step maps compiled to C (options.jit)
     rockit             the rockit peer (scripts/peer_rockit.py: RK4 multiple shooting on eqs. (1)-(4)),
                        only if rockit-meco is installed; first_order scheme rows only (it has no scheme)
@@ -60,7 +60,9 @@ FULL_N = (250, 500, 1000, 2000, 4000)
 CAPS = {"rockit": 500, "direct-fatrop": 1000, "indirect": 2000}
 QUICK_CAPS = {"rockit": 250}
 QUICK_N = (250, 1000)
-#: the direct methods' split of solve_s (Solution.extra, see transcription.direct.solve_time_split)
+#: the bundled maneuver file of each case
+CASES = {"e3": "e3_inclination_change", "e4": "e4_orbital_capture"}
+#: the direct methods' split of solve_s (Solution.stats, see transcription.nlp.solve_time_split)
 SPLIT_KEYS = ("evaluations_s", "solver_internal_s", "fatrop_own_s")
 KEYS = ("case", "scheme", "method", "solver", "N", "build_s", "solve_s", "iterations", "time_per_iter_s", "converged",
         "status", "cost", "terminal_error")
@@ -77,29 +79,25 @@ def run_one(case: str, scheme: str, method: str, N: int) -> dict:
         rec.update(case=case, scheme="rk4", method="rockit", N=N)   # the peer has no LGVI scheme
         rec["wall_s"] = time.perf_counter() - t_wall
         return rec
-    from tests.examples import e3, e4
+    import se3ocp
 
-    make = {"e3": e3, "e4": e4}[case]
+    man = se3ocp.load(ROOT / "configs" / f"{CASES[case]}.yaml", [f"horizon.N={N}", f"discretization={scheme}"])
     if method.startswith("direct"):
-        from se3ocp.transcription.direct import solve_direct
-
         solver = "fatrop" if method == "direct-fatrop" else "ipopt"
-        sol = solve_direct(make(N=N, scheme=scheme, solver=solver, jit=method.endswith("-jit")))
+        sol = se3ocp.solve(man, "direct", solver=solver, jit=method.endswith("-jit"))
         name = sol.solver
         if method.endswith("-jit"):
-            name += "+jit" if sol.extra.get("jit") else "(jit unavailable)"
-        rec = {"method": "direct", "solver": name, **{k: sol.extra.get(k) for k in SPLIT_KEYS}}
+            name += "+jit" if sol.stats.get("jit") else "(jit unavailable)"
+        rec = {"method": "direct", "solver": name, **{k: sol.stats.get(k) for k in SPLIT_KEYS}}
     elif method.startswith("indirect"):
-        from se3ocp.transcription.indirect import solve_indirect
-
-        sol = solve_indirect(make(N=N, scheme=scheme, jit=method.endswith("-jit")))
-        name = sol.solver + ("+jit" if sol.extra.get("jit") else "")
+        sol = se3ocp.solve(man, "indirect", jit=method.endswith("-jit"))
+        name = sol.solver + ("+jit" if sol.stats.get("jit") else "")
         rec = {"method": "indirect", "solver": name}
     else:
         raise ValueError(f"unknown method {method!r}")
     it = int(sol.iterations)
     rec.update(case=case, scheme=scheme, N=N, build_s=float(sol.build_s), solve_s=float(sol.solve_s), iterations=it,
-               converged=bool(sol.converged), status=str(sol.status), cost=float(sol.cost),
+               converged=bool(sol.converged), status=str(sol.result), cost=float(sol.cost),
                terminal_error=float(sol.terminal_error),
                message=str(sol.message)[:300])
     rec["wall_s"] = time.perf_counter() - t_wall

@@ -1,10 +1,10 @@
-"""Energy and orthogonality over long free motion: LGVI vs classical RK4 (SPEC §8).
+"""Energy and orthogonality over long free motion: LGVI vs classical RK4 (docs/mathematics.md §8).
 
 The tumbling dumbbell on the reference orbit (x0 = (1,0,0), v0 = (0, 2 pi, 0),
 R0 = I, Omega0 = (1, -2, 3) + 2 pi e3), free motion for ``--orbits`` orbits (period
 1) at h = 1e-3 (``--h``), integrated by
 
-* the second-order LGVI of SPEC §2 (transcription.lgvi, scheme 'lgvi');
+* the second-order LGVI of docs/mathematics.md §2 (transcription.lgvi, scheme 'lgvi');
 * classical RK4 on the continuous equations (1)-(4) with R carried as 9 numbers,
   no re-orthonormalization.
 

@@ -1,6 +1,6 @@
 """Regenerate the README's figures and its direct-vs-indirect comparison table.
 
-Runs the four SPEC §7 examples through the CLI (``se3ocp solve``/``compare``),
+Runs the four bundled examples (docs/mathematics.md §9) through the CLI (``se3ocp solve``/``compare``),
 copies the figures to ``docs/figures/`` and rewrites the block between the
 ``<!-- comparison:start -->`` / ``<!-- comparison:end -->`` markers of README.md.
 
