@@ -1,4 +1,5 @@
-"""Every bad-input and failure class of issue 7, run through the real CLI; writes docs/failures.md.
+"""Every bad-input and failure class, run through the real CLI: the catalogue of tests/test_reliability.py,
+and (run as a program) the generator of docs/failures.md.
 
 Each :class:`Case` is one class: a stock config from ``configs/`` (optionally edited,
 or replaced by raw text), the ``se3ocp`` command and options, and the contract it
@@ -13,11 +14,11 @@ must meet:
 Every case runs in its own temporary directory (relative paths, so the messages in
 the table do not depend on where it ran), small N, one process at a time.
 
-    python scripts/failure_table.py                  # all cases -> docs/failures.md
-    python scripts/failure_table.py --only nan_direct --print
+    .venv/bin/python tests/failure_cases.py                  # all cases -> docs/failures.md
+    .venv/bin/python tests/failure_cases.py --only nan_direct --print
 
-tests/test_reliability.py imports this catalogue (``CASES``, :func:`run_case`,
-:func:`check`), so the table and the tests cannot drift apart.
+tests/test_reliability.py runs this catalogue (``CASES``, :func:`run_case`, :func:`check`), so the
+table and the tests cannot drift apart.
 """
 from __future__ import annotations
 
@@ -58,7 +59,9 @@ class Case:
     summary); message_re: a pattern the failure message must match (case-insensitive).
     out: pass ``--out out``; prefill: 'dir' (out/ holds a file) or 'file' (out is a file).
     interrupt: ('line', text, delay_s) send SIGINT ``delay_s`` after a stdout line containing
-    text; ('dir', delay_s) ``delay_s`` after the results directory appears; ('after', s) s after the start.
+    text; ('dir', delay_s) ``delay_s`` after the results directory appears; ('after', s) s after the start;
+    ('pending',) at once, to a process started with SIGINT blocked (delivered when the CLI installs its
+    start-up handler, before NumPy and CasADi load: deterministic).
     """
 
     id: str
@@ -190,36 +193,37 @@ CASES: list[Case] = [
     _bad("out_is_file", "--out is an existing file", "simulate", FREE, None, "horizon.N=20", prefill="file"),
     # ------------------------------------------------------------------ solver / integrator failures
     _fail("ipopt_max_iter", "IPOPT max_iter reached", E3, "horizon.N=20", "solver.direct.max_iter=2",
-          statuses=("Maximum_Iterations_Exceeded",)),
+          statuses=("max_iterations",)),
     _fail("ipopt_cpu_time", "IPOPT CPU time limit", E3, "horizon.N=20", "solver.direct.options.max_cpu_time=0.001",
-          statuses=("Maximum_CpuTime_Exceeded",)),
-    # With the project's MUMPS defaults (AMD ordering, no permuting scaling: 2.7x faster on feasible
-    # problems) IPOPT does not detect this infeasibility and runs to max_iter (a failure as well, row
-    # below); MUMPS' own settings (7, 7) restore IPOPT's infeasibility and restoration paths.
-    _fail("ipopt_infeasible", "IPOPT infeasible (N = 1: x_1, R_1 fixed by the initial state; MUMPS' own ordering)",
-          E3, "horizon.N=1", "horizon.T=0.01", *MUMPS_OWN, statuses=("Infeasible_Problem_Detected",)),
+          statuses=("time_limit",)),
+    # An infeasible problem (N = 1: x_1, R_1 are fixed by the initial state).  How IPOPT ends on it
+    # (infeasibility detected, restoration failed, or the iteration limit) depends on round-off
+    # after a few hundred iterations -- the iterates agree to 1e-15 at first and drift apart -- so
+    # each of those failures is accepted; what is required is that the failure is reported.
+    _fail("ipopt_infeasible", "IPOPT on an infeasible problem (N = 1: x_1, R_1 fixed by the initial state; MUMPS' own ordering)",
+          E3, "horizon.N=1", "horizon.T=0.01", *MUMPS_OWN, statuses=("infeasible", "solver_failed", "max_iterations")),
     _fail("ipopt_infeasible_tuned", "IPOPT on the infeasible N = 1 problem with the default MUMPS settings",
           E3, "horizon.N=1", "horizon.T=0.01", "solver.direct.max_iter=300",
-          statuses=("Maximum_Iterations_Exceeded", "Infeasible_Problem_Detected")),
+          statuses=("max_iterations", "infeasible", "solver_failed")),
     _fail("ipopt_restoration", "IPOPT restoration failure (the infeasible N = 1 problem, restoration declared failed)",
           E3, "horizon.N=1", "horizon.T=0.01", "solver.direct.options.resto_failure_feasibility_threshold=1e10",
-          *MUMPS_OWN, statuses=("Restoration_Failed",)),
+          *MUMPS_OWN, statuses=("solver_failed",)),
     _fail("nan_direct", "NaN/inf during evaluation (mu = 1e300), direct", E3, "horizon.N=10", "model.mu=1e300"),
     _fail("nan_indirect", "NaN/inf during evaluation (mu = 1e300), indirect", E3, "horizon.N=10", "model.mu=1e300",
-          method="indirect", statuses=("nan",)),
+          method="indirect", statuses=("non_finite",)),
     _fail("nan_simulate", "NaN/inf during evaluation (mu = 1e300), simulate", FREE, "horizon.N=20", "model.mu=1e300",
           method=None),
     _fail("newton_line_search", "Newton-Armijo line search exhausted", E4, "horizon.N=50",
           "solver.indirect.max_halvings=1", "solver.indirect.alpha=0.99", method="indirect",
           statuses=("line_search_failed",)),
     _fail("newton_max_iter", "Newton-Armijo max_iter reached", E4, "horizon.N=50", "solver.indirect.max_iter=2",
-          method="indirect", statuses=("max_iter",)),
+          method="indirect", statuses=("max_iterations",)),
     _fail("newton_singular", "Newton-Armijo singular Psi_12 (N = 1)", E3, "horizon.N=1", "horizon.T=0.01",
           method="indirect",
           statuses=("singular_jacobian",)),
     _fail("impulsive_max_iter", "impulsive solve max_iter reached (E1)", E1, "horizon.N=20", "solver.direct.max_iter=2"),
     _fail("cayley_simulate", "Cayley solve not converging (simulate)", FREE, "horizon.N=20", "horizon.T=1",
-          "initial.angular_velocity=[300, 0, 0]", method=None, statuses=("cayley_not_converged",),
+          "initial.angular_velocity=[300, 0, 0]", method=None, statuses=("cayley_failed",),
           message_re=SMALLER_H),
     _fail("cayley_direct", "Cayley solve not converging (solve, direct)", E3, "horizon.N=10",
           "initial.angular_velocity=[0, 0, 3000]", "solver.direct.max_iter=30", message_re=SMALLER_H),
@@ -227,7 +231,7 @@ CASES: list[Case] = [
           "initial.angular_velocity=[0, 0, 3000]", method="indirect", message_re=SMALLER_H),
     # ------------------------------------------------------------------------------- Ctrl-C
     Case(id="sigint_startup", cls="Ctrl-C during start-up (importing NumPy/CasADi)", command="validate", config=E3,
-         out=False, expect=130, interrupt=("after", 0.05), group="interrupt"),
+         out=False, expect=130, interrupt=("pending",), group="interrupt"),
     Case(id="sigint_simulate", cls="Ctrl-C during simulate (N = 300000)", command="simulate", config=FREE,
          sets=("horizon.N=300000",), expect=130, interrupt=("dir", 0.3), group="interrupt"),
     Case(id="sigint_ipopt", cls="Ctrl-C during IPOPT", command="solve", config=E3, sets=("horizon.N=100",),
@@ -320,7 +324,7 @@ def command_line(case: Case, cfg: str) -> list[str]:
 
 
 def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
-    """Run ``case`` through ``python -m problems.cli`` in ``workdir`` (created if needed)."""
+    """Run ``case`` through ``python -m se3ocp.problems.cli`` in ``workdir`` (created if needed)."""
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     cfg = prepare(case, workdir)
@@ -349,9 +353,14 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
     return o
 
 
+def _block_sigint():  # the child starts with SIGINT blocked: a Ctrl-C sent at once stays pending
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+
 def _run_interrupted(case: Case, argv, workdir: Path, env, timeout):
+    pending = case.interrupt[0] == "pending"
     p = subprocess.Popen([sys.executable, "-m", "se3ocp.problems.cli", *argv], cwd=workdir, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, env=env)
+                         stderr=subprocess.PIPE, text=True, env=env, preexec_fn=_block_sigint if pending else None)
     lines = []
     kind = case.interrupt[0]
     try:
@@ -367,6 +376,8 @@ def _run_interrupted(case: Case, argv, workdir: Path, env, timeout):
             time.sleep(case.interrupt[1])
             if p.poll() is None:
                 p.send_signal(signal.SIGINT)
+        elif kind == "pending":  # sent at once, held blocked until the CLI's start-up handler is in place
+            p.send_signal(signal.SIGINT)
         else:
             _, delay = case.interrupt
             t_end = time.monotonic() + timeout
@@ -424,7 +435,7 @@ def stderr_lines(o: Outcome, drop_casadi_warnings: bool = False) -> list[str]:
 
 
 def check(o: Outcome) -> list[str]:
-    """Violations of the case's contract (empty list: the case behaves as issue 7 requires)."""
+    """Violations of the case's contract (empty list: the case behaves as required)."""
     c = o.case
     v = []
     if o.traceback:
@@ -510,7 +521,7 @@ def render(outcomes: list[Outcome]) -> str:
     lines = [
         "# Bad input and failure classes: what `se3ocp` says",
         "",
-        "Generated by `python scripts/failure_table.py` (issue 7); do not edit by hand. Each row ran the real",
+        "Generated by `.venv/bin/python tests/failure_cases.py`; do not edit by hand. Each row ran the real",
         "CLI in a fresh temporary directory with small N; paths are relative to it. Contract: bad input ->",
         "exit 2 and one line `FILE: FIELD: expected ...` on stderr; solver or integrator failure -> exit 1,",
         "`summary.json` with `converged: false`, status and message, the last iterate's `.npz` written;",

@@ -1,4 +1,5 @@
-"""End-to-end checks of the se3ocp command: files, fields, exit codes, no tracebacks."""
+"""The se3ocp command end to end (problems/cli.py): validate, simulate, solve, compare, plot -- files,
+fields, exit codes, no tracebacks (small N)."""
 from __future__ import annotations
 
 import json
@@ -7,6 +8,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -22,7 +25,7 @@ def test_simulate_writes_results(tmp_path):
     r = run("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=2000", "--set", "horizon.T=2.0", "--out", out)
     assert r.returncode == 0, r.stderr
     with np.load(out / "trajectory.npz") as z:
-        assert set(z.files) == {"t", "x", "gamma", "Pi", "R"}
+        assert set(z.files) == {"t", "x", "v", "gamma", "Omega", "Pi", "R"}
         assert z["t"].shape == (2001,) and z["R"].shape == (2001, 3, 3) and z["x"].shape == (2001, 3)
         assert abs(z["t"][-1] - 2.0) <= 1e-12
     s = json.loads((out / "summary.json").read_text())
@@ -55,7 +58,7 @@ def test_cayley_failure_is_reported(tmp_path):
             "--set", "initial.angular_velocity=[300, 0, 0]", "--out", tmp_path / "o", "--json")
     assert r.returncode == 1, r.stdout + r.stderr
     s = json.loads(r.stdout)
-    assert s["converged"] is False and s["status"] == "cayley_not_converged" and "smaller step" in s["message"]
+    assert s["converged"] is False and s["status"] == "cayley_failed" and "smaller step" in s["message"]
     assert (tmp_path / "o" / "trajectory.npz").exists()
 
 
@@ -75,3 +78,81 @@ def test_validate_json(tmp_path):
     assert r.returncode == 0
     s = json.loads(r.stdout)
     assert s["valid"] is True and s["N"] == 500 and s["control"] == "smooth"
+
+
+FIGS = ("maneuver", "velocity", "angular_velocity", "force", "moment", "convergence")
+METHOD_KEYS = {"status", "converged", "cost", "terminal_error", "max_orthogonality_error", "iterations", "build_s",
+               "solve_s", "N", "h", "discretization", "solver", "message", "history"}
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cmp") / "e3"
+    r = run("compare", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.N=60", "--out", out, "--animate")
+    return out, r
+
+
+def test_compare_writes_everything(compared):
+    out, r = compared
+    assert r.returncode == 0, r.stderr
+    for f in ("summary.json", "config.resolved.yaml", "direct.npz", "indirect.npz", "maneuver.gif"):
+        assert (out / f).is_file(), f
+    for fig in FIGS:
+        for ext in ("png", "pdf"):
+            assert (out / f"fig_{fig}.{ext}").stat().st_size > 1000, (fig, ext)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["converged"] is True and set(s["methods"]) == {"direct", "indirect"}
+    for m in ("direct", "indirect"):
+        assert METHOD_KEYS <= set(s["methods"][m]), METHOD_KEYS - set(s["methods"][m])
+        assert s["methods"][m]["N"] == 60 and s["methods"][m]["terminal_error"] <= 1e-10
+        assert s["methods"][m]["max_orthogonality_error"] <= 1e-12
+    # the two methods solve the same discretization: same optimum (docs/mathematics.md §6), stated in the summary
+    assert s["comparison"]["same_extremal"] is True and s["comparison"]["cost_relative_difference"] <= 1e-8
+    assert "agree" in s["comparison"]["verdict"]
+    # the table is printed
+    assert "direct" in r.stdout and "indirect" in r.stdout and "agree: same extremal" in r.stdout
+
+
+def test_npz_contents(compared):
+    out, _ = compared
+    with np.load(out / "direct.npz") as z:
+        assert {"t", "x", "v", "gamma", "Omega", "Pi", "R", "u_f", "u_m", "t_u", "lam"} <= set(z.files)
+        assert z["R"].shape == (61, 3, 3) and z["u_f"].shape == (60, 3) and z["lam"].shape == (60, 12)
+        np.testing.assert_array_equal(z["t_u"], z["t"][1:])                 # first order: u_1..u_N at t_1..t_N
+    with np.load(out / "indirect.npz") as z:
+        assert {"t", "x", "gamma", "Pi", "R", "u_f", "u_m", "lam"} <= set(z.files)
+    cfg = yaml.safe_load((out / "config.resolved.yaml").read_text())
+    assert cfg["horizon"]["N"] == 60 and cfg["solver"]["direct"]["solver"] == "ipopt"
+
+
+def test_plot_redraws(compared, tmp_path):
+    out, _ = compared
+    (out / "fig_force.png").unlink()
+    r = run("plot", out, "--json")
+    assert r.returncode == 0, r.stderr
+    assert str(out / "fig_force.png") in json.loads(r.stdout.strip().splitlines()[-1])
+    assert (out / "fig_force.png").is_file()
+    r = run("plot", tmp_path)
+    assert r.returncode == 2 and "not a results directory" in r.stderr
+
+
+def test_solve_impulsive_and_json(tmp_path):
+    r = run("solve", CONFIGS / "e1_impulsive_tpbvp.yaml", "--set", "horizon.N=80", "--out", tmp_path / "e1",
+               "--json", "--no-figures")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["converged"] is True and s["methods"]["direct"]["terminal_error"] <= 1e-12
+    with np.load(tmp_path / "e1" / "direct.npz") as z:
+        assert {"dgamma0", "dPi0", "dgammaN", "dPiN"} <= set(z.files)
+    r = run("solve", CONFIGS / "e1_impulsive_tpbvp.yaml", "--method", "indirect", "--out", tmp_path / "x")
+    assert r.returncode == 2 and "control.kind" in r.stderr
+
+
+def test_not_converged_exit_1_results_flagged(tmp_path):
+    r = run("solve", CONFIGS / "e4_orbital_capture.yaml", "--set", "horizon.N=40", "--set", "solver.direct.max_iter=2",
+               "--out", tmp_path / "o", "--no-figures", "--json")
+    assert r.returncode == 1
+    s = json.loads(r.stdout)
+    assert s["converged"] is False and s["methods"]["direct"]["status"] == "max_iterations"
+    assert s["methods"]["direct"]["solver_status"] == "Maximum_Iterations_Exceeded"
+    assert (tmp_path / "o" / "direct.npz").is_file()

@@ -1,4 +1,5 @@
-"""Indirect method (SPEC §6, issue 4): necessary conditions, Psi_12, Newton-Armijo.
+"""The indirect method (transcription/indirect.py, docs/mathematics.md §6): necessary conditions, Psi_12,
+Newton-Armijo, agreement with the direct method.
 
 Default run: N = 100 (h = 5e-3) and smaller; the N = 500 versions of the
 acceptance figures are marked slow (``pytest -m slow tests/test_indirect.py``).
@@ -6,15 +7,14 @@ Numbers measured are printed (run with -s to see them).
 """
 from __future__ import annotations
 
-import dataclasses
-
 import casadi as ca
 import numpy as np
 import pytest
 
-from tests.examples import e3, e4
+from se3ocp.transcription.direct import solve_direct
 from se3ocp.transcription.indirect import (
     control_cost,
+    lam0_from_direct,
     outer_errors,
     quadratic_constant,
     shooting_functions,
@@ -23,12 +23,19 @@ from se3ocp.transcription.indirect import (
     weight_inverse,
 )
 from se3ocp.transcription.layout import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
+from se3ocp.transcription.options import IndirectOptions, OptionError
+from se3ocp.transcription.results import Result
+import support
 
-EXAMPLES = {"E3": e3, "E4": e4}
+EXAMPLES = {"E3": "e3", "E4": "e4"}
 
 
-def problem(name: str, N: int, **options):
-    return EXAMPLES[name](N, scheme="first_order", **options)
+def problem(name: str, N: int, scheme: str = "first_order"):
+    return support.problem(EXAMPLES[name], N, scheme)
+
+
+def indirect(p, lam0=None, progress=None, **options):
+    return solve_indirect(p, IndirectOptions(**options), progress, warm_start=lam0)
 
 
 def _args(p):
@@ -38,7 +45,7 @@ def _args(p):
 @pytest.fixture(scope="module")
 def solved():
     """Indirect solutions of E3 and E4 at N = 100 from lambda_0 = 0, eps_S = 0 (run to the floor)."""
-    return {name: solve_indirect(problem(name, 100, eps_S=0.0)) for name in EXAMPLES}
+    return {name: indirect(problem(name, 100), eps_S=0.0) for name in EXAMPLES}
 
 
 # ------------------------------------------------------------- necessary conditions
@@ -48,14 +55,14 @@ def test_forward_map_is_the_stated_recursion(solved):
     (26)-(27).  (Arbitrary lambda_0 of this size make the body spin faster than the Cayley solve allows.)"""
     p = problem("E3", 100)
     rng = np.random.default_rng(0)
-    lam0 = solved["E3"].extra["lam0"] * (1 + 0.1 * rng.standard_normal(12))
+    lam0 = solved["E3"].stats["lam0"] * (1 + 0.1 * rng.standard_normal(12))
     _, X, lam, U, res, lres = (np.array(a) for a in shooting_functions(p.disc, p.N).shoot(lam0, *_args(p)))
     Xall = np.hstack([p.X0[:, None], X])
-    Wf, Wm = np.asarray(p.W_f), np.asarray(p.W_m)
+    Wf, Wm = p.control.W_f, p.control.W_m
     for k in range(p.N):
         lk = lam[:, k]
-        np.testing.assert_allclose(U[U_FORCE, k], -lk[Z_MOM] / Wf, rtol=1e-13, atol=1e-15)
-        np.testing.assert_allclose(U[U_MOMENT, k], -lk[Z_ANG] / Wm, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(U[U_FORCE, k], -np.linalg.solve(Wf, lk[Z_MOM]), rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(U[U_MOMENT, k], -np.linalg.solve(Wm, lk[Z_ANG]), rtol=1e-13, atol=1e-15)
         if k >= 1:
             A = np.array(p.disc.variation(Xall[:, k], np.zeros(NU), p.h)[0])
             np.testing.assert_allclose(A.T @ lk, lam[:, k - 1], rtol=0, atol=1e-12 * np.abs(lam[:, k - 1]).max())
@@ -87,7 +94,7 @@ def _reduced_gradient_check(name, p, sol):
     Xs = step_x.mapaccum("acc", p.N)(p.X0, p.disc.stage_controls(U))
     zN = terminal_residual_function()(Xs[:, -1], p.Xd)
     dz = np.array(ca.Function("dz", [U], [ca.jacobian(zN, ca.vec(U))])(sol.controls))  # 12 x 6n, column-major vec
-    W = np.diag(np.r_[p.W_f, p.W_m])
+    W = p.control.W
     omega = np.full(sol.controls.shape[1], p.h)
     if p.disc.scheme == "lgvi":
         omega[[0, -1]] *= 0.5
@@ -108,8 +115,8 @@ def test_sign_convention_by_the_reduced_gradient(solved):
 
 
 def test_sign_convention_lgvi():
-    p = EXAMPLES["E4"](50, scheme="lgvi", eps_S=0.0)
-    sol = solve_indirect(p)
+    p = problem("E4", 50, "lgvi")
+    sol = indirect(p, eps_S=0.0)
     assert sol.converged, sol.message
     _reduced_gradient_check("E4", p, sol)
 
@@ -122,10 +129,10 @@ def test_psi_against_finite_differences(name, scheme, N, solved):
     """Psi_12 (forward AD through the rollout) vs finite differences of z_N(lambda_0):
     max column-wise relative error <= 1e-6, at lambda_0 = 0 and at a point near the solution
     (the N = 100 solution's lambda_0, perturbed by 5 %)."""
-    p = EXAMPLES[name](N, scheme=scheme)
+    p = problem(name, N, scheme)
     fns = shooting_functions(p.disc, p.N)
     rng = np.random.default_rng(2)
-    near = solved[name].extra["lam0"]
+    near = solved[name].stats["lam0"]
     if scheme == "lgvi":  # the unknown is lambda_{-1}; the first-order lambda_0 is close enough
         near = np.array(p.disc.variation(p.X0, np.r_[solved[name].controls[:, 0], np.zeros(NU)], p.h)[0]).T @ near
     for lam0 in (np.zeros(12), near * (1 + 0.05 * rng.standard_normal(12))):
@@ -148,7 +155,7 @@ def test_psi_against_finite_differences(name, scheme, N, solved):
 # ------------------------------------------------------------------ Newton-Armijo
 def _check_run(name, sol, max_outer=50, tol=1e-11):
     e = outer_errors(sol.history)
-    C = quadratic_constant(sol.history, floor=10 * sol.extra["noise_level"])
+    C = quadratic_constant(sol.history, floor=10 * sol.stats["noise_level"])
     print(f"{name} N={sol.N}: {sol.status}, {sol.iterations} outer iterations, terminal error {sol.terminal_error:.2e}, "
           f"cost {sol.cost:.10g}, C = {C}, solve {sol.solve_s:.2f} s\n  |z_N| per outer iteration: "
           + " ".join(f"{v:.1e}" for v in e))
@@ -157,20 +164,20 @@ def _check_run(name, sol, max_outer=50, tol=1e-11):
     assert sol.terminal_error <= tol
     # quadratic convergence before the floor: e_{i+1} <= C e_i^2 over the full Newton steps of the
     # local phase (e_i <= 0.1) that end above 10x the measured round-off level; at least two of them
-    acc = [r for r in sol.history if r["accepted"]]
-    pairs = [(a["error"], b["error"]) for a, b in zip(acc[:-1], acc[1:])
-             if b["c"] == 1.0 and a["error"] <= 0.1 and b["error"] > 10 * sol.extra["noise_level"]]
+    acc = [r for r in sol.history if r.accepted]
+    pairs = [(a.residual, b.residual) for a, b in zip(acc[:-1], acc[1:])
+             if b.step == 1.0 and a.residual <= 0.1 and b.residual > 10 * sol.stats["noise_level"]]
     assert len(pairs) >= 2, pairs
     assert C is not None and C <= 2e3
     assert all(b <= (1 + 1e-9) * C * a * a for a, b in pairs)
     # the floor: reached, reported, and left after exactly one failed trial
-    assert sol.status == "round_off_floor" and "round-off floor" in sol.message
-    assert sol.extra["roundoff_floor"] == pytest.approx(e[-1])
-    last = [r for r in sol.history if r["outer"] == sol.iterations + 1]
-    assert len(last) == 1 and not last[0]["accepted"]
+    assert sol.result is Result.round_off_floor and "round-off floor" in sol.message
+    assert sol.stats["roundoff_floor"] == pytest.approx(e[-1])
+    last = [r for r in sol.history if r.iteration == sol.iterations + 1]
+    assert len(last) == 1 and not last[0].accepted
     # every outer iteration and trial recorded
     assert len(e) == sol.iterations + 1
-    assert sum(1 for r in sol.history if r["trial"] > 0) == sum(1 for r in sol.history if r["outer"] >= 1)
+    assert sum(1 for r in sol.history if r.trial > 0) == sum(1 for r in sol.history if r.iteration >= 1)
 
 
 @pytest.mark.parametrize("name", ["E3", "E4"])
@@ -181,7 +188,7 @@ def test_newton_armijo_from_zero(name, solved):
 def test_solution_is_consistent(solved):
     """controls u_1..u_N from lambda_k; trajectory re-simulated; cost = sum (h/2) u^T W u."""
     sol = solved["E3"]
-    p = problem("E3", 100)
+    p = sol.problem
     assert sol.controls.shape == (6, 100) and sol.costates.shape == (100, 12)
     X, _ = p.disc.simulate(p.X0, sol.controls, p.h, p.N)
     np.testing.assert_array_equal(X, sol.trajectory.X)
@@ -192,47 +199,42 @@ def test_solution_is_consistent(solved):
 
 def test_progress_called_once_per_outer_iteration():
     calls = []
-    sol = solve_indirect(problem("E3", 30), progress=calls.append)
+    sol = indirect(problem("E3", 30), progress=calls.append)
     assert len(calls) == sol.iterations >= 1
-    assert [c["iteration"] for c in calls] == list(range(1, sol.iterations + 1))
+    assert [c.iteration for c in calls] == list(range(1, sol.iterations + 1))
 
 
 # ------------------------------------------------------------------- failure is data
 def test_failures_are_data():
-    p = problem("E4", 30, max_iter=1, eps_S=0.0)
-    sol = solve_indirect(p)
-    assert not sol.converged and sol.status == "max_iter" and "1 outer" in sol.message
-
-    sol = solve_indirect(problem("E4", 30), lam0=np.full(12, np.nan))
-    assert not sol.converged and sol.status == "nan"
-
-    sol = solve_indirect(problem("E4", 30, initial_costate=[1.0, 2.0]))
-    assert not sol.converged and sol.status == "invalid_initial_costate"
-
+    sol = indirect(problem("E4", 30), max_iter=1, eps_S=0.0)
+    assert not sol.converged and sol.result is Result.max_iterations and "no convergence in 1 iterations" in sol.message
+    sol = indirect(problem("E4", 30), lam0=np.full(12, np.nan))
+    assert not sol.converged and sol.result is Result.non_finite and "non-finite" in sol.message
+    with pytest.raises(OptionError, match="initial_costate"):
+        IndirectOptions(initial_costate=[1.0, 2.0])
 
 
 def test_line_search_failure_is_reported():
     """E4 from lambda_0 = 0: the first full Newton step does not satisfy Armijo; with no halvings
     allowed the line search fails, and that is reported (not raised)."""
-    sol = solve_indirect(problem("E4", 100, max_halvings=0, eps_S=0.0))
-    print(sol.status, sol.message)
-    assert not sol.converged and sol.status == "line_search_failed"
+    sol = indirect(problem("E4", 100), max_halvings=0, eps_S=0.0)
+    assert not sol.converged and sol.result is Result.line_search_failed
     assert "line search failed" in sol.message and sol.iterations == 0
-    assert [r["accepted"] for r in sol.history] == [True, False]
+    assert [r.accepted for r in sol.history] == [True, False]
 
 
 def test_rollouts_that_break_the_cayley_solve_are_rejected():
     """A lambda_0 whose controls spin the body faster than the step's Cayley solve allows is not a
     rollout of the discrete equations: rejected at the start (and as a line-search trial)."""
-    sol = solve_indirect(problem("E4", 30), lam0=np.r_[np.zeros(9), 1e4, 1e4, 1e4])
-    assert not sol.converged and sol.status == "invalid_initial_costate" and "Cayley" in sol.message
+    sol = indirect(problem("E4", 30), lam0=np.r_[np.zeros(9), 1e4, 1e4, 1e4])
+    assert not sol.converged and sol.result is Result.invalid_option and "Cayley" in sol.message
 
 
 def test_explicit_initial_costate_and_eps_S():
     """initial_costate as 12 numbers; the eps_S stop (before the floor)."""
-    ref = solve_indirect(problem("E3", 30, eps_S=0.0))
-    sol = solve_indirect(problem("E3", 30, eps_S=1e-6, initial_costate=list(ref.extra["lam0"] * 1.001)))
-    assert sol.converged and sol.status == "converged" and sol.extra["initial_costate"] == "explicit"
+    ref = indirect(problem("E3", 30), eps_S=0.0)
+    sol = indirect(problem("E3", 30), eps_S=1e-6, initial_costate=list(ref.stats["lam0"] * 1.001))
+    assert sol.converged and sol.result is Result.converged and sol.stats["initial_costate"] == "explicit"
     assert outer_errors(sol.history)[-1] <= 1e-6
 
 
@@ -243,7 +245,7 @@ def _agreement(name, N, dsol, isol, rsol):
     lam_rel = np.abs(dsol.costates - isol.costates).max() / np.abs(isol.costates).max()
     print(f"{name} N={N}: direct cost {dsol.cost:.12g}, indirect cost {isol.cost:.12g}: rel {cost_rel:.1e}; "
           f"controls rel {u_rel:.1e}; mapped multipliers vs lambda_k rel {lam_rel:.1e}; restart from the direct "
-          f"multipliers: {rsol.iterations} outer iterations, {rsol.status}, terminal error {rsol.terminal_error:.1e}")
+          f"multipliers: {rsol.iterations} outer iterations, {rsol.result}, terminal error {rsol.terminal_error:.1e}")
     assert dsol.converged and isol.converged and rsol.converged
     assert cost_rel <= 1e-8
     assert u_rel <= 1e-6
@@ -253,9 +255,7 @@ def _agreement(name, N, dsol, isol, rsol):
 
 
 def _direct(p):
-    from se3ocp.transcription.direct import solve_direct
-
-    return solve_direct(dataclasses.replace(p, options={}))
+    return solve_direct(p)
 
 
 @pytest.mark.parametrize("name", ["E3", "E4"])
@@ -263,10 +263,9 @@ def test_agrees_with_direct(name, solved):
     """E3 and E4 (first-order scheme, N = 100): indirect from lambda_0 = 0 and direct agree; the direct
     multipliers mapped to tangent coordinates are the lambda_k; restarted from them (the
     initial_costate: from_direct path) the indirect method converges in <= 3 outer iterations."""
-    p = problem(name, 100, eps_S=0.0)
-    dsol = _direct(p)
-    rsol = solve_indirect(problem(name, 100, eps_S=0.0, initial_costate="from_direct"))
-    assert rsol.extra["initial_costate"] == "from_direct"
+    dsol = _direct(problem(name, 100))
+    rsol = indirect(problem(name, 100), eps_S=0.0, initial_costate="from_direct")
+    assert rsol.stats["initial_costate"] == "from_direct" and rsol.stats["direct_status"] == "converged"
     _agreement(name, 100, dsol, solved[name], rsol)
 
 
@@ -276,31 +275,18 @@ def test_agrees_with_direct(name, solved):
 def test_full_size_from_zero_and_agreement(name):
     """Acceptance at N = 500: from lambda_0 = 0 to <= 1e-11 in <= 50 outer iterations, quadratic,
     stops at the floor; agreement with the direct method and the from_direct restart."""
-    isol = solve_indirect(problem(name, 500, eps_S=0.0))
+    isol = indirect(problem(name, 500), eps_S=0.0)
     _check_run(name, isol)
     dsol = _direct(problem(name, 500))
-    rsol = solve_indirect(problem(name, 500, eps_S=0.0), lam0=dsol.costates[0])
+    rsol = indirect(problem(name, 500), lam0=dsol, eps_S=0.0)
     _agreement(name, 500, dsol, isol, rsol)
-
-
-def test_convergence_figure_script(tmp_path):
-    """scripts/fig_convergence.py runs and writes the figure (small N)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "scripts" / "fig_convergence.py"
-    spec = importlib.util.spec_from_file_location("fig_convergence", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    assert mod.main(["--N", "30", "--out", str(tmp_path)]) == 0
-    assert (tmp_path / "indirect_convergence_N30.png").stat().st_size > 0
 
 
 # ------------------------------------------------ second-order LGVI (stretch, beyond the paper)
 def test_lgvi_control_enters_as_a_momentum_kick():
     """The identity behind the explicit LGVI conditions: B^a_k = dX_{k+1}/du_k = A_k(X_k, u_k) B^b,
     with B^b = dX_{k+1}/du_{k+1} constant, and A_k independent of u_{k+1} (eqs. 7-11, on the graph)."""
-    p = EXAMPLES["E4"](10, scheme="lgvi")
+    p = problem("E4", 10, "lgvi")
     rng = np.random.default_rng(3)
     for _ in range(3):
         w = rng.standard_normal(2 * NU) * np.r_[np.ones(3), 1e-2 * np.ones(3), np.ones(3), 1e-2 * np.ones(3)]
@@ -316,18 +302,27 @@ def test_lgvi_control_enters_as_a_momentum_kick():
 def test_lgvi_indirect_agrees_with_direct(name):
     """Second-order LGVI, N = 50: shooting on lambda_{-1} from 0 reaches the floor and agrees with the
     direct LGVI solution (trapezoidal cost) in cost, controls u_0..u_N and mapped multipliers."""
-    isol = solve_indirect(EXAMPLES[name](50, scheme="lgvi", eps_S=0.0))
+    p = problem(name, 50, "lgvi")
+    isol = indirect(p, eps_S=0.0)
     _check_run(f"{name} lgvi", isol)
     assert isol.controls.shape == (6, 51) and isol.costates.shape == (50, 12)
-    dsol = _direct(EXAMPLES[name](50, scheme="lgvi"))
-    rsol = solve_indirect(EXAMPLES[name](50, scheme="lgvi", eps_S=0.0), lam0=_lgvi_lam_init(dsol))
+    dsol = _direct(p)
+    lam_init = lam0_from_direct(p, dsol)                 # lambda_{-1} = A_0(X_0, u_0)^T lambda_0
+    A0 = np.array(p.disc.variation(p.X0, np.r_[dsol.controls[:, 0], np.zeros(NU)], p.h)[0])
+    np.testing.assert_array_equal(lam_init, A0.T @ dsol.costates[0])
+    rsol = indirect(p, lam0=lam_init, eps_S=0.0)
     _agreement(f"{name} lgvi", 50, dsol, isol, rsol)
 
 
-def _lgvi_lam_init(dsol):
-    """lambda_{-1} = A_0(X_0, u_0)^T lambda_0 from a direct LGVI solution."""
-    p_disc = dsol.trajectory.X[0]
-    from tests.examples import disc as _disc
-
-    A0 = np.array(_disc("lgvi").variation(p_disc, np.r_[dsol.controls[:, 0], np.zeros(NU)], dsol.h)[0])
-    return A0.T @ dsol.costates[0]
+@pytest.mark.parametrize("scheme", ["first_order", "lgvi"])
+def test_psi_equals_forward_ad_through_the_rollout(scheme):
+    """Psi by the linearized coupled recursion = forward AD through the rollout, to 1e-10 relative."""
+    p = problem("E3", 30, scheme)
+    fns = shooting_functions(p.disc, 30)
+    args = _args(p)
+    lam = np.random.default_rng(0).standard_normal(12) * 0.01
+    assert float(fns.residual(lam, *args)[1]) <= 1e-10  # a valid rollout (the Cayley equation solved)
+    l = ca.MX.sym("l", 12)
+    P_ad = np.array(ca.Function("ad", [l], [ca.jacobian(fns.residual(l, *args)[0], l)])(lam))
+    P = np.array(fns.shoot_jac(lam, *args)[1])
+    assert np.abs(P - P_ad).max() <= 1e-10 * np.abs(P_ad).max()

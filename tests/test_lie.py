@@ -1,7 +1,8 @@
-"""Properties of the SO(3) helpers in transcription/lie.py (SPEC §1-§2).
+"""Properties of the Lie group helpers in transcription/lie.py (docs/mathematics.md §1-§4).
 
-Grouped by property: hat/vee, Cayley map, exp/log (uniform and near-identity
-samples), CasADi derivatives at the identity, elementary rotations.
+Grouped by property: hat/vee, Cayley map and its inverse, exp/log (uniform and near-identity
+samples, rotations by exactly pi), the inverse right Jacobian, CasADi derivatives at the
+identity, elementary rotations, the charts of the state space.
 All randomness is seeded; tolerances are stated next to each check.
 """
 from __future__ import annotations
@@ -10,12 +11,16 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from se3ocp.transcription.layout import pack_state, unpack_states
 from se3ocp.transcription.lie import (
     cayley,
     cayley_inv,
     exp_so3,
     hat,
     log_so3,
+    log_so3_any,
+    right_jacobian_inv,
+    tangent_basis,
     orthogonality_error,
     rot_x,
     rot_y,
@@ -31,12 +36,10 @@ EPS = np.finfo(float).eps
 ORTH_TOL = 10 * EPS
 
 
-def log_tol(theta):
-    """Absolute accuracy of the NumPy log_so3 at angle theta: atan2 for the angle and,
-    near pi, the axis from the symmetric part keep it at round-off for every angle
-    (measured max 8.9e-16 over 20,000 samples, half of them within 1e-1..1e-9 of pi)."""
-    del theta
-    return 4e-15
+#: absolute accuracy of the NumPy log_so3 at every angle: atan2 for the angle and, near pi, the
+#: axis from the symmetric part keep it at round-off (measured max 8.9e-16 over 20,000 samples,
+#: half of them within 1e-1..1e-9 of pi)
+LOG_TOL = 4e-15
 
 
 def uniform_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -116,7 +119,7 @@ def test_exp_log_roundtrip_random(seed):
         orth, det = orthogonality_error(R)
         assert orth <= ORTH_TOL and det <= ORTH_TOL
         theta = np.linalg.norm(w)
-        np.testing.assert_allclose(log_so3(R), w, rtol=0, atol=log_tol(theta), err_msg=f"seed {seed} theta {theta}")
+        np.testing.assert_allclose(log_so3(R), w, rtol=0, atol=LOG_TOL, err_msg=f"seed {seed} theta {theta}")
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -127,7 +130,7 @@ def test_exp_log_roundtrip_uniform_rotations(seed):
         theta = np.linalg.norm(w)
         assert theta <= np.pi + 1e-12
         # exp(log(R)) = R, with the accuracy of log at that angle
-        np.testing.assert_allclose(exp_so3(w), R, rtol=0, atol=log_tol(min(theta, np.pi - 1e-8)), err_msg=f"seed {seed}")
+        np.testing.assert_allclose(exp_so3(w), R, rtol=0, atol=LOG_TOL, err_msg=f"seed {seed}")
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -136,7 +139,7 @@ def test_log_near_pi(seed):
     rng = np.random.default_rng(seed)
     W = random_unit(rng, N_SAMPLES) * (np.pi - 10.0 ** rng.uniform(-9, -1, N_SAMPLES))[:, None]
     for w in W:
-        np.testing.assert_allclose(log_so3(exp_so3(w)), w, rtol=0, atol=log_tol(np.pi), err_msg=f"seed {seed}")
+        np.testing.assert_allclose(log_so3(exp_so3(w)), w, rtol=0, atol=LOG_TOL, err_msg=f"seed {seed}")
 
 
 @pytest.mark.parametrize("theta", [1e-12, 1e-9, 1e-6, 1e-4, 9.99e-4, 1.001e-3, 1e-2])
@@ -166,7 +169,7 @@ def test_exp_log_casadi_matches_numpy():
         # both logs against the true vector: NumPy (atan2 form) and CasADi (acos form,
         # angles <= 3 rad here) are accurate to round-off; 1e-14 is ~50 eps
         np.testing.assert_allclose(np.array(flog(exp_so3(v))).ravel(), v, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(log_so3(exp_so3(v)), v, rtol=0, atol=log_tol(np.linalg.norm(v)))
+        np.testing.assert_allclose(log_so3(exp_so3(v)), v, rtol=0, atol=LOG_TOL)
 
 
 # ------------------------------------------------- CasADi derivatives near I
@@ -215,3 +218,46 @@ def test_elementary_rotations(rot, axis):
         e = np.eye(3)[axis]
         np.testing.assert_allclose(R @ e, e, atol=0)                              # fixes its axis
         np.testing.assert_allclose(R, exp_so3(np.deg2rad(deg) * e), rtol=0, atol=1e-14)  # right-handed
+
+
+# ------------------------------------------------------- rotations by pi, Jacobians
+def test_cayley_inverse_batch_equals_single():
+    rng = np.random.default_rng(7)
+    C = rng.normal(size=(20, 3))
+    F = np.array([cayley(c) for c in C])
+    np.testing.assert_allclose(cayley_inv(F), C, rtol=1e-13, atol=1e-15)
+    np.testing.assert_array_equal(cayley_inv(F)[3], cayley_inv(F[3]))
+
+
+def test_log_any_handles_pi_rotations():
+    """At exactly pi the skew part carries no sign: log_so3_any picks the one along ``prefer``."""
+    R = rot_x(30) @ rot_z(180)
+    for prefer in (np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0])):
+        w = log_so3_any(R, prefer=prefer)
+        assert abs(np.linalg.norm(w) - np.pi) <= 4 * EPS
+        assert np.abs(exp_so3(w) - R).max() <= 1e-15 and w @ prefer > 0
+    np.testing.assert_array_equal(log_so3_any(rot_z(40)), log_so3(rot_z(40)))
+
+
+def test_right_jacobian_inverse_against_differences():
+    """Log(Exp(phi) Exp(d)) - phi = Jr^-1(phi) d + O(|d|^2): with |d| = 1e-7 the remainder is
+    below 1e-13 (and the relative error of the linear term below 1e-5), for angles from 1e-5 to 2.8."""
+    rng = np.random.default_rng(3)
+    for angle in (1.0, 1e-5, 2.8):          # inside the injectivity radius pi of log
+        v = rng.normal(size=3)
+        phi = angle * v / np.linalg.norm(v)
+        d = 1e-7 * rng.normal(size=3)
+        lhs = log_so3(exp_so3(phi) @ exp_so3(d)) - log_so3(exp_so3(phi))
+        np.testing.assert_allclose(lhs, right_jacobian_inv(phi) @ d, rtol=1e-5, atol=1e-13)
+
+
+# ------------------------------------------------------- charts of the state space
+def test_tangent_basis_matches_left_perturbation():
+    """dX = D(X) z for dR = R S(zeta): a perturbation of size 1e-7 matches to 1e-13 (O(|z|^2))."""
+    rng = np.random.default_rng(1)
+    R = exp_so3(rng.normal(size=3))
+    X = pack_state(rng.normal(size=3), rng.normal(size=3), R, rng.normal(size=3))
+    z = rng.normal(size=12) * 1e-7
+    s = unpack_states(X)
+    Xp = pack_state(s.x[0] + z[:3], s.gamma[0] + z[3:6], R @ exp_so3(z[6:9]), s.Pi[0] + z[9:])
+    np.testing.assert_allclose(Xp - X, tangent_basis(X) @ z, rtol=0, atol=1e-13)

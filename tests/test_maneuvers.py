@@ -1,4 +1,5 @@
-"""The YAML maneuver schema: the bundled configs load, bad input is named precisely."""
+"""The YAML maneuver schema (problems/maneuvers.py): the bundled configs load into the Problem they state,
+bad input is named precisely."""
 from __future__ import annotations
 
 import copy
@@ -30,7 +31,7 @@ def test_bundled_configs_load(path):
 
 
 def test_spec_examples_match_spec():
-    """Numbers of SPEC §7 reproduced from the YAML (to 1e-14)."""
+    """The examples' numbers (docs/mathematics.md §9) reproduced from the YAML (to 1e-14)."""
     body = Dumbbell()
     e1 = load_maneuver(CONFIGS / "e1_impulsive_tpbvp.yaml")
     np.testing.assert_allclose(e1.terminal.R, rot_z(150) @ rot_y(90), atol=1e-15)
@@ -45,7 +46,11 @@ def test_spec_examples_match_spec():
     np.testing.assert_allclose(e3.terminal.R, Rd, atol=1e-15)
     np.testing.assert_allclose(e3.terminal.velocity, rot_x(30) @ [0, -2 * np.pi, 0], atol=1e-14)
     np.testing.assert_allclose(e3.terminal.omega, Rd.T @ rot_x(30) @ [0, 0, 2 * np.pi], atol=1e-14)
-    np.testing.assert_allclose(e3.W_m, [1e4] * 3)
+    np.testing.assert_allclose(e3.problem.control.W_m, 1e4 * np.eye(3))
+    np.testing.assert_allclose(e3.problem.control.W_f, np.eye(3))
+    np.testing.assert_array_equal(e3.problem.terminal.X, e3.terminal.vector(body))
+    np.testing.assert_array_equal(e3.problem.X0, e3.initial.vector(body))
+    assert e3.problem.scheme == "first_order" and e3.problem.N == 500 and e3.problem.T == 0.5
     s = unpack_states(e3.terminal.vector(body))
     np.testing.assert_allclose(s.Pi[0], body.inertia @ e3.terminal.omega, rtol=1e-15)
 
@@ -59,13 +64,14 @@ def test_yaml12_floats():
 
 def test_override_and_resolved():
     man = load_maneuver(E3, ["horizon.N=100", "solver.indirect.max_iter=7", "control.weights.moment=[1, 2, 3]"])
-    assert man.N == 100 and man.indirect["max_iter"] == 7
-    np.testing.assert_allclose(man.W_m, [1, 2, 3])
+    assert man.N == 100 and man.indirect.max_iter == 7
+    np.testing.assert_allclose(man.problem.control.W_m, np.diag([1, 2, 3]))
     assert man.resolved["horizon"]["N"] == 100
     assert man.resolved["solver"]["direct"]["solver"] == "ipopt"  # defaults written out
     # the resolved config is itself a valid config giving the same maneuver
     again = parse_maneuver(yaml.safe_load(yaml.safe_dump(man.resolved)), "resolved")
-    np.testing.assert_array_equal(again.X0(), man.X0())
+    np.testing.assert_array_equal(again.problem.X0, man.problem.X0)
+    assert again.direct == man.direct and again.indirect == man.indirect
 
 
 def test_rotations_product_left_to_right():
@@ -126,6 +132,11 @@ BAD = [
     ("control kind", "control.kind", "bang", "control.kind"),
     ("weight zero", "control.weights.moment", 0, "control.weights.moment"),
     ("weight negative entry", "control.weights.force", [1, -1, 1], "control.weights.force[1]"),
+    ("weight matrix not SPD", "control.weights.force", [[1, 2, 0], [2, 1, 0], [0, 0, 1]], "control.weights.force"),
+    ("weight matrix not symmetric", "control.weights.moment", [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "control.weights.moment"),
+    ("max_iter overflow", "solver.direct", {"max_iter": 1e30}, "solver.direct.max_iter"),
+    ("raw option null", "solver.direct", {"options": {"mu_init": None}}, "solver.direct.options.mu_init"),
+    ("unavailable linear solver", "solver.direct", {"options": {"linear_solver": "ma57"}}, "solver.direct.options.linear_solver"),
     ("momentum overflow", "initial.velocity", [1e308, 0.0, 0.0], "initial"),
     ("position at origin", "initial.position", [0.0, 0.0, 0.0], "initial.position"),
     ("direct solver", "solver.direct", {"solver": "snopt"}, "solver.direct.solver"),

@@ -50,7 +50,7 @@ def _check(doc):
         assert str(e).startswith("fuzz.yaml: ") and "\n" not in str(e)
         return
     assert isinstance(man, Maneuver)
-    assert np.all(np.isfinite(man.X0())) and man.N > 0 and man.T > 0
+    assert np.all(np.isfinite(man.problem.X0)) and man.N > 0 and man.T > 0
 
 
 @settings(max_examples=300, deadline=None, derandomize=bool(os.environ.get("CI")), suppress_health_check=[HealthCheck.too_slow])

@@ -199,7 +199,7 @@ continuation: true
     res = sw.run_sweep(s, workers=1)
     assert [r["converged"] for r in res.rows] == [True, False, True]
     bad = res.rows[1]
-    assert bad["status"] == "Maximum_Iterations_Exceeded" and bad["start"] == "cold_after_failed_warm"
+    assert bad["status"] == "max_iterations" and bad["start"] == "cold_after_failed_warm"
     assert bad["iterations_total"] == 2 and bad["warm_started"] is False
     assert res.rows[2]["start"] == "neighbour" and res.rows[2]["warm_started"] is True
     assert not res.all_converged
@@ -216,21 +216,21 @@ def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
 
     monkeypatch.setattr(sw, "_solve", flaky)
     res = sw.run_sweep(s, workers=1)
-    assert [r["status"] for r in res.rows] == ["error", "Solve_Succeeded"]
+    assert [r["status"] for r in res.rows] == ["error", "converged"]
     assert res.rows[0]["message"] == "RuntimeError: solver blew up with a two-line message"
 
 
 def test_warm_start_that_raises_falls_back_cold(tmp_path, monkeypatch):
-    import se3ocp.transcription.direct as direct
+    import se3ocp.transcription.solve as dispatcher
 
-    real = direct.solve_direct
+    real = dispatcher.solve_direct
 
-    def no_warm(problem, progress=None, warm_start=None):
+    def no_warm(problem, options=None, progress=None, warm_start=None):
         if warm_start is not None:
             raise RuntimeError("warm start broke the solver")
-        return real(problem, progress=progress)
+        return real(problem, options, progress)
 
-    monkeypatch.setattr(direct, "solve_direct", no_warm)
+    monkeypatch.setattr(dispatcher, "solve_direct", no_warm)
     s = sw.load_sweep(write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {horizon.T: [0.5, 0.52]}\ncontinuation: true\n"))
     res = sw.run_sweep(s, workers=1)
     assert [r["start"] for r in res.rows] == ["cold", "cold_after_failed_warm"]

@@ -1,0 +1,130 @@
+"""The one entry point (transcription/solve.py and se3ocp.solve): dispatch, options, comparison,
+simulation, and the hand-off from the direct to the indirect method."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import se3ocp
+from se3ocp.transcription.results import Result, Solution, Trajectory
+from se3ocp.transcription.solve import compare
+from support import maneuver
+
+
+def test_both_methods_agree_and_compare():
+    """E3 (first order, N = 60): one call solves by both methods; they agree to 1e-8 in cost and
+    1e-6 in controls, and the Comparison says so."""
+    c = se3ocp.solve(maneuver("e3", 60), "both")
+    assert isinstance(c, se3ocp.Comparison) and c.direct.method == "direct" and c.indirect.method == "indirect"
+    assert c.converged and c.same_extremal and c.verdict == "agree: same extremal"
+    assert c.cost_relative_difference <= 1e-8 and c.control_max_difference_relative <= 1e-6
+
+
+def test_from_direct_hand_off_reuses_the_direct_solution(monkeypatch):
+    """With initial_costate: from_direct, 'both' runs the direct method once and starts the indirect
+    method from its multipliers (at most 3 Newton iterations: they already nearly satisfy the conditions)."""
+    import se3ocp.transcription.direct as direct
+    import se3ocp.transcription.solve as dispatcher
+
+    calls = []
+    real = direct.solve_direct
+
+    def counted(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(dispatcher, "solve_direct", counted)
+    monkeypatch.setattr(direct, "solve_direct", counted)
+    c = se3ocp.solve(maneuver("e4", 60, "first_order"), "both", indirect={"initial_costate": "from_direct"})
+    assert len(calls) == 1
+    assert c.indirect.stats["initial_costate"] == "from_direct" and c.indirect.iterations <= 3
+    assert c.same_extremal
+
+
+def test_weights_are_handled_alike_by_both_methods():
+    """A full (non-diagonal) SPD weight matrix is accepted by both methods and both reach the same
+    optimum (cost to 1e-8, controls to 1e-6); the first-order stationarity u_{k+1} = -W^-1 [lam2; lam4]
+    holds with the full matrix (to 1e-9)."""
+    man = maneuver("e3", 40, "first_order", "control.weights.force=[[2, 0.5, 0], [0.5, 1, 0.2], [0, 0.2, 1]]")
+    c = se3ocp.solve(man, "both")
+    assert c.converged and c.same_extremal, (c.direct.message, c.indirect.message)
+    assert c.cost_relative_difference <= 1e-8 and c.control_max_difference_relative <= 1e-6
+    W, lam, U = man.problem.control.W, c.direct.costates, c.direct.controls
+    u = -np.linalg.solve(W, np.r_[lam[:, 3:6].T, lam[:, 9:12].T])
+    assert np.abs(u - U).max() <= 1e-9 * np.abs(U).max()
+
+
+def _fake(method, cost, U, result=Result.converged):
+    return Solution(method=method, solver="x", result=result, message="", trajectory=Trajectory(np.zeros(3), np.zeros((3, 18))),
+                    cost=cost, terminal_error=1e-14, iterations=7, build_s=0.0, solve_s=0.0, controls=U)
+
+
+def test_compare_reports_different_extremals():
+    """Two converged solutions with different costs are flagged, the lower one named."""
+    base = _fake("direct", 9.47, np.ones((6, 2)))
+    other = _fake("indirect", 3.2 * 9.47, -np.ones((6, 2)))
+    c = compare(base, other)
+    assert c.same_extremal is False and c.verdict.startswith("MISMATCH")
+    assert "direct cost 9.47" in c.verdict and "ratio 3.2" in c.verdict
+    assert c.control_max_difference_relative == 2.0
+    same = compare(base, dataclasses.replace(other, cost=9.47 * (1 + 1e-9), controls=base.controls))
+    assert same.same_extremal is True and same.verdict.startswith("agree")
+    failed = compare(base, dataclasses.replace(other, result=Result.max_iterations))
+    assert failed.same_extremal is False and failed.verdict.startswith("not comparable")
+
+
+def test_options_from_keywords_mappings_and_objects():
+    man = maneuver("e3", 20, "first_order")
+    s = se3ocp.solve(man, max_iter=1)                                   # keyword: the chosen method's option
+    assert s.result is Result.max_iterations
+    s = se3ocp.solve(man, direct={"max_iter": 1})                       # a mapping of changes
+    assert s.result is Result.max_iterations
+    s = se3ocp.solve(man, direct=se3ocp.DirectOptions(tol=1e-8))        # an options object
+    assert s.converged and s.stats["kkt_tol"] == 1e-8
+    with pytest.raises(TypeError, match="direct=.*indirect="):
+        se3ocp.solve(man, "both", max_iter=3)
+    with pytest.raises(se3ocp.OptionError, match="max_iterations"):
+        se3ocp.solve(man, max_iterations=3)
+    with pytest.raises(ValueError, match="method must be one of"):
+        se3ocp.solve(man, "shooting")
+
+
+def test_a_problem_built_in_python_solves_like_its_file():
+    """The Problem of a file, rebuilt field by field in Python, gives the same solution (bitwise cost)."""
+    man = maneuver("e3", 30, "first_order")
+    p = man.problem
+    q = se3ocp.Problem(disc=p.disc, N=p.N, T=p.T, X0=p.X0.copy(), terminal=se3ocp.TargetState(p.terminal.X.copy()),
+                       control=se3ocp.SmoothControl(W_f=1.0, W_m=[1e4, 1e4, 1e4]), name="python")
+    a, b = se3ocp.solve(man), se3ocp.solve(q)                           # the file's solver block is the default
+    assert a.converged and b.converged and a.cost == b.cost
+
+
+def test_simulate_reports_diagnostics_and_the_miss():
+    sim = se3ocp.simulate(maneuver("e3", 100, "lgvi"))
+    assert sim.method == "simulate" and sim.result is Result.converged
+    assert sim.stats["max_orthogonality_error"] <= 1e-13 and sim.stats["max_relative_energy_error"] <= 1e-4
+    # free motion misses E3's target (a 30 degree plane change): the miss is the terminal error
+    assert sim.terminal_error > 0.5
+    X, _ = sim.problem.disc.simulate(sim.problem.X0, None, sim.h, sim.N)
+    np.testing.assert_array_equal(X, sim.trajectory.X)
+    # with the optimal controls the simulation reaches the target
+    s = se3ocp.solve(maneuver("e3", 100, "lgvi"))
+    assert se3ocp.simulate(maneuver("e3", 100, "lgvi"), s.controls).terminal_error <= 1e-10
+
+
+def test_solutions_carry_velocities_and_angular_velocities():
+    s = se3ocp.solve(maneuver("e4", 20, "first_order"))
+    tr, m = s.trajectory, s.problem.model
+    np.testing.assert_allclose(tr.v * m.mass, tr.gamma, rtol=1e-15)
+    np.testing.assert_allclose(tr.Omega @ m.inertia.T, tr.Pi, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(tr.Omega[0], [1.0, -2.0, 3.0], rtol=1e-14)         # E4's initial tumble
+    assert s.u_f.shape == (20, 3) and s.control_times.shape == (20,) and s.control_times[0] == s.h
+
+
+def test_impulsive_maneuvers_take_the_direct_method_only():
+    with pytest.raises(ValueError, match="impulsive maneuvers are solved by method='direct'"):
+        se3ocp.solve(maneuver("e1", 50), "both")
+    with pytest.raises(ValueError, match="nothing to solve"):
+        se3ocp.solve(maneuver("free", 50))
