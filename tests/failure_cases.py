@@ -238,7 +238,7 @@ CASES: list[Case] = [
          args=("--method", "direct", "--no-figures"), expect=130, interrupt=("line", "[direct] iter", 0.0),
          method="direct", group="interrupt"),
     Case(id="sigint_newton", cls="Ctrl-C during Newton-Armijo", command="solve", config=E4, sets=("horizon.N=100",),
-         args=("--method", "indirect", "--no-figures"), expect=130, interrupt=("line", "[indirect] iter   1", 0.0),
+         args=("--method", "indirect", "--no-figures"), expect=130, interrupt=("line", "[indirect] iter    1", 0.0),
          method="indirect", group="interrupt"),
     Case(id="sigint_figures", cls="Ctrl-C while writing figures", command="solve", config=E3, sets=("horizon.N=50",),
          args=("--method", "indirect"), expect=130, interrupt=("line", "  indirect:", 0.3), method="indirect",

@@ -1,0 +1,74 @@
+"""The public API as a user meets it: the README's Python example runs, `import se3ocp` is the
+whole surface, and the repository stands on its own."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import se3ocp
+from support import ROOT
+
+
+def readme_example() -> str:
+    text = (ROOT / "README.md").read_text()
+    m = re.search(r"<!-- api-example -->\s*```python\n(.*?)```", text, re.S)
+    assert m, "the README's Python example (after <!-- api-example -->) is missing"
+    return m.group(1)
+
+
+def test_the_readme_python_example_runs(monkeypatch, capsys):
+    monkeypatch.chdir(ROOT)
+    scope: dict = {}
+    exec(compile(readme_example(), "README.md", "exec"), scope)
+    sol, both, ind, sim = scope["sol"], scope["both"], scope["ind"], scope["sim"]
+    assert sol.converged and both.same_extremal and ind.converged and sim.converged
+    assert ind.stats["initial_costate"] == "from_direct"
+    assert set(scope["figs"]) >= {"maneuver", "force", "moment", "convergence"}
+    out = capsys.readouterr().out
+    assert "converged" in out and "agree: same extremal" in out
+
+
+def test_help_on_the_entry_point_and_the_exports():
+    out = subprocess.run([sys.executable, "-c", "import se3ocp; help(se3ocp.solve)"], capture_output=True, text=True,
+                         timeout=120, cwd=str(ROOT))
+    assert out.returncode == 0 and "method" in out.stdout and "'both'" in out.stdout
+    for name in se3ocp.__all__:
+        assert getattr(se3ocp, name) is not None, name
+
+
+def test_import_is_light_until_a_name_is_used():
+    """`import se3ocp` (and the CLI module's first lines) load neither CasADi nor NumPy: the CLI
+    installs its Ctrl-C handler before they load."""
+    code = "import sys, se3ocp; print('casadi' in sys.modules, 'numpy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.split() == ["False", "False"], out.stdout + out.stderr
+
+
+def test_the_installed_names_are_under_se3ocp_only():
+    """The layers are se3ocp.transcription and se3ocp.problems; the method layer never imports the
+    problems layer."""
+    assert se3ocp.solve.__module__ == "se3ocp.problems.api"
+    for path in (ROOT / "transcription").glob("*.py"):
+        text = path.read_text()
+        assert not re.search(r"^\s*(from|import)\s+(\.\.problems|se3ocp\.problems|problems)\b", text, re.M), path
+    for path in list((ROOT / "problems").glob("*.py")) + list((ROOT / "scripts").glob("*.py")) + list(
+            (ROOT / "tests").glob("*.py")):
+        text = path.read_text()
+        assert not re.search(r"^\s*(from|import)\s+(transcription|problems)\b", text, re.M), f"{path}: bare import"
+    for path in (ROOT / "scripts").glob("*.py"):
+        assert not re.search(r"^\s*(from|import)\s+tests\b", path.read_text(), re.M), f"{path} imports tests"
+
+
+def test_nothing_refers_outside_the_repository():
+    """The project stands on its own: no README, doc, config, docstring or test points at the
+    workspace's shared files."""
+    pat = re.compile(r"\.\./shared|shared/SPEC|SPEC\.md|SPEC §|seed/000")
+    files = [ROOT / "README.md", ROOT / "pyproject.toml"]
+    for folder, exts in (("docs", ("*.md",)), ("configs", ("*.yaml", "sweeps/*.yaml")),
+                         ("transcription", ("*.py",)), ("problems", ("*.py",)), ("scripts", ("*.py",)),
+                         ("tests", ("*.py",))):
+        for ext in exts:
+            files += list((ROOT / folder).glob(ext))
+    bad = [str(p.relative_to(ROOT)) for p in files if pat.search(p.read_text()) and p.name != "test_api.py"]
+    assert not bad, bad
