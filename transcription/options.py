@@ -195,6 +195,8 @@ class DirectOptions(Options):
     fatrop_options: Mapping = _opt({}, "mapping", doc="raw fatrop options")
     fatrop_expand: bool = _opt(False, "bool", doc="fatrop: SX-expand the whole NLP")
     jit: bool = _opt(True, "bool", doc="compile the stage derivatives to C (cached on disk; interpreter without a compiler)")
+    transcription: str = _opt("single_shooting", "choice", choices=("single_shooting", "multiple_shooting"),
+                              doc="impulsive maneuvers to an orbit: the six initial momenta as unknowns, or every node state")
 
     def __post_init__(self):
         super().__post_init__()
