@@ -115,22 +115,85 @@ def _spd(W, name: str) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class BoxBound:
+    """|u_i| <= b_i for each component i of a 3-vector control (b_i > 0), in the control's frame
+    (inertial for the force, body for the moment)."""
+
+    b: np.ndarray
+
+    def __post_init__(self):
+        b = np.asarray(self.b, dtype=float).reshape(-1)
+        if b.shape != (3,) or not np.all(np.isfinite(b)) or not np.all(b > 0):
+            raise ProblemError("bounds.box", "expected 3 positive finite limits")
+        object.__setattr__(self, "b", b)
+
+    def margin(self, u: np.ndarray) -> np.ndarray:
+        """min_i (b_i - |u_i|) for controls u (n, 3): >= 0 where the bound holds."""
+        return np.min(self.b[None, :] - np.abs(np.asarray(u, float)), axis=1)
+
+    def scale(self) -> float:
+        return float(self.b.max())
+
+
+@dataclass(frozen=True)
+class NormBound:
+    """|u|_2 <= b (b >= 0; b = 0 removes the control)."""
+
+    b: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.b) and self.b >= 0):
+            raise ProblemError("bounds.norm", "expected a non-negative finite limit")
+        object.__setattr__(self, "b", float(self.b))
+
+    def margin(self, u: np.ndarray) -> np.ndarray:
+        """b - |u| for controls u (n, 3)."""
+        return self.b - np.linalg.norm(np.asarray(u, float), axis=1)
+
+    def scale(self) -> float:
+        return self.b
+
+
+Bound = Union[BoxBound, NormBound]
+OBJECTIVES = ("effort", "time", "fuel")
+
+
+@dataclass(frozen=True)
 class SmoothControl:
     """Controls u_f (inertial force) and u_m (body moment) at the nodes of the scheme.
 
-    objective 'effort': min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m), W_f, W_m
-    symmetric positive definite (given as scalars, diagonals or matrices).
+    objective (docs/mathematics.md §6, §10):
+      'effort' min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m), W_f, W_m symmetric positive
+               definite (given as scalars, diagonals or matrices);
+      'time'   min T (a free final time; every control bounded);
+      'fuel'   min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), the weights scalars (W = w I).
+    force_bound, moment_bound: a BoxBound, a NormBound or None (unbounded); NormBound(0) removes the
+    control (attitude-only or translation-only maneuvers).
     """
 
     W_f: np.ndarray = field(default_factory=lambda: np.eye(3))
     W_m: np.ndarray = field(default_factory=lambda: np.eye(3))
     objective: str = "effort"
+    force_bound: Bound | None = None
+    moment_bound: Bound | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "W_f", _spd(self.W_f, "control.W_f"))
         object.__setattr__(self, "W_m", _spd(self.W_m, "control.W_m"))
-        if self.objective != "effort":
-            raise ProblemError("control.objective", f"expected 'effort', got {self.objective!r}")
+        if self.objective not in OBJECTIVES:
+            raise ProblemError("control.objective", f"expected one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
+        for name in ("force_bound", "moment_bound"):
+            b = getattr(self, name)
+            if b is not None and not isinstance(b, (BoxBound, NormBound)):
+                raise ProblemError(f"control.{name}", "expected a BoxBound, a NormBound or None")
+        if self.objective == "fuel":
+            for name in ("W_f", "W_m"):
+                W = getattr(self, name)
+                if not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-12, atol=0.0):
+                    raise ProblemError(f"control.{name}", "for the fuel objective a weight is one number (the weight of the norm)")
+        if self.objective == "time" and (self.force_bound is None or self.moment_bound is None):
+            raise ProblemError("control.bounds", "the time objective needs a bound on every control (force and moment; "
+                                                 "a norm bound of 0 removes one)")
 
     @property
     def W(self) -> np.ndarray:
@@ -139,6 +202,126 @@ class SmoothControl:
         W[U_FORCE, U_FORCE] = self.W_f
         W[U_MOMENT, U_MOMENT] = self.W_m
         return W
+
+    @property
+    def bounded(self) -> bool:
+        return self.force_bound is not None or self.moment_bound is not None
+
+    @property
+    def removed(self) -> tuple[bool, bool]:
+        """(force removed, moment removed): a NormBound of 0."""
+        return tuple(isinstance(b, NormBound) and b.b == 0 for b in (self.force_bound, self.moment_bound))
+
+
+# ------------------------------------------------------------------------ path constraints
+def _unit(v, name):
+    v = np.asarray(v, dtype=float).reshape(-1)
+    n = np.linalg.norm(v) if v.shape == (3,) and np.all(np.isfinite(v)) else 0.0
+    if not n > 0:
+        raise ProblemError(name, "expected a non-zero finite 3-vector")
+    return v / n
+
+
+@dataclass(frozen=True)
+class MinRadius:
+    """|x_k| >= radius at every node (stay above a sphere about the central body's centre)."""
+
+    radius: float
+    kind = "min_radius"
+    unit = "radii"
+
+    def __post_init__(self):
+        if not (np.isfinite(self.radius) and self.radius > 0):
+            raise ProblemError("constraints.min_radius.radius", "expected a positive number")
+
+    def expression(self, X, inertia):
+        """g(X) >= 0 (CasADi or NumPy): |x| - r (in length units; the margin)."""
+        x, _, _, _ = split_state(X)
+        return (ca.norm_2(x) if isinstance(X, (ca.SX, ca.MX, ca.DM)) else np.linalg.norm(x)) - self.radius
+
+    def margin(self, traj) -> np.ndarray:
+        return np.linalg.norm(traj.x, axis=1) - self.radius
+
+
+@dataclass(frozen=True)
+class _Cone:
+    body_axis: np.ndarray
+    direction: np.ndarray
+    angle_deg: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "body_axis", _unit(self.body_axis, f"constraints.{self.kind}.body_axis"))
+        object.__setattr__(self, "direction", _unit(self.direction, f"constraints.{self.kind}.direction"))
+        if not (np.isfinite(self.angle_deg) and 0 < self.angle_deg < 180):
+            raise ProblemError(f"constraints.{self.kind}.angle", "expected an angle strictly between 0 and 180 degrees")
+
+    def cos_angle(self, X):
+        """(R b) . s, the cosine of the angle between the inertial image of the body axis and the direction."""
+        _, _, R, _ = split_state(X)
+        return (ca.dot(ca.mtimes(R, ca.DM(self.body_axis)), ca.DM(self.direction))
+                if isinstance(X, (ca.SX, ca.MX, ca.DM)) else (R @ self.body_axis) @ self.direction)
+
+    def angles_deg(self, traj) -> np.ndarray:
+        c = np.einsum("kij,j,i->k", traj.R, self.body_axis, self.direction)
+        return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+@dataclass(frozen=True)
+class KeepOut(_Cone):
+    """angle(R_k b, s) >= angle_deg at every node: the body axis b stays out of a cone about the
+    inertial direction s (e.g. a camera and the Sun).  Smooth form: cos(angle) - (R b).s >= 0."""
+
+    kind = "keep_out"
+    unit = "deg"
+
+    def expression(self, X, inertia):
+        return np.cos(np.radians(self.angle_deg)) - self.cos_angle(X)
+
+    def margin(self, traj) -> np.ndarray:
+        return self.angles_deg(traj) - self.angle_deg
+
+
+@dataclass(frozen=True)
+class KeepIn(_Cone):
+    """angle(R_k b, s) <= angle_deg at every node (e.g. an antenna towards the ground).
+    Smooth form: (R b).s - cos(angle) >= 0."""
+
+    kind = "keep_in"
+    unit = "deg"
+
+    def expression(self, X, inertia):
+        return self.cos_angle(X) - np.cos(np.radians(self.angle_deg))
+
+    def margin(self, traj) -> np.ndarray:
+        return self.angle_deg - self.angles_deg(traj)
+
+
+@dataclass(frozen=True)
+class MaxAngularRate:
+    """|Omega_k| <= value at every node (Omega = J^-1 Pi, body frame).  Smooth form: value^2 - |Omega|^2 >= 0."""
+
+    value: float
+    kind = "max_angular_rate"
+    unit = "rad/period"
+
+    def __post_init__(self):
+        if not (np.isfinite(self.value) and self.value > 0):
+            raise ProblemError("constraints.max_angular_rate.value", "expected a positive number")
+
+    def expression(self, X, inertia):
+        _, _, _, Pi = split_state(X)
+        Jinv = np.linalg.inv(inertia)
+        if isinstance(X, (ca.SX, ca.MX, ca.DM)):
+            Om = ca.mtimes(ca.DM(Jinv), Pi)
+            return self.value**2 - ca.dot(Om, Om)
+        Om = Jinv @ Pi
+        return self.value**2 - Om @ Om
+
+    def margin(self, traj) -> np.ndarray:
+        return self.value - np.linalg.norm(traj.Omega, axis=1)
+
+
+PathConstraint = Union[MinRadius, KeepOut, KeepIn, MaxAngularRate]
 
 
 @dataclass(frozen=True)
@@ -156,6 +339,8 @@ class Problem:
 
     N steps of size h = T/N from the initial state X0 (18) to ``terminal`` under ``control``.
     ``terminal`` and ``control`` may both be None: a motion to simulate only.
+    time_bounds: (min, max) makes the final time free in [min, max] (T is then the guess).
+    constraints: path constraints enforced at every node (MinRadius, KeepOut, KeepIn, MaxAngularRate).
     """
 
     disc: Discretization
@@ -165,6 +350,8 @@ class Problem:
     terminal: Target | None = None
     control: Control | None = None
     name: str = ""
+    time_bounds: tuple[float, float] | None = None
+    constraints: tuple = ()
 
     def __post_init__(self):
         if isinstance(self.N, bool) or not isinstance(self.N, (int, np.integer)) or self.N < 1:
@@ -185,10 +372,31 @@ class Problem:
             raise ProblemError("terminal", "an orbit target is supported for impulsive control only")
         if isinstance(self.control, ImpulsiveControl) and isinstance(self.terminal, TargetState) and self.terminal.free:
             raise ProblemError("terminal.free", "an impulsive state target must give every component")
+        if self.time_bounds is not None:
+            lo, hi = (float(v) for v in self.time_bounds)
+            if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= self.T <= hi):
+                raise ProblemError("time_bounds", f"expected 0 < min <= T (the guess) <= max, got {self.time_bounds} and "
+                                                  f"T = {self.T}")
+            if self.kind != "smooth":
+                raise ProblemError("time_bounds", "a free final time needs smooth control")
+            object.__setattr__(self, "time_bounds", (lo, hi))
+        elif isinstance(self.control, SmoothControl) and self.control.objective == "time":
+            raise ProblemError("time_bounds", "the time objective needs a free final time (time_bounds)")
+        object.__setattr__(self, "constraints", tuple(self.constraints))
+        for c in self.constraints:
+            if not isinstance(c, (MinRadius, KeepOut, KeepIn, MaxAngularRate)):
+                raise ProblemError("constraints", f"expected path constraints, got {type(c).__name__}")
+        if self.constraints and self.kind == "impulsive":
+            raise ProblemError("constraints", "path constraints need smooth control")
 
     @property
     def h(self) -> float:
+        """T / N (with a free final time: of the guess T)."""
         return self.T / self.N
+
+    @property
+    def free_time(self) -> bool:
+        return self.time_bounds is not None
 
     @property
     def kind(self) -> str | None:
