@@ -1,39 +1,100 @@
-"""Results on disk: atomic writes and results-directory policy.
+"""Results on disk: atomic files and the results-directory policy.
 
-Every file is written to a temporary name in the same directory and renamed
-into place, so an interrupted run (Ctrl-C, crash) never leaves a half-written
-file under its final name.
+:func:`atomic_write_bytes` (and ``write_json``/``write_yaml``/``write_npz``/``save_figure`` on
+top of it) writes a temporary file beside the target and renames it into place, so a file is
+complete or absent, never half written; :func:`atomic_output` does the same for writers that
+want a path (matplotlib animations).  Files get the mode of an ordinary new file (0666 minus
+the umask, e.g. 0644), not mkstemp's 0600.  A file-system fault is a one-line
+:class:`ResultsDirError` naming the file, never a traceback.
 """
 from __future__ import annotations
 
+import contextlib
+import errno
 import io
 import json
 import os
-import tempfile
+import secrets
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
-import yaml
 
 from ..transcription.results import to_jsonable
+from .schema import yaml_dump
+
+class ResultsDirError(Exception):
+    """A results directory or file that cannot be used or written: one line, naming the path."""
+
+
+# ----------------------------------------------------------------------------- files
+def _fs_error(path, e: OSError | ValueError, doing: str) -> ResultsDirError:
+    """One line for a file-system fault: ``PATH: cannot DOING (reason)``."""
+    if isinstance(e, ValueError):  # a NUL byte in the path
+        return ResultsDirError(f"{_show(path)}: cannot {doing} ({e})")
+    reason = e.strerror or str(e)
+    if e.errno == errno.ENOTDIR:
+        reason += "; a part of the path is a file"
+    elif e.errno == errno.ENAMETOOLONG:
+        reason += "; use a shorter name"
+    return ResultsDirError(f"{_show(path)}: cannot {doing} ({reason})")
+
+
+def _show(path) -> str:
+    s = str(path)
+    return s if s.isprintable() else repr(s)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (temporary file in the same directory, fsync,
+    rename): ``path`` is the old file or the complete new one.  The directory must exist.
+    Mode 0666 minus the umask.  OSError -> :class:`ResultsDirError` naming ``path``."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    fd = -1
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
+        _write_all(fd, data)
+        os.fsync(fd)
+        os.close(fd)
+        fd = -1
         os.replace(tmp, path)
-    except BaseException:
-        try:
+    except BaseException as e:
+        if fd >= 0:
+            os.close(fd)
+        with contextlib.suppress(OSError, ValueError):
             os.unlink(tmp)
-        except OSError:
-            pass
+        if isinstance(e, (OSError, ValueError)):
+            raise _fs_error(path, e, "write") from None
+        raise
+
+
+@contextlib.contextmanager
+def atomic_output(path: Path) -> Iterator[Path]:
+    """For writers that need a file name: yields a temporary path beside ``path`` with the
+    same suffix (``.maneuver.gif.XXXXXXXX.tmp.gif``), renamed to ``path`` when the block ends
+    normally and deleted otherwise (an interrupted animation leaves no temporary GIF)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp{path.suffix}")
+    try:
+        yield tmp
+        fd = os.open(tmp, os.O_RDONLY | os.O_CLOEXEC)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException as e:
+        with contextlib.suppress(OSError, ValueError):
+            os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise _fs_error(path, e, "write") from None
         raise
 
 
@@ -42,7 +103,8 @@ def write_json(path: Path, obj: Any) -> None:
 
 
 def write_yaml(path: Path, obj: Any) -> None:
-    atomic_write_bytes(path, yaml.safe_dump(to_jsonable(obj), sort_keys=False).encode())
+    """YAML that reads back as written with the project's YAML 1.2 loader and with YAML 1.1."""
+    atomic_write_bytes(path, yaml_dump(to_jsonable(obj)).encode())
 
 
 def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
@@ -61,10 +123,6 @@ def save_figure(fig, path_stem: Path) -> list[Path]:
         atomic_write_bytes(p, buf.getvalue())
         out.append(p)
     return out
-
-
-class ResultsDirError(Exception):
-    pass
 
 
 def prepare_results_dir(out: str | None, default: Path, force: bool) -> Path:
@@ -89,5 +147,8 @@ def prepare_results_dir(out: str | None, default: Path, force: bool) -> Path:
             while Path(f"{default}.{i}").exists():
                 i += 1
             d = Path(f"{default}.{i}")
-    d.mkdir(parents=True, exist_ok=True)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise _fs_error(d, e, "create the results directory") from None
     return d
