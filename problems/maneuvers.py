@@ -38,7 +38,7 @@ from ..transcription.options import DirectOptions, IndirectOptions, OptionError
 from ..transcription.problem import ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, _spd
 
 from .dumbbell import GM_NORMALIZED, Dumbbell
-from .schema import ConfigError, Validator, apply_override, describe, join_field, read_yaml_file, yaml_load  # noqa: F401
+from .schema import ConfigError, Validator, apply_override, describe, join_field, load_with_overrides, read_yaml_file, yaml_load  # noqa: F401
 
 MODEL_DEFAULTS: dict[str, Any] = {
     "kind": "dumbbell",
@@ -83,25 +83,17 @@ class Maneuver:
     terminal: StateSpec | TargetOrbit | None
     resolved: dict[str, Any] = field(repr=False)
 
-    @property
-    def control_kind(self) -> str | None:
-        return self.problem.kind
+    # the Problem's headline numbers, for messages and summaries
+    control_kind: str | None = field(init=False, repr=False)
+    discretization: str = field(init=False, repr=False)
+    N: int = field(init=False, repr=False)
+    T: float = field(init=False, repr=False)
+    h: float = field(init=False, repr=False)
 
-    @property
-    def discretization(self) -> str:
-        return self.problem.scheme
-
-    @property
-    def N(self) -> int:
-        return self.problem.N
-
-    @property
-    def T(self) -> float:
-        return self.problem.T
-
-    @property
-    def h(self) -> float:
-        return self.problem.h
+    def __post_init__(self):
+        p = self.problem
+        for k, v in (("control_kind", p.kind), ("discretization", p.scheme), ("N", p.N), ("T", p.T), ("h", p.h)):
+            object.__setattr__(self, k, v)
 
 
 # ------------------------------------------------------------------ loading
@@ -110,16 +102,9 @@ STATE_KEYS = ("position", "velocity", "attitude", "angular_velocity")
 
 
 def load_maneuver(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Maneuver:
-    """Read, override (``--set``) and validate a maneuver file."""
-    source = str(path)
-    doc = read_yaml_file(path)
-    if doc is None:
-        doc = {}
-    if isinstance(doc, dict):
-        doc = copy.deepcopy(doc)
-        for a in overrides:
-            apply_override(doc, a)
-    return parse_maneuver(doc, source)
+    """Read, override (``--set``) and validate a maneuver file; an error in a field an override set
+    names ``--set`` rather than the file."""
+    return load_with_overrides(path, overrides, parse_maneuver)
 
 
 def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:

@@ -156,7 +156,7 @@ def test_psi_against_finite_differences(name, scheme, N, solved):
 def _check_run(name, sol, max_outer=50, tol=1e-11):
     e = outer_errors(sol.history)
     C = quadratic_constant(sol.history, floor=10 * sol.stats["noise_level"])
-    print(f"{name} N={sol.N}: {sol.status}, {sol.iterations} outer iterations, terminal error {sol.terminal_error:.2e}, "
+    print(f"{name} N={sol.N}: {sol.result}, {sol.iterations} outer iterations, terminal error {sol.terminal_error:.2e}, "
           f"cost {sol.cost:.10g}, C = {C}, solve {sol.solve_s:.2f} s\n  |z_N| per outer iteration: "
           + " ".join(f"{v:.1e}" for v in e))
     assert sol.converged, sol.message

@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 
 import failure_cases as ft
+from se3ocp.transcription.results import Result
 
 #: classes not handled as issue 7 requires today: case id -> where and what should change
 KNOWN: dict[str, str] = {}
@@ -135,7 +136,7 @@ def test_nan_potential_indirect_is_data(tmp_path):
     from se3ocp.transcription.indirect import solve_indirect
 
     sol = solve_indirect(_nan_model_problem())
-    assert sol.status == "non_finite", sol.message
+    assert sol.result is Result.non_finite, sol.message
     _assert_failed_solution_writable(sol, tmp_path)
 
 
@@ -143,7 +144,7 @@ def test_nan_potential_direct_is_data(tmp_path):
     from se3ocp.transcription.direct import solve_direct
 
     sol = solve_direct(_nan_model_problem())
-    assert sol.status == "non_finite", sol.message
+    assert sol.result is Result.non_finite, sol.message
     _assert_failed_solution_writable(sol, tmp_path)
 
 

@@ -165,8 +165,8 @@ class Trajectory:
     """Node values of a motion: times t (N+1,), states X (N+1, 18) (layout of transcription.layout),
     and the body's mass and inertia, so that velocities are at hand.
 
-    Properties (node-major): x (N+1, 3) inertial position; v = gamma/m inertial velocity;
-    gamma linear momentum; R (N+1, 3, 3) body -> inertial; Pi body angular momentum;
+    Derived (node-major, computed once): x (N+1, 3) inertial position; gamma linear momentum and
+    v = gamma/m inertial velocity; R (N+1, 3, 3) body -> inertial; Pi body angular momentum and
     Omega = J^-1 Pi body angular velocity.
     """
 
@@ -174,38 +174,27 @@ class Trajectory:
     X: np.ndarray
     mass: float = 1.0
     inertia: np.ndarray = field(default_factory=lambda: np.eye(3))
+    x: np.ndarray = field(init=False, repr=False)
+    gamma: np.ndarray = field(init=False, repr=False)
+    v: np.ndarray = field(init=False, repr=False)
+    R: np.ndarray = field(init=False, repr=False)
+    Pi: np.ndarray = field(init=False, repr=False)
+    Omega: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        s = unpack_states(self.X)
+        derived = {"x": s.x, "gamma": s.gamma, "v": s.gamma / self.mass, "R": s.R, "Pi": s.Pi,
+                   "Omega": np.linalg.solve(self.inertia, s.Pi.T).T}
+        for k, a in derived.items():
+            object.__setattr__(self, k, a)
 
     @property
     def states(self) -> States:
         return unpack_states(self.X)
 
-    @property
-    def x(self) -> np.ndarray:
-        return self.states.x
-
-    @property
-    def gamma(self) -> np.ndarray:
-        return self.states.gamma
-
-    @property
-    def v(self) -> np.ndarray:
-        return self.states.gamma / self.mass
-
-    @property
-    def R(self) -> np.ndarray:
-        return self.states.R
-
-    @property
-    def Pi(self) -> np.ndarray:
-        return self.states.Pi
-
-    @property
-    def Omega(self) -> np.ndarray:
-        return np.linalg.solve(self.inertia, self.states.Pi.T).T
-
     def orthogonality(self) -> dict[str, float]:
         """max_k |R_k^T R_k - I|_F and max_k |det R_k - 1| (docs/mathematics.md §8)."""
-        orth, det = orthogonality_error(self.states.R)
+        orth, det = orthogonality_error(self.R)
         return {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max())}
 
 
@@ -241,52 +230,29 @@ class Solution:
     history: list[Iterate] = field(default_factory=list)
     stats: dict[str, Any] = field(default_factory=dict)
 
-    # ------------------------------------------------------------------ views
+    # derived, computed once: the horizon, the scheme, the controls' times and components
+    N: int = field(init=False, repr=False)
+    T: float = field(init=False, repr=False)
+    h: float = field(init=False, repr=False)
+    discretization: str = field(init=False, repr=False)
+    control_times: np.ndarray | None = field(init=False, repr=False)
+    u_f: np.ndarray | None = field(init=False, repr=False)
+    u_m: np.ndarray | None = field(init=False, repr=False)
+
+    def __post_init__(self):
+        t = self.trajectory.t
+        self.N, self.T = len(t) - 1, float(t[-1])
+        self.h = self.T / self.N
+        self.discretization = self.problem.disc.scheme if self.problem is not None else ""
+        c = self.controls
+        # controls u_0..u_N (lgvi) at t_0..t_N, or u_1..u_N (first_order) at t_1..t_N; u_f inertial, u_m body
+        self.control_times = None if c is None else (t[1:] if c.shape[1] == len(t) - 1 else t)
+        self.u_f = None if c is None else c[U_FORCE].T
+        self.u_m = None if c is None else c[U_MOMENT].T
+
     @property
     def converged(self) -> bool:
         return self.result.successful
-
-    @property
-    def status(self) -> str:
-        return self.result.value
-
-    @property
-    def N(self) -> int:
-        return len(self.trajectory.t) - 1
-
-    @property
-    def T(self) -> float:
-        return float(self.trajectory.t[-1])
-
-    @property
-    def h(self) -> float:
-        return self.T / self.N
-
-    @property
-    def discretization(self) -> str:
-        return self.problem.disc.scheme if self.problem is not None else ""
-
-    @property
-    def t(self) -> np.ndarray:
-        return self.trajectory.t
-
-    @property
-    def control_times(self) -> np.ndarray | None:
-        """Times of the controls: t_0..t_N (lgvi: node controls) or t_1..t_N (first_order)."""
-        if self.controls is None:
-            return None
-        t = self.trajectory.t
-        return t[1:] if self.controls.shape[1] == len(t) - 1 else t
-
-    @property
-    def u_f(self) -> np.ndarray | None:
-        """Control force (n_controls, 3), inertial frame."""
-        return None if self.controls is None else self.controls[U_FORCE].T
-
-    @property
-    def u_m(self) -> np.ndarray | None:
-        """Control moment (n_controls, 3), body frame."""
-        return None if self.controls is None else self.controls[U_MOMENT].T
 
     # ------------------------------------------------------------------ output
     def summary(self) -> dict[str, Any]:
