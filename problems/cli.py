@@ -32,7 +32,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 
-from .io import ResultsDirError, prepare_results_dir  # noqa: E402
+from .io import ResultsDirError, results_transaction, results_update  # noqa: E402
 from .maneuvers import Maneuver, load_maneuver  # noqa: E402
 from .schema import ConfigError  # noqa: E402
 
@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _interrupted() -> int:
-    print("se3ocp: interrupted; files already written are complete, nothing half-written was left", file=sys.stderr)
+    print("se3ocp: interrupted; the results directory was left as it was (nothing half-written)", file=sys.stderr)
     return 130
 
 
@@ -187,9 +187,11 @@ def _load(args) -> Maneuver:
     return load_maneuver(args.config, args.overrides)
 
 
-def _outdir(args, man: Maneuver) -> Path:
+def _results(args, man: Maneuver):
+    """The results directory of a run, as a transaction: written aside, swapped in whole when the
+    block ends normally, absent (or the previous run, untouched) if it does not."""
     safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in man.name)
-    return prepare_results_dir(args.out, Path("results") / safe, args.force)
+    return results_transaction(args.out, Path("results") / safe, args.force)
 
 
 def _emit_summary(args, summary: dict):
@@ -212,10 +214,11 @@ def cmd_simulate(args) -> int:
     from . import api, store
 
     man = _load(args)
-    out = _outdir(args, man)
-    sol = api.simulate(man)
-    _Interrupt.check()
-    store.write_run(out, man, sol)
+    with _results(args, man) as tx:
+        sol = api.simulate(man)
+        _Interrupt.check()
+        store.write_run(tx.path, man, sol)
+    out = tx.target
     st = sol.stats
     _say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, {sol.solve_s:.2f} s")
     _say(args, f"  max |R^T R - I|          {st['max_orthogonality_error']:.2e}")
@@ -275,21 +278,23 @@ def cmd_solve(args) -> int:
                                                           "impulsive maneuvers are solved by --method direct")
         method = "direct"
     problem, d, i = api.resolve(man, method)
-    out = _outdir(args, man)
-    _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} -> {out}/")
-    _say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
-    result = solve(problem, method, direct=d, indirect=i, progress=Progress(args))
-    _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
-    sols = store.solutions_of(result)
-    for m, sol in sols.items():
-        _say(args, f"  {m}: {sol.result} ({sol.message}); cost {sol.cost:.10g}, terminal error "
-                   f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
-                   f"solve {sol.solve_s:.2f} s")
-    store.write_run(out, man, result)
-    if not args.no_figures:
-        draw_all(out)
-        if args.animate:
-            animate(out)
+    with _results(args, man) as tx:
+        _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
+                   f"-> {tx.target}/")
+        _say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
+        result = solve(problem, method, direct=d, indirect=i, progress=Progress(args))
+        _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
+        sols = store.solutions_of(result)
+        for m, sol in sols.items():
+            _say(args, f"  {m}: {sol.result} ({sol.message}); cost {sol.cost:.10g}, terminal error "
+                       f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
+                       f"solve {sol.solve_s:.2f} s")
+        store.write_run(tx.path, man, result)
+        if not args.no_figures:
+            draw_all(tx.path)
+            if args.animate:
+                animate(tx.path)
+    out = tx.target
     for line in _table(sols.values()):
         _say(args, line)
     if hasattr(result, "verdict"):
@@ -310,9 +315,10 @@ def cmd_plot(args) -> int:
         print(f"se3ocp: error: {d}: not a results directory (no direct.npz, indirect.npz or trajectory.npz)",
               file=sys.stderr)
         return 2
-    written = [str(p) for p in draw_all(d)]
-    if args.animate:
-        written.append(str(animate(d)))
+    with results_update(d) as tx:
+        written = [str(d / p.name) for p in draw_all(tx.path)]
+        if args.animate:
+            written.append(str(d / animate(tx.path).name))
     _say(args, f"wrote {len(written)} files in {d}/")
     if args.json:
         print(json.dumps(written))

@@ -651,30 +651,3 @@ def results_update(directory: str | os.PathLike) -> ResultsTransaction:
     ``tx.path`` starts as a copy of it; the commit replaces it whole, and fails with
     ResultsDirError (writing nothing) if the directory was removed meanwhile."""
     return ResultsTransaction(directory, None, True, update=True)
-
-
-def prepare_results_dir(out: str | None, default: Path, force: bool) -> Path:
-    """Choose and create the results directory (files are then written one by one).
-
-    Superseded by :func:`results_transaction`, which writes the directory as a whole; kept
-    until the commands use it.  Same policy: ``--out DIR`` holding files needs ``force``;
-    without ``--out`` a non-empty ``default`` gives ``default.1``, ``default.2``, ...
-    """
-    if out is not None:
-        d = _checked_dir_path(out, "--out")
-        if d.exists() and not d.is_dir():
-            raise ResultsDirError(f"{d}: exists and is not a directory")
-        if d.is_dir() and any(d.iterdir()) and not force:
-            raise ResultsDirError(f"{d}: results directory already holds files; pass --force to overwrite, or choose another --out")
-    else:
-        d = default
-        if d.is_dir() and any(d.iterdir()) and not force:
-            i = 1
-            while Path(f"{default}.{i}").exists():
-                i += 1
-            d = Path(f"{default}.{i}")
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise _fs_error(d, e, "create the results directory") from None
-    return d

@@ -18,7 +18,7 @@ import numpy as np
 from ..transcription.problem import Problem, TargetOrbit, TargetState
 from ..transcription.results import Solution
 from ..transcription.solve import Comparison
-from .io import save_figure
+from .io import atomic_output, save_figure
 
 COLORS = {"direct": "#1f77b4", "indirect": "#d62728", "impulsive": "#2ca02c", "simulate": "#555555"}
 STYLES = {"direct": "-", "indirect": "--", "impulsive": "-", "simulate": "-"}
@@ -357,8 +357,7 @@ def animate(results_dir: Path, frames: int = 80) -> Path:
 
     anim = FuncAnimation(fig, update, frames=len(idx), blit=False)
     out = Path(results_dir) / "maneuver.gif"
-    tmp = Path(results_dir) / ".maneuver.gif.tmp.gif"
-    anim.save(tmp, writer=PillowWriter(fps=20))
-    tmp.replace(out)
+    with atomic_output(out) as tmp:
+        anim.save(tmp, writer=PillowWriter(fps=20))
     plt.close(fig)
     return out

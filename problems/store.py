@@ -54,6 +54,7 @@ def summary(man: Maneuver, result: Solution | Comparison, with_history: bool = T
 def write_run(out: Path, man: Maneuver, result: Solution | Comparison) -> list[Path]:
     """config.resolved.yaml, the .npz of each Solution and summary.json (written last) into ``out``."""
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     written = [out / "config.resolved.yaml"]
     write_yaml(written[0], man.resolved)
     for m, s in solutions_of(result).items():

@@ -428,7 +428,7 @@ def solve_point(task: dict) -> dict:
                    start="cold" if not task.get("warm") else task["warm"].get("kind", "neighbour"),
                    message=f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:500])
         return {"row": row, "payload": None}
-    row = dict(status=sol.status, converged=bool(sol.converged), cost=float(sol.cost),
+    row = dict(status=sol.result.value, converged=bool(sol.converged), cost=float(sol.cost),
                terminal_error=float(sol.terminal_error), iterations=int(sol.iterations), iterations_total=int(total),
                build_s=float(sol.build_s), solve_s=float(sol.solve_s), warm_started=bool(warm_started), start=start,
                message=" ".join(str(sol.message).split()))
@@ -703,30 +703,34 @@ def cli_sweep(args, check_interrupt: Callable[[], None] | None = None) -> int:
     """``se3ocp sweep``: validate, connect, run, write.  Exit 0 if every point converged,
     1 if some did not (all rows are still written), ConfigError/ResultsDirError for bad
     input; on Ctrl-C the finished rows are written and KeyboardInterrupt propagates."""
-    from .io import prepare_results_dir
+    from .io import results_transaction
 
     say = (lambda *m: None) if args.quiet else (lambda *m: print(*m, flush=True))  # noqa: E731
     sw = load_sweep(args.sweep)
     cont = False if args.no_continuation else sw.continuation
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
-        out = prepare_results_dir(args.out, Path("results") / "sweeps" / _safe(sw.name), args.force)
-        n = len(sw.points())
-        where = {"serial": "in-process", "local": f"local pool of {getattr(ex, 'workers', '?')} workers",
-                 "dask": f"Dask cluster at {args.scheduler}"}[ex.kind]
-        axc = sw.axes[sw.continuation_axis].name
-        say(f"{sw.name}: {n} points x {len(sw.row_methods())} method(s) = {n * len(sw.row_methods())} tasks on {where}; "
-            f"continuation {('along ' + axc) if cont and sw.control_kind != 'impulsive' else 'off'} -> {out}/")
-        bar = ProgressBar(quiet=args.quiet)
-        try:
-            res = run_sweep(sw, continuation=cont, progress=bar, check_interrupt=check_interrupt, executor=ex)
-        except KeyboardInterrupt as exc:
+        with results_transaction(args.out, Path("results") / "sweeps" / _safe(sw.name), args.force) as tx:
+            n = len(sw.points())
+            where = {"serial": "in-process", "local": f"local pool of {getattr(ex, 'workers', '?')} workers",
+                     "dask": f"Dask cluster at {args.scheduler}"}[ex.kind]
+            axc = sw.axes[sw.continuation_axis].name
+            say(f"{sw.name}: {n} points x {len(sw.row_methods())} method(s) = {n * len(sw.row_methods())} tasks on "
+                f"{where}; continuation {('along ' + axc) if cont and sw.control_kind != 'impulsive' else 'off'} "
+                f"-> {tx.target}/")
+            bar = ProgressBar(quiet=args.quiet)
+            try:
+                res = run_sweep(sw, continuation=cont, progress=bar, check_interrupt=check_interrupt, executor=ex)
+            except KeyboardInterrupt as exc:
+                bar.close()
+                if getattr(exc, "partial", None) is not None:   # the finished rows, clearly marked incomplete
+                    write_results(tx.path, exc.partial, figures=False)
+                    tx.commit(incomplete=f"interrupted (Ctrl-C) after {len(exc.partial.rows)} of "
+                                         f"{exc.partial.n_tasks} tasks")
+                raise
             bar.close()
-            if getattr(exc, "partial", None) is not None:
-                write_results(out, exc.partial, figures=False)
-            raise
-        bar.close()
-        write_results(out, res)
+            write_results(tx.path, res)
+        out = tx.target
     finally:
         ex.shutdown()
     s = res.summary()

@@ -381,7 +381,9 @@ def _run_interrupted(case: Case, argv, workdir: Path, env, timeout):
         else:
             _, delay = case.interrupt
             t_end = time.monotonic() + timeout
-            while not (workdir / "out").exists() and p.poll() is None and time.monotonic() < t_end:
+            # the run writes into a hidden sibling .out.tmp-* and swaps it in when it is complete
+            while not ((workdir / "out").exists() or any(workdir.glob(".out.tmp-*"))) and p.poll() is None \
+                    and time.monotonic() < t_end:
                 time.sleep(0.01)
             time.sleep(delay)
             if p.poll() is None:
@@ -450,7 +452,9 @@ def check(o: Outcome) -> list[str]:
         if len(lines) != 1:
             v.append(f"{len(lines)} lines on stderr, expected exactly 1")
         elif c.prefill is None:
-            src = "--set" if c.id.startswith("set_") and c.id != "set_wrong_type" else prepare_name(c)
+            keys = [a.partition("=")[0].strip() for a in c.sets]
+            by_set = c.field is not None and any(c.field == k or c.field.startswith((k + ".", k + "[")) for k in keys)
+            src = "--set" if c.id.startswith("set_") or by_set else prepare_name(c)
             if f"{src}: " not in lines[0]:
                 v.append(f"message does not name the file {src!r}")
             if c.field is not None and c.field not in lines[0]:
@@ -474,8 +478,13 @@ def check(o: Outcome) -> list[str]:
         if not npz.is_file():
             v.append(f"{npz.name} (last iterate) not written")
     elif c.expect == 130:
-        if not o.stderr.strip().endswith("nothing half-written was left") and o.returncode == 130:
+        if "nothing half-written" not in (o.stderr.strip().splitlines() or [""])[-1] and o.returncode == 130:
             v.append("no interruption message")
+        left = sorted(p.name for p in o.workdir.glob(".out.*"))
+        if left:
+            v.append(f"temporary files left beside the results directory: {left}")
+        if o.out_dir.exists() and c.prefill is None:
+            v.append("an interrupted run left a results directory (expected none)")
     return v
 
 

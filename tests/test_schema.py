@@ -229,13 +229,13 @@ def test_integer_beyond_python_digit_limit_is_one_line(parser):
 def test_ipopt_yes_no_options_stay_strings_ipopt_accepts():
     """YAML 1.2 reads ``mehrotra_algorithm: yes`` as the string IPOPT expects; true/false still work."""
     from se3ocp.problems.maneuvers import load_maneuver
-    from se3ocp.transcription.direct import check_solver_options
+    from se3ocp.transcription.options import check_raw_options
 
     man = load_maneuver(E3, ["solver.direct.options.mehrotra_algorithm=yes",
                              "solver.direct.options.warm_start_init_point=false"])
-    opts = man.direct["options"]
+    opts = man.direct.options
     assert opts == {"mehrotra_algorithm": "yes", "warm_start_init_point": False}
-    check_solver_options(opts)  # raises if IPOPT rejects a value
+    check_raw_options("ipopt", opts, "options")  # raises if IPOPT rejects a value (it was checked at load too)
 
 
 def test_boolean_field_names_yaml12():
