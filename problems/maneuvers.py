@@ -1,27 +1,37 @@
-"""YAML maneuver schema: validation, defaults, and conversion to problem objects.
+"""YAML maneuver schema: validation, defaults, and conversion to the Problem it states.
 
-Schema (unknown keys are rejected everywhere; see README "Maneuver files")::
+Schema (unknown keys are rejected everywhere; see the README's "Writing your own maneuver")::
 
     name: str
-    model: {kind: dumbbell, mass: 1.0, length: 0.1, sphere_radius: 0.02,
-            mu: 39.478..., central_body_radius: 0.0}          # all but kind optional
-    horizon: {T: 0.5, N: 500}
-    discretization: lgvi | first_order                         # default lgvi
+    model: {kind: dumbbell, mass: 1.0, length: 0.1, sphere_radius: 0.02, mu: 39.478...,
+            central_body_radius: 0.0}                              # all but kind optional
+         | {kind: rigid_body, mass: 1.0, inertia: [3] | 3x3, mu: 39.478..., central_body_radius: 0.0}
+    gravity: {kind: point_mass}          # none | point_mass (default) | gravity_gradient | j2 (with J2, radius)
+    horizon: {N: 500, T: 0.5}            # or T: {free: true, guess: 30.0, min: 1.0, max: 100.0}
+    discretization: lgvi | first_order   # default lgvi
     initial: {position: [3], velocity: [3], attitude: ATT, angular_velocity: [3]}
-    terminal: {position, velocity, attitude, angular_velocity} | {orbit: {radius: r, normal: [3]}}
-    control: {kind: smooth | impulsive, weights: {force: W, moment: W}}   # W: scalar | [3] | 3x3 SPD
+    terminal: {position, velocity, attitude, angular_velocity}   # smooth control: any left out is free
+            | {orbit: {radius: r, normal: [3], body_axis: [3], angular_velocity: [3]}}
+    control:
+      kind: smooth | impulsive
+      objective: effort | time | fuel    # smooth; default effort
+      weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
+      bounds: {force: {box: [3]} | {norm: b}, moment: ...}   # norm 0 removes the control
+    constraints:                         # path constraints at every node (smooth control)
+      - {kind: min_radius, radius: r}
+      - {kind: keep_out, body_axis: [3], direction: [3], min_angle_deg: deg}
+      - {kind: keep_in, body_axis: [3], direction: [3], max_angle_deg: deg}
+      - {kind: max_angular_rate, value: w}
     solver: {direct: {...}, indirect: {...}}
 
-Velocities are inertial, angular velocities body-frame; momenta follow as
-gamma = m v, Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``,
-``{axis_angle: [ax, ay, az, angle_deg]}`` or ``{rotations: [[x|y|z, deg], ...]}``
-(product left to right).  A matrix must satisfy |R^T R - I|_F <= 1e-6 and
-det R > 0; it is then projected onto SO(3) (polar decomposition) so that the
-integrator starts exactly on the group.  An orbit normal must be non-zero; it is
-normalized.
+Velocities are inertial, angular velocities body-frame; momenta follow as gamma = m v,
+Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``, ``{axis_angle: [ax, ay, az, angle_deg]}``
+or ``{rotations: [[x|y|z, deg], ...]}`` (product left to right).  A matrix must satisfy
+|R^T R - I|_F <= 1e-6 and det R > 0; it is then projected onto SO(3).  Directions and axes must
+be non-zero; they are normalized.  A constraint that the initial (or a given terminal) state
+already violates is bad input.
 
-Every error is a :class:`ConfigError` whose text is one line
-``FILE: FIELD: what was expected``.
+Every error is a :class:`ConfigError` whose text is one line ``FILE: FIELD: what was expected``.
 """
 from __future__ import annotations
 
@@ -35,9 +45,11 @@ import numpy as np
 from ..transcription.layout import pack_state
 from ..transcription.lgvi import SCHEMES, discretization
 from ..transcription.options import DirectOptions, IndirectOptions, OptionError
-from ..transcription.problem import ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, _spd
+from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
+                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, _spd)
+from ..transcription.results import Trajectory
 
-from .dumbbell import GM_NORMALIZED, Dumbbell
+from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
 from .schema import ConfigError, Validator, apply_override, describe, join_field, load_with_overrides, read_yaml_file, yaml_load  # noqa: F401
 
 MODEL_DEFAULTS: dict[str, Any] = {
@@ -48,6 +60,13 @@ MODEL_DEFAULTS: dict[str, Any] = {
     "mu": GM_NORMALIZED,
     "central_body_radius": 0.0,
 }
+RIGID_BODY_KEYS = ("kind", "mass", "inertia", "mu", "central_body_radius")
+CONSTRAINT_KEYS = {"min_radius": ("radius",), "keep_out": ("body_axis", "direction", "min_angle_deg"),
+                   "keep_in": ("body_axis", "direction", "max_angle_deg"), "max_angular_rate": ("value",)}
+#: ProblemError fields -> the file's fields
+_PROBLEM_FIELDS = {"time_bounds": "horizon.T", "control.bounds": "control.bounds", "control.W_f": "control.weights.force",
+                   "control.W_m": "control.weights.moment", "control.objective": "control.objective",
+                   "terminal": "terminal", "terminal.free": "terminal", "constraints": "constraints"}
 
 
 # ----------------------------------------------------------------- data types
@@ -55,14 +74,24 @@ MODEL_DEFAULTS: dict[str, Any] = {
 class StateSpec:
     """A state given by velocities: position, velocity (inertial), R (body->inertial), omega (body)."""
 
-    position: np.ndarray
-    velocity: np.ndarray
-    R: np.ndarray
-    omega: np.ndarray
+    position: np.ndarray | None
+    velocity: np.ndarray | None
+    R: np.ndarray | None
+    omega: np.ndarray | None
 
-    def vector(self, body: Dumbbell) -> np.ndarray:
-        """18-vector with momenta gamma = m v, Pi = J omega."""
-        return pack_state(self.position, body.mass * self.velocity, self.R, body.inertia @ self.omega)
+    def vector(self, body, fill: "StateSpec | None" = None) -> np.ndarray:
+        """18-vector with momenta gamma = m v, Pi = J omega; components not given (None) are taken
+        from ``fill`` (a target's free components: placeholders, used for scaling and guesses)."""
+        x, vel, R, w = (a if a is not None else getattr(fill, k)
+                        for a, k in ((self.position, "position"), (self.velocity, "velocity"), (self.R, "R"),
+                                     (self.omega, "omega")))
+        return pack_state(x, body.mass * vel, R, body.inertia @ w)
+
+    @property
+    def free(self) -> frozenset:
+        """The components not given."""
+        return frozenset(n for n, a in (("position", self.position), ("velocity", self.velocity),
+                                        ("attitude", self.R), ("angular_velocity", self.omega)) if a is None)
 
 
 @dataclass(frozen=True)
@@ -77,7 +106,7 @@ class Maneuver:
     problem: Problem
     direct: DirectOptions
     indirect: IndirectOptions
-    body: Dumbbell
+    body: Dumbbell | RigidBody
     central_body_radius: float
     initial: StateSpec
     terminal: StateSpec | TargetOrbit | None
@@ -97,7 +126,8 @@ class Maneuver:
 
 
 # ------------------------------------------------------------------ loading
-TOP_KEYS = ("name", "model", "horizon", "discretization", "initial", "terminal", "control", "solver")
+TOP_KEYS = ("name", "model", "gravity", "horizon", "discretization", "initial", "terminal", "control", "constraints",
+            "solver")
 STATE_KEYS = ("position", "velocity", "attitude", "angular_velocity")
 
 
@@ -114,109 +144,252 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     name = doc["name"]
     if not isinstance(name, str) or not name.strip():
         v.fail("name", f"expected a non-empty string, got {describe(name)}")
+    resolved = copy.deepcopy(doc)
 
-    m = dict(MODEL_DEFAULTS)
-    mdoc = v.mapping(doc.get("model", {"kind": "dumbbell"}), "model", MODEL_DEFAULTS.keys(), required=("kind",))
-    v.choice(mdoc["kind"], "model.kind", ("dumbbell",))
-    for k in ("mass", "length", "sphere_radius", "mu"):
-        if k in mdoc:
-            m[k] = v.number(mdoc[k], f"model.{k}", positive=True)
-    if "central_body_radius" in mdoc:
-        m["central_body_radius"] = v.number(mdoc["central_body_radius"], "model.central_body_radius", nonneg=True)
-    body = Dumbbell(mass=m["mass"], length=m["length"], sphere_radius=m["sphere_radius"], mu=m["mu"])
-
-    hz = v.mapping(doc["horizon"], "horizon", ("T", "N"), required=("T", "N"))
-    T = v.number(hz["T"], "horizon.T", positive=True)
-    N = v.number(hz["N"], "horizon.N", positive=True, integer=True)
-
+    body, central_radius, resolved["model"], resolved["gravity"] = _body(v, doc.get("model", {"kind": "dumbbell"}),
+                                                                         doc.get("gravity", {"kind": "point_mass"}))
+    N, T, time_bounds, resolved["horizon"] = _horizon(v, doc["horizon"])
     disc = v.choice(doc.get("discretization", "lgvi"), "discretization", SCHEMES)
+    resolved["discretization"] = disc
+    extent = central_radius + body.extent if body.body_model().mu is not None else None
+    initial = _state(v, doc["initial"], "initial", body, extent, all_required=True)
 
-    initial = _state(v, doc["initial"], "initial", body, m["central_body_radius"], all_required=True)
-
-    control_kind = None
-    W_f = np.ones(3)
-    W_m = np.full(3, 1e4)
-    weights_doc = {"force": 1.0, "moment": 1e4}
-    if "control" in doc:
-        c = v.mapping(doc["control"], "control", ("kind", "weights"), required=("kind",))
-        control_kind = v.choice(c["kind"], "control.kind", ("smooth", "impulsive"))
-        if "weights" in c:
-            if control_kind == "impulsive":
-                v.fail("control.weights", "weights apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
-            wd = v.mapping(c["weights"], "control.weights", ("force", "moment"))
-            if "force" in wd:
-                W_f = _weight(v, wd["force"], "control.weights.force")
-                weights_doc["force"] = wd["force"]
-            if "moment" in wd:
-                W_m = _weight(v, wd["moment"], "control.weights.moment")
-                weights_doc["moment"] = wd["moment"]
+    control_kind, control, resolved_control = _control(v, doc.get("control"))
+    if resolved_control is not None:
+        resolved["control"] = resolved_control
 
     terminal = None
     if "terminal" in doc:
         t = doc["terminal"]
         if isinstance(t, dict) and "orbit" in t:
-            v.mapping(t, "terminal", ("orbit",))
-            o = v.mapping(t["orbit"], "terminal.orbit", ("radius", "normal"), required=("radius", "normal"))
-            r = v.number(o["radius"], "terminal.orbit.radius", positive=True)
-            n = v.vec3(o["normal"], "terminal.orbit.normal")
-            if np.linalg.norm(n) < 1e-12:
-                v.fail("terminal.orbit.normal", "expected a non-zero vector (it is normalized)")
-            if not r > m["central_body_radius"] + body.sphere_radius + 0.5 * body.length:
-                v.fail("terminal.orbit.radius", "expected an orbit outside the central body")
-            terminal = TargetOrbit(r, n / np.linalg.norm(n))
-            if control_kind == "smooth":
-                v.fail("terminal.orbit", "a relaxed orbit target is supported for impulsive maneuvers only; "
-                                         "give position, velocity, attitude and angular_velocity for smooth control")
+            terminal = _orbit(v, t, body, extent)
         else:
-            terminal = _state(v, t, "terminal", body, m["central_body_radius"], all_required=True)
+            terminal = _state(v, t, "terminal", body, extent, all_required=control_kind != "smooth")
     if control_kind is not None and terminal is None:
         v.fail("terminal", f"a {control_kind} maneuver needs a terminal block")
     if terminal is not None and control_kind is None:
         v.fail("control", "a terminal block needs a control block (kind: smooth or impulsive)")
 
+    constraints = _constraints(v, doc.get("constraints", []), body, initial, terminal)
+    if constraints and control_kind != "smooth":
+        v.fail("constraints", "path constraints apply to smooth control")
+
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
-
-    disc_obj = discretization(body.body_model(), disc)
-    X0 = initial.vector(body)
-    if isinstance(terminal, StateSpec):
-        target = TargetState(terminal.vector(body))
-    else:
-        target = terminal
-    control = None
-    if control_kind == "smooth":
-        control = SmoothControl(W_f=W_f, W_m=W_m)
-    elif control_kind == "impulsive":
-        control = ImpulsiveControl()
-    problem = Problem(disc=disc_obj, N=N, T=T, X0=X0, terminal=target, control=control, name=name.strip())
-
-    resolved = copy.deepcopy(doc)
-    resolved["model"] = dict(m)
-    resolved["discretization"] = disc
-    if control_kind == "smooth":
-        resolved["control"] = {"kind": control_kind, "weights": weights_doc}
     resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict()}
+
+    target = TargetState(terminal.vector(body, initial), terminal.free) if isinstance(terminal, StateSpec) else terminal
+    try:
+        problem = Problem(disc=discretization(body.body_model(), disc), N=N, T=T, X0=initial.vector(body),
+                          terminal=target, control=control, name=name.strip(), time_bounds=time_bounds,
+                          constraints=constraints)
+    except ProblemError as e:
+        v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
-                    central_body_radius=m["central_body_radius"], initial=initial, terminal=terminal,
-                    resolved=resolved)
+                    central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved)
 
 
-def _state(v: Validator, d, where, body: Dumbbell, central_radius: float, all_required: bool) -> StateSpec:
+def _body(v: Validator, mdoc, gdoc):
+    """(body, central_body_radius, resolved model, resolved gravity) from the model and gravity blocks."""
+    if isinstance(mdoc, dict) and mdoc.get("kind") == "rigid_body":
+        v.mapping(mdoc, "model", RIGID_BODY_KEYS, required=("kind", "inertia"))
+    else:
+        v.mapping(mdoc, "model", MODEL_DEFAULTS.keys(), required=("kind",))
+        v.choice(mdoc["kind"], "model.kind", ("dumbbell", "rigid_body"))
+    m = {"kind": mdoc["kind"], "mass": 1.0, "mu": GM_NORMALIZED, "central_body_radius": 0.0}
+    for k in ("mass", "length", "sphere_radius", "mu"):
+        if k in mdoc:
+            m[k] = v.number(mdoc[k], f"model.{k}", positive=True)
+    if "central_body_radius" in mdoc:
+        m["central_body_radius"] = v.number(mdoc["central_body_radius"], "model.central_body_radius", nonneg=True)
+    g = v.mapping(gdoc, "gravity", ("kind", "J2", "radius"), required=("kind",))
+    kind = v.choice(g["kind"], "gravity.kind", GRAVITY_KINDS)
+    rg = {"kind": kind}
+    if kind == "j2":
+        for k in ("J2", "radius"):
+            if k not in g:
+                v.fail(f"gravity.{k}", "missing required key (the j2 model needs J2 and the central body's radius)")
+        rg["J2"] = v.number(g["J2"], "gravity.J2")
+        rg["radius"] = v.number(g["radius"], "gravity.radius", positive=True)
+    else:
+        for k in ("J2", "radius"):
+            if k in g:
+                v.fail(f"gravity.{k}", f"applies to gravity kind j2 only (kind is {kind})")
+    if m["kind"] == "rigid_body":
+        J = _inertia(v, mdoc["inertia"], "model.inertia")
+        m["inertia"] = J.tolist()
+        body = RigidBody(mass=m["mass"], inertia=J,
+                         gravity=Gravity(kind, m["mu"], rg.get("J2", 0.0), rg.get("radius", 0.0)))
+    else:
+        m = {**MODEL_DEFAULTS, **m}
+        body = Dumbbell(mass=m["mass"], length=m["length"], sphere_radius=m["sphere_radius"], mu=m["mu"], gravity=kind,
+                        J2=rg.get("J2", 0.0), J2_radius=rg.get("radius", 0.0))
+    return body, m["central_body_radius"], m, rg
+
+
+def _inertia(v: Validator, val, where) -> np.ndarray:
+    """Principal moments [3] (positive) or a symmetric positive definite 3x3 matrix."""
+    if isinstance(val, (list, tuple)) and len(val) == 3 and all(isinstance(r, (list, tuple)) for r in val):
+        J = np.array([v.vec3(r, f"{where}[{i}]") for i, r in enumerate(val)])
+    elif isinstance(val, (list, tuple)) and len(val) == 3:
+        J = np.diag(v.vec3(val, where))
+    else:
+        v.fail(where, f"expected 3 principal moments or a 3x3 matrix, got {describe(val)}")
+    if not np.allclose(J, J.T, rtol=1e-12, atol=0.0) or np.linalg.eigvalsh(0.5 * (J + J.T)).min() <= 0:
+        v.fail(where, "expected a symmetric positive definite inertia")
+    return 0.5 * (J + J.T)
+
+
+def _horizon(v: Validator, hdoc):
+    """(N, T (or its guess), time_bounds or None, resolved horizon)."""
+    hz = v.mapping(hdoc, "horizon", ("T", "N"), required=("T", "N"))
+    N = v.number(hz["N"], "horizon.N", positive=True, integer=True, at_most=10_000_000)
+    if isinstance(hz["T"], dict):
+        t = v.mapping(hz["T"], "horizon.T", ("free", "guess", "min", "max"), required=("free", "guess", "min", "max"))
+        if t["free"] is not True:
+            v.fail("horizon.T.free", f"expected true (or give T as a number), got {describe(t['free'])}")
+        guess, lo, hi = (v.number(t[k], f"horizon.T.{k}", positive=True) for k in ("guess", "min", "max"))
+        if lo > hi:
+            v.fail("horizon.T", f"expected min <= max, got min {lo:g} > max {hi:g}")
+        if not lo <= guess <= hi:
+            v.fail("horizon.T.guess", f"expected a guess in [min, max] = [{lo:g}, {hi:g}], got {guess:g}")
+        return N, guess, (lo, hi), {"N": N, "T": {"free": True, "guess": guess, "min": lo, "max": hi}}
+    T = v.number(hz["T"], "horizon.T", positive=True)
+    return N, T, None, {"N": N, "T": T}
+
+
+def _control(v: Validator, c):
+    """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None)."""
+    if c is None:
+        return None, None, None
+    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds"), required=("kind",))
+    kind = v.choice(c["kind"], "control.kind", ("smooth", "impulsive"))
+    if kind == "impulsive":
+        for k in ("weights", "objective", "bounds"):
+            if k in c:
+                v.fail(f"control.{k}", f"{k} apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
+        return kind, ImpulsiveControl(), {"kind": kind}
+    objective = v.choice(c.get("objective", "effort"), "control.objective", ("effort", "time", "fuel"))
+    W = {"force": np.ones(3), "moment": np.full(3, 1e4)}
+    weights_doc = {"force": 1.0, "moment": 1e4}
+    if "weights" in c:
+        wd = v.mapping(c["weights"], "control.weights", ("force", "moment"))
+        for k in ("force", "moment"):
+            if k in wd:
+                W[k] = _weight(v, wd[k], f"control.weights.{k}")
+                weights_doc[k] = wd[k]
+    bounds, bounds_doc = {}, {}
+    if "bounds" in c:
+        bd = v.mapping(c["bounds"], "control.bounds", ("force", "moment"))
+        for k in ("force", "moment"):
+            if k in bd:
+                bounds[k], bounds_doc[k] = _bound(v, bd[k], f"control.bounds.{k}")
+    try:
+        control = SmoothControl(W_f=W["force"], W_m=W["moment"], objective=objective, force_bound=bounds.get("force"),
+                                moment_bound=bounds.get("moment"))
+    except ProblemError as e:
+        v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
+    out = {"kind": kind, "objective": objective, "weights": weights_doc}
+    if bounds_doc:
+        out["bounds"] = bounds_doc
+    return kind, control, out
+
+
+def _bound(v: Validator, d, where):
+    """{box: [3 positive]} or {norm: b >= 0} -> (BoxBound | NormBound, resolved)."""
+    if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in ("box", "norm"):
+        v.fail(where, f"expected {{box: [b1, b2, b3]}} or {{norm: b}}, got {describe(d)}")
+    (form, val), = d.items()
+    w = f"{where}.{form}"
+    if form == "box":
+        b = v.vec3(val, w)
+        for i, x in enumerate(b):
+            if not x > 0:
+                v.fail(f"{w}[{i}]", f"expected a positive limit, got {float(x)!r}")
+        return BoxBound(b), {"box": b.tolist()}
+    b = v.number(val, w, nonneg=True)
+    return NormBound(b), {"norm": b}
+
+
+def _orbit(v: Validator, t, body, extent) -> TargetOrbit:
+    v.mapping(t, "terminal", ("orbit",))
+    o = v.mapping(t["orbit"], "terminal.orbit", ("radius", "normal", "body_axis", "angular_velocity"),
+                  required=("radius", "normal"))
+    if body.body_model().mu is None:
+        v.fail("terminal.orbit", "an orbit target needs a central body (gravity kind other than none)")
+    r = v.number(o["radius"], "terminal.orbit.radius", positive=True)
+    n = v.vec3(o["normal"], "terminal.orbit.normal")
+    if np.linalg.norm(n) < 1e-12:
+        v.fail("terminal.orbit.normal", "expected a non-zero vector (it is normalized)")
+    if extent is not None and not r > extent:
+        v.fail("terminal.orbit.radius", "expected an orbit outside the central body")
+    axis = v.vec3(o.get("body_axis", [1.0, 0.0, 0.0]), "terminal.orbit.body_axis")
+    if np.linalg.norm(axis) < 1e-12:
+        v.fail("terminal.orbit.body_axis", "expected a non-zero vector (it is normalized)")
+    spin = v.vec3(o.get("angular_velocity", [0.0, 0.0, 0.0]), "terminal.orbit.angular_velocity")
+    return TargetOrbit(r, n / np.linalg.norm(n), axis, body.inertia @ spin)
+
+
+def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tuple:
+    """The path constraints; each must hold at the initial state and at the given terminal components."""
+    if not isinstance(cdoc, (list, tuple)):
+        v.fail("constraints", f"expected a list of constraints, got {describe(cdoc)}")
+    out = []
+    for i, c in enumerate(cdoc):
+        w = f"constraints[{i}]"
+        if not isinstance(c, dict) or "kind" not in c:
+            v.fail(w, f"expected a mapping with a kind ({', '.join(CONSTRAINT_KEYS)}), got {describe(c)}")
+        kind = v.choice(c["kind"], f"{w}.kind", tuple(CONSTRAINT_KEYS))
+        v.mapping(c, w, ("kind",) + CONSTRAINT_KEYS[kind], required=("kind",) + CONSTRAINT_KEYS[kind])
+        if kind == "min_radius":
+            con = MinRadius(v.number(c["radius"], f"{w}.radius", positive=True))
+        elif kind == "max_angular_rate":
+            con = MaxAngularRate(v.number(c["value"], f"{w}.value", positive=True))
+        else:
+            vecs = {}
+            for k in ("body_axis", "direction"):
+                vecs[k] = v.vec3(c[k], f"{w}.{k}")
+                if not np.linalg.norm(vecs[k]) > 0:
+                    v.fail(f"{w}.{k}", "expected a non-zero vector (it is normalized)")
+            ak = CONSTRAINT_KEYS[kind][2]
+            angle = v.number(c[ak], f"{w}.{ak}", lo=0.0, hi=180.0)
+            con = (KeepOut if kind == "keep_out" else KeepIn)(vecs["body_axis"], vecs["direction"], angle)
+        for label, st in (("initial", initial), ("terminal", terminal)):
+            if not isinstance(st, StateSpec):
+                continue
+            needs = {"keep_out": st.R, "keep_in": st.R, "min_radius": st.position, "max_angular_rate": st.omega}[kind]
+            if needs is None:
+                continue
+            X = st.vector(body, initial)
+            margin = float(con.margin(Trajectory(np.zeros(1), X[None, :], body.mass, body.inertia))[0])
+            if margin < 0:
+                v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g} {con.unit})")
+        out.append(con)
+    return tuple(out)
+
+
+def _state(v: Validator, d, where, body, extent: float | None, all_required: bool) -> StateSpec:
+    """A state block; ``extent``: the distance from the central body's centre the body must keep
+    (None: no central body).  Without ``all_required`` any component may be left out (free), but
+    at least one must be given."""
     v.mapping(d, where, STATE_KEYS, required=("position", "velocity", "angular_velocity") if all_required else ())
-    x = v.vec3(d["position"], f"{where}.position")
-    vel = v.vec3(d["velocity"], f"{where}.velocity")
-    R = v.attitude(d.get("attitude", "identity"), f"{where}.attitude")
-    w = v.vec3(d["angular_velocity"], f"{where}.angular_velocity")
-    # The dumbbell's bounding sphere (radius l/2 + r_s about x) must lie outside
-    # the central body; this also keeps |x + R rho_q| away from 0 (U singular).
-    clearance = central_radius + 0.5 * body.length + body.sphere_radius
-    if not np.linalg.norm(x) > clearance:
+    if not all_required and not any(k in d for k in STATE_KEYS):
+        v.fail(where, f"expected at least one of {', '.join(STATE_KEYS)} (the others are then free)")
+    x = v.vec3(d["position"], f"{where}.position") if "position" in d else None
+    vel = v.vec3(d["velocity"], f"{where}.velocity") if "velocity" in d else None
+    R = v.attitude(d["attitude"], f"{where}.attitude") if "attitude" in d else (np.eye(3) if all_required else None)
+    w = v.vec3(d["angular_velocity"], f"{where}.angular_velocity") if "angular_velocity" in d else None
+    # The body's bounding sphere must lie outside the central body; this also keeps the potential
+    # away from its singularity at the centre.
+    if x is not None and extent is not None and not np.linalg.norm(x) > extent:
+        what = "the dumbbell" if isinstance(body, Dumbbell) else "the body"
         v.fail(f"{where}.position",
-               f"expected the dumbbell outside the central body: |position| = {np.linalg.norm(x):.3g} "
-               f"(needs > central_body_radius + length/2 + sphere_radius = {clearance:.3g})")
+               f"expected {what} outside the central body: |position| = {np.linalg.norm(x):.3g} (needs > "
+               f"{extent:.3g}: central_body_radius{' + length/2 + sphere_radius' if isinstance(body, Dumbbell) else ''})")
     with np.errstate(over="ignore", invalid="ignore"):
-        momenta = np.concatenate([body.mass * vel, body.inertia @ w])
+        momenta = np.concatenate([body.mass * (vel if vel is not None else np.zeros(3)),
+                                  body.inertia @ (w if w is not None else np.zeros(3))])
     if not np.all(np.isfinite(momenta)):
         v.fail(where, "expected finite momenta m v and J Omega (the values overflow)")
     return StateSpec(x, vel, R, w)

@@ -25,7 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from se3ocp.problems.dumbbell import Dumbbell  # noqa: E402
+from se3ocp.problems.models import Dumbbell  # noqa: E402
 from se3ocp.transcription.layout import NX, join_state, pack_state, split_state, unpack_states  # noqa: E402
 from se3ocp.transcription.lgvi import Discretization  # noqa: E402
 from se3ocp.transcription.lie import hat, orthogonality_error  # noqa: E402

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from se3ocp.problems.dumbbell import Dumbbell
+from se3ocp.problems.models import Dumbbell
 from se3ocp.transcription.layout import NZ, pack_state, unpack_states
 from se3ocp.transcription.lgvi import Discretization
 from se3ocp.transcription.lie import cayley, exp_so3, hat, log_so3, orthogonality_error

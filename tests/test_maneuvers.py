@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from se3ocp.problems.dumbbell import Dumbbell
+from se3ocp.problems.models import Dumbbell
 from se3ocp.problems.maneuvers import ConfigError, load_maneuver, parse_maneuver, yaml_load
 from se3ocp.transcription.layout import unpack_states
 from se3ocp.transcription.lie import rot_x, rot_y, rot_z
@@ -142,7 +142,37 @@ BAD = [
     ("direct solver", "solver.direct", {"solver": "snopt"}, "solver.direct.solver"),
     ("indirect unknown", "solver.indirect", {"tolerance": 1e-9}, "solver.indirect.tolerance"),
     ("alpha out of range", "solver.indirect", {"alpha": 1.5}, "solver.indirect.alpha"),
-    ("orbit with smooth", "terminal", {"orbit": {"radius": 2.0, "normal": [0, 0, 1]}}, "terminal.orbit"),
+    ("box bound zero", "control.bounds", {"moment": {"box": [1, 0, 1]}}, "control.bounds.moment.box[1]"),
+    ("norm bound negative", "control.bounds", {"force": {"norm": -1}}, "control.bounds.force.norm"),
+    ("bound form unknown", "control.bounds", {"force": {"sphere": 1}}, "control.bounds.force"),
+    ("objective unknown", "control.objective", "energy", "control.objective"),
+    ("time objective, unbounded", "control.objective", "time", "control.bounds"),
+    ("time objective, fixed T", "control", {"kind": "smooth", "objective": "time",
+                                            "bounds": {"force": {"norm": 10}, "moment": {"norm": 1}}}, "horizon.T"),
+    ("free T min > max", "horizon.T", {"free": True, "guess": 0.5, "min": 0.6, "max": 0.4}, "horizon.T"),
+    ("free T guess outside", "horizon.T", {"free": True, "guess": 0.9, "min": 0.4, "max": 0.6}, "horizon.T.guess"),
+    ("free T not true", "horizon.T", {"free": False, "guess": 0.5, "min": 0.4, "max": 0.6}, "horizon.T.free"),
+    ("fuel with matrix weights", "control", {"kind": "smooth", "objective": "fuel", "weights": {"force": [1, 2, 3]}},
+     "control.weights.force"),
+    ("constraint kind unknown", "constraints", [{"kind": "stay_cool"}], "constraints[0].kind"),
+    ("constraint not a list", "constraints", {"kind": "min_radius", "radius": 1}, "constraints"),
+    ("constraint missing key", "constraints", [{"kind": "min_radius"}], "constraints[0].radius"),
+    ("keep-out violated at start", "constraints",
+     [{"kind": "keep_out", "body_axis": [1, 0, 0], "direction": [1, 0.1, 0], "min_angle_deg": 30}], "constraints[0]"),
+    ("keep-in violated at the end", "constraints",
+     [{"kind": "keep_in", "body_axis": [1, 0, 0], "direction": [1, 0, 0], "max_angle_deg": 90}], "constraints[0]"),
+    ("min radius violated at start", "constraints", [{"kind": "min_radius", "radius": 1.5}], "constraints[0]"),
+    ("angle out of range", "constraints",
+     [{"kind": "keep_out", "body_axis": [1, 0, 0], "direction": [0, 0, 1], "min_angle_deg": 180}],
+     "constraints[0].min_angle_deg"),
+    ("gravity kind unknown", "gravity", {"kind": "newtonian"}, "gravity.kind"),
+    ("j2 without J2", "gravity", {"kind": "j2", "radius": 0.5}, "gravity.J2"),
+    ("J2 for point mass", "gravity", {"kind": "point_mass", "J2": 1e-3}, "gravity.J2"),
+    ("rigid body without inertia", "model", {"kind": "rigid_body", "mass": 1.0}, "model.inertia"),
+    ("rigid body inertia not SPD", "model", {"kind": "rigid_body", "inertia": [[1, 2, 0], [2, 1, 0], [0, 0, 1]]},
+     "model.inertia"),
+    ("rigid body with a length", "model", {"kind": "rigid_body", "inertia": [1, 2, 3], "length": 0.1}, "model.length"),
+    ("empty terminal", "terminal", {}, "terminal"),
     ("terminal without control", "control", _DELETE, "control"),
 ]
 
@@ -179,3 +209,34 @@ def test_unreadable_and_invalid_yaml(tmp_path):
     p.write_text("- a list\n- not a mapping\n")
     with pytest.raises(ConfigError, match="expected a mapping"):
         load_maneuver(p)
+
+
+def test_partial_terminal_and_orbit_target_for_smooth_control():
+    """Smooth control: terminal components left out are free; an orbit target is accepted."""
+    doc = base_doc()
+    del doc["terminal"]["velocity"], doc["terminal"]["angular_velocity"]
+    man = parse_maneuver(doc, "t.yaml")
+    assert man.problem.terminal.free == {"velocity", "angular_velocity"}
+    assert man.problem.terminal.fixed == ("position", "attitude")
+    doc = base_doc()
+    doc["terminal"] = {"orbit": {"radius": 1.2, "normal": [0, 0, 2], "angular_velocity": [0, 0, 1]}}
+    t = parse_maneuver(doc, "t.yaml").problem.terminal
+    assert t.radius == 1.2 and np.allclose(t.normal, [0, 0, 1]) and np.allclose(t.Pi, Dumbbell().inertia @ [0, 0, 1])
+
+
+def test_rigid_body_bounds_free_time_constraints_resolved_round_trip():
+    doc = base_doc()
+    doc["model"] = {"kind": "rigid_body", "mass": 2.0, "inertia": [3.0, 2.0, 1.0]}
+    doc["gravity"] = {"kind": "none"}
+    doc["horizon"] = {"N": 50, "T": {"free": True, "guess": 1.0, "min": 0.5, "max": 2.0}}
+    doc["control"] = {"kind": "smooth", "objective": "time",
+                      "bounds": {"moment": {"box": [1, 2, 3]}, "force": {"norm": 0.0}}}
+    doc["constraints"] = [{"kind": "max_angular_rate", "value": 50.0}]
+    man = parse_maneuver(doc, "t.yaml")
+    p = man.problem
+    assert p.free_time and p.time_bounds == (0.5, 2.0) and p.T == 1.0 and p.model.mu is None
+    assert np.allclose(p.model.inertia, np.diag([3.0, 2.0, 1.0])) and p.model.mass == 2.0
+    assert p.control.objective == "time" and p.control.removed == (True, False)
+    assert np.allclose(p.control.moment_bound.b, [1, 2, 3]) and p.constraints[0].value == 50.0
+    again = parse_maneuver(yaml.safe_load(yaml.safe_dump(man.resolved)), "resolved")
+    assert again.problem.time_bounds == p.time_bounds and again.problem.control.objective == "time"

@@ -65,7 +65,10 @@ def test_every_bad_input_class_of_issue_7_is_in_the_catalogue():
         "non-positive": {"mass_zero", "length_negative", "radius_zero", "T_zero", "N_zero", "mu_zero", "weight_zero"},
         "not SO(3)": {"not_rotation", "reflection"}, "zero normal": {"zero_normal"},
         "inside central body": {"inside_central_body", "inside_body_initial", "terminal_inside"},
-        "terminal vs control kind": {"orbit_for_smooth", "control_no_terminal", "terminal_no_control"},
+        "terminal vs control kind": {"orbit_without_gravity", "control_no_terminal", "terminal_no_control"},
+        "bounds, objectives, free time, constraints": {"bound_box_zero", "bound_norm_negative", "time_objective_fixed_T",
+                                                      "free_T_min_above_max", "keep_out_violated_at_start",
+                                                      "constraint_kind_unknown"},
         "--set garbage": {"set_no_equals", "set_bad_yaml", "set_wrong_type"}, "missing file": {"missing_file"},
         "invalid YAML": {"invalid_yaml"}, "results dir exists": {"out_exists"},
     }

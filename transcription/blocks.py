@@ -6,11 +6,20 @@ cost by the objective scale, every scale being part of the data p.  Problem data
 weights, targets) are data too, so one Function -- and its compiled derivatives -- serves every
 problem of the same structure; builders with only structural arguments are cached.
 
-    dynamics(disc, with_c, controls, effort)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
-        v = [X_k (18); c_k (3, with_c); w_k (nw, controls); X_{k+1} (18)]
-        p = [h; sX (18); sC (3, with_c); sW (nw, controls); sG (3, with_c); s_obj; W_f (9); W_m (9) (effort)]
+    dynamics(disc, with_c, controls, effort, free_h)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
+        v = [X_k (18); c_k (3, with_c); w_k (nw, controls); X_{k+1} (18); h / h_scale (1, free_h)]
+        p = [h (or h_scale, free_h); sX (18); sC (3, with_c); sW (nw, controls); sG (3, with_c);
+             s_obj; W_f (9); W_m (9) (effort)]
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
         cost = the step's share of sum_j omega_j (1/2) u_j^T W u_j, / s_obj (effort; else 0)
+    control_node(free_h, norm_f, norm_m, fuel)   one control node j (docs/mathematics.md §10)
+        v = [u_j (6); s_j (2, fuel: epigraph slacks of |u_f|, |u_m|); h / h_scale (1, free_h)]
+        p = [sU (6); sS (2, fuel); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj (fuel)]
+        rows (<= 0) = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f); (|u_m|^2 - b_m^2) / b_m^2 (norm_m);
+                       (|u_f|^2 - s_f^2) / sS_f^2, (|u_m|^2 - s_m^2) / sS_m^2 (fuel)]
+        cost = omega_j (w_f s_f + w_m s_m) / s_obj (fuel; else 0)
+    time_cost()                                   the time objective
+        v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
     state_target(fixed)                        the terminal conditions of a state target
         v = X_N (18); p = [sX (18); Xd (18); row scales (3 per fixed component)]
         rows = terminal_residual(X_N, Xd) / scales (docs/mathematics.md §6); cost 0
@@ -28,22 +37,22 @@ from .problem import STATE_COMPONENTS, state_residual
 NC = 3
 
 
-def dynamics_sizes(disc, with_c: bool, controls: bool, effort: bool) -> tuple[int, int]:
+def dynamics_sizes(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = False) -> tuple[int, int]:
     """(nv, np) of :func:`dynamics`."""
     nc = NC if with_c else 0
     nw = disc.nw if controls else 0
-    return NX + nc + nw + NX, 1 + NX + nc + nw + nc + (1 + 18 if effort else 0)
+    return NX + nc + nw + NX + (1 if free_h else 0), 1 + NX + nc + nw + nc + (1 + 18 if effort else 0)
 
 
 @lru_cache(maxsize=None)
-def dynamics(disc, with_c: bool, controls: bool, effort: bool) -> ca.Function:
+def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = False) -> ca.Function:
     """The dynamics block of one step (module docstring); cached per (Discretization, flags)."""
     nc = NC if with_c else 0
     nw = disc.nw if controls else 0
-    nv, npar = dynamics_sizes(disc, with_c, controls, effort)
+    nv, npar = dynamics_sizes(disc, with_c, controls, effort, free_h)
     v = ca.SX.sym("v", nv)
     p = ca.SX.sym("p", npar)
-    h = p[0]
+    h = p[0] * v[-1] if free_h else p[0]
     sX = p[1:1 + NX]
     i = 1 + NX
     sC = p[i:i + nc]
@@ -54,7 +63,7 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool) -> ca.Function:
     i += nc
     X = v[:NX] * sX
     w = v[NX + nc:NX + nc + nw] * sW if controls else ca.DM.zeros(disc.nw)
-    X1 = v[NX + nc + nw:] * sX
+    X1 = v[NX + nc + nw:NX + nc + nw + NX] * sX
     if with_c:
         Xn, G = disc.step_given_c(X, v[NX:NX + nc] * sC, w, h)
         rows = ca.vertcat((Xn - X1) / sX, G / sG)
@@ -73,8 +82,51 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool) -> ca.Function:
         else:                                # first order: u_{k+1} weighted by h
             cost = 0.5 * h * ca.bilin(W, w, w)
         cost = cost / s_obj
-    tag = f"{disc.scheme}{'_c' if with_c else ''}{'_u' if controls else ''}{'_effort' if effort else ''}"
+    tag = f"{disc.scheme}{'_c' if with_c else ''}{'_u' if controls else ''}{'_effort' if effort else ''}" \
+          f"{'_freeh' if free_h else ''}"
     return ca.Function(f"dynamics_{tag}", [v, p], [cost, rows], ["v", "p"], ["cost", "rows"])
+
+
+@lru_cache(maxsize=None)
+def control_node(free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> ca.Function:
+    """The block of one control node: norm bounds and the fuel epigraph (module docstring)."""
+    ns = 2 if fuel else 0
+    v = ca.SX.sym("v", NU + ns + (1 if free_h else 0))
+    p = ca.SX.sym("p", NU + ns + 2 + 2 + 3)
+    sU, sS = p[:NU], p[NU:NU + ns]
+    i = NU + ns
+    omega_per_h, hp, bf, bm, wf, wm, s_obj = (p[i + k] for k in range(7))
+    h = hp * v[-1] if free_h else hp
+    u = v[:NU] * sU
+    uf2, um2 = ca.dot(u[:3], u[:3]), ca.dot(u[3:], u[3:])
+    rows = []
+    if norm_f:
+        rows.append((uf2 - bf**2) / bf**2)
+    if norm_m:
+        rows.append((um2 - bm**2) / bm**2)
+    cost = ca.SX(0)
+    if fuel:
+        sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
+        rows += [(uf2 - sf**2) / sS[0] ** 2, (um2 - sm**2) / sS[1] ** 2]
+        cost = omega_per_h * h * (wf * sf + wm * sm) / s_obj
+    tag = f"{'f' if norm_f else ''}{'m' if norm_m else ''}{'_fuel' if fuel else ''}{'_freeh' if free_h else ''}"
+    return ca.Function(f"control_node_{tag}", [v, p], [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)],
+                       ["v", "p"], ["cost", "rows"])
+
+
+@lru_cache(maxsize=None)
+def time_cost() -> ca.Function:
+    """The time objective N h / s_obj (module docstring)."""
+    v, p = ca.SX.sym("v", 1), ca.SX.sym("p", 2)
+    return ca.Function("time_cost", [v, p], [p[0] * v[0] * p[1], ca.SX(0, 1)], ["v", "p"], ["cost", "rows"])
+
+
+def node_rows(name: str, rows_of, scales: np.ndarray) -> ca.Function:
+    """A block of rows g(X) / scales of one node state (v = X scaled, p = sX): path constraints, or
+    a terminal target given as a function of X_N (an orbit target).  Built per problem."""
+    v, p = ca.SX.sym("v", NX), ca.SX.sym("p", NX)
+    rows = rows_of(v * p) / ca.DM(np.asarray(scales, dtype=float))
+    return ca.Function(name, [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"])
 
 
 def dynamics_data(disc, h: float, sX, sC, sW, sG, s_obj=None, W_f=None, W_m=None) -> np.ndarray:
@@ -106,5 +158,5 @@ def state_target_scales(sX: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
     return np.concatenate([per[c] for c in fixed])
 
 
-__all__ = ["NC", "STATE_COMPONENTS", "dynamics", "dynamics_data", "dynamics_sizes", "state_target",
-           "state_target_scales"]
+__all__ = ["NC", "STATE_COMPONENTS", "control_node", "dynamics", "dynamics_data", "dynamics_sizes", "node_rows",
+           "state_target", "state_target_scales", "time_cost"]

@@ -51,13 +51,14 @@ import casadi as ca
 import numpy as np
 
 from . import blocks
-from .guess import Guess, cayley_vectors, make_guess
+from .guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess
 from .layout import NU, NX, X_ANG, unpack_states
 from .lgvi import CAYLEY_TOL
 from .lie import tangent_basis
 from .nlp import Block, ProgressCallback, StructuredNLP, ipopt_history, solve_time_split
 from .options import DirectOptions, raw_solver_value
-from .problem import Problem, SmoothControl, TargetState, effort_cost, quadrature_weights, terminal_error
+from .problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetState, control_activity,
+                      objective_value, orbit_residual, quadrature_weights, terminal_error)
 from .results import Iterate, Result, Solution, Trajectory, result_of_solver_status
 
 NC = blocks.NC
@@ -72,22 +73,27 @@ MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_ord
 
 # ---------------------------------------------------------------------------- layouts
 class NLPLayout:
-    """Order of the NLP decision vector: node-major blocks [X_k, u_k?, c_k?], k = 0..N.
+    """Order of the NLP decision vector: node-major blocks [X_k, u_k?, s_k?, c_k?], k = 0..N, then
+    the global h.
 
-    X_k (18) at every node; u_k (6) at the nodes that carry a control (``control_nodes``);
-    c_k (3) at nodes 0..N-1 when ``with_c``.  :meth:`pack` and :meth:`unpack` are the only
-    routines that know the order.  Shapes: X (18, N+1) (column k = node k), U (6, n_controls),
-    C (3, N).  ``iX``, ``iU``, ``iC`` are the index arrays of those shapes.
+    X_k (18) at every node; u_k (6) and the slacks s_k (``n_slack``: the fuel epigraph) at the
+    nodes that carry a control (``control_nodes``); c_k (3) at nodes 0..N-1 when ``with_c``; the
+    step size h last when ``free_h``.  :meth:`pack` and :meth:`unpack` are the only routines that
+    know the order.  Shapes: X (18, N+1) (column k = node k), U (6, n_controls), S (n_slack,
+    n_controls), C (3, N).  ``iX``, ``iU``, ``iS``, ``iC`` are the index arrays of those shapes,
+    ``ih`` the index of h (or None).
     """
 
-    def __init__(self, N: int, control_nodes: list[int] | range, with_c: bool):
+    def __init__(self, N: int, control_nodes: list[int] | range, with_c: bool, n_slack: int = 0, free_h: bool = False):
         self.N = int(N)
         self.control_nodes = list(control_nodes)
         self.with_c = bool(with_c)
+        self.n_slack = int(n_slack)
         has_u = np.zeros(self.N + 1, dtype=bool)
         has_u[self.control_nodes] = True
         iX = np.zeros((NX, self.N + 1), dtype=int)
         iU = np.zeros((NU, len(self.control_nodes)), dtype=int)
+        iS = np.zeros((self.n_slack, len(self.control_nodes)), dtype=int)
         iC = np.zeros((NC, self.N if with_c else 0), dtype=int)
         pos, ju = 0, 0
         for k in range(self.N + 1):
@@ -96,12 +102,15 @@ class NLPLayout:
             if has_u[k]:
                 iU[:, ju] = np.arange(pos, pos + NU)
                 pos += NU
+                iS[:, ju] = np.arange(pos, pos + self.n_slack)
+                pos += self.n_slack
                 ju += 1
             if with_c and k < self.N:
                 iC[:, k] = np.arange(pos, pos + NC)
                 pos += NC
-        self.n = pos
-        self.iX, self.iU, self.iC = iX, iU, iC
+        self.ih = pos if free_h else None
+        self.n = pos + (1 if free_h else 0)
+        self.iX, self.iU, self.iS, self.iC = iX, iU, iS, iC
 
     def stage_controls(self, disc) -> np.ndarray:
         """Indices (nw, N) of the stage controls w_k (first_order: u_{k+1}; lgvi: [u_k; u_{k+1}])."""
@@ -112,15 +121,25 @@ class NLPLayout:
         w = np.asarray(w, dtype=float).ravel()
         return w[self.iX], w[self.iU], (w[self.iC] if self.with_c else None)
 
-    def pack(self, X, U, C=None) -> np.ndarray:
-        """NumPy (X (18, N+1), U (6, nU), C (3, N)) -> w (n,).  C required iff ``with_c``."""
+    def pack(self, X, U, C=None, S=None, h=None) -> np.ndarray:
+        """NumPy (X (18, N+1), U (6, nU), C (3, N), S (n_slack, nU), h) -> w (n,).  C required iff
+        ``with_c``; S defaults to the norms |u_f|, |u_m| (a point on the epigraph's boundary); h
+        required iff the layout has it."""
         w = np.full(self.n, np.nan)
         w[self.iX] = np.asarray(X, dtype=float)
-        w[self.iU] = np.asarray(U, dtype=float)
+        U = np.asarray(U, dtype=float)
+        w[self.iU] = U
+        if self.n_slack:
+            w[self.iS] = np.asarray(S, dtype=float) if S is not None else \
+                np.vstack([np.linalg.norm(U[:3], axis=0), np.linalg.norm(U[3:], axis=0)])
         if self.with_c:
             if C is None:
                 raise ValueError("this layout has Cayley variables: C (3, N) is required")
             w[self.iC] = np.asarray(C, dtype=float)
+        if self.ih is not None:
+            if h is None:
+                raise ValueError("this layout has a free step size: h is required")
+            w[self.ih] = float(h)
         if np.isnan(w).any():
             raise ValueError("pack: some entries were not filled (shape mismatch?)")
         return w
@@ -137,7 +156,7 @@ class StageLayout(NLPLayout):
     """
 
     def __init__(self, N: int, scheme: str):
-        self.N, self.scheme, self.with_c = int(N), scheme, True
+        self.N, self.scheme, self.with_c, self.n_slack, self.ih = int(N), scheme, True, 0, None
         lift = scheme == "lgvi"
         self.ns, self.nq = NX + (NU if lift else 0), NU + NC
         iX = np.zeros((NX, N + 1), dtype=int)
@@ -157,7 +176,7 @@ class StageLayout(NLPLayout):
                 iC[:, k] = np.arange(pos, pos + NC)
                 pos += NC
         self.n = pos
-        self.iX, self.iC = iX, iC
+        self.iX, self.iC, self.iS = iX, iC, np.zeros((0, len(range(N + 1) if lift else range(1, N + 1))), dtype=int)
         self.iU = iV if lift else iQ
         self.iUp = iQ if lift else None
         self.control_nodes = list(range(N + 1)) if lift else list(range(1, N + 1))
@@ -165,7 +184,7 @@ class StageLayout(NLPLayout):
     def stage_controls(self, disc) -> np.ndarray:
         return np.vstack([self.iU[:, :-1], self.iUp]) if self.iUp is not None else self.iU
 
-    def pack(self, X, U, C=None) -> np.ndarray:
+    def pack(self, X, U, C=None, S=None, h=None) -> np.ndarray:
         w = np.full(self.n, np.nan)
         w[self.iX] = np.asarray(X, dtype=float)
         w[self.iU] = np.asarray(U, dtype=float)
@@ -193,29 +212,54 @@ class Scales:
     objective: float
 
 
-def characteristic_scales(problem: Problem) -> Scales:
-    """Magnitudes of the unknowns from the boundary data, the horizon and the body.
+def target_estimate(problem: Problem) -> np.ndarray:
+    """A terminal state (18) standing for the target: a state target's X (its free components
+    hold placeholders), or for an orbit target a point of the orbit reached by a Hohmann-like
+    transfer (:func:`~transcription.impulsive.relaxed_start_target`).  For scales and guesses."""
+    if isinstance(problem.terminal, TargetState):
+        return problem.terminal.X
+    from .impulsive import relaxed_start_target
 
-    (max-norms throughout) positions L = max(|x0|, |xd|, |xd - x0|); linear momenta
-    max(|gamma0|, |gammad|, m L / T); angular momenta max(|Pi0|, |Pid|, lambda_max(J) / T); forces and moments: momentum scale / T;
-    attitude entries 1; Cayley vector h |Omega| / 2 with |Omega| the angular-momentum scale /
-    lambda_min(J).  Control scales are raised so that W_i s_i^2 >= BALANCE * max_j W_j s_j^2 (see
-    the module docstring).  Objective: its value for controls of the characteristic size held over
-    the horizon.
+    return relaxed_start_target(problem)
+
+
+def characteristic_scales(problem: Problem) -> Scales:
+    """Magnitudes of the unknowns from the boundary data, the horizon, the body and the bounds.
+
+    (max-norms throughout) positions L = max(|x0|, |xd|, |xd - x0|) (1 if all vanish: attitude-only
+    maneuvers); linear momenta max(|gamma0|, |gammad|, m L / T); angular momenta max(|Pi0|, |Pid|,
+    lambda_max(J) / T); forces and moments: momentum scale / T, or their bounds; attitude entries
+    1; Cayley vector h |Omega| / 2 with |Omega| the angular-momentum scale / lambda_min(J).  For
+    the effort objective the control scales are raised so that W_i s_i^2 >= BALANCE * max_j
+    W_j s_j^2 (see the module docstring).  Objective: its value for controls of the characteristic
+    size held over the horizon (time: T).
     """
-    a, d = unpack_states(problem.X0), unpack_states(problem.Xd)
+    a, d = unpack_states(problem.X0), unpack_states(target_estimate(problem))
     m, J, T, h = problem.model.mass, problem.disc.J, problem.T, problem.h
+    control: SmoothControl = problem.control
     ev = np.linalg.eigvalsh(J)
-    L = max(np.abs(a.x).max(), np.abs(d.x).max(), np.abs(d.x - a.x).max(), 1e-12)
+    L = max(np.abs(a.x).max(), np.abs(d.x).max(), np.abs(d.x - a.x).max())
+    L = L if L > 0 else 1.0
     sg = max(np.abs(a.gamma).max(), np.abs(d.gamma).max(), m * L / T)
     sP = max(np.abs(a.Pi).max(), np.abs(d.Pi).max(), ev[-1] / T)
     sX = np.concatenate([np.full(3, L), np.full(3, sg), np.ones(9), np.full(3, sP)])
     sU = np.concatenate([np.full(3, sg / T), np.full(3, sP / T)])
+    for sl, bound in ((slice(0, 3), control.force_bound), (slice(3, 6), control.moment_bound)):
+        if isinstance(bound, BoxBound):
+            sU[sl] = bound.b
+        elif isinstance(bound, NormBound) and bound.b > 0:
+            sU[sl] = bound.b
     sC = np.full(3, 0.5 * h * sP / ev[0])
-    Wdiag = np.diag(problem.control.W)
-    cw = Wdiag * sU**2
-    sU = sU * np.sqrt(np.maximum(1.0, BALANCE * cw.max() / cw))
-    obj = 0.5 * T * float(np.sum(Wdiag * sU**2))
+    if control.objective == "effort":
+        Wdiag = np.diag(control.W)
+        cw = Wdiag * sU**2
+        sU = sU * np.sqrt(np.maximum(1.0, BALANCE * cw.max() / cw))
+        obj = 0.5 * T * float(np.sum(Wdiag * sU**2))
+    elif control.objective == "time":
+        obj = T
+    else:
+        rf, rm = control.removed
+        obj = T * ((0.0 if rf else control.W_f[0, 0] * sU[:3].max()) + (0.0 if rm else control.W_m[0, 0] * sU[3:].max()))
     return Scales(X=sX, U=sU, C=sC, objective=obj)
 
 
@@ -223,62 +267,128 @@ def characteristic_scales(problem: Problem) -> Scales:
 class SmoothTranscription:
     """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.
 
+    Blocks (transcription.blocks): the dynamics of every step (with the effort cost), the control
+    nodes' norm bounds and fuel epigraph (with the fuel cost), the time cost, one block per path
+    constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal
+    target (a state target's fixed components, or an orbit target).  Box bounds on the controls,
+    removed controls (a norm bound of 0), the slacks' signs and the free step size's range are
+    variable bounds.
+
     ``stage_order``: fatrop's stage-ordered layout (:class:`StageLayout`) with X_0 as constraint
-    rows (fatrop takes no fixed variables) and, for the LGVI, the lifting rows.  Attributes:
-    ``layout``, ``scales``, ``nlp`` (:class:`~transcription.nlp.StructuredNLP`), ``lbx``/``ubx``,
-    ``w_scale`` (physical w = w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled
-    row), ``defect_rows`` (18, N) rows of the step defects "step - X_{k+1}" in g.
+    rows (fatrop takes no fixed variables) and, for the LGVI, the lifting rows (fixed-time effort
+    problems without bounds or path constraints only).  Attributes: ``layout``, ``scales``,
+    ``nlp`` (:class:`~transcription.nlp.StructuredNLP`), ``lbx``/``ubx``, ``w_scale`` (physical w =
+    w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N)
+    rows of the step defects "step - X_{k+1}" in g, ``h_scale``.
     """
 
     def __init__(self, problem: Problem, opts: DirectOptions, stage_order: bool = False):
         disc, N, h = problem.disc, problem.N, problem.h
         self.problem, self.opts = problem, opts
-        with_c = True if stage_order else bool(opts.cayley_variables)
-        self.layout = lay = StageLayout(N, disc.scheme) if stage_order else NLPLayout(N, control_nodes(disc, N), with_c)
-        self.scales = sc = characteristic_scales(problem)
         control: SmoothControl = problem.control
-        target: TargetState = problem.terminal
+        free_h, effort, fuel = problem.free_time, control.objective == "effort", control.objective == "fuel"
+        with_c = True if stage_order else bool(opts.cayley_variables)
+        self.layout = lay = StageLayout(N, disc.scheme) if stage_order else \
+            NLPLayout(N, control_nodes(disc, N), with_c, n_slack=2 if fuel else 0, free_h=free_h)
+        self.scales = sc = characteristic_scales(problem)
+        self.h_scale = h
+        sS = np.array([sc.U[:3].max(), sc.U[3:].max()])
         ws = np.full(lay.n, np.nan)
         ws[lay.iX] = sc.X[:, None]
         ws[lay.iU] = sc.U[:, None]
+        ws[lay.iS] = sS[:, None] if fuel else ws[lay.iS]
         if with_c:
             ws[lay.iC] = sc.C[:, None]
         if getattr(lay, "iUp", None) is not None:
             ws[lay.iUp] = sc.U[:, None]
+        if free_h:
+            ws[lay.ih] = self.h_scale
         self.w_scale = ws
 
         sW = np.asarray(disc.stage_controls(np.repeat(sc.U[:, None], 2, axis=1)), dtype=float)[:, 0]
         sG = np.full(NC, h * sc.X[X_ANG].max())                        # G ~ h Pi
-        dyn = blocks.dynamics(disc, with_c, True, True)
+        dyn = blocks.dynamics(disc, with_c, True, effort, free_h)
         data = blocks.dynamics_data(disc, h, sc.X, sc.C if with_c else None, sW, sG if with_c else None,
-                                    sc.objective, control.W_f, control.W_m)
-        iV = np.vstack([lay.iX[:, :-1]] + ([lay.iC] if with_c else []) + [lay.stage_controls(disc), lay.iX[:, 1:]])
+                                    *((sc.objective, control.W_f, control.W_m) if effort else ()))
+        iV = np.vstack([lay.iX[:, :-1]] + ([lay.iC] if with_c else []) + [lay.stage_controls(disc), lay.iX[:, 1:]]
+                       + ([np.full((1, N), lay.ih)] if free_h else []))
         blist = [Block("dynamics", dyn, iV, data, compile=True)]
         row_scales = {"dynamics": np.concatenate([sc.X] + ([sG] if with_c else []))}
+
+        norm_f = isinstance(control.force_bound, NormBound) and control.force_bound.b > 0
+        norm_m = isinstance(control.moment_bound, NormBound) and control.moment_bound.b > 0
+        if norm_f or norm_m or fuel:
+            nU = len(lay.control_nodes)
+            omega_per_h = quadrature_weights(disc.scheme, N, 1.0)
+            bf = control.force_bound.b if norm_f else 1.0
+            bm = control.moment_bound.b if norm_m else 1.0
+            cdata = np.vstack([np.repeat(np.r_[sc.U, sS if fuel else []][:, None], nU, axis=1), omega_per_h[None, :],
+                               np.repeat(np.array([[h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective]]).T,
+                                         nU, axis=1)])
+            iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if free_h else []))
+            nr = int(norm_f) + int(norm_m) + (2 if fuel else 0)
+            blist.append(Block("controls", blocks.control_node(free_h, norm_f, norm_m, fuel), iN, cdata,
+                               lbg=-np.inf, ubg=0.0))
+            row_scales["controls"] = np.ones(nr)
+        if control.objective == "time":
+            blist.append(Block("time", blocks.time_cost(), np.array([lay.ih]), np.array([self.h_scale, N / sc.objective])))
+            row_scales["time"] = np.zeros(0)
+        J = problem.model.inertia
+        for i, con in enumerate(problem.constraints):
+            scale = {"min_radius": sc.X[0], "max_angular_rate": con.value**2 if con.kind == "max_angular_rate" else 1.0
+                     }.get(con.kind, 1.0)
+            name = f"constraint{i}"
+            blist.append(Block(name, blocks.node_rows(f"path_{con.kind}", lambda X, c=con: c.expression(X, J),
+                                                      np.array([scale])),
+                               lay.iX[:, 1:], sc.X, lbg=0.0, ubg=np.inf))
+            row_scales[name] = np.array([scale])
         if stage_order and lay.iUp is not None:
             blist.append(Block("lift", _lift_function(), np.vstack([lay.iUp, lay.iU[:, 1:]]), np.zeros(0)))
             row_scales["lift"] = sc.U
         if stage_order:
             blist.append(Block("initial", _initial_rows_function(), lay.iX[:, 0], np.concatenate([problem.X0 / sc.X])))
             row_scales["initial"] = sc.X
-        tsc = blocks.state_target_scales(sc.X, target.fixed)
-        blist.append(Block("terminal", blocks.state_target(target.fixed), lay.iX[:, -1],
-                           np.concatenate([sc.X, target.X, tsc])))
+        target = problem.terminal
+        if isinstance(target, TargetOrbit):
+            m, mu = problem.model.mass, problem.model.mu
+            tsc = np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[3:6], sc.X[15:18]])
+            blist.append(Block("terminal", blocks.node_rows("orbit_target", lambda X: orbit_residual(X, target, m, mu),
+                                                            tsc), lay.iX[:, -1], sc.X))
+        else:
+            tsc = blocks.state_target_scales(sc.X, target.fixed)
+            blist.append(Block("terminal", blocks.state_target(target.fixed), lay.iX[:, -1],
+                               np.concatenate([sc.X, target.X, tsc])))
         row_scales["terminal"] = tsc
         self.nlp = StructuredNLP(lay.n, blist, jit=bool(opts.jit) and not stage_order)
         self.g_scale = np.empty(self.nlp.ng)
-        for b in blist:
-            self.g_scale[self.nlp.rows(b.name)] = row_scales[b.name][:, None]
+        for blk in blist:
+            self.g_scale[self.nlp.rows(blk.name)] = row_scales[blk.name][:, None]
         self.defect_rows = self.nlp.rows("dynamics")[:NX]
+        self.constraint_rows = [self.nlp.rows(f"constraint{i}")[0] for i in range(len(problem.constraints))]
+
         self.lbx = np.full(lay.n, -np.inf)
         self.ubx = np.full(lay.n, np.inf)
         if not stage_order:
             self.lbx[lay.iX[:, 0]] = self.ubx[lay.iX[:, 0]] = problem.X0 / sc.X
-        self.omega = quadrature_weights(disc.scheme, N, h)
+        for sl, bound in ((slice(0, 3), control.force_bound), (slice(3, 6), control.moment_bound)):
+            if isinstance(bound, BoxBound):
+                self.lbx[lay.iU[sl]] = (-bound.b / sc.U[sl])[:, None]
+                self.ubx[lay.iU[sl]] = (bound.b / sc.U[sl])[:, None]
+            elif isinstance(bound, NormBound) and bound.b == 0:
+                self.lbx[lay.iU[sl]] = self.ubx[lay.iU[sl]] = 0.0
+                if fuel:
+                    self.lbx[lay.iS[0 if sl.start == 0 else 1]] = self.ubx[lay.iS[0 if sl.start == 0 else 1]] = 0.0
+        if fuel:
+            self.lbx[lay.iS] = np.maximum(self.lbx[lay.iS], 0.0)
+        if free_h:
+            lo, hi = problem.time_bounds
+            self.lbx[lay.ih], self.ubx[lay.ih] = lo / N / self.h_scale, hi / N / self.h_scale
 
-    def initial_point(self, guess: Guess) -> np.ndarray:
-        """Scaled decision vector of a :class:`~transcription.guess.Guess`."""
-        return self.layout.pack(guess.X.T, guess.U, guess.C.T if self.layout.with_c else None) / self.w_scale
+    def initial_point(self, guess: Guess, h: float | None = None) -> np.ndarray:
+        """Scaled decision vector of a :class:`~transcription.guess.Guess` (and step size h)."""
+        w = self.layout.pack(guess.X.T, guess.U, guess.C.T if self.layout.with_c else None,
+                             h=self.problem.h if h is None else h) / self.w_scale
+        return np.clip(w, self.lbx, self.ubx)
 
     def costates(self, X: np.ndarray, lam_g: np.ndarray, sign: float = 1.0) -> np.ndarray:
         """lambda_k = D(X_{k+1})^T nu_k (N, 12), nu_k = multiplier of step - X_{k+1} (module docstring).
@@ -367,10 +477,26 @@ def _free_motion_failure(problem: Problem, opts: DirectOptions, result: Result, 
                     iterations=0, build_s=build_s, solve_s=0.0, problem=problem)
 
 
-def trajectory(problem: Problem, X: np.ndarray) -> "Trajectory":
-    """The Trajectory of node states X (N+1, 18) of ``problem`` (times k h)."""
+def trajectory(problem: Problem, X: np.ndarray, h: float | None = None) -> "Trajectory":
+    """The Trajectory of node states X (N+1, 18) of ``problem`` (times k h, h the problem's by default)."""
     m = problem.model
-    return Trajectory(t=problem.h * np.arange(X.shape[0]), X=X, mass=m.mass, inertia=m.inertia)
+    return Trajectory(t=(problem.h if h is None else h) * np.arange(X.shape[0]), X=X, mass=m.mass, inertia=m.inertia)
+
+
+def _constraint_report(problem: Problem, traj: Trajectory, tr: SmoothTranscription, lam_g: np.ndarray) -> list[dict]:
+    """Per path constraint: kind, the minimum margin on the re-simulated trajectory (its units), the
+    nodes where it is active (margin within 1e-6 of the constraint's scale) and the largest
+    multiplier (physical units of the cost per unit of the smooth form g >= 0)."""
+    out = []
+    for con, rows in zip(problem.constraints, tr.constraint_rows):
+        margin = con.margin(traj)
+        mult = np.abs(tr.scales.objective * lam_g[rows] / tr.g_scale[rows])
+        active = np.flatnonzero(margin[1:] <= 1e-6 * max(1.0, np.abs(margin).max())) + 1
+        out.append({"kind": con.kind, "unit": con.unit, "min_margin": float(margin.min()),
+                    "active_nodes": int(active.size),
+                    "active_times": [float(traj.t[active[0]]), float(traj.t[active[-1]])] if active.size else [],
+                    "max_multiplier": float(mult.max()) if mult.size else 0.0})
+    return out
 
 
 def _warm_guess(problem: Problem, warm: Solution | None) -> Guess | None:
@@ -384,18 +510,53 @@ def _warm_guess(problem: Problem, warm: Solution | None) -> Guess | None:
     return Guess(X=X, U=U, C=cayley_vectors(X))
 
 
+#: with initial_guess 'auto', the first guess (the rollout) gets at most this many NLP iterations
+#: before the next one is tried: a solve that needs more from the free motion is usually wandering
+#: (the orbit-doubling maneuver: > 1100 iterations from the rollout, 5 from the interpolation)
+AUTO_FIRST_BUDGET = 200
+#: with initial_guess 'auto' and the time objective, this many symmetry-breaking starts are solved and
+#: the fastest converged maneuver kept: time-optimal slews have several local minima (the asymmetric
+#: slew of configs/slew_time_optimal.yaml: 28.63 s and 29.41 s, the first-order scheme at N = 100
+#: reaching the latter from seed 0)
+TIME_STARTS = 3
+
+
+def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, Callable[[], Guess], int]], str]:
+    """The initial guesses to try, as (label, maker, iteration budget), and how to pick the result:
+    'first' (the first that converges) or 'best' (the lowest cost of those that converge); the
+    ``initial_guess`` option (see :class:`~transcription.options.DirectOptions`)."""
+    disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
+
+    def made(kind):
+        return lambda: make_guess(kind, disc, X0, target_estimate(problem), N, T)
+
+    if opts.initial_guess != "auto":
+        return [(opts.initial_guess, made(opts.initial_guess), opts.max_iter)], "first"
+    if problem.control.objective == "time":
+        size = np.zeros(6)
+        for sl, bound in ((slice(0, 3), problem.control.force_bound), (slice(3, 6), problem.control.moment_bound)):
+            size[sl] = bound.b if isinstance(bound, BoxBound) else bound.b / np.sqrt(3.0)
+        return [(f"interpolate with symmetry-breaking controls (seed {k})",
+                 lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
+                 opts.max_iter) for k in range(TIME_STARTS)], "best"
+    return [("rollout", made("rollout"), min(opts.max_iter, AUTO_FIRST_BUDGET)),
+            ("interpolate", made("interpolate"), opts.max_iter)], "first"
+
+
 def solve_direct(problem: Problem, options: DirectOptions | None = None,
                  progress: Callable[[Iterate], None] | None = None, warm_start: Solution | None = None) -> Solution:
     """Solve ``problem`` by the direct method (see the module docstring); failures are data.
 
-    ``warm_start``: a previous direct Solution of a problem of the same size (continuation, e.g.
-    along a sweep): its trajectory and controls are the initial guess and, if it carries them
+    The initial guesses of :func:`guess_plan` are tried in order until one converges (the message
+    and ``stats['guesses_tried']`` say which were tried).  ``warm_start``: a previous direct
+    Solution of a problem of the same size (continuation, e.g. along a sweep): its trajectory,
+    controls and step size are the only initial guess and, if it carries them
     (``stats['nlp_nu']``), its NLP multipliers start IPOPT's duals.
 
     Smooth control: controls (6, n_controls) [u_f inertial; u_m body]; trajectory = the
     re-simulation from X0 with those controls; terminal_error on it; costates (N, 12) from the
-    multipliers.  The result is converged iff the solver converged and the re-simulated terminal
-    error is <= terminal_tol.
+    multipliers.  The result is converged iff the solver converged, the re-simulated terminal
+    error is <= terminal_tol and no path constraint is violated by more than terminal_tol.
     """
     opts = options or DirectOptions()
     if problem.kind == "impulsive":
@@ -405,32 +566,67 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     if problem.kind != "smooth":
         raise ValueError("the problem has no control to optimize (terminal and control are None): use simulate")
     warm = _warm_guess(problem, warm_start)
-    guess = warm or make_guess(opts.initial_guess, problem.disc, problem.X0, problem.Xd, problem.N, problem.T)
-    if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
-        return _free_motion_failure(problem, opts, Result.non_finite,
-                                    f"the initial guess ({'warm start' if warm else opts.initial_guess}) is not finite "
-                                    "(overflow or a singular potential along the free motion): check the model and "
-                                    "the states")
+    plan, pick = ([("warm start", lambda: warm, opts.max_iter)], "first") if warm is not None else \
+        guess_plan(problem, opts)
+    h0 = warm_start.h if warm is not None else problem.h
     nu0 = warm_start.stats.get("nlp_nu") if warm is not None else None
     fallback: dict[str, Any] = {}
     if opts.solver == "fatrop":
-        sol, fallback = _solve_fatrop(problem, opts, guess)
-        if sol is not None:
-            return sol
+        c = problem.control
+        if problem.free_time or problem.constraints or c.objective != "effort" or c.bounded \
+                or not isinstance(problem.terminal, TargetState):
+            fallback = {"fatrop_fallback": True, "fatrop_status": "not_applicable", "fatrop_build_s": 0.0,
+                        "fatrop_solve_s": 0.0, "fatrop_message": "fatrop is used for fixed-time effort problems to a "
+                        "state target without bounds or path constraints"}
+        else:
+            fsol, fallback = _solve_fatrop(problem, opts, plan[0][1]())
+            if fsol is not None:
+                return fsol
     t0 = time.perf_counter()
     tr = SmoothTranscription(problem, opts)
-    solver = make_ipopt("direct_ms", tr.nlp, ipopt_options(opts, warm_duals=nu0 is not None), progress,
-                        tr.scales.objective)
     build_s = time.perf_counter() - t0
-    args = dict(x0=tr.initial_point(guess), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
-    if nu0 is not None and len(nu0) == tr.nlp.ng:
-        args["lam_g0"] = np.asarray(nu0) * tr.g_scale / tr.scales.objective
-    t0 = time.perf_counter()
-    out = solver(**args)
-    solve_s = time.perf_counter() - t0
-    stats = solver.stats()
-    sol = _solution(problem, opts, tr, out, stats, str(stats.get("return_status", "unknown")), "ipopt", build_s,
-                    solve_s)
+    solvers: dict[int, ca.Function] = {}
+    tried: list[str] = []
+    total_build, total_solve = 0.0, 0.0
+    sol, best = None, None
+    for label, maker, budget in plan:
+        guess = maker()
+        if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
+            tried.append(f"{label}: not finite")
+            continue
+        t0 = time.perf_counter()
+        if budget not in solvers:
+            solvers[budget] = make_ipopt("direct_ms", tr.nlp, ipopt_options(opts.replace(max_iter=budget),
+                                                                            warm_duals=nu0 is not None),
+                                         progress, tr.scales.objective)
+        solver = solvers[budget]
+        total_build += time.perf_counter() - t0
+        args = dict(x0=tr.initial_point(guess, h0), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
+        if nu0 is not None and len(nu0) == tr.nlp.ng:
+            args["lam_g0"] = np.asarray(nu0) * tr.g_scale / tr.scales.objective
+        t0 = time.perf_counter()
+        out = solver(**args)
+        solve_s = time.perf_counter() - t0
+        total_solve += solve_s
+        stats = solver.stats()
+        sol = _solution(problem, opts, tr, out, stats, str(stats.get("return_status", "unknown")), "ipopt", build_s,
+                        solve_s)
+        tried.append(f"{label}: {sol.result} in {sol.iterations} iterations" +
+                     (f", cost {sol.cost:.10g}" if pick == "best" and sol.converged else ""))
+        sol.stats["initial_guess"] = label
+        if sol.converged and (best is None or sol.cost < best.cost):
+            best = sol
+        if sol.result is Result.interrupted or (sol.converged and pick == "first"):
+            break
+    if sol is None:
+        return _free_motion_failure(problem, opts, Result.non_finite,
+                                    "the initial guess is not finite (overflow or a singular potential along the "
+                                    "free motion): check the model and the states")
+    sol = best if best is not None and sol.result is not Result.interrupted else sol
+    sol.build_s, sol.solve_s = build_s + total_build, total_solve
+    sol.stats["guesses_tried"] = tried
+    if len(tried) > 1:
+        sol.message += "; initial guesses tried: " + "; ".join(tried)
     if fallback:
         sol.stats.update(fallback)
         sol.message = f"{fallback['fatrop_message']}; IPOPT fallback: {sol.message}"
@@ -480,10 +676,12 @@ def _solution(problem: Problem, opts: DirectOptions, tr: SmoothTranscription, ou
     """The Solution of a finished NLP solve (IPOPT or fatrop): re-simulation, checks, costates."""
     w = np.array(out["x"]).ravel() * tr.w_scale
     Xn, U, _ = tr.layout.unpack(w)
+    h = float(w[tr.layout.ih]) if tr.layout.ih is not None else problem.h
     lam_g = np.array(out["lam_g"]).ravel()
     g_phys = np.array(out["g"]).ravel() * tr.g_scale
-    Xsim, res = problem.disc.simulate(problem.X0, U, problem.h, problem.N)
+    Xsim, res = problem.disc.simulate(problem.X0, U, h, problem.N)
     err = terminal_error(Xsim[-1], problem)
+    traj = trajectory(problem, Xsim, h)
     worst_cayley = float(np.max(res)) if res.size else 0.0
     result = result_of_solver_status(status)
     label = "IPOPT" if solver == "ipopt" else solver
@@ -514,8 +712,21 @@ def _solution(problem: Problem, opts: DirectOptions, tr: SmoothTranscription, ou
         "nlp_nu": tr.scales.objective * lam_g / tr.g_scale,  # physical multipliers, for warm starts
         **solve_time_split(stats, solve_s),
     }
-    return Solution(method="direct", solver=solver, result=result, message=message, trajectory=trajectory(problem, Xsim),
-                    cost=effort_cost(U, problem.control, tr.omega), terminal_error=err,
+    if problem.free_time:
+        stats_out["T"] = problem.N * h
+    times = traj.t[1:] if U.shape[1] == problem.N else traj.t
+    activity = control_activity(problem.control, U, times)
+    if activity:
+        stats_out["bounds"] = activity
+    if problem.constraints:
+        stats_out["constraints"] = _constraint_report(problem, traj, tr, lam_g)
+        worst = min(c["min_margin"] for c in stats_out["constraints"])
+        stats_out["min_constraint_margin"] = worst
+        if result is Result.converged and worst < -opts.terminal_tol:
+            result = Result.terminal_error
+            message += f"; a path constraint is violated on the re-simulation by {-worst:.2e}"
+    return Solution(method="direct", solver=solver, result=result, message=message, trajectory=traj,
+                    cost=objective_value(problem, U, h), terminal_error=err,
                     iterations=int(stats.get("iter_count", 0)), build_s=build_s, solve_s=solve_s, problem=problem,
                     controls=U, costates=tr.costates(Xn, lam_g),
                     history=ipopt_history(stats, tr.scales.objective), stats=stats_out)

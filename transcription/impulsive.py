@@ -706,7 +706,7 @@ def solve_impulsive(problem: Problem, opts: DirectOptions, progress: Callable[[I
         Xd = problem.terminal.X
         build_s = time.perf_counter() - t0
         t1 = time.perf_counter()
-        first = opts.initial_guess
+        first = "interpolate" if opts.initial_guess == "interpolate" else "rollout"  # auto: rollout first
         history, attempts, iterations = [], [], 0
         for kind in (first, "rollout" if first == "interpolate" else "interpolate"):
             # Newton may stagnate at a local minimum of |r|: restart from the other guess

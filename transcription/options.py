@@ -187,8 +187,10 @@ class DirectOptions(Options):
     solver: str = _opt("ipopt", "choice", choices=("ipopt", "fatrop"), doc="NLP solver (fatrop: fixed-time effort problems; IPOPT is its fallback)")
     tol: float = _opt(1e-10, "float", lo=0.0, doc="the NLP solver's KKT tolerance")
     max_iter: int = _opt(3000, "int", lo=1, doc="iteration limit of the NLP solver (and of the impulsive TPBVP's Newton, at most 50)")
-    initial_guess: str = _opt("rollout", "choice", choices=("rollout", "interpolate"),
-                              doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target")
+    initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate"),
+                              doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target; "
+                                  "auto: rollout, then interpolate if that fails (time objective: the interpolation with "
+                                  "symmetry-breaking controls)")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")

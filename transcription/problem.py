@@ -70,16 +70,23 @@ class TargetState:
 @dataclass(frozen=True)
 class TargetOrbit:
     """Relaxed terminal set: any point of the circular orbit of radius ``radius`` about the unit
-    ``normal`` (through the central body at the origin), the body axis ``body_axis`` along
-    +-normal, at rest in attitude after the terminal impulse (docs/mathematics.md §5)."""
+    ``normal`` (through the central body at the origin), with the circular orbit's velocity, the
+    body axis ``body_axis`` along +-normal and the body angular momentum ``Pi`` (default 0: at rest
+    in attitude) -- after the terminal impulse (impulsive control) or at arrival (smooth control)
+    (docs/mathematics.md §5)."""
 
     radius: float
     normal: np.ndarray
     body_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    Pi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
         if not (np.isfinite(self.radius) and self.radius > 0):
             raise ProblemError("terminal.radius", "expected a positive number")
+        Pi = np.asarray(self.Pi, dtype=float).reshape(-1)
+        if Pi.shape != (3,) or not np.all(np.isfinite(Pi)):
+            raise ProblemError("terminal.Pi", "expected a finite 3-vector")
+        object.__setattr__(self, "Pi", Pi)
         for name in ("normal", "body_axis"):
             v = np.asarray(getattr(self, name), dtype=float).reshape(-1)
             n = np.linalg.norm(v) if v.shape == (3,) and np.all(np.isfinite(v)) else 0.0
@@ -368,8 +375,6 @@ class Problem:
                                "a terminal target and a control go together (both, or neither for a simulation)")
         if isinstance(self.terminal, TargetOrbit) and self.disc.model.mu is None:
             raise ProblemError("terminal", "an orbit target needs a model with a central body (mu)")
-        if isinstance(self.control, SmoothControl) and isinstance(self.terminal, TargetOrbit):
-            raise ProblemError("terminal", "an orbit target is supported for impulsive control only")
         if isinstance(self.control, ImpulsiveControl) and isinstance(self.terminal, TargetState) and self.terminal.free:
             raise ProblemError("terminal.free", "an impulsive state target must give every component")
         if self.time_bounds is not None:
@@ -465,7 +470,7 @@ def orbit_conditions(XN, target: TargetOrbit, mass: float, mu: float):
 
     C = [|x_N| - r_d; e_n^T x_N; a^T R_N b; b'^T R_N b] with (a, b') a basis of the orbit plane and b
     the body axis; gamma_N^+ = m sqrt(mu/r_d) (e_n x x_N)/r_d (inertial) the momentum of the
-    circular orbit after the terminal impulse; Pi_N^+ = 0 (body).  CasADi or NumPy alike.
+    circular orbit after the terminal impulse; Pi_N^+ = the target's Pi (body).  CasADi or NumPy.
     """
     n, a, b = target.plane_basis()
     rd = float(target.radius)
@@ -474,16 +479,29 @@ def orbit_conditions(XN, target: TargetOrbit, mass: float, mu: float):
     vc = mass * np.sqrt(mu / rd) / rd
     if isinstance(XN, (ca.SX, ca.MX, ca.DM)):
         C = ca.vertcat(ca.norm_2(x) - rd, ca.dot(ca.DM(n), x), ca.dot(ca.DM(a), axis), ca.dot(ca.DM(b), axis))
-        return C, vc * ca.cross(ca.DM(n), x), ca.DM.zeros(3)
-    return np.array([np.linalg.norm(x) - rd, n @ x, a @ axis, b @ axis]), vc * np.cross(n, x), np.zeros(3)
+        return C, vc * ca.cross(ca.DM(n), x), ca.DM(target.Pi)
+    return np.array([np.linalg.norm(x) - rd, n @ x, a @ axis, b @ axis]), vc * np.cross(n, x), target.Pi.copy()
+
+
+def orbit_residual(XN, target: TargetOrbit, mass: float, mu: float):
+    """The orbit target's conditions at arrival under smooth control (10 rows, CasADi or NumPy):
+    C (4) of :func:`orbit_conditions`, gamma_N - gamma^+(x_N) (3, inertial), Pi_N - Pi^+ (3, body)."""
+    C, gp, Pp = orbit_conditions(XN, target, mass, mu)
+    _, g, _, P = split_state(XN)
+    if isinstance(XN, (ca.SX, ca.MX, ca.DM)):
+        return ca.vertcat(C, g - gp, P - Pp)
+    return np.concatenate([C, g - gp, P - Pp])
 
 
 def terminal_error(XN: np.ndarray, problem: Problem, XN_plus: np.ndarray | None = None) -> float:
     """The terminal error of docs/mathematics.md §8 (NumPy): the max-norm of the terminal residual
     of a state target (for impulsive control evaluated after the terminal impulse, ``XN_plus``),
-    or max |C| of an orbit target."""
+    of an orbit target max |C| (impulsive) or the max-norm of :func:`orbit_residual` (smooth)."""
     if isinstance(problem.terminal, TargetOrbit):
-        return float(np.abs(orbit_conditions(XN, problem.terminal, problem.model.mass, problem.model.mu)[0]).max())
+        m, mu = problem.model.mass, problem.model.mu
+        rows = orbit_residual(XN, problem.terminal, m, mu) if problem.kind == "smooth" else \
+            orbit_conditions(XN, problem.terminal, m, mu)[0]
+        return float(np.abs(rows).max())
     if isinstance(problem.terminal, TargetState):
         X = XN if XN_plus is None else XN_plus
         if not np.all(np.isfinite(X)):
@@ -508,6 +526,53 @@ def effort_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> flo
     """sum_j omega_j (1/2) u_j^T W u_j for U (6, n_controls), W = blkdiag(W_f, W_m)."""
     U = np.asarray(U, dtype=float)
     return float(0.5 * np.einsum("k,ik,ij,jk->", omega, U, control.W, U))
+
+
+def fuel_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> float:
+    """sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) for U (6, n_controls) (the fuel objective)."""
+    U = np.asarray(U, dtype=float)
+    return float(np.sum(omega * (control.W_f[0, 0] * np.linalg.norm(U[U_FORCE], axis=0)
+                                 + control.W_m[0, 0] * np.linalg.norm(U[U_MOMENT], axis=0))))
+
+
+def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:
+    """The objective of a smooth-control problem for controls U with step size h: effort, fuel
+    (with the quadrature weights of the scheme) or the final time N h."""
+    control: SmoothControl = problem.control
+    if control.objective == "time":
+        return float(problem.N * h)
+    omega = quadrature_weights(problem.scheme, problem.N, h)
+    return fuel_cost(U, control, omega) if control.objective == "fuel" else effort_cost(U, control, omega)
+
+
+def control_activity(control: SmoothControl, U: np.ndarray, times: np.ndarray, rtol: float = 1e-6) -> dict:
+    """Where the bounded controls sit on their bounds, per control ('force', 'moment'):
+    at_bound_fraction (of the control nodes within rtol of the bound), time_at_bound, and
+    switch_times: for a box bound the times where a component changes sign while bang-bang
+    (linear interpolation between nodes), for a norm bound the times where the control enters or
+    leaves the bound.  Removed and unbounded controls are left out."""
+    U = np.asarray(U, dtype=float)
+    t = np.asarray(times, dtype=float)
+    dt = np.gradient(t) if len(t) > 1 else np.zeros(len(t))
+    out = {}
+    for name, sl, bound in (("force", U_FORCE, control.force_bound), ("moment", U_MOMENT, control.moment_bound)):
+        if bound is None or (isinstance(bound, NormBound) and bound.b == 0):
+            continue
+        u = U[sl].T
+        at = bound.margin(u) <= rtol * bound.scale()
+        if isinstance(bound, BoxBound):
+            switches = []
+            for i in range(3):
+                ui = u[:, i]
+                k = np.flatnonzero(ui[:-1] * ui[1:] < 0)
+                switches.append([float(t[j] + (t[j + 1] - t[j]) * ui[j] / (ui[j] - ui[j + 1])) for j in k])
+        else:
+            k = np.flatnonzero(at[:-1] != at[1:])
+            switches = [float(0.5 * (t[j] + t[j + 1])) for j in k]
+        out[name] = {"bound": "box" if isinstance(bound, BoxBound) else "norm",
+                     "at_bound_fraction": float(at.mean()) if len(at) else 0.0,
+                     "time_at_bound": float(np.sum(dt[at])), "switch_times": switches}
+    return out
 
 
 def impulse_cost(impulses: dict[str, np.ndarray]) -> float:
