@@ -13,10 +13,10 @@ problem of the same structure; builders with only structural arguments are cache
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
         cost = the step's share of sum_j omega_j (1/2) u_j^T W u_j, / s_obj (effort; else 0)
     control_node(free_h, norm_f, norm_m, fuel)   one control node j (docs/mathematics.md §10)
-        v = [u_j (6); s_j (2, fuel: epigraph slacks of |u_f|, |u_m|); h / h_scale (1, free_h)]
-        p = [sU (6); sS (2, fuel); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj (fuel)]
-        rows (<= 0) = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f); (|u_m|^2 - b_m^2) / b_m^2 (norm_m);
-                       (|u_f|^2 - s_f^2) / sS_f^2, (|u_m|^2 - s_m^2) / sS_m^2 (fuel)]
+        v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (fuel: magnitudes and directions); h / h_scale (1, free_h)]
+        p = [sU (6); sS (2); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj]
+        rows = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f, <= 0); (|u_m|^2 - b_m^2) / b_m^2 (norm_m, <= 0);
+                |d_f|^2 - 1, |d_m|^2 - 1 (fuel, <= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (fuel, = 0)]
         cost = omega_j (w_f s_f + w_m s_m) / s_obj (fuel; else 0)
     time_cost()                                   the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
@@ -87,27 +87,39 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = Fa
     return ca.Function(f"dynamics_{tag}", [v, p], [cost, rows], ["v", "p"], ["cost", "rows"])
 
 
+#: the fuel epigraph's variables per control node: magnitudes s_f, s_m and unit directions d_f, d_m
+FUEL_SLACKS = 8
+
+
 @lru_cache(maxsize=None)
 def control_node(free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> ca.Function:
-    """The block of one control node: norm bounds and the fuel epigraph (module docstring)."""
-    ns = 2 if fuel else 0
+    """The block of one control node: norm bounds and the fuel epigraph (module docstring).
+
+    The fuel epigraph is the magnitude-direction split u_f = s_f d_f, |d_f| <= 1, s_f >= 0 (the same
+    for u_m), with the cost omega_j (w_f s_f + w_m s_m): at the optimum s = |u|.  Unlike
+    |u|^2 <= s^2 its constraint gradients do not vanish where the control is off (u = s = 0), which
+    is where a fuel-optimal control spends its coast arcs (with |u|^2 <= s^2 IPOPT declared the
+    E3 fuel problem locally infeasible after 424 iterations).
+    """
+    ns = FUEL_SLACKS if fuel else 0
     v = ca.SX.sym("v", NU + ns + (1 if free_h else 0))
-    p = ca.SX.sym("p", NU + ns + 2 + 2 + 3)
-    sU, sS = p[:NU], p[NU:NU + ns]
-    i = NU + ns
+    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3)
+    sU, sS = p[:NU], p[NU:NU + 2]
+    i = NU + 2
     omega_per_h, hp, bf, bm, wf, wm, s_obj = (p[i + k] for k in range(7))
     h = hp * v[-1] if free_h else hp
     u = v[:NU] * sU
-    uf2, um2 = ca.dot(u[:3], u[:3]), ca.dot(u[3:], u[3:])
     rows = []
     if norm_f:
-        rows.append((uf2 - bf**2) / bf**2)
+        rows.append((ca.dot(u[:3], u[:3]) - bf**2) / bf**2)
     if norm_m:
-        rows.append((um2 - bm**2) / bm**2)
+        rows.append((ca.dot(u[3:], u[3:]) - bm**2) / bm**2)
     cost = ca.SX(0)
     if fuel:
         sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
-        rows += [(uf2 - sf**2) / sS[0] ** 2, (um2 - sm**2) / sS[1] ** 2]
+        df, dm = v[NU + 2:NU + 5], v[NU + 5:NU + 8]
+        rows += [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0]
+        rows += [(u[:3] - sf * df) / sS[0], (u[3:] - sm * dm) / sS[1]]
         cost = omega_per_h * h * (wf * sf + wm * sm) / s_obj
     tag = f"{'f' if norm_f else ''}{'m' if norm_m else ''}{'_fuel' if fuel else ''}{'_freeh' if free_h else ''}"
     return ca.Function(f"control_node_{tag}", [v, p], [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)],
@@ -158,5 +170,5 @@ def state_target_scales(sX: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
     return np.concatenate([per[c] for c in fixed])
 
 
-__all__ = ["NC", "STATE_COMPONENTS", "control_node", "dynamics", "dynamics_data", "dynamics_sizes", "node_rows",
+__all__ = ["FUEL_SLACKS", "NC", "STATE_COMPONENTS", "control_node", "dynamics", "dynamics_data", "dynamics_sizes", "node_rows",
            "state_target", "state_target_scales", "time_cost"]

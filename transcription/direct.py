@@ -123,15 +123,14 @@ class NLPLayout:
 
     def pack(self, X, U, C=None, S=None, h=None) -> np.ndarray:
         """NumPy (X (18, N+1), U (6, nU), C (3, N), S (n_slack, nU), h) -> w (n,).  C required iff
-        ``with_c``; S defaults to the norms |u_f|, |u_m| (a point on the epigraph's boundary); h
-        required iff the layout has it."""
+        ``with_c``; S defaults to the fuel epigraph's point of U (:func:`_fuel_slacks`); h required
+        iff the layout has it."""
         w = np.full(self.n, np.nan)
         w[self.iX] = np.asarray(X, dtype=float)
         U = np.asarray(U, dtype=float)
         w[self.iU] = U
         if self.n_slack:
-            w[self.iS] = np.asarray(S, dtype=float) if S is not None else \
-                np.vstack([np.linalg.norm(U[:3], axis=0), np.linalg.norm(U[3:], axis=0)])
+            w[self.iS] = np.asarray(S, dtype=float) if S is not None else _fuel_slacks(U)
         if self.with_c:
             if C is None:
                 raise ValueError("this layout has Cayley variables: C (3, N) is required")
@@ -143,6 +142,18 @@ class NLPLayout:
         if np.isnan(w).any():
             raise ValueError("pack: some entries were not filled (shape mismatch?)")
         return w
+
+
+def _fuel_slacks(U: np.ndarray) -> np.ndarray:
+    """The fuel epigraph's variables (8, n) of controls U (6, n): magnitudes |u_f|, |u_m| and unit
+    directions (u / |u|, or e1 where the control is 0)."""
+    out = []
+    for sl in (slice(0, 3), slice(3, 6)):
+        n = np.linalg.norm(U[sl], axis=0)
+        d = np.where(n > 0, U[sl] / np.where(n > 0, n, 1.0), np.array([[1.0], [0.0], [0.0]]))
+        out.append((n, d))
+    (nf, df), (nm, dm) = out
+    return np.vstack([nf, nm, df, dm])
 
 
 class StageLayout(NLPLayout):
@@ -289,14 +300,15 @@ class SmoothTranscription:
         free_h, effort, fuel = problem.free_time, control.objective == "effort", control.objective == "fuel"
         with_c = True if stage_order else bool(opts.cayley_variables)
         self.layout = lay = StageLayout(N, disc.scheme) if stage_order else \
-            NLPLayout(N, control_nodes(disc, N), with_c, n_slack=2 if fuel else 0, free_h=free_h)
+            NLPLayout(N, control_nodes(disc, N), with_c, n_slack=blocks.FUEL_SLACKS if fuel else 0, free_h=free_h)
         self.scales = sc = characteristic_scales(problem)
         self.h_scale = h
         sS = np.array([sc.U[:3].max(), sc.U[3:].max()])
         ws = np.full(lay.n, np.nan)
         ws[lay.iX] = sc.X[:, None]
         ws[lay.iU] = sc.U[:, None]
-        ws[lay.iS] = sS[:, None] if fuel else ws[lay.iS]
+        if fuel:
+            ws[lay.iS] = np.r_[sS, np.ones(6)][:, None]
         if with_c:
             ws[lay.iC] = sc.C[:, None]
         if getattr(lay, "iUp", None) is not None:
@@ -322,14 +334,15 @@ class SmoothTranscription:
             omega_per_h = quadrature_weights(disc.scheme, N, 1.0)
             bf = control.force_bound.b if norm_f else 1.0
             bm = control.moment_bound.b if norm_m else 1.0
-            cdata = np.vstack([np.repeat(np.r_[sc.U, sS if fuel else []][:, None], nU, axis=1), omega_per_h[None, :],
+            cdata = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), omega_per_h[None, :],
                                np.repeat(np.array([[h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective]]).T,
                                          nU, axis=1)])
             iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if free_h else []))
-            nr = int(norm_f) + int(norm_m) + (2 if fuel else 0)
+            n_ineq = int(norm_f) + int(norm_m) + (2 if fuel else 0)
+            lbg = np.r_[np.full(n_ineq, -np.inf), np.zeros(6 if fuel else 0)]
             blist.append(Block("controls", blocks.control_node(free_h, norm_f, norm_m, fuel), iN, cdata,
-                               lbg=-np.inf, ubg=0.0))
-            row_scales["controls"] = np.ones(nr)
+                               lbg=lbg, ubg=0.0))
+            row_scales["controls"] = np.r_[np.ones(n_ineq), np.repeat(sS, 3) if fuel else []]
         if control.objective == "time":
             blist.append(Block("time", blocks.time_cost(), np.array([lay.ih]), np.array([self.h_scale, N / sc.objective])))
             row_scales["time"] = np.zeros(0)
@@ -377,9 +390,10 @@ class SmoothTranscription:
             elif isinstance(bound, NormBound) and bound.b == 0:
                 self.lbx[lay.iU[sl]] = self.ubx[lay.iU[sl]] = 0.0
                 if fuel:
-                    self.lbx[lay.iS[0 if sl.start == 0 else 1]] = self.ubx[lay.iS[0 if sl.start == 0 else 1]] = 0.0
+                    k = 0 if sl.start == 0 else 1
+                    self.lbx[lay.iS[k]] = self.ubx[lay.iS[k]] = 0.0
         if fuel:
-            self.lbx[lay.iS] = np.maximum(self.lbx[lay.iS], 0.0)
+            self.lbx[lay.iS[:2]] = np.maximum(self.lbx[lay.iS[:2]], 0.0)
         if free_h:
             lo, hi = problem.time_bounds
             self.lbx[lay.ih], self.ubx[lay.ih] = lo / N / self.h_scale, hi / N / self.h_scale
