@@ -301,7 +301,7 @@ def cmd_solve(args) -> int:
         _say(args, f"comparison: {result.verdict}")
     _say(args, f"results in {out}/")
     _emit_summary(args, store.summary(man, result, with_history=False))
-    return 0 if all(s.converged for s in sols.values()) else 1
+    return 0 if store.all_converged(result) else 1
 
 
 def cmd_plot(args) -> int:

@@ -291,7 +291,9 @@ FIGURES = {
 
 def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:
     """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory."""
-    sols = list(result.solutions.values()) if isinstance(result, Comparison) else [result]
+    from .store import applicable
+
+    sols = list(applicable(result).values())
     runs = [Run.of(s) for s in sols]
     problem = sols[0].problem
     out = {}

@@ -34,6 +34,18 @@ def solutions_of(result: Solution | Comparison) -> dict[str, Solution]:
     return dict(result.solutions) if isinstance(result, Comparison) else {result.method: result}
 
 
+def applicable(result: Solution | Comparison) -> dict[str, Solution]:
+    """The Solutions of the methods that apply to the problem (a method that does not cover it
+    returns Result.not_applicable: it is reported, not drawn or stored as a trajectory)."""
+    return {m: s for m, s in solutions_of(result).items() if s.result is not Result.not_applicable}
+
+
+def all_converged(result: Solution | Comparison) -> bool:
+    """Every applicable method converged (and at least one applies)."""
+    sols = applicable(result)
+    return bool(sols) and all(s.converged for s in sols.values())
+
+
 def summary(man: Maneuver, result: Solution | Comparison, with_history: bool = True) -> dict[str, Any]:
     """The summary.json document of a run (see the README's results table)."""
     sols = solutions_of(result)
@@ -43,7 +55,7 @@ def summary(man: Maneuver, result: Solution | Comparison, with_history: bool = T
         out.pop("method", None)
         return out
     out = {"name": man.name, "config": man.source, "control": man.control_kind, "discretization": man.discretization,
-           "N": man.N, "T": man.T, "converged": all(s.converged for s in sols.values()),
+           "N": man.N, "T": man.T, "converged": all_converged(result),
            "methods": {m: dict(s.summary(), **({"history": [h.as_dict() for h in s.history]} if with_history else {}))
                        for m, s in sols.items()}}
     if isinstance(result, Comparison):
@@ -57,7 +69,7 @@ def write_run(out: Path, man: Maneuver, result: Solution | Comparison) -> list[P
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "config.resolved.yaml"]
     write_yaml(written[0], man.resolved)
-    for m, s in solutions_of(result).items():
+    for m, s in applicable(result).items():
         p = out / NPZ[m]
         write_npz(p, s.arrays())
         written.append(p)

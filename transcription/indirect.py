@@ -452,6 +452,26 @@ def _initial_costate(problem: Problem, opts: IndirectOptions, warm_start, direct
     return np.asarray(spec, dtype=float).reshape(NZ), "explicit", None
 
 
+def not_covered(problem: Problem) -> str:
+    """What of a smooth-control problem the indirect method does not cover ('' if nothing): its
+    necessary conditions are those of the effort objective with every terminal component given."""
+    c = problem.control
+    reasons = []
+    if c.objective != "effort":
+        reasons.append(f"the {c.objective} objective")
+    if problem.constraints:
+        reasons.append("path constraints")
+    if not isinstance(problem.terminal, TargetState):
+        reasons.append("an orbit target")
+    elif problem.terminal.free:
+        reasons.append("free terminal components")
+    if problem.free_time:
+        reasons.append("a free final time")
+    if c.bounded:
+        reasons.append("bounded controls")
+    return ", ".join(reasons)
+
+
 def _failure(problem: Problem, result: Result, message: str, build_s: float = 0.0) -> Solution:
     """A Solution for a solve that could not start: the free rollout."""
     X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
@@ -483,8 +503,13 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None,
     the history (the initial rollout and every line-search trial).
     """
     opts = options or IndirectOptions()
-    if problem.kind != "smooth" or not isinstance(problem.terminal, TargetState) or problem.terminal.free:
-        raise ValueError("the indirect method solves smooth-control problems with every terminal component given")
+    if problem.kind != "smooth":
+        raise ValueError("the indirect method solves smooth-control problems")
+    missing = not_covered(problem)
+    if missing:
+        return _failure(problem, Result.not_applicable,
+                        f"the indirect method does not cover {missing}; solve it by the direct method (whose Solution "
+                        "carries costate estimates mapped from its multipliers)")
     disc, N, h = problem.disc, problem.N, problem.h
     t0 = time.perf_counter()
     fns = shooting_functions(disc, N, bool(opts.jit))

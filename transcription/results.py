@@ -43,6 +43,7 @@ class Result(str, enum.Enum):
     kink = "kink"
     solver_failed = "solver_failed"
     invalid_option = "invalid_option"
+    not_applicable = "not_applicable"
     interrupted = "interrupted"
 
     def __str__(self) -> str:
@@ -74,6 +75,7 @@ _MESSAGES = {
     Result.kink: "the optimum lies at a kink of a non-smooth cost, where the smooth formulation does not apply",
     Result.solver_failed: "the solver failed",
     Result.invalid_option: "an option or an initial guess is not usable",
+    Result.not_applicable: "the method does not cover this problem",
     Result.interrupted: "interrupted by the user",
 }
 

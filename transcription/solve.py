@@ -65,7 +65,10 @@ def compare(a: Solution, b: Solution) -> Comparison:
         du = float(np.abs(a.controls - b.controls).max() / max(np.abs(a.controls).max(), 1e-300))
     both = a.converged and b.converged
     same = bool(both and rel <= MISMATCH_COST_RTOL)
-    if not both:
+    na = next((s for s in (a, b) if s.result is Result.not_applicable), None)
+    if na is not None:
+        verdict = f"not comparable: {na.message.split(';')[0]}"
+    elif not both:
         verdict = "not comparable: at least one method did not converge"
     elif same:
         verdict = "agree: same extremal"
