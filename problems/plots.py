@@ -814,6 +814,12 @@ def applicable(runs: list[Run], problem: Problem) -> list[str]:
     return [n for n in FIGURES if n not in skip]
 
 
+def draw(name: str, runs: list[Run], problem: Problem):
+    """One figure by name (a failed run's non-finite states are drawn as gaps, without warnings)."""
+    with np.errstate(all="ignore"):
+        return FIGURES[name](runs, problem)
+
+
 def _runs(result: Solution | Comparison) -> list[Run]:
     sols = list(result.solutions.values()) if isinstance(result, Comparison) else [result]
     return [Run.of(s) for s in sols]
@@ -828,7 +834,7 @@ def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None)
         unknown = set(which) - set(FIGURES)
         if unknown:
             raise ValueError(f"unknown figures {sorted(unknown)}; expected some of {', '.join(FIGURES)}")
-    return {name: FIGURES[name](runs, problem) for name in applicable(runs, problem) if not which or name in which}
+    return {name: draw(name, runs, problem) for name in applicable(runs, problem) if not which or name in which}
 
 
 def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
@@ -844,8 +850,12 @@ def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_o
         if not todo:
             return []
         which = todo
+    runs = _runs(run.result)
     written = []
-    for name, fig in figures(run.result, which).items():
+    for name in applicable(runs, runs[0].sol.problem):  # one at a time: one figure in memory
+        if which and name not in which:
+            continue
+        fig = draw(name, runs, runs[0].sol.problem)
         written += save_figure(fig, d / f"fig_{name}")
         plt.close(fig)
     return written
