@@ -948,7 +948,8 @@ class Animation:
         _cube(axa, 1.1)
         for a in (axa.xaxis, axa.yaxis, axa.zaxis):
             a.set_ticklabels([])
-        axa.set_title("attitude (target dashed)", fontsize=9)
+        has_target = Rd is not None or isinstance(problem.terminal, TargetOrbit)
+        axa.set_title("attitude" + (" (target dashed)" if has_target else ""), fontsize=9)
         # timeline of the control magnitudes (or the attitude error without controls)
         scales = []
         for run in runs:
@@ -968,7 +969,7 @@ class Animation:
             axt.legend([Line2D([], [], color="0.3", lw=1.3), Line2D([], [], color="0.3", lw=0.9, alpha=0.55)],
                        [f"|u_f| (max {scales[0][0]:.3g})", f"|u_m| (max {scales[0][1]:.3g})"], fontsize=7, loc="upper right")
         else:
-            axt.set_ylabel("attitude error / max", fontsize=8)
+            axt.set_ylabel(("angle to target" if Rd is not None else "rotation from start") + " / max", fontsize=8)
         axt.set_xlim(first.t[0], first.t[-1])
         axt.set_ylim(-0.05, 1.15)
         axt.xaxis.set_major_locator(MaxNLocator(nbins=5))
@@ -976,8 +977,11 @@ class Animation:
         axt.set_xlabel(T_LABEL, fontsize=8)
         axt.grid(alpha=0.3)
         handles, labels = ax.get_legend_handles_labels()
-        handles += [Line2D([], [], color=c, lw=2) for c in COMP] + [Line2D([], [], color=THRUST, lw=2)]
-        labels += ["body e1", "body e2", "body e3", "thrust u_f"]
+        handles += [Line2D([], [], color=c, lw=2) for c in COMP]
+        labels += ["body e1", "body e2", "body e3"]
+        if scales:
+            handles.append(Line2D([], [], color=THRUST, lw=2))
+            labels.append("thrust u_f")
         fig.legend(handles, labels, loc="lower left", ncols=5, fontsize=8, frameon=False)
         failed = [r for r in runs if r.failed]
         names = ", ".join(f"{r.name} ({'solid' if r.ls == '-' else 'dashed'})" for r in runs)
@@ -1006,7 +1010,8 @@ class Animation:
             art.append(d)
         cursor = axt.axvline(first.t[0], color="k", lw=1)
         moving.append(cursor)
-        clock = axt.text(0.015, 0.96, "", transform=axt.transAxes, ha="left", va="top", fontsize=9, family="monospace")
+        clock = axt.text(0.015, 0.96, "", transform=axt.transAxes, ha="left", va="top", fontsize=9, family="monospace",
+                         bbox=dict(facecolor="white", edgecolor="none", alpha=0.85, pad=1.5))
         moving.append(clock)
         if failed:
             fig.text(0.99, 0.995, "\n".join(f"{r.label}: {r.sol.result.value}" for r in failed), ha="right", va="top",
