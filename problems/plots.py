@@ -23,7 +23,7 @@ from matplotlib.ticker import MaxNLocator
 
 from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, Problem,
                                      TargetOrbit, TargetState)
-from ..transcription.results import AT_BOUND_RTOL, Solution, rotation_angle
+from ..transcription.results import AT_BOUND_RTOL, Solution, figures_of_merit, rotation_angle
 from ..transcription.solve import Comparison
 from .io import save_figure
 
@@ -607,7 +607,7 @@ def fig_control_norms(runs, problem: Problem):
             ax.plot(run.tu, np.linalg.norm(u, axis=1), color=run.color, ls=run.ls, lw=1.6, label=run.name)
             if bound is not None:
                 act = _active(u, bound)
-                tab = run.sol.summary().get(f"{which}_time_at_bound", float("nan"))
+                tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
                 _shade(ax, run.tu, act, run.color, label=f"{run.label} at bound ({tab:.3g} periods)")
         if isinstance(bound, NormBound):
             ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")

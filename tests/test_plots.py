@@ -304,3 +304,12 @@ def test_importing_and_plotting_keep_the_users_backend():
 def test_plots_module_never_chooses_a_backend():
     src = (ROOT / "problems" / "plots.py").read_text()
     assert "matplotlib.use(" not in src and "plt.switch_backend" not in src
+
+
+def test_readme_shows_figures_that_exist():
+    """Every figure the README's table shows is in docs/figures (scripts/readme_figures.py writes them)."""
+    import re
+
+    paths = re.findall(r"\]\((docs/figures/[^)]+\.png)\)", (ROOT / "README.md").read_text())
+    assert len(paths) >= 15
+    assert [p for p in paths if not (ROOT / p).is_file()] == []
