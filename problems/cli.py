@@ -42,6 +42,8 @@ EPILOG = """examples:
   se3ocp solve configs/e3_inclination_change.yaml --method both
   se3ocp compare configs/e4_orbital_capture.yaml --set solver.indirect.initial_costate=from_direct
   se3ocp plot results/e3_inclination_change
+  se3ocp plot results/e3_inclination_change --animate --frames 150 --fps 25
+  se3ocp report results/e3_inclination_change
   se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
 """
 
@@ -56,6 +58,18 @@ def _common(p: argparse.ArgumentParser, out=True):
         p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+
+
+def _animation_options(p: argparse.ArgumentParser):
+    p.add_argument("--animate", action="store_true",
+                   help="also write maneuver.gif (every method, named; body frame, thrust arrow, target)")
+    p.add_argument("--frames", type=_frames, default=100, metavar="K", help="frames of the animation (default 100)")
+    p.add_argument("--fps", type=_positive_int, default=20, metavar="F", help="frames per second (default 20)")
+
+
+def _output_options(p: argparse.ArgumentParser):
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG/PDF figures (report.html is still written)")
+    _animation_options(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -74,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                        epilog="example:\n  se3ocp simulate configs/free_tumble.yaml --out results/tumble",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     _common(p)
+    _output_options(p)
     p.set_defaults(func=cmd_simulate)
 
     for name, helptext, ex in (
@@ -90,20 +105,32 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--method", choices=("direct", "indirect", "both"), default="direct",
                            help="direct (multiple shooting + NLP solver), indirect (Newton-Armijo shooting), "
                                 "or both (default: direct)")
-        p.add_argument("--no-figures", action="store_true", help="skip the PNG/PDF figures")
-        p.add_argument("--animate", action="store_true", help="also write maneuver.gif")
+        _output_options(p)
         p.set_defaults(func=cmd_solve)
         if name == "compare":
             p.set_defaults(method="both")
 
-    p = sub.add_parser("plot", help="(re)draw the figures of a results directory",
-                       epilog="example:\n  se3ocp plot results/e3_inclination_change --animate",
+    p = sub.add_parser("plot", help="(re)draw the figures, report.html and the animation of a results directory",
+                       description="Without --animate: redraw every figure and report.html.  With --animate: write "
+                                   "maneuver.gif, and draw only the figures that are missing or older than the run's "
+                                   "summary.json (so a new animation does not redraw up-to-date figures).",
+                       epilog="examples:\n  se3ocp plot results/e3_inclination_change\n"
+                              "  se3ocp plot results/e3_inclination_change --animate --frames 150 --fps 25",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("results", help="a results directory written by simulate, solve or compare")
-    p.add_argument("--animate", action="store_true", help="also write maneuver.gif")
+    _animation_options(p)
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.add_argument("--json", action="store_true", help="print the list of files written as JSON")
     p.set_defaults(func=cmd_plot)
+
+    p = sub.add_parser("report", help="write report.html: a self-contained page (summary table, figures, history, config)",
+                       epilog="example:\n  se3ocp report results/e3_inclination_change",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("results", help="a results directory written by simulate, solve or compare")
+    p.add_argument("--no-figures", action="store_true", help="leave the figures out (no drawing)")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--json", action="store_true", help="print the path written as JSON")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("sweep", help="trade study: solve a grid of parameter values (local pool or Dask cluster)",
                        epilog="examples:\n  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T\n"
@@ -125,6 +152,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _positive_int(text: str) -> int:
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return int(text)
+
+
+def _frames(text: str) -> int:
+    if not text.isdigit() or int(text) < 2:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {text!r}")
     return int(text)
 
 
@@ -218,6 +251,7 @@ def cmd_simulate(args) -> int:
         sol = api.simulate(man)
         _Interrupt.check()
         store.write_run(tx.path, man, sol)
+        _figures_and_report(args, tx.path)
     out = tx.target
     st = sol.stats
     _say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, {sol.solve_s:.2f} s")
@@ -255,7 +289,12 @@ def _table(sols) -> list[str]:
     head = (f"{'method':<10} {'status':<20} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
             f"{'build s':>8} {'solve s':>8}")
     rows = [head, "-" * len(head)]
+    from ..transcription.results import Result
+
     for s in sols:
+        if s.result is Result.not_applicable:
+            rows.append(f"{s.method:<10} {s.result.value:<20} {'-':>14} {'-':>10} {'-':>10} {'-':>6} {'-':>8} {'-':>8}")
+            continue
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
         rows.append(f"{s.method:<10} {s.result.value:<20} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
                     f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
@@ -263,9 +302,9 @@ def _table(sols) -> list[str]:
 
 
 def cmd_solve(args) -> int:
+    from ..transcription.results import Result
     from ..transcription.solve import solve
     from . import api, store
-    from .plots import animate, draw_all
 
     man = _load(args)
     if man.control_kind is None:
@@ -286,14 +325,14 @@ def cmd_solve(args) -> int:
         _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols = store.solutions_of(result)
         for m, sol in sols.items():
+            if sol.result is Result.not_applicable:
+                _say(args, f"  {m}: {sol.result} ({sol.message})")
+                continue
             _say(args, f"  {m}: {sol.result} ({sol.message}); cost {sol.cost:.10g}, terminal error "
                        f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
                        f"solve {sol.solve_s:.2f} s")
         store.write_run(tx.path, man, result)
-        if not args.no_figures:
-            draw_all(tx.path)
-            if args.animate:
-                animate(tx.path)
+        _figures_and_report(args, tx.path)
     out = tx.target
     for line in _table(sols.values()):
         _say(args, line)
@@ -304,10 +343,23 @@ def cmd_solve(args) -> int:
     return 0 if store.all_converged(result) else 1
 
 
-def cmd_plot(args) -> int:
+def _figures_and_report(args, out: Path) -> list[Path]:
+    """After simulate/solve/compare: the figures (unless --no-figures), the animation (--animate)
+    and report.html (always; with the figures just drawn embedded)."""
     from .plots import animate, draw_all
+    from .report import write_report
 
-    d = Path(args.results)
+    written = []
+    if not args.no_figures:
+        written += draw_all(out)
+        if args.animate:
+            written.append(animate(out, frames=args.frames, fps=args.fps))
+    written.append(write_report(out, draw=False))
+    return written
+
+
+def _results_dir(d: Path) -> int:
+    """0 if d is a results directory, else the error printed and 2."""
     if not (d / "summary.json").exists() or not (d / "config.resolved.yaml").exists():
         print(f"se3ocp: error: {d}: not a results directory (needs summary.json and config.resolved.yaml)", file=sys.stderr)
         return 2
@@ -315,13 +367,41 @@ def cmd_plot(args) -> int:
         print(f"se3ocp: error: {d}: not a results directory (no direct.npz, indirect.npz or trajectory.npz)",
               file=sys.stderr)
         return 2
+    return 0
+
+
+def cmd_plot(args) -> int:
+    from .plots import animate, draw_all
+    from .report import write_report
+
+    d = Path(args.results)
+    if _results_dir(d):
+        return 2
     with results_update(d) as tx:
-        written = [str(d / p.name) for p in draw_all(tx.path)]
+        # --animate: the animation, and only the static figures that are missing or stale
+        figs = [str(d / p.name) for p in draw_all(tx.path, stale_only=args.animate)]
+        written = list(figs)
+        if figs or not (tx.path / "report.html").exists():
+            written.append(str(d / write_report(tx.path, draw=False).name))
         if args.animate:
-            written.append(str(d / animate(tx.path).name))
+            written.append(str(d / animate(tx.path, frames=args.frames, fps=args.fps).name))
     _say(args, f"wrote {len(written)} files in {d}/")
     if args.json:
         print(json.dumps(written))
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .report import write_report
+
+    d = Path(args.results)
+    if _results_dir(d):
+        return 2
+    with results_update(d) as tx:
+        out = d / write_report(tx.path, draw=not args.no_figures).name
+    _say(args, f"wrote {out}")
+    if args.json:
+        print(json.dumps([str(out)]))
     return 0
 
 

@@ -1,42 +1,55 @@
 """Figures of a maneuver, drawn from Solutions (in memory, or read back from a results directory).
 
 :func:`figures` takes a Solution or a Comparison and returns {name: matplotlib Figure}; every
-figure function takes ``runs`` (one :class:`Run` per method, so that both methods overlay) and the
-Problem.  Importing this module does not choose a matplotlib backend (the CLI picks a
-non-interactive one itself).  Units are the normalized ones of docs/mathematics.md §1: length in
-reference-orbit radii, time in orbital periods, mass in body masses.
+figure function takes ``runs`` (one :class:`Run` per method, so that both methods overlay, each
+named in a legend) and the Problem, and draws what the Problem carries: control bounds (limit
+lines, shading where a bound is active), path constraints (margins with their zero line), the
+target (orbit, position, attitude).  A run that did not converge is marked in the title and by a
+red corner banner with its result code, so it is never mistaken for a good one.
+
+Importing this module does not choose a matplotlib backend (the CLI picks a non-interactive one
+itself; :func:`animate` renders on its own Agg canvas).  Units are the normalized ones of
+docs/mathematics.md §1: length in reference-orbit radii, time in orbital periods, mass in body masses.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 
-from ..transcription.problem import Problem, TargetOrbit, TargetState
-from ..transcription.results import Solution
+from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, Problem,
+                                     TargetOrbit, TargetState)
+from ..transcription.results import AT_BOUND_RTOL, Solution, figures_of_merit, rotation_angle
 from ..transcription.solve import Comparison
-from .io import atomic_output, save_figure
+from .io import save_figure
 
-COLORS = {"direct": "#1f77b4", "indirect": "#d62728", "impulsive": "#2ca02c", "simulate": "#555555"}
+#: colours of the methods (distinct from those of the components and body axes below)
+COLORS = {"direct": "#5e3c99", "indirect": "#e66101", "impulsive": "#5e3c99", "simulate": "#555555"}
 STYLES = {"direct": "-", "indirect": "--", "impulsive": "-", "simulate": "-"}
+#: colours of vector components (and of the body axes e1, e2, e3)
+COMP = ("#d62728", "#2ca02c", "#1f77b4")
+QUAT = ("#333333", "#d62728", "#2ca02c", "#1f77b4")
 T_LABEL = "time t (orbital periods)"
+FAIL = "#c0392b"
+THRUST = "#e7298a"
+BOUND = "#444444"
+W, H = 7.2, 5.4  # the default figure size (inches)
 
 
 @dataclass
 class Run:
-    """One method's solution as the figures see it: its label, arrays (Solution.arrays) and history."""
+    """One method's solution as the figures see it: the Solution, its name, colour and line style."""
 
     label: str
-    arrays: dict[str, np.ndarray]
-    summary: dict[str, Any] = field(default_factory=dict)
-    history: list[dict[str, Any]] = field(default_factory=list)
+    sol: Solution
 
     @classmethod
     def of(cls, sol: Solution) -> "Run":
-        return cls(sol.method, sol.arrays(), sol.summary(), [h.as_dict() for h in sol.history])
+        return cls(sol.method, sol)
 
     @property
     def color(self):
@@ -46,15 +59,89 @@ class Run:
     def ls(self):
         return STYLES.get(self.label, "-")
 
+    @property
+    def failed(self) -> bool:
+        return not self.sol.converged
+
+    @property
+    def name(self) -> str:
+        """The legend name: the method, and the result code when it did not converge."""
+        return f"{self.label} (FAILED: {self.sol.result.value})" if self.failed else self.label
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.sol.trajectory.t
+
+    @property
+    def tu(self) -> np.ndarray | None:
+        return self.sol.control_times
+
+    @property
+    def node_of_control(self) -> np.ndarray:
+        """The node index of each control (first order: u_1..u_N at nodes 1..N; lgvi: 0..N)."""
+        n = self.sol.controls.shape[1]
+        return np.arange(1, n + 1) if n == self.sol.N else np.arange(n)
 
 
+# ------------------------------------------------------------------------ geometry
+def quaternions(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w, x, y, z) of rotation matrices R (n, 3, 3) (Shepperd's method: accurate
+    at every angle), signs chosen continuous along the sequence, w >= 0 at the start."""
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    q = np.empty((len(R), 4))
+    for k, M in enumerate(R):
+        tr = np.trace(M)
+        i = int(np.argmax([tr, M[0, 0], M[1, 1], M[2, 2]]))
+        if i == 0:
+            s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
+            q[k] = (0.25 * s, (M[2, 1] - M[1, 2]) / s, (M[0, 2] - M[2, 0]) / s, (M[1, 0] - M[0, 1]) / s)
+        elif i == 1:
+            s = 2.0 * np.sqrt(max(1.0 + M[0, 0] - M[1, 1] - M[2, 2], 0.0))
+            q[k] = ((M[2, 1] - M[1, 2]) / s, 0.25 * s, (M[0, 1] + M[1, 0]) / s, (M[0, 2] + M[2, 0]) / s)
+        elif i == 2:
+            s = 2.0 * np.sqrt(max(1.0 - M[0, 0] + M[1, 1] - M[2, 2], 0.0))
+            q[k] = ((M[0, 2] - M[2, 0]) / s, (M[0, 1] + M[1, 0]) / s, 0.25 * s, (M[1, 2] + M[2, 1]) / s)
+        else:
+            s = 2.0 * np.sqrt(max(1.0 - M[0, 0] - M[1, 1] + M[2, 2], 0.0))
+            q[k] = ((M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s, (M[1, 2] + M[2, 1]) / s, 0.25 * s)
+    if len(q) and q[0, 0] < 0:
+        q[0] = -q[0]
+    for k in range(1, len(q)):
+        if q[k] @ q[k - 1] < 0:
+            q[k] = -q[k]
+    return q
 
-def _orbit_circle(x, v, mu, n=200):
-    """The osculating orbit of (x, v) about a point mass mu, as points (n, 3) (ellipse; None if unbound)."""
+
+def osculating_elements(x: np.ndarray, v: np.ndarray, mu: float) -> dict[str, np.ndarray]:
+    """Radius, inclination (deg, of the orbit normal to e3), eccentricity and semi-major axis of the
+    osculating orbits of positions and velocities x, v (n, 3) about a point mass mu."""
+    x, v = np.atleast_2d(np.asarray(x, float)), np.atleast_2d(np.asarray(v, float))
+    r = np.linalg.norm(x, axis=1)
+    h = np.cross(x, v)
+    hn = np.linalg.norm(h, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inc = np.degrees(np.arccos(np.clip(h[:, 2] / hn, -1.0, 1.0)))
+        e = np.linalg.norm(np.cross(v, h) / mu - x / r[:, None], axis=1)
+        a = 1.0 / (2.0 / r - np.einsum("ij,ij->i", v, v) / mu)
+    return {"radius": r, "inclination": inc, "eccentricity": e, "semi_major_axis": a}
+
+
+def rtn(x: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Components (n, 3) of inertial vectors u in the osculating orbit's radial, along-track
+    (transverse: n x r) and normal (h/|h|) directions at positions and velocities x, v (n, 3)."""
+    r_hat = x / np.linalg.norm(x, axis=1)[:, None]
+    h = np.cross(x, v)
+    n_hat = h / np.linalg.norm(h, axis=1)[:, None]
+    t_hat = np.cross(n_hat, r_hat)
+    return np.stack([np.einsum("ij,ij->i", u, e) for e in (r_hat, t_hat, n_hat)], axis=1)
+
+
+def _orbit_ellipse(x, v, mu, n=200):
+    """The osculating orbit of (x, v) about a point mass mu, as points (n, 3) (None if unbound)."""
     x, v = np.asarray(x, float), np.asarray(v, float)
     r = np.linalg.norm(x)
     hvec = np.cross(x, v)
-    if np.linalg.norm(hvec) < 1e-12:
+    if not mu or np.linalg.norm(hvec) < 1e-12:
         return None
     evec = np.cross(v, hvec) / mu - x / r
     e = np.linalg.norm(evec)
@@ -78,6 +165,132 @@ def _circle(radius, normal, n=200):
     return radius * (np.cos(t)[:, None] * a + np.sin(t)[:, None] * b)
 
 
+def _target_R(problem: Problem) -> np.ndarray | None:
+    """R_d of a state target that fixes the attitude, else None."""
+    term = problem.terminal
+    if isinstance(term, TargetState) and "attitude" in term.fixed:
+        return term.X[6:15].reshape(3, 3, order="F")
+    return None
+
+
+def _target_orbit(problem: Problem) -> np.ndarray | None:
+    """Points of the desired orbit (a TargetOrbit's circle, or the osculating orbit of a state
+    target that fixes position and velocity), or None."""
+    term, model = problem.terminal, problem.model
+    if isinstance(term, TargetOrbit):
+        return _circle(term.radius, term.normal)
+    if isinstance(term, TargetState) and {"position", "velocity"} <= set(term.fixed) and model.mu:
+        return _orbit_ellipse(term.X[0:3], term.X[3:6] / model.mass, model.mu)
+    return None
+
+
+def _target_elements(problem: Problem) -> dict[str, float] | None:
+    term, model = problem.terminal, problem.model
+    if isinstance(term, TargetOrbit):
+        return {"radius": term.radius, "inclination": float(np.degrees(np.arccos(np.clip(term.normal[2], -1, 1)))),
+                "eccentricity": 0.0}
+    if isinstance(term, TargetState) and {"position", "velocity"} <= set(term.fixed) and model.mu:
+        el = osculating_elements(term.X[0:3], term.X[3:6] / model.mass, model.mu)
+        return {k: float(v[0]) for k, v in el.items()}
+    return None
+
+
+def _intervals(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [i0, i1] of the runs of True in a boolean array."""
+    out, start = [], None
+    for i, m in enumerate(mask):
+        if m and start is None:
+            start = i
+        elif not m and start is not None:
+            out.append((start, i - 1))
+            start = None
+    if start is not None:
+        out.append((start, len(mask) - 1))
+    return out
+
+
+def _shade(ax, t, mask, color, label=None, alpha=0.15):
+    """Shade the spans of t where mask holds (each sample covers half a step on either side)."""
+    if not np.any(mask):
+        return
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    for n, (i0, i1) in enumerate(_intervals(mask)):
+        ax.axvspan(t[i0] - 0.5 * dt, t[i1] + 0.5 * dt, color=color, alpha=alpha, lw=0,
+                   label=label if n == 0 else None, gid="bound-active")
+
+
+def _active(u: np.ndarray, bound) -> np.ndarray:
+    if isinstance(bound, NormBound):
+        return np.linalg.norm(u, axis=1) >= bound.b * (1.0 - AT_BOUND_RTOL)
+    return np.any(np.abs(u) >= bound.b * (1.0 - AT_BOUND_RTOL), axis=1)
+
+
+# ------------------------------------------------------------------------ common decoration
+def _subplots(nrows: int, ncols: int = 1, figsize=(W, H), sharex=True, **kw):
+    fig, axs = plt.subplots(nrows, ncols, figsize=figsize, sharex=sharex, squeeze=False, layout="constrained", **kw)
+    return fig, axs.ravel()
+
+
+def _time_axes(axs):
+    """Few, non-overlapping time ticks; the time label on the lowest axes only; grids."""
+    for ax in axs:
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=6))
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
+        ax.grid(alpha=0.3)
+        _no_offset(ax)
+    axs[-1].set_xlabel(T_LABEL)
+
+
+def _no_offset(ax):
+    """Plain tick labels; a (nearly) constant quantity gets a sensible window."""
+    try:
+        ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+    except AttributeError:  # a log axis
+        return
+    lo, hi = ax.get_ylim()
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    if half < 1e-6 * max(1.0, abs(mid)):
+        w = 0.05 * max(abs(mid), 1e-3)
+        ax.set_ylim(mid - w, mid + w)
+
+
+def _text_width(text: str, size: float, weight: str = "normal") -> float:
+    """Width in points of one line of text (no canvas needed)."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextToPath
+
+    return TextToPath().get_text_width_height_descent(text, FontProperties(size=size, weight=weight), ismath=False)[0]
+
+
+def _finish(fig, runs: list[Run], problem: Problem, what: str):
+    """The figure's title (the maneuver and what is shown); a failed run marks it (a red title with
+    a line NOT CONVERGED) and adds a red banner in the top right corner naming each failed method
+    and its result code.  The title is wrapped (and if need be made smaller) so that it never runs
+    into the banner."""
+    failed = [r for r in runs if r.failed]
+    name = problem.name or "maneuver"
+    banner = [f"{r.label}: {r.sol.result.value}" for r in failed]
+    room = fig.get_figwidth() * 72.0 - 16.0
+    if banner:
+        room -= max(_text_width(b, 9, "bold") for b in banner) + 24.0
+    size = 11.0
+    lines = [f"{name}: {what}"]
+    if max(_text_width(ln, size) for ln in lines) > room:
+        lines = [f"{name}:", what]
+    if failed:
+        lines.append("NOT CONVERGED")
+    while size > 7 and max(_text_width(ln, size) for ln in lines) > room:
+        size -= 0.5
+    fig.suptitle("\n".join(lines), x=0.01, ha="left", fontsize=size, color=FAIL if failed else "black",
+                 linespacing=1.15)
+    if failed:
+        fig.text(0.995, 0.995, "\n".join(banner), ha="right", va="top", fontsize=9, color="white",
+                 fontweight="bold", gid="failure-banner",
+                 bbox=dict(boxstyle="round,pad=0.35", facecolor=FAIL, edgecolor="none"))
+    return fig
+
+
+# ------------------------------------------------------------------------ 3-D views
 def _body_points(problem: Problem) -> tuple[np.ndarray, float]:
     """Body-fixed points to draw (the model's markers, or the tips of its principal axes) and a
     characteristic size of the body (the largest point distance)."""
@@ -89,72 +302,209 @@ def _body_points(problem: Problem) -> tuple[np.ndarray, float]:
     return pts, float(np.linalg.norm(pts, axis=1).max())
 
 
-def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 9):
-    """3-D maneuver: central body, initial and desired orbits, path, the body drawn at intervals."""
-    model = problem.model
+def _cube(ax, lim, center=(0.0, 0.0, 0.0)):
+    c = np.asarray(center, float)
+    ax.set_xlim(c[0] - lim, c[0] + lim)
+    ax.set_ylim(c[1] - lim, c[1] + lim)
+    ax.set_zlim(c[2] - lim, c[2] + lim)
+    ax.set_box_aspect((1, 1, 1))
+    for a in (ax.xaxis, ax.yaxis, ax.zaxis):
+        a.set_major_locator(MaxNLocator(nbins=4))
+
+
+def _triad(ax, origin, R, length, lw=1.6, alpha=1.0, ls="-", zorder=3):
+    for i in range(3):
+        tip = origin + length * R[:, i]
+        ax.plot(*np.vstack([origin, tip]).T, color=COMP[i], lw=lw, alpha=alpha, ls=ls, zorder=zorder)
+
+
+def _bodies(ax, problem: Problem, sol: Solution, L: float, n_bodies: int):
+    """The body frame (and the dumbbell's rod) at n_bodies nodes of sol, axes of length L."""
     pts, size = _body_points(problem)
-    fig = plt.figure(figsize=(6.4, 5.6))
-    ax = fig.add_subplot(projection="3d")
-    first = runs[0].arrays
-    if model.mu is not None:
-        ax.scatter([0], [0], [0], s=120, color="#3b6ea8", label="central body")
-        orb = _orbit_circle(first["x"][0], first["gamma"][0] / model.mass, model.mu)
-        if orb is not None:
-            ax.plot(*orb.T, color="0.6", lw=1, ls=":", label="initial orbit")
-    term = problem.terminal
-    if isinstance(term, TargetOrbit):
-        c = _circle(term.radius, term.normal)
-        ax.plot(*c.T, color="k", lw=1, ls="--", label="desired orbit")
-    elif isinstance(term, TargetState) and "position" in term.fixed:
-        xd, vd = term.X[0:3], term.X[3:6] / model.mass
-        orb = _orbit_circle(xd, vd, model.mu) if model.mu is not None and "velocity" in term.fixed else None
-        if orb is not None:
-            ax.plot(*orb.T, color="k", lw=1, ls="--", label="desired orbit")
-        ax.scatter(*xd, marker="x", s=60, color="k", label="desired position")
+    X, R = sol.trajectory.x, sol.trajectory.R
+    for k in np.unique(np.linspace(0, sol.N, n_bodies).round().astype(int)):
+        if np.all(np.isfinite(R[k])) and np.all(np.isfinite(X[k])):
+            if len(problem.model.markers):
+                ends = X[k] + (L / size) * problem.model.markers @ R[k].T
+                ax.plot(*ends.T, color="0.35", lw=3, alpha=0.6, solid_capstyle="round", zorder=2)
+            _triad(ax, X[k], R[k], L, lw=1.5, zorder=3)
+
+
+def _paths(ax, runs: list[Run], label=True):
     for run in runs:
-        ax.plot(*run.arrays["x"].T, color=run.color, ls=run.ls, lw=1.6, label=f"{run.label} path")
-    # the body of the first run, enlarged to be visible at orbit scale
-    X, R = first["x"], first["R"]
-    span = max(np.ptp(np.vstack([X, [[0, 0, 0]]]), axis=0).max(), 1e-12)
-    scale = max(1.0, round(0.05 * span / size))
-    idx = np.linspace(0, len(X) - 1, n_bodies).round().astype(int)
-    for k in idx:
-        ends = X[k] + scale * pts @ R[k].T
-        if len(model.markers):
-            ax.plot(*ends.T, color="0.2", lw=1.2)
-            ax.scatter(*ends.T, s=14, color=["#e67e22", "#8e44ad"][: len(ends)] if len(ends) <= 2 else "#e67e22")
-        else:
-            for i, col in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
-                ax.plot(*np.vstack([X[k], ends[i]]).T, color=col, lw=1.2)
-    if "dgamma0" in first:
+        x = run.sol.trajectory.x
+        ax.plot(*x.T, color=run.color, ls=run.ls, lw=2.2, label=f"{run.name} path" if label else None, zorder=5)
+        ax.scatter(*x[0], marker="o", s=30, color=run.color, zorder=6)
+        ax.scatter(*x[-1], marker="s", s=30, color=run.color, zorder=6)
+
+
+def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
+    """3-D maneuver: central body, initial and desired orbits, both paths (start o, end ■), the body
+    frame (e1 red, e2 green, e3 blue; the dumbbell's rod in grey) at a few nodes, drawn large
+    enough to see its rotation; impulse directions for impulsive maneuvers.  When the path is
+    short against the orbit (a slew), a second panel zooms on it with the body frame drawn at the
+    path's scale."""
+    model = problem.model
+    _, size = _body_points(problem)
+    first = runs[0].sol
+    X0 = first.trajectory.x
+    paths = np.vstack([r.sol.trajectory.x for r in runs])
+    paths = paths[np.all(np.isfinite(paths), axis=1)]
+    allx = np.vstack([paths, np.zeros((1, 3))])
+    orb = None
+    if model.mu:
+        v0 = first.trajectory.v[0] if first.impulses is None else \
+            (first.trajectory.gamma[0] - first.impulses["dgamma0"]) / model.mass
+        orb = _orbit_ellipse(X0[0], v0, model.mu)
+        if orb is not None:
+            allx = np.vstack([allx, orb])
+    target = _target_orbit(problem)
+    if target is not None:
+        allx = np.vstack([allx, target])
+    center = 0.5 * (allx.max(0) + allx.min(0)) if not model.mu else np.zeros(3)
+    lim = max(np.abs(allx - center).max() * 1.05, 1e-9)
+    extent = float(np.ptp(paths, axis=0).max()) if len(paths) else 0.0
+    zoom = extent < 0.3 * lim
+    fig = plt.figure(figsize=(W * 1.6 if zoom else W, 6.4), layout="constrained")
+    ax = fig.add_subplot(1, 2 if zoom else 1, 1, projection="3d")
+    ax.computed_zorder = False  # paths above the body frames, whatever the view's depth order
+    if model.mu:
+        ax.scatter([0], [0], [0], s=160, color="#3b6ea8", label="central body", zorder=1)
+    if orb is not None:
+        ax.plot(*orb.T, color="0.55", lw=1, ls=":", label="initial orbit", zorder=1)
+    if target is not None:
+        ax.plot(*target.T, color="k", lw=1, ls="--", label="desired orbit", zorder=1)
+    has_xd = isinstance(problem.terminal, TargetState) and "position" in problem.terminal.fixed
+    if has_xd:
+        ax.scatter(*problem.terminal.X[0:3], marker="x", s=70, color="k", label="desired position", zorder=6)
+    L = 0.14 * lim  # the body frame at a seventh of the view, so that its rotation shows at orbit scale
+    if not zoom:
+        _bodies(ax, problem, first, L, n_bodies)
+    _paths(ax, runs)
+    if first.impulses is not None:
         for k, key in ((0, "dgamma0"), (-1, "dgammaN")):
-            d = np.asarray(first[key], float) / model.mass
+            d = np.asarray(first.impulses[key], float)
             n = np.linalg.norm(d)
             if n > 0:
-                L = 0.25 * span * d / n
-                ax.quiver(*X[k], *L, color="#c0392b", arrow_length_ratio=0.25, lw=2)
-        ax.plot([], [], color="#c0392b", lw=2, label="impulse direction")
-    ax.set_xlabel("x₁ (radii)")
-    ax.set_ylabel("x₂ (radii)")
-    ax.set_zlabel("x₃ (radii)")
-    lim = np.abs(np.vstack([X, [[1, 1, 1]]])).max() * 1.05
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_zlim(-lim, lim)
-    ax.set_box_aspect((1, 1, 1))
-    ax.set_title(f"{problem.name}: maneuver ({model.name} drawn ×{scale:.0f})")
-    ax.legend(loc="upper left", fontsize=8)
-    return fig
+                ax.quiver(*X0[k], *(0.3 * lim * d / n), color=THRUST, arrow_length_ratio=0.25, lw=2, zorder=7)
+        ax.plot([], [], color=THRUST, lw=2, label="impulse direction")
+    _cube(ax, lim, center)
+    for a, lab in ((ax.set_xlabel, "x₁ (radii)"), (ax.set_ylabel, "x₂ (radii)"), (ax.set_zlabel, "x₃ (radii)")):
+        a(lab)
+    what = f"maneuver (body frame ×{L / size:.2g})"
+    if zoom:
+        ax.set_title("orbit", fontsize=10)
+        az = fig.add_subplot(1, 2, 2, projection="3d")
+        az.computed_zorder = False
+        c = 0.5 * (paths.max(0) + paths.min(0)) if len(paths) else X0[0]
+        lz = max(0.65 * extent, 1e-3 * lim, 2.0 * size)
+        Lz = 0.3 * lz
+        _bodies(az, problem, first, Lz, n_bodies)
+        _paths(az, runs, label=False)
+        if has_xd:
+            az.scatter(*problem.terminal.X[0:3], marker="x", s=70, color="k", zorder=6)
+        _cube(az, lz, c)
+        az.set_xlabel("x₁")
+        az.set_ylabel("x₂")
+        az.set_zlabel("x₃")
+        az.set_title(f"zoom on the path: ±{lz:.2g} radii, body frame ×{Lz / size:.2g}", fontsize=10)
+        what = "maneuver"
+    handles, labels = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], color=c, lw=1.5) for c in COMP]
+    labels += [f"body e{i + 1}" for i in range(3)]
+    handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=5))
+    labels.append("start (o), end (■)")
+    fig.legend(handles, labels, loc="outside lower center", ncols=4 if zoom else 3, fontsize=8, frameon=False)
+    return _finish(fig, runs, problem, what)
 
 
-def _components(runs, key_fn, ylabel, title, impulses=None):
-    fig, axs = plt.subplots(3, 1, figsize=(6.4, 5.6), sharex=True)
+def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
+    """The attitude alone, on the unit sphere: the paths of the body axes R(t)e_i (inertial frame),
+    the initial frame (thin), the final body frame of each method and the target frame (black,
+    dashed; for an orbit target the orbit normal the body axis must point along)."""
+    fig = plt.figure(figsize=(W, 6.4), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    ax.computed_zorder = False
+    u, v = np.mgrid[0:2 * np.pi:25j, 0:np.pi:13j]
+    ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.85", lw=0.4, zorder=0)
+    R0 = runs[0].sol.trajectory.R[0]
+    _triad(ax, np.zeros(3), R0, 1.0, lw=1.0, alpha=0.45, zorder=1)
+    handles = [Line2D([], [], color=c, lw=1.6, label=f"body e{i + 1} path") for i, c in enumerate(COMP)]
+    handles.append(Line2D([], [], color="0.5", lw=1.0, alpha=0.6, label="initial frame"))
+    for run in runs:
+        R = run.sol.trajectory.R
+        ok = np.all(np.isfinite(R), axis=(1, 2))
+        Rk = R[ok]
+        for i in range(3):
+            tip = Rk[:, :, i]
+            ax.plot(*tip.T, color=COMP[i], ls=run.ls, lw=1.8, zorder=3)
+        if len(Rk):
+            _triad(ax, np.zeros(3), Rk[-1], 1.0, lw=2.4, ls=run.ls, zorder=4)
+        handles.append(Line2D([], [], color="k", ls=run.ls, lw=1.6, label=f"{run.name}: paths and final frame"))
+    first = runs[0].sol.trajectory.R
+    marks = np.unique(np.linspace(0, len(first) - 1, n_marks).round().astype(int))
+    for i in range(3):
+        tips = first[marks][:, :, i]
+        ax.scatter(*tips.T, s=10, color=COMP[i], zorder=5, depthshade=False)
+    handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=3, label=f"{runs[0].label} at t = kT/{n_marks - 1}"))
+    Rd = _target_R(problem)
+    if Rd is not None:
+        for i in range(3):
+            ax.plot(*np.vstack([np.zeros(3), 1.12 * Rd[:, i]]).T, color="k", ls="--", lw=1.2, zorder=6)
+            ax.text(*(1.2 * Rd[:, i]), f"e{i + 1}ᵈ", fontsize=9, zorder=7)
+        handles.append(Line2D([], [], color="k", ls="--", lw=1.2, label="target frame R_d"))
+    elif isinstance(problem.terminal, TargetOrbit):
+        n = problem.terminal.normal
+        ax.plot(*np.vstack([-1.15 * n, 1.15 * n]).T, color="k", ls="--", lw=1.2, zorder=6)
+        handles.append(Line2D([], [], color="k", ls="--", lw=1.2, label="target: body axis along ± orbit normal"))
+    ax.set_xlabel("inertial x₁")
+    ax.set_ylabel("inertial x₂")
+    ax.set_zlabel("inertial x₃")
+    _cube(ax, 1.15)
+    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=8, frameon=False)
+    return _finish(fig, runs, problem, "attitude (body axes on the unit sphere, inertial frame)")
+
+
+# ------------------------------------------------------------------------ time histories
+def fig_attitude_error(runs: list[Run], problem: Problem):
+    """Angle of the attitude error R_d^T R(t) (deg; without an attitude target the rotation from
+    the initial attitude, R_0^T R(t)) and the quaternion of that rotation (continuous signs)."""
+    Rd = _target_R(problem)
+    fig, axs = _subplots(2, figsize=(W, 5.6), height_ratios=(1.2, 1))
+    for run in runs:
+        R = run.sol.trajectory.R
+        E = np.einsum("ji,kjl->kil", Rd if Rd is not None else R[0], R)
+        ang = np.degrees(rotation_angle(E))
+        axs[0].plot(run.t, ang, color=run.color, ls=run.ls, lw=1.6, label=run.name)
+        q = quaternions(E)
+        for i in range(4):
+            axs[1].plot(run.t, q[:, i], color=QUAT[i], ls=run.ls, lw=1.4)
+    axs[0].set_ylabel("angle of $R_d^TR$ (deg)" if Rd is not None else "angle of $R_0^TR$ (deg)")
+    axs[0].set_ylim(bottom=0)
+    axs[1].set_ylabel("quaternion")
+    axs[1].set_ylim(-1.05, 1.05)
+    axs[0].legend(fontsize=8, loc="best")
+    axs[1].legend([Line2D([], [], color=c) for c in QUAT], ["q_w", "q_x", "q_y", "q_z"], fontsize=8, ncols=4,
+                  loc="lower left")
+    _time_axes(axs)
+    what = "attitude error to the target" if Rd is not None else "rotation from the initial attitude"
+    return _finish(fig, runs, problem, what)
+
+
+def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None):
+    """Three stacked component plots, methods overlaid; a BoxBound draws ±b_i and shades where a
+    component is at its limit."""
+    fig, axs = _subplots(3, figsize=(W, 6.0))
     for run in runs:
         t, Y = key_fn(run)
         if Y is None:
             continue
         for i, ax in enumerate(axs):
-            ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.4, label=run.label)
+            ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
+        if isinstance(bound, BoxBound):
+            for i, ax in enumerate(axs):
+                _shade(ax, t, np.abs(Y[:, i]) >= bound.b[i] * (1 - AT_BOUND_RTOL), run.color,
+                       label=f"{run.label} at bound")
         if impulses is not None:
             jumps = impulses(run)
             if jumps is not None:
@@ -163,80 +513,212 @@ def _components(runs, key_fn, ylabel, title, impulses=None):
                         ax.plot([tt, tt], [before[i], after[i]], ":", color=run.color, lw=1.2)
                         ax.plot(tt, before[i], "o", mfc="white", color=run.color, ms=5)
                         ax.plot(tt, after[i], "o", color=run.color, ms=5)
+    if isinstance(bound, BoxBound):
+        for i, ax in enumerate(axs):
+            for sgn in (1, -1):
+                ax.axhline(sgn * bound.b[i], color=BOUND, ls="-.", lw=1.1, gid="bound-line",
+                           label=f"bound ±{bound.b[i]:.3g}" if sgn > 0 else None)
     for i, ax in enumerate(axs):
-        ax.set_ylabel(ylabel.replace("#", str(i + 1)))  # template, e.g. "$u_{f,#}$"
-        ax.grid(alpha=0.3)
-        _no_offset(ax)
-    axs[0].set_title(title)
-    axs[-1].set_xlabel(T_LABEL)
+        ax.set_ylabel(ylabels[i])
     handles, labels = axs[0].get_legend_handles_labels()
-    if len(set(labels)) > 1 or impulses is not None:
-        if impulses is not None:
-            handles += [plt.Line2D([], [], marker="o", mfc="white", color="0.3", ls=""),
-                        plt.Line2D([], [], marker="o", color="0.3", ls=":")]
-            labels += ["before impulse", "after impulse"]
-        axs[0].legend(handles, labels, fontsize=8, loc="best")
-    fig.tight_layout()
-    return fig
-
-
-def _no_offset(ax):
-    """Plain tick labels; a (nearly) constant component gets a sensible window."""
-    ax.ticklabel_format(axis="y", useOffset=False, style="plain")
-    lo, hi = ax.get_ylim()
-    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    if half < 1e-6 * max(1.0, abs(mid)):
-        w = 0.05 * max(abs(mid), 1e-3)
-        ax.set_ylim(mid - w, mid + w)
+    if impulses is not None:
+        handles += [Line2D([], [], marker="o", mfc="white", color="0.3", ls=""),
+                    Line2D([], [], marker="o", color="0.3", ls=":")]
+        labels += ["before impulse", "after impulse"]
+    axs[0].legend(handles, labels, fontsize=8, loc="best", ncols=2 if len(labels) > 3 else 1)
+    _time_axes(axs)
+    return _finish(fig, runs, problem, what)
 
 
 def fig_velocity(runs, problem: Problem):
     m = problem.model.mass
 
     def after(run):
-        a = run.arrays
-        if "dgamma0" not in a:
+        s = run.sol
+        if s.impulses is None:
             return None
-        t, g = a["t"], a["gamma"]
-        return [(t[0], (g[0] - a["dgamma0"]) / m, g[0] / m), (t[-1], g[-1] / m, (g[-1] + a["dgammaN"]) / m)]
+        g = s.trajectory.gamma
+        return [(run.t[0], (g[0] - s.impulses["dgamma0"]) / m, g[0] / m),
+                (run.t[-1], g[-1] / m, (g[-1] + s.impulses["dgammaN"]) / m)]
 
-    imp = after if any("dgamma0" in r.arrays for r in runs) else None
-    return _components(runs, lambda r: (r.arrays["t"], r.arrays["gamma"] / m), "$v_#$",
-                       "velocity v = γ/m, inertial (radii/period)", imp)
+    imp = after if any(r.sol.impulses is not None for r in runs) else None
+    return _components(runs, problem, lambda r: (r.t, r.sol.trajectory.v), ["$v_1$", "$v_2$", "$v_3$"],
+                       "velocity v = γ/m, inertial (radii/period)", impulses=imp)
 
 
 def fig_angular_velocity(runs, problem: Problem):
+    """Body angular velocity components and its norm (with a MaxAngularRate limit)."""
     Jinv = np.linalg.inv(problem.model.inertia)
+    limits = [c.value for c in problem.constraints if isinstance(c, MaxAngularRate)]
+    fig, axs = _subplots(4, figsize=(W, 6.8))
+    for run in runs:
+        s = run.sol
+        Om = s.trajectory.Omega
+        for i in range(3):
+            axs[i].plot(run.t, Om[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
+        axs[3].plot(run.t, np.linalg.norm(Om, axis=1), color=run.color, ls=run.ls, lw=1.5, label=run.name)
+        if s.impulses is not None:
+            P = s.trajectory.Pi
+            for tt, before, after in ((run.t[0], Jinv @ (P[0] - s.impulses["dPi0"]), Jinv @ P[0]),
+                                      (run.t[-1], Jinv @ P[-1], Jinv @ (P[-1] + s.impulses["dPiN"]))):
+                for i in range(3):
+                    axs[i].plot([tt, tt], [before[i], after[i]], ":", color=run.color, lw=1.2)
+                    axs[i].plot(tt, before[i], "o", mfc="white", color=run.color, ms=5)
+                    axs[i].plot(tt, after[i], "o", color=run.color, ms=5)
+    for lim in limits:
+        axs[3].axhline(lim, color=BOUND, ls="-.", lw=1.1, gid="bound-line", label=f"max rate {lim:.3g}")
+    for i in range(3):
+        axs[i].set_ylabel(f"$\\Omega_{i + 1}$")
+    axs[3].set_ylabel("$|\\Omega|$")
+    axs[0].legend(fontsize=8, loc="best")
+    if limits:
+        axs[3].legend(fontsize=8, loc="best")
+    _time_axes(axs)
+    return _finish(fig, runs, problem, "angular velocity Ω = J⁻¹Π, body frame (rad/period)")
 
-    def after(run):
-        a = run.arrays
-        if "dPiN" not in a:
-            return None
-        t, P = a["t"], a["Pi"]
-        return [(t[0], Jinv @ (P[0] - a["dPi0"]), Jinv @ P[0]), (t[-1], Jinv @ P[-1], Jinv @ (P[-1] + a["dPiN"]))]
 
-    imp = after if any("dPiN" in r.arrays for r in runs) else None
-    return _components(runs, lambda r: (r.arrays["t"], r.arrays["Pi"] @ Jinv.T), r"$\Omega_#$",
-                       "angular velocity Ω = J⁻¹Π, body frame (rad/period)", imp)
-
-
-def _control_time(run):
-    a = run.arrays
-    t = a["t"]
-    n = len(a["u_f"])
-    return t[1:] if n == len(t) - 1 else t  # first-order scheme: u_1..u_N at t_1..t_N
+def _bound_of(problem: Problem, which: str):
+    return getattr(problem.control, f"{which}_bound", None)
 
 
 def fig_force(runs, problem: Problem):
-    return _components([r for r in runs if "u_f" in r.arrays],
-                       lambda r: (_control_time(r), r.arrays["u_f"]), "$u_{f,#}$",
-                       "control force u_f, inertial (mass·radii/period²)")
+    b = _bound_of(problem, "force")
+    return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_f),
+                       ["$u_{f,1}$", "$u_{f,2}$", "$u_{f,3}$"],
+                       "control force u_f, inertial components (mass·radii/period²)", bound=b)
 
 
 def fig_moment(runs, problem: Problem):
-    return _components([r for r in runs if "u_m" in r.arrays],
-                       lambda r: (_control_time(r), r.arrays["u_m"]), "$u_{m,#}$",
-                       "control moment u_m, body (mass·radii²/period²)")
+    b = _bound_of(problem, "moment")
+    return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_m),
+                       ["$u_{m,1}$", "$u_{m,2}$", "$u_{m,3}$"],
+                       "control moment u_m, body components (mass·radii²/period²)", bound=b)
+
+
+def fig_control_norms(runs, problem: Problem):
+    """|u_f| and |u_m| over time: a NormBound is a line at b; where a bound (norm or box) is active
+    the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance."""
+    runs = [r for r in runs if r.sol.controls is not None]
+    fig, axs = _subplots(2, figsize=(W, 5.2))
+    for ax, which, key in ((axs[0], "force", "u_f"), (axs[1], "moment", "u_m")):
+        bound = _bound_of(problem, which)
+        for run in runs:
+            u = getattr(run.sol, key)
+            ax.plot(run.tu, np.linalg.norm(u, axis=1), color=run.color, ls=run.ls, lw=1.6, label=run.name)
+            if bound is not None:
+                act = _active(u, bound)
+                tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
+                _shade(ax, run.tu, act, run.color, label=f"{run.label} at bound ({tab:.3g} periods)")
+        if isinstance(bound, NormBound):
+            ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")
+        elif isinstance(bound, BoxBound):
+            ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{b:.3g}' for b in bound.b)}): see {which}")
+        ax.legend(fontsize=8, loc="best")
+        ax.set_ylim(bottom=0)
+    axs[0].set_ylabel("$|u_f|$ (mass·radii/period²)")
+    axs[1].set_ylabel("$|u_m|$ (mass·radii²/period²)")
+    _time_axes(axs)
+    return _finish(fig, runs or [], problem, "control magnitudes")
+
+
+def fig_thrust_rtn(runs, problem: Problem):
+    """The force in the osculating orbit's frame: radial, along-track (transverse) and normal."""
+    def comp(run):
+        s = run.sol
+        k = run.node_of_control
+        return run.tu, rtn(s.trajectory.x[k], s.trajectory.v[k], s.u_f)
+
+    return _components([r for r in runs if r.sol.controls is not None], problem, comp,
+                       ["radial $u_R$", "along-track $u_T$", "normal $u_N$"],
+                       "control force in the orbit frame: radial, along-track, normal (mass·radii/period²)")
+
+
+def fig_orbital_elements(runs, problem: Problem):
+    """Radius, inclination and eccentricity of the osculating orbit over time, with the target's
+    values (dashed) and a MinRadius limit; impulsive runs show the elements after each impulse."""
+    mu, m = problem.model.mu, problem.model.mass
+    fig, axs = _subplots(3, figsize=(W, 6.0))
+    keys = ("radius", "inclination", "eccentricity")
+    for run in runs:
+        s = run.sol
+        el = osculating_elements(s.trajectory.x, s.trajectory.v, mu)
+        for ax, k in zip(axs, keys):
+            ax.plot(run.t, el[k], color=run.color, ls=run.ls, lw=1.6, label=run.name)
+        if s.impulses is not None:
+            g = s.trajectory.gamma
+            x = s.trajectory.x
+            pre = osculating_elements(x[0], (g[0] - s.impulses["dgamma0"]) / m, mu)
+            post = osculating_elements(x[-1], (g[-1] + s.impulses["dgammaN"]) / m, mu)
+            for ax, k in zip(axs, keys):
+                ax.plot(run.t[0], pre[k][0], "o", mfc="white", color=run.color, ms=5)
+                ax.plot(run.t[-1], post[k][0], "o", color=run.color, ms=5)
+    tgt = _target_elements(problem)
+    if tgt is not None:
+        for ax, k in zip(axs, keys):
+            ax.axhline(tgt[k], color="k", ls="--", lw=1.0, label="target")
+    for c in problem.constraints:
+        if isinstance(c, MinRadius):
+            axs[0].axhline(c.radius, color=BOUND, ls="-.", lw=1.1, gid="bound-line", label=f"min radius {c.radius:.3g}")
+    axs[0].set_ylabel("radius |x| (radii)")
+    axs[1].set_ylabel("inclination (deg)")
+    axs[2].set_ylabel("eccentricity")
+    for ax in axs:
+        ax.legend(fontsize=8, loc="best")
+    _time_axes(axs)
+    return _finish(fig, runs, problem, "osculating orbit")
+
+
+def fig_costates(runs, problem: Problem):
+    """The discrete costates λ_k (indirect method; direct: mapped from the NLP multipliers) by
+    block: position, linear momentum, attitude, angular momentum; λ_k is attached to step k."""
+    runs = [r for r in runs if r.sol.costates is not None]
+    fig, axs = _subplots(4, figsize=(W, 7.0))
+    names = ("$\\lambda_x$", "$\\lambda_\\gamma$", "$\\lambda_R$", "$\\lambda_\\Pi$")
+    for run in runs:
+        lam = np.asarray(run.sol.costates, float)
+        t = run.t[: len(lam)]
+        for b, ax in enumerate(axs):
+            for i in range(3):
+                ax.plot(t, lam[:, 3 * b + i], color=COMP[i], ls=run.ls, lw=1.4)
+    for ax, n in zip(axs, names):
+        ax.set_ylabel(n)
+    handles = [Line2D([], [], color=c, lw=1.4) for c in COMP] + [Line2D([], [], color="k", ls=r.ls) for r in runs]
+    labels = ["component 1", "component 2", "component 3"] + [
+        r.name + (" (from multipliers)" if r.label == "direct" else "") for r in runs]
+    axs[0].legend(handles, labels, fontsize=8, ncols=2, loc="best")
+    _time_axes(axs)
+    axs[-1].set_xlabel("time t_k of step k (orbital periods)")
+    return _finish(fig, runs, problem, "discrete costates λ_k")
+
+
+def _describe(c) -> str:
+    if isinstance(c, MinRadius):
+        return f"min radius: |x| ≥ {c.radius:g}"
+    if isinstance(c, KeepOut):
+        return f"keep-out: angle(R b, s) ≥ {c.angle_deg:g}°, b = {np.round(c.body_axis, 3)}, s = {np.round(c.direction, 3)}"
+    if isinstance(c, KeepIn):
+        return f"keep-in: angle(R b, s) ≤ {c.angle_deg:g}°, b = {np.round(c.body_axis, 3)}, s = {np.round(c.direction, 3)}"
+    if isinstance(c, MaxAngularRate):
+        return f"max angular rate: |Ω| ≤ {c.value:g}"
+    return c.kind
+
+
+def fig_constraints(runs, problem: Problem):
+    """The margin of each path constraint over time (≥ 0 where it holds): the zero line, and the
+    times where a method violates it shaded red."""
+    cons = problem.constraints
+    fig, axs = _subplots(len(cons), figsize=(W, 1.2 + 1.7 * len(cons)))
+    for ax, c in zip(axs, cons):
+        for run in runs:
+            mg = c.margin(run.sol.trajectory)
+            ax.plot(run.t, mg, color=run.color, ls=run.ls, lw=1.6, label=run.name)
+            _shade(ax, run.t, mg < 0, FAIL, label="violated" if run is runs[0] else None, alpha=0.12)
+        ax.axhline(0.0, color="k", lw=1.0, gid="zero-line")
+        ax.set_ylabel(f"margin ({c.unit})")
+        ax.set_title(_describe(c), fontsize=9, loc="left")
+        ax.legend(fontsize=8, loc="best")
+    _time_axes(axs)
+    return _finish(fig, runs, problem, "path-constraint margins")
 
 
 def _positive(values):
@@ -248,118 +730,351 @@ def _positive(values):
 
 def fig_convergence(runs, problem: Problem):
     """Residual (log) against iterations; for Newton-Armijo every line-search trial, iterations circled."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig, axs = _subplots(1, figsize=(W, 4.2))
+    ax = axs[0]
     drew = False
     for run in runs:
-        hist = run.history
+        hist = [h.as_dict() for h in run.sol.history]
         if not hist:
             continue
         if any(h.get("trial", 0) > 0 for h in hist):  # Newton-Armijo: one record per rollout
             errs = _positive([h.get("residual") for h in hist])
             ax.semilogy(np.arange(len(errs)), errs, ".-", color=run.color, lw=1, ms=4,
-                        label=f"{run.label}: all line-search trials")
+                        label=f"{run.name}: all line-search trials")
             acc = [i for i, h in enumerate(hist) if h.get("accepted")]
-            ax.semilogy(acc, errs[acc], "o", mfc="none", color=run.color, ms=8, label=f"{run.label}: iterations")
-        else:  # NLP solver: one record per iteration
+            ax.semilogy(acc, errs[acc], "o", mfc="none", color=run.color, ms=8, label=f"{run.name}: iterations")
+        else:  # NLP solver (or Newton without rejected trials): one record per iteration
             x = np.arange(len(hist))
             for key, mark, lab in (("residual", "-", "primal infeasibility"), ("dual", ":", "dual infeasibility")):
                 y = _positive([h.get(key) for h in hist])
                 if np.isfinite(y).any():
-                    ax.semilogy(x, y, mark, color=run.color, lw=1.4, label=f"{run.label}: {lab}")
+                    ax.semilogy(x, y, mark, color=run.color, lw=1.4, marker=".", ms=4, label=f"{run.name}: {lab}")
         drew = True
     if not drew:
         ax.text(0.5, 0.5, "no iteration history recorded", ha="center", va="center", transform=ax.transAxes)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True))
     ax.set_xlabel("iteration (Newton–Armijo: line-search trial)")
     ax.set_ylabel("residual (log scale)")
-    ax.set_title(f"{problem.name}: convergence")
     ax.grid(alpha=0.3, which="both")
     if drew:
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    return _finish(fig, runs, problem, "convergence")
 
 
+#: every figure, in the order of the report; the names are the files fig_<name>.png/.pdf
 FIGURES = {
     "maneuver": fig_maneuver,
-    "velocity": fig_velocity,
-    "angular_velocity": fig_angular_velocity,
+    "attitude": fig_attitude,
+    "attitude_error": fig_attitude_error,
+    "control_norms": fig_control_norms,
     "force": fig_force,
     "moment": fig_moment,
+    "thrust_rtn": fig_thrust_rtn,
+    "orbital_elements": fig_orbital_elements,
+    "constraints": fig_constraints,
+    "velocity": fig_velocity,
+    "angular_velocity": fig_angular_velocity,
+    "costates": fig_costates,
     "convergence": fig_convergence,
 }
 
+#: one line per figure (the report's captions, the README's table)
+CAPTIONS = {
+    "maneuver": "3-D path of each method about the central body, initial and desired orbits, the body frame at a few nodes",
+    "attitude": "the body axes' paths on the unit sphere (inertial), the final frame of each method against the target frame",
+    "attitude_error": "angle of the attitude error R_dᵀR(t) (or the rotation from the start) and its quaternion",
+    "control_norms": "|u_f| and |u_m| with their bounds; shaded where a bound is active (the switching structure)",
+    "force": "control force, inertial components, with box limits ±b_i",
+    "moment": "control moment, body components, with box limits ±b_i",
+    "thrust_rtn": "control force in the osculating orbit frame: radial, along-track, normal",
+    "orbital_elements": "osculating radius, inclination and eccentricity against the target's",
+    "constraints": "margin of each path constraint (≥ 0 where it holds), violations shaded",
+    "velocity": "inertial velocity components (impulses as jumps)",
+    "angular_velocity": "body angular velocity components and |Ω| (with a rate limit)",
+    "costates": "discrete costates λ_k by block (direct: mapped from the NLP multipliers)",
+    "convergence": "residual per iteration (Newton–Armijo: every line-search trial)",
+}
+
+
+def applicable(runs: list[Run], problem: Problem) -> list[str]:
+    """The names of the figures that apply to these runs (in FIGURES order)."""
+    ctrl = any(r.sol.controls is not None for r in runs)
+    central = bool(problem.model.mu)
+    skip = set()
+    if not ctrl:
+        skip |= {"control_norms", "force", "moment", "thrust_rtn"}
+    if not central:
+        skip |= {"thrust_rtn", "orbital_elements"}
+    if not problem.constraints:
+        skip.add("constraints")
+    if not any(r.sol.costates is not None for r in runs):
+        skip.add("costates")
+    if not any(r.sol.history for r in runs):
+        skip.add("convergence")
+    return [n for n in FIGURES if n not in skip]
+
+
+def draw(name: str, runs: list[Run], problem: Problem):
+    """One figure by name (a failed run's non-finite states are drawn as gaps, without warnings)."""
+    with np.errstate(all="ignore"):
+        return FIGURES[name](runs, problem)
+
+
+def _runs(result: Solution | Comparison) -> list[Run]:
+    """The runs to draw: every method that applies to the problem (not Result.not_applicable)."""
+    from .store import applicable as applicable_methods
+
+    return [Run.of(s) for s in applicable_methods(result).values()]
+
 
 def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:
-    """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory."""
-    from .store import applicable
-
-    sols = list(applicable(result).values())
-    runs = [Run.of(s) for s in sols]
-    problem = sols[0].problem
-    out = {}
-    for name, fn in FIGURES.items():
-        if which and name not in which:
-            continue
-        if name in ("force", "moment") and not any("u_f" in r.arrays for r in runs):
-            continue
-        if name == "convergence" and not any(r.history for r in runs):
-            continue
-        out[name] = fn(runs, problem)
-    return out
+    """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory;
+    ``which`` limits the names (figures that do not apply are left out)."""
+    runs = _runs(result)
+    problem = runs[0].sol.problem
+    if which:
+        unknown = set(which) - set(FIGURES)
+        if unknown:
+            raise ValueError(f"unknown figures {sorted(unknown)}; expected some of {', '.join(FIGURES)}")
+    return {name: draw(name, runs, problem) for name in applicable(runs, problem) if not which or name in which}
 
 
-def draw_all(results_dir: Path, which: tuple[str, ...] | None = None) -> list[Path]:
-    """(Re)draw every figure of a results directory as PNG and PDF; returns the paths written."""
+def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
+    """(Re)draw the figures of a results directory as PNG and PDF; returns the paths written.
+    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data."""
     from .store import read_run
 
-    run = read_run(results_dir)
+    d = Path(results_dir)
+    run = read_run(d)
+    if stale_only:
+        runs = _runs(run.result)
+        todo = tuple(n for n in applicable(runs, runs[0].sol.problem) if not is_fresh(d, n) and (not which or n in which))
+        if not todo:
+            return []
+        which = todo
+    runs = _runs(run.result)
     written = []
-    for name, fig in figures(run.result, which).items():
-        written += save_figure(fig, Path(results_dir) / f"fig_{name}")
+    for name in applicable(runs, runs[0].sol.problem):  # one at a time: one figure in memory
+        if which and name not in which:
+            continue
+        fig = draw(name, runs, runs[0].sol.problem)
+        written += save_figure(fig, d / f"fig_{name}")
         plt.close(fig)
     return written
 
 
-def animate(results_dir: Path, frames: int = 80) -> Path:
-    """Write an animated GIF of the maneuver (Pillow writer, ships with matplotlib)."""
-    from matplotlib.animation import FuncAnimation, PillowWriter
+def is_fresh(results_dir: Path, name: str) -> bool:
+    """Whether fig_<name>.png exists and is newer than summary.json (the last file a run writes)."""
+    d = Path(results_dir)
+    png, summ = d / f"fig_{name}.png", d / "summary.json"
+    return png.is_file() and summ.is_file() and png.stat().st_mtime_ns >= summ.stat().st_mtime_ns
 
+
+# ------------------------------------------------------------------------ animation
+def animate(results_dir: Path, frames: int = 100, fps: int = 20, out: Path | None = None) -> Path:
+    """Write ``maneuver.gif``: every method of the run (named in the legend), the body frame of
+    each at orbit scale with its thrust arrow, the initial and desired orbits, and beside it the
+    attitude alone (body triads against the target frame) and a timeline of |u_f| and |u_m|.
+
+    Rendered on its own Agg canvas (the backend is not touched): the static parts are drawn once
+    and every frame redraws only the moving artists (manual blitting), and the GIF is written by
+    Pillow with one palette, so that an 800-frame N is as fast as a 50-frame one."""
     from .store import read_run
 
     rd = read_run(results_dir)
-    sol = next(iter(rd.solutions.values()))
-    problem = sol.problem
-    pts, size = _body_points(problem)
-    X, R, t = sol.trajectory.x, sol.trajectory.R, sol.trajectory.t
-    fig = plt.figure(figsize=(5, 5))
-    ax = fig.add_subplot(projection="3d")
-    lim = np.abs(X).max() * 1.1
-    ax.scatter([0], [0], [0], s=100, color="#3b6ea8")
-    ax.plot(*X.T, color="0.7", lw=1)
-    span = 2 * lim
-    scale = max(1.0, 0.03 * span / size)
-    (rod,) = ax.plot([], [], [], color="k", lw=2)
-    (dots,) = ax.plot([], [], [], "o", color="#e67e22", ms=5)
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_zlim(-lim, lim)
-    ax.set_box_aspect((1, 1, 1))
-    ax.set_xlabel("x₁")
-    ax.set_ylabel("x₂")
-    ax.set_zlabel("x₃")
-    idx = np.linspace(0, len(X) - 1, frames).round().astype(int)
+    path = Path(out) if out is not None else Path(results_dir) / "maneuver.gif"
+    return write_animation(rd.result, path, frames=frames, fps=fps)
 
-    def update(i):
-        k = idx[i]
-        ends = X[k] + scale * pts @ R[k].T
-        rod.set_data_3d(ends[:, 0], ends[:, 1], ends[:, 2])
-        dots.set_data_3d(ends[:, 0], ends[:, 1], ends[:, 2])
-        ax.set_title(f"{problem.name} ({sol.method})  t = {t[k]:.3f}")
-        return rod, dots
 
-    anim = FuncAnimation(fig, update, frames=len(idx), blit=False)
-    out = Path(results_dir) / "maneuver.gif"
-    with atomic_output(out) as tmp:
-        anim.save(tmp, writer=PillowWriter(fps=20))
-    plt.close(fig)
-    return out
+def write_animation(result: Solution | Comparison, path: Path, frames: int = 100, fps: int = 20) -> Path:
+    """The animation of :func:`animate` for a Solution or a Comparison in memory."""
+    if frames < 2 or fps < 1:
+        raise ValueError("frames must be >= 2 and fps >= 1")
+    return Animation(result).save(path, frames, fps)
+
+
+class Animation:
+    """The animated figure of a Solution or a Comparison: ``fig`` (its own Agg canvas), ``frame(t)``
+    renders the state at time t as an RGB image, ``save(path, frames, fps)`` writes the GIF."""
+
+    def __init__(self, result: Solution | Comparison):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        self._setup(result, Figure, FigureCanvasAgg)
+
+    def _setup(self, result, Figure, FigureCanvasAgg):
+        runs = _runs(result)
+        problem = runs[0].sol.problem
+        model = problem.model
+        fig = Figure(figsize=(9.6, 5.4), dpi=100)
+        canvas = FigureCanvasAgg(fig)
+        gs = fig.add_gridspec(2, 2, width_ratios=(1.45, 1), height_ratios=(1.5, 1), left=0.02, right=0.98, bottom=0.15,
+                              top=0.9, wspace=0.12, hspace=0.3)
+        ax = fig.add_subplot(gs[:, 0], projection="3d")
+        axa = fig.add_subplot(gs[0, 1], projection="3d")
+        axt = fig.add_subplot(gs[1, 1])
+        for a in (ax, axa):
+            a.computed_zorder = False
+        first = runs[0].sol
+        allx = np.vstack([r.sol.trajectory.x for r in runs] + [np.zeros((1, 3))])
+        if model.mu:
+            ax.scatter([0], [0], [0], s=120, color="#3b6ea8")
+            orb = _orbit_ellipse(first.trajectory.x[0], first.trajectory.v[0], model.mu)
+            if orb is not None:
+                ax.plot(*orb.T, color="0.55", lw=1, ls=":", label="initial orbit")
+                allx = np.vstack([allx, orb])
+        target = _target_orbit(problem)
+        if target is not None:
+            ax.plot(*target.T, color="k", lw=1, ls="--", label="desired orbit")
+            allx = np.vstack([allx, target])
+        center = 0.5 * (allx.max(0) + allx.min(0)) if not model.mu else np.zeros(3)
+        lim = max(np.abs(allx - center).max() * 1.05, 1e-9)
+        for run in runs:
+            ax.plot(*run.sol.trajectory.x.T, color=run.color, ls=run.ls, lw=1.2, alpha=0.6, label=run.name)
+        _cube(ax, lim, center)
+        ax.set_xlabel("x₁")
+        ax.set_ylabel("x₂")
+        ax.set_zlabel("x₃")
+        # attitude view: target frame and faint unit sphere
+        u, v = np.mgrid[0:2 * np.pi:17j, 0:np.pi:9j]
+        axa.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.88", lw=0.4)
+        Rd = _target_R(problem)
+        if Rd is not None:
+            for i in range(3):
+                axa.plot(*np.vstack([np.zeros(3), 1.1 * Rd[:, i]]).T, color="k", ls="--", lw=1.2)
+                axa.text(*(1.2 * Rd[:, i]), f"e{i + 1}ᵈ", fontsize=8)
+        elif isinstance(problem.terminal, TargetOrbit):
+            n = problem.terminal.normal
+            axa.plot(*np.vstack([-1.1 * n, 1.1 * n]).T, color="k", ls="--", lw=1.2)
+        _cube(axa, 1.1)
+        for a in (axa.xaxis, axa.yaxis, axa.zaxis):
+            a.set_ticklabels([])
+        has_target = Rd is not None or isinstance(problem.terminal, TargetOrbit)
+        axa.set_title("attitude" + (" (target dashed)" if has_target else ""), fontsize=9)
+        # timeline of the control magnitudes (or the attitude error without controls)
+        scales = []
+        for run in runs:
+            s = run.sol
+            if s.controls is not None:
+                nf, nm = np.linalg.norm(s.u_f, axis=1), np.linalg.norm(s.u_m, axis=1)
+                sf, sm = max(nf.max(), 1e-300), max(nm.max(), 1e-300)
+                axt.plot(run.tu, nf / sf, color=run.color, ls=run.ls, lw=1.3)
+                axt.plot(run.tu, nm / sm, color=run.color, ls=run.ls, lw=0.9, alpha=0.55)
+                scales.append((sf, sm))
+            else:
+                E = np.einsum("ji,kjl->kil", Rd if Rd is not None else s.trajectory.R[0], s.trajectory.R)
+                ang = np.degrees(rotation_angle(E))
+                axt.plot(run.t, ang / max(ang.max(), 1e-300), color=run.color, ls=run.ls, lw=1.3)
+        if scales:
+            axt.set_ylabel("|u| / max", fontsize=8)
+            axt.legend([Line2D([], [], color="0.3", lw=1.3), Line2D([], [], color="0.3", lw=0.9, alpha=0.55)],
+                       [f"|u_f| (max {scales[0][0]:.3g})", f"|u_m| (max {scales[0][1]:.3g})"], fontsize=7, loc="upper right")
+        else:
+            axt.set_ylabel(("angle to target" if Rd is not None else "rotation from start") + " / max", fontsize=8)
+        axt.set_xlim(first.trajectory.t[0], first.trajectory.t[-1])
+        axt.set_ylim(-0.05, 1.15)
+        axt.xaxis.set_major_locator(MaxNLocator(nbins=5))
+        axt.tick_params(labelsize=7)
+        axt.set_xlabel(T_LABEL, fontsize=8)
+        axt.grid(alpha=0.3)
+        handles, labels = ax.get_legend_handles_labels()
+        handles += [Line2D([], [], color=c, lw=2) for c in COMP]
+        labels += ["body e1", "body e2", "body e3"]
+        if scales:
+            handles.append(Line2D([], [], color=THRUST, lw=2))
+            labels.append("thrust u_f")
+        fig.legend(handles, labels, loc="lower left", ncols=5, fontsize=8, frameon=False)
+        failed = [r for r in runs if r.failed]
+        names = ", ".join(f"{r.name} ({'solid' if r.ls == '-' else 'dashed'})" for r in runs)
+        fig.suptitle(f"{problem.name}: {names}" + ("  —  NOT CONVERGED" if failed else ""),
+                     x=0.01, ha="left", fontsize=11, color=FAIL if failed else "black")
+        # moving artists
+        _, size = _body_points(problem)
+        L = 0.16 * lim
+        scale = L / size
+        fmax = max([np.linalg.norm(r.sol.u_f, axis=1).max() for r in runs if r.sol.controls is not None] + [1e-300])
+        moving = []
+
+        def line(a, **kw):
+            (ln,) = a.plot([], [], [], **kw) if a is not axt else a.plot([], [], **kw)
+            moving.append(ln)
+            return ln
+
+        art = []
+        for run in runs:
+            d = {"triad": [line(ax, color=COMP[i], lw=2.2, ls=run.ls, zorder=6) for i in range(3)],
+                 "rod": line(ax, color="0.3", lw=3, alpha=0.6, zorder=5) if len(model.markers) else None,
+                 "thrust": line(ax, color=THRUST, lw=2.2, ls=run.ls, zorder=7),
+                 "head": line(ax, color=THRUST, marker="o", ms=4, ls="", zorder=7),
+                 "dot": line(ax, color=run.color, marker="o", ms=5, ls="", zorder=8),
+                 "att": [line(axa, color=COMP[i], lw=2.2, ls=run.ls) for i in range(3)]}
+            art.append(d)
+        cursor = axt.axvline(first.trajectory.t[0], color="k", lw=1)
+        moving.append(cursor)
+        clock = axt.text(0.015, 0.96, "", transform=axt.transAxes, ha="left", va="top", fontsize=9, family="monospace",
+                         bbox=dict(facecolor="white", edgecolor="none", alpha=0.85, pad=1.5))
+        moving.append(clock)
+        if failed:
+            fig.text(0.99, 0.995, "\n".join(f"{r.label}: {r.sol.result.value}" for r in failed), ha="right", va="top",
+                     fontsize=9, color="white", fontweight="bold",
+                     bbox=dict(boxstyle="round,pad=0.3", facecolor=FAIL, edgecolor="none"))
+        for a in moving:
+            a.set_animated(True)
+        canvas.draw()
+        background = canvas.copy_from_bbox(fig.bbox)
+        self.fig, self.canvas, self.background = fig, canvas, background
+        self.runs, self.art, self.moving = runs, art, moving
+        self.cursor, self.clock, self.L, self.scale, self.lim, self.fmax = cursor, clock, L, scale, lim, fmax
+        self.model, self.t0, self.t1 = model, float(first.trajectory.t[0]), float(first.trajectory.t[-1])
+
+    def frame(self, time_: float) -> np.ndarray:
+        """The image (height, width, 3) of the state at time ``time_``."""
+        canvas, L, scale, lim, fmax, model = self.canvas, self.L, self.scale, self.lim, self.fmax, self.model
+        canvas.restore_region(self.background)
+        for run, d in zip(self.runs, self.art):
+            s = run.sol
+            k = int(np.clip(np.searchsorted(s.trajectory.t, time_), 0, s.N))
+            x, R = s.trajectory.x[k], s.trajectory.R[k]
+            if not (np.all(np.isfinite(x)) and np.all(np.isfinite(R))):
+                continue
+            for i in range(3):
+                tip = x + L * R[:, i]
+                d["triad"][i].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])
+                d["att"][i].set_data_3d([0, R[0, i]], [0, R[1, i]], [0, R[2, i]])
+            if d["rod"] is not None:
+                ends = x + scale * model.markers @ R.T
+                d["rod"].set_data_3d(*ends.T)
+            d["dot"].set_data_3d([x[0]], [x[1]], [x[2]])
+            if s.controls is not None:
+                j = int(np.clip(np.searchsorted(s.control_times, time_), 0, len(s.control_times) - 1))
+                tip = x + 0.45 * lim * s.u_f[j] / fmax
+                d["thrust"].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])
+                d["head"].set_data_3d([tip[0]], [tip[1]], [tip[2]])
+        self.cursor.set_xdata([time_, time_])
+        self.clock.set_text(f"t = {time_:.3f} periods")
+        for a in self.moving:
+            self.fig.draw_artist(a)
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+    def save(self, path: Path, frames: int = 100, fps: int = 20) -> Path:
+        """Write the GIF (atomically): ``frames`` images evenly spaced in time, ``fps`` a second,
+        one palette for all (from the first, middle and last frames)."""
+        import io
+
+        from PIL import Image
+
+        from .io import atomic_write_bytes
+
+        images = [Image.fromarray(self.frame(t)) for t in np.linspace(self.t0, self.t1, frames)]
+        sample = [images[0], images[len(images) // 2], images[-1]]
+        strip = Image.new("RGB", (sample[0].width * 3, sample[0].height))
+        for i, im in enumerate(sample):
+            strip.paste(im, (i * im.width, 0))
+        palette = strip.quantize(colors=255, method=Image.Quantize.MEDIANCUT)
+        frames_p = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
+        bio = io.BytesIO()
+        frames_p[0].save(bio, format="GIF", save_all=True, append_images=frames_p[1:],
+                         duration=int(round(1000 / fps)), loop=0, optimize=False)
+        atomic_write_bytes(Path(path), bio.getvalue())
+        return Path(path)

@@ -1,8 +1,13 @@
 """Regenerate the README's figures and its direct-vs-indirect comparison table.
 
 Runs the four bundled examples (docs/mathematics.md §9) through the CLI (``se3ocp solve``/``compare``),
-copies the figures to ``docs/figures/`` and rewrites the block between the
-``<!-- comparison:start -->`` / ``<!-- comparison:end -->`` markers of README.md.
+copies the figures the README shows to ``docs/figures/`` (``<example>_<figure>.png``) and rewrites
+the block between the ``<!-- comparison:start -->`` / ``<!-- comparison:end -->`` markers of
+README.md.  Two more sets are drawn through the public API: ``bounds_*`` (E3's optimal controls
+clipped into a norm bound on the force and a box bound on the moment, simulated with path
+constraints, to show how bounds and constraints are drawn) and ``failed_*`` (E4 stopped after two
+IPOPT iterations, to show how a failed run is marked); and ``e3_animation.png``, a frame of the
+animation of E3.
 
     .venv/bin/python scripts/readme_figures.py            # full size (N = 500/800), a few minutes
     .venv/bin/python scripts/readme_figures.py --N 100    # quick look
@@ -28,7 +33,13 @@ RUNS = [
     ("E4 (λ₀ = 0)", "e4_orbital_capture", "compare", []),
     ("E4 (from direct)", "e4_orbital_capture", "compare", ["solver.indirect.initial_costate=from_direct"]),
 ]
-FIGS = ("maneuver", "convergence", "velocity", "angular_velocity", "force", "moment")
+#: the figures the README shows, per example stem
+FIGS = {
+    "e1": ("maneuver",),
+    "e2": ("maneuver",),
+    "e3": ("maneuver", "attitude", "attitude_error", "control_norms", "thrust_rtn", "orbital_elements", "costates"),
+    "e4": ("convergence",),
+}
 
 
 def run(label, config, command, sets, N, work: Path):
@@ -44,6 +55,54 @@ def run(label, config, command, sets, N, work: Path):
     return out, json.loads(r.stdout)
 
 
+def _save(fig, path: Path):
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=130, bbox_inches="tight")
+    plt.close(fig)
+
+
+def demonstrations(figdir: Path, N: int | None):
+    """bounds_*: E3's optimum clipped into bounds, simulated with path constraints; failed_*: E4
+    stopped by max_iter (public API, figures as the CLI draws them)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import numpy as np
+
+    import se3ocp
+    from se3ocp.transcription.problem import BoxBound, KeepOut, MaxAngularRate, MinRadius, NormBound, SmoothControl
+
+    man = se3ocp.load(ROOT / "configs" / "e3_inclination_change.yaml", [f"horizon.N={N or 200}"])
+    d = se3ocp.solve(man)
+    prob = d.problem
+    bf, bm = 0.6 * np.linalg.norm(d.u_f, axis=1).max(), 0.6 * np.abs(d.u_m).max(axis=0)
+    U = d.controls.copy()
+    U[:3] *= np.minimum(1.0, bf / np.linalg.norm(U[:3], axis=0))
+    U[3:] = np.clip(U[3:], -bm[:, None], bm[:, None])
+    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, force_bound=NormBound(bf),
+                                            moment_bound=BoxBound(bm)),
+                      constraints=(KeepOut([1, 0, 0], [0, 1, 0], 40.0), MinRadius(0.98), MaxAngularRate(7.0)))
+    for name, fig in se3ocp.plot(se3ocp.simulate(pb, U), ("control_norms", "moment", "constraints")).items():
+        _save(fig, figdir / f"bounds_{name}.png")
+    man = se3ocp.load(ROOT / "configs" / "e4_orbital_capture.yaml", [f"horizon.N={N or 200}", "solver.direct.max_iter=2"])
+    for name, fig in se3ocp.plot(se3ocp.solve(man), ("maneuver",)).items():
+        _save(fig, figdir / f"failed_{name}.png")
+    print("bounds_* and failed_* drawn", flush=True)
+
+
+def animation_frame(results: Path, path: Path):
+    """A frame of the animation (mid-maneuver) as a PNG."""
+    from PIL import Image
+
+    from se3ocp.problems.plots import Animation
+    from se3ocp.problems.store import read_run
+
+    res = read_run(results).result
+    anim = Animation(res)
+    Image.fromarray(anim.frame(0.4 * (anim.t0 + anim.t1))).save(path)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--N", type=int, default=None, help="override horizon.N for every example (default: the configs')")
@@ -52,14 +111,17 @@ def main():
     figdir = ROOT / "docs" / "figures"
     figdir.mkdir(parents=True, exist_ok=True)
     rows = []
+    demonstrations(figdir, a.N)
     with tempfile.TemporaryDirectory() as tmp:
         for label, config, command, sets in RUNS:
             out, summary = run(label, config, command, sets, a.N, Path(tmp))
             stem = config.split("_")[0] + ("_from_direct" if sets else "")
-            for f in FIGS:
+            for f in FIGS.get(stem, ()):
                 src = out / f"fig_{f}.png"
                 if src.exists():
                     shutil.copyfile(src, figdir / f"{stem}_{f}.png")
+            if stem == "e3":
+                animation_frame(out, figdir / "e3_animation.png")
             verdict = summary.get("comparison", {}).get("verdict", "")
             for m, s in summary["methods"].items():
                 rows.append((label, m, s, verdict if m == "indirect" else ""))

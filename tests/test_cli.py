@@ -24,6 +24,10 @@ def test_simulate_writes_results(tmp_path):
     out = tmp_path / "sim"
     r = run("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=2000", "--set", "horizon.T=2.0", "--out", out)
     assert r.returncode == 0, r.stderr
+    for fig in ("maneuver", "attitude", "attitude_error", "orbital_elements", "angular_velocity"):
+        assert (out / f"fig_{fig}.png").stat().st_size > 1000, fig       # simulate draws figures too
+    assert not (out / "fig_force.png").exists()                          # free motion: no controls
+    assert "fig-attitude" in (out / "report.html").read_text()
     with np.load(out / "trajectory.npz") as z:
         assert set(z.files) == {"t", "x", "v", "gamma", "Omega", "Pi", "R"}
         assert z["t"].shape == (2001,) and z["R"].shape == (2001, 3, 3) and z["x"].shape == (2001, 3)
@@ -37,7 +41,8 @@ def test_simulate_writes_results(tmp_path):
 
 def test_results_dir_not_mixed(tmp_path):
     out = tmp_path / "sim"
-    args = ("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=100", "--set", "horizon.T=0.1", "--out", out)
+    args = ("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=100", "--set", "horizon.T=0.1", "--out", out,
+            "--no-figures")
     assert run(*args).returncode == 0
     r = run(*args)
     assert r.returncode == 2 and "--force" in r.stderr and "Traceback" not in r.stderr
@@ -45,7 +50,8 @@ def test_results_dir_not_mixed(tmp_path):
 
 
 def test_default_out_gets_fresh_sibling(tmp_path):
-    args = ("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=50", "--set", "horizon.T=0.05", "--quiet")
+    args = ("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=50", "--set", "horizon.T=0.05", "--quiet",
+            "--no-figures")
     assert run(*args, cwd=tmp_path).returncode == 0
     assert run(*args, cwd=tmp_path).returncode == 0
     assert (tmp_path / "results" / "free_tumble" / "summary.json").exists()
@@ -80,7 +86,8 @@ def test_validate_json(tmp_path):
     assert s["valid"] is True and s["N"] == 500 and s["control"] == "smooth"
 
 
-FIGS = ("maneuver", "velocity", "angular_velocity", "force", "moment", "convergence")
+FIGS = ("maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn", "orbital_elements",
+        "velocity", "angular_velocity", "costates", "convergence")
 METHOD_KEYS = {"status", "converged", "cost", "terminal_error", "max_orthogonality_error", "iterations", "build_s",
                "solve_s", "N", "h", "discretization", "solver", "message", "history"}
 
@@ -88,15 +95,21 @@ METHOD_KEYS = {"status", "converged", "cost", "terminal_error", "max_orthogonali
 @pytest.fixture(scope="module")
 def compared(tmp_path_factory):
     out = tmp_path_factory.mktemp("cmp") / "e3"
-    r = run("compare", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.N=60", "--out", out, "--animate")
+    r = run("compare", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.N=60", "--out", out, "--animate",
+            "--frames", "12", "--fps", "10")
     return out, r
 
 
 def test_compare_writes_everything(compared):
     out, r = compared
     assert r.returncode == 0, r.stderr
-    for f in ("summary.json", "config.resolved.yaml", "direct.npz", "indirect.npz", "maneuver.gif"):
+    for f in ("summary.json", "config.resolved.yaml", "direct.npz", "indirect.npz", "maneuver.gif", "report.html"):
         assert (out / f).is_file(), f
+    from PIL import Image
+
+    with Image.open(out / "maneuver.gif") as im:
+        assert im.n_frames == 12 and im.info["duration"] == 100          # --frames 12 --fps 10
+    assert (out / "report.html").read_text().count("data:image/png;base64,") == len(FIGS)
     for fig in FIGS:
         for ext in ("png", "pdf"):
             assert (out / f"fig_{fig}.{ext}").stat().st_size > 1000, (fig, ext)
@@ -106,6 +119,7 @@ def test_compare_writes_everything(compared):
         assert METHOD_KEYS <= set(s["methods"][m]), METHOD_KEYS - set(s["methods"][m])
         assert s["methods"][m]["N"] == 60 and s["methods"][m]["terminal_error"] <= 1e-10
         assert s["methods"][m]["max_orthogonality_error"] <= 1e-12
+        assert s["methods"][m]["delta_v"] > 0 and s["methods"][m]["peak_moment"] > 0   # figures of merit
     # the two methods solve the same discretization: same optimum (docs/mathematics.md §6), stated in the summary
     assert s["comparison"]["same_extremal"] is True and s["comparison"]["cost_relative_difference"] <= 1e-8
     assert "agree" in s["comparison"]["verdict"]
@@ -130,10 +144,38 @@ def test_plot_redraws(compared, tmp_path):
     (out / "fig_force.png").unlink()
     r = run("plot", out, "--json")
     assert r.returncode == 0, r.stderr
-    assert str(out / "fig_force.png") in json.loads(r.stdout.strip().splitlines()[-1])
-    assert (out / "fig_force.png").is_file()
+    written = json.loads(r.stdout.strip().splitlines()[-1])
+    assert str(out / "fig_force.png") in written and str(out / "fig_maneuver.png") in written   # every figure
+    assert str(out / "report.html") in written and (out / "fig_force.png").is_file()
     r = run("plot", tmp_path)
     assert r.returncode == 2 and "not a results directory" in r.stderr
+    r = run("report", tmp_path)
+    assert r.returncode == 2 and "not a results directory" in r.stderr
+
+
+def test_plot_animate_draws_only_stale_figures(compared):
+    """`plot --animate` writes the animation and leaves up-to-date figures alone."""
+    out, _ = compared
+    (out / "fig_moment.png").unlink()
+    before = (out / "fig_maneuver.png").stat().st_mtime_ns
+    r = run("plot", out, "--animate", "--frames", "4", "--json")
+    assert r.returncode == 0, r.stderr
+    written = json.loads(r.stdout.strip().splitlines()[-1])
+    assert set(written) == {str(out / p) for p in ("fig_moment.png", "fig_moment.pdf", "report.html", "maneuver.gif")}
+    assert (out / "fig_maneuver.png").stat().st_mtime_ns == before
+    r = run("plot", out, "--animate", "--frames", "3", "--json")
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == [str(out / "maneuver.gif")]     # nothing stale
+    assert run("plot", out, "--animate", "--frames", "1").returncode == 2                  # at least 2 frames
+
+
+def test_report_command(compared):
+    out, _ = compared
+    (out / "report.html").unlink()
+    r = run("report", out, "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == [str(out / "report.html")]
+    text = (out / "report.html").read_text()
+    assert "agree: same extremal" in text and text.count("data:image/png;base64,") == len(FIGS)
 
 
 def test_solve_impulsive_and_json(tmp_path):

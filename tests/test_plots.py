@@ -1,58 +1,326 @@
-"""Figures (problems/plots.py) drawn from in-memory Solutions, without touching the backend."""
+"""Figures (problems/plots.py) drawn from in-memory Solutions, without touching the backend.
+
+Each figure is drawn from a small solve (N = 30) and checked by its artists: the methods named in
+a legend, bound lines where the Problem carries bounds, shading where a bound is active, the zero
+line of constraint margins, the banner of a failed run, and tick labels that do not overlap.
+Bounds and constraints are checked on a simulated Solution of a Problem that carries them (the
+direct controls clipped into the bounds), which needs no solver support for them.
+"""
 from __future__ import annotations
 
 import subprocess
 import sys
 
+import matplotlib
+import numpy as np
 import pytest
 
 import se3ocp
-from support import maneuver
+from se3ocp.problems import plots
+from se3ocp.transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
+                                          SmoothControl)
+from support import ROOT, maneuver
 
-FIGS = {"maneuver", "velocity", "angular_velocity", "force", "moment", "convergence"}
+SMOOTH = {"maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn",
+          "orbital_elements", "velocity", "angular_velocity", "costates", "convergence"}
+
+
+def _close(figs):
+    import matplotlib.pyplot as plt
+
+    for f in figs.values():
+        plt.close(f)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _close_figures():
+    """The module leaves no pyplot figure open (they hold memory until closed); its fixtures hold
+    the figures of several runs at once, more than pyplot's warning threshold of 20."""
+    with matplotlib.rc_context({"figure.max_open_warning": 0}):
+        yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
 
 
 @pytest.fixture(scope="module")
-def figures():
-    import matplotlib.pyplot as plt
-
+def both():
     res = se3ocp.solve(maneuver("e3", 30, "first_order"), "both")
     figs = se3ocp.plot(res)
     yield res, figs
-    for f in figs.values():
-        plt.close(f)
+    _close(figs)
 
 
-def test_every_figure_is_drawn_with_both_methods(figures):
-    res, figs = figures
-    assert set(figs) == FIGS
+@pytest.fixture(scope="module")
+def bounded(both):
+    """A simulation of E3's Problem with a norm bound on the force, a box bound on the moment and
+    four path constraints, under the direct controls clipped into the bounds."""
+    res, _ = both
+    d = res.direct
+    prob = d.problem
+    bf = 0.6 * np.linalg.norm(d.u_f, axis=1).max()
+    bm = 0.6 * np.abs(d.u_m).max(axis=0)
+    U = d.controls.copy()
+    U[:3] *= np.minimum(1.0, bf / np.linalg.norm(U[:3], axis=0))
+    U[3:] = np.clip(U[3:], -bm[:, None], bm[:, None])
+    cons = (KeepOut([1, 0, 0], [0, 1, 0], 40.0), MinRadius(0.98), MaxAngularRate(7.0), KeepIn([0, 0, 1], [0, 0, 1], 60.0))
+    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, force_bound=NormBound(bf),
+                                            moment_bound=BoxBound(bm)), constraints=cons)
+    sim = se3ocp.simulate(pb, U)
+    figs = se3ocp.plot(sim)
+    yield sim, figs, bf, bm
+    _close(figs)
+
+
+@pytest.fixture(scope="module")
+def failed():
+    res = se3ocp.solve(maneuver("e4", 30, None, "solver.direct.max_iter=2"))
+    assert not res.converged and res.result is se3ocp.Result.max_iterations
+    figs = se3ocp.plot(res)
+    yield res, figs
+    _close(figs)
+
+
+def legend_texts(fig) -> set[str]:
+    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    return {t.get_text() for lg in legends for t in lg.get_texts()}
+
+
+def by_gid(fig, gid):
+    return [a for a in fig.findobj() if getattr(a, "get_gid", lambda: None)() == gid]
+
+
+def banner(fig):
+    return [t for t in fig.texts if t.get_gid() == "failure-banner"]
+
+
+def overlaps(boxes) -> bool:
+    boxes = sorted(boxes, key=lambda b: b.x0)
+    return any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def assert_no_overlapping_ticks(name, fig):
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        if ax.name == "3d":
+            continue
+        for axis in (ax.xaxis, ax.yaxis):
+            boxes = [t.get_window_extent(r) for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
+            assert not overlaps(boxes), (name, [t.get_text() for t in axis.get_ticklabels()])
+
+
+# ------------------------------------------------------------------------- every figure, both methods
+def test_every_figure_is_drawn_with_both_methods_named(both):
+    res, figs = both
+    assert set(figs) == SMOOTH
     for name, fig in figs.items():
-        lines = [ln for ax in fig.axes for ln in ax.get_lines()]
-        labels = {ln.get_label() for ln in lines}
-        assert lines, name
-        if name in ("velocity", "angular_velocity", "force", "moment"):
-            assert {"direct", "indirect"} <= labels, (name, labels)
-        if name == "maneuver":
-            assert {"direct path", "indirect path"} <= labels
-        assert all(ax.get_xlabel() or ax.name == "3d" or ax.get_ylabel() for ax in fig.axes), name
+        texts = legend_texts(fig)
+        assert any(t.startswith("direct") for t in texts) and any(t.startswith("indirect") for t in texts), (name, texts)
+        assert fig._suptitle is not None and "e3_inclination_change" in fig._suptitle.get_text(), name
+        assert "NOT CONVERGED" not in fig._suptitle.get_text() and not banner(fig), name
+        for ax in fig.axes:
+            assert ax.get_xlabel() or ax.get_ylabel() or ax.name == "3d", name
+        assert fig.axes[-1].get_xlabel() or fig.axes[-1].name == "3d", name
+        assert_no_overlapping_ticks(name, fig)
 
 
+def test_maneuver_draws_orbits_paths_and_the_body_frame(both):
+    res, figs = both
+    fig = figs["maneuver"]
+    texts = legend_texts(fig)
+    assert {"central body", "initial orbit", "desired orbit", "desired position", "direct path", "indirect path",
+            "body e1", "body e2", "body e3"} <= texts
+    ax = fig.axes[0]
+    path = next(ln for ln in ax.get_lines() if ln.get_label() == "direct path")
+    np.testing.assert_allclose(np.array(path.get_data_3d()).T, res.direct.trajectory.x)
+    # a body frame at 7 nodes: 7 axes of each colour
+    for c in plots.COMP:
+        assert sum(matplotlib.colors.same_color(ln.get_color(), c) for ln in ax.get_lines()) == 7
+    assert len(fig.axes) == 1                                # an orbit-sized path: no zoom panel
+
+
+def test_a_slew_gets_a_zoom_on_the_path():
+    sim = se3ocp.simulate(maneuver("e3", 20, None, "horizon.T=0.02"))   # a fiftieth of an orbit: a slew's path
+    fig = se3ocp.plot(sim, ("maneuver",))["maneuver"]
+    assert len(fig.axes) == 2 and "zoom on the path" in fig.axes[1].get_title()
+    lim = np.ptp(fig.axes[1].get_xlim())
+    assert lim < 0.5 * np.ptp(fig.axes[0].get_xlim())       # the zoom is a zoom
+    _close({"m": fig})
+
+
+def test_attitude_views_show_target_and_error(both):
+    res, figs = both
+    fig = figs["attitude"]
+    assert {"target frame R_d", "body e1 path", "initial frame"} <= legend_texts(fig)
+    fig = figs["attitude_error"]
+    ang = [ln for ln in fig.axes[0].get_lines() if ln.get_label() == "direct"][0].get_ydata()
+    assert ang[0] > 90 and ang[-1] < 1e-6                     # E3 starts ~180 deg off and ends on the target
+    quats = [ln.get_ydata() for ln in fig.axes[1].get_lines()][:4]
+    np.testing.assert_allclose(np.sum(np.square(quats), axis=0), 1.0, atol=1e-12)
+
+
+def test_quaternions_and_angles_are_accurate():
+    from se3ocp.transcription.lie import exp_so3
+    from se3ocp.transcription.results import rotation_angle
+
+    rng = np.random.default_rng(1)
+    for theta in (0.0, 1e-9, 0.3, np.pi / 2, np.pi - 1e-9, np.pi):
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        R = np.asarray(exp_so3(theta * n), float)
+        q = plots.quaternions(R[None])[0]
+        assert abs(rotation_angle(R) - theta) <= 1e-12
+        np.testing.assert_allclose(abs(q[0]), np.cos(theta / 2), atol=1e-12)
+        np.testing.assert_allclose(np.abs(q[1:]), np.abs(np.sin(theta / 2) * n), atol=1e-8)
+
+
+def test_rtn_and_orbital_elements_are_those_of_the_orbit(both):
+    res, figs = both
+    d = res.direct
+    ax_r, ax_t, ax_n = figs["thrust_rtn"].axes
+    comps = [next(ln for ln in ax.get_lines() if ln.get_label() == "direct").get_ydata() for ax in (ax_r, ax_t, ax_n)]
+    np.testing.assert_allclose(np.linalg.norm(comps, axis=0), np.linalg.norm(d.u_f, axis=1), rtol=1e-12)
+    # a plane change pushes along the orbit normal: the normal component dominates
+    assert np.abs(comps[2]).max() > 3 * np.abs(comps[0]).max()
+    fig = figs["orbital_elements"]
+    r, i, e = (next(ln for ln in ax.get_lines() if ln.get_label() == "direct").get_ydata() for ax in fig.axes)
+    np.testing.assert_allclose(r, np.linalg.norm(d.trajectory.x, axis=1))
+    assert abs(i[0]) < 1e-6 and abs(i[-1] - 30.0) < 1e-3 and e[-1] < 1e-6   # 0 -> 30 deg, circular at the end
+    targets = [[ln for ln in ax.get_lines() if ln.get_label() == "target"] for ax in fig.axes]
+    assert abs(targets[1][0].get_ydata()[0] - 30.0) < 1e-9
+
+
+def test_costates_of_both_methods(both):
+    res, figs = both
+    fig = figs["costates"]
+    assert len(fig.axes) == 4
+    for ax in fig.axes:
+        assert len(ax.get_lines()) == 6                        # 3 components x 2 methods
+    assert "direct (from multipliers)" in legend_texts(fig)
+
+
+def test_convergence_draws_every_iteration(both):
+    res, figs = both
+    ax = figs["convergence"].axes[0]
+    trials = next(ln for ln in ax.get_lines() if ln.get_label() == "indirect: all line-search trials")
+    assert len(trials.get_ydata()) == len(res.indirect.history)
+    assert ax.get_yscale() == "log"
+
+
+# ------------------------------------------------------------------------- bounds and constraints
+def test_norm_bound_line_and_active_shading(bounded):
+    sim, figs, bf, bm = bounded
+    fig = figs["control_norms"]
+    ax_f, ax_m = fig.axes
+    lines = [ln for ln in ax_f.get_lines() if ln.get_gid() == "bound-line"]
+    assert len(lines) == 1 and np.allclose(lines[0].get_ydata(), bf)
+    assert by_gid(ax_f, "bound-active") and by_gid(ax_m, "bound-active")      # the switching structure
+    assert any(t.startswith("simulate at bound (") for t in legend_texts(fig))
+    assert any("box bound" in t for t in legend_texts(fig))
+    assert sim.summary()["force_time_at_bound"] > 0 and sim.summary()["moment_time_at_bound"] > 0
+
+
+def test_box_bound_lines_per_component(bounded):
+    sim, figs, bf, bm = bounded
+    for i, ax in enumerate(figs["moment"].axes):
+        ys = sorted(float(ln.get_ydata()[0]) for ln in ax.get_lines() if ln.get_gid() == "bound-line")
+        np.testing.assert_allclose(ys, [-bm[i], bm[i]])
+        assert by_gid(ax, "bound-active"), i
+    # a norm bound has no per-component limits
+    assert not any(ln.get_gid() == "bound-line" for ax in figs["force"].axes for ln in ax.get_lines())
+
+
+def test_constraint_margins_with_zero_line_and_violations(bounded):
+    sim, figs, _, _ = bounded
+    fig = figs["constraints"]
+    cons = sim.problem.constraints
+    assert len(fig.axes) == len(cons)
+    for ax, c in zip(fig.axes, cons):
+        assert [ln for ln in ax.get_lines() if ln.get_gid() == "zero-line"], c.kind
+        mg = next(ln for ln in ax.get_lines() if ln.get_label() == "simulate").get_ydata()
+        np.testing.assert_allclose(mg, c.margin(sim.trajectory))
+        assert c.unit in ax.get_ylabel()
+        assert bool(by_gid(ax, "bound-active")) == bool((mg < 0).any()), c.kind   # violations shaded
+    assert "min radius 0.98" in legend_texts(figs["orbital_elements"])
+    rate = [ln for ln in figs["angular_velocity"].axes[3].get_lines() if ln.get_gid() == "bound-line"]
+    assert len(rate) == 1 and np.allclose(rate[0].get_ydata(), 7.0)
+    for name, f in figs.items():
+        assert_no_overlapping_ticks(name, f)
+
+
+# ------------------------------------------------------------------------- failure is never drawn like success
+def test_failed_run_is_marked(failed):
+    res, figs = failed
+    assert {"maneuver", "convergence", "force"} <= set(figs)
+    for name, fig in figs.items():
+        b = banner(fig)
+        assert len(b) == 1 and "direct: max_iterations" in b[0].get_text(), name
+        assert "NOT CONVERGED" in fig._suptitle.get_text(), name
+        assert any("FAILED: max_iterations" in t for t in legend_texts(fig)), name
+        fig.canvas.draw()
+        r = fig.canvas.get_renderer()
+        assert not fig._suptitle.get_window_extent(r).overlaps(b[0].get_window_extent(r)), name
+
+
+# ------------------------------------------------------------------------- other kinds of run
 def test_impulsive_figures_skip_controls():
-    import matplotlib.pyplot as plt
-
     figs = se3ocp.plot(se3ocp.solve(maneuver("e1", 40)))
-    assert "force" not in figs and {"maneuver", "velocity", "angular_velocity", "convergence"} <= set(figs)
-    for f in figs.values():
-        plt.close(f)
+    assert set(figs) == {"maneuver", "attitude", "attitude_error", "orbital_elements", "velocity", "angular_velocity",
+                         "convergence"}
+    assert "impulse direction" in legend_texts(figs["maneuver"])
+    assert {"before impulse", "after impulse"} <= legend_texts(figs["velocity"])
+    _close(figs)
 
 
+def test_simulation_without_target_or_controls():
+    figs = se3ocp.plot(se3ocp.simulate(maneuver("free", 200, None, "horizon.T=0.2")))
+    assert set(figs) == {"maneuver", "attitude", "attitude_error", "orbital_elements", "velocity", "angular_velocity"}
+    assert "rotation from the initial attitude" in figs["attitude_error"]._suptitle.get_text()
+    _close(figs)
+    with pytest.raises(ValueError, match="unknown figures"):
+        se3ocp.plot(se3ocp.simulate(maneuver("free", 20, None, "horizon.T=0.02")), ("bogus",))
+
+
+# ------------------------------------------------------------------------- animation
+def test_animation_names_both_methods_and_moves(both, tmp_path):
+    from PIL import Image
+
+    res, _ = both
+    anim = plots.Animation(res)
+    texts = {t.get_text() for lg in anim.fig.legends for t in lg.get_texts()}
+    assert {"direct", "indirect", "desired orbit", "thrust u_f", "body e1"} <= texts
+    assert "direct (solid)" in anim.fig._suptitle.get_text() and "indirect (dashed)" in anim.fig._suptitle.get_text()
+    a, b = anim.frame(0.0), anim.frame(res.direct.T)
+    assert a.shape == b.shape and np.abs(a.astype(int) - b.astype(int)).sum() > 0
+    p = plots.write_animation(res, tmp_path / "m.gif", frames=5, fps=10)
+    with Image.open(p) as im:
+        assert im.n_frames == 5 and im.info["duration"] == 100
+    with pytest.raises(ValueError):
+        plots.write_animation(res, tmp_path / "x.gif", frames=1)
+
+
+# ------------------------------------------------------------------------- the user's backend
 def test_importing_and_plotting_keep_the_users_backend():
     """A notebook sets its backend before importing the package: importing se3ocp and drawing a
     figure must leave it as it was (the CLI chooses Agg itself, not the library)."""
     code = ("import matplotlib; matplotlib.use('svg'); import se3ocp, se3ocp.problems.plots; "
             "m = se3ocp.load('configs/e3_inclination_change.yaml', ['horizon.N=10']); "
             "se3ocp.plot(se3ocp.simulate(m)); print(matplotlib.get_backend())")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                         cwd=str(__import__("support").ROOT))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=str(ROOT))
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "svg"
+
+
+def test_plots_module_never_chooses_a_backend():
+    src = (ROOT / "problems" / "plots.py").read_text()
+    assert "matplotlib.use(" not in src and "plt.switch_backend" not in src
+
+
+def test_readme_shows_figures_that_exist():
+    """Every figure the README's table shows is in docs/figures (scripts/readme_figures.py writes them)."""
+    import re
+
+    paths = re.findall(r"\]\((docs/figures/[^)]+\.png)\)", (ROOT / "README.md").read_text())
+    assert len(paths) >= 15
+    assert [p for p in paths if not (ROOT / p).is_file()] == []

@@ -277,6 +277,7 @@ class Solution:
         }
         out.update(self.trajectory.orthogonality())
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None)))})
+        out.update(figures_of_merit(self))
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -291,6 +292,69 @@ class Solution:
         if self.costates is not None:
             out["lam"] = self.costates
         return out
+
+
+#: a control counts as "at its bound" where it is within this fraction of the limit
+AT_BOUND_RTOL = 1e-3
+
+
+def rotation_angle(R: np.ndarray) -> np.ndarray:
+    """The rotation angle in [0, pi] of rotation matrices R (..., 3, 3): atan2(|vee(R - R^T)|/2, (tr R - 1)/2),
+    accurate at every angle (arccos of the trace alone loses half the digits near 0 and pi)."""
+    R = np.asarray(R, dtype=float)
+    s = 0.5 * np.linalg.norm(np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                                       R[..., 1, 0] - R[..., 0, 1]], axis=-1), axis=-1)
+    return np.arctan2(s, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0))
+
+
+def figures_of_merit(sol: "Solution") -> dict[str, Any]:
+    """What an engineer reads off a maneuver, computed once (summary.json, the report, sweeps).
+
+    delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m);
+    angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
+    weights of the scheme (transcription.problem.quadrature_weights) at h = T/N;
+    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; with a bound, force_time_at_bound /
+    moment_time_at_bound = sum of omega_j over the controls within AT_BOUND_RTOL of the limit (any
+    component of a BoxBound, the norm of a NormBound); with a state target that fixes the attitude,
+    terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints, min_margin_<kind>
+    (``_2``, ... for repeated kinds) = min_k margin_k in the constraint's unit (< 0: violated).
+    Fields that do not apply are left out.  Pure: reads the Solution, changes nothing."""
+    from .problem import NormBound, TargetState, quadrature_weights
+
+    out: dict[str, Any] = {}
+    prob = sol.problem
+    mass = sol.trajectory.mass
+    if sol.controls is not None:
+        uf, um = sol.u_f, sol.u_m
+        n, N = uf.shape[0], sol.N
+        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h)
+        nf, nm = np.linalg.norm(uf, axis=1), np.linalg.norm(um, axis=1)
+        out.update(delta_v=float(om @ nf / mass), angular_impulse=float(om @ nm),
+                   peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))
+        ctrl = getattr(prob, "control", None)
+        for name, u, bound in (("force", uf, getattr(ctrl, "force_bound", None)),
+                               ("moment", um, getattr(ctrl, "moment_bound", None))):
+            if bound is None:
+                continue
+            if isinstance(bound, NormBound):
+                active = np.linalg.norm(u, axis=1) >= bound.b * (1.0 - AT_BOUND_RTOL)
+            else:
+                active = np.any(np.abs(u) >= bound.b * (1.0 - AT_BOUND_RTOL), axis=1)
+            out[f"{name}_time_at_bound"] = float(om @ active)
+    elif sol.impulses is not None:
+        imp = sol.impulses
+        out.update(delta_v=float((np.linalg.norm(imp["dgamma0"]) + np.linalg.norm(imp["dgammaN"])) / mass),
+                   angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
+    term = getattr(prob, "terminal", None)
+    if isinstance(term, TargetState) and "attitude" in term.fixed and np.all(np.isfinite(sol.trajectory.X[-1])):
+        Rd = term.X[6:15].reshape(3, 3, order="F")
+        out["terminal_attitude_error_deg"] = float(np.degrees(rotation_angle(Rd.T @ sol.trajectory.R[-1])))
+    seen: dict[str, int] = {}
+    for c in getattr(prob, "constraints", ()):
+        seen[c.kind] = seen.get(c.kind, 0) + 1
+        key = f"min_margin_{c.kind}" + (f"_{seen[c.kind]}" if seen[c.kind] > 1 else "")
+        out[key] = float(np.min(c.margin(sol.trajectory)))
+    return out
 
 
 def to_jsonable(obj):

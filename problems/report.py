@@ -1,0 +1,208 @@
+"""``report.html``: one self-contained page per results directory, for reading rather than parsing.
+
+The page holds the run's status per method (a failed run is red at the top), a table of figures
+of merit per method (status, cost, terminal errors, iterations, times, Δv, ∫|u_m|, peaks, time at
+a bound, minimum constraint margins: :func:`se3ocp.transcription.results.figures_of_merit`, the
+same numbers as summary.json), the comparison verdict, the figures (PNG embedded as base64 data
+URIs), the convergence history and the resolved configuration.  It needs no network, no script
+and no file beside it: it opens offline in any browser and can be mailed as it is.
+
+The page is a Jinja2 template (``templates/report.html.j2``) rendered with autoescaping, since
+names, messages and the configuration come from user files.
+"""
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import io
+import math
+from pathlib import Path
+from typing import Any
+
+from ..transcription.problem import BoxBound, NormBound
+from ..transcription.results import Solution
+from .io import atomic_write_bytes
+
+TEMPLATES = Path(__file__).resolve().parent / "templates"
+
+#: rows of the summary table: (key of Solution.summary(), label, unit, format)
+ROWS = (
+    ("cost", "cost J", "", "{:.10g}"),
+    ("terminal_error", "terminal error (max-norm of the residual)", "", "{:.2e}"),
+    ("terminal_attitude_error_deg", "terminal attitude error", "deg", "{:.2e}"),
+    ("iterations", "iterations", "", "{:d}"),
+    ("build_s", "build time", "s", "{:.2f}"),
+    ("solve_s", "solve time", "s", "{:.2f}"),
+    ("delta_v", "Δv = Σ ω |u_f| / m", "radii/period", "{:.6g}"),
+    ("angular_impulse", "∫ |u_m| dt", "mass·radii²/period", "{:.6g}"),
+    ("peak_force", "peak |u_f|", "mass·radii/period²", "{:.6g}"),
+    ("peak_moment", "peak |u_m|", "mass·radii²/period²", "{:.6g}"),
+    ("force_time_at_bound", "time with the force at its bound", "periods", "{:.4g}"),
+    ("moment_time_at_bound", "time with the moment at its bound", "periods", "{:.4g}"),
+    ("max_orthogonality_error", "max |RᵀR − I|", "", "{:.1e}"),
+    ("max_relative_energy_error", "max relative energy error", "", "{:.1e}"),
+    ("max_cayley_residual", "max Cayley residual", "", "{:.1e}"),
+    ("N", "steps N", "", "{:d}"),
+    ("T", "final time T", "periods", "{:.6g}"),
+    ("solver", "solver", "", "{}"),
+)
+_UNITS = {"min_radius": "radii", "keep_out": "deg", "keep_in": "deg", "max_angular_rate": "rad/period"}
+
+
+def _fmt(value: Any, fmt: str) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    try:
+        return fmt.format(int(value) if fmt == "{:d}" else value)
+    except (ValueError, TypeError):
+        return str(value)
+
+
+def merit_rows(sols: dict[str, Solution]) -> list[dict[str, Any]]:
+    """The summary table: one row per quantity that some method has, a cell per method; the
+    margins of path constraints (negative: violated) flagged ``bad``."""
+    import numpy as np
+
+    with np.errstate(all="ignore"):  # a failed run's non-finite states: reported as nan, not warned about
+        summ = {m: s.summary() for m, s in sols.items()}
+    rows = []
+    keys = [r[0] for r in ROWS]
+    extra = sorted({k for s in summ.values() for k in s if k.startswith("min_margin_")})
+    for key in keys[:12] + extra + keys[12:]:
+        if key.startswith("min_margin_"):
+            kind = key[len("min_margin_"):].rstrip("_0123456789")
+            label, unit, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", _UNITS.get(kind, ""), "{:.4g}"
+        else:
+            _, label, unit, fmt = next(r for r in ROWS if r[0] == key)
+        if not any(key in s for s in summ.values()):
+            continue
+        cells = []
+        for s in summ.values():
+            v = s.get(key)
+            bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < 0
+            cells.append({"text": _fmt(v, fmt), "bad": bad})
+        rows.append({"label": label, "unit": unit, "cells": cells})
+    return rows
+
+
+def _bounds(problem) -> list[str]:
+    out = []
+    ctrl = problem.control
+    for name, b in (("force", getattr(ctrl, "force_bound", None)), ("moment", getattr(ctrl, "moment_bound", None))):
+        if isinstance(b, NormBound):
+            out.append(f"{name}: |u| ≤ {b.b:g}")
+        elif isinstance(b, BoxBound):
+            out.append(f"{name}: |u_i| ≤ ({', '.join(f'{x:g}' for x in b.b)})")
+    return out
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def figure_images(results_dir: Path | None, result, draw: bool = True) -> list[tuple[str, bytes]]:
+    """(name, PNG bytes) of every figure that applies to ``result``: the results directory's
+    fig_<name>.png where it is up to date, otherwise drawn in memory (``draw``) -- nothing is
+    written."""
+    import matplotlib.pyplot as plt
+
+    from . import plots
+
+    runs = plots._runs(result)
+    names = plots.applicable(runs, runs[0].sol.problem)
+    out, missing = {}, []
+    for n in names:
+        if results_dir is not None and plots.is_fresh(results_dir, n):
+            out[n] = (Path(results_dir) / f"fig_{n}.png").read_bytes()
+        else:
+            missing.append(n)
+    if draw:
+        for n in missing:  # one at a time: one figure in memory
+            fig = plots.draw(n, runs, runs[0].sol.problem)
+            out[n] = _png(fig)
+            plt.close(fig)
+    return [(n, out[n]) for n in names if n in out]
+
+
+def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
+    """The HTML of the report of a results directory read back (:class:`problems.store.Run`)."""
+    import jinja2
+
+    from .. import __version__
+    from .plots import CAPTIONS
+
+    result = run.result
+    sols = dict(run.solutions)
+    problem = next(iter(sols.values())).problem
+    methods = [{"name": m, "converged": s.converged, "status": s.result.value, "message": s.message,
+                "explain": s.result.message} for m, s in sols.items()]
+    comparison = None
+    if hasattr(result, "verdict"):
+        comparison = {"verdict": result.verdict, "agree": bool(result.same_extremal),
+                      "cost_rel": _fmt(result.cost_relative_difference, "{:.2e}"),
+                      "control_rel": _fmt(result.control_max_difference_relative, "{:.2e}")}
+    history = []
+    for m, s in sols.items():
+        recs = [h.as_dict() for h in s.history]
+        cols = [c for c in ("iteration", "trial", "residual", "dual", "cost", "step", "accepted", "phase", "elapsed_s")
+                if any(_present(r.get(c)) for r in recs)]
+        history.append({"method": m, "cols": cols,
+                        "rows": [[_cell(r.get(c)) for c in cols] for r in recs]})
+    summ = run.summary
+    command = summ.get("command") or ("compare" if comparison else "solve")
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
+                             autoescape=jinja2.select_autoescape(["html", "j2"], default=True),
+                             undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    return env.get_template("report.html.j2").render(
+        name=run.maneuver.name, source=str(summ.get("config") or run.maneuver.source), command=command,
+        version=__version__,
+        generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
+        control=run.maneuver.control_kind or "none (free motion)", discretization=run.maneuver.discretization,
+        N=run.maneuver.N, T=run.maneuver.T, methods=methods, method_names=list(sols),
+        ok=all(m["converged"] for m in methods), rows=merit_rows(sols), comparison=comparison,
+        bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
+        figures=[{"name": n, "caption": CAPTIONS.get(n, n), "data": base64.b64encode(b).decode("ascii")}
+                 for n, b in images],
+        history=history, config=config_text)
+
+
+def _describe(c) -> str:
+    from .plots import _describe as d
+
+    return d(c)
+
+
+def _present(v) -> bool:
+    return v is not None and not (isinstance(v, float) and math.isnan(v)) and v != ""
+
+
+def _cell(v) -> str:
+    if not _present(v):
+        return ""
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def write_report(results_dir: Path, draw: bool = True) -> Path:
+    """Write ``report.html`` into a results directory (atomically); figures are taken from the
+    directory where up to date, else drawn in memory (``draw=False``: the page without them)."""
+    from .store import read_run
+
+    d = Path(results_dir)
+    run = read_run(d)
+    images = figure_images(d, run.result, draw=draw)
+    cfg = d / "config.resolved.yaml"
+    html = render(run, images, cfg.read_text() if cfg.is_file() else "")
+    out = d / "report.html"
+    atomic_write_bytes(out, html.encode("utf-8"))
+    return out
+
+
+__all__ = ["ROWS", "figure_images", "merit_rows", "render", "write_report"]
