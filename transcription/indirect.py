@@ -89,7 +89,7 @@ import numpy as np
 
 from .layout import NU, NX, NZ, U_FORCE, U_MOMENT, join_state, split_state
 from . import codegen
-from .lgvi import Discretization
+from .lgvi import Discretization, chart, tangent_readback
 from .lie import log_so3
 from .problem import SmoothProblem
 from .results import Solution, Trajectory, terminal_error_full
@@ -135,33 +135,34 @@ def terminal_residual_function() -> ca.Function:
 
 
 def solve_unpivoted(M, b):
-    """Solve M y = b (SX, n x n dense) by Gaussian elimination without pivoting.
+    """Solve M Y = b (SX, M n x n dense, b n x m) by Gaussian elimination without pivoting.
 
-    Used for lambda_k = A_k^-T lambda_{k-1}.  A_k is close to a block-triangular
-    matrix with identity diagonal blocks (x, gamma, Pi) and the rotation block F_k^T
-    (zeta), so the pivots stay away from 0 while the rotation per step is well below
-    a right angle, and elimination without pivoting is accurate: on E3 its error is
+    Used for lambda_k = A_k^-T lambda_{k-1} (and, with 12 columns, for its linearization).  A_k is
+    close to a block-triangular matrix with identity diagonal blocks (x, gamma, Pi) and the
+    rotation block F_k^T (zeta), so the pivots stay away from 0 while the rotation per step is
+    well below a right angle, and elimination without pivoting is accurate: on E3 its error is
     ~1 ulp per component (against an exact rational solve), as good as LAPACK LU,
     whereas CasADi's symbolic QR (``ca.solve`` on SX) erred by ~1e-11 on |lambda| ~ 1e2
     and raised the round-off floor of z_N to ~1e-10 (E3, N = 100).  The caller
     reports the relative residual |M y - b|_inf / |b|_inf (lam_res) so a breakdown
-    would be visible.
+    would be visible.  The columns of b share one elimination; each column goes through the same
+    operations as a single right-hand side.
     """
     n = M.shape[0]
-    a = [[M[i, j] for j in range(n)] for i in range(n)]
-    r = [b[i] for i in range(n)]
-    for c in range(n):
-        for i in range(c + 1, n):
-            f = a[i][c] / a[c][c]
-            for j in range(c + 1, n):
-                a[i][j] = a[i][j] - f * a[c][j]
-            r[i] = r[i] - f * r[c]
+    # row operations on whole rows (all right-hand sides at once): per entry the same operations in the
+    # same order as the scalar algorithm, with far fewer Python-level CasADi calls (build time)
+    a = ca.densify(ca.SX(M))
+    r = ca.densify(ca.SX(b))
+    for c in range(n - 1):
+        f = a[c + 1:, c] / a[c, c]
+        a[c + 1:, c + 1:] = a[c + 1:, c + 1:] - ca.mtimes(f, a[c, c + 1:])
+        r[c + 1:, :] = r[c + 1:, :] - ca.mtimes(f, r[c, :])
     y = [None] * n
     for i in reversed(range(n)):
-        acc = r[i]
+        acc = r[i, :]
         for j in range(i + 1, n):
-            acc = acc - a[i][j] * y[j]
-        y[i] = acc / a[i][i]
+            acc = acc - a[i, j] * y[j]
+        y[i] = acc / a[i, i]
     return ca.vertcat(*y)
 
 
@@ -181,23 +182,74 @@ def orthonormalized(X):
     return join_state(x, gamma, Rp, Pi)
 
 
-def _costate_back_solve(A, lam_prev):
-    """lambda_k from lambda_{k-1} = A_k^T lambda_k (SPEC eq. 28), with its relative residual."""
-    lam = solve_unpivoted(A.T, lam_prev)
-    return lam, ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
-
-
 def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
     """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res), one signature for both schemes."""
     return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv"],
                        ["X1", "lam", "u", "res", "lam_res"])
 
 
+@lru_cache(maxsize=None)
+def control_matrix(disc: Discretization) -> ca.Function:
+    """``{scheme}_control_matrix`` (h) -> B_c[12x6]: the tangent-coordinate derivative of X_{k+1} by the
+    control that the costate lambda_k determines (first_order: B_k w.r.t. u_{k+1}; lgvi: B^b).
+
+    Taken from the graph (``disc.variation_seeded``) and checked, when built, to be constant (no
+    dependence on X_k or the stage control), and the Cayley right-hand side g_k to be independent of
+    that control: the assumptions of the forward costate recursion.  The controls are
+    u = -(s/h) Winv B_c^T lambda with s = 1 (first_order) or 2 (lgvi, see LGVI_CONDITIONS).
+    """
+    X = ca.SX.sym("X", NX)
+    w = ca.SX.sym("w", disc.nw)
+    h = ca.SX.sym("h")
+    c0 = ca.SX.sym("c0", 3)
+    A, B = disc.variation_seeded(X, w, h, c0)
+    wb = w if disc.scheme == "first_order" else w[NU:]  # the control lambda_k determines
+    Bc = B[:, -NU:]
+    if ca.depends_on(A, wb) or ca.depends_on(Bc, ca.vertcat(X, w, c0)) or \
+            ca.depends_on(disc.cayley_rhs(X, w, h), wb):
+        raise ValueError("A_k or the Cayley equation depends on the control determined by lambda_k, or its B is not "
+                         "constant: the forward costate recursion does not apply")
+    return ca.Function(f"{disc.scheme}_control_matrix", [h], [Bc], ["h"], ["B"])
+
+
+def _forward_step(disc: Discretization, X, lam_prev, h, Winv, seeded: bool) -> dict:
+    """One step of the forward map of the necessary conditions, as SX expressions.
+
+    The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
+    not depend on u_{k+1}) for the step (``disc.step_given_c``: X1 and res are those of ``disc.step``).
+    A_k at orthonormalized(X): ``disc.variation`` (seeded False: forward AD through the unrolled Newton
+    iterations, the costate map's values as before, bit for bit) or ``disc.variation_seeded`` with the
+    root c as the seed (seeded True: two Newton iterations from c, a smaller graph; equal to rounding).
+    Returns a dict with Xo, wA (the stage control A_k is taken at), c, A, lam, u (u_{k+1}), X1, res,
+    control (lambda -> u) and Bc (see :func:`control_matrix`).
+    """
+    Bc = control_matrix(disc)(h)
+    scale = 1.0 if disc.scheme == "first_order" else 2.0
+
+    def control(lam):
+        return -scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam)) / h
+
+    zero = ca.DM.zeros(NU)
+    if disc.scheme == "first_order":
+        wA, stage = zero, (lambda u1: u1)
+    else:
+        uk = control(lam_prev)
+        wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
+    Xo = orthonormalized(X)
+    c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
+    A = disc.variation_seeded(Xo, wA, h, c)[0] if seeded else disc.variation(Xo, wA, h)[0]
+    lam = solve_unpivoted(A.T, lam_prev)
+    u = control(lam)
+    X1 = disc.step_given_c(X, c, stage(u), h)[0]
+    return {"Xo": Xo, "wA": wA, "c": c, "A": A, "lam": lam, "u": u, "X1": X1, "res": hist[-1],
+            "control": control, "Bc": Bc}
+
+
 def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
     """The forward map of the necessary conditions for ``disc``.
 
-    Returns (costate_map, first_step); both built from ``disc.variation`` (A_k, B_k: the
-    Jacobian of the same step Function) and ``disc.step``.
+    Returns (costate_map, first_step); both built from the step and its variation A_k
+    (:func:`_forward_step`; B_k from :func:`control_matrix`).
 
     first_order (module docstring):
 
@@ -214,101 +266,100 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
-    lam0 = ca.SX.sym("lam0", NZ)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
+    s = _forward_step(disc, X, lam_prev, h, Winv, seeded=False)
+    lam_res = ca.norm_inf(ca.mtimes(s["A"].T, s["lam"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv],
+                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res])
+    if disc.scheme != "first_order":
+        return costate_map, None
+    lam0 = ca.SX.sym("lam0", NZ)
+    u0 = s["control"](lam0)
+    X1, res = disc.step(X, u0, h)
+    first_step = ca.Function(
+        "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"],
+        ["X1", "u", "res"]
+    )
+    return costate_map, first_step
+
+
+@lru_cache(maxsize=None)
+def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
+    """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam] at z = 0.
+
+    The derivative of the costate back-solve's matrix along a state variation, contracted with the
+    costate first: A^T lam is the gradient in z of lam^T readback(step(chart(X, z))) (one reverse
+    sweep; the readback is linear), and H its Jacobian in the chart coordinates of X (12 forward
+    directions), instead of 12 forward directions through all 144 entries of A.  The step is the
+    seeded one (two Newton iterations from the root c0 of step X's Cayley equation: exact up to
+    third derivatives there), so H is exact.
+    """
+    X = ca.SX.sym("X", NX)
     w = ca.SX.sym("w", disc.nw)
-
-    A_w, B_w = disc.variation(X, w, h)
-    if disc.scheme == "first_order":
-        if ca.depends_on(A_w, w) or ca.depends_on(B_w, w):
-            raise ValueError("A_k or B_k depends on the stage control: the forward costate recursion does not apply")
-        A, B = disc.variation(orthonormalized(X), ca.DM.zeros(disc.nw), h)
-
-        def control(lam):
-            return -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
-
-        lam, lam_res = _costate_back_solve(A, lam_prev)
-        u = control(lam)
-        X1, res = disc.step(X, u, h)
-        costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv], [X1, lam, u, res, lam_res])
-        u0 = control(lam0)
-        X1, res = disc.step(X, u0, h)
-        first_step = ca.Function(
-            "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"],
-            ["X1", "u", "res"]
-        )
-        return costate_map, first_step
-
-    # lgvi: w = [u_k; u_{k+1}]; A_k and B^a_k depend on u_k only, B^b = dX_{k+1}/du_{k+1} is constant
-    Bb_w = B_w[:, NU:]
-    if ca.depends_on(A_w, w[NU:]) or ca.depends_on(Bb_w, w):
-        raise ValueError("A_k depends on u_{k+1} or B^b is not constant: the forward costate recursion does not apply")
-    Bb = ca.substitute(Bb_w, w, ca.DM.zeros(disc.nw))
-    Xo = orthonormalized(X)
-
-    def control(lam):
-        return -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam)) / h
-
-    uk = control(lam_prev)
-    A, _ = disc.variation(Xo, ca.vertcat(uk, ca.DM.zeros(NU)), h)
-    lam, lam_res = _costate_back_solve(A, lam_prev)
-    uk1 = control(lam)
-    X1, res = disc.step(X, ca.vertcat(uk, uk1), h)
-    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv], [X1, lam, uk1, res, lam_res])
-    return costate_map, None
+    lam = ca.SX.sym("lam", NZ)
+    h = ca.SX.sym("h")
+    c0 = ca.SX.sym("c0", 3)
+    z, zp = ca.SX.sym("z", NZ), ca.SX.sym("zp", NZ)
+    X1z = disc.step_seeded(chart(chart(X, zp), z), w, h, c0)
+    base = ca.SX.sym("base", NX)  # the readback point X_{k+1}(zp), not differentiated in z
+    g = ca.gradient(ca.dot(lam, tangent_readback(base, X1z)), z)
+    # one substitution for both, so that the step at z = 0 is one graph (not two copies, each differentiated)
+    v, X1p = ca.substitute([g, X1z], [z], [ca.DM.zeros(NZ)])
+    v = ca.substitute(v, base, X1p)
+    H = ca.substitute(ca.jacobian(v, zp), zp, ca.DM.zeros(NZ))
+    return ca.Function(f"{disc.scheme}_adjoint_variation_jacobian", [X, w, lam, h, c0], [H],
+                       ["X", "w", "lam", "h", "c0"], ["H"])
 
 
 def linearized_map(disc: Discretization) -> ca.Function:
     """The costate forward map and its linearization (SPEC §6 (29)-(31)) as one SX Function.
 
-    linearized_map (X[18], lam_prev[12], dX[18x12], dlam[12x12], h, Winv[6x6])
-        -> (X1[18], lam[12], dX1[18x12], dlam1[12x12])
+    linearized_map (X[18], lam_prev[12], dZ[12x12], dlam[12x12], h, Winv[6x6])
+        -> (X1[18], lam[12], dZ1[12x12], dlam1[12x12])
 
-    (X1, lam) as in :func:`costate_functions`; (dX1, dlam1) = d(X1, lam)/d(X, lam_prev) @ (dX, dlam),
-    i.e. the sensitivities of the coupled state-multiplier recursion carried forward.  Starting
-    from (dX, dlam) = d(X_1, lambda_0)/d lambda_0 and iterating gives dX_N/dlambda_0, hence Psi_12.
+    (X1, lam) as in :func:`costate_functions`; dZ, dlam are the derivatives of z_k (tangent
+    coordinates of X_k, SPEC §4) and of lambda_{k-1} by the shooting unknown, and (dZ1, dlam1) those
+    of z_{k+1} and lambda_k, i.e. the coupled state-multiplier recursion carried forward in tangent
+    coordinates.  Starting from the first step's and iterating gives dz_N/dlambda_0, hence Psi_12.
 
-    The derivative is taken with every Cayley root held as a seed c0 (``disc.step_seeded``,
-    ``disc.variation_seeded``: two Newton iterations from c0, exact up to third derivatives at the
-    root), then c0 is set to the solved root.  Forward AD through the 8 unrolled Newton iterations
-    of ``costate_map`` gives the same numbers with a graph ~6x larger (measured: 266k instructions for
-    12 directions against 40k here).
+    Differentiating lambda_{k-1} = A_k^T lambda_k and z_{k+1} = A_k z_k + B du_{k+1}:
+
+        dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k),   H_k = d/dz [A(chart(X_k, z))^T lambda_k]
+        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},             du_{k+1} = -(s/h) Winv B_c^T dlambda_k
+
+    with dz~_k = dz_k (first_order) or dz_k + B^b du_k (lgvi: u_k enters as the momentum kick B^b u_k,
+    so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).
+    H_k comes from :func:`adjoint_variation_jacobian`; A_k, lambda_k, X_{k+1} from the same step as
+    the costate map (:func:`_forward_step`); the 12 + 1 right-hand sides share one elimination.
+    ~30k SX instructions (first order) against 111k for forward AD of the 18-state map in 12
+    directions (the previous construction), with equal Psi (tests/test_perf_structure.py).
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
-    dX = ca.SX.sym("dX", NX, NZ)
+    dZ = ca.SX.sym("dZ", NZ, NZ)
     dlam = ca.SX.sym("dlam", NZ, NZ)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
-    cv = ca.SX.sym("cv", 3)
-    cs = ca.SX.sym("cs", 3)
-    Xo = orthonormalized(X)
-    zero = ca.DM.zeros(NU)
-    if disc.scheme == "first_order":
-        A, B = disc.variation_seeded(Xo, zero, h, cv)
-        lam = solve_unpivoted(A.T, lam_prev)
-        u = -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
-        X1 = disc.step_seeded(X, u, h, cs)
-        # g = h Pi_k: the roots do not depend on the control
-        gv, gs = disc.cayley_rhs(Xo, zero, h), disc.cayley_rhs(X, zero, h)
-    else:
-        w0 = ca.SX.sym("w", disc.nw)
-        Bb = ca.substitute(disc.variation(X, w0, h)[1][:, NU:], w0, ca.DM.zeros(disc.nw))
-        uk = -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam_prev)) / h
-        A, _ = disc.variation_seeded(Xo, ca.vertcat(uk, zero), h, cv)
-        lam = solve_unpivoted(A.T, lam_prev)
-        uk1 = -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam)) / h
-        X1 = disc.step_seeded(X, ca.vertcat(uk, uk1), h, cs)
-        # g = h (Pi_k + (h/2)(M_k + u_k)): independent of u_{k+1}
-        gv, gs = disc.cayley_rhs(Xo, ca.vertcat(uk, zero), h), disc.cayley_rhs(X, ca.vertcat(uk, zero), h)
-    out = ca.vertcat(X1, lam)
-    dout = ca.jtimes(out, ca.vertcat(X, lam_prev), ca.vertcat(dX, dlam))
-    core = ca.Function("linearized_core", [X, lam_prev, dX, dlam, h, Winv, cv, cs],
-                       [X1, lam, dout[:NX, :], dout[NX:, :]])
-    outs = core(X, lam_prev, dX, dlam, h, Winv, disc.cayley_solve(gv)[0], disc.cayley_solve(gs)[0])
-    return ca.Function(f"{disc.scheme}_linearized_map", [X, lam_prev, dX, dlam, h, Winv], outs,
-                       ["X", "lam_prev", "dX", "dlam", "h", "Winv"], ["X1", "lam", "dX1", "dlam1"])
+    s = _forward_step(disc, X, lam_prev, h, Winv, seeded=True)
+    A, Bc, control = s["A"], s["Bc"], s["control"]
+    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(Bc, control(dlam))
+    H = adjoint_variation_jacobian(disc)(s["Xo"], s["wA"], s["lam"], h, s["c"])
+    dlam1 = solve_unpivoted(A.T, dlam - ca.mtimes(H, dZk))
+    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(Bc, control(dlam1))
+    return ca.Function(f"{disc.scheme}_linearized_map", [X, lam_prev, dZ, dlam, h, Winv],
+                       [s["X1"], s["lam"], dZ1, dlam1],
+                       ["X", "lam_prev", "dZ", "dlam", "h", "Winv"], ["X1", "lam", "dZ1", "dlam1"])
+
+
+@lru_cache(maxsize=None)
+def terminal_residual_jacobian() -> ca.Function:
+    """(XN[18], Xd[18]) -> (zN[12], J[12x12]): J = dzN(chart(XN, z))/dz at z = 0 (tangent coordinates)."""
+    XN, Xd, z = ca.SX.sym("XN", NX), ca.SX.sym("Xd", NX), ca.SX.sym("z", NZ)
+    zt = terminal_residual_function()(chart(XN, z), Xd)
+    J = ca.substitute(ca.jacobian(zt, z), z, ca.DM.zeros(NZ))
+    return ca.Function("terminal_residual_jac", [XN, Xd], [terminal_residual_function()(XN, Xd), J], ["XN", "Xd"],
+                       ["zN", "J"])
 
 
 #: The second-order LGVI (SPEC §2, node controls u_0..u_N, stage control w_k = [u_k; u_{k+1}],
@@ -356,9 +407,10 @@ class ShootingFunctions:
         self.linearized_map = linearized_map(disc)
         # the per-step Functions evaluated N times per rollout; compiled to C with jit (values only)
         step_map, lin_map = self.costate_map, self.linearized_map
-        if self.jit:
-            step_map, lin_map = (codegen.compiled(f) for f in (step_map, lin_map))
-        self.compiled = self.jit and isinstance(lin_map, ca.Function) and lin_map.class_name() == "External"
+        if self.jit:  # one library per scheme (and model), independent of N and of the problem data
+            step_map, lin_map = codegen.compiled_many([step_map, lin_map], f"{sch}_indirect_maps",
+                                                      cflags=codegen.QUICK_CFLAGS)
+        self.compiled = self.jit and lin_map.class_name() == "External"
         self.terminal_residual = terminal_residual_function()
 
         lam0 = ca.MX.sym("lam0", NZ)
@@ -395,35 +447,28 @@ class ShootingFunctions:
         )
         res_max = ca.mmax(res)
         self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"])
-        # Psi = dzN/dlam0 by the linearized coupled recursion (forward sensitivities carried step by
-        # step, see linearized_map): the same derivative as forward AD through the rollout, ~6x cheaper
+        # Psi = dzN/dlam0 by the linearized coupled recursion (sensitivities in tangent coordinates carried
+        # step by step, see linearized_map): the same derivative as forward AD through the rollout, cheaper
         n_lin = N if sch == "lgvi" else N - 1  # first_order: step 0 is handled below; N = 1 has none left
         lin_acc = lin_map.mapaccum(f"{sch}_linearized_acc{N}", n_lin, 4) if n_lin > 0 else None
         if sch == "first_order":
-            dX1 = ca.jacobian(X1, lam0)                      # first step: u_1 linear in lam0, c_0 independent
-            XN, dXN = X1, dX1
+            Bc = control_matrix(disc)(h)                      # first step: dz_1 = B_1 du_1, u_1 = -(1/h) Winv B^T lam0
+            dZ1 = -ca.mtimes(Bc, ca.mtimes(Winv, Bc.T)) / h
+            XN, dZN = X1, dZ1
             if N > 1:
-                XL, _, dXL, _ = lin_acc(X1, lam0, dX1, ca.MX.eye(NZ), ca.repmat(h, 1, N - 1),
+                XL, _, dZL, _ = lin_acc(X1, lam0, dZ1, ca.MX.eye(NZ), ca.repmat(h, 1, N - 1),
                                         ca.repmat(Winv, 1, N - 1))
-                XN, dXN = XL[:, -1], dXL[:, -NZ:]
+                XN, dZN = XL[:, -1], dZL[:, -NZ:]
         else:
-            XL, _, dXL, _ = lin_acc(X0, lam0, ca.MX.zeros(NX, NZ), ca.MX.eye(NZ), ca.repmat(h, 1, N),
+            XL, _, dZL, _ = lin_acc(X0, lam0, ca.MX.zeros(NZ, NZ), ca.MX.eye(NZ), ca.repmat(h, 1, N),
                                     ca.repmat(Winv, 1, N))
-            XN, dXN = XL[:, -1], dXL[:, -NZ:]
-        xs, xds = ca.SX.sym("XN", NX), ca.SX.sym("Xd", NX)
-        zs = self.terminal_residual(xs, xds)
-        term_jac = ca.Function("terminal_residual_jac", [xs, xds], [zs, ca.jacobian(zs, xs)], ["XN", "Xd"], ["zN", "J"])
-        zL, JT = term_jac(XN, Xd)
-        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dXN)], names_in, ["zN", "Psi"])
+            XN, dZN = XL[:, -1], dZL[:, -NZ:]
+        zL, JT = terminal_residual_jacobian()(XN, Xd)
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZN)], names_in, ["zN", "Psi"])
 
     def _lgvi_u0(self, lam_init, h, Winv):
-        """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph."""
-        X = ca.SX.sym("X", NX)
-        w = ca.SX.sym("w", self.disc.nw)
-        hs = ca.SX.sym("h")
-        Bb = ca.substitute(self.disc.variation(X, w, hs)[1][:, NU:], w, ca.DM.zeros(self.disc.nw))
-        Bb_fun = ca.Function("lgvi_Bb", [hs], [Bb])  # constant in X (checked in costate_functions)
-        return -2.0 * ca.mtimes(Winv, ca.mtimes(Bb_fun(h).T, lam_init)) / h
+        """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph (:func:`control_matrix`)."""
+        return -2.0 * ca.mtimes(Winv, ca.mtimes(control_matrix(self.disc)(h).T, lam_init)) / h
 
 
 @lru_cache(maxsize=None)
