@@ -99,6 +99,39 @@ def test_codegen_falls_back_without_compiler(monkeypatch):
     assert s.converged and s.extra["jit"] is False
 
 
+def test_codegen_all_or_nothing(monkeypatch, tmp_path):
+    """A failing compiler leaves every Function of every library interpreted, with the reason kept."""
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    monkeypatch.setattr(codegen, "compiler", lambda: "false")   # exits 1 without output
+    monkeypatch.setattr(codegen, "available", lambda: True)
+    x = ca.SX.sym("x", 2)
+    f, g = ca.Function("aon_f", [x], [ca.sin(x)]), ca.Function("aon_g", [x], [ca.cos(x)])
+    out = codegen.compiled_libraries([codegen.Library("aon_f", (f,)), codegen.Library("aon_g", (g,))],
+                                     cflags=codegen.QUICK_CFLAGS)
+    assert out == [[f], [g]] and "CalledProcessError" in codegen.last_error
+    assert not list(tmp_path.glob("*.so")) and not [p for p in tmp_path.iterdir() if p.is_dir()]
+
+
+def test_lean_io_keeps_values_with_absent_inputs_and_outputs(monkeypatch, tmp_path):
+    """codegen.lean_io (one null test per input/output pointer instead of one per element) changes no value,
+    also when CasADi passes no buffer for a structurally zero input or an unused output."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    x, y = ca.SX.sym("x", 3), ca.SX.sym("y", 2, 2)
+    f = ca.Function("lean_probe", [x, y], [ca.sin(x) * y[0, 1] + 1, ca.mtimes(y, x[:2]) + x[2], ca.vertcat(x, y[:])])
+    src = codegen.lean_io(codegen._generate(codegen.Library("lean_probe", (f,)), str(tmp_path)).read_text())
+    assert "arg[0]? arg[0]" not in src and "if (res[" not in src and "ci1[3]" in src
+    g = codegen.compiled(f, cse=False, cflags=codegen.QUICK_CFLAGS)
+    assert g.class_name() == "External"
+    X = ca.MX.sym("X", 3)
+    vals = []
+    for fn in (f, g):
+        F = ca.Function("F", [X], [fn(X, ca.MX(2, 2))[1], fn(X, ca.reshape(X[:2], 2, 1) @ X[1:].T)[0]])
+        vals.append([np.array(o) for o in F([0.3, -1.2, 2.0])])
+    assert all(np.array_equal(a, b) for a, b in zip(*vals))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_compiled_runs_equal_interpreted(scheme):

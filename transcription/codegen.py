@@ -26,9 +26,12 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
+import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -88,41 +91,131 @@ def compiled_many(fns: Sequence[ca.Function], name: str, timeout: float = 600.0,
     ``cse``: common-subexpression elimination of SX Functions before generating C (fewer lines for
     the compiler and faster code, at the cost of the elimination itself, paid on a cache miss only).
     """
+    return compiled_libraries([Library(name, tuple(fns), cse)], timeout=timeout, cflags=cflags)[0]
+
+
+@dataclass(frozen=True)
+class Library:
+    """One shared library: its name (prefix of the cached file), its Functions, and whether SX Functions
+    go through common-subexpression elimination before C generation."""
+
+    name: str
+    fns: tuple
+    cse: bool = False
+
+
+def _key(lib: Library, flags: list[str]) -> str:
+    digest = hashlib.sha256()
+    for f in lib.fns:
+        digest.update(f.serialize().encode())
+    # (for one Function with cse, the same key as before compiled_many existed: caches stay valid)
+    digest.update(" ".join(flags).encode() + ca.__version__.encode() + (b"" if lib.cse else b"nocse"))
+    return digest.hexdigest()[:20]
+
+
+def _generate(lib: Library, tmp: str) -> Path:
+    cg = ca.CodeGenerator(f"{lib.name}.c", {"with_header": False})
+    for f in lib.fns:
+        if lib.cse and f.is_a("SXFunction"):
+            ins = f.sx_in()
+            f = ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out(), {"cse": True})
+        cg.add(f)
+    cg.generate(tmp + os.sep)
+    path = Path(tmp) / f"{lib.name}.c"
+    path.write_text(lean_io(path.read_text()))
+    return path
+
+
+_BODY = re.compile(r"^(static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, casadi_int\* iw, "
+                   r"casadi_real\* w, int mem\) \{\n)(.*?)(^\}\n)", re.M | re.S)
+_READ = re.compile(r"arg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")
+_WRITE = re.compile(r"if \(res\[(\d+)\]!=0\) res\[\1\]\[(\d+)\]=")
+
+
+def lean_io(source: str) -> str:
+    """The generated C with every input and output pointer tested once per call instead of once per element.
+
+    CasADi's straight-line code reads each input element as ``arg[i]? arg[i][k] : 0`` and writes each output
+    element under ``if (res[i]!=0)``: hundreds of branches in one huge function, which cost gcc a third of
+    its time on the linearized map.  Here a null input reads from a zero array and a null output writes to
+    a scratch array on the stack, with the same values: ``ci0 = arg[0] ? arg[0] : zeros`` then ``ci0[k]``.
+    Function bodies in which anything else refers to arg or res are left unchanged.
+    """
+    def body(m: re.Match) -> str:
+        head, text, tail = m.groups()
+        reads = [(int(i), int(k)) for i, k in _READ.findall(text)]
+        writes = [(int(i), int(k)) for i, k in _WRITE.findall(text)]
+        rest = _WRITE.sub("", _READ.sub("", text))
+        if not (reads or writes) or re.search(r"\b(arg|res)\b", rest):
+            return m.group(0)
+        decl = []
+        if reads:
+            ins = sorted({i for i, _ in reads})
+            decl.append(f"  static const casadi_real casadi_zeros_in[{max(k for _, k in reads) + 1}] = {{0}};\n")
+            decl += [f"  const casadi_real* ci{i} = arg[{i}] ? arg[{i}] : casadi_zeros_in;\n" for i in ins]
+        if writes:
+            outs = sorted({i for i, _ in writes})
+            decl.append(f"  casadi_real casadi_scratch_out[{max(k for _, k in writes) + 1}];\n")
+            decl += [f"  casadi_real* co{i} = res[{i}] ? res[{i}] : casadi_scratch_out;\n" for i in outs]
+        text = _READ.sub(lambda r: f"ci{r.group(1)}[{r.group(2)}]", text)
+        text = _WRITE.sub(lambda w: f"co{w.group(1)}[{w.group(2)}]=", text)
+        return head + "".join(decl) + text + tail
+
+    return _BODY.sub(body, source)
+
+
+def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0,
+                       cflags: Sequence[str] = CFLAGS) -> list[list[ca.Function]]:
+    """Compiled equivalents of every library's Functions, or all of them unchanged as fallback.
+
+    Each library is its own C file and compiler process; the cache misses are compiled concurrently
+    (the C of the next library is generated while the compiler works on the previous ones), so the
+    first build takes about the longest single compile on a machine with free cores.  All or nothing
+    over all libraries: callers see either every Function compiled or none.
+    """
     global last_error
-    fns = list(fns)
+    originals = [list(lib.fns) for lib in libs]
     if not available():
         last_error = "no C compiler found (or SE3OCP_NO_JIT set)"
-        return fns
+        return originals
     flags = list(cflags)
+    procs: list[subprocess.Popen] = []
+    tmps: list[tempfile.TemporaryDirectory] = []
     try:
-        digest = hashlib.sha256()
-        for f in fns:
-            digest.update(f.serialize().encode())
-        # (for one Function with cse, the same key as before compiled_many existed: caches stay valid)
-        digest.update(" ".join(flags).encode() + ca.__version__.encode() + (b"" if cse else b"nocse"))
-        key = digest.hexdigest()[:20]
-        lib = cache_dir() / f"{name}_{key}.so"
-        if not lib.exists():
-            lib.parent.mkdir(parents=True, exist_ok=True)
+        paths = [cache_dir() / f"{lib.name}_{_key(lib, flags)}.so" for lib in libs]
+        missing = [(lib, path) for lib, path in zip(libs, paths) if not path.exists()]
+        if missing:
+            cache_dir().mkdir(parents=True, exist_ok=True)
             if notify is not None:
-                what = name if len(fns) == 1 else f"{name} ({', '.join(f.name() for f in fns)})"
+                what = ", ".join(lib.name for lib, _ in missing)
                 notify(f"compiling {what} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
-            with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
-                cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-                for f in fns:
-                    if cse and f.is_a("SXFunction"):
-                        ins = f.sx_in()
-                        f = ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out(), {"cse": True})
-                    cg.add(f)
-                cg.generate(tmp + os.sep)
-                c = Path(tmp) / f"{name}.c"
-                out = Path(tmp) / lib.name
-                subprocess.run([compiler(), *flags, str(c), "-o", str(out), "-lm"], check=True, timeout=timeout,
-                               capture_output=True)
-                os.replace(out, lib)  # atomic: concurrent builders never see half a library
-        exts = [ca.external(f.name(), str(lib)) for f in fns]
+            outs = []
+            for lib, path in missing:
+                tmp = tempfile.TemporaryDirectory(dir=cache_dir())
+                tmps.append(tmp)
+                c = _generate(lib, tmp.name)
+                out = Path(tmp.name) / path.name
+                with open(Path(tmp.name) / "cc.log", "wb") as log:  # a file, not a pipe: nothing can block
+                    procs.append(subprocess.Popen([compiler(), *flags, str(c), "-o", str(out), "-lm"],
+                                                  stdout=log, stderr=subprocess.STDOUT))
+                outs.append(out)
+            deadline = time.monotonic() + timeout
+            for proc, (lib, path), out in zip(procs, missing, outs):
+                proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+                if proc.returncode != 0:
+                    raise subprocess.CalledProcessError(proc.returncode, proc.args,
+                                                        output=(out.parent / "cc.log").read_text(errors="replace"))
+                os.replace(out, path)  # atomic: concurrent builders never see half a library
+        exts = [[ca.external(f.name(), str(path)) for f in lib.fns] for lib, path in zip(libs, paths)]
         last_error = None
         return exts
     except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
         last_error = f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
-        return fns
+        return originals
+    finally:
+        for proc in procs:  # only after a failure can one still run
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for tmp in tmps:
+            tmp.cleanup()
