@@ -44,12 +44,18 @@ The only unknown is lambda_0 in R^12; the shooting residual (12 conditions) is
     z_N(lambda_0) = [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d],
 
 and Psi_12 = dz_N/dlambda_0 (the linearized coupled state-multiplier recursion,
-(29)-(31)) is computed by exact forward-mode AD through the rollout.
+(29)-(31)) is computed exactly, by the linearized recursion in tangent coordinates along the
+rollout (:func:`linearization_functions`; equal to forward-mode AD through the rollout).
 
-Functions built once per (Discretization, N) (see :func:`shooting_functions`):
+Per-step Functions, built once per Discretization (compiled to C by default, see DEFAULT_OPTIONS['jit']):
 
-    costate_map  (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res)
-    first_step   (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
+    costate_map      (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res, A, c)
+    first_step       (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
+    costate_hessian  (X, lam_prev, lam, c, h, Winv)      -> H[12x12]
+    linearized_map   (A, H, dZ[12x12], dlam[12x12], h, Winv) -> (dZ1, dlam1)
+
+and once per (Discretization, N) (see :func:`shooting_functions`):
+
     shoot        (lam0, X0, Xd, h, Winv) -> (zN[12], X[18xN], lam[12xN], U[6xN], res, lam_res)
     residual     (lam0, X0, Xd, h, Winv) -> (zN[12], res_max)
     shoot_jac    (lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12x12])
@@ -108,9 +114,10 @@ DEFAULT_OPTIONS: dict[str, Any] = {
     "floor_accept": 1e-8,
     # line-search trials whose rollout leaves a relative Cayley residual above this are rejected
     "cayley_tol": 1e-10,
-    # compile the per-step costate map and its linearization to C (transcription/codegen.py; cached on
-    # disk, first build ~10 s; falls back to the interpreted Functions without a compiler)
-    "jit": False,
+    # compile the per-step Functions (costate map, its Hessian term, the linearized update) to C
+    # (transcription/codegen.py, gcc -O0, three libraries compiled concurrently, once per scheme and model,
+    # cached on disk; the first build takes ~1-2 s); falls back to the interpreted Functions without a compiler
+    "jit": True,
 }
 
 _EPS = np.finfo(float).eps
@@ -183,9 +190,10 @@ def orthonormalized(X):
 
 
 def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
-    """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res), one signature for both schemes."""
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res, A, c), one signature for both
+    schemes."""
     return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv"],
-                       ["X1", "lam", "u", "res", "lam_res"])
+                       ["X1", "lam", "u", "res", "lam_res", "A", "c"])
 
 
 @lru_cache(maxsize=None)
@@ -212,16 +220,16 @@ def control_matrix(disc: Discretization) -> ca.Function:
     return ca.Function(f"{disc.scheme}_control_matrix", [h], [Bc], ["h"], ["B"])
 
 
-def _forward_step(disc: Discretization, X, lam_prev, h, Winv, seeded: bool) -> dict:
+def _forward_step(disc: Discretization, X, lam_prev, h, Winv) -> dict:
     """One step of the forward map of the necessary conditions, as SX expressions.
 
     The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
     not depend on u_{k+1}) for the step (``disc.step_given_c``: X1 and res are those of ``disc.step``).
-    A_k at orthonormalized(X): ``disc.variation`` (seeded False: forward AD through the unrolled Newton
-    iterations, the costate map's values as before, bit for bit) or ``disc.variation_seeded`` with the
-    root c as the seed (seeded True: two Newton iterations from c, a smaller graph; equal to rounding).
-    Returns a dict with Xo, wA (the stage control A_k is taken at), c, A, lam, u (u_{k+1}), X1, res,
-    control (lambda -> u) and Bc (see :func:`control_matrix`).
+    A_k = ``disc.variation`` at orthonormalized(X) (forward AD through the unrolled Newton iterations).
+    ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
+    accurate, but its different rounding changes the iteration counts at the round-off floor that tests
+    pin; the costate map gives the same values as before, bit for bit.
+    Returns a dict with c (the Cayley root), A, lam, u (u_{k+1}), X1, res and control (lambda -> u).
     """
     Bc = control_matrix(disc)(h)
     scale = 1.0 if disc.scheme == "first_order" else 2.0
@@ -235,16 +243,15 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, seeded: bool) -> d
     else:
         uk = control(lam_prev)
         wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
-    Xo = orthonormalized(X)
     c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
-    A = disc.variation_seeded(Xo, wA, h, c)[0] if seeded else disc.variation(Xo, wA, h)[0]
+    A = disc.variation(orthonormalized(X), wA, h)[0]
     lam = solve_unpivoted(A.T, lam_prev)
     u = control(lam)
     X1 = disc.step_given_c(X, c, stage(u), h)[0]
-    return {"Xo": Xo, "wA": wA, "c": c, "A": A, "lam": lam, "u": u, "X1": X1, "res": hist[-1],
-            "control": control, "Bc": Bc}
+    return {"c": c, "A": A, "lam": lam, "u": u, "X1": X1, "res": hist[-1], "control": control}
 
 
+@lru_cache(maxsize=None)
 def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
     """The forward map of the necessary conditions for ``disc``.
 
@@ -253,10 +260,12 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
 
     first_order (module docstring):
 
-    * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res):
+    * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12], c[3]):
       X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
       u = u_{k+1} = -(1/h) Winv B_k^T lambda_k (26)-(27); X1 = X_{k+1} = step(X_k, u_{k+1});
-      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf.
+      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf;
+      A = A_k and c the root of the step's Cayley equation, for the linearization
+      (:func:`linearization_functions`) along the same rollout.
     * first_step (X0[18], lam0[12], h, Winv) -> (X1[18], u[6], res): the k = 0 step,
       where lambda_0 is the unknown itself.
 
@@ -268,10 +277,10 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     lam_prev = ca.SX.sym("lam_prev", NZ)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
-    s = _forward_step(disc, X, lam_prev, h, Winv, seeded=False)
+    s = _forward_step(disc, X, lam_prev, h, Winv)
     lam_res = ca.norm_inf(ca.mtimes(s["A"].T, s["lam"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
     costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv],
-                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res])
+                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"]])
     if disc.scheme != "first_order":
         return costate_map, None
     lam0 = ca.SX.sym("lam0", NZ)
@@ -312,44 +321,62 @@ def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
                        ["X", "w", "lam", "h", "c0"], ["H"])
 
 
-def linearized_map(disc: Discretization) -> ca.Function:
-    """The costate forward map and its linearization (SPEC §6 (29)-(31)) as one SX Function.
+def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
+    """The linearization of the costate forward map (SPEC §6 (29)-(31)) along a rollout of the costate map.
 
-    linearized_map (X[18], lam_prev[12], dZ[12x12], dlam[12x12], h, Winv[6x6])
-        -> (X1[18], lam[12], dZ1[12x12], dlam1[12x12])
+    Returns (costate_hessian, linearized_map):
 
-    (X1, lam) as in :func:`costate_functions`; dZ, dlam are the derivatives of z_k (tangent
-    coordinates of X_k, SPEC §4) and of lambda_{k-1} by the shooting unknown, and (dZ1, dlam1) those
-    of z_{k+1} and lambda_k, i.e. the coupled state-multiplier recursion carried forward in tangent
-    coordinates.  Starting from the first step's and iterating gives dz_N/dlambda_0, hence Psi_12.
+    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6]) -> H[12x12]
+        H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
+        orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
+        seeded with the step's Cayley root c (an output of the costate map).
+    linearized_map (A[12x12], H[12x12], dZ[12x12], dlam[12x12], h, Winv[6x6]) -> (dZ1[12x12], dlam1[12x12])
+        dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, SPEC §4) and of lambda_{k-1} by
+        the shooting unknown; (dZ1, dlam1) those of z_{k+1} and lambda_k.  Starting from the first step's
+        and iterating (``mapaccum``) gives dz_N/dlambda_0, hence Psi_12.
 
     Differentiating lambda_{k-1} = A_k^T lambda_k and z_{k+1} = A_k z_k + B du_{k+1}:
 
-        dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k),   H_k = d/dz [A(chart(X_k, z))^T lambda_k]
-        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},             du_{k+1} = -(s/h) Winv B_c^T dlambda_k
+        dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k)
+        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},     du_{k+1} = -(s/h) Winv B_c^T dlambda_k
 
     with dz~_k = dz_k (first_order) or dz_k + B^b du_k (lgvi: u_k enters as the momentum kick B^b u_k,
-    so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).
-    H_k comes from :func:`adjoint_variation_jacobian`; A_k, lambda_k, X_{k+1} from the same step as
-    the costate map (:func:`_forward_step`); the 12 + 1 right-hand sides share one elimination.
-    ~30k SX instructions (first order) against 111k for forward AD of the 18-state map in 12
-    directions (the previous construction), with equal Psi (tests/test_perf_structure.py).
+    so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).  The 12
+    right-hand sides share one elimination (:func:`solve_unpivoted`).
+
+    Three per-step Functions (costate map, H, this update), each evaluated along the rollout, instead of
+    one: each is smaller to compile, the three compile concurrently, and the values (X_k, lambda_k, A_k)
+    are those of the residual's costate map, computed once.  First order: H 15k SX instructions, the
+    update 9k, the costate map 10k; the previous construction (forward AD of the 18-state step in 12
+    directions) took 111k per step.  Psi equals forward AD through the rollout (tests/test_perf_structure.py).
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
-    dZ = ca.SX.sym("dZ", NZ, NZ)
-    dlam = ca.SX.sym("dlam", NZ, NZ)
+    lam = ca.SX.sym("lam", NZ)
+    c = ca.SX.sym("c", 3)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
-    s = _forward_step(disc, X, lam_prev, h, Winv, seeded=True)
-    A, Bc, control = s["A"], s["Bc"], s["control"]
-    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(Bc, control(dlam))
-    H = adjoint_variation_jacobian(disc)(s["Xo"], s["wA"], s["lam"], h, s["c"])
-    dlam1 = solve_unpivoted(A.T, dlam - ca.mtimes(H, dZk))
-    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(Bc, control(dlam1))
-    return ca.Function(f"{disc.scheme}_linearized_map", [X, lam_prev, dZ, dlam, h, Winv],
-                       [s["X1"], s["lam"], dZ1, dlam1],
-                       ["X", "lam_prev", "dZ", "dlam", "h", "Winv"], ["X1", "lam", "dZ1", "dlam1"])
+    Bc = control_matrix(disc)(h)
+    scale = 1.0 if disc.scheme == "first_order" else 2.0
+    G = -scale * ca.mtimes(Winv, Bc.T) / h          # u = G lambda
+    zero = ca.DM.zeros(NU)
+    wA = zero if disc.scheme == "first_order" else ca.vertcat(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam_prev)) / h,
+                                                              zero)
+    H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
+    hessian = ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv], [H],
+                          ["X", "lam_prev", "lam", "c", "h", "Winv"], ["H"])
+
+    A = ca.SX.sym("A", costate_functions(disc)[0].sparsity_out("A"))  # its structural zeros save operations
+    Hs = ca.SX.sym("H", H.sparsity())
+    dZ = ca.SX.sym("dZ", NZ, NZ)
+    dlam = ca.SX.sym("dlam", NZ, NZ)
+    M = ca.mtimes(Bc, G)                             # dz_{k+1} by lambda_k through the control
+    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(M, dlam)
+    dlam1 = solve_unpivoted(A.T, dlam - ca.mtimes(Hs, dZk))
+    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(M, dlam1)
+    lin = ca.Function(f"{disc.scheme}_linearized_map", [A, Hs, dZ, dlam, h, Winv], [dZ1, dlam1],
+                      ["A", "H", "dZ", "dlam", "h", "Winv"], ["dZ1", "dlam1"])
+    return hessian, lin
 
 
 @lru_cache(maxsize=None)
@@ -394,8 +421,9 @@ class ShootingFunctions:
     residual(lam0, X0, Xd, h, Winv) -> (zN[12], res_max)  (line-search trials; res_max = max
         relative Cayley residual over the steps: a rollout with res_max > cayley_tol is not
         a solution of the discrete equations and is rejected)
-    shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by
-        forward-mode AD (12 directions) through the mapaccum'ed rollout.
+    shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by the
+        linearized recursion (:func:`linearization_functions`) along the mapaccum'ed rollout; equal
+        to forward-mode AD through it.
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
@@ -404,13 +432,16 @@ class ShootingFunctions:
         self.disc, self.N, self.jit = disc, int(N), bool(jit)
         sch = disc.scheme
         self.costate_map, self.first_step = costate_functions(disc)
-        self.linearized_map = linearized_map(disc)
-        # the per-step Functions evaluated N times per rollout; compiled to C with jit (values only)
-        step_map, lin_map = self.costate_map, self.linearized_map
-        if self.jit:  # one library per scheme (and model), independent of N and of the problem data
-            step_map, lin_map = codegen.compiled_many([step_map, lin_map], f"{sch}_indirect_maps",
-                                                      cflags=codegen.QUICK_CFLAGS)
-        self.compiled = self.jit and lin_map.class_name() == "External"
+        self.costate_hessian, self.linearized_map = linearization_functions(disc)
+        # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
+        # libraries compiled concurrently, one set per scheme (and model), independent of N and of the data
+        step_map, hess_map, lin_map = self.costate_map, self.costate_hessian, self.linearized_map
+        if self.jit:
+            (hess_map,), (step_map,), (lin_map,) = codegen.compiled_libraries(
+                [codegen.Library(hess_map.name(), (hess_map,)),            # the largest first
+                 codegen.Library(step_map.name(), (step_map,), cse=True),  # evaluated most often
+                 codegen.Library(lin_map.name(), (lin_map,))], cflags=codegen.QUICK_CFLAGS)
+        self.compiled = self.jit and all(f.class_name() == "External" for f in (step_map, hess_map, lin_map))
         self.terminal_residual = terminal_residual_function()
 
         lam0 = ca.MX.sym("lam0", NZ)
@@ -418,22 +449,19 @@ class ShootingFunctions:
         Xd = ca.MX.sym("Xd", NX)
         h = ca.MX.sym("h")
         Winv = ca.MX.sym("Winv", NU, NU)
-        if sch == "first_order":
+        # the rollout: steps k = k0 .. N-1 by the costate map from (X_k0, lambda_k0-1)
+        if sch == "first_order":   # step 0 from lambda_0 itself
             X1, u1, r1 = self.first_step(X0, lam0, h, Winv)
             Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
-            if N > 1:
-                acc = step_map.mapaccum(f"{sch}_costate_acc{N - 1}", N - 1, 2)
-                Xr, Lr, Ur, Rr, LRr = acc(X1, lam0, ca.repmat(h, 1, N - 1), ca.repmat(Winv, 1, N - 1))
-                Xs.append(Xr)
-                lams.append(Lr)
-                Us.append(Ur)
-                res.append(Rr)
-                lres.append(LRr)
+            n, Xstart = N - 1, X1
         else:
-            acc = step_map.mapaccum(f"{sch}_costate_acc{N}", N, 2)
-            Xr, Lr, Ur, Rr, LRr = acc(X0, lam0, ca.repmat(h, 1, N), ca.repmat(Winv, 1, N))
-            u0 = self._lgvi_u0(lam0, h, Winv)
-            Xs, lams, Us, res, lres = [Xr], [Lr], [u0, Ur], [Rr], [LRr]
+            Xs, lams, Us, res, lres = [], [], [self._lgvi_u0(lam0, h, Winv)], [], []
+            n, Xstart = N, X0
+        if n > 0:
+            acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2)
+            Xr, Lr, Ur, Rr, LRr, Ar, Cr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n))
+            for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
+                a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
         zN = self.terminal_residual(Xs[:, -1], Xd)
         names_in = ["lam0", "X0", "Xd", "h", "Winv"]
@@ -447,24 +475,22 @@ class ShootingFunctions:
         )
         res_max = ca.mmax(res)
         self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"])
-        # Psi = dzN/dlam0 by the linearized coupled recursion (sensitivities in tangent coordinates carried
-        # step by step, see linearized_map): the same derivative as forward AD through the rollout, cheaper
-        n_lin = N if sch == "lgvi" else N - 1  # first_order: step 0 is handled below; N = 1 has none left
-        lin_acc = lin_map.mapaccum(f"{sch}_linearized_acc{N}", n_lin, 4) if n_lin > 0 else None
+        # Psi = dzN/dlam0 by the linearized coupled recursion along the same rollout (tangent coordinates,
+        # see linearization_functions): the same derivative as forward AD through the rollout, cheaper
         if sch == "first_order":
-            Bc = control_matrix(disc)(h)                      # first step: dz_1 = B_1 du_1, u_1 = -(1/h) Winv B^T lam0
-            dZ1 = -ca.mtimes(Bc, ca.mtimes(Winv, Bc.T)) / h
-            XN, dZN = X1, dZ1
-            if N > 1:
-                XL, _, dZL, _ = lin_acc(X1, lam0, dZ1, ca.MX.eye(NZ), ca.repmat(h, 1, N - 1),
-                                        ca.repmat(Winv, 1, N - 1))
-                XN, dZN = XL[:, -1], dZL[:, -NZ:]
+            Bc = control_matrix(disc)(h)           # first step: dz_1 = B du_1, u_1 = -(1/h) Winv B^T lambda_0
+            dZ = -ca.mtimes(Bc, ca.mtimes(Winv, Bc.T)) / h
         else:
-            XL, _, dZL, _ = lin_acc(X0, lam0, ca.MX.zeros(NZ, NZ), ca.MX.eye(NZ), ca.repmat(h, 1, N),
-                                    ca.repmat(Winv, 1, N))
-            XN, dZN = XL[:, -1], dZL[:, -NZ:]
-        zL, JT = terminal_residual_jacobian()(XN, Xd)
-        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZN)], names_in, ["zN", "Psi"])
+            dZ = ca.MX.zeros(NZ, NZ)
+        if n > 0:
+            Xk = ca.horzcat(Xstart, Xr[:, :n - 1])         # X_k, lambda_{k-1}, lambda_k of the steps
+            Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
+            hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5], [])(Xk, Lprev, Lr, Cr, h, Winv)
+            dZs, _ = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, [2, 3], [0, 1])(Ar, Hk, dZ, ca.MX.eye(NZ), hs, Ws)
+            dZ = dZs[:, -NZ:]
+        zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ)], names_in, ["zN", "Psi"])
 
     def _lgvi_u0(self, lam_init, h, Winv):
         """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph (:func:`control_matrix`)."""
