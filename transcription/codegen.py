@@ -44,6 +44,10 @@ CFLAGS = ["-O1", "-fPIC", "-shared"]
 #: for Functions compiled on a first use (the indirect method's maps): see the module docstring
 QUICK_CFLAGS = ["-O0", "-ffp-contract=off", "-fPIC", "-shared"]
 
+#: for small MX Functions whose C is loops (matrix products, maps): cheap to compile at -O1, and at -O0
+#: those loops run slower than CasADi's interpreter, which calls its own optimized kernels
+LOOP_CFLAGS = ["-O1", "-ffp-contract=off", "-fPIC", "-shared"]
+
 #: last failure reason (None when the last call compiled or loaded successfully); for reports
 last_error: str | None = None
 
@@ -96,12 +100,13 @@ def compiled_many(fns: Sequence[ca.Function], name: str, timeout: float = 600.0,
 
 @dataclass(frozen=True)
 class Library:
-    """One shared library: its name (prefix of the cached file), its Functions, and whether SX Functions
-    go through common-subexpression elimination before C generation."""
+    """One shared library: its name (prefix of the cached file), its Functions, whether SX Functions go through
+    common-subexpression elimination before C generation, and its compiler flags (None: the call's)."""
 
     name: str
     fns: tuple
     cse: bool = False
+    cflags: tuple | None = None
 
 
 def _key(lib: Library, flags: list[str]) -> str:
@@ -178,29 +183,29 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0,
     if not available():
         last_error = "no C compiler found (or SE3OCP_NO_JIT set)"
         return originals
-    flags = list(cflags)
+    flags = [list(lib.cflags) if lib.cflags is not None else list(cflags) for lib in libs]
     procs: list[subprocess.Popen] = []
     tmps: list[tempfile.TemporaryDirectory] = []
     try:
-        paths = [cache_dir() / f"{lib.name}_{_key(lib, flags)}.so" for lib in libs]
-        missing = [(lib, path) for lib, path in zip(libs, paths) if not path.exists()]
+        paths = [cache_dir() / f"{lib.name}_{_key(lib, fl)}.so" for lib, fl in zip(libs, flags)]
+        missing = [(lib, path, fl) for lib, path, fl in zip(libs, paths, flags) if not path.exists()]
         if missing:
             cache_dir().mkdir(parents=True, exist_ok=True)
             if notify is not None:
-                what = ", ".join(lib.name for lib, _ in missing)
+                what = ", ".join(lib.name for lib, _, _ in missing)
                 notify(f"compiling {what} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
             outs = []
-            for lib, path in missing:
+            for lib, path, fl in missing:
                 tmp = tempfile.TemporaryDirectory(dir=cache_dir())
                 tmps.append(tmp)
                 c = _generate(lib, tmp.name)
                 out = Path(tmp.name) / path.name
                 with open(Path(tmp.name) / "cc.log", "wb") as log:  # a file, not a pipe: nothing can block
-                    procs.append(subprocess.Popen([compiler(), *flags, str(c), "-o", str(out), "-lm"],
+                    procs.append(subprocess.Popen([compiler(), *fl, str(c), "-o", str(out), "-lm"],
                                                   stdout=log, stderr=subprocess.STDOUT))
                 outs.append(out)
             deadline = time.monotonic() + timeout
-            for proc, (lib, path), out in zip(procs, missing, outs):
+            for proc, (lib, path, _), out in zip(procs, missing, outs):
                 proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
                 if proc.returncode != 0:
                     raise subprocess.CalledProcessError(proc.returncode, proc.args,

@@ -52,7 +52,7 @@ Per-step Functions, built once per Discretization (compiled to C by default, see
     costate_map      (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res, A, c)
     first_step       (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
     costate_hessian  (X, lam_prev, lam, c, h, Winv)      -> H[12x12]
-    linearized_map   (A, H, dZ[12x12], dlam[12x12], h, Winv) -> (dZ1, dlam1)
+    linearized_map   (dZ[12x12], dlam[12x12], A, H, h, Winv) -> (dZ1, dlam1)
 
 and once per (Discretization, N) (see :func:`shooting_functions`):
 
@@ -121,6 +121,9 @@ DEFAULT_OPTIONS: dict[str, Any] = {
 }
 
 _EPS = np.finfo(float).eps
+#: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
+#: took 0.04-0.18 s at N = 1000 (a single chain element N = 10^3), with base 4 0.004-0.014 s
+MAPACCUM_OPTS = {"base": 4}
 #: near the floor (|z_N| <= floor_factor^2 x the measured round-off level) the line search
 #: gives up after this many halvings instead of max_halvings
 NEAR_FLOOR_HALVINGS = 3
@@ -155,21 +158,36 @@ def solve_unpivoted(M, b):
     would be visible.  The columns of b share one elimination; each column goes through the same
     operations as a single right-hand side.
     """
+    return unpivoted_substitution(unpivoted_elimination(M), b)
+
+
+def unpivoted_elimination(M):
+    """The elimination of :func:`solve_unpivoted` (SX, n x n): LU with the multipliers below the diagonal and
+    the eliminated upper triangle (pivots on the diagonal), entries of M's structural zeros stay exact zeros."""
     n = M.shape[0]
-    # row operations on whole rows (all right-hand sides at once): per entry the same operations in the
-    # same order as the scalar algorithm, with far fewer Python-level CasADi calls (build time)
+    # row operations on whole rows: per entry the same operations in the same order as the scalar algorithm,
+    # with far fewer Python-level CasADi calls (build time)
     a = ca.densify(ca.SX(M))
-    r = ca.densify(ca.SX(b))
     for c in range(n - 1):
         f = a[c + 1:, c] / a[c, c]
         a[c + 1:, c + 1:] = a[c + 1:, c + 1:] - ca.mtimes(f, a[c, c + 1:])
-        r[c + 1:, :] = r[c + 1:, :] - ca.mtimes(f, r[c, :])
+        a[c + 1:, c] = f
+    return a
+
+
+def unpivoted_substitution(LU, b):
+    """Y with M Y = b from LU = unpivoted_elimination(M) (b n x m): forward elimination of b with the stored
+    multipliers, then back substitution; per column the operations of the single-column algorithm."""
+    n = LU.shape[0]
+    r = ca.densify(ca.SX(b))
+    for c in range(n - 1):
+        r[c + 1:, :] = r[c + 1:, :] - ca.mtimes(LU[c + 1:, c], r[c, :])
     y = [None] * n
     for i in reversed(range(n)):
         acc = r[i, :]
         for j in range(i + 1, n):
-            acc = acc - a[i, j] * y[j]
-        y[i] = acc / a[i, i]
+            acc = acc - LU[i, j] * y[j]
+        y[i] = acc / LU[i, i]
     return ca.vertcat(*y)
 
 
@@ -330,7 +348,7 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
         H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
         orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
         seeded with the step's Cayley root c (an output of the costate map).
-    linearized_map (A[12x12], H[12x12], dZ[12x12], dlam[12x12], h, Winv[6x6]) -> (dZ1[12x12], dlam1[12x12])
+    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], h, Winv[6x6]) -> (dZ1[12x12], dlam1[12x12])
         dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, SPEC §4) and of lambda_{k-1} by
         the shooting unknown; (dZ1, dlam1) those of z_{k+1} and lambda_k.  Starting from the first step's
         and iterating (``mapaccum``) gives dz_N/dlambda_0, hence Psi_12.
@@ -358,7 +376,6 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     Winv = ca.SX.sym("Winv", NU, NU)
     Bc = control_matrix(disc)(h)
     scale = 1.0 if disc.scheme == "first_order" else 2.0
-    G = -scale * ca.mtimes(Winv, Bc.T) / h          # u = G lambda
     zero = ca.DM.zeros(NU)
     wA = zero if disc.scheme == "first_order" else ca.vertcat(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam_prev)) / h,
                                                               zero)
@@ -366,16 +383,28 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     hessian = ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv], [H],
                           ["X", "lam_prev", "lam", "c", "h", "Winv"], ["H"])
 
-    A = ca.SX.sym("A", costate_functions(disc)[0].sparsity_out("A"))  # its structural zeros save operations
-    Hs = ca.SX.sym("H", H.sparsity())
-    dZ = ca.SX.sym("dZ", NZ, NZ)
-    dlam = ca.SX.sym("dlam", NZ, NZ)
-    M = ca.mtimes(Bc, G)                             # dz_{k+1} by lambda_k through the control
+    # the update at the MX level (matrix products, a map of the column solve): compact C, cheap to compile
+    spA = costate_functions(disc)[0].sparsity_out("A")               # its structural zeros save operations
+    As = ca.SX.sym("A", spA)
+    LUs = unpivoted_elimination(As.T)
+    factor = ca.Function(f"{disc.scheme}_costate_factor", [As], [LUs], ["A"], ["LU"])
+    LUc, col = ca.SX.sym("LU", LUs.sparsity()), ca.SX.sym("b", NZ)
+    column_solve = ca.Function(f"{disc.scheme}_costate_column_solve", [LUc, col], [unpivoted_substitution(LUc, col)],
+                               ["LU", "b"], ["y"])
+    A = ca.MX.sym("A", spA)
+    Hm = ca.MX.sym("H", H.sparsity())
+    dZ = ca.MX.sym("dZ", NZ, NZ)
+    dlam = ca.MX.sym("dlam", NZ, NZ)
+    hm = ca.MX.sym("h")
+    Wm = ca.MX.sym("Winv", NU, NU)
+    Bm = control_matrix(disc)(hm)
+    M = ca.mtimes(Bm, -scale * ca.mtimes(Wm, Bm.T) / hm)           # dz_{k+1} by lambda_k through the control
     dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(M, dlam)
-    dlam1 = solve_unpivoted(A.T, dlam - ca.mtimes(Hs, dZk))
+    solve_columns = column_solve.map(f"{disc.scheme}_costate_column_solve_map", "serial", NZ, [0], [])
+    dlam1 = solve_columns(factor(A), dlam - ca.mtimes(Hm, dZk))
     dZ1 = ca.mtimes(A, dZk) + ca.mtimes(M, dlam1)
-    lin = ca.Function(f"{disc.scheme}_linearized_map", [A, Hs, dZ, dlam, h, Winv], [dZ1, dlam1],
-                      ["A", "H", "dZ", "dlam", "h", "Winv"], ["dZ1", "dlam1"])
+    lin = ca.Function(f"{disc.scheme}_linearized_map", [dZ, dlam, A, Hm, hm, Wm], [dZ1, dlam1],
+                      ["dZ", "dlam", "A", "H", "h", "Winv"], ["dZ1", "dlam1"])
     return hessian, lin
 
 
@@ -440,7 +469,8 @@ class ShootingFunctions:
             (hess_map,), (step_map,), (lin_map,) = codegen.compiled_libraries(
                 [codegen.Library(hess_map.name(), (hess_map,)),            # the largest first
                  codegen.Library(step_map.name(), (step_map,), cse=True),  # evaluated most often
-                 codegen.Library(lin_map.name(), (lin_map,))], cflags=codegen.QUICK_CFLAGS)
+                 codegen.Library(lin_map.name(), (lin_map,), cflags=tuple(codegen.LOOP_CFLAGS))],  # MX: loops
+                cflags=codegen.QUICK_CFLAGS)
         self.compiled = self.jit and all(f.class_name() == "External" for f in (step_map, hess_map, lin_map))
         self.terminal_residual = terminal_residual_function()
 
@@ -458,7 +488,7 @@ class ShootingFunctions:
             Xs, lams, Us, res, lres = [], [], [self._lgvi_u0(lam0, h, Winv)], [], []
             n, Xstart = N, X0
         if n > 0:
-            acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2)
+            acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
             Xr, Lr, Ur, Rr, LRr, Ar, Cr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n))
             for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
                 a.append(b)
@@ -487,7 +517,7 @@ class ShootingFunctions:
             Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
             hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
             Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5], [])(Xk, Lprev, Lr, Cr, h, Winv)
-            dZs, _ = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, [2, 3], [0, 1])(Ar, Hk, dZ, ca.MX.eye(NZ), hs, Ws)
+            dZs, _ = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(dZ, ca.MX.eye(NZ), Ar, Hk, hs, Ws)
             dZ = dZs[:, -NZ:]
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
         self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ)], names_in, ["zN", "Psi"])
