@@ -9,11 +9,12 @@ milliseconds).  Whenever compilation is not possible (no compiler, compiler erro
 ``SE3OCP_NO_JIT=1``) the original Functions are returned unchanged, so callers never depend on a
 compiler: results are the same, only slower.
 
-Two flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives) and
-:data:`QUICK_CFLAGS` (``-O0``, the indirect method's per-step maps).  On these long straight-line
-functions gcc's time at ``-O1`` goes into register allocation of one huge basic block; ``-O0``
-compiles ~5x faster (1.0 s against 5.5 s for the 25k-instruction first-order linearized costate
-map) and runs ~1.4x slower, which is what makes a compile on the first use affordable.
+Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS`
+(``-O0``, the indirect method's straight-line per-step maps) and :data:`LOOP_CFLAGS` (``-O1``, small
+MX Functions whose C is loops).  On long straight-line functions gcc's time at ``-O1`` goes into
+register allocation of one huge basic block; ``-O0`` compiles ~5x faster (measured 1.0 s against
+5.5 s for a 25k-instruction map; ~30 us per line of C on this machine, linear in the length) and
+runs ~1.4x slower, which is what makes a compile on the first use affordable.
 ``-ffp-contract=off`` keeps the compiled arithmetic that of CasADi's interpreter (no fused
 multiply-adds on targets that have them), so compiled and interpreted Functions agree bit for bit.
 

@@ -360,13 +360,16 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
 
     with dz~_k = dz_k (first_order) or dz_k + B^b du_k (lgvi: u_k enters as the momentum kick B^b u_k,
     so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).  The 12
-    right-hand sides share one elimination (:func:`solve_unpivoted`).
+    right-hand sides share one elimination (:func:`unpivoted_elimination` of A_k^T, then
+    :func:`unpivoted_substitution` per column, the operations of :func:`solve_unpivoted`).
 
     Three per-step Functions (costate map, H, this update), each evaluated along the rollout, instead of
     one: each is smaller to compile, the three compile concurrently, and the values (X_k, lambda_k, A_k)
-    are those of the residual's costate map, computed once.  First order: H 15k SX instructions, the
-    update 9k, the costate map 10k; the previous construction (forward AD of the 18-state step in 12
-    directions) took 111k per step.  Psi equals forward AD through the rollout (tests/test_perf_structure.py).
+    are those of the residual's costate map, computed once.  First order: H 15k SX instructions
+    (LGVI 25k), the costate map 10k (23k); the update is an MX Function (matrix products, a map of the
+    column substitution) whose C is 1.5k lines of loops.  The previous construction (forward AD of the
+    18-state step in 12 directions) took 111k instructions per step (228k).  Psi equals forward AD
+    through the rollout (tests/test_perf_structure.py).
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
