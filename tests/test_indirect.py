@@ -314,6 +314,23 @@ def test_lgvi_indirect_agrees_with_direct(name):
     _agreement(f"{name} lgvi", 50, dsol, isol, rsol)
 
 
+def test_lgvi_stage_control_is_a_momentum_kick():
+    """The linearized LGVI recursion (indirect.linearized_map) uses step(X, [u_k; u]) = step(chart(X, B^b u_k), [0; u]):
+    u_k enters as the kick B^b u_k of (gamma, Pi), B^b = dX_{k+1}/du_{k+1} (control_matrix)."""
+    from se3ocp.transcription.indirect import control_matrix
+    from se3ocp.transcription.lie import chart
+
+    p = problem("E4", 50, "lgvi")
+    d = p.disc
+    Bb = np.array(control_matrix(d)(p.h))
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        uk, u1 = rng.standard_normal(6) * [1, 1, 1, 1e-2, 1e-2, 1e-2], rng.standard_normal(6)
+        a = np.array(d.step(p.X0, np.r_[uk, u1], p.h)[0]).ravel()
+        b = np.array(d.step(np.array(chart(ca.DM(p.X0), ca.DM(Bb @ uk))).ravel(), np.r_[np.zeros(6), u1], p.h)[0]).ravel()
+        assert np.abs(a - b).max() <= 1e-14 * np.abs(a).max()
+
+
 @pytest.mark.parametrize("scheme", ["first_order", "lgvi"])
 def test_psi_equals_forward_ad_through_the_rollout(scheme):
     """Psi by the linearized coupled recursion = forward AD through the rollout, to 1e-10 relative."""

@@ -1,12 +1,22 @@
 """Optional compilation of hot CasADi Functions to C (CasADi code generation + the system C compiler).
 
 :func:`compiled` turns an SX :class:`casadi.Function` into an equivalent external Function
-loaded from a shared library.  The library is cached on disk under a name that contains
-the SHA-256 of the generated C source, so a Function is compiled once per machine (the
-first build pays the compiler, e.g. ~6 s for the 80k-instruction linearized costate map at
-``-O1``; later builds load it in milliseconds).  Whenever compilation is not possible (no
-compiler, compiler error, unwritable cache, ``SE3OCP_NO_JIT=1``) the original Function is
-returned unchanged, so callers never depend on a compiler: results are the same, only slower.
+loaded from a shared library; :func:`compiled_many` does the same for several Functions with one
+library (one C file, one compiler run, one cache entry).  The library is cached on disk under a name
+that contains the SHA-256 of the serialized Functions, the flags and the CasADi version, so a
+Function is compiled once per machine (the first build pays the compiler; later builds load it in
+milliseconds).  Whenever compilation is not possible (no compiler, compiler error, unwritable cache,
+``SE3OCP_NO_JIT=1``) the original Functions are returned unchanged, so callers never depend on a
+compiler: results are the same, only slower.
+
+Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS`
+(``-O0``, the indirect method's straight-line per-step maps) and :data:`LOOP_CFLAGS` (``-O1``, small
+MX Functions whose C is loops).  On long straight-line functions gcc's time at ``-O1`` goes into
+register allocation of one huge basic block; ``-O0`` compiles ~5x faster (measured 1.0 s against
+5.5 s for a 25k-instruction map; ~30 us per line of C on this machine, linear in the length) and
+runs ~1.4x slower, which is what makes a compile on the first use affordable.
+``-ffp-contract=off`` keeps the compiled arithmetic that of CasADi's interpreter (no fused
+multiply-adds on targets that have them), so compiled and interpreted Functions agree bit for bit.
 
 Compiled Functions evaluate values only; request derivatives from the original Function.
 
@@ -17,17 +27,27 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
+import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import casadi as ca
 
 #: optimization level: -O1 compiles ~7x faster than -O2 on these straight-line functions
 #: (5.6 s against 38 s for the linearized costate map) and runs within 25 % of it
 CFLAGS = ["-O1", "-fPIC", "-shared"]
+
+#: for Functions compiled on a first use (the indirect method's maps): see the module docstring
+QUICK_CFLAGS = ["-O0", "-ffp-contract=off", "-fPIC", "-shared"]
+
+#: for small MX Functions whose C is loops (matrix products, maps): cheap to compile at -O1, and at -O0
+#: those loops run slower than CasADi's interpreter, which calls its own optimized kernels
+LOOP_CFLAGS = ["-O1", "-ffp-contract=off", "-fPIC", "-shared"]
 
 #: last failure reason (None when the last call compiled or loaded successfully); for reports
 last_error: str | None = None
@@ -58,40 +78,150 @@ def available() -> bool:
     return os.environ.get("SE3OCP_NO_JIT", "") not in ("1", "true", "yes") and compiler() is not None
 
 
-def compiled(fn: ca.Function, timeout: float = 600.0, cse: bool = True) -> ca.Function:
+def compiled(fn: ca.Function, timeout: float = 600.0, cse: bool = True, cflags: Sequence[str] = CFLAGS) -> ca.Function:
     """A compiled equivalent of ``fn`` (same name, inputs and outputs), or ``fn`` itself as fallback.
 
     The cache key is the SHA-256 of ``fn.serialize()`` (cheap: 0.2 s for the 230k-instruction LGVI
     linearized map, against ~1.5 s for common-subexpression elimination and C generation, which
     are only done on a cache miss), the flags and the CasADi version.
     """
+    return compiled_many([fn], fn.name(), timeout=timeout, cse=cse, cflags=cflags)[0]
+
+
+def compiled_many(fns: Sequence[ca.Function], name: str, timeout: float = 600.0, cse: bool = True,
+                  cflags: Sequence[str] = CFLAGS) -> list[ca.Function]:
+    """Compiled equivalents of ``fns`` from one shared library ``name``, or ``fns`` unchanged as fallback.
+
+    All or nothing: either every Function is loaded from the library or the originals are returned.
+    ``cse``: common-subexpression elimination of SX Functions before generating C (fewer lines for
+    the compiler and faster code, at the cost of the elimination itself, paid on a cache miss only).
+    """
+    return compiled_libraries([Library(name, tuple(fns), cse)], timeout=timeout, cflags=cflags)[0]
+
+
+@dataclass(frozen=True)
+class Library:
+    """One shared library: its name (prefix of the cached file), its Functions, whether SX Functions go through
+    common-subexpression elimination before C generation, and its compiler flags (None: the call's)."""
+
+    name: str
+    fns: tuple
+    cse: bool = False
+    cflags: tuple | None = None
+
+
+def _key(lib: Library, flags: list[str]) -> str:
+    digest = hashlib.sha256()
+    for f in lib.fns:
+        digest.update(f.serialize().encode())
+    # (for one Function with cse, the same key as before compiled_many existed: caches stay valid)
+    digest.update(" ".join(flags).encode() + ca.__version__.encode() + (b"" if lib.cse else b"nocse"))
+    return digest.hexdigest()[:20]
+
+
+def _generate(lib: Library, tmp: str) -> Path:
+    cg = ca.CodeGenerator(f"{lib.name}.c", {"with_header": False})
+    for f in lib.fns:
+        if lib.cse and f.is_a("SXFunction"):
+            ins = f.sx_in()
+            f = ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out(), {"cse": True})
+        cg.add(f)
+    cg.generate(tmp + os.sep)
+    path = Path(tmp) / f"{lib.name}.c"
+    path.write_text(lean_io(path.read_text()))
+    return path
+
+
+_BODY = re.compile(r"^(static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, casadi_int\* iw, "
+                   r"casadi_real\* w, int mem\) \{\n)(.*?)(^\}\n)", re.M | re.S)
+_READ = re.compile(r"arg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")
+_WRITE = re.compile(r"if \(res\[(\d+)\]!=0\) res\[\1\]\[(\d+)\]=")
+
+
+def lean_io(source: str) -> str:
+    """The generated C with every input and output pointer tested once per call instead of once per element.
+
+    CasADi's straight-line code reads each input element as ``arg[i]? arg[i][k] : 0`` and writes each output
+    element under ``if (res[i]!=0)``: hundreds of branches in one huge function, which cost gcc a third of
+    its time on the linearized map.  Here a null input reads from a zero array and a null output writes to
+    a scratch array on the stack, with the same values: ``ci0 = arg[0] ? arg[0] : zeros`` then ``ci0[k]``.
+    Function bodies in which anything else refers to arg or res are left unchanged.
+    """
+    def body(m: re.Match) -> str:
+        head, text, tail = m.groups()
+        reads = [(int(i), int(k)) for i, k in _READ.findall(text)]
+        writes = [(int(i), int(k)) for i, k in _WRITE.findall(text)]
+        rest = _WRITE.sub("", _READ.sub("", text))
+        if not (reads or writes) or re.search(r"\b(arg|res)\b", rest):
+            return m.group(0)
+        decl = []
+        if reads:
+            ins = sorted({i for i, _ in reads})
+            decl.append(f"  static const casadi_real casadi_zeros_in[{max(k for _, k in reads) + 1}] = {{0}};\n")
+            decl += [f"  const casadi_real* ci{i} = arg[{i}] ? arg[{i}] : casadi_zeros_in;\n" for i in ins]
+        if writes:
+            outs = sorted({i for i, _ in writes})
+            decl.append(f"  casadi_real casadi_scratch_out[{max(k for _, k in writes) + 1}];\n")
+            decl += [f"  casadi_real* co{i} = res[{i}] ? res[{i}] : casadi_scratch_out;\n" for i in outs]
+        text = _READ.sub(lambda r: f"ci{r.group(1)}[{r.group(2)}]", text)
+        text = _WRITE.sub(lambda w: f"co{w.group(1)}[{w.group(2)}]=", text)
+        return head + "".join(decl) + text + tail
+
+    return _BODY.sub(body, source)
+
+
+def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0,
+                       cflags: Sequence[str] = CFLAGS) -> list[list[ca.Function]]:
+    """Compiled equivalents of every library's Functions, or all of them unchanged as fallback.
+
+    Each library is its own C file and compiler process; the cache misses are compiled concurrently
+    (the C of the next library is generated while the compiler works on the previous ones), so the
+    first build takes about the longest single compile on a machine with free cores.  All or nothing
+    over all libraries: callers see either every Function compiled or none.
+    """
     global last_error
+    originals = [list(lib.fns) for lib in libs]
     if not available():
         last_error = "no C compiler found (or SE3OCP_NO_JIT set)"
-        return fn
-    name = fn.name()
+        return originals
+    flags = [list(lib.cflags) if lib.cflags is not None else list(cflags) for lib in libs]
+    procs: list[subprocess.Popen] = []
+    tmps: list[tempfile.TemporaryDirectory] = []
     try:
-        key = hashlib.sha256(fn.serialize().encode() + " ".join(CFLAGS).encode() + ca.__version__.encode()).hexdigest()[:20]
-        lib = cache_dir() / f"{name}_{key}.so"
-        if not lib.exists():
-            lib.parent.mkdir(parents=True, exist_ok=True)
+        paths = [cache_dir() / f"{lib.name}_{_key(lib, fl)}.so" for lib, fl in zip(libs, flags)]
+        missing = [(lib, path, fl) for lib, path, fl in zip(libs, paths, flags) if not path.exists()]
+        if missing:
+            cache_dir().mkdir(parents=True, exist_ok=True)
             if notify is not None:
-                notify(f"compiling {name} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
-            if cse and fn.is_a("SXFunction"):
-                ins = fn.sx_in()
-                fn = ca.Function(name, ins, fn.call(ins), fn.name_in(), fn.name_out(), {"cse": True})
-            with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
-                cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-                cg.add(fn)
-                cg.generate(tmp + os.sep)
-                c = Path(tmp) / f"{name}.c"
-                out = Path(tmp) / lib.name
-                subprocess.run([compiler(), *CFLAGS, str(c), "-o", str(out), "-lm"], check=True, timeout=timeout,
-                               capture_output=True)
-                os.replace(out, lib)  # atomic: concurrent builders never see half a library
-        ext = ca.external(name, str(lib))
+                what = ", ".join(lib.name for lib, _, _ in missing)
+                notify(f"compiling {what} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
+            outs = []
+            for lib, path, fl in missing:
+                tmp = tempfile.TemporaryDirectory(dir=cache_dir())
+                tmps.append(tmp)
+                c = _generate(lib, tmp.name)
+                out = Path(tmp.name) / path.name
+                with open(Path(tmp.name) / "cc.log", "wb") as log:  # a file, not a pipe: nothing can block
+                    procs.append(subprocess.Popen([compiler(), *fl, str(c), "-o", str(out), "-lm"],
+                                                  stdout=log, stderr=subprocess.STDOUT))
+                outs.append(out)
+            deadline = time.monotonic() + timeout
+            for proc, (lib, path, _), out in zip(procs, missing, outs):
+                proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+                if proc.returncode != 0:
+                    raise subprocess.CalledProcessError(proc.returncode, proc.args,
+                                                        output=(out.parent / "cc.log").read_text(errors="replace"))
+                os.replace(out, path)  # atomic: concurrent builders never see half a library
+        exts = [[ca.external(f.name(), str(path)) for f in lib.fns] for lib, path in zip(libs, paths)]
         last_error = None
-        return ext
+        return exts
     except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
         last_error = f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
-        return fn
+        return originals
+    finally:
+        for proc in procs:  # only after a failure can one still run
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for tmp in tmps:
+            tmp.cleanup()

@@ -44,12 +44,18 @@ The only unknown is lambda_0 in R^12; the shooting residual (12 conditions) is
     z_N(lambda_0) = [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d],
 
 and Psi_12 = dz_N/dlambda_0 (the linearized coupled state-multiplier recursion,
-(29)-(31)) is computed by exact forward-mode AD through the rollout.
+(29)-(31)) is computed exactly, by the linearized recursion in tangent coordinates along the
+rollout (:func:`linearization_functions`; equal to forward-mode AD through the rollout).
 
-Functions built once per (Discretization, N) (see :func:`shooting_functions`):
+Per-step Functions, built once per Discretization (compiled to C by default, IndirectOptions.jit):
 
-    costate_map  (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res)
-    first_step   (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
+    costate_map      (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res, A, c)
+    first_step       (X0[18], lam0[12], h, Winv[6x6])    -> (X1[18], u[6], res)
+    costate_hessian  (X, lam_prev, lam, c, h, Winv)      -> H[12x12]
+    linearized_map   (dZ[12x12], dlam[12x12], A, H, h, Winv) -> (dZ1, dlam1)
+
+and once per (Discretization, N) (see :func:`shooting_functions`):
+
     shoot        (lam0, X0, Xd, h, Winv) -> (zN[12], X[18xN], lam[12xN], U[6xN], res, lam_res)
     residual     (lam0, X0, Xd, h, Winv) -> (zN[12], res_max)
     shoot_jac    (lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12x12])
@@ -89,10 +95,15 @@ import numpy as np
 from . import codegen
 from .layout import NU, NX, NZ, join_state, split_state
 from .lgvi import Discretization
+from .lie import chart, tangent_readback
 from .newton import newton_armijo
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, TargetState, effort_cost, quadrature_weights, state_residual, terminal_error
 from .results import Iterate, Result, Solution, Trajectory
+
+#: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
+#: took 0.04-0.18 s at N = 1000 (a single chain element N = 10^3), with base 4 0.004-0.014 s
+MAPACCUM_OPTS = {"base": 4}
 
 
 def terminal_residual_function() -> ca.Function:
@@ -103,35 +114,50 @@ def terminal_residual_function() -> ca.Function:
     Xd = ca.SX.sym("Xd", NX)
     return ca.Function("terminal_residual", [XN, Xd], [state_residual(XN, Xd)], ["XN", "Xd"], ["zN"])
 
-
 def solve_unpivoted(M, b):
-    """Solve M y = b (SX, n x n dense) by Gaussian elimination without pivoting.
+    """Solve M Y = b (SX, M n x n dense, b n x m) by Gaussian elimination without pivoting.
 
-    Used for lambda_k = A_k^-T lambda_{k-1}.  A_k is close to a block-triangular
-    matrix with identity diagonal blocks (x, gamma, Pi) and the rotation block F_k^T
-    (zeta), so the pivots stay away from 0 while the rotation per step is well below
-    a right angle, and elimination without pivoting is accurate: on E3 its error is
+    Used for lambda_k = A_k^-T lambda_{k-1} (and, with 12 columns, for its linearization).  A_k is
+    close to a block-triangular matrix with identity diagonal blocks (x, gamma, Pi) and the
+    rotation block F_k^T (zeta), so the pivots stay away from 0 while the rotation per step is
+    well below a right angle, and elimination without pivoting is accurate: on E3 its error is
     ~1 ulp per component (against an exact rational solve), as good as LAPACK LU,
     whereas CasADi's symbolic QR (``ca.solve`` on SX) erred by ~1e-11 on |lambda| ~ 1e2
     and raised the round-off floor of z_N to ~1e-10 (E3, N = 100).  The caller
     reports the relative residual |M y - b|_inf / |b|_inf (lam_res) so a breakdown
-    would be visible.
+    would be visible.  The columns of b share one elimination; each column goes through the same
+    operations as a single right-hand side.
     """
+    return unpivoted_substitution(unpivoted_elimination(M), b)
+
+
+def unpivoted_elimination(M):
+    """The elimination of :func:`solve_unpivoted` (SX, n x n): LU with the multipliers below the diagonal and
+    the eliminated upper triangle (pivots on the diagonal), entries of M's structural zeros stay exact zeros."""
     n = M.shape[0]
-    a = [[M[i, j] for j in range(n)] for i in range(n)]
-    r = [b[i] for i in range(n)]
-    for c in range(n):
-        for i in range(c + 1, n):
-            f = a[i][c] / a[c][c]
-            for j in range(c + 1, n):
-                a[i][j] = a[i][j] - f * a[c][j]
-            r[i] = r[i] - f * r[c]
+    # row operations on whole rows: per entry the same operations in the same order as the scalar algorithm,
+    # with far fewer Python-level CasADi calls (build time)
+    a = ca.densify(ca.SX(M))
+    for c in range(n - 1):
+        f = a[c + 1:, c] / a[c, c]
+        a[c + 1:, c + 1:] = a[c + 1:, c + 1:] - ca.mtimes(f, a[c, c + 1:])
+        a[c + 1:, c] = f
+    return a
+
+
+def unpivoted_substitution(LU, b):
+    """Y with M Y = b from LU = unpivoted_elimination(M) (b n x m): forward elimination of b with the stored
+    multipliers, then back substitution; per column the operations of the single-column algorithm."""
+    n = LU.shape[0]
+    r = ca.densify(ca.SX(b))
+    for c in range(n - 1):
+        r[c + 1:, :] = r[c + 1:, :] - ca.mtimes(LU[c + 1:, c], r[c, :])
     y = [None] * n
     for i in reversed(range(n)):
-        acc = r[i]
+        acc = r[i, :]
         for j in range(i + 1, n):
-            acc = acc - a[i][j] * y[j]
-        y[i] = acc / a[i][i]
+            acc = acc - LU[i, j] * y[j]
+        y[i] = acc / LU[i, i]
     return ca.vertcat(*y)
 
 
@@ -151,30 +177,83 @@ def orthonormalized(X):
     return join_state(x, gamma, Rp, Pi)
 
 
-def _costate_back_solve(A, lam_prev):
-    """lambda_k from lambda_{k-1} = A_k^T lambda_k (eq. 28), with its relative residual."""
-    lam = solve_unpivoted(A.T, lam_prev)
-    return lam, ca.norm_inf(ca.mtimes(A.T, lam) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
-
-
 def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
-    """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res), one signature for both schemes."""
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res, A, c), one signature for both
+    schemes."""
     return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv"],
-                       ["X1", "lam", "u", "res", "lam_res"])
+                       ["X1", "lam", "u", "res", "lam_res", "A", "c"])
 
 
+@lru_cache(maxsize=None)
+def control_matrix(disc: Discretization) -> ca.Function:
+    """``{scheme}_control_matrix`` (h) -> B_c[12x6]: the tangent-coordinate derivative of X_{k+1} by the
+    control that the costate lambda_k determines (first_order: B_k w.r.t. u_{k+1}; lgvi: B^b).
+
+    Taken from the graph (``disc.variation_seeded``) and checked, when built, to be constant (no
+    dependence on X_k or the stage control), and the Cayley right-hand side g_k to be independent of
+    that control: the assumptions of the forward costate recursion.  The controls are
+    u = -(s/h) Winv B_c^T lambda with s = 1 (first_order) or 2 (lgvi, see LGVI_CONDITIONS).
+    """
+    X = ca.SX.sym("X", NX)
+    w = ca.SX.sym("w", disc.nw)
+    h = ca.SX.sym("h")
+    c0 = ca.SX.sym("c0", 3)
+    A, B = disc.variation_seeded(X, w, h, c0)
+    wb = w if disc.scheme == "first_order" else w[NU:]  # the control lambda_k determines
+    Bc = B[:, -NU:]
+    if ca.depends_on(A, wb) or ca.depends_on(Bc, ca.vertcat(X, w, c0)) or \
+            ca.depends_on(disc.cayley_rhs(X, w, h), wb):
+        raise ValueError("A_k or the Cayley equation depends on the control determined by lambda_k, or its B is not "
+                         "constant: the forward costate recursion does not apply")
+    return ca.Function(f"{disc.scheme}_control_matrix", [h], [Bc], ["h"], ["B"])
+
+
+def _forward_step(disc: Discretization, X, lam_prev, h, Winv) -> dict:
+    """One step of the forward map of the necessary conditions, as SX expressions.
+
+    The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
+    not depend on u_{k+1}) for the step (``disc.step_given_c``: X1 and res are those of ``disc.step``).
+    A_k = ``disc.variation`` at orthonormalized(X) (forward AD through the unrolled Newton iterations).
+    ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
+    accurate, but its different rounding changes the iteration counts at the round-off floor that tests
+    pin; the costate map gives the same values as before, bit for bit.
+    Returns a dict with c (the Cayley root), A, lam, u (u_{k+1}), X1, res and control (lambda -> u).
+    """
+    Bc = control_matrix(disc)(h)
+    scale = 1.0 if disc.scheme == "first_order" else 2.0
+
+    def control(lam):
+        return -scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam)) / h
+
+    zero = ca.DM.zeros(NU)
+    if disc.scheme == "first_order":
+        wA, stage = zero, (lambda u1: u1)
+    else:
+        uk = control(lam_prev)
+        wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
+    c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
+    A = disc.variation(orthonormalized(X), wA, h)[0]
+    lam = solve_unpivoted(A.T, lam_prev)
+    u = control(lam)
+    X1 = disc.step_given_c(X, c, stage(u), h)[0]
+    return {"c": c, "A": A, "lam": lam, "u": u, "X1": X1, "res": hist[-1], "control": control}
+
+
+@lru_cache(maxsize=None)
 def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
     """The forward map of the necessary conditions for ``disc``.
 
-    Returns (costate_map, first_step); both built from ``disc.variation`` (A_k, B_k: the
-    Jacobian of the same step Function) and ``disc.step``.
+    Returns (costate_map, first_step); both built from the step and its variation A_k
+    (:func:`_forward_step`; B_k from :func:`control_matrix`).
 
     first_order (module docstring):
 
-    * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res):
+    * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12], c[3]):
       X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
       u = u_{k+1} = -(1/h) Winv B_k^T lambda_k (26)-(27); X1 = X_{k+1} = step(X_k, u_{k+1});
-      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf.
+      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf;
+      A = A_k and c the root of the step's Cayley equation, for the linearization
+      (:func:`linearization_functions`) along the same rollout.
     * first_step (X0[18], lam0[12], h, Winv) -> (X1[18], u[6], res): the k = 0 step,
       where lambda_0 is the unknown itself.
 
@@ -184,101 +263,132 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
-    lam0 = ca.SX.sym("lam0", NZ)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
+    s = _forward_step(disc, X, lam_prev, h, Winv)
+    lam_res = ca.norm_inf(ca.mtimes(s["A"].T, s["lam"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv],
+                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"]])
+    if disc.scheme != "first_order":
+        return costate_map, None
+    lam0 = ca.SX.sym("lam0", NZ)
+    u0 = s["control"](lam0)
+    X1, res = disc.step(X, u0, h)
+    first_step = ca.Function(
+        "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"],
+        ["X1", "u", "res"]
+    )
+    return costate_map, first_step
+
+
+@lru_cache(maxsize=None)
+def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
+    """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam] at z = 0.
+
+    The derivative of the costate back-solve's matrix along a state variation, contracted with the
+    costate first: A^T lam is the gradient in z of lam^T readback(step(chart(X, z))) (one reverse
+    sweep; the readback is linear), and H its Jacobian in the chart coordinates of X (12 forward
+    directions), instead of 12 forward directions through all 144 entries of A.  The step is the
+    seeded one (two Newton iterations from the root c0 of step X's Cayley equation: exact up to
+    third derivatives there), so H is exact.
+    """
+    X = ca.SX.sym("X", NX)
     w = ca.SX.sym("w", disc.nw)
-
-    A_w, B_w = disc.variation(X, w, h)
-    if disc.scheme == "first_order":
-        if ca.depends_on(A_w, w) or ca.depends_on(B_w, w):
-            raise ValueError("A_k or B_k depends on the stage control: the forward costate recursion does not apply")
-        A, B = disc.variation(orthonormalized(X), ca.DM.zeros(disc.nw), h)
-
-        def control(lam):
-            return -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
-
-        lam, lam_res = _costate_back_solve(A, lam_prev)
-        u = control(lam)
-        X1, res = disc.step(X, u, h)
-        costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv], [X1, lam, u, res, lam_res])
-        u0 = control(lam0)
-        X1, res = disc.step(X, u0, h)
-        first_step = ca.Function(
-            "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"],
-            ["X1", "u", "res"]
-        )
-        return costate_map, first_step
-
-    # lgvi: w = [u_k; u_{k+1}]; A_k and B^a_k depend on u_k only, B^b = dX_{k+1}/du_{k+1} is constant
-    Bb_w = B_w[:, NU:]
-    if ca.depends_on(A_w, w[NU:]) or ca.depends_on(Bb_w, w):
-        raise ValueError("A_k depends on u_{k+1} or B^b is not constant: the forward costate recursion does not apply")
-    Bb = ca.substitute(Bb_w, w, ca.DM.zeros(disc.nw))
-    Xo = orthonormalized(X)
-
-    def control(lam):
-        return -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam)) / h
-
-    uk = control(lam_prev)
-    A, _ = disc.variation(Xo, ca.vertcat(uk, ca.DM.zeros(NU)), h)
-    lam, lam_res = _costate_back_solve(A, lam_prev)
-    uk1 = control(lam)
-    X1, res = disc.step(X, ca.vertcat(uk, uk1), h)
-    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv], [X1, lam, uk1, res, lam_res])
-    return costate_map, None
+    lam = ca.SX.sym("lam", NZ)
+    h = ca.SX.sym("h")
+    c0 = ca.SX.sym("c0", 3)
+    z, zp = ca.SX.sym("z", NZ), ca.SX.sym("zp", NZ)
+    X1z = disc.step_seeded(chart(chart(X, zp), z), w, h, c0)
+    base = ca.SX.sym("base", NX)  # the readback point X_{k+1}(zp), not differentiated in z
+    g = ca.gradient(ca.dot(lam, tangent_readback(base, X1z)), z)
+    # one substitution for both, so that the step at z = 0 is one graph (not two copies, each differentiated)
+    v, X1p = ca.substitute([g, X1z], [z], [ca.DM.zeros(NZ)])
+    v = ca.substitute(v, base, X1p)
+    H = ca.substitute(ca.jacobian(v, zp), zp, ca.DM.zeros(NZ))
+    return ca.Function(f"{disc.scheme}_adjoint_variation_jacobian", [X, w, lam, h, c0], [H],
+                       ["X", "w", "lam", "h", "c0"], ["H"])
 
 
-def linearized_map(disc: Discretization) -> ca.Function:
-    """The costate forward map and its linearization (docs/mathematics.md §6, (29)-(31)) as one SX Function.
+def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
+    """The linearization of the costate forward map (docs/mathematics.md §6 (29)-(31)) along a rollout of the costate map.
 
-    linearized_map (X[18], lam_prev[12], dX[18x12], dlam[12x12], h, Winv[6x6])
-        -> (X1[18], lam[12], dX1[18x12], dlam1[12x12])
+    Returns (costate_hessian, linearized_map):
 
-    (X1, lam) as in :func:`costate_functions`; (dX1, dlam1) = d(X1, lam)/d(X, lam_prev) @ (dX, dlam),
-    i.e. the sensitivities of the coupled state-multiplier recursion carried forward.  Starting
-    from (dX, dlam) = d(X_1, lambda_0)/d lambda_0 and iterating gives dX_N/dlambda_0, hence Psi_12.
+    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6]) -> H[12x12]
+        H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
+        orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
+        seeded with the step's Cayley root c (an output of the costate map).
+    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], h, Winv[6x6]) -> (dZ1[12x12], dlam1[12x12])
+        dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, docs/mathematics.md §4) and of lambda_{k-1} by
+        the shooting unknown; (dZ1, dlam1) those of z_{k+1} and lambda_k.  Starting from the first step's
+        and iterating (``mapaccum``) gives dz_N/dlambda_0, hence Psi_12.
 
-    The derivative is taken with every Cayley root held as a seed c0 (``disc.step_seeded``,
-    ``disc.variation_seeded``: two Newton iterations from c0, exact up to third derivatives at the
-    root), then c0 is set to the solved root.  Forward AD through the 8 unrolled Newton iterations
-    of ``costate_map`` gives the same numbers with a graph ~6x larger (measured: 266k instructions for
-    12 directions against 40k here).
+    Differentiating lambda_{k-1} = A_k^T lambda_k and z_{k+1} = A_k z_k + B du_{k+1}:
+
+        dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k)
+        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},     du_{k+1} = -(s/h) Winv B_c^T dlambda_k
+
+    with dz~_k = dz_k (first_order) or dz_k + B^b du_k (lgvi: u_k enters as the momentum kick B^b u_k,
+    so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).  The 12
+    right-hand sides share one elimination (:func:`unpivoted_elimination` of A_k^T, then
+    :func:`unpivoted_substitution` per column, the operations of :func:`solve_unpivoted`).
+
+    Three per-step Functions (costate map, H, this update), each evaluated along the rollout, instead of
+    one: each is smaller to compile, the three compile concurrently, and the values (X_k, lambda_k, A_k)
+    are those of the residual's costate map, computed once.  First order: H 15k SX instructions
+    (LGVI 25k), the costate map 10k (23k); the update is an MX Function (matrix products, a map of the
+    column substitution) whose C is 1.5k lines of loops.  The previous construction (forward AD of the
+    18-state step in 12 directions) took 111k instructions per step (228k).  Psi equals forward AD
+    through the rollout (tests/test_perf_structure.py).
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)
-    dX = ca.SX.sym("dX", NX, NZ)
-    dlam = ca.SX.sym("dlam", NZ, NZ)
+    lam = ca.SX.sym("lam", NZ)
+    c = ca.SX.sym("c", 3)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
-    cv = ca.SX.sym("cv", 3)
-    cs = ca.SX.sym("cs", 3)
-    Xo = orthonormalized(X)
+    Bc = control_matrix(disc)(h)
+    scale = 1.0 if disc.scheme == "first_order" else 2.0
     zero = ca.DM.zeros(NU)
-    if disc.scheme == "first_order":
-        A, B = disc.variation_seeded(Xo, zero, h, cv)
-        lam = solve_unpivoted(A.T, lam_prev)
-        u = -ca.mtimes(Winv, ca.mtimes(B.T, lam)) / h
-        X1 = disc.step_seeded(X, u, h, cs)
-        # g = h Pi_k: the roots do not depend on the control
-        gv, gs = disc.cayley_rhs(Xo, zero, h), disc.cayley_rhs(X, zero, h)
-    else:
-        w0 = ca.SX.sym("w", disc.nw)
-        Bb = ca.substitute(disc.variation(X, w0, h)[1][:, NU:], w0, ca.DM.zeros(disc.nw))
-        uk = -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam_prev)) / h
-        A, _ = disc.variation_seeded(Xo, ca.vertcat(uk, zero), h, cv)
-        lam = solve_unpivoted(A.T, lam_prev)
-        uk1 = -2.0 * ca.mtimes(Winv, ca.mtimes(Bb.T, lam)) / h
-        X1 = disc.step_seeded(X, ca.vertcat(uk, uk1), h, cs)
-        # g = h (Pi_k + (h/2)(M_k + u_k)): independent of u_{k+1}
-        gv, gs = disc.cayley_rhs(Xo, ca.vertcat(uk, zero), h), disc.cayley_rhs(X, ca.vertcat(uk, zero), h)
-    out = ca.vertcat(X1, lam)
-    dout = ca.jtimes(out, ca.vertcat(X, lam_prev), ca.vertcat(dX, dlam))
-    core = ca.Function("linearized_core", [X, lam_prev, dX, dlam, h, Winv, cv, cs],
-                       [X1, lam, dout[:NX, :], dout[NX:, :]])
-    outs = core(X, lam_prev, dX, dlam, h, Winv, disc.cayley_solve(gv)[0], disc.cayley_solve(gs)[0])
-    return ca.Function(f"{disc.scheme}_linearized_map", [X, lam_prev, dX, dlam, h, Winv], outs,
-                       ["X", "lam_prev", "dX", "dlam", "h", "Winv"], ["X1", "lam", "dX1", "dlam1"])
+    wA = zero if disc.scheme == "first_order" else ca.vertcat(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam_prev)) / h,
+                                                              zero)
+    H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
+    hessian = ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv], [H],
+                          ["X", "lam_prev", "lam", "c", "h", "Winv"], ["H"])
+
+    # the update at the MX level (matrix products, a map of the column solve): compact C, cheap to compile
+    spA = costate_functions(disc)[0].sparsity_out("A")               # its structural zeros save operations
+    As = ca.SX.sym("A", spA)
+    LUs = unpivoted_elimination(As.T)
+    factor = ca.Function(f"{disc.scheme}_costate_factor", [As], [LUs], ["A"], ["LU"])
+    LUc, col = ca.SX.sym("LU", LUs.sparsity()), ca.SX.sym("b", NZ)
+    column_solve = ca.Function(f"{disc.scheme}_costate_column_solve", [LUc, col], [unpivoted_substitution(LUc, col)],
+                               ["LU", "b"], ["y"])
+    A = ca.MX.sym("A", spA)
+    Hm = ca.MX.sym("H", H.sparsity())
+    dZ = ca.MX.sym("dZ", NZ, NZ)
+    dlam = ca.MX.sym("dlam", NZ, NZ)
+    hm = ca.MX.sym("h")
+    Wm = ca.MX.sym("Winv", NU, NU)
+    Bm = control_matrix(disc)(hm)
+    M = ca.mtimes(Bm, -scale * ca.mtimes(Wm, Bm.T) / hm)           # dz_{k+1} by lambda_k through the control
+    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(M, dlam)
+    solve_columns = column_solve.map(f"{disc.scheme}_costate_column_solve_map", "serial", NZ, [0], [])
+    dlam1 = solve_columns(factor(A), dlam - ca.mtimes(Hm, dZk))
+    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(M, dlam1)
+    lin = ca.Function(f"{disc.scheme}_linearized_map", [dZ, dlam, A, Hm, hm, Wm], [dZ1, dlam1],
+                      ["dZ", "dlam", "A", "H", "h", "Winv"], ["dZ1", "dlam1"])
+    return hessian, lin
+
+
+@lru_cache(maxsize=None)
+def terminal_residual_jacobian() -> ca.Function:
+    """(XN[18], Xd[18]) -> (zN[12], J[12x12]): J = dzN(chart(XN, z))/dz at z = 0 (tangent coordinates)."""
+    XN, Xd, z = ca.SX.sym("XN", NX), ca.SX.sym("Xd", NX), ca.SX.sym("z", NZ)
+    zt = terminal_residual_function()(chart(XN, z), Xd)
+    J = ca.substitute(ca.jacobian(zt, z), z, ca.DM.zeros(NZ))
+    return ca.Function("terminal_residual_jac", [XN, Xd], [terminal_residual_function()(XN, Xd), J], ["XN", "Xd"],
+                       ["zN", "J"])
 
 
 #: The second-order LGVI (docs/mathematics.md §2, node controls u_0..u_N, stage control w_k = [u_k; u_{k+1}],
@@ -313,8 +423,9 @@ class ShootingFunctions:
     residual(lam0, X0, Xd, h, Winv) -> (zN[12], res_max)  (line-search trials; res_max = max
         relative Cayley residual over the steps: a rollout with res_max > cayley_tol is not
         a solution of the discrete equations and is rejected)
-    shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by
-        forward-mode AD (12 directions) through the mapaccum'ed rollout.
+    shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by the
+        linearized recursion (:func:`linearization_functions`) along the mapaccum'ed rollout; equal
+        to forward-mode AD through it.
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
@@ -323,12 +434,17 @@ class ShootingFunctions:
         self.disc, self.N, self.jit = disc, int(N), bool(jit)
         sch = disc.scheme
         self.costate_map, self.first_step = costate_functions(disc)
-        self.linearized_map = linearized_map(disc)
-        # the per-step Functions evaluated N times per rollout; compiled to C with jit (values only)
-        step_map, lin_map = self.costate_map, self.linearized_map
+        self.costate_hessian, self.linearized_map = linearization_functions(disc)
+        # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
+        # libraries compiled concurrently, one set per scheme (and model), independent of N and of the data
+        step_map, hess_map, lin_map = self.costate_map, self.costate_hessian, self.linearized_map
         if self.jit:
-            step_map, lin_map = (codegen.compiled(f) for f in (step_map, lin_map))
-        self.compiled = self.jit and isinstance(lin_map, ca.Function) and lin_map.class_name() == "External"
+            (hess_map,), (step_map,), (lin_map,) = codegen.compiled_libraries(
+                [codegen.Library(hess_map.name(), (hess_map,)),            # the largest first
+                 codegen.Library(step_map.name(), (step_map,), cse=True),  # evaluated most often
+                 codegen.Library(lin_map.name(), (lin_map,), cflags=tuple(codegen.LOOP_CFLAGS))],  # MX: loops
+                cflags=codegen.QUICK_CFLAGS)
+        self.compiled = self.jit and all(f.class_name() == "External" for f in (step_map, hess_map, lin_map))
         self.terminal_residual = terminal_residual_function()
 
         lam0 = ca.MX.sym("lam0", NZ)
@@ -336,22 +452,19 @@ class ShootingFunctions:
         Xd = ca.MX.sym("Xd", NX)
         h = ca.MX.sym("h")
         Winv = ca.MX.sym("Winv", NU, NU)
-        if sch == "first_order":
+        # the rollout: steps k = k0 .. N-1 by the costate map from (X_k0, lambda_k0-1)
+        if sch == "first_order":   # step 0 from lambda_0 itself
             X1, u1, r1 = self.first_step(X0, lam0, h, Winv)
             Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
-            if N > 1:
-                acc = step_map.mapaccum(f"{sch}_costate_acc{N - 1}", N - 1, 2)
-                Xr, Lr, Ur, Rr, LRr = acc(X1, lam0, ca.repmat(h, 1, N - 1), ca.repmat(Winv, 1, N - 1))
-                Xs.append(Xr)
-                lams.append(Lr)
-                Us.append(Ur)
-                res.append(Rr)
-                lres.append(LRr)
+            n, Xstart = N - 1, X1
         else:
-            acc = step_map.mapaccum(f"{sch}_costate_acc{N}", N, 2)
-            Xr, Lr, Ur, Rr, LRr = acc(X0, lam0, ca.repmat(h, 1, N), ca.repmat(Winv, 1, N))
-            u0 = self._lgvi_u0(lam0, h, Winv)
-            Xs, lams, Us, res, lres = [Xr], [Lr], [u0, Ur], [Rr], [LRr]
+            Xs, lams, Us, res, lres = [], [], [self._lgvi_u0(lam0, h, Winv)], [], []
+            n, Xstart = N, X0
+        if n > 0:
+            acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
+            Xr, Lr, Ur, Rr, LRr, Ar, Cr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n))
+            for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
+                a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
         zN = self.terminal_residual(Xs[:, -1], Xd)
         names_in = ["lam0", "X0", "Xd", "h", "Winv"]
@@ -365,42 +478,32 @@ class ShootingFunctions:
         )
         res_max = ca.mmax(res)
         self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"])
-        # Psi = dzN/dlam0 by the linearized coupled recursion (forward sensitivities carried step by
-        # step, see linearized_map): the same derivative as forward AD through the rollout, ~6x cheaper
-        n_lin = N if sch == "lgvi" else N - 1  # first_order: step 0 is handled below; N = 1 has none left
-        lin_acc = lin_map.mapaccum(f"{sch}_linearized_acc{N}", n_lin, 4) if n_lin > 0 else None
+        # Psi = dzN/dlam0 by the linearized coupled recursion along the same rollout (tangent coordinates,
+        # see linearization_functions): the same derivative as forward AD through the rollout, cheaper
         if sch == "first_order":
-            dX1 = ca.jacobian(X1, lam0)                      # first step: u_1 linear in lam0, c_0 independent
-            XN, dXN = X1, dX1
-            if N > 1:
-                XL, _, dXL, _ = lin_acc(X1, lam0, dX1, ca.MX.eye(NZ), ca.repmat(h, 1, N - 1),
-                                        ca.repmat(Winv, 1, N - 1))
-                XN, dXN = XL[:, -1], dXL[:, -NZ:]
+            Bc = control_matrix(disc)(h)           # first step: dz_1 = B du_1, u_1 = -(1/h) Winv B^T lambda_0
+            dZ = -ca.mtimes(Bc, ca.mtimes(Winv, Bc.T)) / h
         else:
-            XL, _, dXL, _ = lin_acc(X0, lam0, ca.MX.zeros(NX, NZ), ca.MX.eye(NZ), ca.repmat(h, 1, N),
-                                    ca.repmat(Winv, 1, N))
-            XN, dXN = XL[:, -1], dXL[:, -NZ:]
-        xs, xds = ca.SX.sym("XN", NX), ca.SX.sym("Xd", NX)
-        zs = self.terminal_residual(xs, xds)
-        term_jac = ca.Function("terminal_residual_jac", [xs, xds], [zs, ca.jacobian(zs, xs)], ["XN", "Xd"], ["zN", "J"])
-        zL, JT = term_jac(XN, Xd)
-        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dXN)], names_in, ["zN", "Psi"])
+            dZ = ca.MX.zeros(NZ, NZ)
+        if n > 0:
+            Xk = ca.horzcat(Xstart, Xr[:, :n - 1])         # X_k, lambda_{k-1}, lambda_k of the steps
+            Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
+            hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5], [])(Xk, Lprev, Lr, Cr, h, Winv)
+            dZs, _ = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(dZ, ca.MX.eye(NZ), Ar, Hk, hs, Ws)
+            dZ = dZs[:, -NZ:]
+        zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ)], names_in, ["zN", "Psi"])
 
     def _lgvi_u0(self, lam_init, h, Winv):
-        """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph."""
-        X = ca.SX.sym("X", NX)
-        w = ca.SX.sym("w", self.disc.nw)
-        hs = ca.SX.sym("h")
-        Bb = ca.substitute(self.disc.variation(X, w, hs)[1][:, NU:], w, ca.DM.zeros(self.disc.nw))
-        Bb_fun = ca.Function("lgvi_Bb", [hs], [Bb])  # constant in X (checked in costate_functions)
-        return -2.0 * ca.mtimes(Winv, ca.mtimes(Bb_fun(h).T, lam_init)) / h
+        """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph (:func:`control_matrix`)."""
+        return -2.0 * ca.mtimes(Winv, ca.mtimes(control_matrix(self.disc)(h).T, lam_init)) / h
 
 
 @lru_cache(maxsize=None)
 def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> ShootingFunctions:
     """Cached :class:`ShootingFunctions` (one per Discretization object, N and jit)."""
     return ShootingFunctions(disc, N, jit)
-
 
 
 # ------------------------------------------------------------------------- helpers

@@ -220,7 +220,8 @@ class IndirectOptions(Options):
     floor_factor: float = _opt(10.0, "float", lo=1.0, doc="round-off floor: |z_N| within this factor of the measured noise")
     floor_accept: float = _opt(1e-8, "float", lo=0.0, doc="a round-off floor above this is not accepted as convergence")
     cayley_tol: float = _opt(1e-10, "float", lo=0.0, doc="trials whose rollout leaves a larger Cayley residual are rejected")
-    jit: bool = _opt(False, "bool", doc="compile the per-step maps to C (cached on disk)")
+    jit: bool = _opt(True, "bool", doc="compile the per-step maps to C (cached on disk; the first build takes ~1-2 s; "
+                                      "the interpreter without a compiler)")
 
 
 METHOD_OPTIONS = {"direct": DirectOptions, "indirect": IndirectOptions}
