@@ -8,8 +8,9 @@ target (orbit, position, attitude).  A run that did not converge is marked in th
 red corner banner with its result code, so it is never mistaken for a good one.
 
 Importing this module does not choose a matplotlib backend (the CLI picks a non-interactive one
-itself; :func:`animate` renders on its own Agg canvas).  Units are the normalized ones of
-docs/mathematics.md §1: length in reference-orbit radii, time in orbital periods, mass in body masses.
+itself; :func:`animate` renders on its own Agg canvas).  Every unit in a label comes from
+:func:`problems.units.units` of the Problem: the normalized orbit units (radii, orbital periods) with
+a central body of GM = 4π², the dimension only ("mass·length/time²", "time t") without one.
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, 
 from ..transcription.results import AT_BOUND_RTOL, Solution, figures_of_merit, rotation_angle
 from ..transcription.solve import Comparison
 from .io import save_figure
+from .units import MARGIN_DIMENSION, units
 
 #: colours of the methods (distinct from those of the components and body axes below)
 COLORS = {"direct": "#5e3c99", "indirect": "#e66101", "impulsive": "#5e3c99", "simulate": "#555555"}
@@ -33,7 +35,6 @@ STYLES = {"direct": "-", "indirect": "--", "impulsive": "-", "simulate": "-"}
 #: colours of vector components (and of the body axes e1, e2, e3)
 COMP = ("#d62728", "#2ca02c", "#1f77b4")
 QUAT = ("#333333", "#d62728", "#2ca02c", "#1f77b4")
-T_LABEL = "time t (orbital periods)"
 FAIL = "#c0392b"
 THRUST = "#e7298a"
 BOUND = "#444444"
@@ -231,14 +232,15 @@ def _subplots(nrows: int, ncols: int = 1, figsize=(W, H), sharex=True, **kw):
     return fig, axs.ravel()
 
 
-def _time_axes(axs):
-    """Few, non-overlapping time ticks; the time label on the lowest axes only; grids."""
+def _time_axes(axs, problem: Problem):
+    """Few, non-overlapping time ticks; the time label (in the problem's units) on the lowest axes
+    only; grids."""
     for ax in axs:
         ax.xaxis.set_major_locator(MaxNLocator(nbins=6))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
         ax.grid(alpha=0.3)
         _no_offset(ax)
-    axs[-1].set_xlabel(T_LABEL)
+    axs[-1].set_xlabel(units(problem).time_label)
 
 
 def _no_offset(ax):
@@ -389,8 +391,9 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
                 ax.quiver(*X0[k], *(0.3 * lim * d / n), color=THRUST, arrow_length_ratio=0.25, lw=2, zorder=7)
         ax.plot([], [], color=THRUST, lw=2, label="impulse direction")
     _cube(ax, lim, center)
-    for a, lab in ((ax.set_xlabel, "x₁ (radii)"), (ax.set_ylabel, "x₂ (radii)"), (ax.set_zlabel, "x₃ (radii)")):
-        a(lab)
+    un = units(problem)
+    for a, lab in ((ax.set_xlabel, "x₁"), (ax.set_ylabel, "x₂"), (ax.set_zlabel, "x₃")):
+        a(un.label(lab, "length"))
     what = f"maneuver (body frame ×{L / size:.2g})"
     if zoom:
         ax.set_title("orbit", fontsize=10)
@@ -407,7 +410,8 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
         az.set_xlabel("x₁")
         az.set_ylabel("x₂")
         az.set_zlabel("x₃")
-        az.set_title(f"zoom on the path: ±{lz:.2g} radii, body frame ×{Lz / size:.2g}", fontsize=10)
+        az.set_title(f"zoom on the path: ±{lz:.2g}{' ' + un.unit('length') if un.normalized else ''}, "
+                     f"body frame ×{Lz / size:.2g}", fontsize=10)
         what = "maneuver"
     handles, labels = ax.get_legend_handles_labels()
     handles += [Line2D([], [], color=c, lw=1.5) for c in COMP]
@@ -486,7 +490,7 @@ def fig_attitude_error(runs: list[Run], problem: Problem):
     axs[0].legend(fontsize=8, loc="best")
     axs[1].legend([Line2D([], [], color=c) for c in QUAT], ["q_w", "q_x", "q_y", "q_z"], fontsize=8, ncols=4,
                   loc="lower left")
-    _time_axes(axs)
+    _time_axes(axs, problem)
     what = "attitude error to the target" if Rd is not None else "rotation from the initial attitude"
     return _finish(fig, runs, problem, what)
 
@@ -526,7 +530,7 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None)
                     Line2D([], [], marker="o", color="0.3", ls=":")]
         labels += ["before impulse", "after impulse"]
     axs[0].legend(handles, labels, fontsize=8, loc="best", ncols=2 if len(labels) > 3 else 1)
-    _time_axes(axs)
+    _time_axes(axs, problem)
     return _finish(fig, runs, problem, what)
 
 
@@ -543,7 +547,7 @@ def fig_velocity(runs, problem: Problem):
 
     imp = after if any(r.sol.impulses is not None for r in runs) else None
     return _components(runs, problem, lambda r: (r.t, r.sol.trajectory.v), ["$v_1$", "$v_2$", "$v_3$"],
-                       "velocity v = γ/m, inertial (radii/period)", impulses=imp)
+                       units(problem).label("velocity v = γ/m, inertial", "velocity"), impulses=imp)
 
 
 def fig_angular_velocity(runs, problem: Problem):
@@ -573,8 +577,8 @@ def fig_angular_velocity(runs, problem: Problem):
     axs[0].legend(fontsize=8, loc="best")
     if limits:
         axs[3].legend(fontsize=8, loc="best")
-    _time_axes(axs)
-    return _finish(fig, runs, problem, "angular velocity Ω = J⁻¹Π, body frame (rad/period)")
+    _time_axes(axs, problem)
+    return _finish(fig, runs, problem, units(problem).label("angular velocity Ω = J⁻¹Π, body frame", "angular_rate"))
 
 
 def _bound_of(problem: Problem, which: str):
@@ -585,20 +589,21 @@ def fig_force(runs, problem: Problem):
     b = _bound_of(problem, "force")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_f),
                        ["$u_{f,1}$", "$u_{f,2}$", "$u_{f,3}$"],
-                       "control force u_f, inertial components (mass·radii/period²)", bound=b)
+                       units(problem).label("control force u_f, inertial components", "force"), bound=b)
 
 
 def fig_moment(runs, problem: Problem):
     b = _bound_of(problem, "moment")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_m),
                        ["$u_{m,1}$", "$u_{m,2}$", "$u_{m,3}$"],
-                       "control moment u_m, body components (mass·radii²/period²)", bound=b)
+                       units(problem).label("control moment u_m, body components", "moment"), bound=b)
 
 
 def fig_control_norms(runs, problem: Problem):
     """|u_f| and |u_m| over time: a NormBound is a line at b; where a bound (norm or box) is active
     the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance."""
     runs = [r for r in runs if r.sol.controls is not None]
+    un = units(problem)
     fig, axs = _subplots(2, figsize=(W, 5.2))
     for ax, which, key in ((axs[0], "force", "u_f"), (axs[1], "moment", "u_m")):
         bound = _bound_of(problem, which)
@@ -608,16 +613,16 @@ def fig_control_norms(runs, problem: Problem):
             if bound is not None:
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
-                _shade(ax, run.tu, act, run.color, label=f"{run.label} at bound ({tab:.3g} periods)")
+                _shade(ax, run.tu, act, run.color, label=f"{run.label} at bound ({un.duration(tab)})")
         if isinstance(bound, NormBound):
             ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")
         elif isinstance(bound, BoxBound):
             ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{b:.3g}' for b in bound.b)}): see {which}")
         ax.legend(fontsize=8, loc="best")
         ax.set_ylim(bottom=0)
-    axs[0].set_ylabel("$|u_f|$ (mass·radii/period²)")
-    axs[1].set_ylabel("$|u_m|$ (mass·radii²/period²)")
-    _time_axes(axs)
+    axs[0].set_ylabel(un.label("$|u_f|$", "force"))
+    axs[1].set_ylabel(un.label("$|u_m|$", "moment"))
+    _time_axes(axs, problem)
     return _finish(fig, runs or [], problem, "control magnitudes")
 
 
@@ -630,7 +635,7 @@ def fig_thrust_rtn(runs, problem: Problem):
 
     return _components([r for r in runs if r.sol.controls is not None], problem, comp,
                        ["radial $u_R$", "along-track $u_T$", "normal $u_N$"],
-                       "control force in the orbit frame: radial, along-track, normal (mass·radii/period²)")
+                       units(problem).label("control force in the orbit frame: radial, along-track, normal", "force"))
 
 
 def fig_orbital_elements(runs, problem: Problem):
@@ -659,12 +664,12 @@ def fig_orbital_elements(runs, problem: Problem):
     for c in problem.constraints:
         if isinstance(c, MinRadius):
             axs[0].axhline(c.radius, color=BOUND, ls="-.", lw=1.1, gid="bound-line", label=f"min radius {c.radius:.3g}")
-    axs[0].set_ylabel("radius |x| (radii)")
+    axs[0].set_ylabel(units(problem).label("radius |x|", "length"))
     axs[1].set_ylabel("inclination (deg)")
     axs[2].set_ylabel("eccentricity")
     for ax in axs:
         ax.legend(fontsize=8, loc="best")
-    _time_axes(axs)
+    _time_axes(axs, problem)
     return _finish(fig, runs, problem, "osculating orbit")
 
 
@@ -686,8 +691,8 @@ def fig_costates(runs, problem: Problem):
     labels = ["component 1", "component 2", "component 3"] + [
         r.name + (" (from multipliers)" if r.label == "direct" else "") for r in runs]
     axs[0].legend(handles, labels, fontsize=8, ncols=2, loc="best")
-    _time_axes(axs)
-    axs[-1].set_xlabel("time t_k of step k (orbital periods)")
+    _time_axes(axs, problem)
+    axs[-1].set_xlabel(units(problem).time_label.replace("time t", "time t_k of step k"))
     return _finish(fig, runs, problem, "discrete costates λ_k")
 
 
@@ -714,10 +719,10 @@ def fig_constraints(runs, problem: Problem):
             ax.plot(run.t, mg, color=run.color, ls=run.ls, lw=1.6, label=run.name)
             _shade(ax, run.t, mg < 0, FAIL, label="violated" if run is runs[0] else None, alpha=0.12)
         ax.axhline(0.0, color="k", lw=1.0, gid="zero-line")
-        ax.set_ylabel(f"margin ({c.unit})")
+        ax.set_ylabel(units(problem).label("margin", MARGIN_DIMENSION.get(c.kind, "none")))
         ax.set_title(_describe(c), fontsize=9, loc="left")
         ax.legend(fontsize=8, loc="best")
-    _time_axes(axs)
+    _time_axes(axs, problem)
     return _finish(fig, runs, problem, "path-constraint margins")
 
 
@@ -976,7 +981,7 @@ class Animation:
         axt.set_ylim(-0.05, 1.15)
         axt.xaxis.set_major_locator(MaxNLocator(nbins=5))
         axt.tick_params(labelsize=7)
-        axt.set_xlabel(T_LABEL, fontsize=8)
+        axt.set_xlabel(units(problem).time_label, fontsize=8)
         axt.grid(alpha=0.3)
         handles, labels = ax.get_legend_handles_labels()
         handles += [Line2D([], [], color=c, lw=2) for c in COMP]
@@ -1027,6 +1032,7 @@ class Animation:
         self.runs, self.art, self.moving = runs, art, moving
         self.cursor, self.clock, self.L, self.scale, self.lim, self.fmax = cursor, clock, L, scale, lim, fmax
         self.model, self.t0, self.t1 = model, float(first.trajectory.t[0]), float(first.trajectory.t[-1])
+        self.units = units(problem)
 
     def frame(self, time_: float) -> np.ndarray:
         """The image (height, width, 3) of the state at time ``time_``."""
@@ -1052,7 +1058,7 @@ class Animation:
                 d["thrust"].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])
                 d["head"].set_data_3d([tip[0]], [tip[1]], [tip[2]])
         self.cursor.set_xdata([time_, time_])
-        self.clock.set_text(f"t = {time_:.3f} periods")
+        self.clock.set_text(f"t = {time_:.3f}" + (" periods" if self.units.normalized else ""))
         for a in self.moving:
             self.fig.draw_artist(a)
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()

@@ -22,31 +22,36 @@ from typing import Any
 from ..transcription.problem import BoxBound, NormBound
 from ..transcription.results import Solution
 from .io import atomic_write_bytes
+from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 
-#: rows of the summary table: (key of Solution.summary(), label, unit, format)
+#: rows of the summary table: (key of Solution.summary(), label, unit, format); the unit is a
+#: quantity of problems.units.DIMENSIONS (shown in the problem's units) or a literal ("s": wall clock)
 ROWS = (
     ("cost", "cost J", "", "{:.10g}"),
     ("terminal_error", "terminal error (max-norm of the residual)", "", "{:.2e}"),
-    ("terminal_attitude_error_deg", "terminal attitude error", "deg", "{:.2e}"),
+    ("terminal_attitude_error_deg", "terminal attitude error", "angle", "{:.2e}"),
     ("iterations", "iterations", "", "{:d}"),
     ("build_s", "build time", "s", "{:.2f}"),
     ("solve_s", "solve time", "s", "{:.2f}"),
-    ("delta_v", "Δv = Σ ω |u_f| / m", "radii/period", "{:.6g}"),
-    ("angular_impulse", "∫ |u_m| dt", "mass·radii²/period", "{:.6g}"),
-    ("peak_force", "peak |u_f|", "mass·radii/period²", "{:.6g}"),
-    ("peak_moment", "peak |u_m|", "mass·radii²/period²", "{:.6g}"),
-    ("force_time_at_bound", "time with the force at its bound", "periods", "{:.4g}"),
-    ("moment_time_at_bound", "time with the moment at its bound", "periods", "{:.4g}"),
+    ("delta_v", "Δv = Σ ω |u_f| / m", "velocity", "{:.6g}"),
+    ("angular_impulse", "∫ |u_m| dt", "angular_impulse", "{:.6g}"),
+    ("peak_force", "peak |u_f|", "force", "{:.6g}"),
+    ("peak_moment", "peak |u_m|", "moment", "{:.6g}"),
+    ("force_time_at_bound", "time with the force at its bound", "time", "{:.4g}"),
+    ("moment_time_at_bound", "time with the moment at its bound", "time", "{:.4g}"),
     ("max_orthogonality_error", "max |RᵀR − I|", "", "{:.1e}"),
     ("max_relative_energy_error", "max relative energy error", "", "{:.1e}"),
     ("max_cayley_residual", "max Cayley residual", "", "{:.1e}"),
     ("N", "steps N", "", "{:d}"),
-    ("T", "final time T", "periods", "{:.6g}"),
+    ("T", "final time T", "time", "{:.6g}"),
     ("solver", "solver", "", "{}"),
 )
-_UNITS = {"min_radius": "radii", "keep_out": "deg", "keep_in": "deg", "max_angular_rate": "rad/period"}
+
+
+def _unit(un: Units, u: str) -> str:
+    return un.unit(u) if u in DIMENSIONS else u
 
 
 def _fmt(value: Any, fmt: str) -> str:
@@ -67,15 +72,18 @@ def merit_rows(sols: dict[str, Solution]) -> list[dict[str, Any]]:
 
     with np.errstate(all="ignore"):  # a failed run's non-finite states: reported as nan, not warned about
         summ = {m: s.summary() for m, s in sols.items()}
+    un = units(next(iter(sols.values())).problem) if sols else Units(normalized=True)
     rows = []
     keys = [r[0] for r in ROWS]
     extra = sorted({k for s in summ.values() for k in s if k.startswith("min_margin_")})
     for key in keys[:12] + extra + keys[12:]:
         if key.startswith("min_margin_"):
             kind = key[len("min_margin_"):].rstrip("_0123456789")
-            label, unit, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", _UNITS.get(kind, ""), "{:.4g}"
+            label, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", "{:.4g}"
+            unit = un.unit(MARGIN_DIMENSION.get(kind, "none"))
         else:
             _, label, unit, fmt = next(r for r in ROWS if r[0] == key)
+            unit = _unit(un, unit)
         if not any(key in s for s in summ.values()):
             continue
         cells = []
@@ -96,6 +104,15 @@ def _bounds(problem) -> list[str]:
         elif isinstance(b, BoxBound):
             out.append(f"{name}: |u_i| ≤ ({', '.join(f'{x:g}' for x in b.b)})")
     return out
+
+
+def _horizon(problem) -> str:
+    """The final time for the header: "T = 10 orbital periods", or free with its range and guess."""
+    unit = " orbital periods" if units(problem).normalized else ""
+    if problem.free_time:
+        lo, hi = problem.time_bounds
+        return f"T free in [{lo:g}, {hi:g}]{unit} (guess {problem.T:g})"
+    return f"T = {problem.T:g}{unit}"
 
 
 def _png(fig) -> bytes:
@@ -162,7 +179,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         version=__version__,
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         control=run.maneuver.control_kind or "none (free motion)", discretization=run.maneuver.discretization,
-        N=run.maneuver.N, T=run.maneuver.T, methods=methods, method_names=list(sols),
+        N=run.maneuver.N, T=_horizon(problem), units=units(problem), methods=methods, method_names=list(sols),
         ok=all(m["converged"] for m in methods), rows=merit_rows(sols), comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
         figures=[{"name": n, "caption": CAPTIONS.get(n, n), "data": base64.b64encode(b).decode("ascii")}

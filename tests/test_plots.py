@@ -19,7 +19,7 @@ import se3ocp
 from se3ocp.problems import plots
 from se3ocp.transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
                                           SmoothControl)
-from support import ROOT, maneuver
+from support import ROOT, maneuver, slew_comparison
 
 SMOOTH = {"maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn",
           "orbital_elements", "velocity", "angular_velocity", "costates", "convergence"}
@@ -69,6 +69,16 @@ def bounded(both):
     sim = se3ocp.simulate(pb, U)
     figs = se3ocp.plot(sim)
     yield sim, figs, bf, bm
+    _close(figs)
+
+
+@pytest.fixture(scope="module")
+def slew():
+    """A keep-out slew without a central body (and the force removed): the direct run of
+    support.slew_comparison, beside the indirect method's not_applicable."""
+    man, res = slew_comparison()
+    figs = se3ocp.plot(res)
+    yield res, figs
     _close(figs)
 
 
@@ -206,6 +216,38 @@ def test_convergence_draws_every_iteration(both):
     trials = next(ln for ln in ax.get_lines() if ln.get_label() == "indirect: all line-search trials")
     assert len(trials.get_ydata()) == len(res.indirect.history)
     assert ax.get_yscale() == "log"
+
+
+# ------------------------------------------------------------------------- units
+def all_texts(fig) -> list[str]:
+    return [t.get_text() for t in fig.findobj(matplotlib.text.Text) if t.get_text()]
+
+
+def test_units_are_those_of_the_problem(both, slew):
+    """Normalized orbit units (radii, orbital periods) only with a central body of GM = 4π²; a
+    slew without one is labelled by dimension, never in periods or radii."""
+    from se3ocp.problems.units import units
+
+    _, figs = both
+    assert figs["control_norms"].axes[-1].get_xlabel() == "time t (orbital periods)"
+    assert "radii" in figs["maneuver"].axes[0].get_xlabel()
+    assert "(mass·radii/period²)" in figs["force"]._suptitle.get_text()
+    res, figs = slew
+    assert units(res.direct.problem).normalized is False
+    for name, fig in figs.items():
+        texts = all_texts(fig)
+        assert not [t for t in texts if "period" in t or "radii" in t], (name, texts)
+        assert fig.axes[-1].get_xlabel() in ("time t", "time t_k of step k", "") or fig.axes[-1].name == "3d" \
+            or name == "convergence", (name, fig.axes[-1].get_xlabel())
+    assert figs["moment"]._suptitle.get_text().endswith("(mass·length²/time²)")
+    anim = plots.Animation(res)
+    anim.frame(1.0)
+    assert anim.clock.get_text() == "t = 1.000"
+    # a central body of another GM (km and s, say): not the normalized units either
+    from types import SimpleNamespace as NS
+
+    assert units(NS(model=NS(mu=398600.4418))).normalized is False
+    assert units(NS(model=NS(mu=4 * np.pi**2))).normalized is True
 
 
 # ------------------------------------------------------------------------- bounds and constraints

@@ -20,7 +20,7 @@ import se3ocp
 from se3ocp.problems import store
 from se3ocp.problems.report import merit_rows, render, write_report
 from se3ocp.transcription.problem import BoxBound, KeepOut, MinRadius, NormBound, SmoothControl
-from support import maneuver
+from support import maneuver, slew_comparison
 
 CHROMIUM = Path("/usr/bin/chromium")
 
@@ -83,6 +83,41 @@ def test_report_numbers_are_those_of_summary_json(compared):
     # delta-v is the quadrature of |u_f|/m (first order: u_1..u_N, weights h)
     d_ = res.direct
     assert s["methods"]["direct"]["delta_v"] == pytest.approx(d_.h * np.linalg.norm(d_.u_f, axis=1).sum(), rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def slew_report(tmp_path_factory):
+    """The report of a keep-out slew: no central body, the force removed, the indirect method not
+    applicable (support.slew_comparison), without figures."""
+    man, res = slew_comparison()
+    d = tmp_path_factory.mktemp("rep") / "slew"
+    store.write_run(d, man, res)
+    return d, res, write_report(d, draw=False).read_text()
+
+
+def _rows(text: str) -> dict[str, list[str]]:
+    """The summary table as {quantity: [unit, cell, ...]} (cells as text, tags stripped)."""
+    body = text.split('<table id="summary">', 1)[1].split("</table>", 1)[0]
+    out = {}
+    for tr in re.findall(r"<tr>(.*?)</tr>", body, re.S):
+        cells = [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td[^>]*>(.*?)</td>", tr, re.S)]
+        if cells:
+            out[cells[0]] = cells[1:]
+    return out
+
+
+def test_units_in_the_header_and_the_table(compared, slew_report):
+    _, _, path = compared
+    text = path.read_text()
+    assert "T = 0.5 orbital periods" in text and "units: normalized orbit units" in text
+    assert _rows(text)["Δv = Σ ω |u_f| / m"][0] == "radii/period"
+    assert _rows(text)["final time T"][0] == "periods"
+    _, _, text = slew_report
+    assert "period" not in text.split("<h2>Resolved configuration</h2>")[0] and "radii" not in text
+    assert "T = 10 ·" in text and "units: those of the configuration file" in text
+    rows = _rows(text)
+    assert rows["∫ |u_m| dt"][0] == "mass·length²/time" and rows["peak |u_m|"][0] == "mass·length²/time²"
+    assert rows["final time T"][0] == "time" and rows["minimum margin: keep out"][0] == "deg"
 
 
 def test_user_text_is_escaped(compared, tmp_path):
