@@ -220,6 +220,12 @@ def _shade(ax, t, mask, color, label=None, alpha=0.15):
                    label=label if n == 0 else None, gid="bound-active")
 
 
+def removed(problem: Problem) -> set[str]:
+    """The controls a norm bound of 0 removes: a subset of {"force", "moment"}."""
+    rm = getattr(problem.control, "removed", (False, False))
+    return {name for name, r in zip(("force", "moment"), rm) if r}
+
+
 def _active(u: np.ndarray, bound) -> np.ndarray:
     if isinstance(bound, NormBound):
         return np.linalg.norm(u, axis=1) >= bound.b * (1.0 - AT_BOUND_RTOL)
@@ -601,11 +607,14 @@ def fig_moment(runs, problem: Problem):
 
 def fig_control_norms(runs, problem: Problem):
     """|u_f| and |u_m| over time: a NormBound is a line at b; where a bound (norm or box) is active
-    the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance."""
+    the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance.
+    A control removed by a norm bound of 0 gets no panel (it is absent, not "at its bound")."""
     runs = [r for r in runs if r.sol.controls is not None]
     un = units(problem)
-    fig, axs = _subplots(2, figsize=(W, 5.2))
-    for ax, which, key in ((axs[0], "force", "u_f"), (axs[1], "moment", "u_m")):
+    gone = removed(problem)
+    panels = [(w, k, f"$|{k}|$") for w, k in (("force", "u_f"), ("moment", "u_m")) if w not in gone]
+    fig, axs = _subplots(len(panels), figsize=(W, 5.2 if len(panels) == 2 else 3.4))
+    for ax, (which, key, ylab) in zip(axs, panels):
         bound = _bound_of(problem, which)
         for run in runs:
             u = getattr(run.sol, key)
@@ -620,10 +629,10 @@ def fig_control_norms(runs, problem: Problem):
             ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{b:.3g}' for b in bound.b)}): see {which}")
         ax.legend(fontsize=8, loc="best")
         ax.set_ylim(bottom=0)
-    axs[0].set_ylabel(un.label("$|u_f|$", "force"))
-    axs[1].set_ylabel(un.label("$|u_m|$", "moment"))
+        ax.set_ylabel(un.label(ylab, which))
     _time_axes(axs, problem)
-    return _finish(fig, runs or [], problem, "control magnitudes")
+    what = "control magnitudes" + "".join(f" (the {w} is removed: a norm bound of 0)" for w in sorted(gone))
+    return _finish(fig, runs or [], problem, what)
 
 
 def fig_thrust_rtn(runs, problem: Problem):
@@ -805,9 +814,14 @@ def applicable(runs: list[Run], problem: Problem) -> list[str]:
     """The names of the figures that apply to these runs (in FIGURES order)."""
     ctrl = any(r.sol.controls is not None for r in runs)
     central = bool(problem.model.mu)
-    skip = set()
-    if not ctrl:
+    gone = removed(problem)
+    skip = set(gone)  # a removed control: no component figure ("force", "moment")
+    if not ctrl or gone == {"force", "moment"}:
         skip |= {"control_norms", "force", "moment", "thrust_rtn"}
+    if "force" in gone:
+        skip.add("thrust_rtn")
+        if not central:  # no force and no gravity: the velocity is constant, a figure of flat lines
+            skip.add("velocity")
     if not central:
         skip |= {"thrust_rtn", "orbital_elements"}
     if not problem.constraints:
@@ -959,22 +973,25 @@ class Animation:
         axa.set_title("attitude" + (" (target dashed)" if has_target else ""), fontsize=9)
         # timeline of the control magnitudes (or the attitude error without controls)
         scales = []
+        gone = removed(problem)
+        shown = [(k, lw, a) for k, w, lw, a in (("u_f", "force", 1.3, 1.0), ("u_m", "moment", 0.9, 0.55)) if w not in gone]
         for run in runs:
             s = run.sol
-            if s.controls is not None:
-                nf, nm = np.linalg.norm(s.u_f, axis=1), np.linalg.norm(s.u_m, axis=1)
-                sf, sm = max(nf.max(), 1e-300), max(nm.max(), 1e-300)
-                axt.plot(run.tu, nf / sf, color=run.color, ls=run.ls, lw=1.3)
-                axt.plot(run.tu, nm / sm, color=run.color, ls=run.ls, lw=0.9, alpha=0.55)
-                scales.append((sf, sm))
+            if s.controls is not None and shown:
+                sc = []
+                for key, lw, alpha in shown:
+                    nu = np.linalg.norm(getattr(s, key), axis=1)
+                    sc.append(max(nu.max(), 1e-300))
+                    axt.plot(run.tu, nu / sc[-1], color=run.color, ls=run.ls, lw=lw, alpha=alpha)
+                scales.append(sc)
             else:
                 E = np.einsum("ji,kjl->kil", Rd if Rd is not None else s.trajectory.R[0], s.trajectory.R)
                 ang = np.degrees(rotation_angle(E))
                 axt.plot(run.t, ang / max(ang.max(), 1e-300), color=run.color, ls=run.ls, lw=1.3)
         if scales:
             axt.set_ylabel("|u| / max", fontsize=8)
-            axt.legend([Line2D([], [], color="0.3", lw=1.3), Line2D([], [], color="0.3", lw=0.9, alpha=0.55)],
-                       [f"|u_f| (max {scales[0][0]:.3g})", f"|u_m| (max {scales[0][1]:.3g})"], fontsize=7, loc="upper right")
+            axt.legend([Line2D([], [], color="0.3", lw=lw, alpha=a) for _, lw, a in shown],
+                       [f"|{k}| (max {m:.3g})" for (k, _, _), m in zip(shown, scales[0])], fontsize=7, loc="upper right")
         else:
             axt.set_ylabel(("angle to target" if Rd is not None else "rotation from start") + " / max", fontsize=8)
         axt.set_xlim(first.trajectory.t[0], first.trajectory.t[-1])
@@ -986,7 +1003,8 @@ class Animation:
         handles, labels = ax.get_legend_handles_labels()
         handles += [Line2D([], [], color=c, lw=2) for c in COMP]
         labels += ["body e1", "body e2", "body e3"]
-        if scales:
+        thrust = bool(scales) and "force" not in gone
+        if thrust:
             handles.append(Line2D([], [], color=THRUST, lw=2))
             labels.append("thrust u_f")
         fig.legend(handles, labels, loc="lower left", ncols=5, fontsize=8, frameon=False)
@@ -1031,6 +1049,7 @@ class Animation:
         self.fig, self.canvas, self.background = fig, canvas, background
         self.runs, self.art, self.moving = runs, art, moving
         self.cursor, self.clock, self.L, self.scale, self.lim, self.fmax = cursor, clock, L, scale, lim, fmax
+        self.thrust = thrust
         self.model, self.t0, self.t1 = model, float(first.trajectory.t[0]), float(first.trajectory.t[-1])
         self.units = units(problem)
 
@@ -1052,7 +1071,7 @@ class Animation:
                 ends = x + scale * model.markers @ R.T
                 d["rod"].set_data_3d(*ends.T)
             d["dot"].set_data_3d([x[0]], [x[1]], [x[2]])
-            if s.controls is not None:
+            if s.controls is not None and self.thrust:
                 j = int(np.clip(np.searchsorted(s.control_times, time_), 0, len(s.control_times) - 1))
                 tip = x + 0.45 * lim * s.u_f[j] / fmax
                 d["thrust"].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])

@@ -250,6 +250,36 @@ def test_units_are_those_of_the_problem(both, slew):
     assert units(NS(model=NS(mu=4 * np.pi**2))).normalized is True
 
 
+# ------------------------------------------------------------------------- a control removed by a norm bound of 0
+def test_a_removed_control_is_absent_not_at_its_bound(both, slew):
+    from se3ocp.transcription.results import figures_of_merit
+
+    res, figs = slew
+    d = res.direct
+    assert d.problem.control.removed == (True, False)
+    assert "force_time_at_bound" not in figures_of_merit(d) and "force_time_at_bound" not in d.summary()
+    assert {"force", "thrust_rtn", "orbital_elements", "velocity"}.isdisjoint(figs)   # no force, no central body
+    assert {"maneuver", "attitude", "control_norms", "moment", "constraints"} <= set(figs)
+    fig = figs["control_norms"]
+    assert len(fig.axes) == 1 and "u_m" in fig.axes[0].get_ylabel()
+    assert not by_gid(fig, "bound-active") and "the force is removed" in fig._suptitle.get_text()
+    anim = plots.Animation(res)
+    texts = {t.get_text() for lg in anim.fig.legends + [a.get_legend() for a in anim.fig.axes if a.get_legend()]
+             for t in lg.get_texts()}
+    assert "thrust u_f" not in texts and not any(t.startswith("|u_f|") for t in texts)
+    # the moment removed instead: no moment figure, one panel of |u_f|
+    e3, _ = both
+    p = e3.direct.problem
+    U = e3.direct.controls.copy()
+    U[3:] = 0.0
+    sim = se3ocp.simulate(p.replace(control=SmoothControl(p.control.W_f, p.control.W_m, moment_bound=NormBound(0.0))), U)
+    assert "moment_time_at_bound" not in figures_of_merit(sim)
+    figs = se3ocp.plot(sim)
+    assert "moment" not in figs and {"force", "thrust_rtn", "velocity"} <= set(figs)
+    assert len(figs["control_norms"].axes) == 1 and "u_f" in figs["control_norms"].axes[0].get_ylabel()
+    _close(figs)
+
+
 # ------------------------------------------------------------------------- bounds and constraints
 def test_norm_bound_line_and_active_shading(bounded):
     sim, figs, bf, bm = bounded

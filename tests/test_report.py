@@ -120,6 +120,12 @@ def test_units_in_the_header_and_the_table(compared, slew_report):
     assert rows["final time T"][0] == "time" and rows["minimum margin: keep out"][0] == "deg"
 
 
+def test_a_removed_force_is_not_reported_at_its_bound(slew_report):
+    d, _, text = slew_report
+    assert "time with the force at its bound" not in _rows(text)
+    assert "force_time_at_bound" not in json.loads((d / "summary.json").read_text())["methods"]["direct"]
+
+
 def test_user_text_is_escaped(compared, tmp_path):
     d, res, _ = compared
     evil = '<img src=x onerror=alert(1)>&"'
