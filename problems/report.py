@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ..transcription.problem import BoxBound, NormBound
-from ..transcription.results import Solution
+from ..transcription.results import Result, Solution
 from .io import atomic_write_bytes
 from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
 
@@ -155,13 +155,20 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
     result = run.result
     sols = dict(run.solutions)
     problem = next(iter(sols.values())).problem
-    methods = [{"name": m, "converged": s.converged, "status": s.result.value, "message": s.message,
-                "explain": s.result.message} for m, s in sols.items()]
+    summ = run.summary
+    methods = _status_cards(sols, summ)
     comparison = None
     if hasattr(result, "verdict"):
         comparison = {"verdict": result.verdict, "agree": bool(result.same_extremal),
                       "cost_rel": _fmt(result.cost_relative_difference, "{:.2e}"),
                       "control_rel": _fmt(result.control_max_difference_relative, "{:.2e}")}
+    elif isinstance(summ.get("comparison"), dict):  # a method not applicable: its verdict says so
+        c = summ["comparison"]
+        comparison = {"verdict": str(c.get("verdict", "")), "agree": bool(c.get("same_extremal", False)),
+                      "cost_rel": _fmt(c.get("cost_relative_difference"), "{:.2e}"),
+                      "control_rel": _fmt(c.get("control_max_difference_relative"), "{:.2e}")}
+    if comparison is not None:
+        comparison["comparable"] = not comparison["verdict"].startswith("not comparable")
     history = []
     for m, s in sols.items():
         recs = [h.as_dict() for h in s.history]
@@ -169,7 +176,6 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
                 if any(_present(r.get(c)) for r in recs)]
         history.append({"method": m, "cols": cols,
                         "rows": [[_cell(r.get(c)) for c in cols] for r in recs]})
-    summ = run.summary
     command = summ.get("command") or ("compare" if comparison else "solve")
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
                              autoescape=jinja2.select_autoescape(["html", "j2"], default=True),
@@ -180,11 +186,36 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         control=run.maneuver.control_kind or "none (free motion)", discretization=run.maneuver.discretization,
         N=run.maneuver.N, T=_horizon(problem), units=units(problem), methods=methods, method_names=list(sols),
-        ok=all(m["converged"] for m in methods), rows=merit_rows(sols), comparison=comparison,
+        ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols), comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
         figures=[{"name": n, "caption": CAPTIONS.get(n, n), "data": base64.b64encode(b).decode("ascii")}
                  for n, b in images],
         history=history, config=config_text)
+
+
+def _status_cards(sols: dict[str, Solution], summ: dict) -> list[dict[str, Any]]:
+    """One status card per method of the run, in summary.json's order: the Solutions read back, and
+    the methods summary.json lists without a trajectory -- a method that does not apply to the
+    problem (Result.not_applicable: status and message in its block) is a neutral card of its own."""
+    blocks = summ.get("methods") if isinstance(summ.get("methods"), dict) else {}
+    cards = []
+    for m in list(blocks) + [m for m in sols if m not in blocks]:
+        s = sols.get(m)
+        if s is not None:
+            cards.append({"name": m, "converged": s.converged, "status": s.result.value, "message": s.message,
+                          "explain": s.result.message, "applicable": s.result is not Result.not_applicable,
+                          "in_table": True})
+            continue
+        b = blocks[m] if isinstance(blocks[m], dict) else {}
+        status = str(b.get("status", "unknown"))
+        try:
+            explain = Result(status).message
+        except ValueError:
+            explain = ""
+        cards.append({"name": m, "converged": bool(b.get("converged", False)), "status": status,
+                      "message": str(b.get("message", "")), "explain": explain,
+                      "applicable": status != Result.not_applicable.value, "in_table": False})
+    return cards
 
 
 def _describe(c) -> str:

@@ -126,6 +126,24 @@ def test_a_removed_force_is_not_reported_at_its_bound(slew_report):
     assert "force_time_at_bound" not in json.loads((d / "summary.json").read_text())["methods"]["direct"]
 
 
+def test_a_method_not_applicable_is_a_neutral_card_with_its_message(slew_report):
+    """The indirect method on a path-constrained problem: summary.json keeps its status and message
+    (and no figures of merit: it solved nothing); the page shows it as a grey card of its own, not
+    as a failure and not left out, and the verdict 'not comparable' in grey."""
+    d, res, text = slew_report
+    block = json.loads((d / "summary.json").read_text())["methods"]["indirect"]
+    assert block["status"] == "not_applicable" and "does not cover path constraints" in block["message"]
+    assert not [k for k in block if k.startswith("min_margin") or k in ("terminal_attitude_error_deg", "delta_v")]
+    assert not (d / "indirect.npz").exists()
+    cards = re.findall(r'<div class="card([^"]*)">\s*<div class="head">([^<]*)</div>\s*<div class="msg">([^<]*)</div>', text)
+    assert [(c.strip(), h) for c, h, _ in cards] == [("", "direct: converged"), ("na", "indirect: not applicable")]
+    assert cards[1][2].startswith("not applicable: the indirect method does not cover path constraints")
+    assert "card failed" not in text and "NOT CONVERGED" not in text
+    assert '<div class="verdict na" id="verdict">' in text and "<b>not comparable: the indirect method" in text
+    assert "<code>se3ocp compare</code>" in text
+    assert _rows(text)["status"] == ["", "converged"]                  # the table: the applicable method only
+
+
 def test_user_text_is_escaped(compared, tmp_path):
     d, res, _ = compared
     evil = '<img src=x onerror=alert(1)>&"'

@@ -319,10 +319,14 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     which is never "at its bound" but absent); with a state target that fixes the attitude,
     terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints, min_margin_<kind>
     (``_2``, ... for repeated kinds) = min_k margin_k in the constraint's unit (< 0: violated).
-    Fields that do not apply are left out.  Pure: reads the Solution, changes nothing."""
+    Fields that do not apply are left out; a method that does not apply to the problem
+    (Result.not_applicable) has none: its trajectory is no solution, only the initial state's free
+    motion.  Pure: reads the Solution, changes nothing."""
     from .problem import NormBound, TargetState, quadrature_weights
 
     out: dict[str, Any] = {}
+    if sol.result is Result.not_applicable:
+        return out
     prob = sol.problem
     mass = sol.trajectory.mass
     if sol.controls is not None:
