@@ -47,10 +47,12 @@ class Run:
 
     label: str
     sol: Solution
+    #: path-constraint margins below -tol are violations (store.path_tolerance); above, round-off
+    tol: float = 1e-8
 
     @classmethod
-    def of(cls, sol: Solution) -> "Run":
-        return cls(sol.method, sol)
+    def of(cls, sol: Solution, tol: float = 1e-8) -> "Run":
+        return cls(sol.method, sol, tol)
 
     @property
     def color(self):
@@ -719,14 +721,16 @@ def _describe(c) -> str:
 
 def fig_constraints(runs, problem: Problem):
     """The margin of each path constraint over time (≥ 0 where it holds): the zero line, and the
-    times where a method violates it shaded red."""
+    times where a method violates it by more than the tolerance (Run.tol: a margin of -1e-11 is
+    round-off) shaded red."""
     cons = problem.constraints
     fig, axs = _subplots(len(cons), figsize=(W, 1.2 + 1.7 * len(cons)))
     for ax, c in zip(axs, cons):
         for run in runs:
             mg = c.margin(run.sol.trajectory)
             ax.plot(run.t, mg, color=run.color, ls=run.ls, lw=1.6, label=run.name)
-            _shade(ax, run.t, mg < 0, FAIL, label="violated" if run is runs[0] else None, alpha=0.12)
+            _shade(ax, run.t, mg < -run.tol, FAIL, label=f"violated by more than {run.tol:.0e}" if run is runs[0] else None,
+                   alpha=0.12)
         ax.axhline(0.0, color="k", lw=1.0, gid="zero-line")
         ax.set_ylabel(units(problem).label("margin", MARGIN_DIMENSION.get(c.kind, "none")))
         ax.set_title(_describe(c), fontsize=9, loc="left")
@@ -839,17 +843,22 @@ def draw(name: str, runs: list[Run], problem: Problem):
         return FIGURES[name](runs, problem)
 
 
-def _runs(result: Solution | Comparison) -> list[Run]:
-    """The runs to draw: every method that applies to the problem (not Result.not_applicable)."""
+def _runs(result: Solution | Comparison, tol: float | None = None) -> list[Run]:
+    """The runs to draw: every method that applies to the problem (not Result.not_applicable);
+    ``tol``: the path-constraint tolerance (store.path_tolerance; None: its default)."""
+    from .store import DEFAULT_PATH_TOL
     from .store import applicable as applicable_methods
 
-    return [Run.of(s) for s in applicable_methods(result).values()]
+    return [Run.of(s, DEFAULT_PATH_TOL if tol is None else tol) for s in applicable_methods(result).values()]
 
 
-def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:
+def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None, *,
+            constraint_tol: float | None = None) -> dict:
     """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory;
-    ``which`` limits the names (figures that do not apply are left out)."""
-    runs = _runs(result)
+    ``which`` limits the names (figures that do not apply are left out); ``constraint_tol``: margins
+    of path constraints below -constraint_tol are drawn as violations (default
+    store.DEFAULT_PATH_TOL; a results directory uses its maneuver's terminal_tol)."""
+    runs = _runs(result, constraint_tol)
     problem = runs[0].sol.problem
     if which:
         unknown = set(which) - set(FIGURES)
@@ -861,17 +870,18 @@ def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None)
 def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
     """(Re)draw the figures of a results directory as PNG and PDF; returns the paths written.
     ``stale_only``: draw only the figures whose PNG is missing or older than the run's data."""
-    from .store import read_run
+    from .store import path_tolerance, read_run
 
     d = Path(results_dir)
     run = read_run(d)
+    tol = path_tolerance(run.maneuver)
     if stale_only:
-        runs = _runs(run.result)
+        runs = _runs(run.result, tol)
         todo = tuple(n for n in applicable(runs, runs[0].sol.problem) if not is_fresh(d, n) and (not which or n in which))
         if not todo:
             return []
         which = todo
-    runs = _runs(run.result)
+    runs = _runs(run.result, tol)
     written = []
     for name in applicable(runs, runs[0].sol.problem):  # one at a time: one figure in memory
         if which and name not in which:

@@ -65,11 +65,15 @@ def _fmt(value: Any, fmt: str) -> str:
         return str(value)
 
 
-def merit_rows(sols: dict[str, Solution]) -> list[dict[str, Any]]:
+def merit_rows(sols: dict[str, Solution], tol: float | None = None) -> list[dict[str, Any]]:
     """The summary table: one row per quantity that some method has, a cell per method; the
-    margins of path constraints (negative: violated) flagged ``bad``."""
+    margins of path constraints violated by more than ``tol`` (store.path_tolerance; default
+    store.DEFAULT_PATH_TOL) flagged ``bad`` -- a margin of -1e-11 is round-off, not a violation."""
     import numpy as np
 
+    from .store import DEFAULT_PATH_TOL
+
+    tol = DEFAULT_PATH_TOL if tol is None else tol
     with np.errstate(all="ignore"):  # a failed run's non-finite states: reported as nan, not warned about
         summ = {m: s.summary() for m, s in sols.items()}
     un = units(next(iter(sols.values())).problem) if sols else Units(normalized=True)
@@ -89,9 +93,9 @@ def merit_rows(sols: dict[str, Solution]) -> list[dict[str, Any]]:
         cells = []
         for s in summ.values():
             v = s.get(key)
-            bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < 0
+            bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < -tol
             cells.append({"text": _fmt(v, fmt), "bad": bad})
-        rows.append({"label": label, "unit": unit, "cells": cells})
+        rows.append({"label": label, "unit": unit, "cells": cells, "margin": key.startswith("min_margin_")})
     return rows
 
 
@@ -121,15 +125,16 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def figure_images(results_dir: Path | None, result, draw: bool = True) -> list[tuple[str, bytes]]:
+def figure_images(results_dir: Path | None, result, draw: bool = True, tol: float | None = None
+                  ) -> list[tuple[str, bytes]]:
     """(name, PNG bytes) of every figure that applies to ``result``: the results directory's
-    fig_<name>.png where it is up to date, otherwise drawn in memory (``draw``) -- nothing is
-    written."""
+    fig_<name>.png where it is up to date, otherwise drawn in memory (``draw``; ``tol`` the
+    path-constraint tolerance) -- nothing is written."""
     import matplotlib.pyplot as plt
 
     from . import plots
 
-    runs = plots._runs(result)
+    runs = plots._runs(result, tol)
     names = plots.applicable(runs, runs[0].sol.problem)
     out, missing = {}, []
     for n in names:
@@ -151,6 +156,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
 
     from .. import __version__
     from .plots import CAPTIONS
+    from .store import path_tolerance
 
     result = run.result
     sols = dict(run.solutions)
@@ -177,6 +183,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         history.append({"method": m, "cols": cols,
                         "rows": [[_cell(r.get(c)) for c in cols] for r in recs]})
     command = summ.get("command") or ("compare" if comparison else "solve")
+    tol = path_tolerance(run.maneuver)
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
                              autoescape=jinja2.select_autoescape(["html", "j2"], default=True),
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
@@ -186,7 +193,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         control=run.maneuver.control_kind or "none (free motion)", discretization=run.maneuver.discretization,
         N=run.maneuver.N, T=_horizon(problem), units=units(problem), methods=methods, method_names=list(sols),
-        ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols), comparison=comparison,
+        ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols, tol), tol=tol, comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
         figures=[{"name": n, "caption": CAPTIONS.get(n, n), "data": base64.b64encode(b).decode("ascii")}
                  for n, b in images],
@@ -241,11 +248,11 @@ def _cell(v) -> str:
 def write_report(results_dir: Path, draw: bool = True) -> Path:
     """Write ``report.html`` into a results directory (atomically); figures are taken from the
     directory where up to date, else drawn in memory (``draw=False``: the page without them)."""
-    from .store import read_run
+    from .store import path_tolerance, read_run
 
     d = Path(results_dir)
     run = read_run(d)
-    images = figure_images(d, run.result, draw=draw)
+    images = figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver))
     cfg = d / "config.resolved.yaml"
     html = render(run, images, cfg.read_text() if cfg.is_file() else "")
     out = d / "report.html"

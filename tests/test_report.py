@@ -6,6 +6,7 @@ every embedded image decodes, the table and at least three figures are on the sc
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import shutil
@@ -13,11 +14,12 @@ import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.problems import store
+from se3ocp.problems import plots, store
 from se3ocp.problems.report import merit_rows, render, write_report
 from se3ocp.transcription.problem import BoxBound, KeepOut, MinRadius, NormBound, SmoothControl
 from support import maneuver, slew_comparison
@@ -142,6 +144,29 @@ def test_a_method_not_applicable_is_a_neutral_card_with_its_message(slew_report)
     assert '<div class="verdict na" id="verdict">' in text and "<b>not comparable: the indirect method" in text
     assert "<code>se3ocp compare</code>" in text
     assert _rows(text)["status"] == ["", "converged"]                  # the table: the applicable method only
+
+
+def test_a_round_off_margin_is_not_a_violation(slew_report):
+    """A margin of -5e-11 deg is round-off: red only when it exceeds the tolerance, which is the
+    maneuver's solver.direct.terminal_tol (the direct method's own threshold), stated in the note."""
+    _, res, text = slew_report
+    assert "violated by more than 1e-06" in text                         # the file's terminal_tol (the default)
+    d = res.direct
+    c = d.problem.constraints[0]
+    worst = float(np.min(c.angles_deg(d.trajectory)))
+    edge = KeepOut(c.body_axis, c.direction, worst + 5e-11)              # the path grazes the cone: margin -5e-11
+    sol = dataclasses.replace(d, problem=d.problem.replace(constraints=(edge,)))
+    assert -1e-10 < sol.summary()["min_margin_keep_out"] < 0
+    cell = {r["label"]: r for r in merit_rows({"direct": sol})}["minimum margin: keep out"]["cells"][0]
+    assert cell["bad"] is False                                          # default tolerance 1e-8
+    cell = {r["label"]: r for r in merit_rows({"direct": sol}, tol=1e-12)}["minimum margin: keep out"]["cells"][0]
+    assert cell["bad"] is True
+    for tol, shaded in ((None, False), (1e-12, True)):                   # the figure shades by the same rule
+        fig = plots.figures(sol, ("constraints",), constraint_tol=tol)["constraints"]
+        assert bool([a for a in fig.findobj() if getattr(a, "get_gid", lambda: None)() == "bound-active"]) is shaded
+        plt.close(fig)
+    assert store.path_tolerance(maneuver("e3", 30, None, "solver.direct.terminal_tol=1e-12")) == 1e-12
+    assert store.path_tolerance(None) == store.DEFAULT_PATH_TOL == 1e-8
 
 
 def test_user_text_is_escaped(compared, tmp_path):
