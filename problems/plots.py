@@ -353,8 +353,10 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
     frame (e1 red, e2 green, e3 blue; the dumbbell's rod in grey) at a few nodes, drawn large
     enough to see its rotation; impulse directions for impulsive maneuvers.  When the path is
     short against the orbit (a slew), a second panel zooms on it with the body frame drawn at the
-    path's scale."""
+    path's scale.  Without a central body there is no orbit to show: see :func:`_maneuver_free`."""
     model = problem.model
+    if not model.mu:
+        return _maneuver_free(runs, problem, n_bodies)
     _, size = _body_points(problem)
     first = runs[0].sol
     X0 = first.trajectory.x
@@ -427,6 +429,72 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
     handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=5))
     labels.append("start (o), end (■)")
     fig.legend(handles, labels, loc="outside lower center", ncols=4 if zoom else 3, fontsize=8, frameon=False)
+    return _finish(fig, runs, problem, what)
+
+
+def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
+    """The maneuver without a central body: one panel on the path, the body frame at n_bodies
+    nodes.  When the body hardly moves (a slew: the path shorter than the body), the frames are laid
+    out left to right in time order (a filmstrip; positions on that axis are not positions) with
+    their times, and with the direction of each cone constraint (keep-out, keep-in) at every frame."""
+    _, size = _body_points(problem)
+    first = runs[0].sol
+    paths = np.vstack([r.sol.trajectory.x for r in runs])
+    paths = paths[np.all(np.isfinite(paths), axis=1)]
+    extent = float(np.ptp(paths, axis=0).max()) if len(paths) else 0.0
+    slew = extent < size
+    fig = plt.figure(figsize=(W * 1.6, 3.4) if slew else (W, 6.4), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    ax.computed_zorder = False
+    un = units(problem)
+    handles, labels = [], []
+    if not slew:  # the body moves: its path, with the body frame at the path's scale
+        c = 0.5 * (paths.max(0) + paths.min(0))
+        lz = 0.6 * extent
+        L = 0.25 * lz
+        _bodies(ax, problem, first, L, n_bodies)
+        _paths(ax, runs)
+        if isinstance(problem.terminal, TargetState) and "position" in problem.terminal.fixed:
+            ax.scatter(*problem.terminal.X[0:3], marker="x", s=70, color="k", label="desired position", zorder=6)
+        _cube(ax, lz, c)
+        for a, lab in ((ax.set_xlabel, "x₁"), (ax.set_ylabel, "x₂"), (ax.set_zlabel, "x₃")):
+            a(un.label(lab, "length"))
+        what = f"maneuver (no central body; body frame ×{L / size:.2g})"
+        handles, labels = ax.get_legend_handles_labels()
+        handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=5))
+        labels.append("start (o), end (■)")
+    else:  # a slew: the attitude at a few times, side by side
+        ks = np.unique(np.linspace(0, first.N, n_bodies).round().astype(int))
+        cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+        for j, k in enumerate(ks):
+            a = ax if j == 0 else fig.add_subplot(1, len(ks), j + 1, projection="3d")
+            if j == 0:
+                a.set_subplotspec(fig.add_gridspec(1, len(ks))[0, 0])
+            a.computed_zorder = False
+            _triad(a, np.zeros(3), np.eye(3), 1.0, lw=0.8, alpha=0.3, zorder=1)   # the inertial axes, faint
+            for c in cones:
+                a.plot(*np.vstack([np.zeros(3), 1.2 * c.direction]).T, color="k", ls=":", lw=1.6, zorder=2)
+            for run in runs:
+                R = run.sol.trajectory.R
+                kk = min(int(np.searchsorted(run.t, first.trajectory.t[k])), len(R) - 1)
+                if np.all(np.isfinite(R[kk])):
+                    _triad(a, np.zeros(3), R[kk], 1.0, lw=2.2, ls=run.ls, zorder=3)
+            _cube(a, 0.85)
+            a.set_proj_type("ortho")
+            a.view_init(elev=20, azim=-60)
+            a.set_axis_off()
+            a.set_title(f"t = {first.trajectory.t[k]:.3g}", fontsize=10, y=0.92)
+        handles.append(Line2D([], [], color="0.3", lw=0.8, alpha=0.4))
+        labels.append("inertial axes")
+        for c in cones:
+            handles.append(Line2D([], [], color="k", ls=":", lw=1.6))
+            labels.append(f"{c.kind.replace('_', '-')} direction s ({c.angle_deg:g}° cone about it)")
+        handles += [Line2D([], [], color="0.3", ls=r.ls, lw=2.2) for r in runs]
+        labels += [f"{r.name}: body frame" for r in runs]
+        what = f"maneuver: the body does not move; its frame at {len(ks)} times"
+    handles += [Line2D([], [], color=c, lw=1.8) for c in COMP]
+    labels += [f"body e{i + 1}" for i in range(3)]
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9, frameon=False)
     return _finish(fig, runs, problem, what)
 
 
@@ -812,6 +880,14 @@ CAPTIONS = {
     "costates": "discrete costates λ_k by block (direct: mapped from the NLP multipliers)",
     "convergence": "residual per iteration (Newton–Armijo: every line-search trial)",
 }
+
+
+def caption(name: str, problem: Problem) -> str:
+    """The caption of a figure for this problem (CAPTIONS, but the maneuver of a problem without a
+    central body has no orbits)."""
+    if name == "maneuver" and not problem.model.mu:
+        return "no central body: the path and the body frame at a few nodes (a slew: the frame at a few times)"
+    return CAPTIONS.get(name, name)
 
 
 def applicable(runs: list[Run], problem: Problem) -> list[str]:

@@ -155,7 +155,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
     import jinja2
 
     from .. import __version__
-    from .plots import CAPTIONS
+    from .plots import caption
     from .store import path_tolerance
 
     result = run.result
@@ -195,7 +195,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         N=run.maneuver.N, T=_horizon(problem), units=units(problem), methods=methods, method_names=list(sols),
         ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols, tol), tol=tol, comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
-        figures=[{"name": n, "caption": CAPTIONS.get(n, n), "data": base64.b64encode(b).decode("ascii")}
+        figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii")}
                  for n, b in images],
         history=history, config=config_text)
 

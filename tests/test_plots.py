@@ -159,6 +159,29 @@ def test_a_slew_gets_a_zoom_on_the_path():
     _close({"m": fig})
 
 
+def test_without_a_central_body_no_orbit_panel(slew):
+    """No central body: no orbit view (it was a lone dot), no orbital elements, no RTN thrust.  A
+    slew (the body does not move) shows its frame at a few times side by side, with the keep-out
+    direction; a body that moves gets one panel on its path."""
+    res, figs = slew
+    assert {"orbital_elements", "thrust_rtn"}.isdisjoint(figs)
+    fig = figs["maneuver"]
+    titles = [a.get_title() for a in fig.axes]
+    assert len(fig.axes) == 7 and titles[0] == "t = 0" and titles[-1] == "t = 10", titles
+    texts = legend_texts(fig)
+    assert "central body" not in texts and not any("orbit" in t for t in texts | set(titles))
+    assert "keep-out direction s (20° cone about it)" in texts
+    assert "does not move" in fig._suptitle.get_text()
+    p = res.direct.problem
+    U = np.zeros((6, p.disc.n_controls(p.N)))
+    U[0] = 1.0                                                      # a constant push along x: the body moves
+    sim = se3ocp.simulate(p.replace(control=SmoothControl(p.control.W_f, p.control.W_m)), U)
+    fig = se3ocp.plot(sim, ("maneuver",))["maneuver"]
+    assert len(fig.axes) == 1 and fig.axes[0].get_xlabel() == "x₁"
+    assert {"simulate path", "body e1"} <= legend_texts(fig) and "central body" not in legend_texts(fig)
+    _close({"m": fig})
+
+
 def test_attitude_views_show_target_and_error(both):
     res, figs = both
     fig = figs["attitude"]
