@@ -80,6 +80,28 @@ class Run:
         return self.sol.control_times
 
     @property
+    def per_step(self) -> bool:
+        """Whether the controls are one per step (first order: u_{k+1} acts over [t_k, t_{k+1}]),
+        rather than node values (LGVI: u_k at t_k, entering the steps on either side)."""
+        return self.sol.controls is not None and self.sol.controls.shape[1] == self.sol.N
+
+    @property
+    def control_edges(self) -> np.ndarray:
+        """Edges (n+1,) of the time each control stands for, so that its quadrature weight ω_j (the
+        cost's, Δv's and time at a bound's) is edges[j+1] - edges[j]: first order, the steps
+        [t_k, t_{k+1}] (ω = h); LGVI, the node cells [t_k - h/2, t_k + h/2] within [0, T]
+        (ω = h (½, 1, ..., 1, ½))."""
+        return self.t if self.per_step else node_cells(self.t)
+
+    def plot_control(self, ax, y: np.ndarray, **kw):
+        """Draw control values y (n,) against time: per-step controls as steps held over their step
+        (a bang-bang switch is a jump, not a ramp); node controls as node values joined by lines."""
+        kw = {"color": self.color, "ls": self.ls, **kw}
+        if self.per_step:
+            return ax.plot(self.control_edges, np.r_[y[:1], y], drawstyle="steps-pre", **kw)
+        return ax.plot(self.tu, y, **kw)
+
+    @property
     def node_of_control(self) -> np.ndarray:
         """The node index of each control (first order: u_1..u_N at nodes 1..N; lgvi: 0..N)."""
         n = self.sol.controls.shape[1]
@@ -212,13 +234,21 @@ def _intervals(mask: np.ndarray) -> list[tuple[int, int]]:
     return out
 
 
-def _shade(ax, t, mask, color, label=None, alpha=0.15):
-    """Shade the spans of t where mask holds (each sample covers half a step on either side)."""
+def node_cells(t: np.ndarray) -> np.ndarray:
+    """Edges (n+1,) of the cells of node values at times t (n,): half-way to the neighbours, the
+    first and last cells ending at t_0 and t_N."""
+    t = np.asarray(t, float)
+    return np.concatenate([t[:1], 0.5 * (t[:-1] + t[1:]), t[-1:]])
+
+
+def _shade(ax, edges, mask, color, label=None, alpha=0.15):
+    """Shade the cells [edges[i], edges[i+1]] where mask[i] holds (edges: Run.control_edges for
+    controls, node_cells(t) for node values), so that the shaded time is the sum of the cells'
+    quadrature weights -- for a control at its bound, the time_at_bound of figures_of_merit."""
     if not np.any(mask):
         return
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     for n, (i0, i1) in enumerate(_intervals(mask)):
-        ax.axvspan(t[i0] - 0.5 * dt, t[i1] + 0.5 * dt, color=color, alpha=alpha, lw=0,
+        ax.axvspan(edges[i0], edges[i1 + 1], color=color, alpha=alpha, lw=0,
                    label=label if n == 0 else None, gid="bound-active")
 
 
@@ -571,19 +601,23 @@ def fig_attitude_error(runs: list[Run], problem: Problem):
     return _finish(fig, runs, problem, what)
 
 
-def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None):
+def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None, controls=False):
     """Three stacked component plots, methods overlaid; a BoxBound draws ±b_i and shades where a
-    component is at its limit."""
+    component is at its limit.  ``controls``: the values are the run's controls (drawn by
+    Run.plot_control: per-step controls as steps)."""
     fig, axs = _subplots(3, figsize=(W, 6.0))
     for run in runs:
         t, Y = key_fn(run)
         if Y is None:
             continue
         for i, ax in enumerate(axs):
-            ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
+            if controls:
+                run.plot_control(ax, Y[:, i], lw=1.5, label=run.name)
+            else:
+                ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
         if isinstance(bound, BoxBound):
             for i, ax in enumerate(axs):
-                _shade(ax, t, np.abs(Y[:, i]) >= bound.b[i] * (1 - AT_BOUND_RTOL), run.color,
+                _shade(ax, run.control_edges, np.abs(Y[:, i]) >= bound.b[i] * (1 - AT_BOUND_RTOL), run.color,
                        label=f"{run.label} at bound")
         if impulses is not None:
             jumps = impulses(run)
@@ -665,14 +699,14 @@ def fig_force(runs, problem: Problem):
     b = _bound_of(problem, "force")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_f),
                        ["$u_{f,1}$", "$u_{f,2}$", "$u_{f,3}$"],
-                       units(problem).label("control force u_f, inertial components", "force"), bound=b)
+                       units(problem).label("control force u_f, inertial components", "force"), bound=b, controls=True)
 
 
 def fig_moment(runs, problem: Problem):
     b = _bound_of(problem, "moment")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_m),
                        ["$u_{m,1}$", "$u_{m,2}$", "$u_{m,3}$"],
-                       units(problem).label("control moment u_m, body components", "moment"), bound=b)
+                       units(problem).label("control moment u_m, body components", "moment"), bound=b, controls=True)
 
 
 def fig_control_norms(runs, problem: Problem):
@@ -688,11 +722,11 @@ def fig_control_norms(runs, problem: Problem):
         bound = _bound_of(problem, which)
         for run in runs:
             u = getattr(run.sol, key)
-            ax.plot(run.tu, np.linalg.norm(u, axis=1), color=run.color, ls=run.ls, lw=1.6, label=run.name)
+            run.plot_control(ax, np.linalg.norm(u, axis=1), lw=1.6, label=run.name)
             if bound is not None:
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
-                _shade(ax, run.tu, act, run.color, label=f"{run.label} at bound ({un.duration(tab)})")
+                _shade(ax, run.control_edges, act, run.color, label=f"{run.label} at bound ({un.duration(tab)})")
         if isinstance(bound, NormBound):
             ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")
         elif isinstance(bound, BoxBound):
@@ -714,7 +748,8 @@ def fig_thrust_rtn(runs, problem: Problem):
 
     return _components([r for r in runs if r.sol.controls is not None], problem, comp,
                        ["radial $u_R$", "along-track $u_T$", "normal $u_N$"],
-                       units(problem).label("control force in the orbit frame: radial, along-track, normal", "force"))
+                       units(problem).label("control force in the orbit frame: radial, along-track, normal", "force"),
+                       controls=True)
 
 
 def fig_orbital_elements(runs, problem: Problem):
@@ -797,7 +832,7 @@ def fig_constraints(runs, problem: Problem):
         for run in runs:
             mg = c.margin(run.sol.trajectory)
             ax.plot(run.t, mg, color=run.color, ls=run.ls, lw=1.6, label=run.name)
-            _shade(ax, run.t, mg < -run.tol, FAIL, label=f"violated by more than {run.tol:.0e}" if run is runs[0] else None,
+            _shade(ax, node_cells(run.t), mg < -run.tol, FAIL, label=f"violated by more than {run.tol:.0e}" if run is runs[0] else None,
                    alpha=0.12)
         ax.axhline(0.0, color="k", lw=1.0, gid="zero-line")
         ax.set_ylabel(units(problem).label("margin", MARGIN_DIMENSION.get(c.kind, "none")))
@@ -1068,7 +1103,7 @@ class Animation:
                 for key, lw, alpha in shown:
                     nu = np.linalg.norm(getattr(s, key), axis=1)
                     sc.append(max(nu.max(), 1e-300))
-                    axt.plot(run.tu, nu / sc[-1], color=run.color, ls=run.ls, lw=lw, alpha=alpha)
+                    run.plot_control(axt, nu / sc[-1], lw=lw, alpha=alpha)
                 scales.append(sc)
             else:
                 E = np.einsum("ji,kjl->kil", Rd if Rd is not None else s.trajectory.R[0], s.trajectory.R)

@@ -100,6 +100,13 @@ def by_gid(fig, gid):
     return [a for a in fig.findobj() if getattr(a, "get_gid", lambda: None)() == gid]
 
 
+def held(line):
+    """(edges, values) of a line drawn as steps held over intervals (drawstyle steps-pre: the first
+    value repeated at the first edge)."""
+    assert line.get_drawstyle() == "steps-pre", line.get_drawstyle()
+    return np.asarray(line.get_xdata()), np.asarray(line.get_ydata())[1:]
+
+
 def banner(fig):
     return [t for t in fig.texts if t.get_gid() == "failure-banner"]
 
@@ -212,7 +219,7 @@ def test_rtn_and_orbital_elements_are_those_of_the_orbit(both):
     res, figs = both
     d = res.direct
     ax_r, ax_t, ax_n = figs["thrust_rtn"].axes
-    comps = [next(ln for ln in ax.get_lines() if ln.get_label() == "direct").get_ydata() for ax in (ax_r, ax_t, ax_n)]
+    comps = [held(next(ln for ln in ax.get_lines() if ln.get_label() == "direct"))[1] for ax in (ax_r, ax_t, ax_n)]
     np.testing.assert_allclose(np.linalg.norm(comps, axis=0), np.linalg.norm(d.u_f, axis=1), rtol=1e-12)
     # a plane change pushes along the orbit normal: the normal component dominates
     assert np.abs(comps[2]).max() > 3 * np.abs(comps[0]).max()
@@ -301,6 +308,34 @@ def test_a_removed_control_is_absent_not_at_its_bound(both, slew):
     assert "moment" not in figs and {"force", "thrust_rtn", "velocity"} <= set(figs)
     assert len(figs["control_norms"].axes) == 1 and "u_f" in figs["control_norms"].axes[0].get_ylabel()
     _close(figs)
+
+
+# ------------------------------------------------------------------------- controls as the scheme applies them
+def test_per_step_controls_are_steps_and_the_shaded_time_is_the_time_at_bound(both, bounded, slew):
+    """First order: u_{k+1} is held over the step [t_k, t_{k+1}], so it is drawn as a step (a
+    bang-bang switch is a jump, not a ramp) and the shading where it is at its bound covers exactly
+    figures_of_merit's time at the bound.  LGVI node controls are node values joined by lines, and
+    their shading covers the node cells (the trapezoidal weights)."""
+    res, figs = both
+    d = res.direct
+    line = next(ln for ln in figs["force"].axes[0].get_lines() if ln.get_label() == "direct")
+    edges, vals = held(line)
+    np.testing.assert_array_equal(edges, d.trajectory.t)
+    np.testing.assert_array_equal(vals, d.u_f[:, 0])
+    sim, bfigs, _, _ = bounded
+    assert sim.discretization == "first_order"
+    fom = sim.summary()
+    for ax, key in zip(bfigs["control_norms"].axes, ("force_time_at_bound", "moment_time_at_bound")):
+        spans = by_gid(ax, "bound-active")
+        width = sum(p.get_width() for p in spans)
+        assert spans and width == pytest.approx(fom[key], rel=1e-12), key
+        assert all(np.isclose(p.get_x(), sim.trajectory.t).any() for p in spans)     # cells start at nodes
+    res, sfigs = slew
+    s = res.direct
+    assert s.discretization == "lgvi"
+    ln = next(ln for ln in sfigs["moment"].axes[2].get_lines() if ln.get_label() == "direct")
+    assert ln.get_drawstyle() == "default"
+    np.testing.assert_array_equal(ln.get_xdata(), s.control_times)
 
 
 # ------------------------------------------------------------------------- bounds and constraints
