@@ -810,13 +810,17 @@ def fig_costates(runs, problem: Problem):
     return _finish(fig, runs, problem, "discrete costates λ_k")
 
 
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.3g}" for x in np.asarray(v, float) + 0.0) + ")"
+
+
 def _describe(c) -> str:
     if isinstance(c, MinRadius):
         return f"min radius: |x| ≥ {c.radius:g}"
     if isinstance(c, KeepOut):
-        return f"keep-out: angle(R b, s) ≥ {c.angle_deg:g}°, b = {np.round(c.body_axis, 3)}, s = {np.round(c.direction, 3)}"
+        return f"keep-out: angle(R b, s) ≥ {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, direction s = {_vec(c.direction)}"
     if isinstance(c, KeepIn):
-        return f"keep-in: angle(R b, s) ≤ {c.angle_deg:g}°, b = {np.round(c.body_axis, 3)}, s = {np.round(c.direction, 3)}"
+        return f"keep-in: angle(R b, s) ≤ {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, direction s = {_vec(c.direction)}"
     if isinstance(c, MaxAngularRate):
         return f"max angular rate: |Ω| ≤ {c.value:g}"
     return c.kind
@@ -980,7 +984,9 @@ def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None,
 
 def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
     """(Re)draw the figures of a results directory as PNG and PDF; returns the paths written.
-    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data."""
+    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data.
+    Redrawing every figure also deletes the files of figures that no longer apply (drawn by an
+    earlier version: e.g. a force figure for a run whose force is removed)."""
     from .store import path_tolerance, read_run
 
     d = Path(results_dir)
@@ -993,8 +999,13 @@ def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_o
             return []
         which = todo
     runs = _runs(run.result, tol)
+    names = applicable(runs, runs[0].sol.problem)
+    if not which:
+        for name in set(FIGURES) - set(names):
+            for ext in (".png", ".pdf"):
+                (d / f"fig_{name}{ext}").unlink(missing_ok=True)
     written = []
-    for name in applicable(runs, runs[0].sol.problem):  # one at a time: one figure in memory
+    for name in names:  # one at a time: one figure in memory
         if which and name not in which:
             continue
         fig = draw(name, runs, runs[0].sol.problem)

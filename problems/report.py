@@ -103,7 +103,9 @@ def _bounds(problem) -> list[str]:
     out = []
     ctrl = problem.control
     for name, b in (("force", getattr(ctrl, "force_bound", None)), ("moment", getattr(ctrl, "moment_bound", None))):
-        if isinstance(b, NormBound):
+        if isinstance(b, NormBound) and b.b == 0:
+            out.append(f"{name}: removed (a norm bound of 0)")
+        elif isinstance(b, NormBound):
             out.append(f"{name}: |u| ≤ {b.b:g}")
         elif isinstance(b, BoxBound):
             out.append(f"{name}: |u_i| ≤ ({', '.join(f'{x:g}' for x in b.b)})")
@@ -117,6 +119,16 @@ def _horizon(problem) -> str:
         lo, hi = problem.time_bounds
         return f"T free in [{lo:g}, {hi:g}]{unit} (guess {problem.T:g})"
     return f"T = {problem.T:g}{unit}"
+
+
+def _aspect(png: bytes) -> float:
+    """Width over height of a PNG (from its IHDR chunk; 0 if it is not one): a wide figure (the
+    maneuver with a zoom panel, a slew's frames side by side) gets the page's full width, where its
+    text stays as large as in the other figures."""
+    if png[:8] != b"\x89PNG\r\n\x1a\n" or len(png) < 24:
+        return 0.0
+    w, h = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
+    return w / h if h else 0.0
 
 
 def _png(fig) -> bytes:
@@ -195,8 +207,8 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         N=run.maneuver.N, T=_horizon(problem), units=units(problem), methods=methods, method_names=list(sols),
         ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols, tol), tol=tol, comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
-        figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii")}
-                 for n, b in images],
+        figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii"),
+                  "wide": _aspect(b) > 1.7} for n, b in images],
         history=history, config=config_text)
 
 

@@ -412,6 +412,20 @@ def test_simulation_without_target_or_controls():
         se3ocp.plot(se3ocp.simulate(maneuver("free", 20, None, "horizon.T=0.02")), ("bogus",))
 
 
+def test_redrawing_a_results_directory_removes_figures_that_no_longer_apply(tmp_path):
+    """A figure drawn by an earlier version for a run it does not apply to (a force figure of a
+    slew whose force is removed) is deleted when the directory's figures are redrawn."""
+    from se3ocp.problems import store
+
+    man, res = slew_comparison()
+    store.write_run(tmp_path, man, res)
+    for stale in ("fig_force.png", "fig_force.pdf", "fig_velocity.png", "fig_orbital_elements.png"):
+        (tmp_path / stale).write_bytes(b"stale")
+    written = plots.draw_all(tmp_path)
+    assert {p.name for p in written} >= {"fig_maneuver.png", "fig_moment.pdf"}
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(("fig_force", "fig_velocity", "fig_orbital"))]
+
+
 # ------------------------------------------------------------------------- animation
 def test_animation_names_both_methods_and_moves(both, tmp_path):
     from PIL import Image

@@ -169,6 +169,32 @@ def test_a_round_off_margin_is_not_a_violation(slew_report):
     assert store.path_tolerance(None) == store.DEFAULT_PATH_TOL == 1e-8
 
 
+def test_bounds_and_constraints_read_as_words(slew_report):
+    _, _, text = slew_report
+    assert "force: removed (a norm bound of 0)" in text and "|u| ≤ 0" not in text
+    assert "body axis b = (1, 0, 0), direction s = (0.693, 0.693, 0.196)" in text
+
+
+def test_wide_figures_span_the_page(slew_report, tmp_path):
+    """A wide figure (a slew's frames side by side, the maneuver with a zoom panel) spans both
+    columns, so that its text is not shrunk to half the size of the others'."""
+    from PIL import Image
+
+    from se3ocp.problems.report import _aspect
+
+    def png(w, h):
+        import io
+
+        buf = io.BytesIO()
+        Image.new("RGB", (w, h), "white").save(buf, format="PNG")
+        return buf.getvalue()
+
+    assert _aspect(png(1200, 400)) == 3.0 and _aspect(b"not a png") == 0.0
+    d, _, _ = slew_report
+    text = render(store.read_run(d), [("maneuver", png(1200, 400)), ("attitude", png(700, 620))])
+    assert '<figure id="fig-maneuver" class="wide">' in text and '<figure id="fig-attitude">' in text
+
+
 def test_user_text_is_escaped(compared, tmp_path):
     d, res, _ = compared
     evil = '<img src=x onerror=alert(1)>&"'
