@@ -38,6 +38,8 @@ QUAT = ("#333333", "#d62728", "#2ca02c", "#1f77b4")
 FAIL = "#c0392b"
 THRUST = "#e7298a"
 BOUND = "#444444"
+#: colours of cone constraints (keep-out, keep-in): not those of a body axis or a method
+CONE = {"keep_out": "#b8860b", "keep_in": "#00838f"}
 W, H = 7.2, 5.4  # the default figure size (inches)
 
 
@@ -473,7 +475,7 @@ def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
     paths = paths[np.all(np.isfinite(paths), axis=1)]
     extent = float(np.ptp(paths, axis=0).max()) if len(paths) else 0.0
     slew = extent < size
-    fig = plt.figure(figsize=(W * 1.6, 3.4) if slew else (W, 6.4), layout="constrained")
+    fig = plt.figure(figsize=(W * 1.6, 2.7) if slew else (W, 6.4), layout="constrained")
     ax = fig.add_subplot(projection="3d")
     ax.computed_zorder = False
     un = units(problem)
@@ -503,21 +505,22 @@ def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
             a.computed_zorder = False
             _triad(a, np.zeros(3), np.eye(3), 1.0, lw=0.8, alpha=0.3, zorder=1)   # the inertial axes, faint
             for c in cones:
-                a.plot(*np.vstack([np.zeros(3), 1.2 * c.direction]).T, color="k", ls=":", lw=1.6, zorder=2)
+                a.plot(*np.vstack([np.zeros(3), 1.2 * c.direction]).T, color=CONE[c.kind], ls=":", lw=1.8, zorder=2)
             for run in runs:
                 R = run.sol.trajectory.R
                 kk = min(int(np.searchsorted(run.t, first.trajectory.t[k])), len(R) - 1)
                 if np.all(np.isfinite(R[kk])):
                     _triad(a, np.zeros(3), R[kk], 1.0, lw=2.2, ls=run.ls, zorder=3)
-            _cube(a, 0.85)
+            _cube(a, 1.0)
+            a.set_box_aspect((1, 1, 1), zoom=1.45)
             a.set_proj_type("ortho")
             a.view_init(elev=20, azim=-60)
             a.set_axis_off()
-            a.set_title(f"t = {first.trajectory.t[k]:.3g}", fontsize=10, y=0.92)
+            a.set_title(f"t = {first.trajectory.t[k]:.3g}", fontsize=10, y=0.98)
         handles.append(Line2D([], [], color="0.3", lw=0.8, alpha=0.4))
         labels.append("inertial axes")
         for c in cones:
-            handles.append(Line2D([], [], color="k", ls=":", lw=1.6))
+            handles.append(Line2D([], [], color=CONE[c.kind], ls=":", lw=1.8))
             labels.append(f"{c.kind.replace('_', '-')} direction s ({c.angle_deg:g}° cone about it)")
         handles += [Line2D([], [], color="0.3", ls=r.ls, lw=2.2) for r in runs]
         labels += [f"{r.name}: body frame" for r in runs]
@@ -567,6 +570,22 @@ def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
         n = problem.terminal.normal
         ax.plot(*np.vstack([-1.15 * n, 1.15 * n]).T, color="k", ls="--", lw=1.2, zorder=6)
         handles.append(Line2D([], [], color="k", ls="--", lw=1.2, label="target: body axis along ± orbit normal"))
+    for c in problem.constraints:  # cones: the boundary on the sphere, about its direction s
+        if not isinstance(c, (KeepOut, KeepIn)):
+            continue
+        th = np.radians(c.angle_deg)
+        ring = np.cos(th) * c.direction + _circle(np.sin(th), c.direction, 120)
+        col = CONE[c.kind]
+        ax.plot(*ring.T, color=col, lw=1.6, zorder=2)
+        ax.plot(*np.vstack([np.zeros(3), 1.15 * c.direction]).T, color=col, ls=":", lw=1.4, zorder=2)
+        i = next((i for i in range(3) if np.allclose(np.abs(c.body_axis), np.eye(3)[i])), None)
+        axis = f"e{i + 1}" if i is not None else f"b = {_vec(c.body_axis)}"
+        if i is None:  # a body axis that is not a principal one: its path too
+            for run in runs:
+                Rb = np.einsum("kij,j->ki", run.sol.trajectory.R, c.body_axis)
+                ax.plot(*Rb.T, color=col, ls=run.ls, lw=1.2, zorder=3)
+        handles.append(Line2D([], [], color=col, lw=1.6,
+                              label=f"{c.kind.replace('_', '-')} cone of {axis}: {c.angle_deg:g}° about s"))
     ax.set_xlabel("inertial x₁")
     ax.set_ylabel("inertial x₂")
     ax.set_zlabel("inertial x₃")

@@ -189,6 +189,17 @@ def test_without_a_central_body_no_orbit_panel(slew):
     _close({"m": fig})
 
 
+def test_attitude_view_shows_the_keep_out_cone(slew):
+    res, figs = slew
+    fig = figs["attitude"]
+    c = res.direct.problem.constraints[0]
+    assert "keep-out cone of e1: 20° about s" in legend_texts(fig)
+    ring = next(ln for ln in fig.axes[0].get_lines() if matplotlib.colors.same_color(ln.get_color(), plots.CONE["keep_out"])
+                and len(ln.get_data_3d()[0]) > 10)
+    pts = np.array(ring.get_data_3d()).T
+    np.testing.assert_allclose(np.degrees(np.arccos(np.clip(pts @ c.direction, -1, 1))), 20.0, atol=1e-9)
+
+
 def test_attitude_views_show_target_and_error(both):
     res, figs = both
     fig = figs["attitude"]
