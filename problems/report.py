@@ -121,14 +121,21 @@ def _horizon(problem) -> str:
     return f"T = {problem.T:g}{unit}"
 
 
-def _aspect(png: bytes) -> float:
-    """Width over height of a PNG (from its IHDR chunk; 0 if it is not one): a wide figure (the
-    maneuver with a zoom panel, a slew's frames side by side) gets the page's full width, where its
-    text stays as large as in the other figures."""
+def _width(png: bytes) -> int:
+    """The width in pixels of a PNG (from its IHDR chunk; 0 if it is not one)."""
     if png[:8] != b"\x89PNG\r\n\x1a\n" or len(png) < 24:
-        return 0.0
-    w, h = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
-    return w / h if h else 0.0
+        return 0
+    return int.from_bytes(png[16:20], "big")
+
+
+def _wide(images: list[tuple[str, bytes]]) -> list[bool]:
+    """Which figures are wider than the others (the maneuver with a zoom panel, a slew's frames
+    side by side: 1.6 times the usual width) and get the page's full width, where their text is
+    as large as the others' rather than shrunk into a column.  Short figures of the usual width
+    stay in their column."""
+    widths = [_width(b) for _, b in images]
+    usual = sorted(widths)[len(widths) // 2] if widths else 0
+    return [w > 1.3 * usual for w in widths]
 
 
 def _png(fig) -> bytes:
@@ -208,7 +215,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols, tol), tol=tol, comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
         figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii"),
-                  "wide": _aspect(b) > 1.7} for n, b in images],
+                  "wide": w} for (n, b), w in zip(images, _wide(images))],
         history=history, config=config_text)
 
 

@@ -180,7 +180,7 @@ def test_wide_figures_span_the_page(slew_report, tmp_path):
     columns, so that its text is not shrunk to half the size of the others'."""
     from PIL import Image
 
-    from se3ocp.problems.report import _aspect
+    from se3ocp.problems.report import _wide
 
     def png(w, h):
         import io
@@ -189,10 +189,12 @@ def test_wide_figures_span_the_page(slew_report, tmp_path):
         Image.new("RGB", (w, h), "white").save(buf, format="PNG")
         return buf.getvalue()
 
-    assert _aspect(png(1200, 400)) == 3.0 and _aspect(b"not a png") == 0.0
+    figs = [("maneuver", png(1200, 300)), ("attitude", png(700, 620)), ("control_norms", png(750, 330)),
+            ("moment", png(750, 600))]
+    assert _wide(figs) == [True, False, False, False]                 # short is not wide
     d, _, _ = slew_report
-    text = render(store.read_run(d), [("maneuver", png(1200, 400)), ("attitude", png(700, 620))])
-    assert '<figure id="fig-maneuver" class="wide">' in text and '<figure id="fig-attitude">' in text
+    text = render(store.read_run(d), figs)
+    assert '<figure id="fig-maneuver" class="wide">' in text and '<figure id="fig-control_norms">' in text
 
 
 def test_user_text_is_escaped(compared, tmp_path):
