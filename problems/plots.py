@@ -460,7 +460,8 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
     labels += [f"body e{i + 1}" for i in range(3)]
     handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=5))
     labels.append("start (o), end (■)")
-    fig.legend(handles, labels, loc="outside lower center", ncols=4 if zoom else 3, fontsize=8, frameon=False)
+    fig.legend(handles, labels, loc="outside lower center", ncols=5 if zoom else 3, fontsize=10 if zoom else 8.5,
+               frameon=False)  # the wide figure is shown wider: the same size on the page
     return _finish(fig, runs, problem, what)
 
 
@@ -745,13 +746,17 @@ def fig_control_norms(runs, problem: Problem):
             if bound is not None:
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
-                _shade(ax, run.control_edges, act, run.color, label=f"{run.label} at bound ({un.duration(tab)})")
+                _shade(ax, run.control_edges, act, run.color,
+                       label=f"{run.label} at bound ({un.duration(tab)})" if isinstance(bound, NormBound) else
+                       f"{run.label}: a component at its bound ({un.duration(tab)})")
         if isinstance(bound, NormBound):
             ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")
-        elif isinstance(bound, BoxBound):
+        elif isinstance(bound, BoxBound):  # |u| reaches |b| only with every component at its bound
+            ax.axhline(float(np.linalg.norm(bound.b)), color=BOUND, ls=":", lw=1.2,
+                       label=f"|b| = {np.linalg.norm(bound.b):.3g}: every component at its bound")
             ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{b:.3g}' for b in bound.b)}): see {which}")
+        ax.set_ylim(0.0, 1.12 * max(ax.get_ylim()[1] / 1.05, 1e-300))  # room above a bound the data ride on
         ax.legend(fontsize=8, loc="best")
-        ax.set_ylim(bottom=0)
         ax.set_ylabel(un.label(ylab, which))
     _time_axes(axs, problem)
     what = "control magnitudes" + "".join(f" (the {w} is removed: a norm bound of 0)" for w in sorted(gone))

@@ -163,6 +163,9 @@ def test_a_slew_gets_a_zoom_on_the_path():
     assert len(fig.axes) == 2 and "zoom on the path" in fig.axes[1].get_title()
     lim = np.ptp(fig.axes[1].get_xlim())
     assert lim < 0.5 * np.ptp(fig.axes[0].get_xlim())       # the zoom is a zoom
+    # the wide figure is scaled down on a page more than the others: its legend is not smaller than its tick labels
+    size = min(t.get_fontsize() for t in fig.legends[0].get_texts())
+    assert size >= max(t.get_fontsize() for t in fig.axes[0].get_xticklabels())
     _close({"m": fig})
 
 
@@ -359,6 +362,9 @@ def test_norm_bound_line_and_active_shading(bounded):
     assert by_gid(ax_f, "bound-active") and by_gid(ax_m, "bound-active")      # the switching structure
     assert any(t.startswith("simulate at bound (") for t in legend_texts(fig))
     assert any("box bound" in t for t in legend_texts(fig))
+    assert any(t.startswith("simulate: a component at its bound (") for t in legend_texts(fig))
+    corner = [ln for ln in ax_m.get_lines() if ln.get_label().startswith("|b| = ")]       # a box's corner
+    assert len(corner) == 1 and np.allclose(corner[0].get_ydata(), np.linalg.norm(bm))
     assert sim.summary()["force_time_at_bound"] > 0 and sim.summary()["moment_time_at_bound"] > 0
 
 
