@@ -20,7 +20,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FixedLocator, MaxNLocator
 
 from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, Problem,
                                      TargetOrbit, TargetState)
@@ -284,15 +284,22 @@ def _time_axes(axs, problem: Problem):
 
 
 def _no_offset(ax):
-    """Plain tick labels; a (nearly) constant quantity gets a sensible window."""
+    """Plain tick labels; a (nearly) constant quantity gets a sensible window -- one tick at 0 for
+    a quantity that is zero throughout (not ±0.00004: precision it does not have)."""
     try:
         ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     except AttributeError:  # a log axis
         return
-    lo, hi = ax.get_ylim()
+    ys = [np.asarray(ln.get_ydata(), float) for ln in ax.get_lines()]
+    ys = np.concatenate([y[np.isfinite(y)] for y in ys]) if ys else np.zeros(0)
+    lo, hi = (float(ys.min()), float(ys.max())) if ys.size else ax.get_ylim()
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
     if half < 1e-6 * max(1.0, abs(mid)):
-        w = 0.05 * max(abs(mid), 1e-3)
+        if abs(mid) < 1e-6:
+            ax.set_ylim(-1.0, 1.0)
+            ax.yaxis.set_major_locator(FixedLocator([0.0]))
+            return
+        w = 0.05 * abs(mid)
         ax.set_ylim(mid - w, mid + w)
 
 
@@ -902,7 +909,8 @@ def fig_convergence(runs, problem: Problem):
     if not drew:
         ax.text(0.5, 0.5, "no iteration history recorded", ha="center", va="center", transform=ax.transAxes)
     ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True))
-    ax.set_xlabel("iteration (Newton–Armijo: line-search trial)")
+    newton = any(h.trial > 0 for r in runs for h in r.sol.history)
+    ax.set_xlabel("iteration (Newton–Armijo: line-search trial)" if newton else "iteration")
     ax.set_ylabel("residual (log scale)")
     ax.grid(alpha=0.3, which="both")
     if drew:

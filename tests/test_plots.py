@@ -169,6 +169,18 @@ def test_a_slew_gets_a_zoom_on_the_path():
     _close({"m": fig})
 
 
+def test_a_quantity_zero_throughout_has_one_tick_at_zero(slew):
+    """A rotation about z: Ω₁ = Ω₂ = 0 throughout, shown as a line at 0 with one tick, not with
+    ticks of ±0.00004 (precision the quantity does not have)."""
+    res, figs = slew
+    fig = figs["angular_velocity"]
+    fig.canvas.draw()
+    assert np.abs(res.direct.trajectory.Omega[:, :2]).max() < 1e-12
+    for ax in fig.axes[:2]:
+        assert [t.get_text() for t in ax.get_yticklabels() if t.get_text()] == ["0"], ax.get_ylabel()
+    assert len([t for t in fig.axes[2].get_yticklabels() if t.get_text()]) >= 3
+
+
 def test_without_a_central_body_no_orbit_panel(slew):
     """No central body: no orbit view (it was a lone dot), no orbital elements, no RTN thrust.  A
     slew (the body does not move) shows its frame at a few times side by side, with the keep-out
@@ -259,7 +271,7 @@ def test_convergence_draws_every_iteration(both):
     ax = figs["convergence"].axes[0]
     trials = next(ln for ln in ax.get_lines() if ln.get_label() == "indirect: all line-search trials")
     assert len(trials.get_ydata()) == len(res.indirect.history)
-    assert ax.get_yscale() == "log"
+    assert ax.get_yscale() == "log" and "line-search trial" in ax.get_xlabel()
 
 
 # ------------------------------------------------------------------------- units
@@ -400,6 +412,7 @@ def test_constraint_margins_with_zero_line_and_violations(bounded):
 def test_failed_run_is_marked(failed):
     res, figs = failed
     assert {"maneuver", "convergence", "force"} <= set(figs)
+    assert figs["convergence"].axes[0].get_xlabel() == "iteration"          # IPOPT alone: no line-search trials
     for name, fig in figs.items():
         b = banner(fig)
         assert len(b) == 1 and "direct: max_iterations" in b[0].get_text(), name
