@@ -621,8 +621,8 @@ def fig_attitude_error(runs: list[Run], problem: Problem):
     axs[1].set_ylabel("quaternion")
     axs[1].set_ylim(-1.05, 1.05)
     axs[0].legend(fontsize=8, loc="best")
-    axs[1].legend([Line2D([], [], color=c) for c in QUAT], ["q_w", "q_x", "q_y", "q_z"], fontsize=8, ncols=4,
-                  loc="lower left")
+    axs[1].legend([Line2D([], [], color=c) for c in QUAT], ["q_w", "q_x", "q_y", "q_z"], fontsize=8,
+                  loc="center left", bbox_to_anchor=(1.005, 0.5), frameon=False)  # beside: q spans [-1, 1]
     _time_axes(axs, problem)
     what = "attitude error to the target" if Rd is not None else "rotation from the initial attitude"
     return _finish(fig, runs, problem, what)

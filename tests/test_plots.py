@@ -224,6 +224,9 @@ def test_attitude_views_show_target_and_error(both):
     assert ang[0] > 90 and ang[-1] < 1e-6                     # E3 starts ~180 deg off and ends on the target
     quats = [ln.get_ydata() for ln in fig.axes[1].get_lines()][:4]
     np.testing.assert_allclose(np.sum(np.square(quats), axis=0), 1.0, atol=1e-12)
+    fig.canvas.draw()                                  # the quaternion spans [-1, 1]: its legend is beside, not on it
+    r = fig.canvas.get_renderer()
+    assert not fig.axes[1].get_legend().get_window_extent(r).overlaps(fig.axes[1].get_window_extent(r))
 
 
 def test_quaternions_and_angles_are_accurate():
