@@ -812,8 +812,13 @@ def fig_orbital_elements(runs, problem: Problem):
     axs[0].set_ylabel(units(problem).label("radius |x|", "length"))
     axs[1].set_ylabel("inclination (deg)")
     axs[2].set_ylabel("eccentricity")
-    for ax in axs:
-        ax.legend(fontsize=8, loc="best")
+    handles, labels = [], []
+    for ax in axs:  # one legend below the panels: inside, it covered the radius near its target
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8.5, frameon=False)
     _time_axes(axs, problem)
     return _finish(fig, runs, problem, "osculating orbit")
 
@@ -835,7 +840,7 @@ def fig_costates(runs, problem: Problem):
     handles = [Line2D([], [], color=c, lw=1.4) for c in COMP] + [Line2D([], [], color="k", ls=r.ls) for r in runs]
     labels = ["component 1", "component 2", "component 3"] + [
         r.name + (" (from multipliers)" if r.label == "direct" else "") for r in runs]
-    axs[0].legend(handles, labels, fontsize=8, ncols=2, loc="best")
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8.5, frameon=False)
     _time_axes(axs, problem)
     axs[-1].set_xlabel(units(problem).time_label.replace("time t", "time t_k of step k"))
     return _finish(fig, runs, problem, "discrete costates λ_k")
