@@ -539,6 +539,18 @@ def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
     return _finish(fig, runs, problem, what)
 
 
+def _cones(ax, problem: Problem) -> list:
+    """Draw each cone constraint (keep-out, keep-in) on the unit sphere of a 3-D axes: its boundary
+    about its direction s (dotted); returns the cones."""
+    cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+    for c in cones:
+        th = np.radians(c.angle_deg)
+        ring = np.cos(th) * c.direction + _circle(np.sin(th), c.direction, 120)
+        ax.plot(*ring.T, color=CONE[c.kind], lw=1.6, zorder=2)
+        ax.plot(*np.vstack([np.zeros(3), 1.15 * c.direction]).T, color=CONE[c.kind], ls=":", lw=1.4, zorder=2)
+    return cones
+
+
 def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
     """The attitude alone, on the unit sphere: the paths of the body axes R(t)e_i (inertial frame),
     the initial frame (thin), the final body frame of each method and the target frame (black,
@@ -578,14 +590,8 @@ def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
         n = problem.terminal.normal
         ax.plot(*np.vstack([-1.15 * n, 1.15 * n]).T, color="k", ls="--", lw=1.2, zorder=6)
         handles.append(Line2D([], [], color="k", ls="--", lw=1.2, label="target: body axis along ± orbit normal"))
-    for c in problem.constraints:  # cones: the boundary on the sphere, about its direction s
-        if not isinstance(c, (KeepOut, KeepIn)):
-            continue
-        th = np.radians(c.angle_deg)
-        ring = np.cos(th) * c.direction + _circle(np.sin(th), c.direction, 120)
+    for c in _cones(ax, problem):
         col = CONE[c.kind]
-        ax.plot(*ring.T, color=col, lw=1.6, zorder=2)
-        ax.plot(*np.vstack([np.zeros(3), 1.15 * c.direction]).T, color=col, ls=":", lw=1.4, zorder=2)
         i = next((i for i in range(3) if np.allclose(np.abs(c.body_axis), np.eye(3)[i])), None)
         axis = f"e{i + 1}" if i is not None else f"b = {_vec(c.body_axis)}"
         if i is None:  # a body axis that is not a principal one: its path too
@@ -1105,7 +1111,11 @@ class Animation:
         for a in (ax, axa):
             a.computed_zorder = False
         first = runs[0].sol
-        allx = np.vstack([r.sol.trajectory.x for r in runs] + [np.zeros((1, 3))])
+        _, size = _body_points(problem)
+        allx = np.vstack([r.sol.trajectory.x for r in runs] + ([np.zeros((1, 3))] if model.mu else []))
+        allx = allx[np.all(np.isfinite(allx), axis=1)]
+        extent = float(np.ptp(allx, axis=0).max()) if len(allx) else 0.0
+        still = not model.mu and extent < size  # a slew without a central body: the body at its own scale
         if model.mu:
             ax.scatter([0], [0], [0], s=120, color="#3b6ea8")
             orb = _orbit_ellipse(first.trajectory.x[0], first.trajectory.v[0], model.mu)
@@ -1118,6 +1128,8 @@ class Animation:
             allx = np.vstack([allx, target])
         center = 0.5 * (allx.max(0) + allx.min(0)) if not model.mu else np.zeros(3)
         lim = max(np.abs(allx - center).max() * 1.05, 1e-9)
+        if not model.mu:
+            lim = max(lim, 1.6 * size)
         for run in runs:
             ax.plot(*run.sol.trajectory.x.T, color=run.color, ls=run.ls, lw=1.2, alpha=0.6, label=run.name)
         _cube(ax, lim, center)
@@ -1135,6 +1147,7 @@ class Animation:
         elif isinstance(problem.terminal, TargetOrbit):
             n = problem.terminal.normal
             axa.plot(*np.vstack([-1.1 * n, 1.1 * n]).T, color="k", ls="--", lw=1.2)
+        _cones(axa, problem)
         _cube(axa, 1.1)
         for a in (axa.xaxis, axa.yaxis, axa.zaxis):
             a.set_ticklabels([])
@@ -1144,6 +1157,8 @@ class Animation:
         scales = []
         gone = removed(problem)
         shown = [(k, lw, a) for k, w, lw, a in (("u_f", "force", 1.3, 1.0), ("u_m", "moment", 0.9, 0.55)) if w not in gone]
+        if len(shown) == 1:  # one control: drawn as strongly as the force would be
+            shown = [(shown[0][0], 1.3, 1.0)]
         for run in runs:
             s = run.sol
             if s.controls is not None and shown:
@@ -1182,8 +1197,7 @@ class Animation:
         fig.suptitle(f"{problem.name}: {names}" + ("  —  NOT CONVERGED" if failed else ""),
                      x=0.01, ha="left", fontsize=11, color=FAIL if failed else "black")
         # moving artists
-        _, size = _body_points(problem)
-        L = 0.16 * lim
+        L = 0.6 * lim if still else 0.16 * lim
         scale = L / size
         fmax = max([np.linalg.norm(r.sol.u_f, axis=1).max() for r in runs if r.sol.controls is not None] + [1e-300])
         moving = []

@@ -194,6 +194,8 @@ def test_without_a_central_body_no_orbit_panel(slew):
     assert "central body" not in texts and not any("orbit" in t for t in texts | set(titles))
     assert "keep-out direction s (20° cone about it)" in texts
     assert "does not move" in fig._suptitle.get_text()
+    anim = plots.Animation(res)                                     # the animation: the body at its own scale
+    assert np.ptp(anim.fig.axes[0].get_xlim()) > 2 * plots._body_points(res.direct.problem)[1]
     p = res.direct.problem
     U = np.zeros((6, p.disc.n_controls(p.N)))
     U[0] = 1.0                                                      # a constant push along x: the body moves
