@@ -8,8 +8,9 @@ target (orbit, position, attitude).  A run that did not converge is marked in th
 red corner banner with its result code, so it is never mistaken for a good one.
 
 Importing this module does not choose a matplotlib backend (the CLI picks a non-interactive one
-itself; :func:`animate` renders on its own Agg canvas).  Units are the normalized ones of
-docs/mathematics.md §1: length in reference-orbit radii, time in orbital periods, mass in body masses.
+itself; :func:`animate` renders on its own Agg canvas).  Every unit in a label comes from
+:func:`problems.units.units` of the Problem: the normalized orbit units (radii, orbital periods) with
+a central body of GM = 4π², the dimension only ("mass·length/time²", "time t") without one.
 """
 from __future__ import annotations
 
@@ -19,13 +20,14 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FixedLocator, MaxNLocator
 
 from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, Problem,
                                      TargetOrbit, TargetState)
 from ..transcription.results import AT_BOUND_RTOL, Solution, figures_of_merit, rotation_angle
 from ..transcription.solve import Comparison
 from .io import save_figure
+from .units import MARGIN_DIMENSION, units
 
 #: colours of the methods (distinct from those of the components and body axes below)
 COLORS = {"direct": "#5e3c99", "indirect": "#e66101", "impulsive": "#5e3c99", "simulate": "#555555"}
@@ -33,10 +35,11 @@ STYLES = {"direct": "-", "indirect": "--", "impulsive": "-", "simulate": "-"}
 #: colours of vector components (and of the body axes e1, e2, e3)
 COMP = ("#d62728", "#2ca02c", "#1f77b4")
 QUAT = ("#333333", "#d62728", "#2ca02c", "#1f77b4")
-T_LABEL = "time t (orbital periods)"
 FAIL = "#c0392b"
 THRUST = "#e7298a"
 BOUND = "#444444"
+#: colours of cone constraints (keep-out, keep-in): not those of a body axis or a method
+CONE = {"keep_out": "#b8860b", "keep_in": "#00838f"}
 W, H = 7.2, 5.4  # the default figure size (inches)
 
 
@@ -46,10 +49,12 @@ class Run:
 
     label: str
     sol: Solution
+    #: path-constraint margins below -tol are violations (store.path_tolerance); above, round-off
+    tol: float = 1e-8
 
     @classmethod
-    def of(cls, sol: Solution) -> "Run":
-        return cls(sol.method, sol)
+    def of(cls, sol: Solution, tol: float = 1e-8) -> "Run":
+        return cls(sol.method, sol, tol)
 
     @property
     def color(self):
@@ -75,6 +80,28 @@ class Run:
     @property
     def tu(self) -> np.ndarray | None:
         return self.sol.control_times
+
+    @property
+    def per_step(self) -> bool:
+        """Whether the controls are one per step (first order: u_{k+1} acts over [t_k, t_{k+1}]),
+        rather than node values (LGVI: u_k at t_k, entering the steps on either side)."""
+        return self.sol.controls is not None and self.sol.controls.shape[1] == self.sol.N
+
+    @property
+    def control_edges(self) -> np.ndarray:
+        """Edges (n+1,) of the time each control stands for, so that its quadrature weight ω_j (the
+        cost's, Δv's and time at a bound's) is edges[j+1] - edges[j]: first order, the steps
+        [t_k, t_{k+1}] (ω = h); LGVI, the node cells [t_k - h/2, t_k + h/2] within [0, T]
+        (ω = h (½, 1, ..., 1, ½))."""
+        return self.t if self.per_step else node_cells(self.t)
+
+    def plot_control(self, ax, y: np.ndarray, **kw):
+        """Draw control values y (n,) against time: per-step controls as steps held over their step
+        (a bang-bang switch is a jump, not a ramp); node controls as node values joined by lines."""
+        kw = {"color": self.color, "ls": self.ls, **kw}
+        if self.per_step:
+            return ax.plot(self.control_edges, np.r_[y[:1], y], drawstyle="steps-pre", **kw)
+        return ax.plot(self.tu, y, **kw)
 
     @property
     def node_of_control(self) -> np.ndarray:
@@ -209,14 +236,28 @@ def _intervals(mask: np.ndarray) -> list[tuple[int, int]]:
     return out
 
 
-def _shade(ax, t, mask, color, label=None, alpha=0.15):
-    """Shade the spans of t where mask holds (each sample covers half a step on either side)."""
+def node_cells(t: np.ndarray) -> np.ndarray:
+    """Edges (n+1,) of the cells of node values at times t (n,): half-way to the neighbours, the
+    first and last cells ending at t_0 and t_N."""
+    t = np.asarray(t, float)
+    return np.concatenate([t[:1], 0.5 * (t[:-1] + t[1:]), t[-1:]])
+
+
+def _shade(ax, edges, mask, color, label=None, alpha=0.15):
+    """Shade the cells [edges[i], edges[i+1]] where mask[i] holds (edges: Run.control_edges for
+    controls, node_cells(t) for node values), so that the shaded time is the sum of the cells'
+    quadrature weights -- for a control at its bound, the time_at_bound of figures_of_merit."""
     if not np.any(mask):
         return
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     for n, (i0, i1) in enumerate(_intervals(mask)):
-        ax.axvspan(t[i0] - 0.5 * dt, t[i1] + 0.5 * dt, color=color, alpha=alpha, lw=0,
+        ax.axvspan(edges[i0], edges[i1 + 1], color=color, alpha=alpha, lw=0,
                    label=label if n == 0 else None, gid="bound-active")
+
+
+def removed(problem: Problem) -> set[str]:
+    """The controls a norm bound of 0 removes: a subset of {"force", "moment"}."""
+    rm = getattr(problem.control, "removed", (False, False))
+    return {name for name, r in zip(("force", "moment"), rm) if r}
 
 
 def _active(u: np.ndarray, bound) -> np.ndarray:
@@ -231,26 +272,34 @@ def _subplots(nrows: int, ncols: int = 1, figsize=(W, H), sharex=True, **kw):
     return fig, axs.ravel()
 
 
-def _time_axes(axs):
-    """Few, non-overlapping time ticks; the time label on the lowest axes only; grids."""
+def _time_axes(axs, problem: Problem):
+    """Few, non-overlapping time ticks; the time label (in the problem's units) on the lowest axes
+    only; grids."""
     for ax in axs:
         ax.xaxis.set_major_locator(MaxNLocator(nbins=6))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
         ax.grid(alpha=0.3)
         _no_offset(ax)
-    axs[-1].set_xlabel(T_LABEL)
+    axs[-1].set_xlabel(units(problem).time_label)
 
 
 def _no_offset(ax):
-    """Plain tick labels; a (nearly) constant quantity gets a sensible window."""
+    """Plain tick labels; a (nearly) constant quantity gets a sensible window -- one tick at 0 for
+    a quantity that is zero throughout (not ±0.00004: precision it does not have)."""
     try:
         ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     except AttributeError:  # a log axis
         return
-    lo, hi = ax.get_ylim()
+    ys = [np.asarray(ln.get_ydata(), float) for ln in ax.get_lines()]
+    ys = np.concatenate([y[np.isfinite(y)] for y in ys]) if ys else np.zeros(0)
+    lo, hi = (float(ys.min()), float(ys.max())) if ys.size else ax.get_ylim()
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
     if half < 1e-6 * max(1.0, abs(mid)):
-        w = 0.05 * max(abs(mid), 1e-3)
+        if abs(mid) < 1e-6:
+            ax.set_ylim(-1.0, 1.0)
+            ax.yaxis.set_major_locator(FixedLocator([0.0]))
+            return
+        w = 0.05 * abs(mid)
         ax.set_ylim(mid - w, mid + w)
 
 
@@ -343,8 +392,10 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
     frame (e1 red, e2 green, e3 blue; the dumbbell's rod in grey) at a few nodes, drawn large
     enough to see its rotation; impulse directions for impulsive maneuvers.  When the path is
     short against the orbit (a slew), a second panel zooms on it with the body frame drawn at the
-    path's scale."""
+    path's scale.  Without a central body there is no orbit to show: see :func:`_maneuver_free`."""
     model = problem.model
+    if not model.mu:
+        return _maneuver_free(runs, problem, n_bodies)
     _, size = _body_points(problem)
     first = runs[0].sol
     X0 = first.trajectory.x
@@ -389,8 +440,9 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
                 ax.quiver(*X0[k], *(0.3 * lim * d / n), color=THRUST, arrow_length_ratio=0.25, lw=2, zorder=7)
         ax.plot([], [], color=THRUST, lw=2, label="impulse direction")
     _cube(ax, lim, center)
-    for a, lab in ((ax.set_xlabel, "x₁ (radii)"), (ax.set_ylabel, "x₂ (radii)"), (ax.set_zlabel, "x₃ (radii)")):
-        a(lab)
+    un = units(problem)
+    for a, lab in ((ax.set_xlabel, "x₁"), (ax.set_ylabel, "x₂"), (ax.set_zlabel, "x₃")):
+        a(un.label(lab, "length"))
     what = f"maneuver (body frame ×{L / size:.2g})"
     if zoom:
         ax.set_title("orbit", fontsize=10)
@@ -407,15 +459,96 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
         az.set_xlabel("x₁")
         az.set_ylabel("x₂")
         az.set_zlabel("x₃")
-        az.set_title(f"zoom on the path: ±{lz:.2g} radii, body frame ×{Lz / size:.2g}", fontsize=10)
+        az.set_title(f"zoom on the path: ±{lz:.2g}{' ' + un.unit('length') if un.normalized else ''}, "
+                     f"body frame ×{Lz / size:.2g}", fontsize=10)
         what = "maneuver"
     handles, labels = ax.get_legend_handles_labels()
     handles += [Line2D([], [], color=c, lw=1.5) for c in COMP]
     labels += [f"body e{i + 1}" for i in range(3)]
     handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=5))
     labels.append("start (o), end (■)")
-    fig.legend(handles, labels, loc="outside lower center", ncols=4 if zoom else 3, fontsize=8, frameon=False)
+    fig.legend(handles, labels, loc="outside lower center", ncols=5 if zoom else 3, fontsize=10 if zoom else 8.5,
+               frameon=False)  # the wide figure is shown wider: the same size on the page
     return _finish(fig, runs, problem, what)
+
+
+def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
+    """The maneuver without a central body: one panel on the path, the body frame at n_bodies
+    nodes.  When the body hardly moves (a slew: the path shorter than the body), the frames are laid
+    out left to right in time order (a filmstrip; positions on that axis are not positions) with
+    their times, and with the direction of each cone constraint (keep-out, keep-in) at every frame."""
+    _, size = _body_points(problem)
+    first = runs[0].sol
+    paths = np.vstack([r.sol.trajectory.x for r in runs])
+    paths = paths[np.all(np.isfinite(paths), axis=1)]
+    extent = float(np.ptp(paths, axis=0).max()) if len(paths) else 0.0
+    slew = extent < size
+    fig = plt.figure(figsize=(W * 1.6, 2.7) if slew else (W, 6.4), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    ax.computed_zorder = False
+    un = units(problem)
+    handles, labels = [], []
+    if not slew:  # the body moves: its path, with the body frame at the path's scale
+        c = 0.5 * (paths.max(0) + paths.min(0))
+        lz = 0.6 * extent
+        L = 0.25 * lz
+        _bodies(ax, problem, first, L, n_bodies)
+        _paths(ax, runs)
+        if isinstance(problem.terminal, TargetState) and "position" in problem.terminal.fixed:
+            ax.scatter(*problem.terminal.X[0:3], marker="x", s=70, color="k", label="desired position", zorder=6)
+        _cube(ax, lz, c)
+        for a, lab in ((ax.set_xlabel, "x₁"), (ax.set_ylabel, "x₂"), (ax.set_zlabel, "x₃")):
+            a(un.label(lab, "length"))
+        what = f"maneuver (no central body; body frame ×{L / size:.2g})"
+        handles, labels = ax.get_legend_handles_labels()
+        handles.append(Line2D([], [], color="0.3", marker="o", ls="", ms=5))
+        labels.append("start (o), end (■)")
+    else:  # a slew: the attitude at a few times, side by side
+        ks = np.unique(np.linspace(0, first.N, n_bodies).round().astype(int))
+        cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+        for j, k in enumerate(ks):
+            a = ax if j == 0 else fig.add_subplot(1, len(ks), j + 1, projection="3d")
+            if j == 0:
+                a.set_subplotspec(fig.add_gridspec(1, len(ks))[0, 0])
+            a.computed_zorder = False
+            _triad(a, np.zeros(3), np.eye(3), 1.0, lw=0.8, alpha=0.3, zorder=1)   # the inertial axes, faint
+            for c in cones:
+                a.plot(*np.vstack([np.zeros(3), 1.2 * c.direction]).T, color=CONE[c.kind], ls=":", lw=1.8, zorder=2)
+            for run in runs:
+                R = run.sol.trajectory.R
+                kk = min(int(np.searchsorted(run.t, first.trajectory.t[k])), len(R) - 1)
+                if np.all(np.isfinite(R[kk])):
+                    _triad(a, np.zeros(3), R[kk], 1.0, lw=2.2, ls=run.ls, zorder=3)
+            _cube(a, 1.0)
+            a.set_box_aspect((1, 1, 1), zoom=1.45)
+            a.set_proj_type("ortho")
+            a.view_init(elev=20, azim=-60)
+            a.set_axis_off()
+            a.set_title(f"t = {first.trajectory.t[k]:.3g}", fontsize=10, y=0.98)
+        handles.append(Line2D([], [], color="0.3", lw=0.8, alpha=0.4))
+        labels.append("inertial axes")
+        for c in cones:
+            handles.append(Line2D([], [], color=CONE[c.kind], ls=":", lw=1.8))
+            labels.append(f"{c.kind.replace('_', '-')} direction s ({c.angle_deg:g}° cone about it)")
+        handles += [Line2D([], [], color="0.3", ls=r.ls, lw=2.2) for r in runs]
+        labels += [f"{r.name}: body frame" for r in runs]
+        what = f"maneuver: the body does not move; its frame at {len(ks)} times"
+    handles += [Line2D([], [], color=c, lw=1.8) for c in COMP]
+    labels += [f"body e{i + 1}" for i in range(3)]
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9, frameon=False)
+    return _finish(fig, runs, problem, what)
+
+
+def _cones(ax, problem: Problem) -> list:
+    """Draw each cone constraint (keep-out, keep-in) on the unit sphere of a 3-D axes: its boundary
+    about its direction s (dotted); returns the cones."""
+    cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+    for c in cones:
+        th = np.radians(c.angle_deg)
+        ring = np.cos(th) * c.direction + _circle(np.sin(th), c.direction, 120)
+        ax.plot(*ring.T, color=CONE[c.kind], lw=1.6, zorder=2)
+        ax.plot(*np.vstack([np.zeros(3), 1.15 * c.direction]).T, color=CONE[c.kind], ls=":", lw=1.4, zorder=2)
+    return cones
 
 
 def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
@@ -457,6 +590,16 @@ def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
         n = problem.terminal.normal
         ax.plot(*np.vstack([-1.15 * n, 1.15 * n]).T, color="k", ls="--", lw=1.2, zorder=6)
         handles.append(Line2D([], [], color="k", ls="--", lw=1.2, label="target: body axis along ± orbit normal"))
+    for c in _cones(ax, problem):
+        col = CONE[c.kind]
+        i = next((i for i in range(3) if np.allclose(np.abs(c.body_axis), np.eye(3)[i])), None)
+        axis = f"e{i + 1}" if i is not None else f"b = {_vec(c.body_axis)}"
+        if i is None:  # a body axis that is not a principal one: its path too
+            for run in runs:
+                Rb = np.einsum("kij,j->ki", run.sol.trajectory.R, c.body_axis)
+                ax.plot(*Rb.T, color=col, ls=run.ls, lw=1.2, zorder=3)
+        handles.append(Line2D([], [], color=col, lw=1.6,
+                              label=f"{c.kind.replace('_', '-')} cone of {axis}: {c.angle_deg:g}° about s"))
     ax.set_xlabel("inertial x₁")
     ax.set_ylabel("inertial x₂")
     ax.set_zlabel("inertial x₃")
@@ -484,26 +627,30 @@ def fig_attitude_error(runs: list[Run], problem: Problem):
     axs[1].set_ylabel("quaternion")
     axs[1].set_ylim(-1.05, 1.05)
     axs[0].legend(fontsize=8, loc="best")
-    axs[1].legend([Line2D([], [], color=c) for c in QUAT], ["q_w", "q_x", "q_y", "q_z"], fontsize=8, ncols=4,
-                  loc="lower left")
-    _time_axes(axs)
+    axs[1].legend([Line2D([], [], color=c) for c in QUAT], ["q_w", "q_x", "q_y", "q_z"], fontsize=8,
+                  loc="center left", bbox_to_anchor=(1.005, 0.5), frameon=False)  # beside: q spans [-1, 1]
+    _time_axes(axs, problem)
     what = "attitude error to the target" if Rd is not None else "rotation from the initial attitude"
     return _finish(fig, runs, problem, what)
 
 
-def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None):
+def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None, controls=False):
     """Three stacked component plots, methods overlaid; a BoxBound draws ±b_i and shades where a
-    component is at its limit."""
+    component is at its limit.  ``controls``: the values are the run's controls (drawn by
+    Run.plot_control: per-step controls as steps)."""
     fig, axs = _subplots(3, figsize=(W, 6.0))
     for run in runs:
         t, Y = key_fn(run)
         if Y is None:
             continue
         for i, ax in enumerate(axs):
-            ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
+            if controls:
+                run.plot_control(ax, Y[:, i], lw=1.5, label=run.name)
+            else:
+                ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
         if isinstance(bound, BoxBound):
             for i, ax in enumerate(axs):
-                _shade(ax, t, np.abs(Y[:, i]) >= bound.b[i] * (1 - AT_BOUND_RTOL), run.color,
+                _shade(ax, run.control_edges, np.abs(Y[:, i]) >= bound.b[i] * (1 - AT_BOUND_RTOL), run.color,
                        label=f"{run.label} at bound")
         if impulses is not None:
             jumps = impulses(run)
@@ -526,7 +673,7 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None)
                     Line2D([], [], marker="o", color="0.3", ls=":")]
         labels += ["before impulse", "after impulse"]
     axs[0].legend(handles, labels, fontsize=8, loc="best", ncols=2 if len(labels) > 3 else 1)
-    _time_axes(axs)
+    _time_axes(axs, problem)
     return _finish(fig, runs, problem, what)
 
 
@@ -543,7 +690,7 @@ def fig_velocity(runs, problem: Problem):
 
     imp = after if any(r.sol.impulses is not None for r in runs) else None
     return _components(runs, problem, lambda r: (r.t, r.sol.trajectory.v), ["$v_1$", "$v_2$", "$v_3$"],
-                       "velocity v = γ/m, inertial (radii/period)", impulses=imp)
+                       units(problem).label("velocity v = γ/m, inertial", "velocity"), impulses=imp)
 
 
 def fig_angular_velocity(runs, problem: Problem):
@@ -573,8 +720,8 @@ def fig_angular_velocity(runs, problem: Problem):
     axs[0].legend(fontsize=8, loc="best")
     if limits:
         axs[3].legend(fontsize=8, loc="best")
-    _time_axes(axs)
-    return _finish(fig, runs, problem, "angular velocity Ω = J⁻¹Π, body frame (rad/period)")
+    _time_axes(axs, problem)
+    return _finish(fig, runs, problem, units(problem).label("angular velocity Ω = J⁻¹Π, body frame", "angular_rate"))
 
 
 def _bound_of(problem: Problem, which: str):
@@ -585,40 +732,48 @@ def fig_force(runs, problem: Problem):
     b = _bound_of(problem, "force")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_f),
                        ["$u_{f,1}$", "$u_{f,2}$", "$u_{f,3}$"],
-                       "control force u_f, inertial components (mass·radii/period²)", bound=b)
+                       units(problem).label("control force u_f, inertial components", "force"), bound=b, controls=True)
 
 
 def fig_moment(runs, problem: Problem):
     b = _bound_of(problem, "moment")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_m),
                        ["$u_{m,1}$", "$u_{m,2}$", "$u_{m,3}$"],
-                       "control moment u_m, body components (mass·radii²/period²)", bound=b)
+                       units(problem).label("control moment u_m, body components", "moment"), bound=b, controls=True)
 
 
 def fig_control_norms(runs, problem: Problem):
     """|u_f| and |u_m| over time: a NormBound is a line at b; where a bound (norm or box) is active
-    the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance."""
+    the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance.
+    A control removed by a norm bound of 0 gets no panel (it is absent, not "at its bound")."""
     runs = [r for r in runs if r.sol.controls is not None]
-    fig, axs = _subplots(2, figsize=(W, 5.2))
-    for ax, which, key in ((axs[0], "force", "u_f"), (axs[1], "moment", "u_m")):
+    un = units(problem)
+    gone = removed(problem)
+    panels = [(w, k, f"$|{k}|$") for w, k in (("force", "u_f"), ("moment", "u_m")) if w not in gone]
+    fig, axs = _subplots(len(panels), figsize=(W, 5.2 if len(panels) == 2 else 3.4))
+    for ax, (which, key, ylab) in zip(axs, panels):
         bound = _bound_of(problem, which)
         for run in runs:
             u = getattr(run.sol, key)
-            ax.plot(run.tu, np.linalg.norm(u, axis=1), color=run.color, ls=run.ls, lw=1.6, label=run.name)
+            run.plot_control(ax, np.linalg.norm(u, axis=1), lw=1.6, label=run.name)
             if bound is not None:
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
-                _shade(ax, run.tu, act, run.color, label=f"{run.label} at bound ({tab:.3g} periods)")
+                _shade(ax, run.control_edges, act, run.color,
+                       label=f"{run.label} at bound ({un.duration(tab)})" if isinstance(bound, NormBound) else
+                       f"{run.label}: a component at its bound ({un.duration(tab)})")
         if isinstance(bound, NormBound):
             ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")
-        elif isinstance(bound, BoxBound):
+        elif isinstance(bound, BoxBound):  # |u| reaches |b| only with every component at its bound
+            ax.axhline(float(np.linalg.norm(bound.b)), color=BOUND, ls=":", lw=1.2,
+                       label=f"|b| = {np.linalg.norm(bound.b):.3g}: every component at its bound")
             ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{b:.3g}' for b in bound.b)}): see {which}")
+        ax.set_ylim(0.0, 1.12 * max(ax.get_ylim()[1] / 1.05, 1e-300))  # room above a bound the data ride on
         ax.legend(fontsize=8, loc="best")
-        ax.set_ylim(bottom=0)
-    axs[0].set_ylabel("$|u_f|$ (mass·radii/period²)")
-    axs[1].set_ylabel("$|u_m|$ (mass·radii²/period²)")
-    _time_axes(axs)
-    return _finish(fig, runs or [], problem, "control magnitudes")
+        ax.set_ylabel(un.label(ylab, which))
+    _time_axes(axs, problem)
+    what = "control magnitudes" + "".join(f" (the {w} is removed: a norm bound of 0)" for w in sorted(gone))
+    return _finish(fig, runs or [], problem, what)
 
 
 def fig_thrust_rtn(runs, problem: Problem):
@@ -630,7 +785,8 @@ def fig_thrust_rtn(runs, problem: Problem):
 
     return _components([r for r in runs if r.sol.controls is not None], problem, comp,
                        ["radial $u_R$", "along-track $u_T$", "normal $u_N$"],
-                       "control force in the orbit frame: radial, along-track, normal (mass·radii/period²)")
+                       units(problem).label("control force in the orbit frame: radial, along-track, normal", "force"),
+                       controls=True)
 
 
 def fig_orbital_elements(runs, problem: Problem):
@@ -659,12 +815,17 @@ def fig_orbital_elements(runs, problem: Problem):
     for c in problem.constraints:
         if isinstance(c, MinRadius):
             axs[0].axhline(c.radius, color=BOUND, ls="-.", lw=1.1, gid="bound-line", label=f"min radius {c.radius:.3g}")
-    axs[0].set_ylabel("radius |x| (radii)")
+    axs[0].set_ylabel(units(problem).label("radius |x|", "length"))
     axs[1].set_ylabel("inclination (deg)")
     axs[2].set_ylabel("eccentricity")
-    for ax in axs:
-        ax.legend(fontsize=8, loc="best")
-    _time_axes(axs)
+    handles, labels = [], []
+    for ax in axs:  # one legend below the panels: inside, it covered the radius near its target
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8.5, frameon=False)
+    _time_axes(axs, problem)
     return _finish(fig, runs, problem, "osculating orbit")
 
 
@@ -685,19 +846,23 @@ def fig_costates(runs, problem: Problem):
     handles = [Line2D([], [], color=c, lw=1.4) for c in COMP] + [Line2D([], [], color="k", ls=r.ls) for r in runs]
     labels = ["component 1", "component 2", "component 3"] + [
         r.name + (" (from multipliers)" if r.label == "direct" else "") for r in runs]
-    axs[0].legend(handles, labels, fontsize=8, ncols=2, loc="best")
-    _time_axes(axs)
-    axs[-1].set_xlabel("time t_k of step k (orbital periods)")
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8.5, frameon=False)
+    _time_axes(axs, problem)
+    axs[-1].set_xlabel(units(problem).time_label.replace("time t", "time t_k of step k"))
     return _finish(fig, runs, problem, "discrete costates λ_k")
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.3g}" for x in np.asarray(v, float) + 0.0) + ")"
 
 
 def _describe(c) -> str:
     if isinstance(c, MinRadius):
         return f"min radius: |x| ≥ {c.radius:g}"
     if isinstance(c, KeepOut):
-        return f"keep-out: angle(R b, s) ≥ {c.angle_deg:g}°, b = {np.round(c.body_axis, 3)}, s = {np.round(c.direction, 3)}"
+        return f"keep-out: angle(R b, s) ≥ {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, direction s = {_vec(c.direction)}"
     if isinstance(c, KeepIn):
-        return f"keep-in: angle(R b, s) ≤ {c.angle_deg:g}°, b = {np.round(c.body_axis, 3)}, s = {np.round(c.direction, 3)}"
+        return f"keep-in: angle(R b, s) ≤ {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, direction s = {_vec(c.direction)}"
     if isinstance(c, MaxAngularRate):
         return f"max angular rate: |Ω| ≤ {c.value:g}"
     return c.kind
@@ -705,19 +870,21 @@ def _describe(c) -> str:
 
 def fig_constraints(runs, problem: Problem):
     """The margin of each path constraint over time (≥ 0 where it holds): the zero line, and the
-    times where a method violates it shaded red."""
+    times where a method violates it by more than the tolerance (Run.tol: a margin of -1e-11 is
+    round-off) shaded red."""
     cons = problem.constraints
     fig, axs = _subplots(len(cons), figsize=(W, 1.2 + 1.7 * len(cons)))
     for ax, c in zip(axs, cons):
         for run in runs:
             mg = c.margin(run.sol.trajectory)
             ax.plot(run.t, mg, color=run.color, ls=run.ls, lw=1.6, label=run.name)
-            _shade(ax, run.t, mg < 0, FAIL, label="violated" if run is runs[0] else None, alpha=0.12)
+            _shade(ax, node_cells(run.t), mg < -run.tol, FAIL, label=f"violated by more than {run.tol:.0e}" if run is runs[0] else None,
+                   alpha=0.12)
         ax.axhline(0.0, color="k", lw=1.0, gid="zero-line")
-        ax.set_ylabel(f"margin ({c.unit})")
+        ax.set_ylabel(units(problem).label("margin", MARGIN_DIMENSION.get(c.kind, "none")))
         ax.set_title(_describe(c), fontsize=9, loc="left")
         ax.legend(fontsize=8, loc="best")
-    _time_axes(axs)
+    _time_axes(axs, problem)
     return _finish(fig, runs, problem, "path-constraint margins")
 
 
@@ -753,7 +920,8 @@ def fig_convergence(runs, problem: Problem):
     if not drew:
         ax.text(0.5, 0.5, "no iteration history recorded", ha="center", va="center", transform=ax.transAxes)
     ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True))
-    ax.set_xlabel("iteration (Newton–Armijo: line-search trial)")
+    newton = any(h.trial > 0 for r in runs for h in r.sol.history)
+    ax.set_xlabel("iteration (Newton–Armijo: line-search trial)" if newton else "iteration")
     ax.set_ylabel("residual (log scale)")
     ax.grid(alpha=0.3, which="both")
     if drew:
@@ -796,13 +964,26 @@ CAPTIONS = {
 }
 
 
+def caption(name: str, problem: Problem) -> str:
+    """The caption of a figure for this problem (CAPTIONS, but the maneuver of a problem without a
+    central body has no orbits)."""
+    if name == "maneuver" and not problem.model.mu:
+        return "no central body: the path and the body frame at a few nodes (a slew: the frame at a few times)"
+    return CAPTIONS.get(name, name)
+
+
 def applicable(runs: list[Run], problem: Problem) -> list[str]:
     """The names of the figures that apply to these runs (in FIGURES order)."""
     ctrl = any(r.sol.controls is not None for r in runs)
     central = bool(problem.model.mu)
-    skip = set()
-    if not ctrl:
+    gone = removed(problem)
+    skip = set(gone)  # a removed control: no component figure ("force", "moment")
+    if not ctrl or gone == {"force", "moment"}:
         skip |= {"control_norms", "force", "moment", "thrust_rtn"}
+    if "force" in gone:
+        skip.add("thrust_rtn")
+        if not central:  # no force and no gravity: the velocity is constant, a figure of flat lines
+            skip.add("velocity")
     if not central:
         skip |= {"thrust_rtn", "orbital_elements"}
     if not problem.constraints:
@@ -820,17 +1001,22 @@ def draw(name: str, runs: list[Run], problem: Problem):
         return FIGURES[name](runs, problem)
 
 
-def _runs(result: Solution | Comparison) -> list[Run]:
-    """The runs to draw: every method that applies to the problem (not Result.not_applicable)."""
+def _runs(result: Solution | Comparison, tol: float | None = None) -> list[Run]:
+    """The runs to draw: every method that applies to the problem (not Result.not_applicable);
+    ``tol``: the path-constraint tolerance (store.path_tolerance; None: its default)."""
+    from .store import DEFAULT_PATH_TOL
     from .store import applicable as applicable_methods
 
-    return [Run.of(s) for s in applicable_methods(result).values()]
+    return [Run.of(s, DEFAULT_PATH_TOL if tol is None else tol) for s in applicable_methods(result).values()]
 
 
-def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:
+def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None, *,
+            constraint_tol: float | None = None) -> dict:
     """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory;
-    ``which`` limits the names (figures that do not apply are left out)."""
-    runs = _runs(result)
+    ``which`` limits the names (figures that do not apply are left out); ``constraint_tol``: margins
+    of path constraints below -constraint_tol are drawn as violations (default
+    store.DEFAULT_PATH_TOL; a results directory uses its maneuver's terminal_tol)."""
+    runs = _runs(result, constraint_tol)
     problem = runs[0].sol.problem
     if which:
         unknown = set(which) - set(FIGURES)
@@ -841,20 +1027,28 @@ def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None)
 
 def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
     """(Re)draw the figures of a results directory as PNG and PDF; returns the paths written.
-    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data."""
-    from .store import read_run
+    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data.
+    Redrawing every figure also deletes the files of figures that no longer apply (drawn by an
+    earlier version: e.g. a force figure for a run whose force is removed)."""
+    from .store import path_tolerance, read_run
 
     d = Path(results_dir)
     run = read_run(d)
+    tol = path_tolerance(run.maneuver)
     if stale_only:
-        runs = _runs(run.result)
+        runs = _runs(run.result, tol)
         todo = tuple(n for n in applicable(runs, runs[0].sol.problem) if not is_fresh(d, n) and (not which or n in which))
         if not todo:
             return []
         which = todo
-    runs = _runs(run.result)
+    runs = _runs(run.result, tol)
+    names = applicable(runs, runs[0].sol.problem)
+    if not which:
+        for name in set(FIGURES) - set(names):
+            for ext in (".png", ".pdf"):
+                (d / f"fig_{name}{ext}").unlink(missing_ok=True)
     written = []
-    for name in applicable(runs, runs[0].sol.problem):  # one at a time: one figure in memory
+    for name in names:  # one at a time: one figure in memory
         if which and name not in which:
             continue
         fig = draw(name, runs, runs[0].sol.problem)
@@ -917,7 +1111,11 @@ class Animation:
         for a in (ax, axa):
             a.computed_zorder = False
         first = runs[0].sol
-        allx = np.vstack([r.sol.trajectory.x for r in runs] + [np.zeros((1, 3))])
+        _, size = _body_points(problem)
+        allx = np.vstack([r.sol.trajectory.x for r in runs] + ([np.zeros((1, 3))] if model.mu else []))
+        allx = allx[np.all(np.isfinite(allx), axis=1)]
+        extent = float(np.ptp(allx, axis=0).max()) if len(allx) else 0.0
+        still = not model.mu and extent < size  # a slew without a central body: the body at its own scale
         if model.mu:
             ax.scatter([0], [0], [0], s=120, color="#3b6ea8")
             orb = _orbit_ellipse(first.trajectory.x[0], first.trajectory.v[0], model.mu)
@@ -930,6 +1128,8 @@ class Animation:
             allx = np.vstack([allx, target])
         center = 0.5 * (allx.max(0) + allx.min(0)) if not model.mu else np.zeros(3)
         lim = max(np.abs(allx - center).max() * 1.05, 1e-9)
+        if not model.mu:
+            lim = max(lim, 1.6 * size)
         for run in runs:
             ax.plot(*run.sol.trajectory.x.T, color=run.color, ls=run.ls, lw=1.2, alpha=0.6, label=run.name)
         _cube(ax, lim, center)
@@ -947,6 +1147,7 @@ class Animation:
         elif isinstance(problem.terminal, TargetOrbit):
             n = problem.terminal.normal
             axa.plot(*np.vstack([-1.1 * n, 1.1 * n]).T, color="k", ls="--", lw=1.2)
+        _cones(axa, problem)
         _cube(axa, 1.1)
         for a in (axa.xaxis, axa.yaxis, axa.zaxis):
             a.set_ticklabels([])
@@ -954,34 +1155,40 @@ class Animation:
         axa.set_title("attitude" + (" (target dashed)" if has_target else ""), fontsize=9)
         # timeline of the control magnitudes (or the attitude error without controls)
         scales = []
+        gone = removed(problem)
+        shown = [(k, lw, a) for k, w, lw, a in (("u_f", "force", 1.3, 1.0), ("u_m", "moment", 0.9, 0.55)) if w not in gone]
+        if len(shown) == 1:  # one control: drawn as strongly as the force would be
+            shown = [(shown[0][0], 1.3, 1.0)]
         for run in runs:
             s = run.sol
-            if s.controls is not None:
-                nf, nm = np.linalg.norm(s.u_f, axis=1), np.linalg.norm(s.u_m, axis=1)
-                sf, sm = max(nf.max(), 1e-300), max(nm.max(), 1e-300)
-                axt.plot(run.tu, nf / sf, color=run.color, ls=run.ls, lw=1.3)
-                axt.plot(run.tu, nm / sm, color=run.color, ls=run.ls, lw=0.9, alpha=0.55)
-                scales.append((sf, sm))
+            if s.controls is not None and shown:
+                sc = []
+                for key, lw, alpha in shown:
+                    nu = np.linalg.norm(getattr(s, key), axis=1)
+                    sc.append(max(nu.max(), 1e-300))
+                    run.plot_control(axt, nu / sc[-1], lw=lw, alpha=alpha)
+                scales.append(sc)
             else:
                 E = np.einsum("ji,kjl->kil", Rd if Rd is not None else s.trajectory.R[0], s.trajectory.R)
                 ang = np.degrees(rotation_angle(E))
                 axt.plot(run.t, ang / max(ang.max(), 1e-300), color=run.color, ls=run.ls, lw=1.3)
         if scales:
             axt.set_ylabel("|u| / max", fontsize=8)
-            axt.legend([Line2D([], [], color="0.3", lw=1.3), Line2D([], [], color="0.3", lw=0.9, alpha=0.55)],
-                       [f"|u_f| (max {scales[0][0]:.3g})", f"|u_m| (max {scales[0][1]:.3g})"], fontsize=7, loc="upper right")
+            axt.legend([Line2D([], [], color="0.3", lw=lw, alpha=a) for _, lw, a in shown],
+                       [f"|{k}| (max {m:.3g})" for (k, _, _), m in zip(shown, scales[0])], fontsize=7, loc="upper right")
         else:
             axt.set_ylabel(("angle to target" if Rd is not None else "rotation from start") + " / max", fontsize=8)
         axt.set_xlim(first.trajectory.t[0], first.trajectory.t[-1])
         axt.set_ylim(-0.05, 1.15)
         axt.xaxis.set_major_locator(MaxNLocator(nbins=5))
         axt.tick_params(labelsize=7)
-        axt.set_xlabel(T_LABEL, fontsize=8)
+        axt.set_xlabel(units(problem).time_label, fontsize=8)
         axt.grid(alpha=0.3)
         handles, labels = ax.get_legend_handles_labels()
         handles += [Line2D([], [], color=c, lw=2) for c in COMP]
         labels += ["body e1", "body e2", "body e3"]
-        if scales:
+        thrust = bool(scales) and "force" not in gone
+        if thrust:
             handles.append(Line2D([], [], color=THRUST, lw=2))
             labels.append("thrust u_f")
         fig.legend(handles, labels, loc="lower left", ncols=5, fontsize=8, frameon=False)
@@ -990,8 +1197,7 @@ class Animation:
         fig.suptitle(f"{problem.name}: {names}" + ("  —  NOT CONVERGED" if failed else ""),
                      x=0.01, ha="left", fontsize=11, color=FAIL if failed else "black")
         # moving artists
-        _, size = _body_points(problem)
-        L = 0.16 * lim
+        L = 0.6 * lim if still else 0.16 * lim
         scale = L / size
         fmax = max([np.linalg.norm(r.sol.u_f, axis=1).max() for r in runs if r.sol.controls is not None] + [1e-300])
         moving = []
@@ -1026,7 +1232,9 @@ class Animation:
         self.fig, self.canvas, self.background = fig, canvas, background
         self.runs, self.art, self.moving = runs, art, moving
         self.cursor, self.clock, self.L, self.scale, self.lim, self.fmax = cursor, clock, L, scale, lim, fmax
+        self.thrust = thrust
         self.model, self.t0, self.t1 = model, float(first.trajectory.t[0]), float(first.trajectory.t[-1])
+        self.units = units(problem)
 
     def frame(self, time_: float) -> np.ndarray:
         """The image (height, width, 3) of the state at time ``time_``."""
@@ -1046,13 +1254,13 @@ class Animation:
                 ends = x + scale * model.markers @ R.T
                 d["rod"].set_data_3d(*ends.T)
             d["dot"].set_data_3d([x[0]], [x[1]], [x[2]])
-            if s.controls is not None:
+            if s.controls is not None and self.thrust:
                 j = int(np.clip(np.searchsorted(s.control_times, time_), 0, len(s.control_times) - 1))
                 tip = x + 0.45 * lim * s.u_f[j] / fmax
                 d["thrust"].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])
                 d["head"].set_data_3d([tip[0]], [tip[1]], [tip[2]])
         self.cursor.set_xdata([time_, time_])
-        self.clock.set_text(f"t = {time_:.3f} periods")
+        self.clock.set_text(f"t = {time_:.3f}" + (" periods" if self.units.normalized else ""))
         for a in self.moving:
             self.fig.draw_artist(a)
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()

@@ -20,33 +20,38 @@ from pathlib import Path
 from typing import Any
 
 from ..transcription.problem import BoxBound, NormBound
-from ..transcription.results import Solution
+from ..transcription.results import Result, Solution
 from .io import atomic_write_bytes
+from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 
-#: rows of the summary table: (key of Solution.summary(), label, unit, format)
+#: rows of the summary table: (key of Solution.summary(), label, unit, format); the unit is a
+#: quantity of problems.units.DIMENSIONS (shown in the problem's units) or a literal ("s": wall clock)
 ROWS = (
     ("cost", "cost J", "", "{:.10g}"),
     ("terminal_error", "terminal error (max-norm of the residual)", "", "{:.2e}"),
-    ("terminal_attitude_error_deg", "terminal attitude error", "deg", "{:.2e}"),
+    ("terminal_attitude_error_deg", "terminal attitude error", "angle", "{:.2e}"),
     ("iterations", "iterations", "", "{:d}"),
     ("build_s", "build time", "s", "{:.2f}"),
     ("solve_s", "solve time", "s", "{:.2f}"),
-    ("delta_v", "Δv = Σ ω |u_f| / m", "radii/period", "{:.6g}"),
-    ("angular_impulse", "∫ |u_m| dt", "mass·radii²/period", "{:.6g}"),
-    ("peak_force", "peak |u_f|", "mass·radii/period²", "{:.6g}"),
-    ("peak_moment", "peak |u_m|", "mass·radii²/period²", "{:.6g}"),
-    ("force_time_at_bound", "time with the force at its bound", "periods", "{:.4g}"),
-    ("moment_time_at_bound", "time with the moment at its bound", "periods", "{:.4g}"),
+    ("delta_v", "Δv = Σ ω |u_f| / m", "velocity", "{:.6g}"),
+    ("angular_impulse", "∫ |u_m| dt", "angular_impulse", "{:.6g}"),
+    ("peak_force", "peak |u_f|", "force", "{:.6g}"),
+    ("peak_moment", "peak |u_m|", "moment", "{:.6g}"),
+    ("force_time_at_bound", "time with the force at its bound", "time", "{:.4g}"),
+    ("moment_time_at_bound", "time with the moment at its bound", "time", "{:.4g}"),
     ("max_orthogonality_error", "max |RᵀR − I|", "", "{:.1e}"),
     ("max_relative_energy_error", "max relative energy error", "", "{:.1e}"),
     ("max_cayley_residual", "max Cayley residual", "", "{:.1e}"),
     ("N", "steps N", "", "{:d}"),
-    ("T", "final time T", "periods", "{:.6g}"),
+    ("T", "final time T", "time", "{:.6g}"),
     ("solver", "solver", "", "{}"),
 )
-_UNITS = {"min_radius": "radii", "keep_out": "deg", "keep_in": "deg", "max_angular_rate": "rad/period"}
+
+
+def _unit(un: Units, u: str) -> str:
+    return un.unit(u) if u in DIMENSIONS else u
 
 
 def _fmt(value: Any, fmt: str) -> str:
@@ -60,30 +65,37 @@ def _fmt(value: Any, fmt: str) -> str:
         return str(value)
 
 
-def merit_rows(sols: dict[str, Solution]) -> list[dict[str, Any]]:
+def merit_rows(sols: dict[str, Solution], tol: float | None = None) -> list[dict[str, Any]]:
     """The summary table: one row per quantity that some method has, a cell per method; the
-    margins of path constraints (negative: violated) flagged ``bad``."""
+    margins of path constraints violated by more than ``tol`` (store.path_tolerance; default
+    store.DEFAULT_PATH_TOL) flagged ``bad`` -- a margin of -1e-11 is round-off, not a violation."""
     import numpy as np
 
+    from .store import DEFAULT_PATH_TOL
+
+    tol = DEFAULT_PATH_TOL if tol is None else tol
     with np.errstate(all="ignore"):  # a failed run's non-finite states: reported as nan, not warned about
         summ = {m: s.summary() for m, s in sols.items()}
+    un = units(next(iter(sols.values())).problem) if sols else Units(normalized=True)
     rows = []
     keys = [r[0] for r in ROWS]
     extra = sorted({k for s in summ.values() for k in s if k.startswith("min_margin_")})
     for key in keys[:12] + extra + keys[12:]:
         if key.startswith("min_margin_"):
             kind = key[len("min_margin_"):].rstrip("_0123456789")
-            label, unit, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", _UNITS.get(kind, ""), "{:.4g}"
+            label, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", "{:.4g}"
+            unit = un.unit(MARGIN_DIMENSION.get(kind, "none"))
         else:
             _, label, unit, fmt = next(r for r in ROWS if r[0] == key)
+            unit = _unit(un, unit)
         if not any(key in s for s in summ.values()):
             continue
         cells = []
         for s in summ.values():
             v = s.get(key)
-            bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < 0
+            bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < -tol
             cells.append({"text": _fmt(v, fmt), "bad": bad})
-        rows.append({"label": label, "unit": unit, "cells": cells})
+        rows.append({"label": label, "unit": unit, "cells": cells, "margin": key.startswith("min_margin_")})
     return rows
 
 
@@ -91,11 +103,39 @@ def _bounds(problem) -> list[str]:
     out = []
     ctrl = problem.control
     for name, b in (("force", getattr(ctrl, "force_bound", None)), ("moment", getattr(ctrl, "moment_bound", None))):
-        if isinstance(b, NormBound):
+        if isinstance(b, NormBound) and b.b == 0:
+            out.append(f"{name}: removed (a norm bound of 0)")
+        elif isinstance(b, NormBound):
             out.append(f"{name}: |u| ≤ {b.b:g}")
         elif isinstance(b, BoxBound):
             out.append(f"{name}: |u_i| ≤ ({', '.join(f'{x:g}' for x in b.b)})")
     return out
+
+
+def _horizon(problem) -> str:
+    """The final time for the header: "T = 10 orbital periods", or free with its range and guess."""
+    unit = " orbital periods" if units(problem).normalized else ""
+    if problem.free_time:
+        lo, hi = problem.time_bounds
+        return f"T free in [{lo:g}, {hi:g}]{unit} (guess {problem.T:g})"
+    return f"T = {problem.T:g}{unit}"
+
+
+def _width(png: bytes) -> int:
+    """The width in pixels of a PNG (from its IHDR chunk; 0 if it is not one)."""
+    if png[:8] != b"\x89PNG\r\n\x1a\n" or len(png) < 24:
+        return 0
+    return int.from_bytes(png[16:20], "big")
+
+
+def _wide(images: list[tuple[str, bytes]]) -> list[bool]:
+    """Which figures are wider than the others (the maneuver with a zoom panel, a slew's frames
+    side by side: 1.6 times the usual width) and get the page's full width, where their text is
+    as large as the others' rather than shrunk into a column.  Short figures of the usual width
+    stay in their column."""
+    widths = [_width(b) for _, b in images]
+    usual = sorted(widths)[len(widths) // 2] if widths else 0
+    return [w > 1.3 * usual for w in widths]
 
 
 def _png(fig) -> bytes:
@@ -104,15 +144,16 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def figure_images(results_dir: Path | None, result, draw: bool = True) -> list[tuple[str, bytes]]:
+def figure_images(results_dir: Path | None, result, draw: bool = True, tol: float | None = None
+                  ) -> list[tuple[str, bytes]]:
     """(name, PNG bytes) of every figure that applies to ``result``: the results directory's
-    fig_<name>.png where it is up to date, otherwise drawn in memory (``draw``) -- nothing is
-    written."""
+    fig_<name>.png where it is up to date, otherwise drawn in memory (``draw``; ``tol`` the
+    path-constraint tolerance) -- nothing is written."""
     import matplotlib.pyplot as plt
 
     from . import plots
 
-    runs = plots._runs(result)
+    runs = plots._runs(result, tol)
     names = plots.applicable(runs, runs[0].sol.problem)
     out, missing = {}, []
     for n in names:
@@ -133,18 +174,26 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
     import jinja2
 
     from .. import __version__
-    from .plots import CAPTIONS
+    from .plots import caption
+    from .store import path_tolerance
 
     result = run.result
     sols = dict(run.solutions)
     problem = next(iter(sols.values())).problem
-    methods = [{"name": m, "converged": s.converged, "status": s.result.value, "message": s.message,
-                "explain": s.result.message} for m, s in sols.items()]
+    summ = run.summary
+    methods = _status_cards(sols, summ)
     comparison = None
     if hasattr(result, "verdict"):
         comparison = {"verdict": result.verdict, "agree": bool(result.same_extremal),
                       "cost_rel": _fmt(result.cost_relative_difference, "{:.2e}"),
                       "control_rel": _fmt(result.control_max_difference_relative, "{:.2e}")}
+    elif isinstance(summ.get("comparison"), dict):  # a method not applicable: its verdict says so
+        c = summ["comparison"]
+        comparison = {"verdict": str(c.get("verdict", "")), "agree": bool(c.get("same_extremal", False)),
+                      "cost_rel": _fmt(c.get("cost_relative_difference"), "{:.2e}"),
+                      "control_rel": _fmt(c.get("control_max_difference_relative"), "{:.2e}")}
+    if comparison is not None:
+        comparison["comparable"] = not comparison["verdict"].startswith("not comparable")
     history = []
     for m, s in sols.items():
         recs = [h.as_dict() for h in s.history]
@@ -152,8 +201,8 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
                 if any(_present(r.get(c)) for r in recs)]
         history.append({"method": m, "cols": cols,
                         "rows": [[_cell(r.get(c)) for c in cols] for r in recs]})
-    summ = run.summary
     command = summ.get("command") or ("compare" if comparison else "solve")
+    tol = path_tolerance(run.maneuver)
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
                              autoescape=jinja2.select_autoescape(["html", "j2"], default=True),
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
@@ -162,12 +211,37 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         version=__version__,
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         control=run.maneuver.control_kind or "none (free motion)", discretization=run.maneuver.discretization,
-        N=run.maneuver.N, T=run.maneuver.T, methods=methods, method_names=list(sols),
-        ok=all(m["converged"] for m in methods), rows=merit_rows(sols), comparison=comparison,
+        N=run.maneuver.N, T=_horizon(problem), units=units(problem), methods=methods, method_names=list(sols),
+        ok=all(m["converged"] for m in methods if m["applicable"]), rows=merit_rows(sols, tol), tol=tol, comparison=comparison,
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
-        figures=[{"name": n, "caption": CAPTIONS.get(n, n), "data": base64.b64encode(b).decode("ascii")}
-                 for n, b in images],
+        figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii"),
+                  "wide": w} for (n, b), w in zip(images, _wide(images))],
         history=history, config=config_text)
+
+
+def _status_cards(sols: dict[str, Solution], summ: dict) -> list[dict[str, Any]]:
+    """One status card per method of the run, in summary.json's order: the Solutions read back, and
+    the methods summary.json lists without a trajectory -- a method that does not apply to the
+    problem (Result.not_applicable: status and message in its block) is a neutral card of its own."""
+    blocks = summ.get("methods") if isinstance(summ.get("methods"), dict) else {}
+    cards = []
+    for m in list(blocks) + [m for m in sols if m not in blocks]:
+        s = sols.get(m)
+        if s is not None:
+            cards.append({"name": m, "converged": s.converged, "status": s.result.value, "message": s.message,
+                          "explain": s.result.message, "applicable": s.result is not Result.not_applicable,
+                          "in_table": True})
+            continue
+        b = blocks[m] if isinstance(blocks[m], dict) else {}
+        status = str(b.get("status", "unknown"))
+        try:
+            explain = Result(status).message
+        except ValueError:
+            explain = ""
+        cards.append({"name": m, "converged": bool(b.get("converged", False)), "status": status,
+                      "message": str(b.get("message", "")), "explain": explain,
+                      "applicable": status != Result.not_applicable.value, "in_table": False})
+    return cards
 
 
 def _describe(c) -> str:
@@ -193,11 +267,11 @@ def _cell(v) -> str:
 def write_report(results_dir: Path, draw: bool = True) -> Path:
     """Write ``report.html`` into a results directory (atomically); figures are taken from the
     directory where up to date, else drawn in memory (``draw=False``: the page without them)."""
-    from .store import read_run
+    from .store import path_tolerance, read_run
 
     d = Path(results_dir)
     run = read_run(d)
-    images = figure_images(d, run.result, draw=draw)
+    images = figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver))
     cfg = d / "config.resolved.yaml"
     html = render(run, images, cfg.read_text() if cfg.is_file() else "")
     out = d / "report.html"

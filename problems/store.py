@@ -24,6 +24,11 @@ from .io import write_json, write_npz, write_yaml
 from .maneuvers import Maneuver, parse_maneuver
 from .schema import ConfigError, yaml_load
 
+#: margins of path constraints more negative than this are violations, smaller ones round-off, when
+#: the run's options are not at hand (with them: DirectOptions.terminal_tol, the direct method's own
+#: threshold for deeming a run with path constraints converged)
+DEFAULT_PATH_TOL = 1e-8
+
 #: the file of a Solution in a results directory
 NPZ = {"direct": "direct.npz", "indirect": "indirect.npz", "simulate": "trajectory.npz"}
 _IMPULSE_KEYS = ("dgamma0", "dPi0", "dgammaN", "dPiN")
@@ -38,6 +43,14 @@ def applicable(result: Solution | Comparison) -> dict[str, Solution]:
     """The Solutions of the methods that apply to the problem (a method that does not cover it
     returns Result.not_applicable: it is reported, not drawn or stored as a trajectory)."""
     return {m: s for m, s in solutions_of(result).items() if s.result is not Result.not_applicable}
+
+
+def path_tolerance(man: Maneuver | None = None) -> float:
+    """The violation threshold of path-constraint margins (in each constraint's unit): the
+    maneuver's DirectOptions.terminal_tol (the resolved ``solver.direct.terminal_tol``), by which
+    the direct method judges a path constraint violated; DEFAULT_PATH_TOL without a maneuver."""
+    tol = getattr(getattr(man, "direct", None), "terminal_tol", None)
+    return float(tol) if tol is not None else DEFAULT_PATH_TOL
 
 
 def all_converged(result: Solution | Comparison) -> bool:
@@ -153,4 +166,4 @@ def read_run(results_dir: Path) -> Run:
     return Run(man, sols, summ)
 
 
-__all__ = ["NPZ", "Run", "read_run", "solutions_of", "summary", "to_jsonable", "write_run"]
+__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "path_tolerance", "read_run", "solutions_of", "summary", "to_jsonable", "write_run"]

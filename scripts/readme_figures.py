@@ -6,8 +6,10 @@ the block between the ``<!-- comparison:start -->`` / ``<!-- comparison:end -->`
 README.md.  Two more sets are drawn through the public API: ``bounds_*`` (E3's optimal controls
 clipped into a norm bound on the force and a box bound on the moment, simulated with path
 constraints, to show how bounds and constraints are drawn) and ``failed_*`` (E4 stopped after two
-IPOPT iterations, to show how a failed run is marked); and ``e3_animation.png``, a frame of the
-animation of E3.
+IPOPT iterations, to show how a failed run is marked); ``e3_animation.png``, a frame of the
+animation of E3; and figures of two slews without a central body (``slew_keep_out_*``,
+``slew_time_optimal_*``; direct method only: the indirect method does not cover them, and they are
+not in the comparison table).
 
     .venv/bin/python scripts/readme_figures.py            # full size (N = 500/800), a few minutes
     .venv/bin/python scripts/readme_figures.py --N 100    # quick look
@@ -33,12 +35,16 @@ RUNS = [
     ("E4 (λ₀ = 0)", "e4_orbital_capture", "compare", []),
     ("E4 (from direct)", "e4_orbital_capture", "compare", ["solver.indirect.initial_costate=from_direct"]),
 ]
+#: runs for figures only (not in the comparison table): (stem, config, command)
+FIGURE_RUNS = [("slew_keep_out", "slew_keep_out", "solve"), ("slew_time_optimal", "slew_time_optimal", "solve")]
 #: the figures the README shows, per example stem
 FIGS = {
     "e1": ("maneuver",),
     "e2": ("maneuver",),
     "e3": ("maneuver", "attitude", "attitude_error", "control_norms", "thrust_rtn", "orbital_elements", "costates"),
     "e4": ("convergence",),
+    "slew_keep_out": ("maneuver", "attitude"),
+    "slew_time_optimal": ("moment",),
 }
 
 
@@ -125,6 +131,10 @@ def main():
             verdict = summary.get("comparison", {}).get("verdict", "")
             for m, s in summary["methods"].items():
                 rows.append((label, m, s, verdict if m == "indirect" else ""))
+        for stem, config, command in FIGURE_RUNS:  # their own N: the slews are not scaled with --N
+            out, _ = run(stem, config, command, [], None, Path(tmp))
+            for f in FIGS[stem]:
+                shutil.copyfile(out / f"fig_{f}.png", figdir / f"{stem}_{f}.png")
     lines = [
         f"Produced by `.venv/bin/python scripts/readme_figures.py{' --N ' + str(a.N) if a.N else ''}` on "
         f"{platform.processor() or platform.machine()} ({platform.python_version()}); times in seconds, one run each.",

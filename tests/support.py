@@ -32,3 +32,25 @@ def maneuver(name: str, N: int | None = None, scheme: str | None = None, *sets: 
 def problem(name: str, N: int | None = None, scheme: str | None = None, *sets: str):
     """The Problem of :func:`maneuver`."""
     return maneuver(name, N, scheme, *sets).problem
+
+
+@lru_cache(maxsize=None)
+def slew_comparison(N: int = 40):
+    """The keep-out slew (configs/slew_keep_out.yaml: no central body, the force removed by a norm
+    bound of 0, a keep-out cone) under a bang-bang moment about z, simulated and labelled as a
+    converged direct run, beside the indirect method's Result.not_applicable, compared as
+    ``compare`` does: a run with the shapes of the real one, in a tenth of a second."""
+    import dataclasses
+
+    import numpy as np
+
+    from se3ocp.transcription.solve import compare
+
+    man = _maneuver("slew_keep_out", (f"horizon.N={N}",))
+    p = man.problem
+    n = p.disc.n_controls(p.N)
+    U = np.zeros((6, n))
+    U[5] = np.where(np.linspace(0.0, p.T, n) < 0.5 * p.T, 0.05, -0.05)
+    direct = dataclasses.replace(se3ocp.simulate(p, U), method="direct", solver="ipopt",
+                                 result=se3ocp.Result.converged, message="simulated as a stand-in for IPOPT")
+    return man, compare(direct, se3ocp.solve(man, "indirect"))

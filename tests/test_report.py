@@ -6,6 +6,7 @@ every embedded image decodes, the table and at least three figures are on the sc
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import shutil
@@ -13,14 +14,15 @@ import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.problems import store
+from se3ocp.problems import plots, store
 from se3ocp.problems.report import merit_rows, render, write_report
 from se3ocp.transcription.problem import BoxBound, KeepOut, MinRadius, NormBound, SmoothControl
-from support import maneuver
+from support import maneuver, slew_comparison
 
 CHROMIUM = Path("/usr/bin/chromium")
 
@@ -83,6 +85,116 @@ def test_report_numbers_are_those_of_summary_json(compared):
     # delta-v is the quadrature of |u_f|/m (first order: u_1..u_N, weights h)
     d_ = res.direct
     assert s["methods"]["direct"]["delta_v"] == pytest.approx(d_.h * np.linalg.norm(d_.u_f, axis=1).sum(), rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def slew_report(tmp_path_factory):
+    """The report of a keep-out slew: no central body, the force removed, the indirect method not
+    applicable (support.slew_comparison), without figures."""
+    man, res = slew_comparison()
+    d = tmp_path_factory.mktemp("rep") / "slew"
+    store.write_run(d, man, res)
+    return d, res, write_report(d, draw=False).read_text()
+
+
+def _rows(text: str) -> dict[str, list[str]]:
+    """The summary table as {quantity: [unit, cell, ...]} (cells as text, tags stripped)."""
+    body = text.split('<table id="summary">', 1)[1].split("</table>", 1)[0]
+    out = {}
+    for tr in re.findall(r"<tr>(.*?)</tr>", body, re.S):
+        cells = [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td[^>]*>(.*?)</td>", tr, re.S)]
+        if cells:
+            out[cells[0]] = cells[1:]
+    return out
+
+
+def test_units_in_the_header_and_the_table(compared, slew_report):
+    _, _, path = compared
+    text = path.read_text()
+    assert "T = 0.5 orbital periods" in text and "units: normalized orbit units" in text
+    assert _rows(text)["Δv = Σ ω |u_f| / m"][0] == "radii/period"
+    assert _rows(text)["final time T"][0] == "periods"
+    _, _, text = slew_report
+    assert "period" not in text.split("<h2>Resolved configuration</h2>")[0] and "radii" not in text
+    assert "T = 10 ·" in text and "units: those of the configuration file" in text
+    rows = _rows(text)
+    assert rows["∫ |u_m| dt"][0] == "mass·length²/time" and rows["peak |u_m|"][0] == "mass·length²/time²"
+    assert rows["final time T"][0] == "time" and rows["minimum margin: keep out"][0] == "deg"
+
+
+def test_a_removed_force_is_not_reported_at_its_bound(slew_report):
+    d, _, text = slew_report
+    assert "time with the force at its bound" not in _rows(text)
+    assert "force_time_at_bound" not in json.loads((d / "summary.json").read_text())["methods"]["direct"]
+
+
+def test_a_method_not_applicable_is_a_neutral_card_with_its_message(slew_report):
+    """The indirect method on a path-constrained problem: summary.json keeps its status and message
+    (and no figures of merit: it solved nothing); the page shows it as a grey card of its own, not
+    as a failure and not left out, and the verdict 'not comparable' in grey."""
+    d, res, text = slew_report
+    block = json.loads((d / "summary.json").read_text())["methods"]["indirect"]
+    assert block["status"] == "not_applicable" and "does not cover path constraints" in block["message"]
+    assert not [k for k in block if k.startswith("min_margin") or k in ("terminal_attitude_error_deg", "delta_v")]
+    assert not (d / "indirect.npz").exists()
+    cards = re.findall(r'<div class="card([^"]*)">\s*<div class="head">([^<]*)</div>\s*<div class="msg">([^<]*)</div>', text)
+    assert [(c.strip(), h) for c, h, _ in cards] == [("", "direct: converged"), ("na", "indirect: not applicable")]
+    assert cards[1][2].startswith("not applicable: the indirect method does not cover path constraints")
+    assert "card failed" not in text and "NOT CONVERGED" not in text
+    assert '<div class="verdict na" id="verdict">' in text and "<b>not comparable: the indirect method" in text
+    assert "<code>se3ocp compare</code>" in text
+    assert _rows(text)["status"] == ["", "converged"]                  # the table: the applicable method only
+
+
+def test_a_round_off_margin_is_not_a_violation(slew_report):
+    """A margin of -5e-11 deg is round-off: red only when it exceeds the tolerance, which is the
+    maneuver's solver.direct.terminal_tol (the direct method's own threshold), stated in the note."""
+    _, res, text = slew_report
+    assert "violated by more than 1e-06" in text                         # the file's terminal_tol (the default)
+    d = res.direct
+    c = d.problem.constraints[0]
+    worst = float(np.min(c.angles_deg(d.trajectory)))
+    edge = KeepOut(c.body_axis, c.direction, worst + 5e-11)              # the path grazes the cone: margin -5e-11
+    sol = dataclasses.replace(d, problem=d.problem.replace(constraints=(edge,)))
+    assert -1e-10 < sol.summary()["min_margin_keep_out"] < 0
+    cell = {r["label"]: r for r in merit_rows({"direct": sol})}["minimum margin: keep out"]["cells"][0]
+    assert cell["bad"] is False                                          # default tolerance 1e-8
+    cell = {r["label"]: r for r in merit_rows({"direct": sol}, tol=1e-12)}["minimum margin: keep out"]["cells"][0]
+    assert cell["bad"] is True
+    for tol, shaded in ((None, False), (1e-12, True)):                   # the figure shades by the same rule
+        fig = plots.figures(sol, ("constraints",), constraint_tol=tol)["constraints"]
+        assert bool([a for a in fig.findobj() if getattr(a, "get_gid", lambda: None)() == "bound-active"]) is shaded
+        plt.close(fig)
+    assert store.path_tolerance(maneuver("e3", 30, None, "solver.direct.terminal_tol=1e-12")) == 1e-12
+    assert store.path_tolerance(None) == store.DEFAULT_PATH_TOL == 1e-8
+
+
+def test_bounds_and_constraints_read_as_words(slew_report):
+    _, _, text = slew_report
+    assert "force: removed (a norm bound of 0)" in text and "|u| ≤ 0" not in text
+    assert "body axis b = (1, 0, 0), direction s = (0.693, 0.693, 0.196)" in text
+
+
+def test_wide_figures_span_the_page(slew_report, tmp_path):
+    """A wide figure (a slew's frames side by side, the maneuver with a zoom panel) spans both
+    columns, so that its text is not shrunk to half the size of the others'."""
+    from PIL import Image
+
+    from se3ocp.problems.report import _wide
+
+    def png(w, h):
+        import io
+
+        buf = io.BytesIO()
+        Image.new("RGB", (w, h), "white").save(buf, format="PNG")
+        return buf.getvalue()
+
+    figs = [("maneuver", png(1200, 300)), ("attitude", png(700, 620)), ("control_norms", png(750, 330)),
+            ("moment", png(750, 600))]
+    assert _wide(figs) == [True, False, False, False]                 # short is not wide
+    d, _, _ = slew_report
+    text = render(store.read_run(d), figs)
+    assert '<figure id="fig-maneuver" class="wide">' in text and '<figure id="fig-control_norms">' in text
 
 
 def test_user_text_is_escaped(compared, tmp_path):

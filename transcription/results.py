@@ -315,13 +315,18 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     weights of the scheme (transcription.problem.quadrature_weights) at h = T/N;
     peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; with a bound, force_time_at_bound /
     moment_time_at_bound = sum of omega_j over the controls within AT_BOUND_RTOL of the limit (any
-    component of a BoxBound, the norm of a NormBound); with a state target that fixes the attitude,
+    component of a BoxBound, the norm of a NormBound; not for a control a norm bound of 0 removes,
+    which is never "at its bound" but absent); with a state target that fixes the attitude,
     terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints, min_margin_<kind>
     (``_2``, ... for repeated kinds) = min_k margin_k in the constraint's unit (< 0: violated).
-    Fields that do not apply are left out.  Pure: reads the Solution, changes nothing."""
+    Fields that do not apply are left out; a method that does not apply to the problem
+    (Result.not_applicable) has none: its trajectory is no solution, only the initial state's free
+    motion.  Pure: reads the Solution, changes nothing."""
     from .problem import NormBound, TargetState, quadrature_weights
 
     out: dict[str, Any] = {}
+    if sol.result is Result.not_applicable:
+        return out
     prob = sol.problem
     mass = sol.trajectory.mass
     if sol.controls is not None:
@@ -334,7 +339,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         ctrl = getattr(prob, "control", None)
         for name, u, bound in (("force", uf, getattr(ctrl, "force_bound", None)),
                                ("moment", um, getattr(ctrl, "moment_bound", None))):
-            if bound is None:
+            if bound is None or (isinstance(bound, NormBound) and bound.b == 0):
                 continue
             if isinstance(bound, NormBound):
                 active = np.linalg.norm(u, axis=1) >= bound.b * (1.0 - AT_BOUND_RTOL)
