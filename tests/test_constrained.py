@@ -20,7 +20,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.problem import fuel_cost, quadrature_weights
-from support import maneuver
+from support import ROOT, maneuver
 
 
 @lru_cache(maxsize=None)
@@ -210,3 +210,125 @@ def test_compare_says_what_the_indirect_method_does_not_cover():
     assert c.direct.converged and c.indirect.result is se3ocp.Result.not_applicable
     assert "path constraints" in c.verdict and c.verdict.startswith("not comparable")
     assert c.direct.costates is not None and c.direct.costates.shape == (c.direct.N, 12)   # multiplier estimates
+
+
+# ------------------------------------------------------------------ the indirect method on them
+@pytest.mark.parametrize("N, scheme", [(None, None), (100, "lgvi")])
+def test_direct_and_indirect_agree_on_bounded_effort(N, scheme):
+    """configs/e3_bounded.yaml by both methods (the indirect one from lambda_0 = 0, by the bound
+    continuation and semismooth Newton): cost to 1e-6 and controls to 1e-4 (relative; the gap is the
+    direct method's interior-point tolerance, see the next test), the same nodes at the thrust bound."""
+    m = maneuver("e3_bounded", N, scheme)
+    d = solved("e3_bounded") if scheme is None else solved("e3_bounded", N, (f"discretization={scheme}",))
+    i = se3ocp.solve(m, "indirect")
+    assert d.converged and i.converged, (d.message, i.message)
+    assert i.stats["initial_costate"] == "zero" and len(i.stats["bound_continuation"]) >= 2
+    assert i.terminal_error <= 1e-10
+    assert abs(i.cost - d.cost) <= 1e-6 * d.cost
+    assert np.abs(i.controls - d.controls).max() <= 1e-4 * np.abs(d.controls).max()
+    b = m.problem.control.force_bound.b
+    ti, td = np.linalg.norm(i.u_f, axis=1), np.linalg.norm(d.u_f, axis=1)
+    clear = np.abs(td - b) > 1e-3 * b                      # nodes not at the edge of the active set
+    np.testing.assert_array_equal((ti >= b * (1 - 1e-9))[clear], (td >= b * (1 - 1e-6))[clear])
+    assert (ti >= b * (1 - 1e-9)).any() and np.all(ti <= b * (1 + 1e-14))
+    cmp = se3ocp.compare(d, i)
+    assert cmp.same_extremal and cmp.verdict.startswith("agree")
+
+
+def test_the_gap_on_bounded_effort_is_the_direct_tolerance():
+    """With IPOPT's tolerance at 1e-12 instead of 1e-10 the direct solution of the bounded E3 (N = 100)
+    moves onto the indirect one: cost to 1e-9, controls to 1e-7."""
+    m = maneuver("e3_bounded", 100)
+    i = se3ocp.solve(m, "indirect")
+    d = se3ocp.solve(m, "direct", tol=1e-12)
+    assert i.converged and d.converged
+    assert abs(i.cost - d.cost) <= 1e-9 * i.cost
+    assert np.abs(i.controls - d.controls).max() <= 1e-7 * np.abs(i.controls).max()
+
+
+def test_direct_multipliers_satisfy_the_saturated_control_law():
+    """The discrete minimum principle read from the direct side: with the costates mapped from the direct
+    method's multipliers, every control of the bounded E3 (first order, N = 100) minimizes the discrete
+    Hamiltonian over the bounds, u_{k+1} = sat(-W^-1 [lambda^2_k; lambda^4_k]) -- the thrust projected on
+    its norm ball, each torque component clipped to its box (written here in NumPy, independently of the
+    method's saturate) -- to 1e-6 of the largest control."""
+    d = se3ocp.solve(maneuver("e3_bounded", 100), "direct", tol=1e-12)
+    c = d.problem.control
+    lam = d.costates                                       # (N, 12): lambda_0 .. lambda_{N-1}
+    v_f = -np.linalg.solve(c.W_f, lam[:, 3:6].T).T
+    v_m = -np.linalg.solve(c.W_m, lam[:, 9:12].T).T
+    n = np.linalg.norm(v_f, axis=1, keepdims=True)
+    u_f = v_f * np.minimum(1.0, c.force_bound.b / n)
+    u_m = np.clip(v_m, -c.moment_bound.b, c.moment_bound.b)
+    assert np.abs(np.c_[u_f, u_m] - d.controls.T).max() <= 1e-6 * np.abs(d.controls).max()
+    assert (n.ravel() > c.force_bound.b * 1.01).any()       # the law does saturate somewhere
+
+
+@pytest.mark.parametrize("scheme", ["first_order", "lgvi"])
+def test_semismooth_jacobian_equals_ad_through_the_saturated_rollout(scheme):
+    """With bounds, Psi and dlambda_{N-1}/dlambda_0 by the linearized recursion (saturation Jacobians D_k)
+    equal CasADi's forward AD through the saturated rollout (the same branches of min/max), to 1e-10, at a
+    point where the thrust saturates."""
+    import casadi as ca
+    from se3ocp.transcription.indirect import bound_data, shooting_functions, weight_inverse
+
+    p = maneuver("e3_bounded", 40, scheme).problem
+    fns = shooting_functions(p.disc, 40)
+    args = (p.X0, p.terminal.X, p.h, weight_inverse(p), bound_data(p))
+    lam = se3ocp.solve(p, "indirect").stats["lam0"] * 1.01
+    U = np.array(fns.shoot(lam, *args)[3])
+    assert (np.linalg.norm(U[:3], axis=0) >= p.control.force_bound.b * (1 - 1e-12)).any()
+    l = ca.MX.sym("l", 12)
+    z, lamN, _ = fns.residual(l, *args)
+    ad = ca.Function("ad", [l], [ca.jacobian(z, l), ca.jacobian(lamN, l)])
+    P_ad, L_ad = (np.array(a) for a in ad(lam))
+    _, P, L = (np.array(a) for a in fns.shoot_jac(lam, *args))
+    assert np.abs(P - P_ad).max() <= 1e-10 * np.abs(P_ad).max()
+    assert np.abs(L - L_ad).max() <= 1e-10 * np.abs(L_ad).max()
+
+
+@pytest.mark.parametrize("name, sets", [
+    ("slew_keep_out", ("constraints=[]",)),                                 # position and velocity free
+    ("e3_inclination_change", ("terminal={position: [-1.0, 0.0, 0.0], velocity: [0.0, -5.441398092702654, "
+                               "-3.1415926535897927]}", "horizon.N=100")),  # attitude and its rate free
+])
+def test_free_terminal_components_by_transversality(name, sets):
+    """Free terminal components: lambda_{N-1} = 0 on them (indirect) against the direct method, which
+    simply leaves them out: cost to 1e-10, controls to 1e-9."""
+    m = se3ocp.load(ROOT / "configs" / f"{name}.yaml", sets)
+    assert m.problem.terminal.free
+    d, i = se3ocp.solve(m, "direct"), se3ocp.solve(m, "indirect")
+    assert d.converged and i.converged, i.message
+    assert abs(i.cost - d.cost) <= 1e-10 * d.cost
+    assert np.abs(i.controls - d.controls).max() <= 1e-9 * np.abs(d.controls).max()
+    free = np.repeat([c in m.problem.terminal.free for c in ("position", "velocity", "attitude", "angular_velocity")], 3)
+    assert np.abs(i.costates[-1][free]).max() <= 1e-12 * np.abs(i.costates).max()
+
+
+def test_free_final_time_by_both_methods():
+    """configs/e3_free_time.yaml: the indirect method's free-final-time condition dL/dh = 0 (a secant
+    iteration over fixed-T shootings) finds the direct method's T to 1e-9 and its cost to 1e-12; with the
+    interval's upper end below that optimum both stop at the bound."""
+    m = maneuver("e3_free_time")
+    d, i = solved("e3_free_time"), se3ocp.solve(m, "indirect")
+    assert d.converged and i.converged, i.message
+    assert abs(i.T - d.T) <= 1e-9 * d.T and abs(i.cost - d.cost) <= 1e-12 * d.cost
+    assert i.stats["free_time"]["converged"] and abs(i.stats["free_time"]["dL_dh"]) * i.h <= 1e-9 * i.cost
+    capped = maneuver("e3_free_time", 200, None, "horizon.T={free: true, guess: 0.45, min: 0.4, max: 0.5}")
+    d, i = se3ocp.solve(capped, "direct"), se3ocp.solve(capped, "indirect")
+    assert d.converged and i.converged
+    assert i.T == pytest.approx(0.5, rel=1e-15) and d.T == pytest.approx(0.5, rel=1e-9)
+    assert i.stats["free_time"]["dL_dh"] < 0 and abs(i.cost - d.cost) <= 1e-9 * d.cost
+
+
+def test_free_time_condition_is_the_derivative_of_the_optimal_cost():
+    """Envelope theorem: dL/dh at the fixed-T optimum (the first evaluation of the free-time iteration, at
+    the guess T = 0.5) equals dJ*/dh by central differences of fixed-T indirect solves, to 1e-6 (step
+    1e-5: truncation ~2e-8, the solves' round-off ~4e-8 of dJ/dh)."""
+    N, T, dT = 200, 0.5, 1e-5
+    m = maneuver("e3_free_time", N)
+    g = se3ocp.solve(m, "indirect").stats["free_time"]["evaluations"][0]
+    assert g[0] == pytest.approx(T, rel=1e-15)
+    J = [se3ocp.solve(maneuver("e3", N, None, f"horizon.T={t!r}"), "indirect").cost for t in (T - dT, T + dT)]
+    fd = (J[1] - J[0]) / (2 * dT / N)
+    assert g[1] == pytest.approx(fd, rel=1e-6)

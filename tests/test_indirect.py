@@ -17,6 +17,7 @@ from se3ocp.transcription.indirect import (
     lam0_from_direct,
     outer_errors,
     quadratic_constant,
+    bound_data,
     shooting_functions,
     solve_indirect,
     terminal_residual_function,
@@ -39,7 +40,7 @@ def indirect(p, lam0=None, progress=None, **options):
 
 
 def _args(p):
-    return (p.X0, p.Xd, p.h, weight_inverse(p))
+    return (p.X0, p.Xd, p.h, weight_inverse(p), bound_data(p))
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +137,7 @@ def test_psi_against_finite_differences(name, scheme, N, solved):
     if scheme == "lgvi":  # the unknown is lambda_{-1}; the first-order lambda_0 is close enough
         near = np.array(p.disc.variation(p.X0, np.r_[solved[name].controls[:, 0], np.zeros(NU)], p.h)[0]).T @ near
     for lam0 in (np.zeros(12), near * (1 + 0.05 * rng.standard_normal(12))):
-        _, Psi = (np.array(a) for a in fns.shoot_jac(lam0, *_args(p)))
+        _, Psi, _ = (np.array(a) for a in fns.shoot_jac(lam0, *_args(p)))
         fd = np.zeros_like(Psi)
 
         def z(l):
@@ -338,7 +339,7 @@ def test_psi_equals_forward_ad_through_the_rollout(scheme):
     fns = shooting_functions(p.disc, 30)
     args = _args(p)
     lam = np.random.default_rng(0).standard_normal(12) * 0.01
-    assert float(fns.residual(lam, *args)[1]) <= 1e-10  # a valid rollout (the Cayley equation solved)
+    assert float(fns.residual(lam, *args)[2]) <= 1e-10  # a valid rollout (the Cayley equation solved)
     l = ca.MX.sym("l", 12)
     P_ad = np.array(ca.Function("ad", [l], [ca.jacobian(fns.residual(l, *args)[0], l)])(lam))
     P = np.array(fns.shoot_jac(lam, *args)[1])

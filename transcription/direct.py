@@ -43,8 +43,9 @@ With Cayley unknowns their rows carry their own multipliers; eliminating those g
 """
 from __future__ import annotations
 
+
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 import casadi as ca
@@ -539,6 +540,28 @@ AUTO_FIRST_BUDGET_FUEL = 600
 TIME_STARTS = 3
 
 
+def relaxation(problem: Problem) -> Problem | None:
+    """The effort problem without its control bounds (a removed control stays removed) and path
+    constraints, whose solution starts the solve of the full one (None if there is nothing to relax or
+    the objective needs its bounds).  The bounded E3 (configs/e3_bounded.yaml): 6 + 37 iterations, 2.4 s,
+    against 200 from the rollout then 37 from the interpolation, 12 s; the keep-out slew 5 + 11
+    against 200 + 12."""
+    c = problem.control
+    removed = c.removed
+    bounds = [b for b, r in zip((c.force_bound, c.moment_bound), removed) if b is not None and not r]
+    if c.objective != "effort" or not (bounds or problem.constraints):
+        return None
+    keep = [b if r else None for b, r in zip((c.force_bound, c.moment_bound), removed)]
+    return problem.replace(control=replace(c, force_bound=keep[0], moment_bound=keep[1]), constraints=())
+
+
+def _relaxed_guess(problem: Problem, relaxed: Problem, opts: DirectOptions) -> Guess | None:
+    """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time."""
+    sol = solve_direct(relaxed, opts)
+    guess = _warm_guess(problem, sol) if sol.converged else None
+    return replace(guess, iterations=sol.iterations, seconds=sol.build_s + sol.solve_s) if guess is not None else None
+
+
 def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, Callable[[], Guess], int]], str]:
     """The initial guesses to try, as (label, maker, iteration budget), and how to pick the result:
     'first' (the first that converges) or 'best' (the lowest cost of those that converge); the
@@ -558,6 +581,12 @@ def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, C
                  lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
                  opts.max_iter) for k in range(TIME_STARTS)], "best"
     first = AUTO_FIRST_BUDGET_FUEL if problem.control.objective == "fuel" else AUTO_FIRST_BUDGET
+    relaxed = relaxation(problem)
+    if relaxed is not None:
+        return [("the solution without bounds and path constraints", lambda: _relaxed_guess(problem, relaxed, opts),
+                 min(opts.max_iter, AUTO_FIRST_BUDGET)),
+                ("rollout", made("rollout"), min(opts.max_iter, first)),
+                ("interpolate", made("interpolate"), opts.max_iter)], "first"
     return [("rollout", made("rollout"), min(opts.max_iter, first)),
             ("interpolate", made("interpolate"), opts.max_iter)], "first"
 
@@ -610,6 +639,9 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     sol, best = None, None
     for label, maker, budget in plan:
         guess = maker()
+        if guess is None:
+            tried.append(f"{label}: not available (the relaxed problem did not converge)")
+            continue
         if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
             tried.append(f"{label}: not finite")
             continue
@@ -630,7 +662,12 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
         stats = solver.stats()
         sol = _solution(problem, opts, tr, out, stats, str(stats.get("return_status", "unknown")), "ipopt", build_s,
                         solve_s)
+        if guess.iterations:   # the relaxed problem's solve counts: its iterations and time
+            sol.iterations += guess.iterations
+            sol.solve_s += guess.seconds
+            total_solve += guess.seconds
         tried.append(f"{label}: {sol.result} in {sol.iterations} iterations" +
+                     (f" ({guess.iterations} of them on the relaxed problem)" if guess.iterations else "") +
                      (f", cost {sol.cost:.10g}" if pick == "best" and sol.converged else ""))
         sol.stats["initial_guess"] = label
         if sol.converged and (best is None or sol.cost < best.cost):

@@ -33,11 +33,14 @@ from .lie import cayley_inv, exp_so3, log_so3_any
 
 @dataclass(frozen=True)
 class Guess:
-    """X: (N+1, 18) node states; U: (6, n_controls) controls; C: (N, 3) Cayley vectors of the steps."""
+    """X: (N+1, 18) node states; U: (6, n_controls) controls; C: (N, 3) Cayley vectors of the steps;
+    iterations and seconds spent making it (a guess that is the solution of a relaxed problem)."""
 
     X: np.ndarray
     U: np.ndarray
     C: np.ndarray
+    iterations: int = 0
+    seconds: float = 0.0
 
 
 def cayley_vectors(X: np.ndarray) -> np.ndarray:

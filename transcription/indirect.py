@@ -85,20 +85,22 @@ the floor was ~1e-11 at N = 500, with it ~6e-13).  The floor is *measured*
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from functools import lru_cache
-from typing import Callable
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
 
 from . import codegen
-from .layout import NU, NX, NZ, join_state, split_state
+from .layout import NU, NX, NZ, U_FORCE, U_MOMENT, join_state, split_state
 from .lgvi import Discretization
 from .lie import chart, tangent_readback
 from .newton import newton_armijo
 from .options import DirectOptions, IndirectOptions
-from .problem import Problem, TargetState, effort_cost, quadrature_weights, state_residual, terminal_error
+from .problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetState, effort_cost, quadrature_weights,
+                      state_residual, terminal_error)
 from .results import Iterate, Result, Solution, Trajectory
 
 #: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
@@ -178,10 +180,10 @@ def orthonormalized(X):
 
 
 def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
-    """``{scheme}_costate_map`` (X, lam_prev, h, Winv) -> (X1, lam, u, res, lam_res, A, c), one signature for both
-    schemes."""
-    return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv"],
-                       ["X1", "lam", "u", "res", "lam_res", "A", "c"])
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv, bd) -> (X1, lam, u, res, lam_res, A, c, D), one signature for
+    both schemes."""
+    return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv", "bd"],
+                       ["X1", "lam", "u", "res", "lam_res", "A", "c", "D"])
 
 
 @lru_cache(maxsize=None)
@@ -208,7 +210,55 @@ def control_matrix(disc: Discretization) -> ca.Function:
     return ca.Function(f"{disc.scheme}_control_matrix", [h], [Bc], ["h"], ["B"])
 
 
-def _forward_step(disc: Discretization, X, lam_prev, h, Winv) -> dict:
+#: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
+#: component has no box, 0 where a norm bound of 0 removes the control) and the squared norm bounds
+#: (2: force, moment; NO_NORM where a block has no norm bound)
+NB = 8
+NO_NORM = 1e300
+
+
+def saturate(v, bd):
+    """u = the minimizer of (1/2) u^T W u - u^T W v over the control bounds, for the unconstrained minimizer v
+    (6; docs/mathematics.md §10): each component clipped to its box, then each block scaled into its norm ball,
+
+        u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2)).
+
+    Exact for the weights the indirect method accepts (a box with a diagonal block of W, a norm with an
+    isotropic one, see :func:`not_covered`; a block has one kind of bound).  Without bounds (b = inf,
+    n^2 = NO_NORM) u = v bit for bit.  The squared form keeps the derivative finite at u = 0.
+    """
+    u = ca.fmin(ca.fmax(v, -bd[:NU]), bd[:NU])
+    blocks = []
+    for i, sl in enumerate((slice(0, 3), slice(3, 6))):
+        ub, n2 = u[sl], bd[NU + i]
+        blocks.append(ub * ca.sqrt(n2 / ca.fmax(ca.dot(ub, ub), n2)))
+    return ca.vertcat(*blocks)
+
+
+@lru_cache(maxsize=None)
+def saturation() -> ca.Function:
+    """``saturation`` (v[6], bd[NB]) -> (u[6], D[6x6]): :func:`saturate` and its (generalized) Jacobian
+    D = du/dv, the element of the Clarke Jacobian that CasADi's derivatives of min/max pick (the active
+    branch; 1/2 at an exact tie) -- what the semismooth Newton method differentiates through."""
+    v, bd = ca.SX.sym("v", NU), ca.SX.sym("bd", NB)
+    u = saturate(v, bd)
+    return ca.Function("saturation", [v, bd], [u, ca.jacobian(u, v)], ["v", "bd"], ["u", "D"])
+
+
+def bound_data(problem: Problem) -> np.ndarray:
+    """The bound data ``bd`` (NB) of a smooth-control problem (see :data:`NB`)."""
+    bd = np.r_[np.full(NU, np.inf), NO_NORM, NO_NORM]
+    for i, (sl, bound) in enumerate(((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound))):
+        if isinstance(bound, BoxBound):
+            bd[sl] = bound.b
+        elif isinstance(bound, NormBound) and bound.b == 0:
+            bd[sl] = 0.0
+        elif isinstance(bound, NormBound):
+            bd[NU + i] = bound.b ** 2
+    return bd
+
+
+def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
     """One step of the forward map of the necessary conditions, as SX expressions.
 
     The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
@@ -217,26 +267,27 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv) -> dict:
     ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
     accurate, but its different rounding changes the iteration counts at the round-off floor that tests
     pin; the costate map gives the same values as before, bit for bit.
-    Returns a dict with c (the Cayley root), A, lam, u (u_{k+1}), X1, res and control (lambda -> u).
+    Returns a dict with c (the Cayley root), A, lam, u (u_{k+1}), D (its saturation Jacobian), X1, res
+    and control (lambda -> (u, D)).
     """
     Bc = control_matrix(disc)(h)
     scale = 1.0 if disc.scheme == "first_order" else 2.0
 
     def control(lam):
-        return -scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam)) / h
+        return saturation()(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam)) / h, bd)
 
     zero = ca.DM.zeros(NU)
     if disc.scheme == "first_order":
         wA, stage = zero, (lambda u1: u1)
     else:
-        uk = control(lam_prev)
+        uk = control(lam_prev)[0]
         wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
     c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
     A = disc.variation(orthonormalized(X), wA, h)[0]
     lam = solve_unpivoted(A.T, lam_prev)
-    u = control(lam)
+    u, D = control(lam)
     X1 = disc.step_given_c(X, c, stage(u), h)[0]
-    return {"c": c, "A": A, "lam": lam, "u": u, "X1": X1, "res": hist[-1], "control": control}
+    return {"c": c, "A": A, "lam": lam, "u": u, "D": D, "X1": X1, "res": hist[-1], "control": control}
 
 
 @lru_cache(maxsize=None)
@@ -248,13 +299,14 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
 
     first_order (module docstring):
 
-    * costate_map (X[18], lam_prev[12], h, Winv[6x6]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12], c[3]):
-      X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
-      u = u_{k+1} = -(1/h) Winv B_k^T lambda_k (26)-(27); X1 = X_{k+1} = step(X_k, u_{k+1});
+    * costate_map (X[18], lam_prev[12], h, Winv[6x6], bd[NB]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12],
+      c[3], D[6x6]): X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
+      u = u_{k+1} = sat(-(1/h) Winv B_k^T lambda_k) (26)-(27), saturated to the bounds bd
+      (:func:`saturate`; D its Jacobian); X1 = X_{k+1} = step(X_k, u_{k+1});
       res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf;
       A = A_k and c the root of the step's Cayley equation, for the linearization
       (:func:`linearization_functions`) along the same rollout.
-    * first_step (X0[18], lam0[12], h, Winv) -> (X1[18], u[6], res): the k = 0 step,
+    * first_step (X0[18], lam0[12], h, Winv, bd) -> (X1[18], u[6], res): the k = 0 step,
       where lambda_0 is the unknown itself.
 
     lgvi (see :data:`LGVI_CONDITIONS`): costate_map has the same signature with
@@ -265,17 +317,18 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     lam_prev = ca.SX.sym("lam_prev", NZ)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
-    s = _forward_step(disc, X, lam_prev, h, Winv)
+    bd = ca.SX.sym("bd", NB)
+    s = _forward_step(disc, X, lam_prev, h, Winv, bd)
     lam_res = ca.norm_inf(ca.mtimes(s["A"].T, s["lam"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
-    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv],
-                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"]])
+    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv, bd],
+                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"], s["D"]])
     if disc.scheme != "first_order":
         return costate_map, None
     lam0 = ca.SX.sym("lam0", NZ)
-    u0 = s["control"](lam0)
+    u0 = s["control"](lam0)[0]
     X1, res = disc.step(X, u0, h)
     first_step = ca.Function(
-        "first_order_costate_first_step", [X, lam0, h, Winv], [X1, u0, res], ["X0", "lam0", "h", "Winv"],
+        "first_order_costate_first_step", [X, lam0, h, Winv, bd], [X1, u0, res], ["X0", "lam0", "h", "Winv", "bd"],
         ["X1", "u", "res"]
     )
     return costate_map, first_step
@@ -314,11 +367,12 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
 
     Returns (costate_hessian, linearized_map):
 
-    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6]) -> H[12x12]
+    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB]) -> H[12x12]
         H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
         orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
         seeded with the step's Cayley root c (an output of the costate map).
-    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], h, Winv[6x6]) -> (dZ1[12x12], dlam1[12x12])
+    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], Dk[6x6], D1[6x6], h, Winv[6x6])
+            -> (dZ1[12x12], dlam1[12x12])
         dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, docs/mathematics.md §4) and of lambda_{k-1} by
         the shooting unknown; (dZ1, dlam1) those of z_{k+1} and lambda_k.  Starting from the first step's
         and iterating (``mapaccum``) gives dz_N/dlambda_0, hence Psi_12.
@@ -326,9 +380,11 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     Differentiating lambda_{k-1} = A_k^T lambda_k and z_{k+1} = A_k z_k + B du_{k+1}:
 
         dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k)
-        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},     du_{k+1} = -(s/h) Winv B_c^T dlambda_k
+        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},     du_{k+1} = -(s/h) D_{k+1} Winv B_c^T dlambda_k
 
-    with dz~_k = dz_k (first_order) or dz_k + B^b du_k (lgvi: u_k enters as the momentum kick B^b u_k,
+    (D_{k+1} the Jacobian of the saturation at u_{k+1}, an output of the costate map; the identity
+    without bounds) with dz~_k = dz_k (first_order) or dz_k + B^b du_k, du_k = -(s/h) D_k Winv B_c^T
+    dlambda_{k-1} (lgvi: u_k enters as the momentum kick B^b u_k,
     so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).  The 12
     right-hand sides share one elimination (:func:`unpivoted_elimination` of A_k^T, then
     :func:`unpivoted_substitution` per column, the operations of :func:`solve_unpivoted`).
@@ -347,14 +403,15 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     c = ca.SX.sym("c", 3)
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
+    bd = ca.SX.sym("bd", NB)
     Bc = control_matrix(disc)(h)
     scale = 1.0 if disc.scheme == "first_order" else 2.0
     zero = ca.DM.zeros(NU)
-    wA = zero if disc.scheme == "first_order" else ca.vertcat(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam_prev)) / h,
-                                                              zero)
+    wA = zero if disc.scheme == "first_order" else \
+        ca.vertcat(saturation()(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam_prev)) / h, bd)[0], zero)
     H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
-    hessian = ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv], [H],
-                          ["X", "lam_prev", "lam", "c", "h", "Winv"], ["H"])
+    hessian = ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv, bd], [H],
+                          ["X", "lam_prev", "lam", "c", "h", "Winv", "bd"], ["H"])
 
     # the update at the MX level (matrix products, a map of the column solve): compact C, cheap to compile
     spA = costate_functions(disc)[0].sparsity_out("A")               # its structural zeros save operations
@@ -368,16 +425,22 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     Hm = ca.MX.sym("H", H.sparsity())
     dZ = ca.MX.sym("dZ", NZ, NZ)
     dlam = ca.MX.sym("dlam", NZ, NZ)
+    Dk = ca.MX.sym("Dk", NU, NU)
+    D1 = ca.MX.sym("D1", NU, NU)
     hm = ca.MX.sym("h")
     Wm = ca.MX.sym("Winv", NU, NU)
     Bm = control_matrix(disc)(hm)
-    M = ca.mtimes(Bm, -scale * ca.mtimes(Wm, Bm.T) / hm)           # dz_{k+1} by lambda_k through the control
-    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(M, dlam)
+    G = -scale * ca.mtimes(Wm, Bm.T) / hm                          # the unsaturated control by lambda
+
+    def M(D):                                                      # dz_{k+1} by lambda through the control
+        return ca.mtimes(Bm, ca.mtimes(D, G))
+
+    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(M(Dk), dlam)
     solve_columns = column_solve.map(f"{disc.scheme}_costate_column_solve_map", "serial", NZ, [0], [])
     dlam1 = solve_columns(factor(A), dlam - ca.mtimes(Hm, dZk))
-    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(M, dlam1)
-    lin = ca.Function(f"{disc.scheme}_linearized_map", [dZ, dlam, A, Hm, hm, Wm], [dZ1, dlam1],
-                      ["dZ", "dlam", "A", "H", "h", "Winv"], ["dZ1", "dlam1"])
+    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(M(D1), dlam1)
+    lin = ca.Function(f"{disc.scheme}_linearized_map", [dZ, dlam, A, Hm, Dk, D1, hm, Wm], [dZ1, dlam1],
+                      ["dZ", "dlam", "A", "H", "Dk", "D1", "h", "Winv"], ["dZ1", "dlam1"])
     return hessian, lin
 
 
@@ -414,18 +477,21 @@ X_{k+1} = step(X_k, [u_k; u_{k+1}]).  The shooting unknown is lambda_{-1} (12), 
 class ShootingFunctions:
     """Shooting residual and its Jacobian for one (Discretization, N), built once.
 
-    The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS).
+    The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS); bd the
+    bound data of the controls (:func:`bound_data`; no bounds: u = v bit for bit).
 
-    shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6])
+    shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6], bd[NB])
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
             U[6 x n_controls] (first_order u_1..u_N; lgvi u_0..u_N), res[1 x N] Cayley residuals,
             lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0 in first_order)
-    residual(lam0, X0, Xd, h, Winv) -> (zN[12], res_max)  (line-search trials; res_max = max
-        relative Cayley residual over the steps: a rollout with res_max > cayley_tol is not
-        a solution of the discrete equations and is rejected)
-    shoot_jac(lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12 x 12]),  Psi = dzN/dlam0 by the
-        linearized recursion (:func:`linearization_functions`) along the mapaccum'ed rollout; equal
-        to forward-mode AD through it.
+    residual(lam0, X0, Xd, h, Winv, bd) -> (zN[12], lamN[12], res_max)  (line-search trials; lamN =
+        lambda_{N-1}, the multiplier of the last step, for the transversality conditions of free
+        terminal components; res_max = max relative Cayley residual over the steps: a rollout with
+        res_max > cayley_tol is not a solution of the discrete equations and is rejected)
+    shoot_jac(lam0, X0, Xd, h, Winv, bd) -> (zN[12], Psi[12 x 12], dlamN[12 x 12]),  Psi = dzN/dlam0 and
+        dlamN = dlambda_{N-1}/dlam0 by the linearized recursion (:func:`linearization_functions`) along the
+        mapaccum'ed rollout; equal to forward-mode AD through it (with bounds: the generalized derivative
+        of the saturation, for the semismooth Newton method).
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
@@ -452,23 +518,29 @@ class ShootingFunctions:
         Xd = ca.MX.sym("Xd", NX)
         h = ca.MX.sym("h")
         Winv = ca.MX.sym("Winv", NU, NU)
+        bd = ca.MX.sym("bd", NB)
+        Bc = control_matrix(disc)(h)
+        scale = 1.0 if sch == "first_order" else 2.0
+        # the control lam0 determines (first_order u_1, lgvi u_0) and its saturation Jacobian
+        u_first, D_first = saturation()(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam0)) / h, bd)
         # the rollout: steps k = k0 .. N-1 by the costate map from (X_k0, lambda_k0-1)
         if sch == "first_order":   # step 0 from lambda_0 itself
-            X1, u1, r1 = self.first_step(X0, lam0, h, Winv)
+            X1, u1, r1 = self.first_step(X0, lam0, h, Winv, bd)
             Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
             n, Xstart = N - 1, X1
         else:
-            Xs, lams, Us, res, lres = [], [], [self._lgvi_u0(lam0, h, Winv)], [], []
+            Xs, lams, Us, res, lres = [], [], [u_first], [], []
             n, Xstart = N, X0
         if n > 0:
             acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
-            Xr, Lr, Ur, Rr, LRr, Ar, Cr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n))
+            Xr, Lr, Ur, Rr, LRr, Ar, Cr, Dr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n),
+                                                  ca.repmat(bd, 1, n))
             for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
                 a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
-        zN = self.terminal_residual(Xs[:, -1], Xd)
-        names_in = ["lam0", "X0", "Xd", "h", "Winv"]
-        args = [lam0, X0, Xd, h, Winv]
+        zN, lamN = self.terminal_residual(Xs[:, -1], Xd), lams[:, -1]
+        names_in = ["lam0", "X0", "Xd", "h", "Winv", "bd"]
+        args = [lam0, X0, Xd, h, Winv, bd]
         self.shoot = ca.Function(
             f"{sch}_shoot{N}",
             args,
@@ -477,27 +549,29 @@ class ShootingFunctions:
             ["zN", "X", "lam", "U", "res", "lam_res"],
         )
         res_max = ca.mmax(res)
-        self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, res_max], names_in, ["zN", "res_max"])
+        self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, lamN, res_max], names_in,
+                                    ["zN", "lamN", "res_max"])
         # Psi = dzN/dlam0 by the linearized coupled recursion along the same rollout (tangent coordinates,
         # see linearization_functions): the same derivative as forward AD through the rollout, cheaper
-        if sch == "first_order":
-            Bc = control_matrix(disc)(h)           # first step: dz_1 = B du_1, u_1 = -(1/h) Winv B^T lambda_0
-            dZ = -ca.mtimes(Bc, ca.mtimes(Winv, Bc.T)) / h
+        if sch == "first_order":   # first step: dz_1 = B du_1, du_1 = -(1/h) D_1 Winv B^T dlambda_0
+            dZ = ca.mtimes(Bc, ca.mtimes(D_first, -ca.mtimes(Winv, Bc.T) / h))
         else:
             dZ = ca.MX.zeros(NZ, NZ)
+        dlamN = ca.MX.eye(NZ)
         if n > 0:
             Xk = ca.horzcat(Xstart, Xr[:, :n - 1])         # X_k, lambda_{k-1}, lambda_k of the steps
             Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
+            # D of the control each step's A_k is taken at (lgvi: u_k) and of the one it determines (u_{k+1})
+            Dk = ca.horzcat(D_first, Dr[:, :NU * (n - 1)])
             hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
-            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5], [])(Xk, Lprev, Lr, Cr, h, Winv)
-            dZs, _ = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(dZ, ca.MX.eye(NZ), Ar, Hk, hs, Ws)
-            dZ = dZs[:, -NZ:]
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5, 6], [])(Xk, Lprev, Lr, Cr, h, Winv,
+                                                                                            bd)
+            dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
+                dZ, ca.MX.eye(NZ), Ar, Hk, Dk, Dr, hs, Ws)
+            dZ, dlamN = dZs[:, -NZ:], dlams[:, -NZ:]
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
-        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ)], names_in, ["zN", "Psi"])
-
-    def _lgvi_u0(self, lam_init, h, Winv):
-        """u_0 = -(2/h) Winv B^b^T lambda_{-1}, B^b from the graph (:func:`control_matrix`)."""
-        return -2.0 * ca.mtimes(Winv, ca.mtimes(control_matrix(self.disc)(h).T, lam_init)) / h
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
+                                     ["zN", "Psi", "dlamN"])
 
 
 @lru_cache(maxsize=None)
@@ -506,15 +580,33 @@ def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> Shoot
     return ShootingFunctions(disc, N, jit)
 
 
+@lru_cache(maxsize=None)
+def time_gradient_function(disc: Discretization, N: int) -> ca.Function:
+    """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h) -> g[1 x N]: the derivative
+    of each step's constraint term of the Lagrangian by the step size at fixed states, controls and multipliers,
+
+        g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h) / dh),
+
+    X_k the node states 0..N-1, w_k the stage controls, lambda_k the multiplier of step k (the free-final-
+    time condition, docs/mathematics.md §10).  Forward AD through the step (its unrolled Cayley Newton
+    iterations, converged to round-off)."""
+    X, w, lam, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("lam", NZ), ca.SX.sym("h")
+    X1 = disc.step(X, w, h)[0]
+    g = ca.dot(lam, tangent_readback(X1, ca.jacobian(X1, h)))
+    f = ca.Function(f"{disc.scheme}_step_time_derivative", [X, w, lam, h], [g], ["X", "w", "lam", "h"], ["g"])
+    return f.map(f"{disc.scheme}_step_time_derivative{N}", "serial", N, [3], [])
+
+
 # ------------------------------------------------------------------------- helpers
 def weight_inverse(problem: Problem) -> np.ndarray:
     """blkdiag(W_f, W_m)^-1 (6x6) of a smooth-control problem."""
     return np.linalg.inv(problem.control.W)
 
 
-def control_cost(problem: Problem, U: np.ndarray) -> float:
-    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme."""
-    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.h))
+def control_cost(problem: Problem, U: np.ndarray, h: float | None = None) -> float:
+    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme at step
+    size h (default: the problem's)."""
+    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.h if h is None else h))
 
 
 def lam0_from_direct(problem: Problem, dsol: Solution) -> np.ndarray:
@@ -555,9 +647,133 @@ def _initial_costate(problem: Problem, opts: IndirectOptions, warm_start, direct
     return np.asarray(spec, dtype=float).reshape(NZ), "explicit", None
 
 
+def free_rows(target: TargetState) -> np.ndarray:
+    """Boolean (12): the rows of z_N (tangent coordinates [dx; dgamma; zeta; dPi]) of the free terminal
+    components, where the shooting residual is lambda_{N-1} instead (stationarity in z_N, docs/mathematics.md §10)."""
+    return np.repeat([c in target.free for c in STATE_COMPONENTS], 3)
+
+
+def bounded(bd: np.ndarray) -> bool:
+    """Whether bound data bd bounds a control (a removed control, b = 0, is structure, not a bound)."""
+    box = bd[:NU]
+    return bool(np.any(np.isfinite(box) & (box > 0)) or np.any(bd[NU:] < NO_NORM))
+
+
+#: bound continuation (indirect method from lambda_0 = 0): the stages of the bounds' geometric path from
+#: the unbounded peak to the given bounds, tried when the step from the unbounded solution fails
+CONTINUATION_STAGES = 4
+
+
+def _bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
+    """Newton from lambda_0 = 0 on the unbounded problem (removed controls stay removed), then on the
+    bounded one from its solution; if that fails, along CONTINUATION_STAGES bounds shrinking
+    geometrically from the unbounded controls' peaks to bd.  A semismooth Newton method converges
+    locally; this brings it there.  Returns the last stage's NewtonResult (its history and iteration
+    count those of all stages) and a line per stage."""
+    free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM]
+    first = newton(lam, free_bd, "unbounded")
+    history, iters, stages = list(first.history), first.iterations, [f"unbounded: {first.result.value} in "
+                                                                      f"{first.iterations} iterations"]
+    if not first.result.successful:
+        first.message = f"the unbounded first stage of the bound continuation: {first.message}"
+        return first, stages
+    U = np.array(fns.shoot(first.x, *args, free_bd)[3])
+    peak = np.r_[np.abs(U).max(axis=1), [np.linalg.norm(U[sl], axis=0).max() ** 2 for sl in (U_FORCE, U_MOMENT)]]
+    paths = [[1.0], [(j + 1) / CONTINUATION_STAGES for j in range(CONTINUATION_STAGES)]]
+    for path in paths:
+        x, ok = first.x, True
+        for t in path:
+            # bounds at fraction t of the way (geometrically) from max(peak, bound) down to the bound
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(np.isfinite(bd) & (bd > 0) & (bd < NO_NORM), np.maximum(peak / bd, 1.0), 1.0)
+            stage_bd = np.where(ratio > 1.0, bd * ratio ** (1.0 - t), bd)
+            nr = newton(x, stage_bd, f"bounds {t:.2g}")
+            history += nr.history
+            iters += nr.iterations
+            stages.append(f"bounds at {t:.2g} of the way: {nr.result.value} in {nr.iterations} iterations")
+            x, ok = nr.x, nr.result.successful
+            if not ok:
+                break
+        if ok:
+            break
+    nr.history, nr.iterations = history, iters
+    return nr, stages
+
+
+#: free final time (indirect): outer iterations on the step size, and their relative step tolerance
+FREE_TIME_MAX_OUTER = 30
+FREE_TIME_RTOL = 1e-11
+
+
+def _free_final_time(solve_at, dL_dh, lam, h, lo, hi, N) -> tuple[Any, float, dict]:
+    """The free-final-time condition: the step size h in [lo, hi] with dJ*/dh = dL/dh = 0 (or at a bound
+    with dL/dh pointing out of the interval), by a safeguarded secant iteration on the scalar g(h) = dL/dh,
+    each g from a fixed-h shooting solved from the previous lambda_0.
+
+    Secant steps keep inside the bracket of a sign change once one is known (bisection when a secant step
+    leaves it); before that they are clipped to [lo, hi], and a bound where g keeps its sign is the
+    answer.  Stops when the step is below FREE_TIME_RTOL h.  Returns (the NewtonResult at the final h
+    -- its history and iterations those of every inner solve --, h, a summary for the stats)."""
+    history, iters, evals = [], 0, []
+
+    def at(h, lam, first=False):
+        nr = solve_at(lam, h, first, f"T = {N * h:.10g}: ")
+        nonlocal iters
+        history.extend(nr.history)
+        iters += nr.iterations
+        g = dL_dh(nr.x, h) if nr.result.successful else np.nan
+        evals.append((float(N * h), float(g)))
+        return nr, g
+
+    def done(nr, h, converged, message):
+        nr.history, nr.iterations = history, iters
+        return nr, h, {"converged": converged, "T": N * h, "dL_dh": evals[-1][1], "evaluations": evals,
+                       "message": message}
+
+    h = min(max(h, lo), hi)
+    nr, g = at(h, lam, first=True)
+    below, above = (lo, None), (hi, None)          # the bracket: g < 0 at below, g > 0 at above
+    prev = None
+    for _ in range(FREE_TIME_MAX_OUTER):
+        if not nr.result.successful:
+            return done(nr, h, False, f"free final time: the shooting at T = {N * h:.10g} failed")
+        if g == 0.0:
+            return done(nr, h, True, f"free final time T = {N * h:.12g} (dL/dh = 0)")
+        if g < 0:
+            below = (h, g)
+        else:
+            above = (h, g)
+        if (g < 0 and h >= hi) or (g > 0 and h <= lo):
+            return done(nr, h, True, f"free final time at its bound T = {N * h:.12g} (dL/dh = {g:.3e} points "
+                                     "out of the interval)")
+        if prev is None:    # a first secant point: a small step downhill
+            cand = h * (1.0 - 1e-3 * np.sign(g))
+        else:
+            hp, gp = prev
+            cand = h - g * (h - hp) / (g - gp) if g != gp else np.nan
+        a, b = below[0], above[0]
+        if below[1] is not None and above[1] is not None:
+            if not (min(a, b) < cand < max(a, b)):
+                cand = 0.5 * (a + b)
+        elif not np.isfinite(cand):
+            cand = hi if g < 0 else lo
+        cand = min(max(cand, lo), hi)
+        step = abs(cand - h)
+        prev = (h, g)
+        nr, g = at(cand, nr.x)
+        h = cand
+        if step <= FREE_TIME_RTOL * h and nr.result.successful:
+            return done(nr, h, True, f"free final time T = {N * h:.12g} (dL/dh = {g:.3e}, last step "
+                                     f"{step / h:.1e} h, {len(evals)} shootings)")
+    return done(nr, h, False, f"free final time: no convergence in {FREE_TIME_MAX_OUTER} outer iterations "
+                              f"(T = {N * h:.12g}, dL/dh = {g:.3e})")
+
+
 def not_covered(problem: Problem) -> str:
     """What of a smooth-control problem the indirect method does not cover ('' if nothing): its
-    necessary conditions are those of the effort objective with every terminal component given."""
+    necessary conditions are those of the effort objective to a state target (free components by
+    transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
+    on a block with a diagonal weight, a norm bound on one with an isotropic weight."""
     c = problem.control
     reasons = []
     if c.objective != "effort":
@@ -566,12 +782,11 @@ def not_covered(problem: Problem) -> str:
         reasons.append("path constraints")
     if not isinstance(problem.terminal, TargetState):
         reasons.append("an orbit target")
-    elif problem.terminal.free:
-        reasons.append("free terminal components")
-    if problem.free_time:
-        reasons.append("a free final time")
-    if c.bounded:
-        reasons.append("bounded controls")
+    for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
+        if isinstance(bound, BoxBound) and np.count_nonzero(W - np.diag(np.diag(W))):
+            reasons.append(f"a box bound on the {name} with a non-diagonal weight")
+        if isinstance(bound, NormBound) and bound.b > 0 and not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-14, atol=0):
+            reasons.append(f"a norm bound on the {name} with a weight that is not a multiple of the identity")
     return ", ".join(reasons)
 
 
@@ -589,9 +804,15 @@ def _failure(problem: Problem, result: Result, message: str, build_s: float = 0.
 def solve_indirect(problem: Problem, options: IndirectOptions | None = None,
                    progress: Callable[[Iterate], None] | None = None, warm_start=None,
                    direct_options: DirectOptions | None = None) -> Solution:
-    """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6) for a smooth-control problem
-    with a state target ('first_order' or 'lgvi'; for 'lgvi' the unknown is lambda_{-1}, see
-    LGVI_CONDITIONS).
+    """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6, §10) for a smooth-control effort
+    problem with a state target ('first_order' or 'lgvi'; for 'lgvi' the unknown is lambda_{-1}, see
+    LGVI_CONDITIONS); problems it does not cover (:func:`not_covered`) return Result.not_applicable.
+
+    Beyond the paper: control bounds (the control minimizes the discrete Hamiltonian over them,
+    :func:`saturate`; Newton differentiates through the saturation -- a semismooth Newton method --
+    and from lambda_0 = 0 it first solves the unbounded problem, :func:`_bound_continuation`); free
+    terminal components (lambda_{N-1} = 0 on them, :func:`free_rows`); a free final time (the
+    condition dL/dh = 0 by a secant iteration over fixed-T shootings, :func:`_free_final_time`).
 
     The initial costate comes from ``warm_start`` (12 numbers, an indirect Solution, or a direct
     Solution whose multipliers are mapped to the costates) or from ``options.initial_costate``
@@ -617,7 +838,8 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None,
     t0 = time.perf_counter()
     fns = shooting_functions(disc, N, bool(opts.jit))
     build_s = time.perf_counter() - t0
-    X0, Xd, Winv = problem.X0, problem.terminal.X, weight_inverse(problem)
+    X0, Xd, Winv, bd = problem.X0, problem.terminal.X, weight_inverse(problem), bound_data(problem)
+    free = free_rows(problem.terminal)
     stats: dict = {"jit": bool(fns.compiled)}
     t_init = time.perf_counter()
     try:
@@ -630,32 +852,70 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None,
                      direct_cost=float(dsol.cost))
     t1 = time.perf_counter()
 
-    def residual(l):
-        z, r = fns.residual(l, X0, Xd, h, Winv)
-        return np.array(z).ravel(), float(r)
+    def newton(lam, bd_stage, phase="", h=h):
+        def residual(l):
+            # the given terminal components, and lambda_{N-1} = 0 on the free ones (transversality)
+            z, lamN, r = fns.residual(l, X0, Xd, h, Winv, bd_stage)
+            return np.where(free, np.array(lamN).ravel(), np.array(z).ravel()), float(r)
 
-    def jacobian(l):
-        # Psi only: z always comes from ``residual`` (one rounding for all comparisons)
-        return np.array(fns.shoot_jac(l, X0, Xd, h, Winv)[1])
+        def jacobian(l):
+            # Psi only: z always comes from ``residual`` (one rounding for all comparisons)
+            _, Psi, dlamN = fns.shoot_jac(l, X0, Xd, h, Winv, bd_stage)
+            return np.where(free[:, None], np.array(dlamN), np.array(Psi))
 
-    z0, r0 = residual(lam)
+        tagged = (lambda it: progress(dataclasses.replace(it, phase=phase))) if progress and phase else progress
+        nr = newton_armijo(lam, residual, jacobian, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
+                           max_halvings=opts.max_halvings, aux_tol=opts.cayley_tol, floor_factor=opts.floor_factor,
+                           floor_accept=opts.floor_accept, progress=tagged)
+        if phase:
+            nr.history = [dataclasses.replace(it, phase=phase) for it in nr.history]
+        return nr
+
+    def solve_at(lam, h, first, phase=""):
+        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation."""
+        if first and source == "zero" and bounded(bd):
+            nr, stages = _bound_continuation(lambda l, b, ph: newton(l, b, f"{phase}{ph}", h), lam, bd, fns,
+                                             (X0, Xd, h, Winv))
+            stats["bound_continuation"] = stages
+            return nr
+        return newton(lam, bd, phase, h)
+
+    r0 = float(fns.residual(lam, X0, Xd, h, Winv, bd)[2])
     if not r0 <= opts.cayley_tol:
         return _failure(problem, Result.invalid_option,
                         f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual {r0:.1e} > "
                         f"cayley_tol {opts.cayley_tol:.0e}): the rotation per step is too large; use a smaller step "
                         f"h = T/N (increase horizon.N) or another initial costate", build_s)
-    nr = newton_armijo(lam, residual, jacobian, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
-                       max_halvings=opts.max_halvings, aux_tol=opts.cayley_tol, floor_factor=opts.floor_factor,
-                       floor_accept=opts.floor_accept, progress=progress)
+    if problem.free_time:
+        tg = time_gradient_function(disc, N)
+
+        def dL_dh(lam, h):
+            """dJ*/dh = dL/dh at the solution (envelope theorem): J/h (the weights are proportional to h)
+            plus the steps' terms (:func:`time_gradient_function`)."""
+            _, Xs, lams, U, _, _ = (np.array(a) for a in fns.shoot(lam, X0, Xd, h, Winv, bd))
+            Xk = np.column_stack([X0, Xs[:, :-1]])
+            return control_cost(problem, U, h) / h + float(np.sum(np.array(tg(Xk, disc.stage_controls(U), lams, h))))
+
+        lo, hi = (t / N for t in problem.time_bounds)
+        nr, h, outer = _free_final_time(solve_at, dL_dh, lam, h, lo, hi, N)
+        stats["free_time"] = outer
+    else:
+        nr = solve_at(lam, h, True)
     lam = nr.x
     # final rollout: controls and costates from lambda_0, re-simulated trajectory
-    _, _, lams, U, _, lres = fns.shoot(lam, X0, Xd, h, Winv)
+    _, _, lams, U, _, lres = fns.shoot(lam, X0, Xd, h, Winv, bd)
     U = np.array(U)
     lams = np.array(lams).T
     Xsim, res = disc.simulate(X0, U, h, N)
     solve_s = time.perf_counter() - t1
     finite = bool(np.all(np.isfinite(Xsim)))
     result, message = nr.result, nr.message.replace("|F|", "|z_N|").replace(" x ", " lambda_0 ")
+    if "bound_continuation" in stats:
+        message += f" (bound continuation from lambda_0 = 0: {'; '.join(stats['bound_continuation'])})"
+    if "free_time" in stats:
+        message += f"; {stats['free_time']['message']}"
+        if result.successful and not stats["free_time"]["converged"]:
+            result = Result.max_iterations
     if not result.successful and nr.rejected_aux:
         message += (f"; {len(nr.rejected_aux)} line-search trials were rejected because their controls turned the body "
                     f"too far per step for the Cayley solve (residual up to {max(nr.rejected_aux):.1e} > cayley_tol "
@@ -675,7 +935,7 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None,
     return Solution(method="indirect", solver="newton-armijo", result=result, message=message,
                     trajectory=Trajectory(t=h * np.arange(N + 1), X=Xsim, mass=problem.model.mass,
                                           inertia=problem.model.inertia),
-                    cost=control_cost(problem, U) if np.all(np.isfinite(U)) else float("inf"),
+                    cost=control_cost(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
                     terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
                     iterations=nr.iterations, build_s=build_s, solve_s=solve_s, problem=problem, controls=U,
                     costates=lams, history=nr.history, stats=stats)
