@@ -200,7 +200,8 @@ continuation: true
     assert [r["converged"] for r in res.rows] == [True, False, True]
     bad = res.rows[1]
     assert bad["status"] == "max_iterations" and bad["start"] == "cold_after_failed_warm"
-    assert bad["iterations_total"] == 2 and bad["warm_started"] is False
+    # warm start 1 iteration, then the cold 'auto' solve: rollout 1 + interpolation 1
+    assert bad["iterations_total"] == 3 and bad["warm_started"] is False
     assert res.rows[2]["start"] == "neighbour" and res.rows[2]["warm_started"] is True
     assert not res.all_converged
 

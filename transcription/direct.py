@@ -596,7 +596,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     """Solve ``problem`` by the direct method (see the module docstring); failures are data.
 
     The initial guesses of :func:`guess_plan` are tried in order until one converges (the message
-    and ``stats['guesses_tried']`` say which were tried).  ``warm_start``: a previous direct
+    and ``stats['guesses_tried']`` say which were tried; ``iterations``, ``build_s`` and ``solve_s``
+    are those of all of them).  ``warm_start``: a previous direct
     Solution of a problem of the same size (continuation, e.g. along a sweep): its trajectory,
     controls and step size are the only initial guess and, if it carries them
     (``stats['nlp_nu']``), its NLP multipliers start IPOPT's duals.
@@ -635,7 +636,7 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     build_s = time.perf_counter() - t0
     solvers: dict[int, ca.Function] = {}
     tried: list[str] = []
-    total_build, total_solve = 0.0, 0.0
+    total_build, total_solve, total_iterations = 0.0, 0.0, 0
     sol, best = None, None
     for label, maker, budget in plan:
         guess = maker()
@@ -666,6 +667,7 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
             sol.iterations += guess.iterations
             sol.solve_s += guess.seconds
             total_solve += guess.seconds
+        total_iterations += sol.iterations
         tried.append(f"{label}: {sol.result} in {sol.iterations} iterations" +
                      (f" ({guess.iterations} of them on the relaxed problem)" if guess.iterations else "") +
                      (f", cost {sol.cost:.10g}" if pick == "best" and sol.converged else ""))
@@ -679,7 +681,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
                                     "the initial guess is not finite (overflow or a singular potential along the "
                                     "free motion): check the model and the states")
     sol = best if best is not None and sol.result is not Result.interrupted else sol
-    sol.build_s, sol.solve_s = build_s + total_build, total_solve
+    # every guess tried counts: iterations and times are those of the whole solve
+    sol.build_s, sol.solve_s, sol.iterations = build_s + total_build, total_solve, total_iterations
     sol.stats["guesses_tried"] = tried
     if len(tried) > 1:
         sol.message += "; initial guesses tried: " + "; ".join(tried)
