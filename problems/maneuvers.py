@@ -51,6 +51,7 @@ from ..transcription.results import Trajectory
 
 from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
 from .schema import ConfigError, Validator, apply_override, describe, join_field, load_with_overrides, read_yaml_file, yaml_load  # noqa: F401
+from .units import units_for
 
 MODEL_DEFAULTS: dict[str, Any] = {
     "kind": "dumbbell",
@@ -364,7 +365,9 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
             X = st.vector(body, initial)
             margin = float(con.margin(Trajectory(np.zeros(1), X[None, :], body.mass, body.inertia))[0])
             if margin < 0:
-                v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g} {con.unit})")
+                unit = units_for(body.central_mu).unit(con.dimension)
+                v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g}"
+                          f"{' ' + unit if unit else ''})")
         out.append(con)
     return tuple(out)
 

@@ -109,6 +109,11 @@ class Dumbbell:
         """The radius of the body's bounding sphere about its centre of mass."""
         return 0.5 * self.length + self.sphere_radius
 
+    @property
+    def central_mu(self) -> float | None:
+        """GM of the central body (None without gravity)."""
+        return None if self.gravity == "none" else self.mu
+
     def potential(self) -> ca.Function:
         """U(x, R): exact over the two spheres (point_mass, j2), MacCullagh (gravity_gradient), 0 (none)."""
         g = self.field
@@ -136,7 +141,7 @@ class Dumbbell:
         centres as markers for the figures, and a key so that equal dumbbells share their Functions."""
         g = self.field
         return BodyModel(mass=self.mass, inertia=self.inertia, potential=self.potential(),
-                         mu=None if g.kind == "none" else self.mu, markers=self.rho,
+                         mu=self.central_mu, markers=self.rho,
                          key=("dumbbell", self.mass, self.length, self.sphere_radius, g.key), name="dumbbell")
 
 
@@ -153,6 +158,11 @@ class RigidBody:
         """No geometry: the body is a point for the central-body clearance."""
         return 0.0
 
+    @property
+    def central_mu(self) -> float | None:
+        """GM of the central body (None without gravity)."""
+        return None if self.gravity.kind == "none" else self.gravity.mu
+
     def potential(self) -> ca.Function:
         g, m, J = self.gravity, self.mass, np.asarray(self.inertia, float)
         if g.kind == "none":
@@ -164,5 +174,5 @@ class RigidBody:
         g = self.gravity
         J = np.asarray(self.inertia, float)
         return BodyModel(mass=self.mass, inertia=J, potential=self.potential(),
-                         mu=None if g.kind == "none" else g.mu,
+                         mu=self.central_mu,
                          key=("rigid_body", self.mass, tuple(J.ravel()), g.key), name="rigid body")

@@ -24,10 +24,10 @@ from matplotlib.ticker import FixedLocator, MaxNLocator
 
 from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, Problem,
                                      TargetOrbit, TargetState)
-from ..transcription.results import AT_BOUND_RTOL, Solution, figures_of_merit, rotation_angle
+from ..transcription.results import Solution, figures_of_merit, rotation_angle
 from ..transcription.solve import Comparison
 from .io import save_figure
-from .units import MARGIN_DIMENSION, units
+from .units import units
 
 #: colours of the methods (distinct from those of the components and body axes below)
 COLORS = {"direct": "#5e3c99", "indirect": "#e66101", "impulsive": "#5e3c99", "simulate": "#555555"}
@@ -261,9 +261,7 @@ def removed(problem: Problem) -> set[str]:
 
 
 def _active(u: np.ndarray, bound) -> np.ndarray:
-    if isinstance(bound, NormBound):
-        return np.linalg.norm(u, axis=1) >= bound.b * (1.0 - AT_BOUND_RTOL)
-    return np.any(np.abs(u) >= bound.b * (1.0 - AT_BOUND_RTOL), axis=1)
+    return bound.active(u)
 
 
 # ------------------------------------------------------------------------ common decoration
@@ -650,7 +648,7 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None,
                 ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
         if isinstance(bound, BoxBound):
             for i, ax in enumerate(axs):
-                _shade(ax, run.control_edges, np.abs(Y[:, i]) >= bound.b[i] * (1 - AT_BOUND_RTOL), run.color,
+                _shade(ax, run.control_edges, bound.active_components(Y)[:, i], run.color,
                        label=f"{run.label} at bound")
         if impulses is not None:
             jumps = impulses(run)
@@ -881,7 +879,7 @@ def fig_constraints(runs, problem: Problem):
             _shade(ax, node_cells(run.t), mg < -run.tol, FAIL, label=f"violated by more than {run.tol:.0e}" if run is runs[0] else None,
                    alpha=0.12)
         ax.axhline(0.0, color="k", lw=1.0, gid="zero-line")
-        ax.set_ylabel(units(problem).label("margin", MARGIN_DIMENSION.get(c.kind, "none")))
+        ax.set_ylabel(units(problem).label("margin", c.dimension))
         ax.set_title(_describe(c), fontsize=9, loc="left")
         ax.legend(fontsize=8, loc="best")
     _time_axes(axs, problem)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..transcription.problem import MARGIN_DIMENSION
 from .models import GM_NORMALIZED
 
 #: the dimension of each quantity the figures and the report label, in base dimensions
@@ -23,8 +24,6 @@ DIMENSIONS = {
 }
 #: the normalized spelling of each base dimension (mass stays "mass": the body's mass as given)
 _NORMALIZED = {"length": "radii", "time": "period"}
-#: the dimension of each path constraint's margin, by its kind
-MARGIN_DIMENSION = {"min_radius": "length", "keep_out": "angle", "keep_in": "angle", "max_angular_rate": "angular_rate"}
 
 
 @dataclass(frozen=True)
@@ -69,11 +68,14 @@ class Units:
                 "composite units are shown by dimension)")
 
 
-def units(problem) -> Units:
-    """The units of a Problem: normalized orbit units iff it has a central body with GM = 4π²
-    (``problem.model.mu``; None without gravity)."""
-    mu = getattr(getattr(problem, "model", None), "mu", None)
+def units_for(mu: float | None) -> Units:
+    """Normalized orbit units iff there is a central body (GM ``mu``; None without gravity) with GM = 4π²."""
     return Units(normalized=mu is not None and math.isclose(mu, GM_NORMALIZED, rel_tol=1e-9))
 
 
-__all__ = ["DIMENSIONS", "MARGIN_DIMENSION", "Units", "units"]
+def units(problem) -> Units:
+    """The units of a Problem (its ``model.mu``, :func:`units_for`)."""
+    return units_for(getattr(getattr(problem, "model", None), "mu", None))
+
+
+__all__ = ["DIMENSIONS", "MARGIN_DIMENSION", "Units", "units", "units_for"]

@@ -332,3 +332,29 @@ def test_free_time_condition_is_the_derivative_of_the_optimal_cost():
     J = [se3ocp.solve(maneuver("e3", N, None, f"horizon.T={t!r}"), "indirect").cost for t in (T - dT, T + dT)]
     fd = (J[1] - J[0]) / (2 * dT / N)
     assert g[1] == pytest.approx(fd, rel=1e-6)
+
+
+@pytest.mark.parametrize("gravity", ["none", "point_mass"])
+def test_full_inertia_tensor_is_a_rotated_principal_body(gravity):
+    """A body given by a full inertia tensor J' = Q D Q^T is the principal body D seen in body axes turned
+    by Q: from R'_0 = R_0 Q^T, Omega'_0 = Q Omega_0 the free motion (LGVI, no gravity or point-mass gravity
+    with the MacCullagh term) is R'_k = R_k Q^T, Omega'_k = Q Omega_k -- to 1e-11 (relative) over 400 steps."""
+    from se3ocp.transcription.lie import exp_so3
+
+    D = np.array([1.0, 1.5, 2.0]) * 1e-3          # a body small against its orbit (MacCullagh's expansion)
+    Q = exp_so3(np.array([0.3, -0.5, 0.8]))
+    R0, W0 = exp_so3(np.array([0.2, 0.1, -0.4])), np.array([0.7, -1.1, 0.4])
+    Jf = Q @ np.diag(D) @ Q.T
+
+    def run(J, R, W):
+        sets = [f"gravity={{kind: {gravity}}}", "horizon={N: 400, T: 1.0}",
+                f"model={{kind: rigid_body, mass: 1.0, inertia: {np.asarray(J).tolist()}}}",
+                f"initial={{position: [1.0, 0, 0], velocity: [0, 6.283185307179586, 0], "
+                f"attitude: {{matrix: {R.tolist()}}}, angular_velocity: {W.tolist()}}}"]
+        return se3ocp.simulate(se3ocp.load(ROOT / "configs" / "free_tumble.yaml", sets)).trajectory
+
+    a, b = run(D.tolist(), R0, W0), run(Jf, R0 @ Q.T, Q @ W0)
+    np.testing.assert_allclose(b.R, a.R @ Q.T, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(b.Omega, a.Omega @ Q.T, rtol=0, atol=1e-11 * np.abs(a.Omega).max())
+    np.testing.assert_allclose(b.x, a.x, rtol=0, atol=1e-11 * np.abs(a.x).max())
+    assert np.abs(a.R[-1] - a.R[0]).max() > 0.5 and np.abs(a.x).max() <= 7.0       # it did turn; no escape

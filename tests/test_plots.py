@@ -404,7 +404,7 @@ def test_constraint_margins_with_zero_line_and_violations(bounded):
         assert [ln for ln in ax.get_lines() if ln.get_gid() == "zero-line"], c.kind
         mg = next(ln for ln in ax.get_lines() if ln.get_label() == "simulate").get_ydata()
         np.testing.assert_allclose(mg, c.margin(sim.trajectory))
-        assert c.unit in ax.get_ylabel()
+        assert se3ocp.problems.units.units(sim.problem).unit(c.dimension) in ax.get_ylabel()
         assert bool(by_gid(ax, "bound-active")) == bool((mg < 0).any()), c.kind   # violations shaded
     assert "min radius 0.98" in legend_texts(figs["orbital_elements"])
     rate = [ln for ln in figs["angular_velocity"].axes[3].get_lines() if ln.get_gid() == "bound-line"]

@@ -507,7 +507,7 @@ def _constraint_report(problem: Problem, traj: Trajectory, tr: SmoothTranscripti
         margin = con.margin(traj)
         mult = np.abs(tr.scales.objective * lam_g[rows] / tr.g_scale[rows])
         active = np.flatnonzero(margin[1:] <= 1e-6 * max(1.0, np.abs(margin).max())) + 1
-        out.append({"kind": con.kind, "unit": con.unit, "min_margin": float(margin.min()),
+        out.append({"kind": con.kind, "dimension": con.dimension, "min_margin": float(margin.min()),
                     "active_nodes": int(active.size),
                     "active_times": [float(traj.t[active[0]]), float(traj.t[active[-1]])] if active.size else [],
                     "max_multiplier": float(mult.max()) if mult.size else 0.0})
@@ -774,7 +774,7 @@ def _solution(problem: Problem, opts: DirectOptions, tr: SmoothTranscription, ou
     if problem.free_time:
         stats_out["T"] = problem.N * h
     times = traj.t[1:] if U.shape[1] == problem.N else traj.t
-    activity = control_activity(problem.control, U, times)
+    activity = control_activity(problem.control, U, quadrature_weights(problem.scheme, problem.N, h), times)
     if activity:
         stats_out["bounds"] = activity
     if problem.constraints:

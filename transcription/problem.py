@@ -121,6 +121,11 @@ def _spd(W, name: str) -> np.ndarray:
     return 0.5 * (W + W.T)
 
 
+#: a control counts as "at its bound" where it is within this fraction of the limit (an interior-point
+#: solution sits a little inside: the fuel-optimal burns of configs/orbit_raise_fuel.yaml at 1 - 4e-5)
+AT_BOUND_RTOL = 1e-3
+
+
 @dataclass(frozen=True)
 class BoxBound:
     """|u_i| <= b_i for each component i of a 3-vector control (b_i > 0), in the control's frame
@@ -141,6 +146,14 @@ class BoxBound:
     def scale(self) -> float:
         return float(self.b.max())
 
+    def active_components(self, u: np.ndarray) -> np.ndarray:
+        """(n, 3) bool: |u_i| within AT_BOUND_RTOL of b_i."""
+        return np.abs(np.asarray(u, float)) >= self.b[None, :] * (1.0 - AT_BOUND_RTOL)
+
+    def active(self, u: np.ndarray) -> np.ndarray:
+        """(n,) bool: some component at its bound."""
+        return np.any(self.active_components(u), axis=1)
+
 
 @dataclass(frozen=True)
 class NormBound:
@@ -159,6 +172,10 @@ class NormBound:
 
     def scale(self) -> float:
         return self.b
+
+    def active(self, u: np.ndarray) -> np.ndarray:
+        """(n,) bool: |u| within AT_BOUND_RTOL of b (never for b = 0: a removed control is absent)."""
+        return (np.linalg.norm(np.asarray(u, float), axis=1) >= self.b * (1.0 - AT_BOUND_RTOL)) & (self.b > 0)
 
 
 Bound = Union[BoxBound, NormBound]
@@ -235,7 +252,7 @@ class MinRadius:
 
     radius: float
     kind = "min_radius"
-    unit = "radii"
+    dimension = "length"
 
     def __post_init__(self):
         if not (np.isfinite(self.radius) and self.radius > 0):
@@ -279,7 +296,7 @@ class KeepOut(_Cone):
     inertial direction s (e.g. a camera and the Sun).  Smooth form: cos(angle) - (R b).s >= 0."""
 
     kind = "keep_out"
-    unit = "deg"
+    dimension = "angle"
 
     def expression(self, X, inertia):
         return np.cos(np.radians(self.angle_deg)) - self.cos_angle(X)
@@ -294,7 +311,7 @@ class KeepIn(_Cone):
     Smooth form: (R b).s - cos(angle) >= 0."""
 
     kind = "keep_in"
-    unit = "deg"
+    dimension = "angle"
 
     def expression(self, X, inertia):
         return self.cos_angle(X) - np.cos(np.radians(self.angle_deg))
@@ -309,7 +326,7 @@ class MaxAngularRate:
 
     value: float
     kind = "max_angular_rate"
-    unit = "rad/period"
+    dimension = "angular_rate"
 
     def __post_init__(self):
         if not (np.isfinite(self.value) and self.value > 0):
@@ -329,6 +346,9 @@ class MaxAngularRate:
 
 
 PathConstraint = Union[MinRadius, KeepOut, KeepIn, MaxAngularRate]
+#: the dimension of each path constraint's margin, by kind ('length', 'angle' in degrees, 'angular_rate'):
+#: the unit labels come from problems.units (normalized orbit units only with a central body)
+MARGIN_DIMENSION = {c.kind: c.dimension for c in (MinRadius, KeepOut, KeepIn, MaxAngularRate)}
 
 
 @dataclass(frozen=True)
@@ -545,21 +565,22 @@ def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:
     return fuel_cost(U, control, omega) if control.objective == "fuel" else effort_cost(U, control, omega)
 
 
-def control_activity(control: SmoothControl, U: np.ndarray, times: np.ndarray, rtol: float = 1e-6) -> dict:
-    """Where the bounded controls sit on their bounds, per control ('force', 'moment'):
-    at_bound_fraction (of the control nodes within rtol of the bound), time_at_bound, and
-    switch_times: for a box bound the times where a component changes sign while bang-bang
-    (linear interpolation between nodes), for a norm bound the times where the control enters or
-    leaves the bound.  Removed and unbounded controls are left out."""
+def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray, times: np.ndarray) -> dict:
+    """Where the bounded controls sit on their bounds, per control ('force', 'moment'): at_bound_fraction
+    (of the control nodes at the bound, :meth:`BoxBound.active` / :meth:`NormBound.active`: within
+    AT_BOUND_RTOL), time_at_bound = sum_j omega_j over them (``weights`` the quadrature weights, so that
+    it is the time the controls at the bound act), and switch_times: for a box bound every sign change
+    of a component (the switches of a bang-bang control; linear interpolation between the node
+    ``times``), for a norm bound the times where the control enters or leaves the bound (midpoints).
+    Removed and unbounded controls are left out."""
     U = np.asarray(U, dtype=float)
     t = np.asarray(times, dtype=float)
-    dt = np.gradient(t) if len(t) > 1 else np.zeros(len(t))
     out = {}
     for name, sl, bound in (("force", U_FORCE, control.force_bound), ("moment", U_MOMENT, control.moment_bound)):
         if bound is None or (isinstance(bound, NormBound) and bound.b == 0):
             continue
         u = U[sl].T
-        at = bound.margin(u) <= rtol * bound.scale()
+        at = bound.active(u)
         if isinstance(bound, BoxBound):
             switches = []
             for i in range(3):
@@ -571,7 +592,7 @@ def control_activity(control: SmoothControl, U: np.ndarray, times: np.ndarray, r
             switches = [float(0.5 * (t[j] + t[j + 1])) for j in k]
         out[name] = {"bound": "box" if isinstance(bound, BoxBound) else "norm",
                      "at_bound_fraction": float(at.mean()) if len(at) else 0.0,
-                     "time_at_bound": float(np.sum(dt[at])), "switch_times": switches}
+                     "time_at_bound": float(np.asarray(weights, float) @ at), "switch_times": switches}
     return out
 
 

@@ -294,9 +294,6 @@ class Solution:
         return out
 
 
-#: a control counts as "at its bound" where it is within this fraction of the limit
-AT_BOUND_RTOL = 1e-3
-
 
 def rotation_angle(R: np.ndarray) -> np.ndarray:
     """The rotation angle in [0, pi] of rotation matrices R (..., 3, 3): atan2(|vee(R - R^T)|/2, (tr R - 1)/2),
@@ -314,15 +311,15 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
     weights of the scheme (transcription.problem.quadrature_weights) at h = T/N;
     peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; with a bound, force_time_at_bound /
-    moment_time_at_bound = sum of omega_j over the controls within AT_BOUND_RTOL of the limit (any
-    component of a BoxBound, the norm of a NormBound; not for a control a norm bound of 0 removes,
-    which is never "at its bound" but absent); with a state target that fixes the attitude,
+    moment_time_at_bound = the time_at_bound of transcription.problem.control_activity (sum of
+    omega_j over the controls at the bound; not for a control a norm bound of 0 removes, which is
+    never "at its bound" but absent); with a state target that fixes the attitude,
     terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints, min_margin_<kind>
     (``_2``, ... for repeated kinds) = min_k margin_k in the constraint's unit (< 0: violated).
     Fields that do not apply are left out; a method that does not apply to the problem
     (Result.not_applicable) has none: its trajectory is no solution, only the initial state's free
     motion.  Pure: reads the Solution, changes nothing."""
-    from .problem import NormBound, TargetState, quadrature_weights
+    from .problem import SmoothControl, TargetState, control_activity, quadrature_weights
 
     out: dict[str, Any] = {}
     if sol.result is Result.not_applicable:
@@ -337,15 +334,9 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         out.update(delta_v=float(om @ nf / mass), angular_impulse=float(om @ nm),
                    peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))
         ctrl = getattr(prob, "control", None)
-        for name, u, bound in (("force", uf, getattr(ctrl, "force_bound", None)),
-                               ("moment", um, getattr(ctrl, "moment_bound", None))):
-            if bound is None or (isinstance(bound, NormBound) and bound.b == 0):
-                continue
-            if isinstance(bound, NormBound):
-                active = np.linalg.norm(u, axis=1) >= bound.b * (1.0 - AT_BOUND_RTOL)
-            else:
-                active = np.any(np.abs(u) >= bound.b * (1.0 - AT_BOUND_RTOL), axis=1)
-            out[f"{name}_time_at_bound"] = float(om @ active)
+        if isinstance(ctrl, SmoothControl):
+            for name, act in control_activity(ctrl, sol.controls, om, sol.control_times).items():
+                out[f"{name}_time_at_bound"] = act["time_at_bound"]
     elif sol.impulses is not None:
         imp = sol.impulses
         out.update(delta_v=float((np.linalg.norm(imp["dgamma0"]) + np.linalg.norm(imp["dgammaN"])) / mass),
