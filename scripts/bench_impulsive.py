@@ -22,15 +22,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from benchkit import ROOT, load, machine, spawn  # noqa: E402
+
 CASES = {
     "e1": ("configs/e1_impulsive_tpbvp.yaml", None),
     "e2-ss": ("configs/e2_impulsive_relaxed.yaml", "single_shooting"),
@@ -52,38 +51,8 @@ def run_one(case: str, N: int) -> dict:
             "wall_s": time.perf_counter() - t_wall}
 
 
-def spawn(case: str, N: int, timeout: float) -> dict:
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--one", case, str(N)]
-    try:
-        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    except subprocess.TimeoutExpired:
-        return {"case": case, "N": N, "status": f"timeout {timeout:.0f} s", "converged": False}
-    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
-    if out.returncode != 0 or not lines:
-        tail = (out.stderr or out.stdout).strip().splitlines()[-1:] or ["no output"]
-        return {"case": case, "N": N, "status": f"error: {tail[0][:200]}", "converged": False}
-    return json.loads(lines[-1])
-
-
-def machine() -> str:
-    model = platform.processor() or ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    import casadi
-
-    return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}, CasADi {casadi.__version__}"
-
-
-def load() -> str:
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        return "n/a"
+def spawn_case(case: str, N: int, timeout: float) -> dict:
+    return {"case": case, "N": N, **spawn(Path(__file__).resolve(), [case, str(N)], timeout)}
 
 
 def main(argv=None) -> int:
@@ -108,7 +77,7 @@ def main(argv=None) -> int:
     cold = {}
     for r in range(args.runs + 1):                      # run 0: warm-up (discarded)
         for c in cases:
-            rec = spawn(c, args.N, args.timeout)
+            rec = spawn_case(c, args.N, args.timeout)
             print(f"  {'warm-up' if r == 0 else f'run {r}':8s} {c:6s} build {rec.get('build_s', float('nan')):7.3f} s"
                   f"  solve {rec.get('solve_s', float('nan')):7.3f} s  {rec.get('status')}", file=log, flush=True)
             if r == 0:

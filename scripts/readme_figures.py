@@ -1,17 +1,15 @@
 """Regenerate the README's figures and its direct-vs-indirect comparison table.
 
-Runs the four bundled examples (docs/mathematics.md §9) through the CLI (``se3ocp solve``/``compare``),
-copies the figures the README shows to ``docs/figures/`` (``<example>_<figure>.png``) and rewrites
-the block between the ``<!-- comparison:start -->`` / ``<!-- comparison:end -->`` markers of
-README.md.  Two more sets are drawn through the public API: ``bounds_*`` (E3's optimal controls
-clipped into a norm bound on the force and a box bound on the moment, simulated with path
-constraints, to show how bounds and constraints are drawn) and ``failed_*`` (E4 stopped after two
-IPOPT iterations, to show how a failed run is marked); ``e3_animation.png``, a frame of the
-animation of E3; and figures of two slews without a central body (``slew_keep_out_*``,
-``slew_time_optimal_*``; direct method only: the indirect method does not cover them, and they are
-not in the comparison table).
+Runs the bundled examples through the CLI (``se3ocp solve``/``compare``), copies the figures the
+README shows to ``docs/figures/`` (``<stem>_<figure>.png``) and rewrites the block between the
+``<!-- comparison:start -->`` / ``<!-- comparison:end -->`` markers of README.md: the paper's four
+examples (docs/mathematics.md §9) and the bounded and free-time E3 (§10), by both methods.  Figures
+only (not in the table; the indirect method does not cover them): the two slews without a central
+body, the minimum-radius E3 and the fuel-optimal orbit raise.  Drawn through the public API:
+``failed_*`` (E4 stopped after two IPOPT iterations, to show how a failed run is marked) and
+``e3_animation.png``, a frame of the animation of E3.
 
-    .venv/bin/python scripts/readme_figures.py            # full size (N = 500/800), a few minutes
+    .venv/bin/python scripts/readme_figures.py            # the configs' N, a few minutes
     .venv/bin/python scripts/readme_figures.py --N 100    # quick look
 """
 from __future__ import annotations
@@ -28,28 +26,34 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 RUNS = [
-    # (label, config, command, extra --set overrides)
-    ("E1", "e1_impulsive_tpbvp", "solve", []),
-    ("E2", "e2_impulsive_relaxed", "solve", []),
-    ("E3", "e3_inclination_change", "compare", []),
-    ("E4 (λ₀ = 0)", "e4_orbital_capture", "compare", []),
-    ("E4 (from direct)", "e4_orbital_capture", "compare", ["solver.indirect.initial_costate=from_direct"]),
+    # (label, config, command, extra --set overrides, stem of the figure files)
+    ("E1", "e1_impulsive_tpbvp", "solve", [], "e1"),
+    ("E2", "e2_impulsive_relaxed", "solve", [], "e2"),
+    ("E3", "e3_inclination_change", "compare", [], "e3"),
+    ("E4 (λ₀ = 0)", "e4_orbital_capture", "compare", [], "e4"),
+    ("E4 (from direct)", "e4_orbital_capture", "compare", ["solver.indirect.initial_costate=from_direct"], "e4_from_direct"),
+    ("E3 bounded", "e3_bounded", "compare", [], "e3_bounded"),
+    ("E3 free T", "e3_free_time", "compare", [], "e3_free_time"),
 ]
-#: runs for figures only (not in the comparison table): (stem, config, command)
-FIGURE_RUNS = [("slew_keep_out", "slew_keep_out", "solve"), ("slew_time_optimal", "slew_time_optimal", "solve")]
-#: the figures the README shows, per example stem
+#: runs for figures only (not in the comparison table; their own N): (stem, config, command)
+FIGURE_RUNS = [("slew_keep_out", "slew_keep_out", "solve"), ("slew_time_optimal", "slew_time_optimal", "solve"),
+               ("e3_min_radius", "e3_min_radius", "solve"), ("orbit_raise_fuel", "orbit_raise_fuel", "solve")]
+#: the figures the README shows, per stem
 FIGS = {
     "e1": ("maneuver",),
     "e2": ("maneuver",),
     "e3": ("maneuver", "attitude", "attitude_error", "control_norms", "thrust_rtn", "orbital_elements", "costates"),
     "e4": ("convergence",),
-    "slew_keep_out": ("maneuver", "attitude"),
+    "e3_bounded": ("control_norms", "moment"),
+    "slew_keep_out": ("maneuver", "attitude", "constraints"),
     "slew_time_optimal": ("moment",),
+    "e3_min_radius": ("orbital_elements",),
+    "orbit_raise_fuel": ("control_norms", "thrust_rtn"),
 }
 
 
 def run(label, config, command, sets, N, work: Path):
-    out = work / config / ("from_direct" if sets else "default")
+    out = work / label.replace(" ", "_").replace("(", "").replace(")", "").replace("λ₀_=_0", "zero")
     args = [sys.executable, "-m", "se3ocp.problems.cli", command, str(ROOT / "configs" / f"{config}.yaml"),
             "--out", str(out), "--force", "--json"]
     for s in sets + ([f"horizon.N={N}"] if N else []):
@@ -69,32 +73,16 @@ def _save(fig, path: Path):
 
 
 def demonstrations(figdir: Path, N: int | None):
-    """bounds_*: E3's optimum clipped into bounds, simulated with path constraints; failed_*: E4
-    stopped by max_iter (public API, figures as the CLI draws them)."""
+    """failed_*: E4 stopped by max_iter (public API, figures as the CLI draws them)."""
     import matplotlib
 
     matplotlib.use("Agg")
-    import numpy as np
-
     import se3ocp
-    from se3ocp.transcription.problem import BoxBound, KeepOut, MaxAngularRate, MinRadius, NormBound, SmoothControl
 
-    man = se3ocp.load(ROOT / "configs" / "e3_inclination_change.yaml", [f"horizon.N={N or 200}"])
-    d = se3ocp.solve(man)
-    prob = d.problem
-    bf, bm = 0.6 * np.linalg.norm(d.u_f, axis=1).max(), 0.6 * np.abs(d.u_m).max(axis=0)
-    U = d.controls.copy()
-    U[:3] *= np.minimum(1.0, bf / np.linalg.norm(U[:3], axis=0))
-    U[3:] = np.clip(U[3:], -bm[:, None], bm[:, None])
-    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, force_bound=NormBound(bf),
-                                            moment_bound=BoxBound(bm)),
-                      constraints=(KeepOut([1, 0, 0], [0, 1, 0], 40.0), MinRadius(0.98), MaxAngularRate(7.0)))
-    for name, fig in se3ocp.plot(se3ocp.simulate(pb, U), ("control_norms", "moment", "constraints")).items():
-        _save(fig, figdir / f"bounds_{name}.png")
     man = se3ocp.load(ROOT / "configs" / "e4_orbital_capture.yaml", [f"horizon.N={N or 200}", "solver.direct.max_iter=2"])
     for name, fig in se3ocp.plot(se3ocp.solve(man), ("maneuver",)).items():
         _save(fig, figdir / f"failed_{name}.png")
-    print("bounds_* and failed_* drawn", flush=True)
+    print("failed_* drawn", flush=True)
 
 
 def animation_frame(results: Path, path: Path):
@@ -119,9 +107,8 @@ def main():
     rows = []
     demonstrations(figdir, a.N)
     with tempfile.TemporaryDirectory() as tmp:
-        for label, config, command, sets in RUNS:
+        for label, config, command, sets, stem in RUNS:
             out, summary = run(label, config, command, sets, a.N, Path(tmp))
-            stem = config.split("_")[0] + ("_from_direct" if sets else "")
             for f in FIGS.get(stem, ()):
                 src = out / f"fig_{f}.png"
                 if src.exists():
