@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from ..transcription.lie import exp_so3, rot_x, rot_y, rot_z
+from ..transcription.options import describe, shorten as _short, show as _show
 
 T = TypeVar("T")
 
@@ -248,21 +249,6 @@ def _one_line(text) -> str:
     if text.isprintable():
         return text
     return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
-
-
-def _short(v, limit: int = 60) -> str:
-    """``v`` for a message: strings longer than ``limit`` are cut, huge integers summarized."""
-    if isinstance(v, str) and len(v) > limit:
-        return f"{v[:limit]}... ({len(v)} characters)"
-    if isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 200:
-        return f"{'-' if v < 0 else ''}<an integer of {int(abs(v).bit_length() * math.log10(2)) + 1} digits>"
-    return v
-
-
-def _show(v) -> str:
-    """repr(v) for a message, shortened (:func:`_short`)."""
-    s = _short(v)
-    return s if isinstance(v, int) and s is not v else repr(s)
 
 
 def _size_limit() -> str:
@@ -551,24 +537,6 @@ def join_field(where, key):
     if not key.isprintable() or not key or any(ch in key for ch in " .[]"):
         key = repr(key)  # keep messages on one line and unambiguous
     return f"{where}.{key}" if where else key
-
-
-def describe(v) -> str:
-    """``v`` in a message: its kind and (shortened) value, always on one line."""
-    if v is None:
-        return "nothing (null)"
-    if isinstance(v, bool):
-        return f"a boolean ({v})"
-    if isinstance(v, str):
-        return f"the string {_show(v)}"
-    if isinstance(v, dict):
-        return "a mapping"
-    if isinstance(v, (list, tuple)):
-        return f"a list of length {len(v)}"
-    if isinstance(v, int):
-        return f"int {_short(v)}"
-    text = repr(v)
-    return f"{type(v).__name__} {_short(text)}"
 
 
 # ----------------------------------------------------------------- overrides

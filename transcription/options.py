@@ -29,18 +29,37 @@ class OptionError(ValueError):
         super().__init__(f"{fieldname}: {detail}")
 
 
-def _describe(v) -> str:
+def shorten(v, limit: int = 60) -> str:
+    """``v`` for a message: strings longer than ``limit`` are cut, huge integers summarized."""
+    if isinstance(v, str) and len(v) > limit:
+        return f"{v[:limit]}... ({len(v)} characters)"
+    if isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 200:
+        return f"{'-' if v < 0 else ''}<an integer of {int(abs(v).bit_length() * math.log10(2)) + 1} digits>"
+    return v
+
+
+def show(v) -> str:
+    """repr(v) for a message, shortened (:func:`shorten`)."""
+    s = shorten(v)
+    return s if isinstance(v, int) and s is not v else repr(s)
+
+
+def describe(v) -> str:
+    """``v`` in a message: its kind and (shortened) value, always on one line."""
     if v is None:
         return "nothing (null)"
     if isinstance(v, bool):
         return f"a boolean ({v})"
     if isinstance(v, str):
-        return f"the string {v!r}"
+        return f"the string {show(v)}"
     if isinstance(v, Mapping):
         return "a mapping"
     if isinstance(v, (list, tuple)):
         return f"a list of length {len(v)}"
-    return f"{type(v).__name__} {v!r}"
+    if isinstance(v, int):
+        return f"int {shorten(v)}"
+    text = repr(v)
+    return f"{type(v).__name__} {shorten(text)}"
 
 
 def _opt(default, kind: str, *, lo=None, hi=None, choices=(), lo_closed: bool = False, doc: str = ""):
@@ -56,37 +75,37 @@ def _check(name: str, meta: dict, v):
     kind = meta["kind"]
     if kind == "bool":
         if not isinstance(v, bool):
-            raise OptionError(name, f"expected true or false, got {_describe(v)}")
+            raise OptionError(name, f"expected true or false, got {describe(v)}")
         return v
     if kind == "choice":
         if not isinstance(v, str) or v not in meta["choices"]:
-            raise OptionError(name, f"expected one of {', '.join(meta['choices'])}, got {_describe(v)}")
+            raise OptionError(name, f"expected one of {', '.join(meta['choices'])}, got {describe(v)}")
         return v
     if kind == "mapping":
         if not isinstance(v, Mapping):
-            raise OptionError(name, f"expected a mapping of option names to values, got {_describe(v)}")
+            raise OptionError(name, f"expected a mapping of option names to values, got {describe(v)}")
         for k, x in v.items():
             if not isinstance(k, str):
-                raise OptionError(name, f"expected option names, got {_describe(k)}")
+                raise OptionError(name, f"expected option names, got {describe(k)}")
             if x is None or not isinstance(x, (bool, int, float, str)) or (isinstance(x, float) and not math.isfinite(x)):
-                raise OptionError(f"{name}.{k}", f"expected a number, a string or true/false, got {_describe(x)}")
+                raise OptionError(f"{name}.{k}", f"expected a number, a string or true/false, got {describe(x)}")
         return dict(v)
     if kind == "costate":
         if isinstance(v, str):
             if v not in ("zero", "from_direct"):
-                raise OptionError(name, f"expected zero, from_direct or a list of 12 numbers, got {_describe(v)}")
+                raise OptionError(name, f"expected zero, from_direct or a list of 12 numbers, got {describe(v)}")
             return v
         if isinstance(v, (list, tuple)) or hasattr(v, "__array__"):
             vals = list(v.ravel()) if hasattr(v, "ravel") else list(v)
             if len(vals) == 12:
                 return tuple(_number(f"{name}[{i}]", x, "float", None, None) for i, x in enumerate(vals))
-        raise OptionError(name, f"expected zero, from_direct or a list of 12 numbers, got {_describe(v)}")
+        raise OptionError(name, f"expected zero, from_direct or a list of 12 numbers, got {describe(v)}")
     return _number(name, v, kind, meta["lo"], meta["hi"], meta["lo_closed"])
 
 
 def _number(name, v, kind, lo, hi, lo_closed=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)) and not hasattr(v, "__float__"):
-        raise OptionError(name, f"expected {'an integer' if kind == 'int' else 'a number'}, got {_describe(v)}")
+        raise OptionError(name, f"expected {'an integer' if kind == 'int' else 'a number'}, got {describe(v)}")
     x = float(v)
     if not math.isfinite(x):
         raise OptionError(name, f"expected a finite number, got {v!r}")

@@ -18,7 +18,7 @@ method, the re-simulation and the reports (docs/mathematics.md §5-§6):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Union
 
 import casadi as ca
@@ -81,8 +81,7 @@ class TargetOrbit:
     Pi: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
-        if not (np.isfinite(self.radius) and self.radius > 0):
-            raise ProblemError("terminal.radius", "expected a positive number")
+        _positive(self.radius, "terminal.radius")
         Pi = np.asarray(self.Pi, dtype=float).reshape(-1)
         if Pi.shape != (3,) or not np.all(np.isfinite(Pi)):
             raise ProblemError("terminal.Pi", "expected a finite 3-vector")
@@ -246,17 +245,27 @@ def _unit(v, name):
     return v / n
 
 
+def _positive(value: float, name: str) -> None:
+    """ProblemError naming ``name`` unless ``value`` is a positive finite number."""
+    if not (np.isfinite(value) and value > 0):
+        raise ProblemError(name, "expected a positive number")
+
+
+class _PositiveLimit:
+    """A path constraint given by one positive number (its only field), checked on construction."""
+
+    def __post_init__(self):
+        name = fields(self)[0].name
+        _positive(getattr(self, name), f"constraints.{self.kind}.{name}")
+
+
 @dataclass(frozen=True)
-class MinRadius:
+class MinRadius(_PositiveLimit):
     """|x_k| >= radius at every node (stay above a sphere about the central body's centre)."""
 
     radius: float
     kind = "min_radius"
     dimension = "length"
-
-    def __post_init__(self):
-        if not (np.isfinite(self.radius) and self.radius > 0):
-            raise ProblemError("constraints.min_radius.radius", "expected a positive number")
 
     def expression(self, X, inertia):
         """g(X) >= 0 (CasADi or NumPy): |x| - r (in length units; the margin)."""
@@ -321,16 +330,12 @@ class KeepIn(_Cone):
 
 
 @dataclass(frozen=True)
-class MaxAngularRate:
+class MaxAngularRate(_PositiveLimit):
     """|Omega_k| <= value at every node (Omega = J^-1 Pi, body frame).  Smooth form: value^2 - |Omega|^2 >= 0."""
 
     value: float
     kind = "max_angular_rate"
     dimension = "angular_rate"
-
-    def __post_init__(self):
-        if not (np.isfinite(self.value) and self.value > 0):
-            raise ProblemError("constraints.max_angular_rate.value", "expected a positive number")
 
     def expression(self, X, inertia):
         _, _, _, Pi = split_state(X)
