@@ -57,12 +57,11 @@ def run(tag: str, cases: list[Path], timeout: float) -> Path:
 
 
 def _cell(rec: dict | None) -> str:
-    if rec is None:
-        return "- | - | - | -"
-    res = rec.get("result", rec.get("status", "?"))
-    err = rec.get("terminal_error")
-    return (f"{res} | {rec.get('iterations', '-')} | {rec.get('solve_s', float('nan')):.1f} | "
-            f"{err:.1e}" if err is not None else f"{res} | - | - | -")
+    """result | iterations | solve s | cost | terminal error of one record."""
+    if rec is None or "iterations" not in rec:
+        return f"{(rec or {}).get('status', '-')} | - | - | - | -"
+    return (f"{rec['result']} | {rec['iterations']} | {rec['solve_s']:.1f} | {rec['cost']:.7g} | "
+            f"{rec['terminal_error']:.1e}")
 
 
 def table() -> str:
@@ -71,15 +70,16 @@ def table() -> str:
             if (DOCS / f"everyday_{t}.json").exists()}
     by = {t: {r["case"]: r for r in d["cases"]} for t, d in data.items()}
     cases = list(dict.fromkeys([c for d in by.values() for c in d]))
-    lines = ["| case | scheme, model, N, T | before: result | its | solve s | term. err | after: result | its | "
-             "solve s | term. err | guesses tried (after) |", "|" + "---|" * 11]
+    lines = ["| case | scheme, model, N, T | before: result | its | solve s | cost | term. err | after: result | its | "
+             "solve s | cost | term. err | guesses tried before → after |", "|" + "---|" * 13]
     for c in cases:
         a, b = by.get("before", {}).get(c), by.get("after", {}).get(c)
         r = b or a
         desc = f"{r.get('scheme', '?')}, {r.get('model', '?')}, {r.get('N', '?')}, {r.get('T', '?')}"
-        tried = "; ".join(b.get("guesses_tried", [])) if b else ""
+        tried = " → ".join("; ".join((x or {}).get("guesses_tried", [])) or "-" for x in (a, b))
         lines.append(f"| {c} | {desc} | {_cell(a)} | {_cell(b)} | {tried} |")
-    foot = [f"* {t}: {d['machine']}; load average after the run {d['load_after']}" for t, d in data.items()]
+    foot = [f"* {t}: {d['machine']}; load average (1, 5, 15 min) after the run {d['load_after']}"
+            for t, d in data.items()]
     return "\n".join(lines + [""] + foot) + "\n"
 
 
