@@ -617,8 +617,8 @@ def failure_hint(sol: Solution, opts: DirectOptions) -> str:
         return ""
     tips = []
     if r is Result.acceptable:
-        tips.append("solver.direct.options.acceptable_iter=0 (keep iterating past IPOPT's 'acceptable' level) "
-                    "or a looser solver.direct.tol")
+        tips.append("a looser solver.direct.tol (IPOPT stalled at its 'acceptable' level above it) or "
+                    "solver.direct.options.acceptable_iter=0 (keep iterating)")
     if opts.initial_guess != "auto":
         tips.append("solver.direct.initial_guess=auto (the screw interpolation and the free motion in turn)")
     elif r is Result.max_iterations:
