@@ -340,7 +340,14 @@ def cmd_solve(args) -> int:
         _say(args, f"comparison: {result.verdict}")
     _say(args, f"results in {out}/")
     _emit_summary(args, store.summary(man, result, with_history=False))
-    return 0 if store.all_converged(result) else 1
+    if store.all_converged(result):
+        return 0
+    if args.quiet:  # quiet is not silent: a failure is still said, in one line
+        failed = [f"{m}: {s.result} ({s.message})" for m, s in sols.items()
+                  if not s.converged and s.result is not Result.not_applicable]
+        print(" ".join(f"se3ocp: {man.name}: not converged: {' | '.join(failed) or 'no method applies'}; results in {out}/".split()),
+              file=sys.stderr)
+    return 1
 
 
 def _figures_and_report(args, out: Path) -> list[Path]:

@@ -429,12 +429,22 @@ def _initial_rows_function() -> ca.Function:
 
 
 # ------------------------------------------------------------------------- solvers
+#: IPOPT's relative objective change per iteration below which an 'acceptable' iterate may end the solve
+#: (IPOPT's default, 1e20, lets 15 acceptable iterates end it however fast the objective still moves)
+ACCEPTABLE_OBJ_CHANGE_TOL = 1e-12
+
+
 def ipopt_options(opts: DirectOptions, warm_duals: bool = False) -> dict[str, Any]:
     """IPOPT options of a direct solve: tolerances, the exact Hessian, MUMPS_DEFAULTS, then the raw
     ``options`` (IPOPT has no booleans: true/false become yes/no).  constr_viol_tol: the defects
-    are what the re-simulation accumulates over N steps, so they are driven well below tol."""
+    are what the re-simulation accumulates over N steps, so they are driven well below tol.
+    acceptable_obj_change_tol: IPOPT stops at its 'acceptable' level (not a success here) only once the
+    objective has stopped changing, i.e. at a round-off floor, not while it still converges slowly (the
+    five-orbit phasing, configs/everyday/phasing_5_orbits.yaml: stopped at 85 iterations with the dual
+    infeasibility falling by a third per iteration; Solve_Succeeded at 120)."""
     ipopt = {"tol": float(opts.tol), "constr_viol_tol": 1e-2 * float(opts.tol), "max_iter": int(opts.max_iter),
-             "print_level": 0, "sb": "yes", "hessian_approximation": "exact", **MUMPS_DEFAULTS}
+             "acceptable_obj_change_tol": ACCEPTABLE_OBJ_CHANGE_TOL, "print_level": 0, "sb": "yes",
+             "hessian_approximation": "exact", **MUMPS_DEFAULTS}
     ipopt.update({k: raw_solver_value(v) for k, v in opts.options.items()})
     if warm_duals:
         ipopt.setdefault("warm_start_init_point", "yes")
@@ -525,13 +535,17 @@ def _warm_guess(problem: Problem, warm: Solution | None) -> Guess | None:
     return Guess(X=X, U=U, C=cayley_vectors(X))
 
 
-#: with initial_guess 'auto', the first guess (the rollout) gets at most this many NLP iterations
-#: before the next one is tried: a solve that needs more from the free motion is usually wandering
-#: (the orbit-doubling maneuver: > 1100 iterations from the rollout, 5 from the interpolation)
+#: with initial_guess 'auto', the first guess of an effort problem (the interpolation; the relaxed problem's
+#: solution when there are bounds or path constraints) gets at most this many NLP iterations before the next
+#: one is tried: a solve that needs more is usually wandering.  The interpolation goes first because the
+#: free motion misses a large change of orbit by far: doubling the orbit radius in one period
+#: (configs/everyday/orbit_double.yaml) takes > 1100 iterations from the rollout, 5 from the interpolation;
+#: the capture from a fast tumble (configs/everyday/capture_fast_tumble.yaml) 185 from the rollout to a
+#: local minimum of cost 97.0, 10 from the interpolation to 32.7; E3 and E4 take 7 and 6 (rollout: 6, 7)
 AUTO_FIRST_BUDGET = 200
-#: ... except for the fuel objective, whose bang-off-bang solutions take IPOPT longer from any start
-#: (configs/orbit_raise_fuel.yaml: 245 iterations from the rollout to a cost of 0.818839; the
-#: interpolation, tried after 200, needed 743 more and stopped at a worse local minimum, 0.819259)
+#: ... except for the fuel objective, which starts from the rollout, and whose bang-off-bang solutions take
+#: IPOPT longer from any start (configs/orbit_raise_fuel.yaml: 245 iterations from the rollout to a cost of
+#: 0.818839; the interpolation, tried after 200, needed 743 more and stopped at a worse local minimum, 0.819259)
 AUTO_FIRST_BUDGET_FUEL = 600
 #: with initial_guess 'auto' and the time objective, this many symmetry-breaking starts are solved and
 #: the fastest converged maneuver kept: time-optimal slews have several local minima (the asymmetric
@@ -580,15 +594,38 @@ def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, C
         return [(f"interpolate with symmetry-breaking controls (seed {k})",
                  lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
                  opts.max_iter) for k in range(TIME_STARTS)], "best"
-    first = AUTO_FIRST_BUDGET_FUEL if problem.control.objective == "fuel" else AUTO_FIRST_BUDGET
+    if problem.control.objective == "fuel":
+        return [("rollout", made("rollout"), min(opts.max_iter, AUTO_FIRST_BUDGET_FUEL)),
+                ("interpolate", made("interpolate"), opts.max_iter)], "first"
+    plan = [("interpolate", made("interpolate"), min(opts.max_iter, AUTO_FIRST_BUDGET)),
+            ("rollout", made("rollout"), opts.max_iter)]
     relaxed = relaxation(problem)
     if relaxed is not None:
-        return [("the solution without bounds and path constraints", lambda: _relaxed_guess(problem, relaxed, opts),
-                 min(opts.max_iter, AUTO_FIRST_BUDGET)),
-                ("rollout", made("rollout"), min(opts.max_iter, first)),
-                ("interpolate", made("interpolate"), opts.max_iter)], "first"
-    return [("rollout", made("rollout"), min(opts.max_iter, first)),
-            ("interpolate", made("interpolate"), opts.max_iter)], "first"
+        plan.insert(0, ("the solution without bounds and path constraints",
+                        lambda: _relaxed_guess(problem, relaxed, opts), min(opts.max_iter, AUTO_FIRST_BUDGET)))
+    return plan, "first"
+
+
+def failure_hint(sol: Solution, opts: DirectOptions) -> str:
+    """What to try next after a direct solve of a smooth problem that did not converge ('' if it did, was
+    interrupted, or its message already says what to change): the settings a user can change with
+    ``--set``, in the order most likely to help.  Why: a failure that only names IPOPT's status leaves the
+    user to guess that another initial guess, more iterations or an easier neighbouring maneuver (reached
+    by continuation) would do."""
+    r = sol.result
+    if sol.converged or r in (Result.interrupted, Result.cayley_failed, Result.invalid_option, Result.non_finite):
+        return ""
+    tips = []
+    if r is Result.acceptable:
+        tips.append("a looser solver.direct.tol (IPOPT stalled at its 'acceptable' level above it) or "
+                    "solver.direct.options.acceptable_iter=0 (keep iterating)")
+    if opts.initial_guess != "auto":
+        tips.append("solver.direct.initial_guess=auto (the screw interpolation and the free motion in turn)")
+    elif r is Result.max_iterations:
+        tips.append(f"a larger solver.direct.max_iter (now {opts.max_iter})")
+    tips.append("an easier neighbouring maneuver (longer horizon.T, smaller change) reached by continuation: a sweep "
+                "along the changed key with continuation (configs/sweeps/)")
+    return "try " + "; or ".join(tips)
 
 
 def solve_direct(problem: Problem, options: DirectOptions | None = None,
@@ -686,6 +723,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     sol.stats["guesses_tried"] = tried
     if len(tried) > 1:
         sol.message += "; initial guesses tried: " + "; ".join(tried)
+    hint = failure_hint(sol, opts) if warm is None else ""
+    if hint:
+        sol.stats["hint"] = hint
+        sol.message += f"; {hint}"
     if fallback:
         sol.stats.update(fallback)
         sol.message = f"{fallback['fatrop_message']}; IPOPT fallback: {sol.message}"

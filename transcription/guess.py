@@ -1,8 +1,9 @@
 """Initial guesses for the direct method (node states, controls, Cayley vectors).
 
-Two kinds, selected by :attr:`~transcription.options.DirectOptions.initial_guess`:
+Two kinds, selected by :attr:`~transcription.options.DirectOptions.initial_guess` (``'auto'``, the
+default, tries them in the order of :func:`transcription.direct.guess_plan`):
 
-* ``'rollout'`` (default): free motion (all controls zero) of the problem's own
+* ``'rollout'``: free motion (all controls zero) of the problem's own
   discretization from X0.  Every node then satisfies the discrete dynamics exactly,
   so only the terminal conditions are violated at the start.
 * ``'interpolate'``: the geodesic (screw motion) of SE(3) between the initial and

@@ -208,10 +208,12 @@ class DirectOptions(Options):
     max_iter: int = _opt(3000, "int", lo=1, doc="iteration limit of the NLP solver (and of the impulsive TPBVP's Newton, at most 50)")
     initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate"),
                               doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target; "
-                                  "auto: rollout (at most 200 iterations; fuel objective 600), then interpolate; a bounded "
+                                  "auto: interpolate (at most 200 iterations), then rollout; the fuel objective rollout (at most "
+                                  "600), then interpolate; a bounded "
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
-                                  "controls, the fastest kept (see transcription.direct.guess_plan)")
+                                  "controls, the fastest kept; every guess tried is reported in the message and "
+                                  "stats['guesses_tried'] (see transcription.direct.guess_plan)")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")

@@ -276,7 +276,9 @@ class Solution:
             "solver": self.solver,
         }
         out.update(self.trajectory.orthogonality())
-        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None)))})
+        # scalars, and lists of words (the direct method's guesses_tried: what a failure tried)
+        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None))) or
+                    (isinstance(v, list) and all(isinstance(x, str) for x in v))})
         out.update(figures_of_merit(self))
         return out
 

@@ -1,0 +1,103 @@
+"""The everyday-maneuver suite (configs/everyday/): maneuvers a mission planner would try first -- large
+radius changes, large plane changes, multi-orbit horizons, a detumble, a fast-tumble capture, slews with
+transfers, both schemes, dumbbell and rigid body -- must converge with the default settings; and the
+direct method's initial-guess plan (transcription.direct.guess_plan) tries its guesses in order and
+reports each one.
+
+Tolerances: the re-simulated terminal error <= 1e-8 and max |R^T R - I| <= 1e-12, as for E3/E4 in
+tests/test_direct.py.  The long horizons (N = 600 over three periods, N = 1000 over five) are slow tests.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import se3ocp
+from se3ocp.transcription import direct
+from support import CONFIGS, maneuver
+
+EVERYDAY = sorted(p.stem for p in (CONFIGS / "everyday").glob("*.yaml"))
+SLOW = {"raise_3_orbits", "phasing_5_orbits"}
+
+
+def test_the_suite_is_everyday():
+    """At least 8 cases, both schemes, both body models (the acceptance of issue 15, item 7)."""
+    mans = [se3ocp.load(CONFIGS / "everyday" / f"{n}.yaml") for n in EVERYDAY]
+    assert len(mans) >= 8
+    assert {m.discretization for m in mans} == {"lgvi", "first_order"}
+    assert {m.resolved["model"]["kind"] for m in mans} == {"dumbbell", "rigid_body"}
+    assert all(m.direct == se3ocp.DirectOptions() for m in mans)      # the defaults, nothing tuned
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in EVERYDAY])
+def test_everyday_converges_with_defaults(name):
+    sol = se3ocp.solve(se3ocp.load(CONFIGS / "everyday" / f"{name}.yaml"))
+    assert sol.converged, sol.message
+    assert sol.terminal_error <= 1e-8, sol.terminal_error          # on the re-simulation, not the NLP's nodes
+    assert sol.trajectory.orthogonality()["max_orthogonality_error"] <= 1e-12
+    tried = sol.stats["guesses_tried"]
+    assert tried and tried[-1].startswith(f"{sol.stats['initial_guess']}: converged")
+
+
+# --------------------------------------------------------------------- the guess plan
+def _labels(name, *sets):
+    man = maneuver(name, None, None, *sets)
+    plan, pick = direct.guess_plan(man.problem, man.direct)
+    return [(label, budget) for label, _, budget in plan], pick
+
+
+def test_plan_order():
+    """Effort: the interpolation (budget AUTO_FIRST_BUDGET), then the rollout (the rest); bounded effort:
+    the relaxed problem's solution first; fuel: the rollout first (its own budget); an explicit choice: that
+    guess only."""
+    b, mx = direct.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
+    assert _labels("e3") == ([("interpolate", b), ("rollout", mx)], "first")
+    plan, _ = _labels("e3_bounded")
+    assert [lb for lb, _ in plan] == ["the solution without bounds and path constraints", "interpolate", "rollout"]
+    assert _labels("orbit_raise_fuel") == ([("rollout", direct.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")
+    assert _labels("e3", "solver.direct.initial_guess=rollout")[0] == [("rollout", mx)]
+
+
+def test_failing_first_guess_leads_to_the_next(monkeypatch):
+    """The first guess stopped by its budget (2 iterations) -> the rollout is tried and converges; the
+    report lists both, and iterations count both."""
+    monkeypatch.setattr(direct, "AUTO_FIRST_BUDGET", 2)
+    sol = se3ocp.solve(maneuver("e3", 60, "lgvi"))
+    tried = sol.stats["guesses_tried"]
+    assert sol.converged and len(tried) == 2, tried
+    assert tried[0] == "interpolate: max_iterations in 2 iterations"
+    assert tried[1].startswith("rollout: converged in ")
+    n_rollout = int(tried[1].split(" in ")[1].split()[0])
+    assert sol.iterations == 2 + n_rollout and sol.stats["initial_guess"] == "rollout"
+    assert "initial guesses tried: interpolate: max_iterations" in sol.message
+    assert sol.summary()["guesses_tried"] == tried                 # and summary.json carries them
+    assert "hint" not in sol.stats                                 # converged: nothing to suggest
+
+
+def test_failure_says_what_was_tried_and_what_to_try():
+    sol = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2"))
+    assert sol.result is se3ocp.Result.max_iterations
+    assert [t.split(":")[0] for t in sol.stats["guesses_tried"]] == ["interpolate", "rollout"]
+    assert "solver.direct.max_iter" in sol.stats["hint"] and "continuation" in sol.stats["hint"]
+    assert sol.message.endswith(sol.stats["hint"])
+    one = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2", "solver.direct.initial_guess=rollout"))
+    assert "solver.direct.initial_guess=auto" in one.stats["hint"]
+
+
+def test_quiet_failure_is_one_line(tmp_path):
+    """--quiet prints nothing on success, and one line on stderr on failure (exit 1)."""
+    from test_cli import run
+
+    base = ("solve", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.N=20", "--method", "direct",
+            "--no-figures", "--quiet")
+    r = run(*base, "--set", "solver.direct.max_iter=2", "--out", tmp_path / "bad")
+    assert r.returncode == 1 and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "not converged" in lines[0] and "interpolate: max_iterations" in lines[0]
+    assert "try " in lines[0], lines[0]
+    s = json.loads((Path(tmp_path / "bad") / "summary.json").read_text())
+    assert [t.split(":")[0] for t in s["methods"]["direct"]["guesses_tried"]] == ["interpolate", "rollout"]
+    ok = run(*base, "--out", tmp_path / "ok")
+    assert ok.returncode == 0 and ok.stdout == "" and "not converged" not in ok.stderr
