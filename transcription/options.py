@@ -192,7 +192,8 @@ class DirectOptions(Options):
                                   "auto: rollout (at most 200 iterations; fuel objective 600), then interpolate; a bounded "
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
-                                  "controls, the fastest kept (see transcription.direct.guess_plan)")
+                                  "controls, the fastest kept, solved on a coarser grid (N // 4, at least 25 steps) and finished "
+                                  "on N steps (see transcription.direct.guess_plan)")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")
