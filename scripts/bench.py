@@ -317,7 +317,7 @@ def main(argv=None) -> int:
             w.writeheader()
             w.writerows(records)
         plot(records, Path(f"{stem}.png"))
-        cmd = "scripts/bench.py" + (" --quick" if a.quick else "")
+        cmd = " ".join(["scripts/bench.py", *(sys.argv[1:] if argv is None else argv)])   # what was run
         Path(f"{stem}.md").write_text(
             f"# Benchmark\n\n`.venv/bin/python {cmd}` on {mach['cores']} cores, {mach['cpu']} "
             f"(load average {mach['loadavg']} -> {mach['loadavg_end']}; shared machine: compare ratios).\n"
