@@ -69,6 +69,18 @@ def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
     assert coarse.cost == pytest.approx(fine.cost, rel=1e-9, abs=0.0)
 
 
+def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts(monkeypatch):
+    """When the coarse-grid solve does not converge, the starts are solved on N steps as before."""
+    from se3ocp.transcription import direct
+
+    monkeypatch.setattr(direct, "_coarse_guess", lambda problem, opts: None)
+    s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct")
+    tried = s.stats["guesses_tried"]
+    assert s.converged and len(tried) == 1 + direct.TIME_STARTS
+    assert "coarse-grid problem did not converge" in tried[0] and "resampled" not in s.stats["initial_guess"]
+    assert s.cost == pytest.approx(solved("slew_time_optimal_symmetric", 50).cost, rel=1e-9)
+
+
 def test_resampled_solution_on_its_own_grid_is_the_solution():
     """resample_solution to the grid a solution lives on returns its states and controls (h = T / N)."""
     from se3ocp.transcription.direct import resample_solution

@@ -707,7 +707,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     for label, maker, budget in plan:
         guess = maker()
         if guess is None:
-            tried.append(f"{label}: not available (the relaxed problem did not converge)")
+            tried.append(f"{label}: not available (the "
+                         f"{'coarse-grid' if pick == 'coarse' else 'relaxed'} problem did not converge)")
             continue
         if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
             tried.append(f"{label}: not finite")
