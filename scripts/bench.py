@@ -1,7 +1,7 @@
 """Benchmark: build and solve times of every method on E3 and E4, both schemes, growing N.
 
     .venv/bin/python scripts/bench.py                 # N = 250..4000, 5 runs, writes docs/bench.{json,csv,png,md}
-    .venv/bin/python scripts/bench.py --quick         # N = 250, 1000, 3 runs (a few minutes), docs/bench_quick.*
+    .venv/bin/python scripts/bench.py --quick         # default methods only, N = 250, 1000, 3 runs (< 5 min), docs/bench_quick.*
     .venv/bin/python scripts/bench.py --quick --json  # the JSON list of records on stdout (log on stderr)
     .venv/bin/python scripts/bench.py --methods direct-ipopt,indirect-jit --N 1000 --runs 5
 
@@ -42,13 +42,14 @@ import json
 import os
 import platform
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import benchkit  # noqa: E402
 
 METHODS = ("direct-ipopt", "direct-ipopt-jit", "direct-fatrop", "indirect", "indirect-jit", "rockit")
 DEFAULT_METHODS = ("direct-ipopt", "direct-fatrop", "indirect", "indirect-jit", "rockit")
@@ -60,6 +61,10 @@ FULL_N = (250, 500, 1000, 2000, 4000)
 CAPS = {"rockit": 500, "direct-fatrop": 1000, "indirect": 2000}
 QUICK_CAPS = {"rockit": 250}
 QUICK_N = (250, 1000)
+#: --quick runs each method as the library runs it by default (both compiled, warm cache), in under five
+#: minutes on 2 cores with the same protocol; the interpreted variants, fatrop and the peer (scripts/
+#: peer_rockit.py --compare) belong to the full run or an explicit --methods
+QUICK_METHODS = ("direct-ipopt-jit", "indirect-jit")
 #: the bundled maneuver file of each case
 CASES = {"e3": "e3_inclination_change", "e4": "e4_orbital_capture"}
 #: the direct methods' split of solve_s (Solution.stats, see transcription.nlp.solve_time_split)
@@ -105,35 +110,20 @@ def run_one(case: str, scheme: str, method: str, N: int) -> dict:
 
 
 def spawn(case: str, scheme: str, method: str, N: int, timeout: float) -> dict:
-    """run_one in a fresh process (the timing unit)."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--one", case, scheme, method, str(N)]
-    try:
-        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    except subprocess.TimeoutExpired:
-        return {"case": case, "scheme": scheme, "method": method, "N": N, "status": f"timeout {timeout:.0f} s",
-                "converged": False}
-    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
-    if out.returncode != 0 or not lines:
-        tail = (out.stderr or out.stdout).strip().splitlines()[-1:] or ["no output"]
-        return {"case": case, "scheme": scheme, "method": method, "N": N, "status": f"error: {tail[0][:200]}",
-                "converged": False}
-    return json.loads(lines[-1])
+    """run_one in a fresh process (the timing unit; benchkit.spawn); a timeout or crash is a record saying so."""
+    rec = benchkit.spawn(Path(__file__).resolve(), [case, scheme, method, str(N)], timeout)
+    if "solve_s" not in rec:
+        rec = {"case": case, "scheme": scheme, "method": method, "N": N, **rec}
+    return rec
 
 
 # ------------------------------------------------------------------------------ machine
 def machine() -> dict:
-    model = platform.processor() or ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
     import casadi
 
-    return {"cores": os.cpu_count(), "cpu": model, "platform": platform.platform(), "python": platform.python_version(),
-            "casadi": casadi.__version__, "loadavg": os.getloadavg() if hasattr(os, "getloadavg") else None}
+    return {"cores": os.cpu_count(), "cpu": benchkit.cpu_model(), "platform": platform.platform(),
+            "python": platform.python_version(), "casadi": casadi.__version__,
+            "loadavg": os.getloadavg() if hasattr(os, "getloadavg") else None}
 
 
 # ------------------------------------------------------------------------------ summary
@@ -243,11 +233,12 @@ def plot(records: list[dict], path: Path) -> None:
 # --------------------------------------------------------------------------------- main
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="N in {250, 1000}, 3 runs")
+    ap.add_argument("--quick", action="store_true", help="the default methods (compiled), N in {250, 1000}, 3 runs")
     ap.add_argument("--json", action="store_true", help="print the JSON list of records on stdout")
     ap.add_argument("--cases", default="e3,e4")
     ap.add_argument("--schemes", default="first_order,lgvi")
-    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS))
+    ap.add_argument("--methods", default=None,
+                    help=f"default {','.join(DEFAULT_METHODS)}; with --quick {','.join(QUICK_METHODS)}")
     ap.add_argument("--N", default=None, help="comma-separated horizon lengths")
     ap.add_argument("--runs", type=int, default=None, help="timed runs per configuration (after one warm-up)")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per run (process)")
@@ -268,7 +259,7 @@ def main(argv=None) -> int:
 
     Ns = [int(n) for n in a.N.split(",")] if a.N else list(QUICK_N if a.quick else FULL_N)
     runs = a.runs or (3 if a.quick else 5)
-    methods = [m for m in a.methods.split(",") if m]
+    methods = [m for m in (a.methods or ",".join(QUICK_METHODS if a.quick else DEFAULT_METHODS)).split(",") if m]
     caps = dict(QUICK_CAPS if a.quick else CAPS)
     if a.cap:
         caps.update({k: int(v) for k, v in (kv.split("=") for kv in a.cap.split(",") if kv)})
@@ -326,7 +317,7 @@ def main(argv=None) -> int:
             w.writeheader()
             w.writerows(records)
         plot(records, Path(f"{stem}.png"))
-        cmd = "scripts/bench.py" + (" --quick" if a.quick else "")
+        cmd = " ".join(["scripts/bench.py", *(sys.argv[1:] if argv is None else argv)])   # what was run
         Path(f"{stem}.md").write_text(
             f"# Benchmark\n\n`.venv/bin/python {cmd}` on {mach['cores']} cores, {mach['cpu']} "
             f"(load average {mach['loadavg']} -> {mach['loadavg_end']}; shared machine: compare ratios).\n"

@@ -12,19 +12,22 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def machine() -> str:
-    """CPU model, cores, Python and CasADi versions."""
-    model = platform.processor() or ""
+def cpu_model() -> str:
+    """The CPU model string (/proc/cpuinfo, else platform.processor())."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
+                return line.split(":", 1)[1].strip()
     except OSError:
         pass
+    return platform.processor() or ""
+
+
+def machine() -> str:
+    """CPU model, cores, Python and CasADi versions."""
     import casadi
 
-    return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}, CasADi {casadi.__version__}"
+    return f"{cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}, CasADi {casadi.__version__}"
 
 
 def load() -> str:

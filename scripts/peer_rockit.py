@@ -19,6 +19,23 @@ measure), max |R^T R - I|_F and |det R - 1| of the peer's own node states and of
 re-simulation.  A peer that does not converge is reported with its last status.
 
     .venv/bin/python scripts/peer_rockit.py e3 1000
+
+The constrained maneuvers of docs/mathematics.md §10, written the same way:
+
+* ``slew`` / ``slew_sym`` (configs/slew_time_optimal.yaml, slew_time_optimal_symmetric.yaml): the
+  time objective, ``Ocp(T=FreeTime(T_guess))`` with T within the maneuver's time bounds, cost ocp.T,
+  the torque box as bounds on the control; no central body and no force, so the state is what a user
+  would write for a slew: R (9) and Pi (3), the control u_m (3).  Guess: our first start (the screw
+  interpolation with seed-0 symmetry-breaking controls, the first-order layout: one control per
+  interval) and T_guess.
+* ``e3_bounded`` (configs/e3_bounded.yaml): E3 with |u_f|^2 <= F^2 and |u_m,i| <= b_i; its start is ours,
+  the solution without bounds (from E3's rollout it did not converge within 120 s at N = 100).
+
+``--compare`` runs ours (se3ocp.solve, default settings, the direct method) and the peer at equal N,
+each in fresh processes (``--runs``, medians), and prints the ratios and both re-simulated terminal
+errors:
+
+    .venv/bin/python scripts/peer_rockit.py --compare slew,slew_sym,e3_bounded --N 100,200 --runs 3
 """
 from __future__ import annotations
 
@@ -74,9 +91,155 @@ def orthogonality(X):
     return float(np.linalg.norm(E, axis=(1, 2)).max()), float(np.abs(np.linalg.det(R) - 1).max())
 
 
+def _run_ipopt(ocp, N: int, wall_cap: float, t0: float):
+    """RK4 multiple shooting and IPOPT (tol 1e-10, a wall-time cap) on ``ocp``, solved; returns (solution,
+    stats, status, converged, build_s, solve_s): build = Ocp set-up, transcription, nlpsol construction, up
+    to IPOPT's iteration 0 (from t0); solve = IPOPT iteration 0 to the end (rockit does not separate them)."""
+    from rockit import MultipleShooting
+
+    ocp.method(MultipleShooting(N=N, M=1, intg="rk"))
+    ocp.solver("ipopt", {"print_time": False, "expand": True,
+                         "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-10, "max_wall_time": float(wall_cap),
+                                   "max_iter": 3000}})
+    marks: list[float] = []
+    ocp.callback(lambda *_a: marks.append(time.perf_counter()))   # iteration 0 starts the solve clock
+    status, converged = "unknown", False
+    try:
+        sol = ocp.solve()
+        stats = sol.stats
+        status, converged = str(stats.get("return_status")), bool(stats.get("success"))
+    except RuntimeError as exc:
+        sol = ocp.non_converged_solution
+        stats = ocp._method.opti.stats() if hasattr(ocp, "_method") else {}
+        status = str(stats.get("return_status", str(exc).strip().splitlines()[-1][:200]))
+    t_end = time.perf_counter()
+    solve_s = t_end - marks[0] if marks else t_end - t0
+    return sol, stats, status, converged, t_end - t0 - solve_s, solve_s
+
+
+#: case -> bundled maneuver file
+STEMS = {"e3": "e3_inclination_change", "e4": "e4_orbital_capture", "slew": "slew_time_optimal",
+         "slew_sym": "slew_time_optimal_symmetric", "e3_bounded": "e3_bounded"}
+
+
+def _attitude_rhs(model):
+    """(Z[12] = [vec R (column-major); Pi], u_m[3]) -> dZ/dt of a body without a central body or force."""
+    from se3ocp.transcription.lie import hat
+
+    Z = ca.SX.sym("Z", 12)
+    um = ca.SX.sym("u_m", 3)
+    R = ca.reshape(Z[0:9], 3, 3)
+    P = Z[9:12]
+    _, M = model.forces(ca.DM.zeros(3), R)
+    Om = ca.mtimes(ca.DM(np.linalg.inv(model.inertia)), P)
+    dZ = ca.vertcat(ca.vec(ca.mtimes(R, hat(Om))), ca.cross(P, Om) + M + um)
+    return ca.Function("attitude_rhs", [Z, um], [dZ], ["Z", "u_m"], ["dZ"])
+
+
+def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
+    """The rockit version of a slew (time objective, FreeTime) or of the bounded E3."""
+    from rockit import FreeTime, Ocp
+
+    import se3ocp
+    from se3ocp.transcription.direct import target_estimate
+    from se3ocp.transcription.guess import perturbed_interpolation_guess
+    from se3ocp.transcription.layout import X_ANG, X_ROT, split_state
+    from se3ocp.transcription.lie import log_so3
+    from se3ocp.transcription.problem import BoxBound, terminal_error
+
+    prob = se3ocp.load(ROOT / "configs" / f"{STEMS[case]}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
+    model, c = prob.disc.model, prob.control
+    slew = c.objective == "time"
+    t0 = time.perf_counter()
+    if slew:
+        if not (c.removed[0] and model.mu is None):
+            raise ValueError("the slew peer covers attitude-only problems (no central body, force removed)")
+        ocp = Ocp(T=FreeTime(prob.T))
+        Z = ocp.state(12)
+        um = ocp.control(3)
+        ocp.set_der(Z, _attitude_rhs(model)(Z, um))
+        lo, hi = prob.time_bounds
+        ocp.subject_to(lo <= (ocp.T <= hi))
+        ocp.add_objective(ocp.T)
+        b = c.moment_bound.b
+        ocp.subject_to(-ca.DM(b) <= (um <= ca.DM(b)))
+        Z0 = np.concatenate([prob.X0[X_ROT], prob.X0[X_ANG]])
+        ocp.subject_to(ocp.at_t0(Z) == ca.DM(Z0))
+        ZN = ocp.at_tf(Z)
+        Rd, Pd = prob.Xd[X_ROT].reshape(3, 3, order="F"), prob.Xd[X_ANG]
+        ocp.subject_to(ca.vertcat(log_so3(ca.mtimes(ca.DM(Rd).T, ca.reshape(ZN[0:9], 3, 3))), ZN[9:12] - Pd) == 0)
+        size = np.concatenate([np.zeros(3), b])
+        guess = perturbed_interpolation_guess(prob.disc, prob.X0, target_estimate(prob), N, prob.T, size, seed=0)
+        ocp.set_initial(Z, np.hstack([guess.X[:, X_ROT], guess.X[:, X_ANG]]).T)
+        ocp.set_initial(um, guess.U[3:6])
+        ctrl = um
+    else:
+        ocp = Ocp(T=prob.T)
+        X = ocp.state(18)
+        u = ocp.control(6)
+        ocp.set_der(X, _rhs_functions(model)(X, u))
+        W = c.W
+        ocp.add_objective(ocp.integral(0.5 * ca.bilin(ca.DM(W), u, u)))
+        for sl, bound in ((slice(0, 3), c.force_bound), (slice(3, 6), c.moment_bound)):
+            if isinstance(bound, BoxBound):
+                ocp.subject_to(-ca.DM(bound.b) <= (u[sl] <= ca.DM(bound.b)))
+            elif bound is not None:
+                ocp.subject_to(ca.sumsqr(u[sl]) <= float(bound.b) ** 2)
+        ocp.subject_to(ocp.at_t0(X) == ca.DM(prob.X0))
+        x, g, R, P = split_state(ocp.at_tf(X))
+        xd, gd, Rd, Pd = split_state(ca.DM(prob.Xd))
+        ocp.subject_to(ca.vertcat(x - xd, g - gd, log_so3(ca.mtimes(Rd.T, R)), P - Pd) == 0)
+        # the same start as ours: the solution without bounds (our direct method's, not timed here; from
+        # the rollout, as E3's peer starts, it ran into the 120 s wall-time cap at N = 100 after 1143 iterations)
+        Xg, Ug = relaxed_start(prob)
+        ocp.set_initial(X, Xg.T)
+        ocp.set_initial(u, Ug)
+        ctrl = u
+    sol, stats, status, converged, build_s, solve_s = _run_ipopt(ocp, N, wall_cap, t0)
+    _, Us = sol.sample(ctrl, grid="control")
+    nu = 3 if slew else 6
+    Uc = np.asarray(Us, float).reshape(N + 1, nu)[:N].T
+    U = np.vstack([np.zeros((3, N)), Uc]) if slew else Uc
+    T = float(sol.value(ocp.T)) if slew else prob.T
+    cost = T if slew else float(0.5 * prob.h * np.einsum("ik,ij,jk->", U, c.W, U))
+    rec = {"method": "rockit", "solver": "rockit-ipopt (RK4 multiple shooting)", "build_s": build_s,
+           "solve_s": solve_s, "iterations": int(stats.get("iter_count", 0)), "converged": converged,
+           "status": status, "cost": cost, "T": T}
+    if slew:
+        bmax = np.abs(Uc).max(axis=1)
+        rec["bound_violation"] = float(max(0.0, (bmax - c.moment_bound.b).max()))
+    return _resimulated(rec, prob, U, T)
+
+
+def relaxed_start(prob):
+    """Node states (N+1, 18) and controls (6, N) of our direct solution of ``prob`` without its bounds (the
+    first start of our bounded effort problems, transcription.direct.relaxation), first-order scheme."""
+    from se3ocp.transcription.direct import relaxation, solve_direct
+
+    s = solve_direct(relaxation(prob))
+    if not s.converged:
+        raise RuntimeError(f"the relaxed problem did not converge: {s.message}")
+    return np.asarray(s.trajectory.X, float), np.asarray(s.controls, float)
+
+
+def run_ours(case: str, N: int) -> dict:
+    """Our direct method with its default settings on the same maneuver (its own scheme, N steps)."""
+    import se3ocp
+
+    s = se3ocp.solve(se3ocp.load(ROOT / "configs" / f"{STEMS[case]}.yaml", [f"horizon.N={N}"]), "direct")
+    return {"method": "se3ocp", "solver": f"direct ({s.problem.scheme})", "build_s": float(s.build_s),
+            "solve_s": float(s.solve_s), "iterations": int(s.iterations), "converged": bool(s.converged),
+            "status": s.result.value, "cost": float(s.cost), "T": float(s.T),
+            "terminal_error": float(s.terminal_error)}
+
+
 def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
-    """Build and solve the rockit version of E3/E4 with N intervals; returns a bench record."""
-    from rockit import MultipleShooting, Ocp
+    """Build and solve the rockit version of a case (e3, e4, slew, slew_sym, e3_bounded) with N
+    intervals; returns a bench record."""
+    from rockit import Ocp
+
+    if case not in ("e3", "e4"):
+        return _solve_constrained(case, N, wall_cap)
 
     import se3ocp
     from se3ocp.transcription.guess import rollout_guess
@@ -84,7 +247,7 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
     from se3ocp.transcription.lie import log_so3
     from se3ocp.transcription.problem import terminal_error
 
-    stem = {"e3": "e3_inclination_change", "e4": "e4_orbital_capture"}[case]
+    stem = STEMS[case]
     prob = se3ocp.load(ROOT / "configs" / f"{stem}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
     model, T = prob.disc.model, prob.T
     t0 = time.perf_counter()
@@ -103,56 +266,112 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
     guess = rollout_guess(prob.disc, prob.X0, N, prob.h)   # the same initial guess as ours
     ocp.set_initial(X, guess.X.T)
     ocp.set_initial(u, np.zeros((6, N)))
-    ocp.method(MultipleShooting(N=N, M=1, intg="rk"))
-    ocp.solver("ipopt", {"print_time": False, "expand": True,
-                         "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-10, "max_wall_time": float(wall_cap),
-                                   "max_iter": 3000}})
-    status, converged = "unknown", False
-    marks: list[float] = []
-    def mark(*_args):
-        marks.append(time.perf_counter())   # IPOPT iteration 0 starts the solve clock
-
-    ocp.callback(mark)
-    try:
-        sol = ocp.solve()
-        stats = sol.stats
-        status = str(stats.get("return_status"))
-        converged = bool(stats.get("success"))
-    except RuntimeError as exc:
-        sol = ocp.non_converged_solution
-        stats = ocp._method.opti.stats() if hasattr(ocp, "_method") else {}
-        status = str(stats.get("return_status", str(exc).strip().splitlines()[-1][:200]))
-    t_end = time.perf_counter()
-    total = t_end - t0
-    # build: Ocp set-up, transcription, nlpsol construction, up to IPOPT's iteration 0;
-    # solve: IPOPT iteration 0 to the end (what rockit does not separate itself)
-    solve_s = t_end - marks[0] if marks else total
+    sol, stats, status, converged, build_s, solve_s = _run_ipopt(ocp, N, wall_cap, t0)
     _, Xs = sol.sample(X, grid="control")
     _, Us = sol.sample(u, grid="control")
     Xs = np.asarray(Xs, float).reshape(N + 1, 18)
     U = np.asarray(Us, float).reshape(N + 1, 6)[:N].T
     cost = float(0.5 * prob.h * np.einsum("ik,ij,jk->", U, W, U))
-    rec = {"method": "rockit", "solver": "rockit-ipopt (RK4 multiple shooting)", "build_s": total - solve_s,
+    rec = {"method": "rockit", "solver": "rockit-ipopt (RK4 multiple shooting)", "build_s": build_s,
            "solve_s": solve_s, "iterations": int(stats.get("iter_count", 0)), "converged": converged,
            "status": status, "cost": cost}
     nlp_orth, nlp_det = orthogonality(Xs)
     rec["nlp_terminal_error"] = terminal_error(Xs[-1], prob)
     rec["orthogonality_nodes"] = nlp_orth
     rec["det_error_nodes"] = nlp_det
-    if np.all(np.isfinite(U)):
-        Xr = resimulate(model, prob.X0, U, T)
+    return _resimulated(rec, prob, U, T)
+
+
+def _resimulated(rec: dict, prob, U: np.ndarray, T: float) -> dict:
+    """``rec`` with the terminal error (docs/mathematics.md §8) and the orthogonality of the DOP853
+    re-simulation of the peer's controls U (6, N) over [0, T], and a message if it did not converge."""
+    from se3ocp.transcription.problem import terminal_error
+
+    if np.all(np.isfinite(U)) and np.isfinite(T):
+        Xr = resimulate(prob.disc.model, prob.X0, U, T)
         rec["terminal_error"] = terminal_error(Xr[-1], prob)
         rec["orthogonality_resim"], rec["det_error_resim"] = orthogonality(Xr)
     else:
         rec["terminal_error"] = float("inf")
-    if not converged:
-        rec["message"] = f"rockit/IPOPT did not converge: {status}"
+    if not rec["converged"]:
+        rec["message"] = f"rockit/IPOPT did not converge: {rec['status']}"
     return rec
 
 
+def compare(cases: list[str], Ns: list[int], runs: int, timeout: float) -> list[dict]:
+    """Ours and the peer, each run in a fresh process, round-robin over the configurations (so that a
+    change of the machine's load hits them alike); per (case, N): medians and the ratios peer / ours."""
+    import statistics
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from benchkit import load, machine, spawn
+
+    print(f"machine: {machine()}; load average before: {load()}", flush=True)
+    keys = [(c, N, who) for c in cases for N in Ns for who in ("ours", "peer")]
+    got: dict = {k: [] for k in keys}
+    for r in range(runs):
+        for k in keys:
+            rec = spawn(Path(__file__).resolve(), [k[0], str(k[1]), k[2]], timeout)
+            got[k].append(rec)
+            print(f"  run {r + 1} {k[0]:10s} N={k[1]:4d} {k[2]:5s} {rec.get('status', '?')!s:18s} it "
+                  f"{rec.get('iterations', '-')!s:>5} build {rec.get('build_s', float('nan')):7.2f} s solve "
+                  f"{rec.get('solve_s', float('nan')):7.2f} s cost {rec.get('cost', float('nan')):.10g} "
+                  f"terminal error {rec.get('terminal_error', float('nan')):.1e}", flush=True)
+    print(f"load average after: {load()}")
+    out = []
+    med = statistics.median
+    for c in cases:
+        for N in Ns:
+            o = [x for x in got[(c, N, "ours")] if "solve_s" in x]
+            p = [x for x in got[(c, N, "peer")] if "solve_s" in x]
+            if not o or not p:
+                out.append({"case": c, "N": N, "status": "missing runs"})
+                continue
+            rec = {"case": c, "N": N, "runs": min(len(o), len(p))}
+            for who, xs in (("ours", o), ("peer", p)):
+                rec[who] = {"build_s": med(x["build_s"] for x in xs), "solve_s": med(x["solve_s"] for x in xs),
+                            "total_s": med(x["build_s"] + x["solve_s"] for x in xs),
+                            **{k: xs[-1][k] for k in ("iterations", "converged", "status", "cost", "T", "terminal_error")
+                               if k in xs[-1]}}
+            rec["solve_ratio"] = rec["peer"]["solve_s"] / rec["ours"]["solve_s"]
+            rec["total_ratio"] = rec["peer"]["total_s"] / rec["ours"]["total_s"]
+            out.append(rec)
+    print(f"\nmedians of {runs} fresh-process run(s) each; ratio = peer / ours")
+    print("| maneuver | N | ours: it / build s / solve s | peer: it / build s / solve s | solve ratio | "
+          "build+solve ratio | cost ours / peer | terminal error ours / peer (DOP853) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in out:
+        if "ours" not in r:
+            print(f"| {r['case']} | {r['N']} | {r['status']} |")
+            continue
+        o, p = r["ours"], r["peer"]
+        print(f"| {r['case']} | {r['N']} | {o['iterations']} / {o['build_s']:.2f} / {o['solve_s']:.2f} | "
+              f"{p['iterations']} / {p['build_s']:.2f} / {p['solve_s']:.2f}{'' if p['converged'] else ' (' + p['status'] + ')'} | "
+              f"{r['solve_ratio']:.1f}x | {r['total_ratio']:.1f}x | {o['cost']:.8g} / {p['cost']:.8g} | "
+              f"{o['terminal_error']:.1e} / {p['terminal_error']:.1e} |")
+    return out
+
+
 if __name__ == "__main__":
+    import argparse
     import json
 
-    case = sys.argv[1] if len(sys.argv) > 1 else "e3"
-    N = int(sys.argv[2]) if len(sys.argv) > 2 else 250
-    print(json.dumps(solve_peer(case, N), indent=1))
+    ap = argparse.ArgumentParser(description="the rockit peer (see the module docstring)")
+    ap.add_argument("case", nargs="?", default="e3", choices=sorted(STEMS))
+    ap.add_argument("N", nargs="?", type=int, default=250)
+    ap.add_argument("--compare", default=None, help="comma separated cases: ours against the peer, fresh processes")
+    ap.add_argument("--N", dest="Ns", default="100,200", help="with --compare: comma separated N")
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--timeout", type=float, default=600.0)
+    ap.add_argument("--json", default=None, help="with --compare: write the records to this file")
+    ap.add_argument("--one", nargs=3, metavar=("CASE", "N", "WHO"), help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.one:
+        case, N, who = a.one[0], int(a.one[1]), a.one[2]
+        print(json.dumps(run_ours(case, N) if who == "ours" else solve_peer(case, N)))
+    elif a.compare:
+        recs = compare([c for c in a.compare.split(",") if c], [int(n) for n in a.Ns.split(",")], a.runs, a.timeout)
+        if a.json:
+            Path(a.json).write_text(json.dumps(recs, indent=1))
+    else:
+        print(json.dumps(solve_peer(a.case, a.N), indent=1))

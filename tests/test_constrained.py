@@ -52,6 +52,49 @@ def test_time_optimal_slews_converge_to_the_published_minimum(name, published):
     assert abs(extrapolated - published) <= 1e-3 * published, (extrapolated, published)
 
 
+@pytest.mark.parametrize("name", ["slew_time_optimal", "slew_time_optimal_symmetric"])
+def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
+    """The time objective's starts are solved on max(25, N // 4) steps and the best is finished on N
+    (transcription.direct.TIME_COARSE_MIN): the same minimum as the starts solved on N steps."""
+    from se3ocp.transcription import direct
+
+    coarse = solved(name, 100)
+    assert "resampled" in coarse.stats["initial_guess"], coarse.stats["guesses_tried"]
+    monkeypatch.setattr(direct, "TIME_COARSE_MIN", 10 ** 6)     # no coarser grid: the starts on N = 100
+    fine = se3ocp.solve(maneuver(name, 100), "direct")
+    assert "resampled" not in fine.stats["initial_guess"] and len(fine.stats["guesses_tried"]) == direct.TIME_STARTS
+    assert fine.converged and coarse.converged
+    # the minimum time to solver tolerance (the controls may be a mirror image of each other: the slews
+    # have symmetric pairs of minima of equal time, e.g. the asymmetric one's u_z reversed in sign and time)
+    assert coarse.cost == pytest.approx(fine.cost, rel=1e-9, abs=0.0)
+
+
+def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts(monkeypatch):
+    """When the coarse-grid solve does not converge, the starts are solved on N steps as before."""
+    from se3ocp.transcription import direct
+
+    monkeypatch.setattr(direct, "_coarse_guess", lambda problem, opts: None)
+    s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct")
+    tried = s.stats["guesses_tried"]
+    assert s.converged and len(tried) == 1 + direct.TIME_STARTS
+    assert "coarse-grid problem did not converge" in tried[0] and "resampled" not in s.stats["initial_guess"]
+    assert s.cost == pytest.approx(solved("slew_time_optimal_symmetric", 50).cost, rel=1e-9)
+
+
+def test_resampled_solution_on_its_own_grid_is_the_solution():
+    """resample_solution to the grid a solution lives on returns its states and controls (h = T / N)."""
+    from se3ocp.transcription.direct import resample_solution
+
+    s = solved("slew_time_optimal_symmetric", 50)
+    g = resample_solution(s.problem, s)
+    assert np.abs(g.X - s.trajectory.X).max() <= 1e-12 and np.abs(g.U - s.controls).max() <= 1e-12
+    assert g.h == pytest.approx(s.T / 50, rel=1e-15)
+    fine = resample_solution(s.problem.replace(N=200), s)            # 4x finer: nodes 4k are the old nodes
+    assert np.abs(fine.X[::4] - s.trajectory.X).max() <= 1e-12
+    R = fine.X[:, 6:15].reshape(-1, 3, 3)
+    assert np.abs(np.einsum("kji,kjl->kil", R, R) - np.eye(3)).max() <= 1e-13
+
+
 def test_time_optimal_slew_is_not_the_eigenaxis_maneuver():
     """The eigenaxis (single-axis bang-bang) slew takes 2 sqrt(theta J_x / u) = 34.31 s; the optimum
     uses all three axes and is 17 % faster."""

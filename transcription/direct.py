@@ -53,9 +53,9 @@ import numpy as np
 
 from . import blocks
 from .guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess
-from .layout import NU, NX, X_ANG, unpack_states
+from .layout import NU, NX, X_ANG, X_MOM, X_POS, X_ROT, unpack_states
 from .lgvi import CAYLEY_TOL
-from .lie import tangent_basis
+from .lie import exp_so3, log_so3_any, tangent_basis
 from .nlp import Block, ProgressCallback, StructuredNLP, ipopt_history, solve_time_split
 from .options import DirectOptions, raw_solver_value
 from .problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetState, control_activity,
@@ -552,6 +552,66 @@ AUTO_FIRST_BUDGET_FUEL = 600
 #: slew of configs/slew_time_optimal.yaml: 28.63 s and 29.41 s, the first-order scheme at N = 100
 #: reaching the latter from seed 0)
 TIME_STARTS = 3
+#: with initial_guess 'auto' and the time objective, the starts are solved on a coarser grid of
+#: max(TIME_COARSE_MIN, N // 4) steps (recursively: that solve does the same), the best converged
+#: maneuver is resampled to N steps and finished there; the fine-grid starts remain the fallback.
+#: Each start costs a quarter (or less) of a fine one and the finish takes few iterations.
+TIME_COARSE_MIN = 25
+
+
+@dataclass(frozen=True)
+class _ResampledGuess(Guess):
+    """A Guess carrying the step size h of the solution it was resampled from (free final time)."""
+
+    h: float | None = None
+
+
+def _interp_rotations(R: np.ndarray, t: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """Rotations R (n, 3, 3) at increasing times t (n,) interpolated along the geodesic of SO(3)
+    between neighbouring nodes at the times tq (m,) -> (m, 3, 3)."""
+    j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 2)
+    s = np.clip((tq - t[j]) / (t[j + 1] - t[j]), 0.0, 1.0)
+    out = np.empty((len(tq), 3, 3))
+    for i, (jj, ss) in enumerate(zip(j, s)):
+        w = log_so3_any(R[jj].T @ R[jj + 1])
+        out[i] = R[jj] @ exp_so3(ss * w)
+    return out
+
+
+def resample_solution(problem: Problem, sol: Solution) -> _ResampledGuess:
+    """A Guess on ``problem``'s grid (N steps) from a Solution of the same problem on another grid: node
+    states interpolated in time at the solution's final time (positions, momenta linearly, attitudes
+    along SO(3) geodesics), controls linearly at their times (first-order u_j at mid-step, LGVI u_k
+    at the nodes), Cayley vectors consistent with the attitudes, h = T_sol / N."""
+    disc, N = problem.disc, problem.N
+    X = np.asarray(sol.trajectory.X, float)
+    U = np.asarray(sol.controls, float)
+    Nc = X.shape[0] - 1
+    T = float(sol.T)
+    tc, tf = np.linspace(0.0, T, Nc + 1), np.linspace(0.0, T, N + 1)
+    Xf = np.empty((N + 1, NX))
+    for sl in (X_POS, X_MOM, X_ANG):
+        for i in range(sl.start, sl.stop):
+            Xf[:, i] = np.interp(tf, tc, X[:, i])
+    Rc = unpack_states(X).R
+    Rf = _interp_rotations(Rc, tc, tf)
+    Xf[:, X_ROT] = np.swapaxes(Rf, -1, -2).reshape(N + 1, 9)
+    Xf[0], Xf[-1] = X[0], X[-1]
+    if disc.scheme == "lgvi":
+        uc, uf = tc, tf
+    else:
+        uc, uf = tc[1:] - 0.5 * T / Nc, tf[1:] - 0.5 * T / N
+    Uf = np.vstack([np.interp(uf, uc, U[i]) for i in range(NU)])
+    return _ResampledGuess(X=Xf, U=Uf, C=cayley_vectors(Xf), iterations=sol.iterations,
+                           seconds=sol.build_s + sol.solve_s, h=T / N)
+
+
+def _coarse_guess(problem: Problem, opts: DirectOptions) -> Guess | None:
+    """The time objective's starts solved on max(TIME_COARSE_MIN, N // 4) steps (recursively), the best
+    resampled to N steps (None if the coarse solve did not converge)."""
+    Nc = max(TIME_COARSE_MIN, problem.N // 4)
+    sol = solve_direct(problem.replace(N=Nc), opts)
+    return resample_solution(problem, sol) if sol.converged else None
 
 
 def relaxation(problem: Problem) -> Problem | None:
@@ -578,7 +638,9 @@ def _relaxed_guess(problem: Problem, relaxed: Problem, opts: DirectOptions) -> G
 
 def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, Callable[[], Guess], int]], str]:
     """The initial guesses to try, as (label, maker, iteration budget), and how to pick the result:
-    'first' (the first that converges) or 'best' (the lowest cost of those that converge); the
+    'first' (the first that converges), 'best' (the lowest cost of those that converge) or 'coarse'
+    (the time objective: the first entry, the starts solved on a coarser grid and finished on this one,
+    is kept if it converges, else the best of the fine-grid starts that follow); the
     ``initial_guess`` option (see :class:`~transcription.options.DirectOptions`)."""
     disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
 
@@ -591,9 +653,13 @@ def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, C
         size = np.zeros(6)
         for sl, bound in ((slice(0, 3), problem.control.force_bound), (slice(3, 6), problem.control.moment_bound)):
             size[sl] = bound.b if isinstance(bound, BoxBound) else bound.b / np.sqrt(3.0)
-        return [(f"interpolate with symmetry-breaking controls (seed {k})",
-                 lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
-                 opts.max_iter) for k in range(TIME_STARTS)], "best"
+        starts = [(f"interpolate with symmetry-breaking controls (seed {k})",
+                   lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
+                   opts.max_iter) for k in range(TIME_STARTS)]
+        if max(TIME_COARSE_MIN, N // 4) < N:
+            return [(f"the best start on {max(TIME_COARSE_MIN, N // 4)} steps, resampled",
+                     lambda: _coarse_guess(problem, opts), opts.max_iter)] + starts, "coarse"
+        return starts, "best"
     if problem.control.objective == "fuel":
         return [("rollout", made("rollout"), min(opts.max_iter, AUTO_FIRST_BUDGET_FUEL)),
                 ("interpolate", made("interpolate"), opts.max_iter)], "first"
@@ -678,7 +744,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
     for label, maker, budget in plan:
         guess = maker()
         if guess is None:
-            tried.append(f"{label}: not available (the relaxed problem did not converge)")
+            tried.append(f"{label}: not available (the "
+                         f"{'coarse-grid' if pick == 'coarse' else 'relaxed'} problem did not converge)")
             continue
         if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
             tried.append(f"{label}: not finite")
@@ -690,7 +757,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
                                          progress, tr.scales.objective)
         solver = solvers[budget]
         total_build += time.perf_counter() - t0
-        args = dict(x0=tr.initial_point(guess, h0), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
+        h_guess = getattr(guess, "h", None) or h0   # a resampled solution brings its own step size
+        args = dict(x0=tr.initial_point(guess, h_guess), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
         if nu0 is not None and len(nu0) == tr.nlp.ng:
             args["lam_g0"] = np.asarray(nu0) * tr.g_scale / tr.scales.objective
         t0 = time.perf_counter()
@@ -706,13 +774,17 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None,
             total_solve += guess.seconds
         total_iterations += sol.iterations
         tried.append(f"{label}: {sol.result} in {sol.iterations} iterations" +
-                     (f" ({guess.iterations} of them on the relaxed problem)" if guess.iterations else "") +
-                     (f", cost {sol.cost:.10g}" if pick == "best" and sol.converged else ""))
+                     (f" ({guess.iterations} of them on the "
+                      f"{'coarse grid' if isinstance(guess, _ResampledGuess) else 'relaxed problem'})"
+                      if guess.iterations else "") +
+                     (f", cost {sol.cost:.10g}" if pick != "first" and sol.converged else ""))
         sol.stats["initial_guess"] = label
         if sol.converged and (best is None or sol.cost < best.cost):
             best = sol
         if sol.result is Result.interrupted or (sol.converged and pick == "first"):
             break
+        if pick == "coarse" and isinstance(guess, _ResampledGuess) and sol.converged:
+            break   # finished on the fine grid: the fine-grid starts are only the fallback
     if sol is None:
         return _free_motion_failure(problem, opts, Result.non_finite,
                                     "the initial guess is not finite (overflow or a singular potential along the "

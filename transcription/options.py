@@ -212,8 +212,9 @@ class DirectOptions(Options):
                                   "600), then interpolate; a bounded "
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
-                                  "controls, the fastest kept; every guess tried is reported in the message and "
-                                  "stats['guesses_tried'] (see transcription.direct.guess_plan)")
+                                  "controls, the fastest kept, solved on a coarser grid (N // 4, at least 25 steps) and finished "
+                                  "on N steps; every guess tried is reported in the message and stats['guesses_tried'] "
+                                  "(see transcription.direct.guess_plan)")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")
