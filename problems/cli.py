@@ -75,6 +75,8 @@ def _output_options(p: argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="se3ocp", description="Geometrically exact optimal control of a rigid body on SE(3).",
                                  epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"se3ocp {_version()}",
+                    help="print the installed version and exit")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -147,6 +149,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=cmd_sweep)
     return ap
+
+
+def _version() -> str:
+    """The installed distribution's version (package metadata), so it cannot drift from pyproject.toml."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("se3ocp")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
 
 
 def _positive_int(text: str) -> int:
@@ -286,17 +298,22 @@ class Progress:
 
 
 def _table(sols) -> list[str]:
-    head = (f"{'method':<10} {'status':<20} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
-            f"{'build s':>8} {'solve s':>8}")
-    rows = [head, "-" * len(head)]
+    """The side-by-side table; the text columns are as wide as their widest entry (a status is
+    never cut, however long)."""
     from ..transcription.results import Result
 
+    sols = list(sols)
+    mw = max([len("method")] + [len(s.method) for s in sols])
+    sw = max([len("status")] + [len(str(s.result.value)) for s in sols])
+    head = (f"{'method':<{mw}} {'status':<{sw}} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
+            f"{'build s':>8} {'solve s':>8}")
+    rows = [head, "-" * len(head)]
     for s in sols:
         if s.result is Result.not_applicable:
-            rows.append(f"{s.method:<10} {s.result.value:<20} {'-':>14} {'-':>10} {'-':>10} {'-':>6} {'-':>8} {'-':>8}")
+            rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {'-':>14} {'-':>10} {'-':>10} {'-':>6} {'-':>8} {'-':>8}")
             continue
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
-        rows.append(f"{s.method:<10} {s.result.value:<20} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
+        rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
                     f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
     return rows
 

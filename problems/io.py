@@ -66,7 +66,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..transcription.results import to_jsonable
-from .schema import yaml_dump
+from .schema import ConfigError, yaml_dump
 
 #: the file an incomplete commit (``commit(incomplete=REASON)``) adds, holding REASON
 INCOMPLETE_MARKER = "INCOMPLETE"
@@ -629,8 +629,11 @@ class ResultsTransaction:
             self.commit()
             return False
         self.abort()
-        if isinstance(exc, ResultsDirError) and self.path is not None and self.target is not None:
+        if isinstance(exc, (ResultsDirError, ConfigError)) and self.path is not None and self.target is not None:
+            # a message about a file of the private copy names the file the user knows
             exc.args = tuple(str(a).replace(str(self.path), str(self.target)) for a in exc.args)
+            if isinstance(exc, ConfigError):
+                exc.source = str(exc.source).replace(str(self.path), str(self.target))
         return False
 
 

@@ -64,6 +64,13 @@ MODEL_DEFAULTS: dict[str, Any] = {
 RIGID_BODY_KEYS = ("kind", "mass", "inertia", "mu", "central_body_radius")
 CONSTRAINT_KEYS = {"min_radius": ("radius",), "keep_out": ("body_axis", "direction", "min_angle_deg"),
                    "keep_in": ("body_axis", "direction", "max_angle_deg"), "max_angular_rate": ("value",)}
+#: the most steps a horizon may have (a typo such as N = 1e9 is refused before anything is allocated;
+#: 10^7 steps of the 18-number state already take 1.4 GB)
+MAX_N = 10_000_000
+#: the step h = T/N must lie in [MIN_STEP, MAX_STEP]: the discrete equations use h^2 and 1/h^2, which
+#: must stay finite and non-zero in double precision (a T so small that h underflows is bad input,
+#: not a solver failure)
+MIN_STEP, MAX_STEP = 1e-150, 1e150
 #: ProblemError fields -> the file's fields
 _PROBLEM_FIELDS = {"time_bounds": "horizon.T", "control.bounds": "control.bounds", "control.W_f": "control.weights.force",
                    "control.W_m": "control.weights.moment", "control.objective": "control.objective",
@@ -242,10 +249,18 @@ def _inertia(v: Validator, val, where) -> np.ndarray:
     return 0.5 * (J + J.T)
 
 
+def _step(v: Validator, T: float, N: int, where: str) -> None:
+    """The step h = T/N within [:data:`MIN_STEP`, :data:`MAX_STEP`], else ConfigError naming ``where``."""
+    h = T / N
+    if not MIN_STEP <= h <= MAX_STEP:
+        v.fail(where, f"expected a step h = T/N from {MIN_STEP:g} to {MAX_STEP:g} (the discrete equations use h^2 and "
+                      f"1/h^2, which must be finite, non-zero double-precision numbers), got h = {T:g}/{N} = {h:.3g}")
+
+
 def _horizon(v: Validator, hdoc):
     """(N, T (or its guess), time_bounds or None, resolved horizon)."""
     hz = v.mapping(hdoc, "horizon", ("T", "N"), required=("T", "N"))
-    N = v.number(hz["N"], "horizon.N", positive=True, integer=True, at_most=10_000_000)
+    N = v.number(hz["N"], "horizon.N", positive=True, integer=True, at_most=MAX_N)
     if isinstance(hz["T"], dict):
         t = v.mapping(hz["T"], "horizon.T", ("free", "guess", "min", "max"), required=("free", "guess", "min", "max"))
         if t["free"] is not True:
@@ -255,8 +270,11 @@ def _horizon(v: Validator, hdoc):
             v.fail("horizon.T", f"expected min <= max, got min {lo:g} > max {hi:g}")
         if not lo <= guess <= hi:
             v.fail("horizon.T.guess", f"expected a guess in [min, max] = [{lo:g}, {hi:g}], got {guess:g}")
+        _step(v, lo, N, "horizon.T.min")
+        _step(v, hi, N, "horizon.T.max")
         return N, guess, (lo, hi), {"N": N, "T": {"free": True, "guess": guess, "min": lo, "max": hi}}
     T = v.number(hz["T"], "horizon.T", positive=True)
+    _step(v, T, N, "horizon.T")
     return N, T, None, {"N": N, "T": T}
 
 
