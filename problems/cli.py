@@ -193,11 +193,63 @@ class _Interrupt:
             raise KeyboardInterrupt
 
 
+class _DropInterruptWarnings:
+    """sys.stderr during a CLI run, minus CasADi's ``WARNING("KeyboardInterruptException")`` lines.
+
+    CasADi checks for Ctrl-C inside its evaluations and solver callbacks; when our SIGINT handler
+    raises there, CasADi stops the solver and logs that warning through ``sys.stderr`` (its Python
+    build writes with PySys_WriteStderr).  The interrupt itself is recorded by :class:`_Interrupt`
+    and reported in one line of our own, so the warning is noise.  Text is passed through at once,
+    except a line that starts like a CasADi log line, which is held until it is complete."""
+
+    MARK = 'WARNING("KeyboardInterruptException")'
+
+    def __init__(self, stream):
+        self.stream, self.held = stream, ""
+
+    def write(self, text: str) -> int:
+        n = len(text)
+        text = self.held + text
+        self.held = ""
+        while text:
+            line, nl, rest = text.partition("\n")
+            if not nl:  # an incomplete line: hold it only if it may be a CasADi warning
+                if text.startswith("CasADi"[:len(text)]):
+                    self.held = text
+                else:
+                    self.stream.write(text)
+                break
+            if self.MARK not in line:
+                self.stream.write(line + nl)
+            text = rest
+        return n
+
+    def flush(self) -> None:
+        if self.held:
+            if self.MARK not in self.held:
+                self.stream.write(self.held)
+            self.held = ""
+        self.stream.flush()
+
+    def __getattr__(self, name):  # fileno, isatty, encoding, ...
+        return getattr(self.stream, name)
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         signal.signal(signal.SIGINT, _Interrupt.handler)
     except ValueError:  # not the main thread
         pass
+    real_stderr = sys.stderr
+    sys.stderr = _DropInterruptWarnings(real_stderr)
+    try:
+        return _main(argv)
+    finally:
+        sys.stderr.flush()
+        sys.stderr = real_stderr
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     from ..transcription import codegen
 
@@ -320,7 +372,6 @@ def _table(sols) -> list[str]:
 
 def cmd_solve(args) -> int:
     from ..transcription.results import Result
-    from ..transcription.solve import solve
     from . import api, store
 
     man = _load(args)
@@ -333,12 +384,11 @@ def cmd_solve(args) -> int:
             raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
                                                           "impulsive maneuvers are solved by --method direct")
         method = "direct"
-    problem, d, i = api.resolve(man, method)
     with _results(args, man) as tx:
         _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                    f"-> {tx.target}/")
         _say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
-        result = solve(problem, method, direct=d, indirect=i, progress=Progress(args))
+        result = api.solve(man, method, progress=Progress(args))  # with the central-body check of the path
         _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols = store.solutions_of(result)
         for m, sol in sols.items():

@@ -24,6 +24,15 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       - {kind: max_angular_rate, value: w}
     solver: {direct: {...}, indirect: {...}}
 
+``central_body_radius`` (default 0) is the radius of the central body.  The initial and terminal
+positions must keep the *clearance* central_body_radius + the body's bounding radius (the dumbbell's
+length/2 + sphere_radius) from its centre; every solution's re-simulated path is checked against the
+same clearance (a path that comes closer is reported ``inside_central_body``, exit 1); and when the
+radius is > 0 a smooth maneuver also gets the path constraint ``{kind: min_radius, radius:
+clearance}`` (added to the resolved file; not when a min_radius at least as large is given), so
+that the direct method keeps the path outside.  With the default 0 nothing is added: the indirect
+method, which does not cover path constraints, stays applicable to the bundled maneuvers.
+
 Velocities are inertial, angular velocities body-frame; momenta follow as gamma = m v,
 Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``, ``{axis_angle: [ax, ay, az, angle_deg]}``
 or ``{rotations: [[x|y|z, deg], ...]}`` (product left to right).  A matrix must satisfy
@@ -127,6 +136,11 @@ class Maneuver:
     T: float = field(init=False, repr=False)
     h: float = field(init=False, repr=False)
 
+    @property
+    def clearance(self) -> float | None:
+        """The distance from the central body's centre the body must keep (:func:`clearance`)."""
+        return clearance(self.central_body_radius, self.body)
+
     def __post_init__(self):
         p = self.problem
         for k, v in (("control_kind", p.kind), ("discretization", p.scheme), ("N", p.N), ("T", p.T), ("h", p.h)):
@@ -159,7 +173,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     N, T, time_bounds, resolved["horizon"] = _horizon(v, doc["horizon"])
     disc = v.choice(doc.get("discretization", "lgvi"), "discretization", SCHEMES)
     resolved["discretization"] = disc
-    extent = central_radius + body.extent if body.body_model().mu is not None else None
+    extent = clearance(central_radius, body)
     initial = _state(v, doc["initial"], "initial", body, extent, all_required=True)
 
     control_kind, control, resolved_control = _control(v, doc.get("control"))
@@ -181,6 +195,11 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     constraints = _constraints(v, doc.get("constraints", []), body, initial, terminal)
     if constraints and control_kind != "smooth":
         v.fail("constraints", "path constraints apply to smooth control")
+    body_constraint = _central_body_constraint(central_radius, body, control_kind, constraints)
+    if body_constraint is not None:
+        constraints += (body_constraint,)
+        resolved["constraints"] = list(resolved.get("constraints", [])) + [{"kind": "min_radius",
+                                                                            "radius": body_constraint.radius}]
 
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
@@ -388,6 +407,28 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
                           f"{' ' + unit if unit else ''})")
         out.append(con)
     return tuple(out)
+
+
+def clearance(central_radius: float, body) -> float | None:
+    """The distance from the central body's centre that the body's centre of mass must keep:
+    central_body_radius + the body's bounding-sphere radius (the dumbbell's l/2 + r_s, 0 for a
+    rigid body); None without a central body (gravity none).  The initial and terminal states
+    are validated against it, and every solution's re-simulated path is checked against it
+    (problems.api.check_clearance)."""
+    return None if body.central_mu is None else central_radius + body.extent
+
+
+def _central_body_constraint(central_radius: float, body, control_kind, constraints) -> MinRadius | None:
+    """The central body enforced as a path constraint ``min_radius: clearance`` of a smooth maneuver
+    whose file gives a ``central_body_radius`` > 0 (the default 0 adds nothing: the bundled maneuvers,
+    and the indirect method, which does not cover path constraints, are unchanged).  None if there is
+    no central body, no smooth control, or a given min_radius already keeps at least that distance."""
+    need = clearance(central_radius, body)
+    if need is None or not central_radius > 0 or control_kind != "smooth":
+        return None
+    if any(isinstance(c, MinRadius) and c.radius >= need for c in constraints):
+        return None
+    return MinRadius(need)
 
 
 def _state(v: Validator, d, where, body, extent: float | None, all_required: bool) -> StateSpec:

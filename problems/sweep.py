@@ -384,11 +384,12 @@ def _solve(man, method: str, warm: dict | None):
     """(final Solution, warm_started, start, iterations_total): a warm solve from the payload, and a
     cold one if there is none or it fails (through the one dispatcher, transcription.solve)."""
     from ..transcription.solve import solve
+    from .api import check_clearance
 
     problem = man.problem
 
     def run(ws=None):
-        return solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws)
+        return check_clearance(man, solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws))
 
     ws = None
     if warm and man.control_kind == "smooth":

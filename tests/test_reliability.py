@@ -53,6 +53,12 @@ def test_bad_input_exit_2_one_line(case, tmp_path):
         assert not (tmp_path / "out").exists(), "a results directory was created for a rejected config"
     if case.prefill == "dir":  # the earlier run is left alone
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["earlier_run.txt"]
+    if case.prefill == "results":  # the damaged run is left as it was: no copy, no temporary, no file added
+        name, keep = case.corrupt
+        assert (tmp_path / "out" / name).stat().st_size == keep
+        assert sorted(p.name for p in (tmp_path / "out").iterdir()) == \
+            ["config.resolved.yaml", "direct.npz", "report.html", "summary.json"]
+        assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
 
 def test_every_bad_input_class_of_issue_7_is_in_the_catalogue():
@@ -212,3 +218,113 @@ def test_failure_table_is_current_in_shape():
     assert f"{len(ft.CASES)} classes tried" in text
     for c in ft.CASES:
         assert f"| {ft._md(c.cls)} |" in text, c.id
+
+
+# ------------------------------------------------------------------ issue 15, round 2
+def _cli(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_version_from_package_metadata():
+    """``se3ocp --version`` prints the installed distribution's version (not a copy that can drift), exit 0."""
+    from importlib.metadata import version
+
+    r = _cli("--version")
+    assert r.returncode == 0 and r.stderr == ""
+    assert r.stdout.strip() == f"se3ocp {version('se3ocp')}"
+
+
+def test_status_column_is_never_cut():
+    """The CLI table's status column is as wide as its widest status: every Result and a long
+    solver status appear whole, and the columns after it stay aligned."""
+    from types import SimpleNamespace
+
+    from se3ocp.problems.cli import _table
+
+    long = SimpleNamespace(value="Maximum_Iterations_Exceeded")
+    sols = [SimpleNamespace(method=m, result=r) for m, r in [("direct", long), *(("x", r) for r in Result)]]
+    for s in sols:  # only not_applicable rows are printed without numbers; make every row one
+        s.result = SimpleNamespace(value=s.result.value) if s.result is not Result.not_applicable else s.result
+        s.trajectory = SimpleNamespace(orthogonality=lambda: {"max_orthogonality_error": 0.0})
+        s.cost, s.terminal_error, s.iterations, s.build_s, s.solve_s = 1.0, 0.0, 3, 0.0, 0.0
+    rows = _table(sols)
+    assert "Maximum_Iterations_Exceeded " in rows[2]
+    for s, row in zip(sols, rows[2:]):
+        assert f" {s.result.value} " in row
+    assert len({len(r) for r in rows}) == 1  # aligned
+
+
+def test_casadi_interrupt_warning_is_dropped_and_nothing_else():
+    """The CLI's stderr filter drops CasADi's KeyboardInterruptException warning, whole, however it
+    is split into writes, and passes every other text through unchanged."""
+    import io
+
+    from se3ocp.problems.cli import _DropInterruptWarnings
+
+    warning = 'CasADi - 2026-12-02 09:40:32 WARNING("KeyboardInterruptException") [.../ipopt_nlp.cpp:132]\n'
+    other = "CasADi - 2026-12-02 09:40:32 WARNING(\"something else\") [x.cpp:1]\nplain text\nC"
+    for cut in range(0, len(warning) + len(other), 7):
+        buf = io.StringIO()
+        f = _DropInterruptWarnings(buf)
+        text = warning + other
+        f.write(text[:cut])
+        f.write(text[cut:])
+        f.flush()
+        assert buf.getvalue() == other, cut
+
+
+def test_central_body_radius_adds_min_radius_once():
+    """central_body_radius > 0 on a smooth maneuver adds the path constraint min_radius = clearance
+    (radius + the dumbbell's length/2 + sphere_radius), also to the resolved file; a given min_radius
+    at least as large is not duplicated, a smaller one is kept beside it; radius 0 (every bundled
+    maneuver) and impulsive control add nothing."""
+    from se3ocp.problems.maneuvers import load_maneuver, parse_maneuver
+    from se3ocp.transcription.problem import MinRadius
+
+    e3 = CONFIGS / "e3_inclination_change.yaml"
+    m = load_maneuver(e3, ["model.central_body_radius=0.5"])
+    assert m.clearance == pytest.approx(0.57)
+    assert [c.radius for c in m.problem.constraints if isinstance(c, MinRadius)] == [pytest.approx(0.57)]
+    assert m.resolved["constraints"] == [{"kind": "min_radius", "radius": pytest.approx(0.57)}]
+    again = parse_maneuver(m.resolved, "resolved")  # the resolved file states the same problem
+    assert [c.radius for c in again.problem.constraints] == [pytest.approx(0.57)]
+    m = load_maneuver(e3, ["model.central_body_radius=0.5", "constraints=[{kind: min_radius, radius: 0.8}]"])
+    assert [c.radius for c in m.problem.constraints] == [0.8]
+    m = load_maneuver(e3, ["model.central_body_radius=0.5", "constraints=[{kind: min_radius, radius: 0.3}]"])
+    assert sorted(c.radius for c in m.problem.constraints) == [0.3, pytest.approx(0.57)]
+    m = load_maneuver(CONFIGS / "e1_impulsive_tpbvp.yaml", ["model.central_body_radius=0.5"])
+    assert m.problem.constraints == ()
+    for cfg in sorted(CONFIGS.glob("*.yaml")):
+        m = load_maneuver(cfg)
+        assert m.central_body_radius == 0.0, cfg.name
+        assert not any(c.radius == m.clearance for c in m.problem.constraints if isinstance(c, MinRadius)), cfg.name
+
+
+def test_path_through_the_central_body_is_avoided_when_a_radius_is_given(tmp_path):
+    """E3 in 0.05 periods: the unconstrained optimum cuts through |x| = 0.14; with
+    central_body_radius 0.5 the enforced clearance makes the direct method go around (exit 0,
+    every node at |x| >= 0.57 to the path tolerance), and the indirect method says it does not apply."""
+    out = tmp_path / "o"
+    r = _cli("compare", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.T=0.05", "--set", "horizon.N=50",
+             "--set", "model.central_body_radius=0.5", "--out", out, "--no-figures", "--quiet")
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["methods"]["direct"]["status"] == "converged"
+    assert s["methods"]["indirect"]["status"] == "not_applicable"
+    with np.load(out / "direct.npz") as z:
+        assert np.linalg.norm(z["x"], axis=1).min() >= 0.57 - 1e-6
+
+
+def test_converged_path_inside_the_body_is_flagged_through_the_api():
+    """The check runs on the re-simulated path of every method through the API too (se3ocp.solve on
+    a Maneuver): the direct solution through the dumbbell's clearance is inside_central_body and not
+    converged, the message names the closest node, and the Comparison's verdict follows."""
+    from se3ocp.problems import api
+
+    man = api.load(CONFIGS / "e3_inclination_change.yaml", ["horizon.T=0.02", "horizon.N=50"])
+    sol = api.solve(man, "direct")
+    assert sol.result is Result.inside_central_body and not sol.converged
+    assert "enters the central body" in sol.message and "node" in sol.message
+    with pytest.raises(Exception):
+        api.solve(man, "direct", throw=True)
