@@ -176,11 +176,21 @@ def _frames(text: str) -> int:
 class _Interrupt:
     """Ctrl-C policy.  The first SIGINT sets a flag and raises KeyboardInterrupt.
     Solvers may swallow that exception inside their own callbacks (IPOPT then stops
-    with User_Requested_Stop, CasADi may turn it into another error), so the flag is
-    what counts: it is checked after each solve, and any exception raised while it
-    is set means "interrupted" (exit 130), never a traceback."""
+    with User_Requested_Stop, CasADi may turn it into another error), and Python
+    swallows it where it cannot propagate (a weakref callback or __del__ during garbage
+    collection: it is "unraisable"), so the flag is what counts: it is checked after each
+    solve and before every commit of a results directory, and any exception raised while
+    it is set means "interrupted" (exit 130), never a traceback."""
 
     flag = False
+
+    @classmethod
+    def unraisable(cls, u, default=sys.unraisablehook):
+        """sys.unraisablehook: our own KeyboardInterrupt, swallowed where it could not propagate,
+        is not printed (the flag carries it); anything else is reported as usual."""
+        if cls.flag and isinstance(u.exc_value, KeyboardInterrupt):
+            return
+        default(u)
 
     @classmethod
     def handler(cls, signum, frame):
@@ -240,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGINT, _Interrupt.handler)
     except ValueError:  # not the main thread
         pass
+    sys.unraisablehook = _Interrupt.unraisable
     real_stderr = sys.stderr
     sys.stderr = _DropInterruptWarnings(real_stderr)
     try:
@@ -263,6 +274,9 @@ def _main(argv: list[str] | None) -> int:
         return 2
     except KeyboardInterrupt:
         return _interrupted()
+    except BrokenPipeError:  # stdout's reader went away while the result was printed (--json ... | head)
+        _stdout_gone()
+        return 141  # 128 + SIGPIPE, as a shell reports a process killed by it
     except Exception:
         if _Interrupt.flag:  # an error caused by the interrupt inside a library
             return _interrupted()
@@ -276,8 +290,22 @@ def _interrupted() -> int:
 
 # ------------------------------------------------------------------ helpers
 def _say(args, *msg):
+    """Print a progress or result line (not with --quiet or --json).  If stdout's reader went away
+    (``se3ocp solve ... | head``), printing stops and the run goes on to write its results."""
     if not args.quiet and not args.json:
-        print(*msg, flush=True)
+        try:
+            print(*msg, flush=True)
+        except BrokenPipeError:
+            _stdout_gone()
+            args.quiet = True
+
+
+def _stdout_gone() -> None:
+    """Point stdout at /dev/null, so that neither later prints nor the flush at exit fail."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 def _load(args) -> Maneuver:
@@ -316,6 +344,7 @@ def cmd_simulate(args) -> int:
         _Interrupt.check()
         store.write_run(tx.path, man, sol)
         _figures_and_report(args, tx.path)
+        _Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     st = sol.stats
     _say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, {sol.solve_s:.2f} s")
@@ -400,6 +429,7 @@ def cmd_solve(args) -> int:
                        f"solve {sol.solve_s:.2f} s")
         store.write_run(tx.path, man, result)
         _figures_and_report(args, tx.path)
+        _Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     for line in _table(sols.values()):
         _say(args, line)
@@ -452,6 +482,7 @@ def cmd_plot(args) -> int:
             written.append(str(d / write_report(tx.path, draw=False).name))
         if args.animate:
             written.append(str(d / animate(tx.path, frames=args.frames, fps=args.fps).name))
+        _Interrupt.check()
     _say(args, f"wrote {len(written)} files in {d}/")
     if args.json:
         print(json.dumps(written))
@@ -466,6 +497,7 @@ def cmd_report(args) -> int:
         return 2
     with results_update(d) as tx:
         out = d / write_report(tx.path, draw=not args.no_figures).name
+        _Interrupt.check()
     _say(args, f"wrote {out}")
     if args.json:
         print(json.dumps([str(out)]))

@@ -80,6 +80,9 @@ MAX_N = 10_000_000
 #: must stay finite and non-zero in double precision (a T so small that h underflows is bad input,
 #: not a solver failure)
 MIN_STEP, MAX_STEP = 1e-150, 1e150
+#: the most path constraints a file may give (each adds N + 1 rows to the NLP; the bound also keeps the
+#: validation of a file, and of every point of a sweep, short)
+MAX_CONSTRAINTS = 64
 #: ProblemError fields -> the file's fields
 _PROBLEM_FIELDS = {"time_bounds": "horizon.T", "control.bounds": "control.bounds", "control.W_f": "control.weights.force",
                    "control.W_m": "control.weights.moment", "control.objective": "control.objective",
@@ -373,6 +376,9 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
     """The path constraints; each must hold at the initial state and at the given terminal components."""
     if not isinstance(cdoc, (list, tuple)):
         v.fail("constraints", f"expected a list of constraints, got {describe(cdoc)}")
+    if len(cdoc) > MAX_CONSTRAINTS:
+        v.fail("constraints", f"expected at most {MAX_CONSTRAINTS} path constraints (maneuvers.MAX_CONSTRAINTS), "
+                              f"got {len(cdoc)}")
     out = []
     for i, c in enumerate(cdoc):
         w = f"constraints[{i}]"
