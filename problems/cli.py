@@ -21,7 +21,8 @@ def _interrupted_at_startup(signum, frame):  # pragma: no cover - timing depende
 # merely imported: main() replaces it once the modules are loaded.  The package's __init__ imports
 # nothing heavy, so this runs before NumPy and CasADi load.  A Ctrl-C that arrived while SIGINT was
 # blocked (a test starts the program that way) is delivered here, once the handler is in place.
-if __name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "se3ocp":
+_AS_PROGRAM = __name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "se3ocp"
+if _AS_PROGRAM:
     signal.signal(signal.SIGINT, _interrupted_at_startup)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
@@ -255,7 +256,14 @@ def main(argv: list[str] | None = None) -> int:
     sys.stderr = _DropInterruptWarnings(real_stderr)
     try:
         return _main(argv)
+    except KeyboardInterrupt:  # while the arguments are parsed or the modules load
+        return _interrupted()
     finally:
+        if _AS_PROGRAM:  # the run is over (its results committed or not): a late Ctrl-C changes nothing,
+            try:         # and must not raise a KeyboardInterrupt traceback on the way out
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+            except ValueError:
+                pass
         sys.stderr.flush()
         sys.stderr = real_stderr
 
@@ -284,7 +292,15 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _interrupted() -> int:
-    print("se3ocp: interrupted; the results directory was left as it was (nothing half-written)", file=sys.stderr)
+    from .io import ResultsTransaction
+
+    if ResultsTransaction.committed:  # Ctrl-C after a commit: say what is in place
+        where, incomplete = ResultsTransaction.committed[-1]
+        what = ("the part finished before the interrupt, marked INCOMPLETE" if incomplete is not None
+                else "this run, complete (the interrupt came after the results were in place)")
+        print(f"se3ocp: interrupted; {where}/ holds {what} (nothing half-written)", file=sys.stderr)
+    else:
+        print("se3ocp: interrupted; the results directory was left as it was (nothing half-written)", file=sys.stderr)
     return 130
 
 

@@ -374,6 +374,10 @@ class ResultsTransaction:
     ``incomplete=REASON`` on Ctrl-C before re-raising.
     """
 
+    #: (target, incomplete reason or None) of every commit in this process, in order (the CLI says what
+    #: an interrupted run left)
+    committed: list = []
+
     def __init__(self, out: str | os.PathLike | None, default: str | os.PathLike | None = None,
                  force: bool = False, *, update: bool = False):
         if out is None and default is None:
@@ -564,8 +568,10 @@ class ResultsTransaction:
         finally:
             if self.state == "committed":
                 self._release()
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)  # the previous run; if interrupted, the next run removes it
+                ResultsTransaction.committed.append((self.target, incomplete))
+        if old is not None:  # the previous run, now under the temporary name: removed before a Ctrl-C acts
+            with _signals_deferred():
+                shutil.rmtree(old, ignore_errors=True)
         return self.target
 
     def _swap(self) -> Path | None:

@@ -451,7 +451,12 @@ def test_ctrl_c_at_random_moments(tmp_path):
     solve, compare, plot --animate and sweep, each over a directory holding a complete earlier run:
     every time exit 130 (or 0/1 if the run had finished) without a traceback, one stderr line when
     interrupted, and the directory checked file by file is the previous run, one complete new run,
-    or (sweep only) the finished rows marked INCOMPLETE -- never a mixture, never a temporary."""
+    or (sweep only) the finished rows marked INCOMPLETE -- never a mixture, never a temporary.
+
+    The child starts with SIGINT blocked (as the catalogue's start-up case): a Ctrl-C in the first
+    ~50 ms, while the interpreter itself starts (site imports, before any line of se3ocp runs, where
+    only Python's own handler exists), is delivered when the CLI installs its handler.  Without
+    that, such an early Ctrl-C gets Python's KeyboardInterrupt traceback -- outside the program."""
     import random
 
     rng = random.Random(15)
@@ -465,7 +470,8 @@ def test_ctrl_c_at_random_moments(tmp_path):
             delay = rng.uniform(0.0, sc.duration)
             t0 = time.time_ns()
             p = subprocess.Popen([sys.executable, "-m", "se3ocp.problems.cli", *map(str, sc.new_argv)], cwd=sc.work,
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                 preexec_fn=ft._block_sigint)
             time.sleep(delay)
             p.send_signal(signal.SIGINT)
             _, err = p.communicate(timeout=900)
