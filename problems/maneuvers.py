@@ -169,6 +169,9 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     name = doc["name"]
     if not isinstance(name, str) or not name.strip():
         v.fail("name", f"expected a non-empty string, got {describe(name)}")
+    if name.strip() in (".", ".."):  # the default results directory is results/<name>/
+        v.fail("name", f"expected a name other than '.' or '..' (it names the results directory results/<name>/), "
+                       f"got {name.strip()!r}")
     resolved = copy.deepcopy(doc)
 
     body, central_radius, resolved["model"], resolved["gravity"] = _body(v, doc.get("model", {"kind": "dumbbell"}),

@@ -236,6 +236,9 @@ CASES: list[Case] = [
     Case(id="report_truncated_config", cls="report of a results directory whose config.resolved.yaml is truncated",
          command="report", config=E3, sets=("horizon.N=10",), out=False, field="out/config.resolved.yaml",
          prefill="results", corrupt=("config.resolved.yaml", 40)),
+    Case(id="name_dotdot_force", cls="name '..' with --force (would name the working directory's parent)",
+         command="solve", config=E3, sets=("name=..", "horizon.N=10"), args=("--force", "--no-figures"), out=False,
+         field="name"),
     _bad("out_exists", "results dir exists, no --force", "simulate", FREE, None, "horizon.N=20", prefill="dir"),
     _bad("out_is_file", "--out is an existing file", "simulate", FREE, None, "horizon.N=20", prefill="file"),
     # ------------------------------------------------------------------ solver / integrator failures
