@@ -247,11 +247,12 @@ class _DropInterruptWarnings:
 
 
 def main(argv: list[str] | None = None) -> int:
+    old_handler = signal.getsignal(signal.SIGINT)
     try:
         signal.signal(signal.SIGINT, _Interrupt.handler)
     except ValueError:  # not the main thread
         pass
-    sys.unraisablehook = _Interrupt.unraisable
+    old_hook, sys.unraisablehook = sys.unraisablehook, _Interrupt.unraisable
     real_stderr = sys.stderr
     sys.stderr = _DropInterruptWarnings(real_stderr)
     try:
@@ -259,11 +260,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # while the arguments are parsed or the modules load
         return _interrupted()
     finally:
-        if _AS_PROGRAM:  # the run is over (its results committed or not): a late Ctrl-C changes nothing,
-            try:         # and must not raise a KeyboardInterrupt traceback on the way out
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
-            except ValueError:
-                pass
+        # The run is over (its results committed or not).  As the program, a late Ctrl-C changes
+        # nothing and must not raise a KeyboardInterrupt traceback on the way out; called from
+        # Python (tests), the caller's handler and hook come back.
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN if _AS_PROGRAM else old_handler)
+        except (ValueError, TypeError):
+            pass
+        sys.unraisablehook = old_hook
         sys.stderr.flush()
         sys.stderr = real_stderr
 
@@ -282,6 +286,11 @@ def _main(argv: list[str] | None) -> int:
         return 2
     except KeyboardInterrupt:
         return _interrupted()
+    except MemoryError:  # e.g. a horizon.N the schema allows but this machine cannot hold; nothing was committed
+        if _Interrupt.flag:
+            return _interrupted()
+        print("se3ocp: error: out of memory (nothing was written); try a smaller horizon.N", file=sys.stderr)
+        return 1
     except BrokenPipeError:  # stdout's reader went away while the result was printed (--json ... | head)
         _stdout_gone()
         return 141  # 128 + SIGPIPE, as a shell reports a process killed by it

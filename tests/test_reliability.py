@@ -659,3 +659,21 @@ def test_worst_files_validate_within_10_s(tmp_path):
         assert "Traceback" not in r.stderr and r.returncode in (0, 2), (name, r.stderr)
         assert secs < 10.0, f"{name}: {secs:.1f} s"
         print(f"{name}: exit {r.returncode} in {secs:.2f} s")
+
+
+def test_out_of_memory_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    """A MemoryError (a horizon.N the schema allows but the machine cannot hold) is one line on
+    stderr and exit 1, and the results transaction leaves nothing behind."""
+    from se3ocp.problems import cli
+    from se3ocp.transcription import solve as solve_module
+
+    def no_memory(*a, **k):
+        raise MemoryError
+
+    monkeypatch.setattr(solve_module, "solve", no_memory)
+    monkeypatch.chdir(tmp_path)
+    rc = cli.main(["solve", str(CONFIGS / "e3_inclination_change.yaml"), "--set", "horizon.N=10", "--out", "o",
+                   "--quiet", "--no-figures"])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.count("\n") == 1 and "out of memory" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
