@@ -247,6 +247,22 @@ class _DropInterruptWarnings:
 
 
 def main(argv: list[str] | None = None) -> int:
+    rc = _run(argv)
+    if rc == 130 and _AS_PROGRAM:
+        # An interrupted run ends here, with status 130 and nothing more to do.  Leaving through the
+        # interpreter's normal exit could still turn it into death by SIGINT (-2, no message): CPython
+        # does so whenever a KeyboardInterrupt once escaped code that a C extension ran while importing
+        # (its flag _Py_UnhandledKeyboardInterrupt stays set even though we caught the interrupt).
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(130)
+    return rc
+
+
+def _run(argv: list[str] | None) -> int:
     old_handler = signal.getsignal(signal.SIGINT)
     try:
         signal.signal(signal.SIGINT, _Interrupt.handler)
