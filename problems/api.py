@@ -16,9 +16,11 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+import numpy as np
+
 from ..transcription.options import DirectOptions, IndirectOptions, Options
 from ..transcription.problem import Problem
-from ..transcription.results import Iterate, Solution
+from ..transcription.results import Iterate, SolveError, Solution
 from ..transcription.solve import Comparison
 from ..transcription import solve as _solve
 from .maneuvers import Maneuver, load_maneuver
@@ -64,6 +66,47 @@ def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, in
     return prob, d, i
 
 
+def check_clearance(maneuver: Maneuver, result: Solution | Comparison) -> Solution | Comparison:
+    """Check every solution's whole re-simulated path against the central body: a path whose
+    centre of mass comes closer to the centre than ``maneuver.clearance`` (central_body_radius
+    + the body's bounding radius), by more than the path tolerance (solver.direct.terminal_tol,
+    so that an enforced ``min_radius`` met to round-off passes), is not a solution.  A solution
+    that had converged becomes ``Result.inside_central_body`` with a message giving the closest
+    approach; a failed one keeps its status and has the fact added to its message.  Returns the
+    result (a Comparison is re-made, so its verdict follows).  Methods that do not apply and
+    non-finite paths are left alone."""
+    from ..transcription.results import Result
+    from ..transcription.solve import compare
+    from .store import path_tolerance, solutions_of
+
+    need = maneuver.clearance
+    if need is None:
+        return result
+    tol = path_tolerance(maneuver)
+    changed = False
+    for s in solutions_of(result).values():
+        if s.result in (Result.not_applicable, Result.inside_central_body):
+            continue
+        r = np.linalg.norm(np.asarray(s.trajectory.x, float), axis=1)
+        if r.size == 0 or not np.all(np.isfinite(r)) or r.min() >= need - tol:
+            continue
+        k = int(np.argmin(r))
+        what = (f"the re-simulated path enters the central body: |x| = {r[k]:.4g} at node {k} (t = "
+                f"{s.trajectory.t[k]:.4g}), below the clearance {need:.4g} (model.central_body_radius "
+                f"{maneuver.central_body_radius:g} + the body's bounding radius {need - maneuver.central_body_radius:g})")
+        if s.result.successful:
+            hint = ("; give model.central_body_radius (> 0) or a min_radius constraint so that the direct method "
+                    "keeps the path outside" if not maneuver.central_body_radius > 0 else "")
+            s.message = f"{what}; the solver reported: {s.message}{hint}"
+            s.result = Result.inside_central_body
+        else:
+            s.message = f"{s.message}; also, {what}"
+        changed = True
+    if changed and isinstance(result, Comparison):
+        return compare(result.direct, result.indirect)
+    return result
+
+
 def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: DirectOptions | Mapping | None = None,
           indirect: IndirectOptions | Mapping | None = None,
           progress: bool | Callable[[str, Iterate], None] | None = None, warm_start=None, throw: bool = False,
@@ -82,7 +125,14 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     """
     prob, d, i = resolve(problem, method, direct, indirect, options)
     cb = _printer if progress is True else (progress or None)
-    return _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, throw=throw)
+    out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start)
+    if isinstance(problem, Maneuver):
+        out = check_clearance(problem, out)
+    if throw:
+        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
+            if not s.converged:
+                raise SolveError(s)
+    return out
 
 
 def simulate(problem: Maneuver | Problem, controls=None) -> Solution:
@@ -90,7 +140,8 @@ def simulate(problem: Maneuver | Problem, controls=None) -> Solution:
     ``controls`` (6 x n_controls)) over its horizon, with orthogonality and energy diagnostics and
     the miss distance to its terminal target (``terminal_error``)."""
     prob = problem.problem if isinstance(problem, Maneuver) else problem
-    return _solve.simulate(prob, controls)
+    sol = _solve.simulate(prob, controls)
+    return check_clearance(problem, sol) if isinstance(problem, Maneuver) else sol
 
 
 def plot(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:

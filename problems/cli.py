@@ -21,7 +21,8 @@ def _interrupted_at_startup(signum, frame):  # pragma: no cover - timing depende
 # merely imported: main() replaces it once the modules are loaded.  The package's __init__ imports
 # nothing heavy, so this runs before NumPy and CasADi load.  A Ctrl-C that arrived while SIGINT was
 # blocked (a test starts the program that way) is delivered here, once the handler is in place.
-if __name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "se3ocp":
+_AS_PROGRAM = __name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "se3ocp"
+if _AS_PROGRAM:
     signal.signal(signal.SIGINT, _interrupted_at_startup)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
@@ -75,6 +76,8 @@ def _output_options(p: argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="se3ocp", description="Geometrically exact optimal control of a rigid body on SE(3).",
                                  epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"se3ocp {_version()}",
+                    help="print the installed version and exit")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -149,6 +152,16 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _version() -> str:
+    """The installed distribution's version (package metadata), so it cannot drift from pyproject.toml."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("se3ocp")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def _positive_int(text: str) -> int:
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
@@ -164,11 +177,21 @@ def _frames(text: str) -> int:
 class _Interrupt:
     """Ctrl-C policy.  The first SIGINT sets a flag and raises KeyboardInterrupt.
     Solvers may swallow that exception inside their own callbacks (IPOPT then stops
-    with User_Requested_Stop, CasADi may turn it into another error), so the flag is
-    what counts: it is checked after each solve, and any exception raised while it
-    is set means "interrupted" (exit 130), never a traceback."""
+    with User_Requested_Stop, CasADi may turn it into another error), and Python
+    swallows it where it cannot propagate (a weakref callback or __del__ during garbage
+    collection: it is "unraisable"), so the flag is what counts: it is checked after each
+    solve and before every commit of a results directory, and any exception raised while
+    it is set means "interrupted" (exit 130), never a traceback."""
 
     flag = False
+
+    @classmethod
+    def unraisable(cls, u, default=sys.unraisablehook):
+        """sys.unraisablehook: our own KeyboardInterrupt, swallowed where it could not propagate,
+        is not printed (the flag carries it); anything else is reported as usual."""
+        if cls.flag and isinstance(u.exc_value, KeyboardInterrupt):
+            return
+        default(u)
 
     @classmethod
     def handler(cls, signum, frame):
@@ -181,11 +204,91 @@ class _Interrupt:
             raise KeyboardInterrupt
 
 
+class _DropInterruptWarnings:
+    """sys.stderr during a CLI run, minus CasADi's ``WARNING("KeyboardInterruptException")`` lines.
+
+    CasADi checks for Ctrl-C inside its evaluations and solver callbacks; when our SIGINT handler
+    raises there, CasADi stops the solver and logs that warning through ``sys.stderr`` (its Python
+    build writes with PySys_WriteStderr).  The interrupt itself is recorded by :class:`_Interrupt`
+    and reported in one line of our own, so the warning is noise.  Text is passed through at once,
+    except a line that starts like a CasADi log line, which is held until it is complete."""
+
+    MARK = 'WARNING("KeyboardInterruptException")'
+
+    def __init__(self, stream):
+        self.stream, self.held = stream, ""
+
+    def write(self, text: str) -> int:
+        n = len(text)
+        text = self.held + text
+        self.held = ""
+        while text:
+            line, nl, rest = text.partition("\n")
+            if not nl:  # an incomplete line: hold it only if it may be a CasADi warning
+                if text.startswith("CasADi"[:len(text)]):
+                    self.held = text
+                else:
+                    self.stream.write(text)
+                break
+            if self.MARK not in line:
+                self.stream.write(line + nl)
+            text = rest
+        return n
+
+    def flush(self) -> None:
+        if self.held:
+            if self.MARK not in self.held:
+                self.stream.write(self.held)
+            self.held = ""
+        self.stream.flush()
+
+    def __getattr__(self, name):  # fileno, isatty, encoding, ...
+        return getattr(self.stream, name)
+
+
 def main(argv: list[str] | None = None) -> int:
+    rc = _run(argv)
+    if rc == 130 and _AS_PROGRAM:
+        # An interrupted run ends here, with status 130 and nothing more to do.  Leaving through the
+        # interpreter's normal exit could still turn it into death by SIGINT (-2, no message): CPython
+        # does so whenever a KeyboardInterrupt once escaped code that a C extension ran while importing
+        # (its flag _Py_UnhandledKeyboardInterrupt stays set even though we caught the interrupt).
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(130)
+    return rc
+
+
+def _run(argv: list[str] | None) -> int:
+    old_handler = signal.getsignal(signal.SIGINT)
     try:
         signal.signal(signal.SIGINT, _Interrupt.handler)
     except ValueError:  # not the main thread
         pass
+    old_hook, sys.unraisablehook = sys.unraisablehook, _Interrupt.unraisable
+    real_stderr = sys.stderr
+    sys.stderr = _DropInterruptWarnings(real_stderr)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # while the arguments are parsed or the modules load
+        return _interrupted()
+    finally:
+        # The run is over (its results committed or not).  As the program, a late Ctrl-C changes
+        # nothing and must not raise a KeyboardInterrupt traceback on the way out; called from
+        # Python (tests), the caller's handler and hook come back.
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN if _AS_PROGRAM else old_handler)
+        except (ValueError, TypeError):
+            pass
+        sys.unraisablehook = old_hook
+        sys.stderr.flush()
+        sys.stderr = real_stderr
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     from ..transcription import codegen
 
@@ -199,6 +302,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return _interrupted()
+    except MemoryError:  # e.g. a horizon.N the schema allows but this machine cannot hold; nothing was committed
+        if _Interrupt.flag:
+            return _interrupted()
+        print("se3ocp: error: out of memory (nothing was written); try a smaller horizon.N", file=sys.stderr)
+        return 1
+    except BrokenPipeError:  # stdout's reader went away while the result was printed (--json ... | head)
+        _stdout_gone()
+        return 141  # 128 + SIGPIPE, as a shell reports a process killed by it
     except Exception:
         if _Interrupt.flag:  # an error caused by the interrupt inside a library
             return _interrupted()
@@ -206,14 +317,36 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _interrupted() -> int:
-    print("se3ocp: interrupted; the results directory was left as it was (nothing half-written)", file=sys.stderr)
+    from .io import ResultsTransaction
+
+    if ResultsTransaction.committed:  # Ctrl-C after a commit: say what is in place
+        where, incomplete = ResultsTransaction.committed[-1]
+        what = ("the part finished before the interrupt, marked INCOMPLETE" if incomplete is not None
+                else "this run, complete (the interrupt came after the results were in place)")
+        print(f"se3ocp: interrupted; {where}/ holds {what} (nothing half-written)", file=sys.stderr)
+    else:
+        print("se3ocp: interrupted; the results directory was left as it was (nothing half-written)", file=sys.stderr)
     return 130
 
 
 # ------------------------------------------------------------------ helpers
 def _say(args, *msg):
+    """Print a progress or result line (not with --quiet or --json).  If stdout's reader went away
+    (``se3ocp solve ... | head``), printing stops and the run goes on to write its results."""
     if not args.quiet and not args.json:
-        print(*msg, flush=True)
+        try:
+            print(*msg, flush=True)
+        except BrokenPipeError:
+            _stdout_gone()
+            args.quiet = True
+
+
+def _stdout_gone() -> None:
+    """Point stdout at /dev/null, so that neither later prints nor the flush at exit fail."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 def _load(args) -> Maneuver:
@@ -252,6 +385,7 @@ def cmd_simulate(args) -> int:
         _Interrupt.check()
         store.write_run(tx.path, man, sol)
         _figures_and_report(args, tx.path)
+        _Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     st = sol.stats
     _say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, {sol.solve_s:.2f} s")
@@ -286,24 +420,28 @@ class Progress:
 
 
 def _table(sols) -> list[str]:
-    head = (f"{'method':<10} {'status':<20} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
-            f"{'build s':>8} {'solve s':>8}")
-    rows = [head, "-" * len(head)]
+    """The side-by-side table; the text columns are as wide as their widest entry (a status is
+    never cut, however long)."""
     from ..transcription.results import Result
 
+    sols = list(sols)
+    mw = max([len("method")] + [len(s.method) for s in sols])
+    sw = max([len("status")] + [len(str(s.result.value)) for s in sols])
+    head = (f"{'method':<{mw}} {'status':<{sw}} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
+            f"{'build s':>8} {'solve s':>8}")
+    rows = [head, "-" * len(head)]
     for s in sols:
         if s.result is Result.not_applicable:
-            rows.append(f"{s.method:<10} {s.result.value:<20} {'-':>14} {'-':>10} {'-':>10} {'-':>6} {'-':>8} {'-':>8}")
+            rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {'-':>14} {'-':>10} {'-':>10} {'-':>6} {'-':>8} {'-':>8}")
             continue
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
-        rows.append(f"{s.method:<10} {s.result.value:<20} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
+        rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
                     f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
     return rows
 
 
 def cmd_solve(args) -> int:
     from ..transcription.results import Result
-    from ..transcription.solve import solve
     from . import api, store
 
     man = _load(args)
@@ -316,12 +454,11 @@ def cmd_solve(args) -> int:
             raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
                                                           "impulsive maneuvers are solved by --method direct")
         method = "direct"
-    problem, d, i = api.resolve(man, method)
     with _results(args, man) as tx:
         _say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                    f"-> {tx.target}/")
         _say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
-        result = solve(problem, method, direct=d, indirect=i, progress=Progress(args))
+        result = api.solve(man, method, progress=Progress(args))  # with the central-body check of the path
         _Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols = store.solutions_of(result)
         for m, sol in sols.items():
@@ -333,6 +470,7 @@ def cmd_solve(args) -> int:
                        f"solve {sol.solve_s:.2f} s")
         store.write_run(tx.path, man, result)
         _figures_and_report(args, tx.path)
+        _Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     for line in _table(sols.values()):
         _say(args, line)
@@ -392,6 +530,7 @@ def cmd_plot(args) -> int:
             written.append(str(d / write_report(tx.path, draw=False).name))
         if args.animate:
             written.append(str(d / animate(tx.path, frames=args.frames, fps=args.fps).name))
+        _Interrupt.check()
     _say(args, f"wrote {len(written)} files in {d}/")
     if args.json:
         print(json.dumps(written))
@@ -406,6 +545,7 @@ def cmd_report(args) -> int:
         return 2
     with results_update(d) as tx:
         out = d / write_report(tx.path, draw=not args.no_figures).name
+        _Interrupt.check()
     _say(args, f"wrote {out}")
     if args.json:
         print(json.dumps([str(out)]))

@@ -66,7 +66,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..transcription.results import to_jsonable
-from .schema import yaml_dump
+from .schema import ConfigError, yaml_dump
 
 #: the file an incomplete commit (``commit(incomplete=REASON)``) adds, holding REASON
 INCOMPLETE_MARKER = "INCOMPLETE"
@@ -374,6 +374,10 @@ class ResultsTransaction:
     ``incomplete=REASON`` on Ctrl-C before re-raising.
     """
 
+    #: (target, incomplete reason or None) of every commit in this process, in order (the CLI says what
+    #: an interrupted run left)
+    committed: list = []
+
     def __init__(self, out: str | os.PathLike | None, default: str | os.PathLike | None = None,
                  force: bool = False, *, update: bool = False):
         if out is None and default is None:
@@ -564,8 +568,10 @@ class ResultsTransaction:
         finally:
             if self.state == "committed":
                 self._release()
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)  # the previous run; if interrupted, the next run removes it
+                ResultsTransaction.committed.append((self.target, incomplete))
+        if old is not None:  # the previous run, now under the temporary name: removed before a Ctrl-C acts
+            with _signals_deferred():
+                shutil.rmtree(old, ignore_errors=True)
         return self.target
 
     def _swap(self) -> Path | None:
@@ -629,8 +635,11 @@ class ResultsTransaction:
             self.commit()
             return False
         self.abort()
-        if isinstance(exc, ResultsDirError) and self.path is not None and self.target is not None:
+        if isinstance(exc, (ResultsDirError, ConfigError)) and self.path is not None and self.target is not None:
+            # a message about a file of the private copy names the file the user knows
             exc.args = tuple(str(a).replace(str(self.path), str(self.target)) for a in exc.args)
+            if isinstance(exc, ConfigError):
+                exc.source = str(exc.source).replace(str(self.path), str(self.target))
         return False
 
 

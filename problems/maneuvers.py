@@ -24,6 +24,15 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       - {kind: max_angular_rate, value: w}
     solver: {direct: {...}, indirect: {...}}
 
+``central_body_radius`` (default 0) is the radius of the central body.  The initial and terminal
+positions must keep the *clearance* central_body_radius + the body's bounding radius (the dumbbell's
+length/2 + sphere_radius) from its centre; every solution's re-simulated path is checked against the
+same clearance (a path that comes closer is reported ``inside_central_body``, exit 1); and when the
+radius is > 0 a smooth maneuver also gets the path constraint ``{kind: min_radius, radius:
+clearance}`` (added to the resolved file; not when a min_radius at least as large is given), so
+that the direct method keeps the path outside.  With the default 0 nothing is added: the indirect
+method, which does not cover path constraints, stays applicable to the bundled maneuvers.
+
 Velocities are inertial, angular velocities body-frame; momenta follow as gamma = m v,
 Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``, ``{axis_angle: [ax, ay, az, angle_deg]}``
 or ``{rotations: [[x|y|z, deg], ...]}`` (product left to right).  A matrix must satisfy
@@ -64,6 +73,16 @@ MODEL_DEFAULTS: dict[str, Any] = {
 RIGID_BODY_KEYS = ("kind", "mass", "inertia", "mu", "central_body_radius")
 CONSTRAINT_KEYS = {"min_radius": ("radius",), "keep_out": ("body_axis", "direction", "min_angle_deg"),
                    "keep_in": ("body_axis", "direction", "max_angle_deg"), "max_angular_rate": ("value",)}
+#: the most steps a horizon may have (a typo such as N = 1e9 is refused before anything is allocated;
+#: 10^7 steps of the 18-number state already take 1.4 GB)
+MAX_N = 10_000_000
+#: the step h = T/N must lie in [MIN_STEP, MAX_STEP]: the discrete equations use h^2 and 1/h^2, which
+#: must stay finite and non-zero in double precision (a T so small that h underflows is bad input,
+#: not a solver failure)
+MIN_STEP, MAX_STEP = 1e-150, 1e150
+#: the most path constraints a file may give (each adds N + 1 rows to the NLP; the bound also keeps the
+#: validation of a file, and of every point of a sweep, short)
+MAX_CONSTRAINTS = 64
 #: ProblemError fields -> the file's fields
 _PROBLEM_FIELDS = {"time_bounds": "horizon.T", "control.bounds": "control.bounds", "control.W_f": "control.weights.force",
                    "control.W_m": "control.weights.moment", "control.objective": "control.objective",
@@ -120,6 +139,11 @@ class Maneuver:
     T: float = field(init=False, repr=False)
     h: float = field(init=False, repr=False)
 
+    @property
+    def clearance(self) -> float | None:
+        """The distance from the central body's centre the body must keep (:func:`clearance`)."""
+        return clearance(self.central_body_radius, self.body)
+
     def __post_init__(self):
         p = self.problem
         for k, v in (("control_kind", p.kind), ("discretization", p.scheme), ("N", p.N), ("T", p.T), ("h", p.h)):
@@ -145,6 +169,9 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     name = doc["name"]
     if not isinstance(name, str) or not name.strip():
         v.fail("name", f"expected a non-empty string, got {describe(name)}")
+    if name.strip() in (".", ".."):  # the default results directory is results/<name>/
+        v.fail("name", f"expected a name other than '.' or '..' (it names the results directory results/<name>/), "
+                       f"got {name.strip()!r}")
     resolved = copy.deepcopy(doc)
 
     body, central_radius, resolved["model"], resolved["gravity"] = _body(v, doc.get("model", {"kind": "dumbbell"}),
@@ -152,7 +179,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     N, T, time_bounds, resolved["horizon"] = _horizon(v, doc["horizon"])
     disc = v.choice(doc.get("discretization", "lgvi"), "discretization", SCHEMES)
     resolved["discretization"] = disc
-    extent = central_radius + body.extent if body.body_model().mu is not None else None
+    extent = clearance(central_radius, body)
     initial = _state(v, doc["initial"], "initial", body, extent, all_required=True)
 
     control_kind, control, resolved_control = _control(v, doc.get("control"))
@@ -174,6 +201,11 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     constraints = _constraints(v, doc.get("constraints", []), body, initial, terminal)
     if constraints and control_kind != "smooth":
         v.fail("constraints", "path constraints apply to smooth control")
+    body_constraint = _central_body_constraint(central_radius, body, control_kind, constraints)
+    if body_constraint is not None:
+        constraints += (body_constraint,)
+        resolved["constraints"] = list(resolved.get("constraints", [])) + [{"kind": "min_radius",
+                                                                            "radius": body_constraint.radius}]
 
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
@@ -242,10 +274,18 @@ def _inertia(v: Validator, val, where) -> np.ndarray:
     return 0.5 * (J + J.T)
 
 
+def _step(v: Validator, T: float, N: int, where: str) -> None:
+    """The step h = T/N within [:data:`MIN_STEP`, :data:`MAX_STEP`], else ConfigError naming ``where``."""
+    h = T / N
+    if not MIN_STEP <= h <= MAX_STEP:
+        v.fail(where, f"expected a step h = T/N from {MIN_STEP:g} to {MAX_STEP:g} (the discrete equations use h^2 and "
+                      f"1/h^2, which must be finite, non-zero double-precision numbers), got h = {T:g}/{N} = {h:.3g}")
+
+
 def _horizon(v: Validator, hdoc):
     """(N, T (or its guess), time_bounds or None, resolved horizon)."""
     hz = v.mapping(hdoc, "horizon", ("T", "N"), required=("T", "N"))
-    N = v.number(hz["N"], "horizon.N", positive=True, integer=True, at_most=10_000_000)
+    N = v.number(hz["N"], "horizon.N", positive=True, integer=True, at_most=MAX_N)
     if isinstance(hz["T"], dict):
         t = v.mapping(hz["T"], "horizon.T", ("free", "guess", "min", "max"), required=("free", "guess", "min", "max"))
         if t["free"] is not True:
@@ -255,8 +295,11 @@ def _horizon(v: Validator, hdoc):
             v.fail("horizon.T", f"expected min <= max, got min {lo:g} > max {hi:g}")
         if not lo <= guess <= hi:
             v.fail("horizon.T.guess", f"expected a guess in [min, max] = [{lo:g}, {hi:g}], got {guess:g}")
+        _step(v, lo, N, "horizon.T.min")
+        _step(v, hi, N, "horizon.T.max")
         return N, guess, (lo, hi), {"N": N, "T": {"free": True, "guess": guess, "min": lo, "max": hi}}
     T = v.number(hz["T"], "horizon.T", positive=True)
+    _step(v, T, N, "horizon.T")
     return N, T, None, {"N": N, "T": T}
 
 
@@ -336,6 +379,9 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
     """The path constraints; each must hold at the initial state and at the given terminal components."""
     if not isinstance(cdoc, (list, tuple)):
         v.fail("constraints", f"expected a list of constraints, got {describe(cdoc)}")
+    if len(cdoc) > MAX_CONSTRAINTS:
+        v.fail("constraints", f"expected at most {MAX_CONSTRAINTS} path constraints (maneuvers.MAX_CONSTRAINTS), "
+                              f"got {len(cdoc)}")
     out = []
     for i, c in enumerate(cdoc):
         w = f"constraints[{i}]"
@@ -370,6 +416,28 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
                           f"{' ' + unit if unit else ''})")
         out.append(con)
     return tuple(out)
+
+
+def clearance(central_radius: float, body) -> float | None:
+    """The distance from the central body's centre that the body's centre of mass must keep:
+    central_body_radius + the body's bounding-sphere radius (the dumbbell's l/2 + r_s, 0 for a
+    rigid body); None without a central body (gravity none).  The initial and terminal states
+    are validated against it, and every solution's re-simulated path is checked against it
+    (problems.api.check_clearance)."""
+    return None if body.central_mu is None else central_radius + body.extent
+
+
+def _central_body_constraint(central_radius: float, body, control_kind, constraints) -> MinRadius | None:
+    """The central body enforced as a path constraint ``min_radius: clearance`` of a smooth maneuver
+    whose file gives a ``central_body_radius`` > 0 (the default 0 adds nothing: the bundled maneuvers,
+    and the indirect method, which does not cover path constraints, are unchanged).  None if there is
+    no central body, no smooth control, or a given min_radius already keeps at least that distance."""
+    need = clearance(central_radius, body)
+    if need is None or not central_radius > 0 or control_kind != "smooth":
+        return None
+    if any(isinstance(c, MinRadius) and c.radius >= need for c in constraints):
+        return None
+    return MinRadius(need)
 
 
 def _state(v: Validator, d, where, body, extent: float | None, all_required: bool) -> StateSpec:

@@ -68,6 +68,21 @@ class Gravity:
         return (self.kind, self.mu, self.J2, self.radius)
 
 
+#: BodyModels by key: validating a file (a sweep validates every grid point) builds each model's
+#: CasADi Functions once per process, not once per parse
+_BODY_MODELS: dict = {}
+_MAX_BODY_MODELS = 4096
+
+
+def _cached_model(key, build) -> BodyModel:
+    model = _BODY_MODELS.get(key)
+    if model is None:
+        if len(_BODY_MODELS) >= _MAX_BODY_MODELS:
+            _BODY_MODELS.clear()
+        model = _BODY_MODELS[key] = build()
+    return model
+
+
 def _potential_function(name: str, U_of) -> ca.Function:
     x = ca.SX.sym("x", 3)
     R = ca.SX.sym("R", 3, 3)
@@ -140,9 +155,9 @@ class Dumbbell:
         """The BodyModel: U by this potential, mu for orbit targets (None without gravity), the sphere
         centres as markers for the figures, and a key so that equal dumbbells share their Functions."""
         g = self.field
-        return BodyModel(mass=self.mass, inertia=self.inertia, potential=self.potential(),
-                         mu=self.central_mu, markers=self.rho,
-                         key=("dumbbell", self.mass, self.length, self.sphere_radius, g.key), name="dumbbell")
+        key = ("dumbbell", self.mass, self.length, self.sphere_radius, g.key)
+        return _cached_model(key, lambda: BodyModel(mass=self.mass, inertia=self.inertia, potential=self.potential(),
+                                                    mu=self.central_mu, markers=self.rho, key=key, name="dumbbell"))
 
 
 @dataclass(frozen=True)
@@ -173,6 +188,6 @@ class RigidBody:
     def body_model(self) -> BodyModel:
         g = self.gravity
         J = np.asarray(self.inertia, float)
-        return BodyModel(mass=self.mass, inertia=J, potential=self.potential(),
-                         mu=self.central_mu,
-                         key=("rigid_body", self.mass, tuple(J.ravel()), g.key), name="rigid body")
+        key = ("rigid_body", self.mass, tuple(J.ravel()), g.key)
+        return _cached_model(key, lambda: BodyModel(mass=self.mass, inertia=J, potential=self.potential(),
+                                                    mu=self.central_mu, key=key, name="rigid body"))

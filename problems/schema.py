@@ -38,6 +38,9 @@ MAX_INTEGER = 2**31 - 1
 
 
 # ----------------------------------------------------------------------- the loader
+#: the most elementary rotations in an attitude ``{rotations: [...]}`` (bounds the work of validating one)
+MAX_ROTATIONS = 64
+
 #: Input limits.  Together they bound the work that the loader, and everything downstream that
 #: walks the document, can be made to do: any file, however hostile, is parsed or rejected in
 #: bounded time and memory.  A real maneuver file is about 2 kB, 5 levels deep, 100 values.
@@ -513,6 +516,8 @@ class Validator:
         if kind == "rotations":
             if not isinstance(val, (list, tuple)) or not val:
                 self.fail(w, f"expected a non-empty list of [x|y|z, deg] pairs, got {describe(val)}")
+            if len(val) > MAX_ROTATIONS:
+                self.fail(w, f"expected at most {MAX_ROTATIONS} rotations (schema.MAX_ROTATIONS), got {len(val)}")
             R = np.eye(3)
             elem = {"x": rot_x, "y": rot_y, "z": rot_z}
             for i, pair in enumerate(val):

@@ -22,7 +22,7 @@ from ..transcription.results import Iterate, Result, Solution, Trajectory, to_js
 from ..transcription.solve import Comparison
 from .io import write_json, write_npz, write_yaml
 from .maneuvers import Maneuver, parse_maneuver
-from .schema import ConfigError, yaml_load
+from .schema import ConfigError, read_yaml_file
 
 #: margins of path constraints more negative than this are violations, smaller ones round-off, when
 #: the run's options are not at hand (with them: DirectOptions.terminal_tol, the direct method's own
@@ -148,19 +148,30 @@ def read_run(results_dir: Path) -> Run:
         raise ConfigError(str(d / "summary.json"), "", f"unreadable ({e})") from None
     if not isinstance(summ, dict):
         raise ConfigError(str(d / "summary.json"), "", "expected a JSON object")
-    man = parse_maneuver(yaml_load((d / "config.resolved.yaml").read_text()), str(d / "config.resolved.yaml"))
+    man = parse_maneuver(read_yaml_file(d / "config.resolved.yaml"), str(d / "config.resolved.yaml"))
+    methods = summ.get("methods", {})
+    if not isinstance(methods, dict):
+        raise ConfigError(str(d / "summary.json"), "methods", "expected a JSON object")
     sols = {}
     for method, fname in NPZ.items():
         p = d / fname
         if not p.is_file():
             continue
+        block = summ if method == "simulate" else methods.get(method, {})
+        if not isinstance(block, dict):
+            raise ConfigError(str(d / "summary.json"), f"methods.{method}", "expected a JSON object")
+        # A truncated or foreign file can fail in many ways (zipfile.BadZipFile, zlib.error, a
+        # missing or misshapen array): any of them is one line naming the file, never a traceback.
         try:
             with np.load(p) as z:
                 arrays = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError) as e:
-            raise ConfigError(str(p), "", f"unreadable ({type(e).__name__}: {e})") from None
-        block = summ if method == "simulate" else summ.get("methods", {}).get(method, {})
-        sols[method] = _solution(method, arrays, block, man)
+            missing = [k for k in ("t", "x", "gamma", "R", "Pi") if k not in arrays]
+            if missing:
+                raise ValueError(f"no array {', '.join(missing)}")
+            sols[method] = _solution(method, arrays, block, man)
+        except Exception as e:  # noqa: BLE001 - see above; KeyboardInterrupt is not an Exception
+            raise ConfigError(str(p), "", f"unreadable or not written by se3ocp ({type(e).__name__}: "
+                                          f"{str(e).splitlines()[0] if str(e) else 'no details'})") from None
     if not sols:
         raise ConfigError(str(d), "", "no direct.npz, indirect.npz or trajectory.npz")
     return Run(man, sols, summ)

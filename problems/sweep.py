@@ -64,7 +64,8 @@ import numpy as np
 
 from .io import atomic_write_bytes, write_json, write_yaml
 from .maneuvers import load_maneuver, parse_maneuver
-from .schema import ConfigError, Validator, apply_override, describe, join_field, read_yaml_file, yaml_load
+from .schema import (ConfigError, Validator, apply_override, blame_overrides, describe, join_field, read_yaml_file,
+                     yaml_load)
 
 SWEEP_KEYS = ("name", "base", "set", "axes", "methods", "continuation", "continuation_axis")
 METHODS = ("direct", "indirect")
@@ -74,9 +75,11 @@ RESULT_COLUMNS = ("status", "converged", "cost", "terminal_error", "iterations",
                   "build_s", "solve_s", "warm_started", "start", "message")
 #: a secant step larger than this multiple of the last spacing falls back to the neighbour
 MAX_SECANT_RATIO = 3.0
-#: limits that keep a typo from expanding into millions of solves
+#: limits that keep a typo from expanding into millions of solves, and bound the validation of the
+#: grid (every point's maneuver is validated before any solve: about 1-3 ms a point, so at most
+#: some 10-30 s, with a progress line every second, for the largest grid)
 MAX_AXIS_VALUES = 10_000
-MAX_GRID_POINTS = 100_000
+MAX_GRID_POINTS = 10_000
 
 
 # ---------------------------------------------------------------------------- schema
@@ -286,15 +289,18 @@ def parse_sweep(doc: Any, source: str) -> Sweep:
                  continuation=cont, continuation_axis=c_axis, control_kind=None, doc=copy.deepcopy(doc))
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, progress: Callable[[int, int], None] | None = None) -> Sweep:
     """Read and validate a sweep file, then every grid point through load_maneuver
-    (and the raw IPOPT options): raises ConfigError before any solve."""
-    return sweep_from_doc(read_yaml_file(path), str(path))
+    (and the raw IPOPT options): raises ConfigError before any solve.  ``progress(done, total)``
+    is called as the grid points are validated (at most one call a second, and at the end)."""
+    return sweep_from_doc(read_yaml_file(path), str(path), progress)
 
 
-def sweep_from_doc(doc: Any, source: str) -> Sweep:
-    """parse_sweep, then the base maneuver and every grid point (load_maneuver) and the
-    raw IPOPT options: a valid Sweep or a ConfigError, before any solve."""
+def sweep_from_doc(doc: Any, source: str, progress: Callable[[int, int], None] | None = None) -> Sweep:
+    """parse_sweep, then the base maneuver and every grid point (its overrides on the base
+    document, read once, through parse_maneuver) and the raw IPOPT options: a valid Sweep or
+    a ConfigError, before any solve.  The work is bounded by MAX_GRID_POINTS parses of a base
+    file of at most schema.MAX_FILE_BYTES; ``progress``: see :func:`load_sweep`."""
     sw = parse_sweep(doc, source)
     if not sw.base.is_file():
         raise ConfigError(source, "base", f"expected a maneuver file; {sw.base} does not exist")
@@ -308,16 +314,35 @@ def sweep_from_doc(doc: Any, source: str) -> Sweep:
     if kind == "impulsive" and "indirect" in sw.methods:
         raise ConfigError(source, "methods", "the indirect method applies to smooth maneuvers; "
                                              "impulsive maneuvers are swept with methods: [direct]")
-    for p in sw.points():
+    base_doc = read_yaml_file(sw.base) or {}
+    points = sw.points()
+    last = time.monotonic()
+    for n, p in enumerate(points):
+        if progress is not None and time.monotonic() - last >= 1.0:
+            progress(n, len(points))
+            last = time.monotonic()
         try:
-            man = load_maneuver(sw.base, p.overrides)
+            man = _maneuver_from_doc(base_doc, str(sw.base), p.overrides)
         except ConfigError as e:
             raise ConfigError(source, _blame(sw, p, e.field), f"grid point {_label(p.values)}: "
                                                               f"{e.field or '<document>'}: {e.detail}") from None
         if man.control_kind != kind:
             raise ConfigError(source, _blame(sw, p, "control"), f"grid point {_label(p.values)}: "
                                                                 f"the control kind changes across the grid")
+    if progress is not None:
+        progress(len(points), len(points))
     return Sweep(**{**sw.__dict__, "control_kind": kind})
+
+
+def _maneuver_from_doc(base_doc, source: str, overrides) -> "Maneuver":
+    """load_maneuver(source, overrides) on the already-read base document (not read again per point);
+    an error in a field an override set names --set, as load_maneuver does."""
+    doc = copy.deepcopy(base_doc)
+    keys = [apply_override(doc, a) for a in overrides] if isinstance(doc, dict) else []
+    try:
+        return parse_maneuver(doc, source)
+    except ConfigError as e:
+        raise blame_overrides(e, keys) from None
 
 
 def _blame(sw: Sweep, p: Point, fieldname: str) -> str:
@@ -384,11 +409,12 @@ def _solve(man, method: str, warm: dict | None):
     """(final Solution, warm_started, start, iterations_total): a warm solve from the payload, and a
     cold one if there is none or it fails (through the one dispatcher, transcription.solve)."""
     from ..transcription.solve import solve
+    from .api import check_clearance
 
     problem = man.problem
 
     def run(ws=None):
-        return solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws)
+        return check_clearance(man, solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws))
 
     ws = None
     if warm and man.control_kind == "smooth":
@@ -706,7 +732,12 @@ def cli_sweep(args, check_interrupt: Callable[[], None] | None = None) -> int:
     from .io import results_transaction
 
     say = (lambda *m: None) if args.quiet else (lambda *m: print(*m, flush=True))  # noqa: E731
-    sw = load_sweep(args.sweep)
+
+    def validating(done, total):  # long validations show life (at most once a second)
+        if done < total:
+            say(f"validating the grid: {done}/{total} points checked ...")
+
+    sw = load_sweep(args.sweep, progress=validating)
     cont = False if args.no_continuation else sw.continuation
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
@@ -730,6 +761,8 @@ def cli_sweep(args, check_interrupt: Callable[[], None] | None = None) -> int:
                 raise
             bar.close()
             write_results(tx.path, res)
+            if check_interrupt is not None:  # a Ctrl-C swallowed meanwhile: do not commit
+                check_interrupt()
         out = tx.target
     finally:
         ex.shutdown()

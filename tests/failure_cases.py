@@ -62,6 +62,9 @@ class Case:
     text; ('dir', delay_s) ``delay_s`` after the results directory appears; ('after', s) s after the start;
     ('pending',) at once, to a process started with SIGINT blocked (delivered when the CLI installs its
     start-up handler, before NumPy and CasADi load: deterministic).
+    corrupt: (FILE, N_BYTES) for ``plot``/``report``: a complete results directory ``out`` is made
+    first (a small solve of ``config`` with ``sets``), then out/FILE is cut to its first N_BYTES
+    (prefill 'results'); the command runs on ``out`` and must name out/FILE and change nothing.
     """
 
     id: str
@@ -83,6 +86,7 @@ class Case:
     prefill: str | None = None
     interrupt: tuple | None = None
     group: str = "bad input"
+    corrupt: tuple | None = None
 
 
 E1, E2, E3, E4, FREE = ("e1_impulsive_tpbvp.yaml", "e2_impulsive_relaxed.yaml", "e3_inclination_change.yaml",
@@ -209,6 +213,32 @@ CASES: list[Case] = [
          raw="- 1\n- 2\n", note="a list", out=False, field="<document>"),
     Case(id="empty_file", cls="empty file", command="validate", config="empty.yaml", raw="", note="empty",
          out=False, field="name"),
+    _bad("h_underflow", "T so small that h = T/N underflows", "validate", E3, "horizon.T", "horizon.T=1e-320"),
+    _bad("h_overflow", "T so large that h^2 overflows", "validate", E3, "horizon.T", "horizon.N=1", "horizon.T=1e300"),
+    _bad("free_T_min_underflow", "free final time whose min makes h underflow", "validate", "e3_free_time.yaml",
+         "horizon.T.min", "horizon.T.min=1e-200"),
+    _bad("N_huge", "N of 1e9 (refused before anything is allocated)", "solve", E3, "horizon.N", "horizon.N=1e9"),
+    _bad("fatrop_option_unknown", "unknown raw fatrop option", "validate", E3, "solver.direct.fatrop_options.bogus",
+         "solver.direct.solver=fatrop", "solver.direct.fatrop_options.bogus=1"),
+    _bad("linear_solver_unavailable", "linear solver that is not installed (ma57)", "solve", E3,
+         "solver.direct.options.linear_solver", "horizon.N=10", "solver.direct.options.linear_solver=ma57",
+         args=("--method", "direct", "--no-figures")),
+    _bad("ipopt_option_null", "raw IPOPT option set to null", "validate", E3, "solver.direct.options.mu_init",
+         "solver.direct.options.mu_init=null"),
+    _bad("max_iter_huge", "max_iter of 1e30 (would overflow a C int)", "validate", E3, "solver.direct.max_iter",
+         "solver.direct.max_iter=1e30"),
+    Case(id="plot_truncated_npz", cls="plot of a results directory whose npz is truncated", command="plot",
+         config=E3, sets=("horizon.N=10",), out=False, field="out/direct.npz", prefill="results",
+         corrupt=("direct.npz", 300)),
+    Case(id="plot_truncated_summary", cls="plot of a results directory whose summary.json is truncated",
+         command="plot", config=E3, sets=("horizon.N=10",), out=False, field="out/summary.json", prefill="results",
+         corrupt=("summary.json", 100)),
+    Case(id="report_truncated_config", cls="report of a results directory whose config.resolved.yaml is truncated",
+         command="report", config=E3, sets=("horizon.N=10",), out=False, field="out/config.resolved.yaml",
+         prefill="results", corrupt=("config.resolved.yaml", 40)),
+    Case(id="name_dotdot_force", cls="name '..' with --force (would name the working directory's parent)",
+         command="solve", config=E3, sets=("name=..", "horizon.N=10"), args=("--force", "--no-figures"), out=False,
+         field="name"),
     _bad("out_exists", "results dir exists, no --force", "simulate", FREE, None, "horizon.N=20", prefill="dir"),
     _bad("out_is_file", "--out is an existing file", "simulate", FREE, None, "horizon.N=20", prefill="file"),
     # ------------------------------------------------------------------ solver / integrator failures
@@ -242,6 +272,12 @@ CASES: list[Case] = [
           method="indirect",
           statuses=("singular_jacobian",)),
     _fail("impulsive_max_iter", "impulsive solve max_iter reached (E1)", E1, "horizon.N=20", "solver.direct.max_iter=2"),
+    _fail("inside_central_body_direct", "converged path through the central body (direct, T = 0.02: |x| down to 0.03 "
+          "< the dumbbell's clearance 0.07)", E3, "horizon.N=50", "horizon.T=0.02", statuses=("inside_central_body",),
+          message_re=r"enters the central body"),
+    _fail("inside_central_body_simulate", "free fall through a central body of radius 0.5 (simulate)", FREE,
+          "horizon.N=60", "horizon.T=0.06", "initial.velocity=[-20, 0, 0]", "model.central_body_radius=0.5",
+          method=None, args=("--no-figures",), statuses=("inside_central_body",), message_re=r"enters the central body"),
     _fail("cayley_simulate", "Cayley solve not converging (simulate)", FREE, "horizon.N=20", "horizon.T=1",
           "initial.angular_velocity=[300, 0, 0]", method=None, statuses=("cayley_failed",),
           message_re=SMALLER_H),
@@ -332,6 +368,8 @@ def prepare(case: Case, workdir: Path) -> str:
 
 
 def command_line(case: Case, cfg: str) -> list[str]:
+    if case.corrupt is not None:
+        return [case.command, "out"]
     argv = [case.command, cfg]
     for s in case.sets:
         argv += ["--set", s]
@@ -353,6 +391,13 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
         (workdir / "out" / "earlier_run.txt").write_text("results of an earlier run\n")
     elif case.prefill == "file":
         (workdir / "out").write_text("not a directory\n")
+    elif case.prefill == "results":  # a complete run, then one of its files cut short
+        sets = [a for s in case.sets for a in ("--set", s)]
+        subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "solve", cfg, *sets, "--out", "out", "--quiet",
+                        "--no-figures"], cwd=workdir, check=True, capture_output=True, timeout=timeout)
+        name, keep = case.corrupt
+        f = workdir / "out" / name
+        f.write_bytes(f.read_bytes()[:keep])
     argv = command_line(case, cfg)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
@@ -479,6 +524,9 @@ def check(o: Outcome) -> list[str]:
                 v.append(f"message does not name the file {src!r}")
             if c.field is not None and c.field not in lines[0]:
                 v.append(f"message does not name the field {c.field!r}")
+        elif c.prefill == "results":
+            if f"{prepare_name(c)}: " not in lines[0]:
+                v.append(f"message does not name the file {prepare_name(c)!r}")
         elif "out" not in (lines[0] if lines else ""):
             v.append("message does not name the results directory")
     elif c.expect == 1:
@@ -500,6 +548,8 @@ def check(o: Outcome) -> list[str]:
     elif c.expect == 130:
         if "nothing half-written" not in (o.stderr.strip().splitlines() or [""])[-1] and o.returncode == 130:
             v.append("no interruption message")
+        elif o.returncode == 130 and len(stderr_lines(o)) != 1:  # e.g. CasADi's KeyboardInterruptException warning
+            v.append(f"{len(stderr_lines(o))} lines on stderr, expected only the interruption message")
         left = sorted(p.name for p in o.workdir.glob(".out.*"))
         if left:
             v.append(f"temporary files left beside the results directory: {left}")
@@ -510,6 +560,8 @@ def check(o: Outcome) -> list[str]:
 
 def prepare_name(c: Case) -> str:
     """The config path as passed on the command line (what the message must name)."""
+    if c.corrupt is not None:
+        return f"out/{c.corrupt[0]}"
     if c.missing or c.raw is not None:
         return c.config
     if c.edit:
@@ -582,6 +634,10 @@ def render(outcomes: list[Outcome]) -> str:
               "raising and checks it after every solve (a library may swallow the exception itself).",
               "`pytest -m slow tests/test_reliability.py -k ctrl_c_repeated` interrupts simulate 20 times and",
               "Newton-Armijo 16 times at spread-out moments; every run must exit 130 with complete files.",
+              "`pytest -m slow tests/test_reliability.py -k 'random_moments or concurrent'` interrupts solve,",
+              "compare, plot --animate and sweep 20 times each at random moments over a finished run, and starts",
+              "three solves on one --out: every directory is then checked file by file to be the previous run,",
+              "one complete new run, or (sweep) its finished rows marked INCOMPLETE.",
               "",
               "Not reproduced from a config: IPOPT `Invalid_Number_Detected` (IPOPT recovers from NaN/inf trial",
               "points by cutting the step; NaN at the initial point makes the direct method fail before IPOPT).",

@@ -262,13 +262,20 @@ class ProgressCallback(ca.Callback):
         return ca.Sparsity(0, 0)
 
     def eval(self, arg):
-        g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
-        viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
-        f = float(arg[ca.nlpsol_out().index("f")])
-        self.fn(Iterate(iteration=self.k, cost=f * self.obj_scale, residual=float(viol.max()) if viol.size else 0.0,
-                        phase=self.phase))
-        self.k += 1
-        return [0]
+        # Ctrl-C (a KeyboardInterrupt raised here by the SIGINT handler, or by ``fn``) asks the
+        # solver to stop by returning 1 (IPOPT: User_Requested_Stop): an exception escaping a
+        # callback would make CasADi print a 'KeyboardInterruptException' warning on stderr.  The
+        # caller learns of the interrupt from its own record of the signal (problems/cli.py).
+        try:
+            g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
+            viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
+            f = float(arg[ca.nlpsol_out().index("f")])
+            self.fn(Iterate(iteration=self.k, cost=f * self.obj_scale, residual=float(viol.max()) if viol.size else 0.0,
+                            phase=self.phase))
+            self.k += 1
+            return [0]
+        except KeyboardInterrupt:
+            return [1]
 
 
 def ipopt_history(stats: dict, obj_scale: float, phase: str = "") -> list[Iterate]:

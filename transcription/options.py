@@ -143,17 +143,34 @@ def check_raw_options(solver: str, raw: Mapping, name: str) -> None:
         _check_raw_option(solver, k, v, name)
 
 
+#: raw options naming files: checked for their type only, never tried (a trial would create the
+#: output file at validation, or read an option file that may be huge or never end, e.g. /dev/zero)
+_FILE_OPTIONS = {"output_file": "a file name", "option_file_name": None}
+
+
 @lru_cache(maxsize=4096)
 def _check_raw_option(solver: str, k: str, v, name: str) -> None:
-    """One raw option (cached: a sweep checks the same options at every grid point)."""
+    """One raw option (cached: a sweep checks the same options at every grid point).  The trial
+    prints nothing (the solver's output during it is discarded) and writes no file."""
+    import contextlib
+    import io
+
     import casadi as ca
 
+    if k in _FILE_OPTIONS:
+        if _FILE_OPTIONS[k] is None:
+            raise OptionError(f"{name}.{k}", "not supported: give the solver's options in this block instead of an "
+                                             "option file")
+        if not isinstance(v, str) or not v.strip() or "\0" in v:
+            raise OptionError(f"{name}.{k}", f"expected {_FILE_OPTIONS[k]}, got {_describe(v)}")
+        return
     x = ca.SX.sym("x")
     quiet = {"ipopt": {"print_level": 0, "sb": "yes"}, "fatrop": {"print_level": 0}}[solver]
     try:
-        nlp = ca.nlpsol("option_check", solver, {"x": x, "f": (x - 1) ** 2},
-                        {solver: {**quiet, k: raw_solver_value(v)}, "print_time": False})
-        nlp(x0=0.0)
+        with contextlib.redirect_stdout(io.StringIO()):  # CasADi prints the solver's output through sys.stdout
+            nlp = ca.nlpsol("option_check", solver, {"x": x, "f": (x - 1) ** 2},
+                            {solver: {**quiet, k: raw_solver_value(v)}, "print_time": False})
+            nlp(x0=0.0)
         status = str(nlp.stats().get("return_status", ""))
     except RuntimeError as exc:
         text = str(exc)

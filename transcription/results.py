@@ -45,6 +45,7 @@ class Result(str, enum.Enum):
     invalid_option = "invalid_option"
     not_applicable = "not_applicable"
     interrupted = "interrupted"
+    inside_central_body = "inside_central_body"
 
     def __str__(self) -> str:
         return self.value
@@ -77,6 +78,7 @@ _MESSAGES = {
     Result.invalid_option: "an option or an initial guess is not usable",
     Result.not_applicable: "the method does not cover this problem",
     Result.interrupted: "interrupted by the user",
+    Result.inside_central_body: "the re-simulated path enters the central body: the maneuver is impossible as solved",
 }
 
 #: IPOPT's (and fatrop's) return statuses as results
