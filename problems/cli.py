@@ -515,41 +515,43 @@ def _results_dir(d: Path) -> int:
     return 0
 
 
-def cmd_plot(args) -> int:
-    from .plots import animate, draw_all
-    from .report import write_report
-
+def _update_results(args, write, said) -> int:
+    """``plot`` and ``report``: ``write(path)`` adds files to a copy of the complete results directory
+    ``args.results`` (results_update: the copy is swapped in when it returns) and returns their names;
+    ``said(d, written)`` is the line printed.  2 if the directory is not a results directory."""
     d = Path(args.results)
     if _results_dir(d):
         return 2
     with results_update(d) as tx:
-        # --animate: the animation, and only the static figures that are missing or stale
-        figs = [str(d / p.name) for p in draw_all(tx.path, stale_only=args.animate)]
-        written = list(figs)
-        if figs or not (tx.path / "report.html").exists():
-            written.append(str(d / write_report(tx.path, draw=False).name))
-        if args.animate:
-            written.append(str(d / animate(tx.path, frames=args.frames, fps=args.fps).name))
+        written = [str(d / name) for name in write(tx.path)]
         _Interrupt.check()
-    _say(args, f"wrote {len(written)} files in {d}/")
+    _say(args, said(d, written))
     if args.json:
         print(json.dumps(written))
     return 0
 
 
+def cmd_plot(args) -> int:
+    from .plots import animate, draw_all
+    from .report import write_report
+
+    def write(path: Path) -> list[str]:
+        # --animate: the animation, and only the static figures that are missing or stale
+        names = [p.name for p in draw_all(path, stale_only=args.animate)]
+        if names or not (path / "report.html").exists():
+            names.append(write_report(path, draw=False).name)
+        if args.animate:
+            names.append(animate(path, frames=args.frames, fps=args.fps).name)
+        return names
+
+    return _update_results(args, write, lambda d, written: f"wrote {len(written)} files in {d}/")
+
+
 def cmd_report(args) -> int:
     from .report import write_report
 
-    d = Path(args.results)
-    if _results_dir(d):
-        return 2
-    with results_update(d) as tx:
-        out = d / write_report(tx.path, draw=not args.no_figures).name
-        _Interrupt.check()
-    _say(args, f"wrote {out}")
-    if args.json:
-        print(json.dumps([str(out)]))
-    return 0
+    return _update_results(args, lambda path: [write_report(path, draw=not args.no_figures).name],
+                           lambda d, written: f"wrote {written[0]}")
 
 
 def cmd_sweep(args) -> int:
