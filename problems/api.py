@@ -20,7 +20,7 @@ import numpy as np
 
 from ..transcription.options import DirectOptions, IndirectOptions, Options
 from ..transcription.problem import Problem
-from ..transcription.results import Iterate, SolveError, Solution
+from ..transcription.results import Iterate, Solution
 from ..transcription.solve import Comparison
 from ..transcription import solve as _solve
 from .maneuvers import Maneuver, load_maneuver
@@ -128,11 +128,7 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start)
     if isinstance(problem, Maneuver):
         out = check_clearance(problem, out)
-    if throw:
-        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
-            if not s.converged:
-                raise SolveError(s)
-    return out
+    return _solve.raise_unconverged(out) if throw else out
 
 
 def simulate(problem: Maneuver | Problem, controls=None) -> Solution:

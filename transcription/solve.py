@@ -119,10 +119,15 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         hand_off = dsol if indirect.initial_costate == "from_direct" and dsol.costates is not None else None
         isol = solve_indirect(problem, indirect, tagged("indirect"), warm_start=hand_off, direct_options=direct)
         out = compare(dsol, isol)
-    if throw:
-        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
-            if not s.converged:
-                raise SolveError(s)
+    return raise_unconverged(out) if throw else out
+
+
+def raise_unconverged(out: Solution | Comparison) -> Solution | Comparison:
+    """``out`` unchanged if every Solution in it converged, else SolveError of the first that did not
+    (``solve(..., throw=True)``)."""
+    for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
+        if not s.converged:
+            raise SolveError(s)
     return out
 
 
