@@ -148,13 +148,17 @@ def test_ctrl_c_during_the_swap_waits_until_it_is_done(tmp_path, monkeypatch, sw
         real_rename(a, b)
         os.kill(os.getpid(), signal.SIGINT)
 
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     monkeypatch.setattr(rio.os, "rename", rename_then_sigint)
     if swap == "exchange":
         real_exchange = rio._exchange
         monkeypatch.setattr(rio, "_exchange", lambda a, b: (real_exchange(a, b), os.kill(os.getpid(), signal.SIGINT))[0])
-    with pytest.raises(KeyboardInterrupt):
-        with results_transaction(out, force=True) as tx:
-            write_json(tx.path / "summary.json", {"run": 2})
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with results_transaction(out, force=True) as tx:
+                write_json(tx.path / "summary.json", {"run": 2})
+    finally:
+        signal.signal(signal.SIGINT, previous)
     monkeypatch.undo()
     assert tx.state == "committed" and snapshot(out) == {"summary.json": b'{\n  "run": 2\n}\n'}
 
@@ -293,8 +297,12 @@ def test_lock_on_a_file_removed_by_its_previous_holder_is_taken_again(tmp_path, 
     assert not path.exists()
 
 
+# SIGINT may be ignored in the test process and inherited so (a job started with `&` by a shell without job
+# control): the holder and the in-process test restore Python's default handler, so that they test the
+# transaction and not the disposition they were started with
 HOLDER = textwrap.dedent("""
-    import sys, time
+    import signal, sys, time
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     from pathlib import Path
     from se3ocp.problems.io import results_transaction, write_json
     out, ready, mode = sys.argv[1:4]
