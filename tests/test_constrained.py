@@ -73,7 +73,7 @@ def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts(monkeypatch
     """When the coarse-grid solve does not converge, the starts are solved on N steps as before."""
     from se3ocp.transcription import direct
 
-    monkeypatch.setattr(direct, "_coarse_guess", lambda problem, opts: None)
+    monkeypatch.setattr(direct, "_coarse_guess", lambda problem, opts, Nc: None)
     s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct")
     tried = s.stats["guesses_tried"]
     assert s.converged and len(tried) == 1 + direct.TIME_STARTS

@@ -606,10 +606,9 @@ def resample_solution(problem: Problem, sol: Solution) -> _ResampledGuess:
                            seconds=sol.build_s + sol.solve_s, h=T / N)
 
 
-def _coarse_guess(problem: Problem, opts: DirectOptions) -> Guess | None:
-    """The time objective's starts solved on max(TIME_COARSE_MIN, N // 4) steps (recursively), the best
-    resampled to N steps (None if the coarse solve did not converge)."""
-    Nc = max(TIME_COARSE_MIN, problem.N // 4)
+def _coarse_guess(problem: Problem, opts: DirectOptions, Nc: int) -> Guess | None:
+    """The time objective's starts solved on Nc = max(TIME_COARSE_MIN, N // 4) steps (recursively), the
+    best resampled to N steps (None if the coarse solve did not converge)."""
     sol = solve_direct(problem.replace(N=Nc), opts)
     return resample_solution(problem, sol) if sol.converged else None
 
@@ -656,9 +655,10 @@ def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, C
         starts = [(f"interpolate with symmetry-breaking controls (seed {k})",
                    lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
                    opts.max_iter) for k in range(TIME_STARTS)]
-        if max(TIME_COARSE_MIN, N // 4) < N:
-            return [(f"the best start on {max(TIME_COARSE_MIN, N // 4)} steps, resampled",
-                     lambda: _coarse_guess(problem, opts), opts.max_iter)] + starts, "coarse"
+        Nc = max(TIME_COARSE_MIN, N // 4)
+        if Nc < N:
+            return [(f"the best start on {Nc} steps, resampled",
+                     lambda: _coarse_guess(problem, opts, Nc), opts.max_iter)] + starts, "coarse"
         return starts, "best"
     if problem.control.objective == "fuel":
         return [("rollout", made("rollout"), min(opts.max_iter, AUTO_FIRST_BUDGET_FUEL)),
