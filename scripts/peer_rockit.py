@@ -333,8 +333,10 @@ def compare(cases: list[str], Ns: list[int], runs: int, timeout: float) -> list[
                             "total_s": med(x["build_s"] + x["solve_s"] for x in xs),
                             **{k: xs[-1][k] for k in ("iterations", "converged", "status", "cost", "T", "terminal_error")
                                if k in xs[-1]}}
-            rec["solve_ratio"] = rec["peer"]["solve_s"] / rec["ours"]["solve_s"]
-            rec["total_ratio"] = rec["peer"]["total_s"] / rec["ours"]["total_s"]
+            # a time ratio compares two solutions: none when either side did not converge
+            both = rec["ours"].get("converged") and rec["peer"].get("converged")
+            rec["solve_ratio"] = rec["peer"]["solve_s"] / rec["ours"]["solve_s"] if both else None
+            rec["total_ratio"] = rec["peer"]["total_s"] / rec["ours"]["total_s"] if both else None
             out.append(rec)
     print(f"\nmedians of {runs} fresh-process run(s) each; ratio = peer / ours")
     print("| maneuver | N | ours: it / build s / solve s | peer: it / build s / solve s | solve ratio | "
@@ -345,9 +347,16 @@ def compare(cases: list[str], Ns: list[int], runs: int, timeout: float) -> list[
             print(f"| {r['case']} | {r['N']} | {r['status']} |")
             continue
         o, p = r["ours"], r["peer"]
+
+        def ratio(x):
+            return "-" if x is None else f"{x:.1f}x"
+
+        def cost(rec):
+            return f"{rec['cost']:.8g}" if rec.get("converged") else "-"
+
         print(f"| {r['case']} | {r['N']} | {o['iterations']} / {o['build_s']:.2f} / {o['solve_s']:.2f} | "
               f"{p['iterations']} / {p['build_s']:.2f} / {p['solve_s']:.2f}{'' if p['converged'] else ' (' + p['status'] + ')'} | "
-              f"{r['solve_ratio']:.1f}x | {r['total_ratio']:.1f}x | {o['cost']:.8g} / {p['cost']:.8g} | "
+              f"{ratio(r['solve_ratio'])} | {ratio(r['total_ratio'])} | {cost(o)} / {cost(p)} | "
               f"{o['terminal_error']:.1e} / {p['terminal_error']:.1e} |")
     return out
 
