@@ -49,29 +49,50 @@ def _labels(name, *sets):
 
 
 def test_plan_order():
-    """Effort: the interpolation (budget AUTO_FIRST_BUDGET), then the rollout (the rest); bounded effort:
-    the relaxed problem's solution first; fuel: the rollout first (its own budget); an explicit choice: that
-    guess only."""
+    """Effort: the rollout first when it ends within ROLLOUT_FIRST_MISS characteristic scales of the target
+    (E3: 0.52), else the interpolation (orbit doubling: 3.05), the first with the budget AUTO_FIRST_BUDGET,
+    the other with the rest; bounded effort: the relaxed problem's solution first; fuel: the rollout first
+    (its own budget); an explicit choice: that guess only."""
     b, mx = direct.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
-    assert _labels("e3") == ([("interpolate", b), ("rollout", mx)], "first")
+    assert _labels("e3") == ([("rollout", b), ("interpolate", mx)], "first")
+    assert _labels("everyday/orbit_double") == ([("interpolate", b), ("rollout", mx)], "first")
     plan, _ = _labels("e3_bounded")
-    assert [lb for lb, _ in plan] == ["the solution without bounds and path constraints", "interpolate", "rollout"]
+    assert [lb for lb, _ in plan] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
     assert _labels("orbit_raise_fuel") == ([("rollout", direct.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")
     assert _labels("e3", "solver.direct.initial_guess=rollout")[0] == [("rollout", mx)]
 
 
+@pytest.mark.parametrize("name, far", [("e3", False), ("e4", False), ("everyday/orbit_double", True),
+                                       ("everyday/capture_fast_tumble", True)])
+def test_rollout_miss_is_the_solvers_terminal_rows(name, far):
+    """scaled_terminal_miss (which orders the plan) equals the max-norm of the NLP's own terminal rows (the
+    scaled constraint values IPOPT sees) at the rollout, to round-off; and it puts these cases on the
+    documented side of ROLLOUT_FIRST_MISS."""
+    import casadi as ca
+    import numpy as np
+
+    man = maneuver(name, None, None)
+    p = man.problem
+    g = direct.make_guess("rollout", p.disc, p.X0, direct.target_estimate(p), p.N, p.T)
+    tr = direct.SmoothTranscription(p, man.direct)
+    rows = np.asarray(ca.Function("g", [tr.nlp.w], [tr.nlp.g])(tr.initial_point(g))).ravel()[tr.nlp.rows("terminal")]
+    miss = direct.scaled_terminal_miss(p, g.X[-1])
+    assert abs(miss - np.abs(rows).max()) <= 1e-12 * max(1.0, miss)
+    assert (miss > direct.ROLLOUT_FIRST_MISS) == far
+
+
 def test_failing_first_guess_leads_to_the_next(monkeypatch):
-    """The first guess stopped by its budget (2 iterations) -> the rollout is tried and converges; the
-    report lists both, and iterations count both."""
+    """The first guess stopped by its budget (2 iterations) -> the interpolation is tried and converges;
+    the report lists both, and iterations count both."""
     monkeypatch.setattr(direct, "AUTO_FIRST_BUDGET", 2)
     sol = se3ocp.solve(maneuver("e3", 60, "lgvi"))
     tried = sol.stats["guesses_tried"]
     assert sol.converged and len(tried) == 2, tried
-    assert tried[0] == "interpolate: max_iterations in 2 iterations"
-    assert tried[1].startswith("rollout: converged in ")
-    n_rollout = int(tried[1].split(" in ")[1].split()[0])
-    assert sol.iterations == 2 + n_rollout and sol.stats["initial_guess"] == "rollout"
-    assert "initial guesses tried: interpolate: max_iterations" in sol.message
+    assert tried[0] == "rollout: max_iterations in 2 iterations"
+    assert tried[1].startswith("interpolate: converged in ")
+    n_second = int(tried[1].split(" in ")[1].split()[0])
+    assert sol.iterations == 2 + n_second and sol.stats["initial_guess"] == "interpolate"
+    assert "initial guesses tried: rollout: max_iterations" in sol.message
     assert sol.summary()["guesses_tried"] == tried                 # and summary.json carries them
     assert "hint" not in sol.stats                                 # converged: nothing to suggest
 
@@ -79,7 +100,7 @@ def test_failing_first_guess_leads_to_the_next(monkeypatch):
 def test_failure_says_what_was_tried_and_what_to_try():
     sol = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2"))
     assert sol.result is se3ocp.Result.max_iterations
-    assert [t.split(":")[0] for t in sol.stats["guesses_tried"]] == ["interpolate", "rollout"]
+    assert [t.split(":")[0] for t in sol.stats["guesses_tried"]] == ["rollout", "interpolate"]
     assert "solver.direct.max_iter" in sol.stats["hint"] and "continuation" in sol.stats["hint"]
     assert sol.message.endswith(sol.stats["hint"])
     one = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2", "solver.direct.initial_guess=rollout"))
@@ -95,9 +116,9 @@ def test_quiet_failure_is_one_line(tmp_path):
     r = run(*base, "--set", "solver.direct.max_iter=2", "--out", tmp_path / "bad")
     assert r.returncode == 1 and r.stdout == ""
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and "not converged" in lines[0] and "interpolate: max_iterations" in lines[0]
+    assert len(lines) == 1 and "not converged" in lines[0] and "rollout: max_iterations" in lines[0]
     assert "try " in lines[0], lines[0]
     s = json.loads((Path(tmp_path / "bad") / "summary.json").read_text())
-    assert [t.split(":")[0] for t in s["methods"]["direct"]["guesses_tried"]] == ["interpolate", "rollout"]
+    assert [t.split(":")[0] for t in s["methods"]["direct"]["guesses_tried"]] == ["rollout", "interpolate"]
     ok = run(*base, "--out", tmp_path / "ok")
     assert ok.returncode == 0 and ok.stdout == "" and "not converged" not in ok.stderr

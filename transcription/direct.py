@@ -59,7 +59,7 @@ from .lie import exp_so3, log_so3_any, tangent_basis
 from .nlp import Block, ProgressCallback, StructuredNLP, ipopt_history, solve_time_split
 from .options import DirectOptions, raw_solver_value
 from .problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetState, control_activity,
-                      objective_value, orbit_residual, quadrature_weights, terminal_error)
+                      objective_value, orbit_residual, quadrature_weights, terminal_error, terminal_residual)
 from .results import Iterate, Result, Solution, Trajectory, result_of_solver_status
 
 NC = blocks.NC
@@ -275,6 +275,29 @@ def characteristic_scales(problem: Problem) -> Scales:
     return Scales(X=sX, U=sU, C=sC, objective=obj)
 
 
+def terminal_row_scales(problem: Problem, sc: Scales) -> np.ndarray:
+    """Scales of the terminal rows of the NLP (the row divided by its scale is what the solver sees):
+    a state target's fixed components (:func:`~transcription.blocks.state_target_scales`); an orbit
+    target's :func:`~transcription.problem.orbit_residual` rows (radius, out-of-plane position, the body
+    axis (2), linear and angular momentum)."""
+    target = problem.terminal
+    if isinstance(target, TargetOrbit):
+        return np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[3:6], sc.X[15:18]])
+    return blocks.state_target_scales(sc.X, target.fixed)
+
+
+def scaled_terminal_miss(problem: Problem, XN: np.ndarray) -> float:
+    """max |terminal row| / its scale at the final state XN (18,): how far XN is from the target in units of
+    the problem's characteristic scales, as the solver sees it (inf if XN is not finite)."""
+    XN = np.asarray(XN, float)
+    if not np.all(np.isfinite(XN)):
+        return float("inf")
+    target = problem.terminal
+    rows = orbit_residual(XN, target, problem.model.mass, problem.model.mu) if isinstance(target, TargetOrbit) \
+        else terminal_residual(XN, target)
+    return float(np.max(np.abs(np.asarray(rows, float).ravel() / terminal_row_scales(problem, characteristic_scales(problem)))))
+
+
 # ---------------------------------------------------------------------- transcription
 class SmoothTranscription:
     """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.
@@ -363,13 +386,12 @@ class SmoothTranscription:
             blist.append(Block("initial", _initial_rows_function(), lay.iX[:, 0], np.concatenate([problem.X0 / sc.X])))
             row_scales["initial"] = sc.X
         target = problem.terminal
+        tsc = terminal_row_scales(problem, sc)
         if isinstance(target, TargetOrbit):
             m, mu = problem.model.mass, problem.model.mu
-            tsc = np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[3:6], sc.X[15:18]])
             blist.append(Block("terminal", blocks.node_rows("orbit_target", lambda X: orbit_residual(X, target, m, mu),
                                                             tsc), lay.iX[:, -1], sc.X))
         else:
-            tsc = blocks.state_target_scales(sc.X, target.fixed)
             blist.append(Block("terminal", blocks.state_target(target.fixed), lay.iX[:, -1],
                                np.concatenate([sc.X, target.X, tsc])))
         row_scales["terminal"] = tsc
@@ -535,14 +557,21 @@ def _warm_guess(problem: Problem, warm: Solution | None) -> Guess | None:
     return Guess(X=X, U=U, C=cayley_vectors(X))
 
 
-#: with initial_guess 'auto', the first guess of an effort problem (the interpolation; the relaxed problem's
-#: solution when there are bounds or path constraints) gets at most this many NLP iterations before the next
-#: one is tried: a solve that needs more is usually wandering.  The interpolation goes first because the
-#: free motion misses a large change of orbit by far: doubling the orbit radius in one period
-#: (configs/everyday/orbit_double.yaml) takes > 1100 iterations from the rollout, 5 from the interpolation;
-#: the capture from a fast tumble (configs/everyday/capture_fast_tumble.yaml) 185 from the rollout to a
-#: local minimum of cost 97.0, 10 from the interpolation to 32.7; E3 and E4 take 7 and 6 (rollout: 6, 7)
+#: with initial_guess 'auto', the first guess of an effort problem (see ROLLOUT_FIRST_MISS; the relaxed
+#: problem's solution when there are bounds or path constraints) gets at most this many NLP iterations
+#: before the next one is tried: a solve that needs more is usually wandering.
 AUTO_FIRST_BUDGET = 200
+#: ... and which of the free motion (rollout) and the screw interpolation goes first: the rollout when it
+#: ends within this many characteristic scales of the target (:func:`scaled_terminal_miss`, the terminal
+#: rows as the solver sees them), else the interpolation.  A free motion that misses by far is a poor
+#: start: doubling the orbit radius in one period (configs/everyday/orbit_double.yaml, miss 3.1) takes
+#: > 1100 iterations from the rollout, 5 from the interpolation; the capture from a fast tumble
+#: (capture_fast_tumble.yaml, 1.9) 185 to a local minimum of cost 97.0 against 10 to 32.7.  A near one is a
+#: good start, and the interpolation's defects, spread over every step, cost iterations that grow with N:
+#: E3 (0.52) 6 iterations from the rollout at N = 250, 1000 and 4000 against 7, 8 and 11 from the
+#: interpolation; the 45 deg plane change (0.79) 9 against 12, the detumble (0.93) 6 against 8; E4 (0.78)
+#: is the exception, 7-8 against 6.  Misses of the everyday cases: 0.30 ... 3.1 (docs/everyday.md).
+ROLLOUT_FIRST_MISS = 1.0
 #: ... except for the fuel objective, which starts from the rollout, and whose bang-off-bang solutions take
 #: IPOPT longer from any start (configs/orbit_raise_fuel.yaml: 245 iterations from the rollout to a cost of
 #: 0.818839; the interpolation, tried after 200, needed 743 more and stopped at a worse local minimum, 0.819259)
@@ -663,8 +692,11 @@ def guess_plan(problem: Problem, opts: DirectOptions) -> tuple[list[tuple[str, C
     if problem.control.objective == "fuel":
         return [("rollout", made("rollout"), min(opts.max_iter, AUTO_FIRST_BUDGET_FUEL)),
                 ("interpolate", made("interpolate"), opts.max_iter)], "first"
-    plan = [("interpolate", made("interpolate"), min(opts.max_iter, AUTO_FIRST_BUDGET)),
-            ("rollout", made("rollout"), opts.max_iter)]
+    rollout = made("rollout")()           # its final state decides the order (ROLLOUT_FIRST_MISS)
+    order = [("interpolate", made("interpolate")), ("rollout", lambda: rollout)]
+    if scaled_terminal_miss(problem, rollout.X[-1]) <= ROLLOUT_FIRST_MISS:
+        order.reverse()
+    plan = [(*order[0], min(opts.max_iter, AUTO_FIRST_BUDGET)), (*order[1], opts.max_iter)]
     relaxed = relaxation(problem)
     if relaxed is not None:
         plan.insert(0, ("the solution without bounds and path constraints",

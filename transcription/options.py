@@ -225,7 +225,8 @@ class DirectOptions(Options):
     max_iter: int = _opt(3000, "int", lo=1, doc="iteration limit of the NLP solver (and of the impulsive TPBVP's Newton, at most 50)")
     initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate"),
                               doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target; "
-                                  "auto: interpolate (at most 200 iterations), then rollout; the fuel objective rollout (at most "
+                                  "auto: the rollout if it ends within one characteristic scale of the target, else the "
+                                  "interpolation (at most 200 iterations), then the other; the fuel objective rollout (at most "
                                   "600), then interpolate; a bounded "
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
