@@ -29,7 +29,7 @@ back at X_N (a second AD route, for the tests).
     (``jit``).  :func:`_relaxed_reduced` is Newton's method on the constraint manifold (a
     feasible-point SQP: null-space Newton step, projection back onto C = 0, Armijo on the cost).
     A plain SQP with an l1 merit function crawled (see there): the terminal conditions are
-    strongly curved in p.  At N = 800 it takes 6 iterations (22 rollouts) against IPOPT's 108.
+    strongly curved in p.  At N = 800 it takes 6 iterations (22 rollouts) against IPOPT's 127 on the multiple-shooting NLP below.
   - ``multiple_shooting``: the NLP of the one builder (transcription.nlp) -- the dynamics blocks
     with u = 0, x_0 and R_0 fixed, (gamma_0, Pi_0) free -- solved by IPOPT with the exact Hessian.
     An independent formulation of the same problem (the tests compare the two optima).  Along the
@@ -72,7 +72,7 @@ from . import codegen
 from .lie import chart, hat, log_so3_any, right_jacobian_inv, tangent_readback
 from .newton import newton_armijo
 from .nlp import Block, StructuredNLP, ipopt_history
-from .options import DirectOptions, raw_solver_value
+from .options import DirectOptions
 from .problem import Problem, TargetOrbit, TargetState, impulse_cost, orbit_conditions, terminal_error
 from .results import Iterate, Result, Solution, Trajectory, result_of_solver_status
 
@@ -330,7 +330,7 @@ def _relaxed_nlp(problem: Problem, p0: np.ndarray, opts: DirectOptions, progress
     no controls); X_0 has x, R fixed and (gamma, Pi) = p free.  Returns (p, IPOPT stats, build_s,
     solve_s, min impulse norm, objective scale).
     """
-    from .direct import NLPLayout, make_ipopt
+    from .direct import NLPLayout, ipopt_options, make_ipopt
 
     t_build = time.perf_counter()
     disc, N, h = problem.disc, problem.N, problem.h
@@ -350,9 +350,8 @@ def _relaxed_nlp(problem: Problem, p0: np.ndarray, opts: DirectOptions, progress
     nlp = StructuredNLP(lay.n, [Block("dynamics", dyn, iV, blocks.dynamics_data(disc, h, sX, sC, None, sG), compile=True),
                                 Block("initial", initial, lay.iX[:, 0], np.zeros(0)),
                                 Block("terminal", terminal, lay.iX[:, -1], np.zeros(0))], jit=bool(opts.jit))
-    ipopt = {"tol": float(opts.tol), "max_iter": int(opts.max_iter), "print_level": 0, "sb": "yes",
-             "hessian_approximation": "exact", **{k: raw_solver_value(v) for k, v in opts.options.items()}}
-    solver = make_ipopt("impulsive_relaxed", nlp, ipopt, progress, sg, phase="nlp")
+    # the direct method's IPOPT settings (tolerances, 'acceptable' only at a floor, MUMPS, raw options)
+    solver = make_ipopt("impulsive_relaxed", nlp, ipopt_options(opts), progress, sg, phase="nlp")
     lbx = np.full(lay.n, -np.inf)
     ubx = np.full(lay.n, np.inf)
     fixed = lay.iX[np.r_[np.arange(X_POS.start, X_POS.stop), np.arange(X_ROT.start, X_ROT.stop)], 0]
