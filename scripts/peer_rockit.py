@@ -32,8 +32,8 @@ The constrained maneuvers of docs/mathematics.md §10, written the same way:
   the solution without bounds (from E3's rollout it did not converge within 120 s at N = 100).
 
 ``--compare`` runs ours (se3ocp.solve, default settings, the direct method) and the peer at equal N,
-each in fresh processes (``--runs``, medians), and prints the ratios and both re-simulated terminal
-errors:
+each in fresh processes (``--runs``, medians), and prints the ratios (none where either side did not
+converge: a time to no solution is not a speed) and both re-simulated terminal errors:
 
     .venv/bin/python scripts/peer_rockit.py --compare slew,slew_sym,e3_bounded --N 100,200 --runs 3
 """
