@@ -342,18 +342,18 @@ def compare(cases: list[str], Ns: list[int], runs: int, timeout: float) -> list[
     print("| maneuver | N | ours: it / build s / solve s | peer: it / build s / solve s | solve ratio | "
           "build+solve ratio | cost ours / peer | terminal error ours / peer (DOP853) |")
     print("|---|---|---|---|---|---|---|---|")
+
+    def ratio(x):
+        return "-" if x is None else f"{x:.1f}x"
+
+    def cost(rec):
+        return f"{rec['cost']:.8g}" if rec.get("converged") else "-"
+
     for r in out:
         if "ours" not in r:
             print(f"| {r['case']} | {r['N']} | {r['status']} |")
             continue
         o, p = r["ours"], r["peer"]
-
-        def ratio(x):
-            return "-" if x is None else f"{x:.1f}x"
-
-        def cost(rec):
-            return f"{rec['cost']:.8g}" if rec.get("converged") else "-"
-
         print(f"| {r['case']} | {r['N']} | {o['iterations']} / {o['build_s']:.2f} / {o['solve_s']:.2f} | "
               f"{p['iterations']} / {p['build_s']:.2f} / {p['solve_s']:.2f}{'' if p['converged'] else ' (' + p['status'] + ')'} | "
               f"{ratio(r['solve_ratio'])} | {ratio(r['total_ratio'])} | {cost(o)} / {cost(p)} | "

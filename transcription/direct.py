@@ -59,7 +59,7 @@ from .lie import exp_so3, log_so3_any, tangent_basis
 from .nlp import Block, ProgressCallback, StructuredNLP, ipopt_history, solve_time_split
 from .options import DirectOptions, raw_solver_value
 from .problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetState, control_activity,
-                      objective_value, orbit_residual, quadrature_weights, terminal_error, terminal_residual)
+                      objective_value, orbit_residual, quadrature_weights, terminal_error, terminal_rows)
 from .results import Iterate, Result, Solution, Trajectory, result_of_solver_status
 
 NC = blocks.NC
@@ -292,10 +292,8 @@ def scaled_terminal_miss(problem: Problem, XN: np.ndarray) -> float:
     XN = np.asarray(XN, float)
     if not np.all(np.isfinite(XN)):
         return float("inf")
-    target = problem.terminal
-    rows = orbit_residual(XN, target, problem.model.mass, problem.model.mu) if isinstance(target, TargetOrbit) \
-        else terminal_residual(XN, target)
-    return float(np.max(np.abs(np.asarray(rows, float).ravel() / terminal_row_scales(problem, characteristic_scales(problem)))))
+    rows = np.asarray(terminal_rows(XN, problem), float).ravel()
+    return float(np.max(np.abs(rows / terminal_row_scales(problem, characteristic_scales(problem)))))
 
 
 # ---------------------------------------------------------------------- transcription

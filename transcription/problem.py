@@ -518,20 +518,28 @@ def orbit_residual(XN, target: TargetOrbit, mass: float, mu: float):
     return np.concatenate([C, g - gp, P - Pp])
 
 
+def terminal_rows(XN, problem: Problem):
+    """The terminal residual rows at XN (NumPy or CasADi) of smooth control: an orbit target's
+    :func:`orbit_residual`, a state target's :func:`terminal_residual` (its fixed components)."""
+    target = problem.terminal
+    if isinstance(target, TargetOrbit):
+        return orbit_residual(XN, target, problem.model.mass, problem.model.mu)
+    return terminal_residual(XN, target)
+
+
 def terminal_error(XN: np.ndarray, problem: Problem, XN_plus: np.ndarray | None = None) -> float:
     """The terminal error of docs/mathematics.md §8 (NumPy): the max-norm of the terminal residual
     of a state target (for impulsive control evaluated after the terminal impulse, ``XN_plus``),
     of an orbit target max |C| (impulsive) or the max-norm of :func:`orbit_residual` (smooth)."""
     if isinstance(problem.terminal, TargetOrbit):
-        m, mu = problem.model.mass, problem.model.mu
-        rows = orbit_residual(XN, problem.terminal, m, mu) if problem.kind == "smooth" else \
-            orbit_conditions(XN, problem.terminal, m, mu)[0]
+        rows = terminal_rows(XN, problem) if problem.kind == "smooth" else \
+            orbit_conditions(XN, problem.terminal, problem.model.mass, problem.model.mu)[0]
         return float(np.abs(rows).max())
     if isinstance(problem.terminal, TargetState):
         X = XN if XN_plus is None else XN_plus
         if not np.all(np.isfinite(X)):
             return float("inf")
-        return float(np.abs(terminal_residual(np.asarray(X, float), problem.terminal)).max())
+        return float(np.abs(terminal_rows(np.asarray(X, float), problem)).max())
     return float("nan")
 
 
