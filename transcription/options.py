@@ -162,7 +162,7 @@ def _check_raw_option(solver: str, k: str, v, name: str) -> None:
             raise OptionError(f"{name}.{k}", "not supported: give the solver's options in this block instead of an "
                                              "option file")
         if not isinstance(v, str) or not v.strip() or "\0" in v:
-            raise OptionError(f"{name}.{k}", f"expected {_FILE_OPTIONS[k]}, got {_describe(v)}")
+            raise OptionError(f"{name}.{k}", f"expected {_FILE_OPTIONS[k]}, got {describe(v)}")
         return
     x = ca.SX.sym("x")
     quiet = {"ipopt": {"print_level": 0, "sb": "yes"}, "fatrop": {"print_level": 0}}[solver]
