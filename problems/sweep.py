@@ -63,7 +63,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .io import atomic_write_bytes, write_json, write_yaml
-from .maneuvers import load_maneuver, parse_maneuver
+from .maneuvers import Maneuver, load_maneuver, parse_maneuver
 from .schema import (ConfigError, Validator, apply_override, blame_overrides, describe, join_field, read_yaml_file,
                      yaml_load)
 
@@ -334,7 +334,7 @@ def sweep_from_doc(doc: Any, source: str, progress: Callable[[int, int], None] |
     return Sweep(**{**sw.__dict__, "control_kind": kind})
 
 
-def _maneuver_from_doc(base_doc, source: str, overrides) -> "Maneuver":
+def _maneuver_from_doc(base_doc, source: str, overrides) -> Maneuver:
     """load_maneuver(source, overrides) on the already-read base document (not read again per point);
     an error in a field an override set names --set, as load_maneuver does."""
     doc = copy.deepcopy(base_doc)

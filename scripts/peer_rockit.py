@@ -145,7 +145,7 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
     from se3ocp.transcription.guess import perturbed_interpolation_guess
     from se3ocp.transcription.layout import X_ANG, X_ROT, split_state
     from se3ocp.transcription.lie import log_so3
-    from se3ocp.transcription.problem import BoxBound, terminal_error
+    from se3ocp.transcription.problem import BoxBound
 
     prob = se3ocp.load(ROOT / "configs" / f"{STEMS[case]}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
     model, c = prob.disc.model, prob.control
