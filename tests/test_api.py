@@ -72,3 +72,30 @@ def test_nothing_refers_outside_the_repository():
             files += list((ROOT / folder).glob(ext))
     bad = [str(p.relative_to(ROOT)) for p in files if pat.search(p.read_text()) and p.name != "test_api.py"]
     assert not bad, bad
+
+
+def test_no_undefined_names():
+    """Every name the code uses is defined (pyflakes): an undefined name on a path the other tests do not
+    take -- an error message's formatting, say -- is a traceback for the user who takes it (one was:
+    ``_describe`` in the check of a raw ``output_file``)."""
+    from pyflakes import api, messages, reporter
+
+    class Collect(reporter.Reporter):
+        def __init__(self):
+            super().__init__(None, None)
+            self.found = []
+
+        def flake(self, msg):
+            if isinstance(msg, (messages.UndefinedName, messages.UndefinedLocal, messages.UndefinedExport)):
+                self.found.append(str(msg))
+
+        def syntaxError(self, filename, msg, lineno, offset, text):
+            self.found.append(f"{filename}:{lineno}: {msg}")
+
+        def unexpectedError(self, filename, msg):
+            self.found.append(f"{filename}: {msg}")
+
+    rep = Collect()
+    api.checkRecursive([str(ROOT / d) for d in ("transcription", "problems", "scripts", "tests")] +
+                       [str(ROOT / "__init__.py")], rep)
+    assert not rep.found, rep.found
