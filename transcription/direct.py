@@ -65,11 +65,14 @@ from .results import Iterate, Result, Solution, Trajectory, result_of_solver_sta
 NC = blocks.NC
 BALANCE = 1e-2  # smallest allowed ratio of scaled control cost curvatures (characteristic_scales)
 
-#: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling.
-#: Measured on E3 first_order N = 1000: the IPOPT call fell 1.9 s -> 0.7 s (MUMPS' automatic
-#: ordering and its maximum-transversal scaling cost more than they bring here).  Raw ``options``
-#: override them.
-MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_order": 0}
+#: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling,
+#: no row/column scaling.  Measured on E3 first_order N = 1000: the IPOPT call fell 1.9 s -> 0.7 s (MUMPS'
+#: automatic ordering and its maximum-transversal scaling cost more than they bring here); the scaling
+#: (``mumps_scaling`` 0 instead of IPOPT's automatic 77), computed at every factorization of a matrix whose
+#: rows and columns are already scaled (:func:`characteristic_scales`), costs ~10 % of the solve on the
+#: small NLPs (the slews and the time objective's 25-step starts) with the same iterations and optima to 10
+#: digits on the 15 maneuvers of configs/ (docs/bench_notes.md).  Raw ``options`` override them.
+MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_order": 0, "mumps_scaling": 0}
 
 
 # ---------------------------------------------------------------------------- layouts
