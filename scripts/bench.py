@@ -275,7 +275,7 @@ def main(argv=None) -> int:
     log = sys.stderr
     mach = machine()
     print(f"machine: {mach['cores']} cores, {mach['cpu']}, {mach['platform']}, casadi {mach['casadi']}, "
-          f"load average {mach['loadavg']}", file=log)
+          f"load average {benchkit.load()}", file=log)
     print(f"protocol: fresh process per run, 1 warm-up + {runs} timed runs, medians; N = {Ns}; N caps {caps}", file=log)
     records = []
     t_start = time.perf_counter()
@@ -320,7 +320,7 @@ def main(argv=None) -> int:
         cmd = " ".join(["scripts/bench.py", *(sys.argv[1:] if argv is None else argv)])   # what was run
         Path(f"{stem}.md").write_text(
             f"# Benchmark\n\n`.venv/bin/python {cmd}` on {mach['cores']} cores, {mach['cpu']} "
-            f"(load average {mach['loadavg']} -> {mach['loadavg_end']}; shared machine: compare ratios).\n"
+            f"(load average {benchkit.load(mach['loadavg'])} -> {benchkit.load(mach['loadavg_end'])}; shared machine: compare ratios).\n"
             f"Fresh process per run, 1 warm-up + {runs} timed runs, medians.\n\n{md}\n\n"
             "| case | scheme | method | solver | N | slope s/iter | slope build | slope solve |\n|---|---|---|---|---|---|---|---|\n"
             + "\n".join(f"| {s['case']} | {s['scheme']} | {s['method']} | {s['solver']} | {s['N']} | "

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import sys
 import tempfile
@@ -31,6 +30,9 @@ sys.path.insert(0, str(ROOT))
 from se3ocp.problems import sweep as sw  # noqa: E402
 from se3ocp.problems.maneuvers import yaml_load  # noqa: E402
 from se3ocp.problems.io import write_yaml  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from benchkit import load  # noqa: E402
 
 
 def grid12(tmp: Path, N: int) -> Path:
@@ -56,10 +58,6 @@ def t_sweep(tmp: Path, N: int | None) -> Path:
     return p
 
 
-def load() -> str:
-    return "load average %.2f %.2f %.2f" % os.getloadavg()
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=3, help="runs per configuration for the speedup (median)")
@@ -76,7 +74,7 @@ def main(argv=None) -> int:
         tmp = Path(td)
         if not a.skip_speedup:
             s = sw.load_sweep(grid12(tmp, a.N))
-            print(f"[speedup] 12 points x {len(s.methods)} methods, N = {a.N}, cold starts; {load()}", flush=True)
+            print(f"[speedup] 12 points x {len(s.methods)} methods, N = {a.N}, cold starts; load average {load()}", flush=True)
             times = {"serial": [], "pool": []}
             costs = {}
             for i in range(a.runs):
@@ -94,12 +92,12 @@ def main(argv=None) -> int:
             out["speedup"] = {"N": a.N, "tasks": len(costs["serial"]), "runs": a.runs, "times_s": times,
                               "median_s": med, "speedup": med["serial"] / med["pool"], "same_costs": same}
             print(f"  median serial {med['serial']:.2f} s, pool ({a.workers} workers) {med['pool']:.2f} s: "
-                  f"speedup {med['serial'] / med['pool']:.2f}x (target >= 1.7x); identical costs: {same}; {load()}",
+                  f"speedup {med['serial'] / med['pool']:.2f}x (target >= 1.7x); identical costs: {same}; load average {load()}",
                   flush=True)
         if not a.skip_continuation:
             s = sw.load_sweep(t_sweep(tmp, a.N_continuation))
             n = a.N_continuation or yaml_load((ROOT / "configs/sweeps/e3_T.yaml").read_text())["set"]["horizon.N"]
-            print(f"[continuation] E3 T sweep, {len(s.points())} points, N = {n}; {load()}", flush=True)
+            print(f"[continuation] E3 T sweep, {len(s.points())} points, N = {n}; load average {load()}", flush=True)
             runs = {}
             for label, cont in (("cold", False), ("continuation", True)):
                 t0 = time.perf_counter()
@@ -126,7 +124,7 @@ def main(argv=None) -> int:
             out["continuation"]["saving_all_methods"] = 1 - tot_w / tot_c
             out["continuation"]["wall_s"] = {k: v[1] for k, v in runs.items()}
             print(f"  all methods: {tot_c} -> {tot_w} iterations, saving {100 * (1 - tot_w / tot_c):.0f}%; "
-                  f"wall {runs['cold'][1]:.1f} s cold, {runs['continuation'][1]:.1f} s continuation; {load()}",
+                  f"wall {runs['cold'][1]:.1f} s cold, {runs['continuation'][1]:.1f} s continuation; load average {load()}",
                   flush=True)
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=2, default=float) + "\n")

@@ -30,11 +30,12 @@ def machine() -> str:
     return f"{cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}, CasADi {casadi.__version__}"
 
 
-def load() -> str:
-    """The 1, 5 and 15 minute load averages (the machine is shared: say how busy it was)."""
+def load(avg=None) -> str:
+    """The 1, 5 and 15 minute load averages, now or as stored (``avg``), to two decimals (the machine is
+    shared: say how busy it was)."""
     try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
+        return " ".join(f"{x:.2f}" for x in (os.getloadavg() if avg is None else avg))
+    except (OSError, TypeError):
         return "n/a"
 
 
