@@ -109,7 +109,8 @@ def _fail(id, cls, config, *sets, method="direct", args=(), statuses=(), **kw):
 
 
 #: MUMPS' own ordering and scaling (the project's defaults are tuned for speed, see transcription/direct.py)
-MUMPS_OWN = ("solver.direct.options.mumps_permuting_scaling=7", "solver.direct.options.mumps_pivot_order=7")
+MUMPS_OWN = ("solver.direct.options.mumps_permuting_scaling=7", "solver.direct.options.mumps_pivot_order=7",
+             "solver.direct.options.mumps_scaling=77")
 
 CASES: list[Case] = [
     # ------------------------------------------------------------------ bad input: structure
