@@ -39,6 +39,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from se3ocp.transcription.direct import MUMPS_DEFAULTS
+
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 DELETE = "<delete>"  # edit value: remove the key
@@ -108,9 +110,11 @@ def _fail(id, cls, config, *sets, method="direct", args=(), statuses=(), **kw):
                 expect=1, statuses=tuple(statuses), method=method, group="solver failure", **kw)
 
 
-#: MUMPS' own ordering and scaling (the project's defaults are tuned for speed, see transcription/direct.py)
-MUMPS_OWN = ("solver.direct.options.mumps_permuting_scaling=7", "solver.direct.options.mumps_pivot_order=7",
-             "solver.direct.options.mumps_scaling=77")
+#: IPOPT's own values of the MUMPS options whose defaults the project tunes for speed
+IPOPT_MUMPS = {"mumps_permuting_scaling": 7, "mumps_pivot_order": 7, "mumps_scaling": 77}
+#: MUMPS' own ordering and scaling: every option of MUMPS_DEFAULTS set back (a KeyError here when a tuned
+#: option is added without IPOPT's value of it)
+MUMPS_OWN = tuple(f"solver.direct.options.{k}={IPOPT_MUMPS[k]}" for k in MUMPS_DEFAULTS)
 
 CASES: list[Case] = [
     # ------------------------------------------------------------------ bad input: structure
