@@ -35,7 +35,7 @@ def load(avg=None) -> str:
     shared: say how busy it was)."""
     try:
         return " ".join(f"{x:.2f}" for x in (os.getloadavg() if avg is None else avg))
-    except (OSError, TypeError, AttributeError):   # no load average on this system
+    except (OSError, AttributeError):   # no load average on this system
         return "n/a"
 
 
