@@ -20,10 +20,12 @@ import numpy as np
 
 from ..transcription.options import DirectOptions, IndirectOptions, Options
 from ..transcription.problem import Problem
-from ..transcription.results import Iterate, Solution
-from ..transcription.solve import Comparison
 from ..transcription import solve as _solve
+from ..transcription.results import Iterate, Result, Solution
+from ..transcription.solve import Comparison, compare
+from ..transcription.warm import WarmStart
 from .maneuvers import Maneuver, load_maneuver
+from .store import path_tolerance, solutions_of
 
 
 def load(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Maneuver:
@@ -40,8 +42,8 @@ def _merge(base: Options, given: Options | Mapping[str, Any] | None) -> Options:
     return base.replace(**dict(given))
 
 
-def _printer(method: str, rec: Iterate) -> None:
-    print(f"  [{method}] {rec.line()}", file=sys.stderr, flush=True)
+def _printer(rec: Iterate) -> None:
+    print(f"  [{rec.method}] {rec.line()}", file=sys.stderr, flush=True)
 
 
 def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, indirect=None,
@@ -75,10 +77,6 @@ def check_clearance(maneuver: Maneuver, result: Solution | Comparison) -> Soluti
     approach; a failed one keeps its status and has the fact added to its message.  Returns the
     result (a Comparison is re-made, so its verdict follows).  Methods that do not apply and
     non-finite paths are left alone."""
-    from ..transcription.results import Result
-    from ..transcription.solve import compare
-    from .store import path_tolerance, solutions_of
-
     need = maneuver.clearance
     if need is None:
         return result
@@ -109,15 +107,17 @@ def check_clearance(maneuver: Maneuver, result: Solution | Comparison) -> Soluti
 
 def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: DirectOptions | Mapping | None = None,
           indirect: IndirectOptions | Mapping | None = None,
-          progress: bool | Callable[[str, Iterate], None] | None = None, warm_start=None, throw: bool = False,
-          **options) -> Solution | Comparison:
+          progress: bool | Callable[[Iterate], None] | None = None, warm_start: Solution | WarmStart | None = None,
+          throw: bool = False, **options) -> Solution | Comparison:
     """Solve a maneuver (or a Problem) by ``method``: 'direct', 'indirect' or 'both'.
 
     Options: a Maneuver's ``solver`` blocks are the defaults; ``direct=`` / ``indirect=`` replace
     them (a DirectOptions/IndirectOptions, or a mapping of changes, e.g. ``direct={"tol": 1e-8}``);
     keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
     initial_costate="from_direct")``).  ``progress``: True prints one line per iteration on stderr,
-    or a callable(method, Iterate).  ``warm_start``: a previous Solution of the same size.
+    or a callable(Iterate) (``Iterate.method`` names the method).  ``warm_start``: a previous Solution (or
+    its ``warm``, a WarmStart) of either method and any N or scheme: it is resampled onto this problem's grid
+    and the Solution's message and ``stats['warm_start*']`` say what was reused.
 
     Returns a :class:`~se3ocp.transcription.results.Solution` (for 'both' a
     :class:`~se3ocp.transcription.solve.Comparison` of the two).  A solver that fails returns a

@@ -409,14 +409,14 @@ class Progress:
         self.last = 0.0
         self.count = 0
 
-    def __call__(self, method: str, rec):
+    def __call__(self, rec):
         _Interrupt.check()
         self.count += 1
         now = time.perf_counter()
         if self.count > 10 and now - self.last < 1.0 and rec.trial == 0 and math.isnan(rec.step):
             return
         self.last = now
-        _say(self.args, f"  [{method}] {rec.line()}")
+        _say(self.args, f"  [{rec.method}] {rec.line()}")
 
 
 def _table(sols) -> list[str]:

@@ -55,7 +55,7 @@ from ..transcription.layout import pack_state
 from ..transcription.lgvi import SCHEMES, discretization
 from ..transcription.options import DirectOptions, IndirectOptions, OptionError
 from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
-                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, _spd)
+                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, spd_weight)
 from ..transcription.results import Trajectory
 
 from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
@@ -472,7 +472,7 @@ def _weight(v: Validator, val, where) -> np.ndarray:
     if isinstance(val, (list, tuple)) and len(val) == 3 and all(isinstance(r, (list, tuple)) for r in val):
         W = np.array([v.vec3(r, f"{where}[{i}]") for i, r in enumerate(val)])
         try:
-            return _spd(W, where)
+            return spd_weight(W, where)
         except ProblemError as e:
             v.fail(where, str(e).split(": ", 1)[1])
     return v.weights(val, where)

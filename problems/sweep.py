@@ -37,9 +37,10 @@ axes and per method); the chains are independent and run in parallel, the points
 a chain in order.  Each point starts from the last converged point(s) of its chain:
 with one, their solution itself (``start = neighbour``); with two, a secant
 predictor, the linear extrapolation in the axis value of both solutions
-(``start = secant``).  Direct: trajectory X, controls U and NLP multipliers nu
-(primal and dual warm start, :func:`transcription.direct.solve_direct`); indirect:
-the shooting unknown lambda_0.  A warm start that does not converge is followed by
+(``start = secant``).  The warm start is the solution's (``Solution.warm``,
+transcription.warm.WarmStart): trajectory X, controls U and, from the direct
+method, its NLP multipliers nu (primal and dual warm start); from the indirect
+method, the shooting unknown lambda_0.  A warm start that does not converge is followed by
 a cold solve (``start = cold_after_failed_warm``; ``iterations_total`` counts both).
 """
 from __future__ import annotations
@@ -377,32 +378,26 @@ def _maneuver_from_text(source: str, text: str, overrides):
     return parse_maneuver(doc, source)
 
 
-def _warm_solution(problem, warm: dict):
-    """A direct warm start (a Solution carrying X, U and the NLP multipliers) from a payload
-    {X, U, nu}, or None if it does not fit the problem."""
-    from ..transcription.direct import trajectory
-    from ..transcription.layout import NX
-    from ..transcription.results import Result, Solution
+def _warm_start(problem, warm: dict):
+    """The WarmStart (transcription.warm) of a payload {X, U, nu, key, lam0} (arrays, perhaps extrapolated by
+    the secant predictor), on the problem's horizon; None if it carries no states and controls."""
+    from ..transcription.warm import warm_start_of
 
-    X, U = np.asarray(warm.get("X")), np.asarray(warm.get("U"))
-    if X.shape != (problem.N + 1, NX) or U.shape != (6, problem.disc.n_controls(problem.N)):
+    if warm.get("X") is None or warm.get("U") is None:
         return None
-    return Solution(method="direct", solver="ipopt", result=Result.converged, message="continuation payload",
-                    trajectory=trajectory(problem, X), cost=float("nan"), terminal_error=float("nan"), iterations=0,
-                    build_s=0.0, solve_s=0.0, problem=problem, controls=U,
-                    stats={"nlp_nu": warm.get("nu")} if warm.get("nu") is not None else {})
+    X = np.asarray(warm["X"], float)
+    dual = {"multipliers": warm.get("nu"), "nlp_key": warm.get("key"), "lam0": warm.get("lam0")}
+    return warm_start_of(np.linspace(0.0, problem.T, X.shape[0]), X, warm["U"], problem.scheme,
+                         warm.get("source", "direct"), **dual)
 
 
 def _payload(method: str, sol) -> dict | None:
-    if not sol.converged or sol.controls is None:
+    """The warm start a converged point hands to the next point of its chain, as arrays the secant predictor
+    extrapolates (its non-array parts, the NLP's key and the source method, are copied)."""
+    w = sol.warm
+    if not sol.converged or w is None:
         return None
-    if method == "direct":
-        return {"X": np.asarray(sol.trajectory.X), "U": np.asarray(sol.controls),
-                "nu": None if sol.stats.get("nlp_nu") is None else np.asarray(sol.stats["nlp_nu"])}
-    if method == "indirect":
-        lam = sol.stats.get("lam0")
-        return {"lam0": np.asarray(lam if lam is not None else sol.costates[0], float)}
-    return None
+    return {"X": w.X, "U": w.U, "nu": w.multipliers, "key": w.nlp_key, "lam0": w.lam0, "source": w.source}
 
 
 def _solve(man, method: str, warm: dict | None):
@@ -416,12 +411,7 @@ def _solve(man, method: str, warm: dict | None):
     def run(ws=None):
         return check_clearance(man, solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws))
 
-    ws = None
-    if warm and man.control_kind == "smooth":
-        if method == "direct":
-            ws = _warm_solution(problem, warm)
-        elif warm.get("lam0") is not None and np.shape(warm["lam0"]) == (12,):
-            ws = np.asarray(warm["lam0"], float)
+    ws = _warm_start(problem, warm) if warm and man.control_kind == "smooth" else None
     if ws is None:
         sol = run()
         return sol, False, "cold" if not warm else "cold_warm_start_does_not_fit", sol.iterations
@@ -597,7 +587,12 @@ def _predict(history: list, value, numeric: bool) -> dict | None:
             sec = {}
             for k, a in p1.items():
                 b = p0.get(k)
-                if a is None or b is None or np.shape(a) != np.shape(b):
+                if not isinstance(a, np.ndarray):     # the NLP's key, the source: copied when both agree
+                    if a != b:
+                        break
+                    sec[k] = a
+                    continue
+                if b is None or np.shape(a) != np.shape(b):
                     break
                 sec[k] = np.asarray(a) + r * (np.asarray(a) - np.asarray(b))
             else:

@@ -67,7 +67,7 @@ QUICK_N = (250, 1000)
 QUICK_METHODS = ("direct-ipopt-jit", "indirect-jit")
 #: the bundled maneuver file of each case
 CASES = {"e3": "e3_inclination_change", "e4": "e4_orbital_capture"}
-#: the direct methods' split of solve_s (Solution.stats, see transcription.nlp.solve_time_split)
+#: the direct methods' split of solve_s (Solution.stats, see transcription.nlp.solvers.solve_time_split)
 SPLIT_KEYS = ("evaluations_s", "solver_internal_s", "fatrop_own_s")
 KEYS = ("case", "scheme", "method", "solver", "N", "build_s", "solve_s", "iterations", "time_per_iter_s", "converged",
         "status", "cost", "terminal_error")

@@ -141,7 +141,7 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
     from rockit import FreeTime, Ocp
 
     import se3ocp
-    from se3ocp.transcription.direct import target_estimate
+    from se3ocp.transcription.guess import target_estimate
     from se3ocp.transcription.guess import perturbed_interpolation_guess
     from se3ocp.transcription.layout import X_ANG, X_ROT, split_state
     from se3ocp.transcription.lie import log_so3
@@ -213,8 +213,9 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
 
 def relaxed_start(prob):
     """Node states (N+1, 18) and controls (6, N) of our direct solution of ``prob`` without its bounds (the
-    first start of our bounded effort problems, transcription.direct.relaxation), first-order scheme."""
-    from se3ocp.transcription.direct import relaxation, solve_direct
+    first start of our bounded effort problems, transcription.methods.direct.plan.relaxation), first-order scheme."""
+    from se3ocp.transcription.methods.direct import solve_direct
+    from se3ocp.transcription.methods.direct.plan import relaxation
 
     s = solve_direct(relaxation(prob))
     if not s.converged:

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from se3ocp.transcription.direct import MUMPS_DEFAULTS
+from se3ocp.transcription.nlp.solvers import MUMPS_DEFAULTS
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"

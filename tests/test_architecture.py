@@ -135,11 +135,6 @@ def test_imports_inside_functions_count(tmp_path, monkeypatch):
     assert imports_of("p.m", f, known) == {"p.c", "p.d"}
 
 
-#: transcription/ is restructured in the next commits of issue 23; these hold once it is (strict: an XPASS fails)
-RESTRUCTURING = pytest.mark.xfail(strict=True, reason="issue 23: transcription/ is being restructured")
-
-
-@RESTRUCTURING
 def test_no_import_cycle():
     graph = import_graph()
     assert graph, "no modules found"
@@ -154,8 +149,6 @@ def test_transcription_never_imports_problems():
 
 
 def _layer_param(layer: str):
-    if layer == "transcription":
-        return pytest.param(layer, marks=RESTRUCTURING)
     if layer == "problems" and not PROBLEMS_SPLIT_LANDED:
         return pytest.param(layer, marks=pytest.mark.xfail(strict=False, reason="problems/ is split by branch t23prob"))
     return layer

@@ -55,14 +55,17 @@ def test_time_optimal_slews_converge_to_the_published_minimum(name, published):
 @pytest.mark.parametrize("name", ["slew_time_optimal", "slew_time_optimal_symmetric"])
 def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
     """The time objective's starts are solved on max(25, N // 4) steps and the best is finished on N
-    (transcription.direct.TIME_COARSE_MIN): the same minimum as the starts solved on N steps."""
-    from se3ocp.transcription import direct
+    (transcription.methods.direct.plan.TIME_COARSE_MIN): the same minimum as the starts solved on N steps."""
+    from se3ocp.transcription.methods.direct import plan
 
     coarse = solved(name, 100)
-    assert "resampled" in coarse.stats["initial_guess"], coarse.stats["guesses_tried"]
-    monkeypatch.setattr(direct, "TIME_COARSE_MIN", 10 ** 6)     # no coarser grid: the starts on N = 100
+    assert coarse.attempts[0].label == "the best start on 25 steps, resampled"
+    assert coarse.attempts[0].prepared_on == "the coarse grid" and coarse.attempts[0].guess_iterations > 0
+    assert coarse.stats["initial_guess"] == coarse.attempts[0].label
+    monkeypatch.setattr(plan, "TIME_COARSE_MIN", 10 ** 6)     # no coarser grid: the starts on N = 100
     fine = se3ocp.solve(maneuver(name, 100), "direct")
-    assert "resampled" not in fine.stats["initial_guess"] and len(fine.stats["guesses_tried"]) == direct.TIME_STARTS
+    assert [a.prepared_on for a in fine.attempts] == [""] * plan.TIME_STARTS
+    assert "resampled" not in fine.stats["initial_guess"]
     assert fine.converged and coarse.converged
     # the minimum time to solver tolerance (the controls may be a mirror image of each other: the slews
     # have symmetric pairs of minima of equal time, e.g. the asymmetric one's u_z reversed in sign and time)
@@ -71,28 +74,30 @@ def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
 
 def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts(monkeypatch):
     """When the coarse-grid solve does not converge, the starts are solved on N steps as before."""
-    from se3ocp.transcription import direct
+    from se3ocp.transcription.methods.direct import plan
 
-    monkeypatch.setattr(direct, "_coarse_guess", lambda problem, opts, Nc: None)
+    monkeypatch.setattr(plan, "coarse_guess", lambda problem, options, Nc, subsolve: None)
     s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct")
-    tried = s.stats["guesses_tried"]
-    assert s.converged and len(tried) == 1 + direct.TIME_STARTS
-    assert "coarse-grid problem did not converge" in tried[0] and "resampled" not in s.stats["initial_guess"]
+    assert s.converged and len(s.attempts) == 1 + plan.TIME_STARTS
+    first = s.attempts[0]
+    assert first.result is None and first.note == "not available (the coarse-grid problem did not converge)"
+    assert all(a.result is not None for a in s.attempts[1:]) and "resampled" not in s.stats["initial_guess"]
     assert s.cost == pytest.approx(solved("slew_time_optimal_symmetric", 50).cost, rel=1e-9)
 
 
 def test_resampled_solution_on_its_own_grid_is_the_solution():
-    """resample_solution to the grid a solution lives on returns its states and controls (h = T / N)."""
-    from se3ocp.transcription.direct import resample_solution
-
+    """A warm start fitted to the grid it lives on is itself; to a 4x finer grid (of the same scheme) its
+    nodes 4k are the old nodes, the attitudes stay on SO(3) and its step size is T / N."""
     s = solved("slew_time_optimal_symmetric", 50)
-    g = resample_solution(s.problem, s)
-    assert np.abs(g.X - s.trajectory.X).max() <= 1e-12 and np.abs(g.U - s.controls).max() <= 1e-12
-    assert g.h == pytest.approx(s.T / 50, rel=1e-15)
-    fine = resample_solution(s.problem.replace(N=200), s)            # 4x finer: nodes 4k are the old nodes
+    same, notes = s.warm.fit(50, s.scheme)
+    assert same is s.warm and notes == ()
+    assert np.array_equal(same.X, s.trajectory.X) and np.array_equal(same.U, s.controls)
+    fine, notes = s.warm.fit(200, s.scheme)
     assert np.abs(fine.X[::4] - s.trajectory.X).max() <= 1e-12
+    assert fine.h == pytest.approx(s.T / 200, rel=1e-15) and fine.T == s.T
     R = fine.X[:, 6:15].reshape(-1, 3, 3)
     assert np.abs(np.einsum("kji,kjl->kil", R, R) - np.eye(3)).max() <= 1e-13
+    assert notes[0] == f"resampled from N = 50 ({s.scheme}) to N = 200 ({s.scheme}) on SE(3)"
 
 
 def test_time_optimal_slew_is_not_the_eigenaxis_maneuver():
@@ -313,12 +318,13 @@ def test_semismooth_jacobian_equals_ad_through_the_saturated_rollout(scheme):
     equal CasADi's forward AD through the saturated rollout (the same branches of min/max), to 1e-10, at a
     point where the thrust saturates."""
     import casadi as ca
-    from se3ocp.transcription.indirect import bound_data, shooting_functions, weight_inverse
+    from se3ocp.transcription.methods.indirect.control import bound_data, weight_inverse
+    from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 
     p = maneuver("e3_bounded", 40, scheme).problem
     fns = shooting_functions(p.disc, 40)
     args = (p.X0, p.terminal.X, p.h, weight_inverse(p), bound_data(p))
-    lam = se3ocp.solve(p, "indirect").stats["lam0"] * 1.01
+    lam = se3ocp.solve(p, "indirect").warm.lam0 * 1.01
     U = np.array(fns.shoot(lam, *args)[3])
     assert (np.linalg.norm(U[:3], axis=0) >= p.control.force_bound.b * (1 - 1e-12)).any()
     l = ca.MX.sym("l", 12)

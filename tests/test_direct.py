@@ -1,4 +1,4 @@
-"""The direct method (transcription/direct.py): layouts, guesses, E3/E4, costates, fatrop, failures.
+"""The direct method (transcription/methods/direct/): layouts, guesses, E3/E4, costates, fatrop, failures.
 
 Tolerances are stated next to each check; small N in the default suite, N = 500 and the
 order in h in the slow tests.
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.direct import NLPLayout, StageLayout
+from se3ocp.transcription.nlp.layouts import NLPLayout, StageLayout
 from se3ocp.transcription.guess import interpolation_guess, rollout_guess
 from se3ocp.transcription.layout import NU, NX, unpack_states
 from se3ocp.transcription.lie import orthogonality_error
@@ -98,7 +98,7 @@ def _check_solution(s, tol_err=1e-8):
     orth = s.trajectory.orthogonality()
     assert orth["max_orthogonality_error"] <= 1e-12 and orth["max_determinant_error"] <= 1e-12
     assert np.isfinite(s.cost) and s.cost > 0
-    assert s.controls.shape == (6, s.N + 1 if s.discretization == "lgvi" else s.N)
+    assert s.controls.shape == (6, s.N + 1 if s.scheme == "lgvi" else s.N)
     assert s.costates.shape == (s.N, 12) and s.trajectory.X.shape == (s.N + 1, 18)
     assert s.stats["kkt_tol"] <= 1e-10
 
@@ -161,10 +161,10 @@ def test_badly_scaled_weights_converge_small():
 
 def test_progress_records_and_history():
     recs = []
-    s = se3ocp.solve(maneuver("e4", 20, "first_order"), progress=lambda m, r: recs.append((m, r)))
+    s = se3ocp.solve(maneuver("e4", 20, "first_order"), progress=recs.append)
     assert s.converged, s.message
-    assert len(recs) >= s.iterations and {m for m, _ in recs} == {"direct"}
-    assert all(isinstance(r, se3ocp.Iterate) and np.isfinite(r.cost) and r.residual >= 0 for _, r in recs)
+    assert len(recs) >= s.iterations and {r.method for r in recs} == {"direct"}
+    assert all(isinstance(r, se3ocp.Iterate) and np.isfinite(r.cost) and r.residual >= 0 for r in recs)
     assert len(s.history) == s.iterations + 1 and s.history[-1].residual <= 1e-9
 
 

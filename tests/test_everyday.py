@@ -1,8 +1,8 @@
 """The everyday-maneuver suite (configs/everyday/): maneuvers a mission planner would try first -- large
 radius changes, large plane changes, multi-orbit horizons, a detumble, a fast-tumble capture, slews with
 transfers, both schemes, dumbbell and rigid body -- must converge with the default settings; and the
-direct method's initial-guess plan (transcription.direct.guess_plan) tries its guesses in order and
-reports each one.
+direct method's initial-guess plan (transcription.methods.direct.plan.guess_plan) tries its guesses in
+order and reports each one.
 
 Tolerances: the re-simulated terminal error <= 1e-8 and max |R^T R - I| <= 1e-12, as for E3/E4 in
 tests/test_direct.py.  The long horizons (N = 600 over three periods, N = 1000 over five) are slow tests.
@@ -15,7 +15,10 @@ from pathlib import Path
 import pytest
 
 import se3ocp
-from se3ocp.transcription import direct
+from se3ocp.transcription.guess import make_guess, target_estimate
+from se3ocp.transcription.methods.direct import plan, solve_direct
+from se3ocp.transcription.methods.direct.scaling import scaled_terminal_miss
+from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
 from support import CONFIGS, maneuver
 
 EVERYDAY = sorted(p.stem for p in (CONFIGS / "everyday").glob("*.yaml"))
@@ -37,15 +40,15 @@ def test_everyday_converges_with_defaults(name):
     assert sol.converged, sol.message
     assert sol.terminal_error <= 1e-8, sol.terminal_error          # on the re-simulation, not the NLP's nodes
     assert sol.trajectory.orthogonality()["max_orthogonality_error"] <= 1e-12
-    tried = sol.stats["guesses_tried"]
-    assert tried and tried[-1].startswith(f"{sol.stats['initial_guess']}: converged")
+    last = sol.attempts[-1]
+    assert last.label == sol.stats["initial_guess"] and last.result is se3ocp.Result.converged
 
 
 # --------------------------------------------------------------------- the guess plan
 def _labels(name, *sets):
     man = maneuver(name, None, None, *sets)
-    plan, pick = direct.guess_plan(man.problem, man.direct)
-    return [(label, budget) for label, _, budget in plan], pick
+    entries, pick = plan.guess_plan(man.problem, man.direct, solve_direct)
+    return [(label, budget) for label, _, budget in entries], pick
 
 
 def test_plan_order():
@@ -53,12 +56,12 @@ def test_plan_order():
     (E3: 0.52), else the interpolation (orbit doubling: 3.05), the first with the budget AUTO_FIRST_BUDGET,
     the other with the rest; bounded effort: the relaxed problem's solution first; fuel: the rollout first
     (its own budget); an explicit choice: that guess only."""
-    b, mx = direct.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
+    b, mx = plan.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
     assert _labels("e3") == ([("rollout", b), ("interpolate", mx)], "first")
     assert _labels("everyday/orbit_double") == ([("interpolate", b), ("rollout", mx)], "first")
-    plan, _ = _labels("e3_bounded")
-    assert [lb for lb, _ in plan] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
-    assert _labels("orbit_raise_fuel") == ([("rollout", direct.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")
+    entries, _ = _labels("e3_bounded")
+    assert [lb for lb, _ in entries] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
+    assert _labels("orbit_raise_fuel") == ([("rollout", plan.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")
     assert _labels("e3", "solver.direct.initial_guess=rollout")[0] == [("rollout", mx)]
 
 
@@ -73,34 +76,34 @@ def test_rollout_miss_is_the_solvers_terminal_rows(name, far):
 
     man = maneuver(name, None, None)
     p = man.problem
-    g = direct.make_guess("rollout", p.disc, p.X0, direct.target_estimate(p), p.N, p.T)
-    tr = direct.SmoothTranscription(p, man.direct)
+    g = make_guess("rollout", p.disc, p.X0, target_estimate(p), p.N, p.T)
+    tr = SmoothTranscription(p, man.direct)
     rows = np.asarray(ca.Function("g", [tr.nlp.w], [tr.nlp.g])(tr.initial_point(g))).ravel()[tr.nlp.rows("terminal")]
-    miss = direct.scaled_terminal_miss(p, g.X[-1])
+    miss = scaled_terminal_miss(p, g.X[-1])
     assert abs(miss - np.abs(rows).max()) <= 1e-12 * max(1.0, miss)
-    assert (miss > direct.ROLLOUT_FIRST_MISS) == far
+    assert (miss > plan.ROLLOUT_FIRST_MISS) == far
 
 
 def test_failing_first_guess_leads_to_the_next(monkeypatch):
     """The first guess stopped by its budget (2 iterations) -> the interpolation is tried and converges;
-    the report lists both, and iterations count both."""
-    monkeypatch.setattr(direct, "AUTO_FIRST_BUDGET", 2)
+    the attempts list both, iterations count both, and the message and summary.json say them in words."""
+    monkeypatch.setattr(plan, "AUTO_FIRST_BUDGET", 2)
     sol = se3ocp.solve(maneuver("e3", 60, "lgvi"))
-    tried = sol.stats["guesses_tried"]
-    assert sol.converged and len(tried) == 2, tried
-    assert tried[0] == "rollout: max_iterations in 2 iterations"
-    assert tried[1].startswith("interpolate: converged in ")
-    n_second = int(tried[1].split(" in ")[1].split()[0])
-    assert sol.iterations == 2 + n_second and sol.stats["initial_guess"] == "interpolate"
-    assert "initial guesses tried: rollout: max_iterations" in sol.message
-    assert sol.summary()["guesses_tried"] == tried                 # and summary.json carries them
+    first, second = sol.attempts
+    assert sol.converged and (first.label, first.result, first.iterations) == ("rollout", se3ocp.Result.max_iterations, 2)
+    assert (second.label, second.result) == ("interpolate", se3ocp.Result.converged) and second.cost == sol.cost
+    assert sol.iterations == 2 + second.iterations and sol.stats["initial_guess"] == "interpolate"
+    assert first.line() == "rollout: max_iterations in 2 iterations"
+    assert "initial guesses tried: rollout: max_iterations in 2 iterations; interpolate: converged" in sol.message
+    assert sol.summary()["guesses_tried"] == [first.line(), second.line()]   # and summary.json carries them
     assert "hint" not in sol.stats                                 # converged: nothing to suggest
 
 
 def test_failure_says_what_was_tried_and_what_to_try():
     sol = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2"))
     assert sol.result is se3ocp.Result.max_iterations
-    assert [t.split(":")[0] for t in sol.stats["guesses_tried"]] == ["rollout", "interpolate"]
+    assert [(a.label, a.result, a.iterations) for a in sol.attempts] == [
+        ("rollout", se3ocp.Result.max_iterations, 2), ("interpolate", se3ocp.Result.max_iterations, 2)]
     assert "solver.direct.max_iter" in sol.stats["hint"] and "continuation" in sol.stats["hint"]
     assert sol.message.endswith(sol.stats["hint"])
     one = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2", "solver.direct.initial_guess=rollout"))

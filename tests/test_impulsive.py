@@ -1,4 +1,4 @@
-"""Impulsive maneuvers (transcription/impulsive.py, docs/mathematics.md §5) and the sensitivity Phi (§4, eq. 19).
+"""Impulsive maneuvers (transcription/methods/impulsive/, docs/mathematics.md §5) and the sensitivity Phi (§4, eq. 19).
 
 E2 by single shooting (the default) and by multiple shooting, the two compared.
 
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.impulsive import (P_COLS, ReducedRelaxed, _null_space, initial_momenta, relaxed_jacobian,
-                                            sensitivity, sensitivity_ad, solve_tpbvp, tpbvp_jacobian, tpbvp_residual,
-                                            with_momenta)
-from se3ocp.transcription.lie import tangent_readback
-from se3ocp.transcription.layout import pack_state, unpack_states
+from se3ocp.transcription.layout import pack_state, tangent_readback, unpack_states
+from se3ocp.transcription.methods.impulsive.reduced import ReducedRelaxed, _null_space
+from se3ocp.transcription.methods.impulsive.relaxed import relaxed_jacobian
+from se3ocp.transcription.methods.impulsive.sensitivity import P_COLS, sensitivity, sensitivity_ad, with_momenta
+from se3ocp.transcription.methods.impulsive.tpbvp import initial_momenta, solve_tpbvp, tpbvp_jacobian, tpbvp_residual
 from se3ocp.transcription.lie import exp_so3, hat, log_so3
 from se3ocp.transcription.problem import orbit_conditions
 from se3ocp.transcription.results import Result

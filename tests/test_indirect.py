@@ -1,4 +1,4 @@
-"""The indirect method (transcription/indirect.py, docs/mathematics.md §6): necessary conditions, Psi_12,
+"""The indirect method (transcription/methods/indirect/, docs/mathematics.md §6): necessary conditions, Psi_12,
 Newton-Armijo, agreement with the direct method.
 
 Default run: N = 100 (h = 5e-3) and smaller; the N = 500 versions of the
@@ -11,21 +11,17 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from se3ocp.transcription.direct import solve_direct
-from se3ocp.transcription.indirect import (
-    control_cost,
-    lam0_from_direct,
-    outer_errors,
-    quadratic_constant,
-    bound_data,
-    shooting_functions,
-    solve_indirect,
-    terminal_residual_function,
-    weight_inverse,
-)
+import se3ocp
 from se3ocp.transcription.layout import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
+from se3ocp.transcription.methods.direct import solve_direct
+from se3ocp.transcription.methods.indirect.conditions import terminal_residual_function
+from se3ocp.transcription.methods.indirect.control import bound_data, control_cost, weight_inverse
+from se3ocp.transcription.methods.indirect.shooting import shooting_functions
+from se3ocp.transcription.methods.indirect.solve import (lam0_from_costates, outer_errors, quadratic_constant,
+                                                         solve_indirect)
 from se3ocp.transcription.options import IndirectOptions, OptionError
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.results import Result, Solution
+from se3ocp.transcription.warm import WarmStart
 import support
 
 EXAMPLES = {"E3": "e3", "E4": "e4"}
@@ -35,8 +31,17 @@ def problem(name: str, N: int, scheme: str = "first_order"):
     return support.problem(EXAMPLES[name], N, scheme)
 
 
+def lam0_warm(p, lam0) -> WarmStart:
+    """A warm start that carries a shooting unknown lambda_0 (its primal part: the free motion)."""
+    X, _ = p.disc.simulate(p.X0, None, p.h, p.N)
+    return WarmStart(t=p.h * np.arange(p.N + 1), X=X, U=np.zeros((NU, p.disc.n_controls(p.N))), scheme=p.scheme,
+                     source="indirect", lam0=np.asarray(lam0, dtype=float))
+
+
 def indirect(p, lam0=None, progress=None, **options):
-    return solve_indirect(p, IndirectOptions(**options), progress, warm_start=lam0)
+    """solve_indirect from ``lam0``: 12 numbers, or a Solution whose warm start it takes."""
+    warm = lam0.warm if isinstance(lam0, Solution) else None if lam0 is None else lam0_warm(p, lam0)
+    return solve_indirect(p, IndirectOptions(**options), progress, warm)
 
 
 def _args(p):
@@ -56,7 +61,7 @@ def test_forward_map_is_the_stated_recursion(solved):
     (26)-(27).  (Arbitrary lambda_0 of this size make the body spin faster than the Cayley solve allows.)"""
     p = problem("E3", 100)
     rng = np.random.default_rng(0)
-    lam0 = solved["E3"].stats["lam0"] * (1 + 0.1 * rng.standard_normal(12))
+    lam0 = solved["E3"].warm.lam0 * (1 + 0.1 * rng.standard_normal(12))
     _, X, lam, U, res, lres = (np.array(a) for a in shooting_functions(p.disc, p.N).shoot(lam0, *_args(p)))
     Xall = np.hstack([p.X0[:, None], X])
     Wf, Wm = p.control.W_f, p.control.W_m
@@ -133,7 +138,7 @@ def test_psi_against_finite_differences(name, scheme, N, solved):
     p = problem(name, N, scheme)
     fns = shooting_functions(p.disc, p.N)
     rng = np.random.default_rng(2)
-    near = solved[name].stats["lam0"]
+    near = solved[name].warm.lam0
     if scheme == "lgvi":  # the unknown is lambda_{-1}; the first-order lambda_0 is close enough
         near = np.array(p.disc.variation(p.X0, np.r_[solved[name].controls[:, 0], np.zeros(NU)], p.h)[0]).T @ near
     for lam0 in (np.zeros(12), near * (1 + 0.05 * rng.standard_normal(12))):
@@ -234,7 +239,7 @@ def test_rollouts_that_break_the_cayley_solve_are_rejected():
 def test_explicit_initial_costate_and_eps_S():
     """initial_costate as 12 numbers; the eps_S stop (before the floor)."""
     ref = indirect(problem("E3", 30), eps_S=0.0)
-    sol = indirect(problem("E3", 30), eps_S=1e-6, initial_costate=list(ref.stats["lam0"] * 1.001))
+    sol = indirect(problem("E3", 30), eps_S=1e-6, initial_costate=list(ref.warm.lam0 * 1.001))
     assert sol.converged and sol.result is Result.converged and sol.stats["initial_costate"] == "explicit"
     assert outer_errors(sol.history)[-1] <= 1e-6
 
@@ -265,7 +270,7 @@ def test_agrees_with_direct(name, solved):
     multipliers mapped to tangent coordinates are the lambda_k; restarted from them (the
     initial_costate: from_direct path) the indirect method converges in <= 3 outer iterations."""
     dsol = _direct(problem(name, 100))
-    rsol = indirect(problem(name, 100), eps_S=0.0, initial_costate="from_direct")
+    rsol = se3ocp.solve(problem(name, 100), "indirect", indirect=IndirectOptions(eps_S=0.0, initial_costate="from_direct"))
     assert rsol.stats["initial_costate"] == "from_direct" and rsol.stats["direct_status"] == "converged"
     _agreement(name, 100, dsol, solved[name], rsol)
 
@@ -308,7 +313,7 @@ def test_lgvi_indirect_agrees_with_direct(name):
     _check_run(f"{name} lgvi", isol)
     assert isol.controls.shape == (6, 51) and isol.costates.shape == (50, 12)
     dsol = _direct(p)
-    lam_init = lam0_from_direct(p, dsol)                 # lambda_{-1} = A_0(X_0, u_0)^T lambda_0
+    lam_init = lam0_from_costates(p, dsol.costates[0], dsol.controls[:, 0])  # lambda_{-1} = A_0(X_0, u_0)^T lambda_0
     A0 = np.array(p.disc.variation(p.X0, np.r_[dsol.controls[:, 0], np.zeros(NU)], p.h)[0])
     np.testing.assert_array_equal(lam_init, A0.T @ dsol.costates[0])
     rsol = indirect(p, lam0=lam_init, eps_S=0.0)
@@ -318,8 +323,8 @@ def test_lgvi_indirect_agrees_with_direct(name):
 def test_lgvi_stage_control_is_a_momentum_kick():
     """The linearized LGVI recursion (indirect.linearized_map) uses step(X, [u_k; u]) = step(chart(X, B^b u_k), [0; u]):
     u_k enters as the kick B^b u_k of (gamma, Pi), B^b = dX_{k+1}/du_{k+1} (control_matrix)."""
-    from se3ocp.transcription.indirect import control_matrix
-    from se3ocp.transcription.lie import chart
+    from se3ocp.transcription.methods.indirect.control import control_matrix
+    from se3ocp.transcription.layout import chart
 
     p = problem("E4", 50, "lgvi")
     d = p.disc

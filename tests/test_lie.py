@@ -11,7 +11,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from se3ocp.transcription.layout import pack_state, unpack_states
+from se3ocp.transcription.layout import pack_state, tangent_basis, unpack_states
 from se3ocp.transcription.lie import (
     cayley,
     cayley_inv,
@@ -20,7 +20,6 @@ from se3ocp.transcription.lie import (
     log_so3,
     log_so3_any,
     right_jacobian_inv,
-    tangent_basis,
     orthogonality_error,
     rot_x,
     rot_y,

@@ -1,4 +1,4 @@
-"""The one NLP builder (transcription/nlp.py): block-assembled derivatives are exact, and the
+"""The one NLP builder (transcription/nlp/structured.py): block-assembled derivatives are exact, and the
 NLP it builds is the discrete problem.
 
 The Jacobian, gradient and Lagrangian Hessian assembled block by block (each block's derivatives
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription import blocks, nlp
-from se3ocp.transcription.direct import SmoothTranscription
+from se3ocp.transcription.nlp import blocks, structured
+from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
 from se3ocp.transcription.guess import make_guess
-from se3ocp.transcription.nlp import Block, StructuredNLP, assemble, solve_time_split
+from se3ocp.transcription.nlp import Block, NLPLayout, StructuredNLP, assemble, solve_time_split
 from se3ocp.transcription.options import DirectOptions
 from support import maneuver, problem
 
@@ -60,8 +60,7 @@ def test_smooth_blocks_equal_ad_of_the_whole_nlp(scheme, with_c):
 
 def test_relaxed_impulsive_blocks_equal_ad():
     """The relaxed NLP's blocks (dynamics without controls, the impulse costs, the orbit rows)."""
-    from se3ocp.transcription.direct import NLPLayout
-    from se3ocp.transcription.impulsive import relaxed_blocks
+    from se3ocp.transcription.methods.impulsive.relaxed import relaxed_blocks
 
     p = problem("e2", 10)
     N, h = p.N, p.h
@@ -127,4 +126,4 @@ def test_solve_time_split_without_stats():
 
 def test_derivatives_are_built_once_per_block_function():
     fn = blocks.dynamics(problem("e3", 10, "first_order").disc, True, True, True)
-    assert nlp.derivatives(fn, False) is nlp.derivatives(fn, False)
+    assert structured.derivatives(fn, False) is structured.derivatives(fn, False)

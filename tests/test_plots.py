@@ -354,7 +354,7 @@ def test_per_step_controls_are_steps_and_the_shaded_time_is_the_time_at_bound(bo
     np.testing.assert_array_equal(edges, d.trajectory.t)
     np.testing.assert_array_equal(vals, d.u_f[:, 0])
     sim, bfigs, _, _ = bounded
-    assert sim.discretization == "first_order"
+    assert sim.scheme == "first_order"
     fom = sim.summary()
     for ax, key in zip(bfigs["control_norms"].axes, ("force_time_at_bound", "moment_time_at_bound")):
         spans = by_gid(ax, "bound-active")
@@ -363,7 +363,7 @@ def test_per_step_controls_are_steps_and_the_shaded_time_is_the_time_at_bound(bo
         assert all(np.isclose(p.get_x(), sim.trajectory.t).any() for p in spans)     # cells start at nodes
     res, sfigs = slew
     s = res.direct
-    assert s.discretization == "lgvi"
+    assert s.scheme == "lgvi"
     ln = next(ln for ln in sfigs["moment"].axes[2].get_lines() if ln.get_label() == "direct")
     assert ln.get_drawstyle() == "default"
     np.testing.assert_array_equal(ln.get_xdata(), s.control_times)

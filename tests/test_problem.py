@@ -1,4 +1,4 @@
-"""The Problem (transcription/problem.py): validation, terminal conditions, costs."""
+"""The Problem (transcription/problem/): validation, terminal conditions, costs."""
 from __future__ import annotations
 
 import casadi as ca

@@ -103,7 +103,7 @@ def test_orbit_normal_is_normalized_and_near_rotation_projected():
 @pytest.mark.parametrize("case", _params("solver failure"))
 def test_solver_failure_is_data(case, tmp_path):
     if case.config in (ft.E1, ft.E2):
-        pytest.importorskip("se3ocp.transcription.impulsive")
+        pytest.importorskip("se3ocp.transcription.methods.impulsive")
     o = ft.run_case(case, tmp_path)
     assert ft.check(o) == [], _explain(o)
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -147,7 +147,7 @@ def _assert_failed_solution_writable(sol, tmp_path):
 
 
 def test_nan_potential_indirect_is_data(tmp_path):
-    from se3ocp.transcription.indirect import solve_indirect
+    from se3ocp.transcription.methods.indirect import solve_indirect
 
     sol = solve_indirect(_nan_model_problem())
     assert sol.result is Result.non_finite, sol.message
@@ -155,7 +155,7 @@ def test_nan_potential_indirect_is_data(tmp_path):
 
 
 def test_nan_potential_direct_is_data(tmp_path):
-    from se3ocp.transcription.direct import solve_direct
+    from se3ocp.transcription.methods.direct import solve_direct
 
     sol = solve_direct(_nan_model_problem())
     assert sol.result is Result.non_finite, sol.message

@@ -25,18 +25,16 @@ def test_both_methods_agree_and_compare():
 def test_from_direct_hand_off_reuses_the_direct_solution(monkeypatch):
     """With initial_costate: from_direct, 'both' runs the direct method once and starts the indirect
     method from its multipliers (at most 3 Newton iterations: they already nearly satisfy the conditions)."""
-    import se3ocp.transcription.direct as direct
-    import se3ocp.transcription.solve as dispatcher
+    import se3ocp.transcription.solve as registry
 
     calls = []
-    real = direct.solve_direct
+    direct, impulsive = registry.METHODS["direct"]
 
     def counted(*a, **k):
         calls.append(1)
-        return real(*a, **k)
+        return direct.solve_fn(*a, **k)
 
-    monkeypatch.setattr(dispatcher, "solve_direct", counted)
-    monkeypatch.setattr(direct, "solve_direct", counted)
+    monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=counted), impulsive))
     c = se3ocp.solve(maneuver("e4", 60, "first_order"), "both", indirect={"initial_costate": "from_direct"})
     assert len(calls) == 1
     assert c.indirect.stats["initial_costate"] == "from_direct" and c.indirect.iterations <= 3

@@ -222,16 +222,18 @@ def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
 
 
 def test_warm_start_that_raises_falls_back_cold(tmp_path, monkeypatch):
-    import se3ocp.transcription.solve as dispatcher
+    import dataclasses
 
-    real = dispatcher.solve_direct
+    import se3ocp.transcription.solve as registry
 
-    def no_warm(problem, options=None, progress=None, warm_start=None):
-        if warm_start is not None:
+    direct, impulsive = registry.METHODS["direct"]
+
+    def no_warm(problem, options, progress, warm):
+        if warm is not None:
             raise RuntimeError("warm start broke the solver")
-        return real(problem, options, progress)
+        return direct.solve_fn(problem, options, progress, None)
 
-    monkeypatch.setattr(dispatcher, "solve_direct", no_warm)
+    monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=no_warm), impulsive))
     s = sw.load_sweep(write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {horizon.T: [0.5, 0.52]}\ncontinuation: true\n"))
     res = sw.run_sweep(s, workers=1)
     assert [r["start"] for r in res.rows] == ["cold", "cold_after_failed_warm"]

@@ -1,7 +1,7 @@
 """Initial guesses for the direct method (node states, controls, Cayley vectors).
 
 Two kinds, selected by :attr:`~transcription.options.DirectOptions.initial_guess` (``'auto'``, the
-default, tries them in the order of :func:`transcription.direct.guess_plan`):
+default, tries them in the order of :func:`transcription.methods.direct.plan.guess_plan`):
 
 * ``'rollout'``: free motion (all controls zero) of the problem's own
   discretization from X0.  Every node then satisfies the discrete dynamics exactly,
@@ -19,6 +19,9 @@ default, tries them in the order of :func:`transcription.direct.guess_plan`):
   x_0 x gamma_0 (or, failing that, with Pi_0 in the inertial frame) is chosen.
 
 For the time objective :func:`perturbed_interpolation_guess` adds symmetry-breaking controls.
+For an orbit target, which has no single terminal state, :func:`target_estimate` stands for it
+(a point of the orbit reached by a Hohmann-like transfer, :func:`relaxed_start_target`): the
+scales of the direct method, its guesses and the impulsive method's feasible start aim at it.
 All return a :class:`Guess`; Cayley vectors are c_k = cay^-1(R_k^T R_{k+1})
 (docs/mathematics.md §2), consistent with the node attitudes.
 """
@@ -30,18 +33,22 @@ import numpy as np
 
 from .layout import NU, pack_state, unpack_states
 from .lie import cayley_inv, exp_so3, log_so3_any
+from .problem import Problem, TargetOrbit, TargetState, orbit_conditions
 
 
 @dataclass(frozen=True)
 class Guess:
     """X: (N+1, 18) node states; U: (6, n_controls) controls; C: (N, 3) Cayley vectors of the steps;
-    iterations and seconds spent making it (a guess that is the solution of a relaxed problem)."""
+    iterations and seconds spent making it, and on what (``prepared_on``: a guess that is the solution of a
+    relaxed problem or of a coarser grid); h: its step size (a free final time; None: the problem's)."""
 
     X: np.ndarray
     U: np.ndarray
     C: np.ndarray
     iterations: int = 0
     seconds: float = 0.0
+    prepared_on: str = ""
+    h: float | None = None
 
 
 def cayley_vectors(X: np.ndarray) -> np.ndarray:
@@ -130,5 +137,67 @@ def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float
     raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
 
 
+# ------------------------------------------------------------------ orbit targets
+
+
+def _transfer_angle(r0: float, r1: float, mu: float, T: float) -> float:
+    """Angle travelled in time T on the Hohmann-type ellipse from radius r0 towards r1.
+
+    Starts at periapsis (r0 <= r1) or apoapsis; Kepler's equation by Newton.
+    """
+    a = 0.5 * (r0 + r1)
+    e = abs(r1 - r0) / (r1 + r0)
+    n = np.sqrt(mu / a**3)
+    M0 = 0.0 if r0 <= r1 else np.pi
+
+    def true_anomaly(M):
+        E = M
+        for _ in range(50):
+            E -= (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
+        return 2.0 * np.arctan2(np.sqrt(1 + e) * np.sin(E / 2), np.sqrt(1 - e) * np.cos(E / 2))
+
+    return float(np.mod(true_anomaly(M0 + n * T) - true_anomaly(M0), 2 * np.pi))
+
+
+def relaxed_start_target(problem: Problem) -> np.ndarray:
+    """A point of the relaxed terminal set to aim the feasibility TPBVP at (18-vector).
+
+    x_N: on the target orbit, at the Hohmann transfer angle (:func:`_transfer_angle`) from the
+    projection of x_0 onto the orbit plane, turning with the initial orbital motion; R_N: the body
+    axis along +-e_n (the sign closer to R_0 b), another body axis radial.  Momenta: those
+    required after the terminal impulse.
+    """
+    target: TargetOrbit = problem.terminal
+    n, a, _ = target.plane_basis()
+    s0 = unpack_states(problem.X0)
+    x0, g0, R0 = s0.x[0], s0.gamma[0], s0.R[0]
+    xp = x0 - (n @ x0) * n
+    xp = xp / np.linalg.norm(xp) if np.linalg.norm(xp) > 1e-12 else a
+    sigma = 1.0 if n @ np.cross(x0, g0) >= 0 else -1.0
+    nu = _transfer_angle(float(np.linalg.norm(x0)), float(target.radius), problem.model.mu, problem.T)
+    c, s = np.cos(sigma * nu), np.sin(sigma * nu)
+    xN = float(target.radius) * (c * xp + s * np.cross(n, xp))
+    # inertial frame (e_axis, radial, their cross product) carried by the body frame (b, b2, b x b2)
+    e_axis = n if n @ (R0 @ target.body_axis) >= 0 else -n
+    e_rad = xN / np.linalg.norm(xN)
+    b = target.body_axis
+    b2 = np.eye(3)[int(np.argmin(np.abs(b)))]
+    b2 = b2 - (b2 @ b) * b
+    b2 /= np.linalg.norm(b2)
+    RN = np.column_stack([e_axis, e_rad, np.cross(e_axis, e_rad)]) @ np.column_stack([b, b2, np.cross(b, b2)]).T
+    _, gp, Pp = orbit_conditions(pack_state(xN, np.zeros(3), RN, np.zeros(3)), target, problem.model.mass,
+                                 problem.model.mu)
+    return pack_state(xN, gp, RN, Pp)
+
+
+def target_estimate(problem: Problem) -> np.ndarray:
+    """A terminal state (18) standing for the target: a state target's X (its free components
+    hold placeholders), or for an orbit target a point of the orbit reached by a Hohmann-like
+    transfer (:func:`relaxed_start_target`).  For scales and guesses."""
+    if isinstance(problem.terminal, TargetState):
+        return problem.terminal.X
+    return relaxed_start_target(problem)
+
+
 __all__ = ["Guess", "cayley_vectors", "rollout_guess", "interpolation_guess", "make_guess",
-           "perturbed_interpolation_guess", "screw_path"]
+           "perturbed_interpolation_guess", "relaxed_start_target", "screw_path", "target_estimate"]

@@ -36,8 +36,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .layout import NU, NX, NZ, join_state, split_state
-from .lie import cayley, chart, hat, tangent_readback
+from .layout import NU, NX, NZ, chart, join_state, split_state, tangent_readback
+from .lie import cayley, hat, is_symbolic
 from .model import BodyModel
 
 SCHEMES = ("lgvi", "first_order")
@@ -111,7 +111,6 @@ class Discretization:
         self.cayley_residual = ca.Function("cayley_residual", [c, g], [G], ["c", "g"], ["G"])
         dG = hat(g) + ca.dot(g, c) * ca.DM.eye(3) + ca.mtimes(c, g.T) - 2 * ca.DM(J)
         newton_map = ca.Function("cayley_newton_map", [c, g], [c - _solve3(dG, G)])
-        self.cayley_newton_map = newton_map
 
         gnorm = ca.fmax(ca.norm_2(g), 1e-300)
         ck = ca.mtimes(ca.DM(np.linalg.inv(2 * J)), g)
@@ -197,7 +196,7 @@ class Discretization:
         """
         if self.scheme == "first_order":
             return U
-        if isinstance(U, (ca.SX, ca.MX, ca.DM)):
+        if is_symbolic(U):
             return ca.vertcat(U[:, :-1], U[:, 1:])
         U = np.asarray(U, dtype=float)
         return np.vstack([U[:, :-1], U[:, 1:]])

@@ -1,10 +1,9 @@
-"""The Lie group helpers of the project, in one place: SO(3) maps and the charts of the state space.
+"""Every SO(3) operation of the project, in one place.
 
 SO(3) (symbolic CasADi SX/MX and numeric NumPy alike): hat/vee, the Cayley map and its
 inverse, exp/log (log also at exactly pi, with a chosen sign), the inverse right Jacobian,
-elementary rotations, orthogonality errors.  State space T*SE(3) (docs/mathematics.md §4): the
-left-trivialized chart ``chart`` around a state, its read-back ``tangent_readback`` and the
-tangent basis ``tangent_basis`` (dX = D(X) z).
+elementary rotations, orthogonality errors.  (The charts of the state space, built from these maps,
+are in :mod:`transcription.layout`.)
 
 Conventions (docs/mathematics.md §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on
 skew matrices.  The Cayley map is ``cay(c) = (I + S(c)) (I - S(c))^-1``, written in
@@ -21,20 +20,20 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .layout import NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, join_state, split_state
-
 # Below this theta^2 the Taylor branches are used (their truncation error is
 # O(theta^6) relative, i.e. < 1e-18 here).
 _SMALL_THETA2 = 1e-6
 
 
-def _is_casadi(a) -> bool:
+def is_symbolic(a) -> bool:
+    """Whether ``a`` is a CasADi matrix (SX, MX or DM) rather than NumPy: the one check by which every function of
+    the method layer that takes either picks its backend."""
     return isinstance(a, (ca.SX, ca.MX, ca.DM))
 
 
 def hat(a):
     """Hat map R^3 -> so(3): ``hat(a) @ b = a x b``.  a: (3,) or (3,1)."""
-    if _is_casadi(a):
+    if is_symbolic(a):
         return ca.skew(a)
     a = np.asarray(a, dtype=float).reshape(3)
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
@@ -42,7 +41,7 @@ def hat(a):
 
 def vee(A):
     """Inverse of :func:`hat` for a skew 3x3 matrix (reads the lower triangle)."""
-    if _is_casadi(A):
+    if is_symbolic(A):
         return ca.vertcat(A[2, 1], A[0, 2], A[1, 0])
     A = np.asarray(A, dtype=float)
     return np.array([A[2, 1], A[0, 2], A[1, 0]])
@@ -54,23 +53,24 @@ def vee_skew(A):
 
 
 def _where(cond, a, b):
-    if _is_casadi(cond) or _is_casadi(a) or _is_casadi(b):
+    if is_symbolic(cond) or is_symbolic(a) or is_symbolic(b):
         return ca.if_else(cond, a, b)
     return np.where(cond, a, b)
 
 
 def _dot(a, b):
-    if _is_casadi(a) or _is_casadi(b):
+    if is_symbolic(a) or is_symbolic(b):
         return ca.dot(a, b)
     return float(np.dot(np.ravel(a), np.ravel(b)))
 
 
 def _eye(like):
-    return ca.DM.eye(3) if _is_casadi(like) else np.eye(3)
+    return ca.DM.eye(3) if is_symbolic(like) else np.eye(3)
 
 
-def _mm(A, B):
-    if _is_casadi(A) or _is_casadi(B):
+def mtimes(A, B):
+    """A B: CasADi's product if either is CasADi (a NumPy operand becomes a constant), else NumPy's."""
+    if is_symbolic(A) or is_symbolic(B):
         return ca.mtimes(A, B)
     return A @ B
 
@@ -81,7 +81,7 @@ def cayley(c):
     Exactly orthogonal in exact arithmetic for every c; rotation angle 2 atan|c|.
     """
     S = hat(c)
-    return _eye(c) + (2.0 / (1.0 + _dot(c, c))) * (S + _mm(S, S))
+    return _eye(c) + (2.0 / (1.0 + _dot(c, c))) * (S + mtimes(S, S))
 
 
 def cayley_inv(F):
@@ -89,7 +89,7 @@ def cayley_inv(F):
 
     cay^-1(F) = vee(F - F^T) / (1 + tr F).  NumPy: F may be a stack (..., 3, 3) -> (..., 3).
     """
-    if not _is_casadi(F) and np.ndim(F) > 2:
+    if not is_symbolic(F) and np.ndim(F) > 2:
         F = np.asarray(F, dtype=float)
         A = F - np.swapaxes(F, -1, -2)
         tr = np.trace(F, axis1=-2, axis2=-1)
@@ -103,7 +103,7 @@ def exp_so3(w):
     t2 = _dot(w, w)
     small = t2 < _SMALL_THETA2
     t2_safe = _where(small, 1.0, t2)
-    if _is_casadi(t2_safe):
+    if is_symbolic(t2_safe):
         t = ca.sqrt(t2_safe)
         sin, cos = ca.sin, ca.cos
     else:
@@ -112,7 +112,7 @@ def exp_so3(w):
     a = _where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, sin(t) / t)
     b = _where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, (1.0 - cos(t)) / t2_safe)
     S = hat(w)
-    return _eye(w) + a * S + b * _mm(S, S)
+    return _eye(w) + a * S + b * mtimes(S, S)
 
 
 def log_so3(R):
@@ -128,7 +128,7 @@ def log_so3(R):
     logarithm's; the method layer evaluates it near the identity (terminal
     attitude error).
     """
-    if not _is_casadi(R):
+    if not is_symbolic(R):
         return _log_so3_np(np.asarray(R, dtype=float))
     tr = R[0, 0] + R[1, 1] + R[2, 2]
     cos_t = ca.fmin(ca.fmax(0.5 * (tr - 1.0), -1.0), 1.0)
@@ -187,6 +187,36 @@ def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) + 0.5 * S + coef * (S @ S)
 
 
+def rotation_angle(R: np.ndarray) -> np.ndarray:
+    """The rotation angle in [0, pi] of rotation matrices R (..., 3, 3): atan2(|vee(R - R^T)|/2, (tr R - 1)/2),
+    accurate at every angle (arccos of the trace alone loses half the digits near 0 and pi)."""
+    R = np.asarray(R, dtype=float)
+    s = 0.5 * np.linalg.norm(np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                                       R[..., 1, 0] - R[..., 0, 1]], axis=-1), axis=-1)
+    return np.arctan2(s, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0))
+
+
+def orthonormalize(R):
+    """R (3 I - R^T R) / 2: one Newton-Schulz step towards the polar factor of R (CasADi or NumPy).
+
+    The identity on SO(3), and its derivative the identity on tangent vectors R S(zeta), so it changes
+    nothing in exact arithmetic; off the manifold by E = R^T R - I it leaves O(E^2)."""
+    return 0.5 * mtimes(R, 3 * _eye(R) - mtimes(R.T, R))
+
+
+def geodesic_interpolation(R: np.ndarray, t: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """Rotations R (n, 3, 3) at increasing times t (n,) interpolated along the geodesic of SO(3) between
+    neighbouring nodes, R_a exp(s log(R_a^T R_b)) with s the fraction of the interval, at the times tq (m,)
+    -> (m, 3, 3); held at the ends outside [t_0, t_n-1].  On SO(3) to round-off."""
+    j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 2)
+    s = np.clip((tq - t[j]) / (t[j + 1] - t[j]), 0.0, 1.0)
+    out = np.empty((len(tq), 3, 3))
+    for i, (jj, ss) in enumerate(zip(j, s)):
+        w = log_so3_any(R[jj].T @ R[jj + 1])
+        out[i] = R[jj] @ exp_so3(ss * w)
+    return out
+
+
 def rot_x(deg: float) -> np.ndarray:
     """Elementary rotation about e1 by ``deg`` degrees."""
     t = np.deg2rad(deg)
@@ -213,42 +243,3 @@ def orthogonality_error(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     R = np.asarray(R, dtype=float)
     E = np.einsum("...ji,...jk->...ik", R, R) - np.eye(3)
     return np.linalg.norm(E, axis=(-2, -1)), np.abs(np.linalg.det(R) - 1.0)
-
-
-# ------------------------------------------------------------- charts of the state space
-def chart(X, z):
-    """Left-trivialized chart around a state X (18) (docs/mathematics.md §4): additive on x, gamma,
-    Pi; R -> R cay(zeta/2).  CasADi.
-
-    The Cayley map here is (I + S(c))(I - S(c))^-1 = I + 2 S(c) + O(c^2), so the argument is
-    halved to make dR = R S(zeta) to first order (the coordinates read back by
-    :func:`tangent_readback`); with cay(zeta) the zeta-columns of A_k would be twice the
-    left-trivialized Jacobian.
-    """
-    x, gamma, R, Pi = split_state(X)
-    return join_state(x + z[0:3], gamma + z[3:6], ca.mtimes(R, cayley(0.5 * z[6:9])), Pi + z[9:12])
-
-
-def tangent_readback(Xbar, dX):
-    """Map a differential dX (18 x n) at Xbar to tangent coordinates z (12 x n) (CasADi).
-
-    dzeta = vee(skew(Rbar^T dR)); the other blocks are copied.
-    """
-    Rbar = ca.reshape(Xbar[X_ROT], 3, 3)
-    cols = []
-    for j in range(dX.shape[1]):
-        dR = ca.reshape(dX[X_ROT, j], 3, 3)
-        cols.append(ca.vertcat(dX[X_POS, j], dX[X_MOM, j], vee_skew(ca.mtimes(Rbar.T, dR)), dX[X_ANG, j]))
-    return ca.horzcat(*cols)
-
-
-def tangent_basis(X: np.ndarray) -> np.ndarray:
-    """D(X) (18 x 12, NumPy): dX = D z for z = [dx; dgamma; zeta; dPi], dR = R S(zeta), vec column-major."""
-    R = np.asarray(X, dtype=float)[X_ROT].reshape(3, 3, order="F")
-    D = np.zeros((NX, NZ))
-    D[X_POS, 0:3] = np.eye(3)
-    D[X_MOM, 3:6] = np.eye(3)
-    D[X_ANG, 9:12] = np.eye(3)
-    for i in range(3):
-        D[X_ROT, 6 + i] = (R @ hat(np.eye(3)[i])).ravel(order="F")
-    return D

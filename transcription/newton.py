@@ -74,6 +74,96 @@ def noise_level(residual: Callable[[np.ndarray], np.ndarray], x: np.ndarray, F: 
     return out
 
 
+class _Run:
+    """The state of one Newton-Armijo iteration (x, F, |F|, J, the iteration count, the history, the measured
+    round-off floor and noise, the rejected aux values) and its two steps: the direction and the line search."""
+
+    def __init__(self, x0, residual, jacobian, *, tol, norm, alpha, max_halvings, aux_tol, floor_factor,
+                 check_interrupt):
+        self.residual, self.jacobian, self.tol, self.norm, self.alpha = residual, jacobian, tol, norm, alpha
+        self.max_halvings, self.aux_tol, self.floor_factor = max_halvings, aux_tol, floor_factor
+        self.check_interrupt = check_interrupt
+        self.t0 = time.perf_counter()
+        self.x = np.asarray(x0, dtype=float).copy()
+        self.F, aux0 = residual(self.x)
+        self.e = float(np.linalg.norm(self.F))
+        self.history = [Iterate(iteration=0, residual=self.e, residual_inf=float(np.abs(self.F).max()), aux=aux0,
+                                elapsed_s=0.0)]
+        self.J = jacobian(self.x)
+        self.it, self.floor, self.noise = 0, None, None
+        self.rejected: list[float] = []
+
+    def conv(self, F) -> float:
+        return float(np.linalg.norm(F, ord=self.norm))
+
+    def done(self, result: Result, message: str) -> NewtonResult:
+        return NewtonResult(self.x, self.F, result, message, self.it, self.history, self.floor, self.noise,
+                            self.rejected)
+
+    def direction(self, step_scale) -> tuple[np.ndarray | None, tuple | None]:
+        """D = -J^-1 F (capped by step_scale), or a stop (result, message) before it."""
+        F, J, e, it = self.F, self.J, self.e, self.it
+        try:
+            D = -np.linalg.solve(J, F)
+        except np.linalg.LinAlgError:
+            return None, (Result.singular_jacobian, f"singular Jacobian at iteration {it} (|F| = {e:.3e})")
+        if not np.all(np.isfinite(D)):
+            return None, (Result.singular_jacobian, f"ill-conditioned Jacobian at iteration {it} (|F| = {e:.3e})")
+        if step_scale is not None:
+            r = np.abs(D / step_scale).max()
+            D = D / r if r > 1.0 else D
+        return D, None
+
+    def line_search(self, D: np.ndarray) -> tuple[tuple | None, tuple | None]:
+        """c = 1, 1/2, ... until Armijo's test holds: ((x_t, F_t, |F_t|, aux_t, c), None), or (None, a stop:
+        interrupted, stagnated, the round-off floor, line search failed)."""
+        x, e, it = self.x, self.e, self.it
+        c = 1.0
+        for j in range(self.max_halvings + 1):
+            if self.check_interrupt is not None and self.check_interrupt():
+                return None, (Result.interrupted, f"interrupted at iteration {it} (|F| = {e:.3e})")
+            xt = x + c * D
+            if np.array_equal(xt, x):
+                return None, (Result.stagnated, f"the step no longer changes x (|F| = {e:.3e}, c = {c:.1e})")
+            Ft, at = self.residual(xt)
+            valid = bool(np.all(np.isfinite(Ft)) and at <= self.aux_tol)
+            et = float(np.linalg.norm(Ft)) if valid else float("inf")
+            ok = valid and (et <= (1.0 - self.alpha * c) * e or (c == 1.0 and self.conv(Ft) <= self.tol))
+            if not valid and np.isfinite(at) and at > self.aux_tol:
+                self.rejected.append(float(at))
+            self.history.append(Iterate(iteration=it, trial=j + 1, step=c, residual=et,
+                                        residual_inf=float(np.abs(Ft).max()) if valid else et, accepted=ok, aux=at,
+                                        elapsed_s=time.perf_counter() - self.t0))
+            if ok:
+                return (xt, Ft, et, at, c), None
+            stop = self._at_floor(j, et)
+            if stop is not None:
+                return None, stop
+            c *= 0.5
+        return None, (Result.line_search_failed,
+                      f"line search failed after {self.max_halvings} halvings at iteration {it} (|F| = {e:.3e})")
+
+    def _at_floor(self, j: int, et: float) -> tuple | None:
+        """After the j-th failed trial: the round-off floor stop (module docstring) if |F| is at the measured
+        round-off level, else None."""
+        if self.floor_factor is None:
+            return None
+        e, it, ff = self.e, self.it, self.floor_factor
+        if j == 0:
+            self.noise = noise_level(lambda y: self.residual(y)[0], self.x, self.F, self.J)
+            if e <= ff * self.noise:
+                self.floor = e
+                return (Result.round_off_floor,
+                        f"round-off floor reached after {it - 1} iterations: |F| = {e:.3e} (measured round-off level "
+                        f"{self.noise:.1e}); the full Newton step gives {et:.3e}, no further decrease possible")
+        elif j == NEAR_FLOOR_HALVINGS and self.noise is not None and e <= ff**2 * self.noise:
+            self.floor = e
+            return (Result.round_off_floor,
+                    f"round-off floor reached after {it - 1} iterations: |F| = {e:.3e} (measured round-off "
+                    f"level {self.noise:.1e}); {j + 1} line-search trials, none decreases it")
+        return None
+
+
 def newton_armijo(x0: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
                   jacobian: Callable[[np.ndarray], np.ndarray], *, tol: float, norm: float = 2, alpha: float = 1e-4,
                   max_iter: int = 50, max_halvings: int = 30, aux_tol: float = np.inf,
@@ -83,90 +173,33 @@ def newton_armijo(x0: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndar
     """Solve F(x) = 0 from x0 (see the module docstring).  ``norm``: the norm of the convergence
     test (2 or np.inf); Armijo's test uses the 2-norm.  ``check_interrupt``: returns True to stop
     (Result.interrupted) between rollouts.  The caller checks that F(x0) is usable (aux, finite)."""
-    t0 = time.perf_counter()
-    x = np.asarray(x0, dtype=float).copy()
-    F, aux0 = residual(x)
-    e = float(np.linalg.norm(F))
-    history = [Iterate(iteration=0, residual=e, residual_inf=float(np.abs(F).max()), aux=aux0, elapsed_s=0.0)]
-    J = jacobian(x)
-    it, small, floor, noise = 0, 0, None, None
-    rejected: list[float] = []
-
-    def conv(F):
-        return float(np.linalg.norm(F, ord=norm))
-
-    def done(result, message):
-        return NewtonResult(x, F, result, message, it, history, floor, noise, rejected)
-
+    run = _Run(x0, residual, jacobian, tol=tol, norm=norm, alpha=alpha, max_halvings=max_halvings, aux_tol=aux_tol,
+               floor_factor=floor_factor, check_interrupt=check_interrupt)
+    small = 0
     while True:
-        if not (np.all(np.isfinite(F)) and np.all(np.isfinite(J))):
-            return done(Result.non_finite, f"non-finite residual or Jacobian at iteration {it}")
-        if conv(F) <= tol:
-            return done(Result.converged, f"|F| = {conv(F):.3e} <= {tol:.1e} after {it} iterations")
-        if it >= max_iter:
-            return done(Result.max_iterations, f"no convergence in {max_iter} iterations (|F| = {e:.3e})")
-        try:
-            D = -np.linalg.solve(J, F)
-        except np.linalg.LinAlgError:
-            return done(Result.singular_jacobian, f"singular Jacobian at iteration {it} (|F| = {e:.3e})")
-        if not np.all(np.isfinite(D)):
-            return done(Result.singular_jacobian, f"ill-conditioned Jacobian at iteration {it} (|F| = {e:.3e})")
-        if step_scale is not None:
-            r = np.abs(D / step_scale).max()
-            D = D / r if r > 1.0 else D
-        it += 1
-        c, stop = 1.0, None
-        for j in range(max_halvings + 1):
-            if check_interrupt is not None and check_interrupt():
-                it -= 1
-                return done(Result.interrupted, f"interrupted at iteration {it + 1} (|F| = {e:.3e})")
-            xt = x + c * D
-            if np.array_equal(xt, x):
-                stop = (Result.stagnated, f"the step no longer changes x (|F| = {e:.3e}, c = {c:.1e})")
-                break
-            Ft, at = residual(xt)
-            valid = bool(np.all(np.isfinite(Ft)) and at <= aux_tol)
-            et = float(np.linalg.norm(Ft)) if valid else float("inf")
-            ok = valid and (et <= (1.0 - alpha * c) * e or (c == 1.0 and conv(Ft) <= tol))
-            if not valid and np.isfinite(at) and at > aux_tol:
-                rejected.append(float(at))
-            history.append(Iterate(iteration=it, trial=j + 1, step=c, residual=et,
-                                   residual_inf=float(np.abs(Ft).max()) if valid else et, accepted=ok, aux=at,
-                                   elapsed_s=time.perf_counter() - t0))
-            if ok:
-                break
-            if floor_factor is not None:
-                if j == 0:
-                    noise = noise_level(lambda y: residual(y)[0], x, F, J)
-                    if e <= floor_factor * noise:
-                        floor = e
-                        stop = (Result.round_off_floor,
-                                f"round-off floor reached after {it - 1} iterations: |F| = {e:.3e} (measured "
-                                f"round-off level {noise:.1e}); the full Newton step gives {et:.3e}, no further "
-                                "decrease possible")
-                        break
-                elif j == NEAR_FLOOR_HALVINGS and noise is not None and e <= floor_factor**2 * noise:
-                    floor = e
-                    stop = (Result.round_off_floor,
-                            f"round-off floor reached after {it - 1} iterations: |F| = {e:.3e} (measured round-off "
-                            f"level {noise:.1e}); {j + 1} line-search trials, none decreases it")
-                    break
-            c *= 0.5
-        else:
-            stop = (Result.line_search_failed,
-                    f"line search failed after {max_halvings} halvings at iteration {it} (|F| = {e:.3e})")
+        if not (np.all(np.isfinite(run.F)) and np.all(np.isfinite(run.J))):
+            return run.done(Result.non_finite, f"non-finite residual or Jacobian at iteration {run.it}")
+        if run.conv(run.F) <= tol:
+            return run.done(Result.converged, f"|F| = {run.conv(run.F):.3e} <= {tol:.1e} after {run.it} iterations")
+        if run.it >= max_iter:
+            return run.done(Result.max_iterations, f"no convergence in {max_iter} iterations (|F| = {run.e:.3e})")
+        D, stop = run.direction(step_scale)
         if stop is not None:
-            it -= 1  # the failed iteration did not change x
+            return run.done(*stop)
+        run.it += 1
+        trial, stop = run.line_search(D)
+        if stop is not None:
+            run.it -= 1  # the failed iteration did not change x
             result, message = stop
-            if result is Result.round_off_floor and e > floor_accept:
+            if result is Result.round_off_floor and run.e > floor_accept:
                 result = Result.floor_too_high
                 message += f"; the floor is above floor_accept = {floor_accept:.0e}: not accepted"
-            return done(result, message)
-        x, F, e = xt, Ft, et
-        J = jacobian(x)
+            return run.done(result, message)
+        run.x, run.F, run.e, at, c = trial
+        run.J = jacobian(run.x)
         small = small + 1 if c < 1e-2 else 0
         if progress is not None:
-            progress(Iterate(iteration=it, residual=e, residual_inf=float(np.abs(F).max()), step=c, aux=at,
-                             elapsed_s=time.perf_counter() - t0))
+            progress(Iterate(iteration=run.it, residual=run.e, residual_inf=float(np.abs(run.F).max()), step=c, aux=at,
+                             elapsed_s=time.perf_counter() - run.t0))
         if stagnation_steps is not None and small >= stagnation_steps:
-            return done(Result.stagnated, f"{small} consecutive steps shorter than 1e-2 (|F| = {e:.3e})")
+            return run.done(Result.stagnated, f"{small} consecutive steps shorter than 1e-2 (|F| = {run.e:.3e})")

@@ -231,8 +231,8 @@ class DirectOptions(Options):
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
                                   "controls, the fastest kept, solved on a coarser grid (N // 4, at least 25 steps) and finished "
-                                  "on N steps; every guess tried is reported in the message and stats['guesses_tried'] "
-                                  "(see transcription.direct.guess_plan)")
+                                  "on N steps; every guess tried is reported in the message and Solution.attempts "
+                                  "(see transcription.methods.direct.plan.guess_plan)")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")
@@ -265,5 +265,3 @@ class IndirectOptions(Options):
     jit: bool = _opt(True, "bool", doc="compile the per-step maps to C (cached on disk; the first build takes ~1-2 s; "
                                       "the interpreter without a compiler)")
 
-
-METHOD_OPTIONS = {"direct": DirectOptions, "indirect": IndirectOptions}

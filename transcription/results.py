@@ -12,15 +12,14 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from .layout import U_FORCE, U_MOMENT, States, unpack_states
-from .lie import orthogonality_error
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .problem import Problem
+from .layout import U_FORCE, U_MOMENT, split_state, unpack_states
+from .lie import orthogonality_error, rotation_angle
+from .problem import Problem, SmoothControl, TargetState, control_activity, quadrature_weights
+from .warm import WarmStart
 
 
 class Result(str, enum.Enum):
@@ -103,14 +102,6 @@ def result_of_solver_status(status: str) -> Result:
     return _SOLVER_STATUS.get(status, Result.solver_failed)
 
 
-class SolverOptionError(ValueError):
-    """A raw solver option the solver plugin rejects; ``option`` names it (e.g. 'mu_init')."""
-
-    def __init__(self, option: str, message: str):
-        self.option = option
-        super().__init__(message)
-
-
 class SolveError(RuntimeError):
     """Raised by ``solve(..., throw=True)`` for a Solution that is not successful; ``.solution`` is it."""
 
@@ -130,7 +121,8 @@ class Iterate:
     line-search step (Newton: c; IPOPT: alpha_pr); accepted: whether the trial became the next
     iterate; aux: the largest relative Cayley residual of the trial's rollout (Newton);
     phase: a label for multi-phase solves (e.g. 'start', 'nlp'); elapsed_s: seconds since the
-    solve started.  Absent values are nan.
+    solve started; method: the method that produced it (set by ``solve`` on the records it passes to
+    ``progress``; '' in a Solution's history, which knows its method).  Absent values are nan.
     """
 
     iteration: int
@@ -144,6 +136,7 @@ class Iterate:
     aux: float = math.nan
     phase: str = ""
     elapsed_s: float = math.nan
+    method: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -162,6 +155,33 @@ class Iterate:
         if self.phase:
             parts.append(f"({self.phase})")
         return "  ".join(parts)
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One initial guess a solve tried (the direct method's plan, transcription.methods.direct.plan): its
+    ``label``; the ``result`` of the solve from it (None: the guess could not be made or used, ``note`` says
+    why); its ``iterations`` (those spent making the guess included: ``guess_iterations`` of them on
+    ``prepared_on``, e.g. 'the relaxed problem') and ``cost`` (nan unless converged).  :meth:`line` is the
+    sentence of the message and of summary.json's ``guesses_tried``."""
+
+    label: str
+    result: Result | None
+    iterations: int = 0
+    cost: float = math.nan
+    guess_iterations: int = 0
+    prepared_on: str = ""
+    note: str = ""
+
+    def line(self) -> str:
+        if self.result is None:
+            return f"{self.label}: {self.note}"
+        out = f"{self.label}: {self.result} in {self.iterations} iterations"
+        if self.guess_iterations:
+            out += f" ({self.guess_iterations} of them on {self.prepared_on})"
+        if self.result.successful and math.isfinite(self.cost):
+            out += f", cost {self.cost:.10g}"
+        return out
 
 
 @dataclass(frozen=True)
@@ -192,14 +212,17 @@ class Trajectory:
         for k, a in derived.items():
             object.__setattr__(self, k, a)
 
-    @property
-    def states(self) -> States:
-        return unpack_states(self.X)
-
     def orthogonality(self) -> dict[str, float]:
         """max_k |R_k^T R_k - I|_F and max_k |det R_k - 1| (docs/mathematics.md §8)."""
         orth, det = orthogonality_error(self.R)
         return {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max())}
+
+
+def trajectory(problem: "Problem", X: np.ndarray, h: float | None = None) -> Trajectory:
+    """The Trajectory of node states X (N+1, 18) of ``problem``: times k h (h the problem's by default), the
+    problem's mass and inertia."""
+    m = problem.model
+    return Trajectory(t=(problem.h if h is None else h) * np.arange(X.shape[0]), X=X, mass=m.mass, inertia=m.inertia)
 
 
 @dataclass
@@ -212,9 +235,13 @@ class Solution:
     controls: (6, n_controls) [u_f (inertial); u_m (body)] at ``control_times`` or None.
     impulses: impulsive maneuvers: {dgamma0, dPi0 (at t = 0), dgammaN, dPiN (at t = T)} (3,) each.
     costates: (N, 12) discrete costates lambda_k (indirect; for the direct method mapped from the
-    NLP multipliers) or None.  history: the :class:`Iterate` records.  stats: method-specific
-    numbers (the solver's own status, split times, residuals, ...).
+    NLP multipliers) or None.  history: the :class:`Iterate` records.  attempts: the initial guesses
+    tried (:class:`Attempt`, the direct method; summary.json's ``guesses_tried`` says them in words).
+    stats: method-specific numbers (the solver's own status, split times, residuals, ...).
     problem: the :class:`~transcription.problem.Problem` solved (for figures and reports).
+    warm: what the next solve can start from (:class:`~transcription.warm.WarmStart`; None when there is
+    nothing usable): ``solve(problem, method, warm_start=solution)``.
+    Derived: N, T, h, ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3), u_m (n, 3).
     """
 
     method: str
@@ -233,12 +260,14 @@ class Solution:
     costates: np.ndarray | None = None
     history: list[Iterate] = field(default_factory=list)
     stats: dict[str, Any] = field(default_factory=dict)
+    attempts: tuple[Attempt, ...] = ()
+    warm: WarmStart | None = field(default=None, repr=False, compare=False)
 
     # derived, computed once: the horizon, the scheme, the controls' times and components
     N: int = field(init=False, repr=False)
     T: float = field(init=False, repr=False)
     h: float = field(init=False, repr=False)
-    discretization: str = field(init=False, repr=False)
+    scheme: str = field(init=False, repr=False)
     control_times: np.ndarray | None = field(init=False, repr=False)
     u_f: np.ndarray | None = field(init=False, repr=False)
     u_m: np.ndarray | None = field(init=False, repr=False)
@@ -247,7 +276,7 @@ class Solution:
         t = self.trajectory.t
         self.N, self.T = len(t) - 1, float(t[-1])
         self.h = self.T / self.N
-        self.discretization = self.problem.disc.scheme if self.problem is not None else ""
+        self.scheme = self.problem.scheme if self.problem is not None else ""
         c = self.controls
         # controls u_0..u_N (lgvi) at t_0..t_N, or u_1..u_N (first_order) at t_1..t_N; u_f inertial, u_m body
         self.control_times = None if c is None else (t[1:] if c.shape[1] == len(t) - 1 else t)
@@ -274,13 +303,15 @@ class Solution:
             "N": int(self.N),
             "T": float(self.T),
             "h": float(self.h),
-            "discretization": self.discretization,
+            "discretization": self.scheme,
             "solver": self.solver,
         }
         out.update(self.trajectory.orthogonality())
-        # scalars, and lists of words (the direct method's guesses_tried: what a failure tried)
+        # scalars, and lists of words
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None))) or
                     (isinstance(v, list) and all(isinstance(x, str) for x in v))})
+        if self.attempts:                   # the initial guesses tried (what a failure tried), in words
+            out["guesses_tried"] = [a.line() for a in self.attempts]
         out.update(figures_of_merit(self))
         return out
 
@@ -299,13 +330,6 @@ class Solution:
 
 
 
-def rotation_angle(R: np.ndarray) -> np.ndarray:
-    """The rotation angle in [0, pi] of rotation matrices R (..., 3, 3): atan2(|vee(R - R^T)|/2, (tr R - 1)/2),
-    accurate at every angle (arccos of the trace alone loses half the digits near 0 and pi)."""
-    R = np.asarray(R, dtype=float)
-    s = 0.5 * np.linalg.norm(np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                                       R[..., 1, 0] - R[..., 0, 1]], axis=-1), axis=-1)
-    return np.arctan2(s, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0))
 
 
 def figures_of_merit(sol: "Solution") -> dict[str, Any]:
@@ -323,8 +347,6 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     Fields that do not apply are left out; a method that does not apply to the problem
     (Result.not_applicable) has none: its trajectory is no solution, only the initial state's free
     motion.  Pure: reads the Solution, changes nothing."""
-    from .problem import SmoothControl, TargetState, control_activity, quadrature_weights
-
     out: dict[str, Any] = {}
     if sol.result is Result.not_applicable:
         return out
@@ -347,7 +369,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
                    angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
     term = getattr(prob, "terminal", None)
     if isinstance(term, TargetState) and "attitude" in term.fixed and np.all(np.isfinite(sol.trajectory.X[-1])):
-        Rd = term.X[6:15].reshape(3, 3, order="F")
+        Rd = split_state(term.X)[2]
         out["terminal_attitude_error_deg"] = float(np.degrees(rotation_angle(Rd.T @ sol.trajectory.R[-1])))
     seen: dict[str, int] = {}
     for c in getattr(prob, "constraints", ()):

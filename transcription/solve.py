@@ -1,31 +1,39 @@
 """The one entry point of the method layer: ``solve(problem, method)``, plus ``simulate`` and ``compare``.
 
-Every front end -- the Python API (``se3ocp.solve``), the CLI, sweeps, scripts -- calls
-:func:`solve`; it dispatches on the method, runs both methods for ``method='both'`` (the direct
-solution then starts the indirect method when ``initial_costate: from_direct``) and compares them.
+Every front end -- the Python API (``se3ocp.solve``), the CLI, sweeps, scripts -- calls :func:`solve`.  It
+is a registry: each method name ('direct', 'indirect') stands for the implementations of
+:class:`~transcription.methods.base.Method` listed in :data:`METHODS`, and the one whose ``kind`` is the
+problem's runs it (the direct method: its NLP for smooth control, the impulsive solver for impulsive
+control).  Which methods can solve which problems is decided in one place, :func:`not_covered`.  For
+``method='both'`` it runs both on the same discretization and compares them; the direct solution starts
+the indirect method when ``initial_costate: from_direct`` (as it does for 'indirect' alone).
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
-from .direct import solve_direct
-from .indirect import solve_indirect
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
 from .lie import orthogonality_error
+from .methods.base import Method, Progress
+from .methods.direct import DIRECT
+from .methods.impulsive import IMPULSIVE
+from .methods.indirect import INDIRECT
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, terminal_error
-from .results import Iterate, Result, SolveError, Solution, Trajectory
+from .results import Result, SolveError, Solution, trajectory
+from .warm import WarmStart, as_warm_start
 
-METHODS = ("direct", "indirect", "both")
+#: the registry: each method name and its implementations (one per kind of control)
+METHODS: dict[str, tuple[Method, ...]] = {"direct": (DIRECT, IMPULSIVE), "indirect": (INDIRECT,)}
+#: what ``solve`` accepts: a method name, or 'both'
+METHOD_NAMES = ("direct", "indirect", "both")
 #: relative cost difference above which compare reports different extremals
 MISMATCH_COST_RTOL = 1e-6
-
-Progress = Callable[[str, Iterate], None]
 
 
 @dataclass
@@ -81,44 +89,87 @@ def compare(a: Solution, b: Solution) -> Comparison:
     return Comparison(d, i, float(rel), du, same, verdict)
 
 
-def _check_method(problem: Problem, method: str):
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+# ---------------------------------------------------------------------------- the registry
+def implementation(problem: Problem, name: str) -> Method | None:
+    """The implementation of method ``name`` ('direct' or 'indirect') for the kind of ``problem``'s control
+    (None if the method has none)."""
+    return next((m for m in METHODS[name] if m.kind == problem.kind), None)
+
+
+def not_covered(problem: Problem, method: str) -> str:
+    """Why ``method`` ('direct', 'indirect' or 'both') cannot be run on ``problem`` at all, in one sentence
+    ('' when it can): the one place that says which methods solve which problems (impulsive maneuvers: the
+    direct method only; a motion without control: none).  ``solve`` raises ValueError with it; the CLI
+    reports it as bad input.  What a method does not cover *within* a problem it solves (the indirect method
+    and path constraints) is not decided here: that method's Solution says so (Result.not_applicable)."""
+    if method not in METHOD_NAMES:
+        return f"method must be one of {', '.join(METHOD_NAMES)}, got {method!r}"
     if problem.kind is None:
-        raise ValueError("the problem has no terminal target and no control: there is nothing to solve (simulate it)")
-    if method != "direct" and problem.kind == "impulsive":
-        raise ValueError(f"method {method!r}: the indirect method applies to smooth control; impulsive maneuvers are "
-                         "solved by method='direct'")
+        return "the problem has no terminal target and no control: there is nothing to solve (simulate it)"
+    for name in (("direct", "indirect") if method == "both" else (method,)):
+        if implementation(problem, name) is None:
+            return f"method {method!r}: {METHODS[name][0].not_covered(problem)}"
+    return ""
+
+
+def _tagged(progress: Progress | None, name: str) -> Progress | None:
+    """progress with each Iterate naming its method."""
+    return None if progress is None else (lambda it: progress(dataclasses.replace(it, method=name)))
+
+
+def _run(problem: Problem, name: str, options, progress: Progress | None, warm: WarmStart | None) -> Solution:
+    return implementation(problem, name).solve(problem, options, warm=warm, progress=_tagged(progress, name))
+
+
+def _indirect_after_direct(problem: Problem, indirect: IndirectOptions, progress: Progress | None,
+                           dsol: Solution, direct_s: float | None) -> Solution:
+    """The indirect method started from the direct solution (initial_costate: from_direct); with ``direct_s``
+    (the direct solve was run for it) its stats say what the direct solve did."""
+    isol = _run(problem, "indirect", indirect, progress, dsol.warm)
+    if direct_s is not None:
+        isol.stats.update(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
+    return isol
 
 
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
-          indirect: IndirectOptions | None = None, progress: Progress | None = None, warm_start=None,
-          throw: bool = False) -> Solution | Comparison:
+          indirect: IndirectOptions | None = None, progress: Progress | None = None,
+          warm_start: Solution | WarmStart | None = None, throw: bool = False) -> Solution | Comparison:
     """Solve ``problem`` by ``method`` ('direct', 'indirect' or 'both').
 
-    direct, indirect: the options of each method (defaults if None).  progress: called as
-    progress(method, Iterate) during the solve.  warm_start: a previous Solution of the same method
-    and size (continuation), or for the indirect method 12 numbers (lambda_0).  Returns a Solution,
-    or for 'both' a :class:`Comparison`.  Failures are data (``solution.result``); with
-    ``throw=True`` a Solution that is not successful raises :class:`~transcription.results.SolveError`.
+    direct, indirect: the options of each method (defaults if None).  progress: called as progress(Iterate)
+    during the solve, the Iterate naming its method (``Iterate.method``).  warm_start: a previous Solution
+    (its ``warm``) or a :class:`~transcription.warm.WarmStart`, of either method and of any N and scheme (it
+    is resampled; the Solution's message and ``stats['warm_start*']`` say what was reused): continuation,
+    refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
+    Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
+    :class:`~transcription.results.SolveError`.  A method that cannot solve the problem at all
+    (:func:`not_covered`) raises ValueError.
     """
-    _check_method(problem, method)
+    reason = not_covered(problem, method)
+    if reason:
+        raise ValueError(reason)
     direct = direct or DirectOptions()
     indirect = indirect or IndirectOptions()
-
-    def tagged(name):
-        return (lambda rec: progress(name, rec)) if progress is not None else None
-
+    warm, note = as_warm_start(warm_start)
     out: Solution | Comparison
     if method == "direct":
-        out = solve_direct(problem, direct, tagged("direct"), warm_start=warm_start)
-    elif method == "indirect":
-        out = solve_indirect(problem, indirect, tagged("indirect"), warm_start=warm_start, direct_options=direct)
+        out = _run(problem, "direct", direct, progress, warm)
+    elif method == "indirect" and (warm is not None or indirect.initial_costate != "from_direct"):
+        out = _run(problem, "indirect", indirect, progress, warm)
+    elif method == "indirect":                       # from_direct: the direct solution first
+        t0 = time.perf_counter()
+        dsol = _run(problem, "direct", direct, progress, None)
+        out = _indirect_after_direct(problem, indirect, progress, dsol, time.perf_counter() - t0)
     else:
-        dsol = solve_direct(problem, direct, tagged("direct"))
-        hand_off = dsol if indirect.initial_costate == "from_direct" and dsol.costates is not None else None
-        isol = solve_indirect(problem, indirect, tagged("indirect"), warm_start=hand_off, direct_options=direct)
+        dsol = _run(problem, "direct", direct, progress, warm)
+        if indirect.initial_costate == "from_direct":
+            isol = _indirect_after_direct(problem, indirect, progress, dsol, None)
+        else:
+            isol = _run(problem, "indirect", indirect, progress, warm)
         out = compare(dsol, isol)
+    if note:
+        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
+            s.message += f"; {note}"
     return raise_unconverged(out) if throw else out
 
 
@@ -131,6 +182,7 @@ def raise_unconverged(out: Solution | Comparison) -> Solution | Comparison:
     return out
 
 
+# ---------------------------------------------------------------------------- simulation
 def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     """The motion of ``problem``'s discretization from X0 under ``controls`` (6 x n_controls; None:
     free motion) over its horizon.
@@ -146,29 +198,30 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     U = None if controls is None else np.asarray(controls, dtype=float).reshape(NU, -1)
     X, res = disc.simulate(problem.X0, U, h, N)
     run_s = time.perf_counter() - t0
-    model = problem.model
-    E = np.array(model.energy().map(X.shape[0])(X.T)).ravel()
+    E = np.array(problem.model.energy().map(X.shape[0])(X.T)).ravel()
     rel = np.abs(E - E[0]) / max(abs(E[0]), 1e-300)
     orth, det = orthogonality_error(unpack_states(X).R)
     worst = float(res.max()) if res.size else 0.0
-    finite = np.all(np.isfinite(X), axis=1)
-    if finite.all() and worst <= CAYLEY_TOL:
-        result, message = Result.converged, "simulated: every step solves the discrete equations"
-    elif not finite.all() and (not np.isfinite(res).all() or res[np.isfinite(res)].max(initial=0) <= CAYLEY_TOL):
-        k = int(np.argmin(finite))
-        result = Result.non_finite
-        message = (f"the state became non-finite at node {k} (overflow or a singular potential: check the model "
-                   "parameters and that the body stays away from the central mass)")
-    else:
-        k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf)))
-        result = Result.cayley_failed
-        message = (f"the implicit Cayley equation was not solved at step {k} (relative residual {res[k]:.2e}): "
-                   "the rotation per step is too large; use a smaller step h = T/N (increase horizon.N)")
-    miss = terminal_error(X[-1], problem) if problem.terminal is not None and finite.all() else float("nan")
+    result, message = _simulation_verdict(X, res, worst)
+    finite = np.all(np.isfinite(X))
+    miss = terminal_error(X[-1], problem) if problem.terminal is not None and finite else float("nan")
     stats = {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max()),
              "energy_initial": float(E[0]), "max_relative_energy_error": float(np.nanmax(rel)),
              "final_relative_energy_error": float(rel[-1]), "max_cayley_residual": worst}
     return Solution(method="simulate", solver=disc.scheme, result=result, message=message,
-                    trajectory=Trajectory(t=h * np.arange(N + 1), X=X, mass=model.mass, inertia=model.inertia),
-                    cost=float("nan"), terminal_error=miss, iterations=0, build_s=0.0, solve_s=run_s, problem=problem,
-                    controls=U, stats=stats)
+                    trajectory=trajectory(problem, X), cost=float("nan"), terminal_error=miss, iterations=0,
+                    build_s=0.0, solve_s=run_s, problem=problem, controls=U, stats=stats)
+
+
+def _simulation_verdict(X: np.ndarray, res: np.ndarray, worst: float) -> tuple[Result, str]:
+    finite = np.all(np.isfinite(X), axis=1)
+    if finite.all() and worst <= CAYLEY_TOL:
+        return Result.converged, "simulated: every step solves the discrete equations"
+    if not finite.all() and (not np.isfinite(res).all() or res[np.isfinite(res)].max(initial=0) <= CAYLEY_TOL):
+        k = int(np.argmin(finite))
+        return Result.non_finite, (f"the state became non-finite at node {k} (overflow or a singular potential: check "
+                                   "the model parameters and that the body stays away from the central mass)")
+    k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf)))
+    return Result.cayley_failed, (f"the implicit Cayley equation was not solved at step {k} (relative residual "
+                                  f"{res[k]:.2e}): the rotation per step is too large; use a smaller step h = T/N "
+                                  "(increase horizon.N)")

@@ -1,4 +1,4 @@
-"""The one NLP builder: a structured NLP assembled from small SX block Functions.
+"""The one NLP builder (the solver set-up is in :mod:`.solvers`, the layouts in :mod:`.layouts`): a structured NLP assembled from small SX block Functions.
 
 Every multiple-shooting NLP of the project (smooth control, the relaxed impulsive problem, the
 fatrop form) is a sum of *blocks*.  A block is one SX Function of a few local variables,
@@ -25,13 +25,11 @@ Rows are ordered block by block, instance-major inside a block (:meth:`Structure
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import casadi as ca
 import numpy as np
 
-from . import codegen
-from .results import Iterate
+from .. import codegen
 
 
 @dataclass
@@ -176,6 +174,13 @@ class StructuredNLP:
         self.f = f
         self.g = ca.vertcat(*g) if g else ca.MX(0, 1)
 
+    @property
+    def key(self) -> tuple:
+        """The structure of this NLP: its size and, per block, its name, Function, rows per instance and
+        instances.  NLPs with the same key order their variables and constraint rows alike, so that the
+        multipliers of one start the other (a warm start)."""
+        return (self.n, tuple((b.name, b.fn.name(), b.nr, b.M) for b in self.blocks))
+
     def _gather(self, b: Block):
         return ca.reshape(self.w[b.idx.ravel(order="F").tolist()], b.idx.shape[0], b.M)
 
@@ -227,83 +232,3 @@ class StructuredNLP:
             "hess_lag": ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [H], ["x", "p", "lam_f", "lam_g"],
                                     ["triu_hess_gamma_x_x"]),
         }
-
-
-class ProgressCallback(ca.Callback):
-    """NLP iteration callback: one :class:`~transcription.results.Iterate` per iteration to ``fn``
-    (cost = objective x ``obj_scale``, residual = max |g - bounds violation| of the scaled rows)."""
-
-    def __init__(self, nx: int, ng: int, fn: Callable[[Iterate], None], obj_scale: float, lbg, ubg, phase: str = ""):
-        ca.Callback.__init__(self)
-        self.nx, self.ng, self.fn, self.obj_scale, self.k = nx, ng, fn, obj_scale, 0
-        self.lbg, self.ubg, self.phase = np.asarray(lbg, float), np.asarray(ubg, float), phase
-        self.construct("nlp_progress", {})
-
-    def get_n_in(self):
-        return ca.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return ca.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "ret"
-
-    def get_sparsity_in(self, i):
-        name = ca.nlpsol_out(i)
-        if name == "f":
-            return ca.Sparsity.scalar()
-        if name in ("x", "lam_x"):
-            return ca.Sparsity.dense(self.nx)
-        if name in ("g", "lam_g"):
-            return ca.Sparsity.dense(self.ng)
-        return ca.Sparsity(0, 0)
-
-    def eval(self, arg):
-        # Ctrl-C (a KeyboardInterrupt raised here by the SIGINT handler, or by ``fn``) asks the
-        # solver to stop by returning 1 (IPOPT: User_Requested_Stop): an exception escaping a
-        # callback would make CasADi print a 'KeyboardInterruptException' warning on stderr.  The
-        # caller learns of the interrupt from its own record of the signal (problems/cli.py).
-        try:
-            g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
-            viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
-            f = float(arg[ca.nlpsol_out().index("f")])
-            self.fn(Iterate(iteration=self.k, cost=f * self.obj_scale, residual=float(viol.max()) if viol.size else 0.0,
-                            phase=self.phase))
-            self.k += 1
-            return [0]
-        except KeyboardInterrupt:
-            return [1]
-
-
-def ipopt_history(stats: dict, obj_scale: float, phase: str = "") -> list[Iterate]:
-    """The IPOPT (or fatrop) iterations recorded in a solver's stats as Iterates."""
-    it = stats.get("iterations", {}) or {}
-    keys = ("obj", "inf_pr", "inf_du", "alpha_pr")
-    cols = [it.get(k, []) for k in keys]
-    n = max((len(c) for c in cols), default=0)
-    cols = [list(c) + [float("nan")] * (n - len(c)) for c in cols]
-    return [Iterate(iteration=i, cost=float(o) * obj_scale, residual=float(p), dual=float(d), step=float(a), phase=phase)
-            for i, (o, p, d, a) in enumerate(zip(*cols))]
-
-
-def solve_time_split(stats: dict, solve_s: float) -> dict:
-    """Where a solve's wall time went, from CasADi's solver stats (IPOPT and fatrop alike).
-
-    ``evaluations_s`` is the wall time spent in the NLP Functions (objective, constraints, their
-    Jacobian and the Lagrangian Hessian: the ``t_wall_nlp_*`` stats), ``solver_internal_s`` the rest
-    of ``solve_s`` (the solver's own linear algebra, line search and bookkeeping),
-    ``evaluations_by_function`` the split of ``evaluations_s``.  For fatrop also ``fatrop_own_s``:
-    fatrop's own time (its ``time_total`` less its evaluation callbacks).
-    """
-    by = {k[len("t_wall_"):]: float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_")}
-    ev = float(sum(by.values()))
-    out = {"evaluations_s": ev, "solver_internal_s": max(float(solve_s) - ev, 0.0), "evaluations_by_function": by}
-    fat = stats.get("fatrop")
-    if isinstance(fat, dict) and "time_total" in fat:
-        cb = sum(float(fat.get(k, 0.0)) for k in ("eval_hess_time", "eval_jac_time", "eval_cv_time", "eval_grad_time",
-                                                   "eval_obj_time"))
-        out["fatrop_own_s"] = max(float(fat["time_total"]) - cb, 0.0)
-    return out

@@ -1,4 +1,4 @@
-"""The block Functions of the multiple-shooting NLPs (see transcription.nlp for what a block is).
+"""The block Functions of the multiple-shooting NLPs (see :mod:`.structured` for what a block is).
 
 Each builder returns an SX Function ``(v, p) -> (cost, rows)`` in *scaled* variables: the
 physical value of a local variable is v * (its scale), rows are divided by their scales and the
@@ -31,8 +31,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .layout import NU, NX
-from .problem import STATE_COMPONENTS, state_residual
+from ..layout import NU, NX, X_ANG, X_MOM, X_POS
+from ..problem import STATE_COMPONENTS, state_residual
 
 NC = 3
 
@@ -166,7 +166,7 @@ def state_target(fixed: tuple[str, ...]) -> ca.Function:
 
 def state_target_scales(sX: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
     """Row scales of :func:`state_target`: the state scales of each block, 1 for the attitude."""
-    per = {"position": sX[0:3], "velocity": sX[3:6], "attitude": np.ones(3), "angular_velocity": sX[15:18]}
+    per = {"position": sX[X_POS], "velocity": sX[X_MOM], "attitude": np.ones(3), "angular_velocity": sX[X_ANG]}
     return np.concatenate([per[c] for c in fixed])
 
 

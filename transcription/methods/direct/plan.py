@@ -1,0 +1,170 @@
+"""The direct method's initial guesses: which to try, in which order, with which iteration budget, and what to
+try next after a failure (``initial_guess``, :class:`~transcription.options.DirectOptions`).
+
+A plan is a list of (label, maker, budget): the maker makes the :class:`~transcription.guess.Guess` when its
+turn comes (None when it cannot), the budget bounds the NLP iterations from it.  Guesses that are solutions of
+another problem -- the problem without its bounds and path constraints, the time objective's starts on a
+coarser grid -- are solved by ``subsolve`` (the direct method itself, passed in: this module does not
+import the solve).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from ...guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
+from ...layout import U_FORCE, U_MOMENT
+from ...options import DirectOptions
+from ...problem import BoxBound, Problem
+from ...results import Result, Solution
+from ...warm import WarmStart
+from .scaling import scaled_terminal_miss
+
+#: one entry of a plan: (label, maker of the guess (None: not available), NLP iteration budget)
+PlanEntry = tuple[str, Callable[[], "Guess | None"], int]
+#: the direct solve of another problem (a coarser grid, the relaxed problem) with the same options
+SubSolve = Callable[[Problem, DirectOptions], Solution]
+
+#: with initial_guess 'auto', the first guess of an effort problem (see ROLLOUT_FIRST_MISS; the relaxed
+#: problem's solution when there are bounds or path constraints) gets at most this many NLP iterations
+#: before the next one is tried: a solve that needs more is usually wandering.
+AUTO_FIRST_BUDGET = 200
+#: ... and which of the free motion (rollout) and the screw interpolation goes first: the rollout when it
+#: ends within this many characteristic scales of the target (:func:`scaled_terminal_miss`, the terminal
+#: rows as the solver sees them), else the interpolation.  A free motion that misses by far is a poor
+#: start: doubling the orbit radius in one period (configs/everyday/orbit_double.yaml, miss 3.1) takes
+#: > 1100 iterations from the rollout, 5 from the interpolation; the capture from a fast tumble
+#: (capture_fast_tumble.yaml, 1.9) 185 to a local minimum of cost 97.0 against 10 to 32.7.  A near one is a
+#: good start, and the interpolation's defects, spread over every step, cost iterations that grow with N:
+#: E3 (0.52) 6 iterations from the rollout at N = 250, 1000 and 4000 against 7, 8 and 11 from the
+#: interpolation; the 45 deg plane change (0.79) 9 against 12, the detumble (0.93) 6 against 8; E4 (0.78)
+#: is the exception, 7-8 against 6.  Misses of the everyday cases: 0.30 ... 3.1 (docs/everyday.md).
+ROLLOUT_FIRST_MISS = 1.0
+#: ... except for the fuel objective, which starts from the rollout, and whose bang-off-bang solutions take
+#: IPOPT longer from any start (configs/orbit_raise_fuel.yaml: 245 iterations from the rollout to a cost of
+#: 0.818839; the interpolation, tried after 200, needed 743 more and stopped at a worse local minimum, 0.819259)
+AUTO_FIRST_BUDGET_FUEL = 600
+#: with initial_guess 'auto' and the time objective, this many symmetry-breaking starts are solved and
+#: the fastest converged maneuver kept: time-optimal slews have several local minima (the asymmetric
+#: slew of configs/slew_time_optimal.yaml: 28.63 s and 29.41 s, the first-order scheme at N = 100
+#: reaching the latter from seed 0)
+TIME_STARTS = 3
+#: with initial_guess 'auto' and the time objective, the starts are solved on a coarser grid of
+#: max(TIME_COARSE_MIN, N // 4) steps (recursively: that solve does the same), the best converged
+#: maneuver is resampled to N steps and finished there; the fine-grid starts remain the fallback.
+#: Each start costs a quarter (or less) of a fine one and the finish takes few iterations.
+TIME_COARSE_MIN = 25
+
+
+def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> tuple[list[PlanEntry], str]:
+    """The initial guesses to try, as (label, maker, iteration budget), and how to pick the result:
+    'first' (the first that converges), 'best' (the lowest cost of those that converge) or 'coarse'
+    (the time objective: the first entry, the starts solved on a coarser grid and finished on this one,
+    is kept if it converges, else the best of the fine-grid starts that follow); the
+    ``initial_guess`` option (see :class:`~transcription.options.DirectOptions`)."""
+    disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
+
+    def made(kind):
+        return lambda: make_guess(kind, disc, X0, target_estimate(problem), N, T)
+
+    if options.initial_guess != "auto":
+        return [(options.initial_guess, made(options.initial_guess), options.max_iter)], "first"
+    if problem.control.objective == "time":
+        return _time_plan(problem, options, subsolve)
+    if problem.control.objective == "fuel":
+        return [("rollout", made("rollout"), min(options.max_iter, AUTO_FIRST_BUDGET_FUEL)),
+                ("interpolate", made("interpolate"), options.max_iter)], "first"
+    rollout = made("rollout")()           # its final state decides the order (ROLLOUT_FIRST_MISS)
+    order = [("interpolate", made("interpolate")), ("rollout", lambda: rollout)]
+    if scaled_terminal_miss(problem, rollout.X[-1]) <= ROLLOUT_FIRST_MISS:
+        order.reverse()
+    plan = [(*order[0], min(options.max_iter, AUTO_FIRST_BUDGET)), (*order[1], options.max_iter)]
+    relaxed = relaxation(problem)
+    if relaxed is not None:
+        plan.insert(0, ("the solution without bounds and path constraints",
+                        lambda: relaxed_guess(problem, relaxed, options, subsolve),
+                        min(options.max_iter, AUTO_FIRST_BUDGET)))
+    return plan, "first"
+
+
+def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> tuple[list[PlanEntry], str]:
+    """The time objective: TIME_STARTS symmetry-breaking starts, solved on a coarser grid first when there is
+    one (TIME_COARSE_MIN)."""
+    disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
+    size = np.zeros(6)
+    for sl, bound in ((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound)):
+        size[sl] = bound.b if isinstance(bound, BoxBound) else bound.b / np.sqrt(3.0)
+    starts = [(f"interpolate with symmetry-breaking controls (seed {k})",
+               lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
+               options.max_iter) for k in range(TIME_STARTS)]
+    Nc = max(TIME_COARSE_MIN, N // 4)
+    if Nc < N:
+        return [(f"the best start on {Nc} steps, resampled",
+                 lambda: coarse_guess(problem, options, Nc, subsolve), options.max_iter)] + starts, "coarse"
+    return starts, "best"
+
+
+def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: SubSolve) -> Guess | None:
+    """The time objective's starts solved on Nc = max(TIME_COARSE_MIN, N // 4) steps (recursively), the
+    best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
+    the coarse solve did not converge)."""
+    sol = subsolve(problem.replace(N=Nc), options)
+    if not sol.converged or sol.warm is None:
+        return None
+    fitted, _ = sol.warm.fit(problem.N, problem.scheme)
+    return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
+                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h)
+
+
+def relaxation(problem: Problem) -> Problem | None:
+    """The effort problem without its control bounds (a removed control stays removed) and path
+    constraints, whose solution starts the solve of the full one (None if there is nothing to relax or
+    the objective needs its bounds).  The bounded E3 (configs/e3_bounded.yaml): 6 + 37 iterations, 2.4 s,
+    against 200 from the rollout then 37 from the interpolation, 12 s; the keep-out slew 5 + 11
+    against 200 + 12."""
+    c = problem.control
+    removed = c.removed
+    bounds = [b for b, r in zip((c.force_bound, c.moment_bound), removed) if b is not None and not r]
+    if c.objective != "effort" or not (bounds or problem.constraints):
+        return None
+    keep = [b if r else None for b, r in zip((c.force_bound, c.moment_bound), removed)]
+    return problem.replace(control=replace(c, force_bound=keep[0], moment_bound=keep[1]), constraints=())
+
+
+def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, subsolve: SubSolve) -> Guess | None:
+    """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time."""
+    sol = subsolve(relaxed, options)
+    if not sol.converged or sol.warm is None:
+        return None
+    return replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
+                   prepared_on="the relaxed problem", h=None)
+
+
+def warm_guess(warm: WarmStart) -> Guess:
+    """The Guess of a warm start on the problem's grid (fitted: :meth:`~transcription.warm.WarmStart.fit`), with
+    its step size."""
+    return Guess(X=warm.X, U=warm.U, C=cayley_vectors(warm.X), h=warm.h)
+
+
+def failure_hint(sol: Solution, options: DirectOptions) -> str:
+    """What to try next after a direct solve of a smooth problem that did not converge ('' if it did, was
+    interrupted, or its message already says what to change): the settings a user can change with
+    ``--set``, in the order most likely to help.  Why: a failure that only names IPOPT's status leaves the
+    user to guess that another initial guess, more iterations or an easier neighbouring maneuver (reached
+    by continuation) would do."""
+    r = sol.result
+    if sol.converged or r in (Result.interrupted, Result.cayley_failed, Result.invalid_option, Result.non_finite):
+        return ""
+    tips = []
+    if r is Result.acceptable:
+        tips.append("a looser solver.direct.tol (IPOPT stalled at its 'acceptable' level above it) or "
+                    "solver.direct.options.acceptable_iter=0 (keep iterating)")
+    if options.initial_guess != "auto":
+        tips.append("solver.direct.initial_guess=auto (the screw interpolation and the free motion in turn)")
+    elif r is Result.max_iterations:
+        tips.append(f"a larger solver.direct.max_iter (now {options.max_iter})")
+    tips.append("an easier neighbouring maneuver (longer horizon.T, smaller change) reached by continuation: a sweep "
+                "along the changed key with continuation (configs/sweeps/)")
+    return "try " + "; or ".join(tips)

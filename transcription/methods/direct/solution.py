@@ -1,0 +1,101 @@
+"""The Solution of a finished NLP solve of the direct method (IPOPT or fatrop): the controls re-simulated,
+the checks a converged solve must pass, the costates from the multipliers, the warm start it hands on."""
+from __future__ import annotations
+
+import numpy as np
+
+from ...lgvi import CAYLEY_TOL
+from ...nlp.solvers import ipopt_history, solve_time_split
+from ...options import DirectOptions
+from ...problem import Problem, control_activity, objective_value, quadrature_weights, terminal_error
+from ...results import Result, Solution, Trajectory, result_of_solver_status, trajectory
+from ...warm import warm_start_of
+from .transcription import SmoothTranscription
+
+
+def _verdict(status: str, solver: str, err: float, worst_cayley: float, options: DirectOptions) -> tuple[Result, str]:
+    """The result and message of a solve from the solver's status and the re-simulation's terminal error and
+    largest Cayley residual."""
+    result = result_of_solver_status(status)
+    label = "IPOPT" if solver == "ipopt" else solver
+    if result is Result.converged and not err <= options.terminal_tol:
+        result = Result.terminal_error
+        message = (f"{label}: {status}, but the re-simulated terminal error {err:.2e} exceeds terminal_tol "
+                   f"{options.terminal_tol:.1e} (max Cayley residual {worst_cayley:.1e})")
+    elif result is Result.converged:
+        message = f"{label}: {status}; re-simulated terminal error {err:.2e}"
+    else:
+        message = f"{label} did not converge: {status}; re-simulated terminal error {err:.2e}"
+    if not result.successful and not worst_cayley <= CAYLEY_TOL:
+        result = Result.cayley_failed
+        message += (f"; the Cayley equation was not solved in the re-simulation (relative residual "
+                    f"{worst_cayley:.1e}): the rotation per step is too large, use a smaller step h = T/N "
+                    f"(increase horizon.N)")
+    return result, message
+
+
+def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscription, out, stats, status: str,
+                 solver: str, build_s: float, solve_s: float) -> Solution:
+    """The Solution of a finished NLP solve (IPOPT or fatrop): re-simulation, checks, costates, warm start.
+
+    The result is converged iff the solver converged, the re-simulated terminal error is <= terminal_tol and
+    no path constraint is violated by more than terminal_tol."""
+    w = np.array(out["x"]).ravel() * tr.w_scale
+    Xn, U, _ = tr.layout.unpack(w)
+    h = float(w[tr.layout.ih]) if tr.layout.ih is not None else problem.h
+    lam_g = np.array(out["lam_g"]).ravel()
+    g_phys = np.array(out["g"]).ravel() * tr.g_scale
+    Xsim, res = problem.disc.simulate(problem.X0, U, h, problem.N)
+    err = terminal_error(Xsim[-1], problem)
+    traj = trajectory(problem, Xsim, h)
+    worst_cayley = float(np.max(res)) if res.size else 0.0
+    result, message = _verdict(status, solver, err, worst_cayley, options)
+    stats_out = {
+        "solver_status": status,
+        "kkt_tol": float(options.tol),
+        "initial_guess": options.initial_guess,
+        "cayley_variables": tr.layout.with_c,
+        "n_variables": int(tr.layout.n),
+        "n_constraints": int(tr.nlp.ng),
+        "max_defect": float(np.abs(g_phys[tr.defect_rows.ravel()]).max()),
+        "nlp_terminal_error": terminal_error(Xn[:, -1], problem),
+        "max_cayley_residual": worst_cayley,
+        "jit": bool(tr.nlp.compiled),
+        **solve_time_split(stats, solve_s),
+    }
+    if problem.free_time:
+        stats_out["T"] = problem.N * h
+    times = traj.t[1:] if U.shape[1] == problem.N else traj.t
+    activity = control_activity(problem.control, U, quadrature_weights(problem.scheme, problem.N, h), times)
+    if activity:
+        stats_out["bounds"] = activity
+    if problem.constraints:
+        stats_out["constraints"] = _constraint_report(problem, traj, tr, lam_g)
+        worst = min(c["min_margin"] for c in stats_out["constraints"])
+        stats_out["min_constraint_margin"] = worst
+        if result is Result.converged and worst < -options.terminal_tol:
+            result = Result.terminal_error
+            message += f"; a path constraint is violated on the re-simulation by {-worst:.2e}"
+    costates = tr.costates(Xn, lam_g)
+    return Solution(method="direct", solver=solver, result=result, message=message, trajectory=traj,
+                    cost=objective_value(problem, U, h), terminal_error=err,
+                    iterations=int(stats.get("iter_count", 0)), build_s=build_s, solve_s=solve_s, problem=problem,
+                    controls=U, costates=costates, history=ipopt_history(stats, tr.scales.objective), stats=stats_out,
+                    warm=warm_start_of(traj.t, Xsim, U, problem.scheme, "direct", multipliers=tr.multipliers(lam_g),
+                                       nlp_key=tr.nlp.key, costates=costates))
+
+
+def _constraint_report(problem: Problem, traj: Trajectory, tr: SmoothTranscription, lam_g: np.ndarray) -> list[dict]:
+    """Per path constraint: kind, the minimum margin on the re-simulated trajectory (its units), the
+    nodes where it is active (margin within 1e-6 of the constraint's scale) and the largest
+    multiplier (physical units of the cost per unit of the smooth form g >= 0)."""
+    out = []
+    for con, rows in zip(problem.constraints, tr.constraint_rows):
+        margin = con.margin(traj)
+        mult = np.abs(tr.scales.objective * lam_g[rows] / tr.g_scale[rows])
+        active = np.flatnonzero(margin[1:] <= 1e-6 * max(1.0, np.abs(margin).max())) + 1
+        out.append({"kind": con.kind, "dimension": con.dimension, "min_margin": float(margin.min()),
+                    "active_nodes": int(active.size),
+                    "active_times": [float(traj.t[active[0]]), float(traj.t[active[-1]])] if active.size else [],
+                    "max_multiplier": float(mult.max()) if mult.size else 0.0})
+    return out

@@ -1,0 +1,168 @@
+"""The direct method's solve: the initial guesses of the plan tried in turn on the one NLP, fatrop first when
+asked for, the Solution that says what was tried."""
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from ...guess import Guess
+from ...nlp.solvers import ipopt_options, make_ipopt
+from ...options import DirectOptions
+from ...problem import Problem
+from ...results import Attempt, Result, Solution
+from ...warm import WarmStart
+from ..base import Progress, failed_solution
+from .fatrop import try_fatrop
+from .plan import PlanEntry, failure_hint, guess_plan, warm_guess
+from .solution import nlp_solution
+from .transcription import SmoothTranscription
+
+
+class _PlanRun:
+    """The guesses of a plan solved in turn on one NLP (built once), with IPOPT solvers by iteration budget;
+    the attempts made and the totals of build time, solve time and iterations of all of them."""
+
+    def __init__(self, problem: Problem, options: DirectOptions, progress: Progress | None, warm: WarmStart | None):
+        self.problem, self.options, self.progress = problem, options, progress
+        t0 = time.perf_counter()
+        self.tr = SmoothTranscription(problem, options)
+        self.build_s = time.perf_counter() - t0
+        # a warm start's multipliers start IPOPT's duals only on an NLP of the same structure
+        self.nu0 = warm.multipliers if warm is not None and warm.nlp_key == self.tr.nlp.key else None
+        self.solvers: dict[int, ca.Function] = {}
+        self.attempts: list[Attempt] = []
+        self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
+
+    def solver(self, budget: int) -> ca.Function:
+        if budget not in self.solvers:
+            t0 = time.perf_counter()
+            ipopt = ipopt_options(self.options.replace(max_iter=budget), warm_duals=self.nu0 is not None)
+            self.solvers[budget] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress, self.tr.scales.objective)
+            self.extra_build_s += time.perf_counter() - t0
+        return self.solvers[budget]
+
+    def attempt(self, label: str, guess: Guess, budget: int) -> Solution:
+        """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
+        making the guess too."""
+        tr, solver = self.tr, self.solver(budget)
+        args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
+        if self.nu0 is not None:
+            args["lam_g0"] = tr.scaled_multipliers(self.nu0)
+        t0 = time.perf_counter()
+        out = solver(**args)
+        solve_s = time.perf_counter() - t0
+        self.solve_s += solve_s
+        stats = solver.stats()
+        sol = nlp_solution(self.problem, self.options, tr, out, stats, str(stats.get("return_status", "unknown")),
+                           "ipopt", self.build_s, solve_s)
+        if guess.iterations:   # the relaxed problem's (or the coarse grid's) solve counts: its iterations and time
+            sol.iterations += guess.iterations
+            sol.solve_s += guess.seconds
+            self.solve_s += guess.seconds
+        self.iterations += sol.iterations
+        self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
+                                     guess.iterations, guess.prepared_on))
+        sol.stats["initial_guess"] = label
+        return sol
+
+    def run(self, plan: list[PlanEntry], pick: str) -> Solution | None:
+        """The plan's guesses in turn (:func:`~transcription.methods.direct.plan.guess_plan` says how ``pick``
+        chooses); the Solution chosen, or None if no guess could be solved."""
+        sol, best = None, None
+        for label, maker, budget in plan:
+            guess = maker()
+            if guess is None:
+                self.attempts.append(Attempt(label, None, note="not available (the "
+                                             f"{'coarse-grid' if pick == 'coarse' else 'relaxed'} problem did not "
+                                             "converge)"))
+                continue
+            if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
+                self.attempts.append(Attempt(label, None, note="not finite"))
+                continue
+            sol = self.attempt(label, guess, budget)
+            if sol.converged and (best is None or sol.cost < best.cost):
+                best = sol
+            if sol.result is Result.interrupted or (sol.converged and pick == "first"):
+                break
+            if pick == "coarse" and guess.prepared_on == "the coarse grid" and sol.converged:
+                break   # finished on the fine grid: the fine-grid starts are only the fallback
+        if sol is None:
+            return None
+        return best if best is not None and sol.result is not Result.interrupted else sol
+
+
+def not_covered(problem: Problem) -> str:
+    """What of ``problem`` the direct method's NLP does not cover: impulsive control (its impulsive solver does)."""
+    return "" if problem.kind == "smooth" else "impulsive control (the direct method's impulsive solver covers it)"
+
+
+def solve_direct(problem: Problem, options: DirectOptions | None = None, progress: Progress | None = None,
+                 warm: WarmStart | None = None) -> Solution:
+    """Solve a smooth-control ``problem`` by the direct method (transcription.methods.direct); failures are data.
+
+    The initial guesses of :func:`~transcription.methods.direct.plan.guess_plan` are tried in order until one
+    converges (``Solution.attempts`` and the message say which were tried; ``iterations``, ``build_s`` and
+    ``solve_s`` are those of all of them).  ``warm``: a :class:`~transcription.warm.WarmStart` (of any method,
+    N and scheme: fitted to this grid, :meth:`~transcription.warm.WarmStart.fit`) is the only initial guess,
+    and its NLP multipliers, if it carries those of an NLP of the same structure, start IPOPT's duals; the
+    message and ``stats['warm_start']`` say what was resampled and what was not reused.
+
+    Smooth control: controls (6, n_controls) [u_f inertial; u_m body]; trajectory = the re-simulation from X0
+    with those controls; terminal_error on it; costates (N, 12) from the multipliers.  The result is
+    converged iff the solver converged, the re-simulated terminal error is <= terminal_tol and no path
+    constraint is violated by more than terminal_tol.
+    """
+    options = options or DirectOptions()
+    if problem.kind != "smooth":
+        raise ValueError("the direct method's NLP solves smooth-control problems (impulsive ones: "
+                         "transcription.methods.impulsive)")
+    notes: tuple[str, ...] = ()
+    origin = warm.describe() if warm is not None else ""
+    if warm is not None:
+        warm, notes = warm.fit(problem.N, problem.scheme)
+        plan, pick = [("warm start", lambda: warm_guess(warm), options.max_iter)], "first"
+    else:
+        plan, pick = guess_plan(problem, options, solve_direct)
+    fallback: dict = {}
+    if options.solver == "fatrop":
+        fsol, fallback = try_fatrop(problem, options, plan[0][1])
+        if fsol is not None:
+            return _with_warm_notes(fsol, warm, origin, notes, used_duals=False)
+    run = _PlanRun(problem, options, progress, warm)
+    sol = run.run(plan, pick)
+    if sol is None:
+        return failed_solution(problem, "direct", options.solver, Result.non_finite,
+                               "the initial guess is not finite (overflow or a singular potential along the free "
+                               "motion): check the model and the states")
+    # every guess tried counts: iterations and times are those of the whole solve
+    sol.build_s, sol.solve_s, sol.iterations = run.build_s + run.extra_build_s, run.solve_s, run.iterations
+    sol.attempts = tuple(run.attempts)
+    if len(run.attempts) > 1:
+        sol.message += "; initial guesses tried: " + "; ".join(a.line() for a in run.attempts)
+    hint = failure_hint(sol, options) if warm is None else ""
+    if hint:
+        sol.stats["hint"] = hint
+        sol.message += f"; {hint}"
+    if fallback:
+        sol.stats.update(fallback)
+        sol.message = f"{fallback['fatrop_message']}; IPOPT fallback: {sol.message}"
+        sol.build_s += fallback["fatrop_build_s"]
+        sol.solve_s += fallback["fatrop_solve_s"]
+    return _with_warm_notes(sol, warm, origin, notes, used_duals=run.nu0 is not None)
+
+
+def _with_warm_notes(sol: Solution, warm: WarmStart | None, origin: str, notes: tuple[str, ...],
+                     used_duals: bool) -> Solution:
+    """The Solution with what became of the warm start in its message and stats: ``warm_start`` (where it came
+    from), ``warm_start_resampled``, ``warm_start_notes`` (what was resampled, what was not reused)."""
+    if warm is None:
+        return sol
+    said = list(notes)
+    if not used_duals and not any("multipliers" in n for n in said):
+        why = "the warm start carries none" if warm.multipliers is None else "they belong to an NLP of another structure"
+        said.append(f"IPOPT's multipliers started cold ({why})")
+    sol.stats.update(warm_start=origin, warm_start_resampled=bool(notes), warm_start_notes="; ".join(said))
+    sol.message += f"; warm start from {origin}" + "".join(f"; {n}" for n in said)
+    return sol

@@ -1,0 +1,91 @@
+"""The impulsive two-point boundary value problem (a state target, E1): the six conditions on x_N and R_N solved
+for the momenta after the first impulse by the shared Newton-Armijo (docs/mathematics.md §5)."""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ...layout import Z_POS, Z_ROT, unpack_states
+from ...lgvi import CAYLEY_TOL
+from ...lie import log_so3_any, right_jacobian_inv
+from ...newton import NewtonResult, newton_armijo
+from ...problem import Problem, TargetOrbit, TargetState
+from ...results import Iterate
+from .sensitivity import P_COLS, sensitivity, with_momenta
+
+#: Newton target for the six TPBVP conditions (|r|_inf) and its iteration limit
+NEWTON_TOL = 1e-13
+NEWTON_MAX_ITER = 50
+#: the TPBVP line search halves down to c ~ 1e-10
+NEWTON_MAX_HALVINGS = 34
+#: consecutive line-search steps below 1e-2 after which Newton gives up (stagnated)
+STAGNATION_STEPS = 8
+
+
+def tpbvp_residual(XN: np.ndarray, Xd: np.ndarray) -> np.ndarray:
+    """r = [x_N - x_d; vee log(R_d^T R_N)] (6,): the six conditions of the TPBVP."""
+    a, d = unpack_states(XN), unpack_states(Xd)
+    return np.concatenate([a.x[0] - d.x[0], log_so3_any(d.R[0].T @ a.R[0])])
+
+
+def tpbvp_jacobian(XN: np.ndarray, Xd: np.ndarray, Phi: np.ndarray) -> np.ndarray:
+    """dr/dp (6 x 6) from Phi: rows x and Jr^-1 zeta, columns gamma_0 and Pi_0."""
+    e = tpbvp_residual(XN, Xd)[3:]
+    return np.vstack([Phi[Z_POS][:, P_COLS], right_jacobian_inv(e) @ Phi[Z_ROT][:, P_COLS]])
+
+
+def initial_momenta(problem: Problem, kind: str) -> np.ndarray:
+    """p from the initial state ('rollout': no impulse) or, for a state target, 'interpolate':
+    Pi_0^+ = J log(R_0^T R_d) / T (the constant rate that turns R_0 into R_d)."""
+    a = unpack_states(problem.X0)
+    p = np.concatenate([a.gamma[0], a.Pi[0]])
+    if kind == "interpolate" and isinstance(problem.terminal, TargetState):
+        d = unpack_states(problem.terminal.X)
+        p[3:] = problem.disc.J @ log_so3_any(a.R[0].T @ d.R[0]) / problem.T
+    return p
+
+
+def simulate_momenta(problem: Problem, p: np.ndarray) -> tuple[np.ndarray, float]:
+    """Free rollout (N+1, 18) from X0 with momenta p, and its largest relative Cayley residual."""
+    X, res = problem.disc.simulate(with_momenta(problem.X0, p), None, problem.h, problem.N)
+    return X, float(np.max(res)) if res.size else 0.0
+
+
+def momentum_scales(problem: Problem) -> np.ndarray:
+    """Characteristic sizes of p = (gamma_0^+, Pi_0^+) (6,): max(|gamma_0|, m L / T) and
+    max(|Pi_0|, lambda_max(J) / T).  Used to scale the unknowns and to cap Newton steps."""
+    a0 = unpack_states(problem.X0)
+    J, T = problem.disc.J, problem.T
+    L = max(np.abs(a0.x).max(), float(problem.terminal.radius) if isinstance(problem.terminal, TargetOrbit)
+            else np.abs(unpack_states(problem.terminal.X).x).max())
+    sg = max(np.abs(a0.gamma).max(), problem.model.mass * L / T)
+    sP = max(np.abs(a0.Pi).max(), np.linalg.eigvalsh(J)[-1] / T)
+    return np.r_[np.full(3, sg), np.full(3, sP)]
+
+
+def solve_tpbvp(problem: Problem, p0: np.ndarray, tol: float = NEWTON_TOL, max_iter: int = NEWTON_MAX_ITER,
+                alpha: float = 1e-4, progress: Callable[[Iterate], None] | None = None) -> tuple[NewtonResult, np.ndarray]:
+    """Newton-Armijo on the six conditions from p0; returns (NewtonResult, X of its last point)."""
+    Xd = problem.terminal.X
+    memo: dict[bytes, tuple[np.ndarray, float]] = {}
+
+    def rollout(p):
+        key = p.tobytes()
+        if key not in memo:
+            memo.clear()
+            memo[key] = simulate_momenta(problem, p)
+        return memo[key]
+
+    def residual(p):
+        X, res = rollout(p)
+        return (tpbvp_residual(X[-1], Xd) if np.all(np.isfinite(X[-1])) else np.full(6, np.nan)), res
+
+    def jacobian(p):
+        X, _ = rollout(p)
+        return tpbvp_jacobian(X[-1], Xd, sensitivity(problem.disc, X, problem.h))
+
+    nr = newton_armijo(p0, residual, jacobian, tol=tol, norm=np.inf, alpha=alpha, max_iter=max_iter,
+                       max_halvings=NEWTON_MAX_HALVINGS, aux_tol=CAYLEY_TOL, step_scale=momentum_scales(problem),
+                       stagnation_steps=STAGNATION_STEPS, progress=progress)
+    return nr, rollout(nr.x)[0]

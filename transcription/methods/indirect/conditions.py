@@ -1,0 +1,135 @@
+"""The discrete necessary conditions of the indirect method as per-step CasADi Functions (docs/mathematics.md
+§6, §10): the forward map of states and costates, and the terminal residual.  The derivation is in the
+package docstring (:mod:`transcription.methods.indirect`); the LGVI's in :data:`LGVI_CONDITIONS`."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import casadi as ca
+
+from ...layout import NU, NX, NZ, join_state, split_state
+from ...lgvi import Discretization
+from ...lie import orthonormalize
+from ...problem import state_residual
+from .control import NB, control_law
+from .elimination import solve_unpivoted
+
+
+def terminal_residual_function() -> ca.Function:
+    """(XN[18], Xd[18]) -> zN[12]: :func:`~transcription.problem.state_residual` with every component
+    (positions and linear momenta inertial, Pi body; the attitude error the rotation vector of
+    R_d^T R_N, body frame at the target, three conditions)."""
+    XN = ca.SX.sym("XN", NX)
+    Xd = ca.SX.sym("Xd", NX)
+    return ca.Function("terminal_residual", [XN, Xd], [state_residual(XN, Xd)], ["XN", "Xd"], ["zN"])
+
+
+def orthonormalized(X):
+    """X with R replaced by :func:`~transcription.lie.orthonormalize` (R) = R (3 I - R^T R) / 2.
+
+    Used only for the argument of A_k: the readback vee(skew(Rbar^T dR))
+    of docs/mathematics.md §4 is sensitive to R^T R != I, and the round-off drift of R^T R, which
+    persists from step to step, would otherwise dominate the round-off floor of the
+    shooting residual (measured on E3, N = 100: 1-ulp per-step perturbations of R normal
+    to SO(3) moved z_N 4x more than tangent ones).
+    """
+    x, gamma, R, Pi = split_state(X)
+    return join_state(x, gamma, orthonormalize(R), Pi)
+
+
+def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv, bd) -> (X1, lam, u, res, lam_res, A, c, D), one signature for
+    both schemes."""
+    return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv", "bd"],
+                       ["X1", "lam", "u", "res", "lam_res", "A", "c", "D"])
+
+
+def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
+    """One step of the forward map of the necessary conditions, as SX expressions.
+
+    The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
+    not depend on u_{k+1}) for the step (``disc.step_given_c``: X1 and res are those of ``disc.step``).
+    A_k = ``disc.variation`` at orthonormalized(X) (forward AD through the unrolled Newton iterations).
+    ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
+    accurate, but its different rounding changes the iteration counts at the round-off floor that tests
+    pin; the costate map gives the same values as before, bit for bit.
+    Returns a dict with c (the Cayley root), A, lam, u (u_{k+1}), D (its saturation Jacobian), X1, res
+    and control (lambda -> (u, D)).
+    """
+    control = control_law(disc, h, Winv, bd)
+    zero = ca.DM.zeros(NU)
+    if disc.scheme == "first_order":
+        wA, stage = zero, (lambda u1: u1)
+    else:
+        uk = control(lam_prev)[0]
+        wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
+    c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
+    A = disc.variation(orthonormalized(X), wA, h)[0]
+    lam = solve_unpivoted(A.T, lam_prev)
+    u, D = control(lam)
+    X1 = disc.step_given_c(X, c, stage(u), h)[0]
+    return {"c": c, "A": A, "lam": lam, "u": u, "D": D, "X1": X1, "res": hist[-1], "control": control}
+
+
+@lru_cache(maxsize=None)
+def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
+    """The forward map of the necessary conditions for ``disc``.
+
+    Returns (costate_map, first_step); both built from the step and its variation A_k
+    (:func:`_forward_step`; B_k from :func:`control_matrix`).
+
+    first_order (module docstring):
+
+    * costate_map (X[18], lam_prev[12], h, Winv[6x6], bd[NB]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12],
+      c[3], D[6x6]): X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
+      u = u_{k+1} = sat(-(1/h) Winv B_k^T lambda_k) (26)-(27), saturated to the bounds bd
+      (:func:`saturate`; D its Jacobian); X1 = X_{k+1} = step(X_k, u_{k+1});
+      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf;
+      A = A_k and c the root of the step's Cayley equation, for the linearization
+      (:func:`linearization_functions`) along the same rollout.
+    * first_step (X0[18], lam0[12], h, Winv, bd) -> (X1[18], u[6], res): the k = 0 step,
+      where lambda_0 is the unknown itself.
+
+    lgvi (see :data:`LGVI_CONDITIONS`): costate_map has the same signature with
+    u = u_{k+1}; it also computes u_k = -(2/h) Winv B^b^T lambda_{k-1} and
+    A_k = A(X_k, u_k).  first_step is None (the map is applied N times from lambda_{-1}).
+    """
+    X = ca.SX.sym("X", NX)
+    lam_prev = ca.SX.sym("lam_prev", NZ)
+    h = ca.SX.sym("h")
+    Winv = ca.SX.sym("Winv", NU, NU)
+    bd = ca.SX.sym("bd", NB)
+    s = _forward_step(disc, X, lam_prev, h, Winv, bd)
+    lam_res = ca.norm_inf(ca.mtimes(s["A"].T, s["lam"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv, bd],
+                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"], s["D"]])
+    if disc.scheme != "first_order":
+        return costate_map, None
+    lam0 = ca.SX.sym("lam0", NZ)
+    u0 = s["control"](lam0)[0]
+    X1, res = disc.step(X, u0, h)
+    first_step = ca.Function(
+        "first_order_costate_first_step", [X, lam0, h, Winv, bd], [X1, u0, res], ["X0", "lam0", "h", "Winv", "bd"],
+        ["X1", "u", "res"]
+    )
+    return costate_map, first_step
+
+
+#: The second-order LGVI (docs/mathematics.md §2, node controls u_0..u_N, stage control w_k = [u_k; u_{k+1}],
+#: cost sum_j omega_j (1/2) u_j^T W u_j with trapezoidal omega = h (1/2, 1, ..., 1, 1/2), as in
+#: the direct method), derived with the same Lagrangian L = J + sum_k lambda_k^T (step ⊖ X_{k+1}).
+LGVI_CONDITIONS = """
+z_{k+1} = A_k z_k + B^a_k du_k + B^b du_{k+1}.  Stationarity in z_k (k = 1..N-1):
+lambda_{k-1} = A_k^T lambda_k.  In u_j:  omega_j W u_j + B^a_j^T lambda_j + B^b^T lambda_{j-1} = 0
+(terms absent for j = N resp. j = 0).  In eqs. (7)-(11) u_k enters exactly as a momentum kick
+(gamma_k, Pi_k) += (h/2) u_k before the step, with f_k, M_k unchanged, so B^a_k = A_k B^b
+(tested) and, with lambda_{-1} := A_0^T lambda_0 (the multiplier of the initial condition),
+stationarity reads uniformly for j = 0..N
+
+    u_j = -(2/h) W^-1 B^b^T lambda_{j-1} = -W^-1 [lambda^2_{j-1}; lambda^4_{j-1}]   (omega_j = h inside,
+                                                                              h/2 at both ends)
+
+A_k depends on u_k but not on u_{k+1}, so the recursion runs forward from the unknown lambda_{-1}:
+u_k from lambda_{k-1}; lambda_k = A_k(X_k, u_k)^-T lambda_{k-1}; u_{k+1} from lambda_k;
+X_{k+1} = step(X_k, [u_k; u_{k+1}]).  The shooting unknown is lambda_{-1} (12), the residual z_N.
+"""

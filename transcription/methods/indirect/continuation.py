@@ -1,0 +1,119 @@
+"""The indirect method's outer loops around the fixed-problem Newton iteration: the continuation in the control
+bounds from the unbounded problem, and the free final time (docs/mathematics.md §10)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...layout import NU, U_FORCE, U_MOMENT
+from .control import NO_NORM
+
+#: bound continuation (indirect method from lambda_0 = 0): the stages of the bounds' geometric path from
+#: the unbounded peak to the given bounds, tried when the step from the unbounded solution fails
+CONTINUATION_STAGES = 4
+
+
+def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
+    """Newton from lambda_0 = 0 on the unbounded problem (removed controls stay removed), then on the
+    bounded one from its solution; if that fails, along CONTINUATION_STAGES bounds shrinking
+    geometrically from the unbounded controls' peaks to bd.  A semismooth Newton method converges
+    locally; this brings it there.  Returns the last stage's NewtonResult (its history and iteration
+    count those of all stages) and a line per stage."""
+    free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM]
+    first = newton(lam, free_bd, "unbounded")
+    history, iters, stages = list(first.history), first.iterations, [f"unbounded: {first.result.value} in "
+                                                                      f"{first.iterations} iterations"]
+    if not first.result.successful:
+        first.message = f"the unbounded first stage of the bound continuation: {first.message}"
+        return first, stages
+    U = np.array(fns.shoot(first.x, *args, free_bd)[3])
+    peak = np.r_[np.abs(U).max(axis=1), [np.linalg.norm(U[sl], axis=0).max() ** 2 for sl in (U_FORCE, U_MOMENT)]]
+    paths = [[1.0], [(j + 1) / CONTINUATION_STAGES for j in range(CONTINUATION_STAGES)]]
+    for path in paths:
+        x, ok = first.x, True
+        for t in path:
+            # bounds at fraction t of the way (geometrically) from max(peak, bound) down to the bound
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(np.isfinite(bd) & (bd > 0) & (bd < NO_NORM), np.maximum(peak / bd, 1.0), 1.0)
+            stage_bd = np.where(ratio > 1.0, bd * ratio ** (1.0 - t), bd)
+            nr = newton(x, stage_bd, f"bounds {t:.2g}")
+            history += nr.history
+            iters += nr.iterations
+            stages.append(f"bounds at {t:.2g} of the way: {nr.result.value} in {nr.iterations} iterations")
+            x, ok = nr.x, nr.result.successful
+            if not ok:
+                break
+        if ok:
+            break
+    nr.history, nr.iterations = history, iters
+    return nr, stages
+
+
+#: free final time (indirect): outer iterations on the step size, and their relative step tolerance
+FREE_TIME_MAX_OUTER = 30
+FREE_TIME_RTOL = 1e-11
+
+
+def free_final_time(solve_at, dL_dh, lam, h, lo, hi, N) -> tuple[Any, float, dict]:
+    """The free-final-time condition: the step size h in [lo, hi] with dJ*/dh = dL/dh = 0 (or at a bound
+    with dL/dh pointing out of the interval), by a safeguarded secant iteration on the scalar g(h) = dL/dh,
+    each g from a fixed-h shooting solved from the previous lambda_0.
+
+    Secant steps keep inside the bracket of a sign change once one is known (bisection when a secant step
+    leaves it); before that they are clipped to [lo, hi], and a bound where g keeps its sign is the
+    answer.  Stops when the step is below FREE_TIME_RTOL h.  Returns (the NewtonResult at the final h
+    -- its history and iterations those of every inner solve --, h, a summary for the stats)."""
+    history, iters, evals = [], 0, []
+
+    def at(h, lam, first=False):
+        nr = solve_at(lam, h, first, f"T = {N * h:.10g}: ")
+        nonlocal iters
+        history.extend(nr.history)
+        iters += nr.iterations
+        g = dL_dh(nr.x, h) if nr.result.successful else np.nan
+        evals.append((float(N * h), float(g)))
+        return nr, g
+
+    def done(nr, h, converged, message):
+        nr.history, nr.iterations = history, iters
+        return nr, h, {"converged": converged, "T": N * h, "dL_dh": evals[-1][1], "evaluations": evals,
+                       "message": message}
+
+    h = min(max(h, lo), hi)
+    nr, g = at(h, lam, first=True)
+    below, above = (lo, None), (hi, None)          # the bracket: g < 0 at below, g > 0 at above
+    prev = None
+    for _ in range(FREE_TIME_MAX_OUTER):
+        if not nr.result.successful:
+            return done(nr, h, False, f"free final time: the shooting at T = {N * h:.10g} failed")
+        if g == 0.0:
+            return done(nr, h, True, f"free final time T = {N * h:.12g} (dL/dh = 0)")
+        if g < 0:
+            below = (h, g)
+        else:
+            above = (h, g)
+        if (g < 0 and h >= hi) or (g > 0 and h <= lo):
+            return done(nr, h, True, f"free final time at its bound T = {N * h:.12g} (dL/dh = {g:.3e} points "
+                                     "out of the interval)")
+        if prev is None:    # a first secant point: a small step downhill
+            cand = h * (1.0 - 1e-3 * np.sign(g))
+        else:
+            hp, gp = prev
+            cand = h - g * (h - hp) / (g - gp) if g != gp else np.nan
+        a, b = below[0], above[0]
+        if below[1] is not None and above[1] is not None:
+            if not (min(a, b) < cand < max(a, b)):
+                cand = 0.5 * (a + b)
+        elif not np.isfinite(cand):
+            cand = hi if g < 0 else lo
+        cand = min(max(cand, lo), hi)
+        step = abs(cand - h)
+        prev = (h, g)
+        nr, g = at(cand, nr.x)
+        h = cand
+        if step <= FREE_TIME_RTOL * h and nr.result.successful:
+            return done(nr, h, True, f"free final time T = {N * h:.12g} (dL/dh = {g:.3e}, last step "
+                                     f"{step / h:.1e} h, {len(evals)} shootings)")
+    return done(nr, h, False, f"free final time: no convergence in {FREE_TIME_MAX_OUTER} outer iterations "
+                              f"(T = {N * h:.12g}, dL/dh = {g:.3e})")

@@ -1,0 +1,122 @@
+"""The control of the indirect method: the saturated law u = sat(-(s/h) W^-1 B_c^T lambda) of the costate
+(docs/mathematics.md §6, §10), the control bounds as data, and the effort cost."""
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+
+from ...layout import NU, NX, U_FORCE, U_MOMENT
+from ...lgvi import Discretization
+from ...problem import BoxBound, NormBound, Problem, effort_cost, quadrature_weights
+
+#: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
+#: component has no box, 0 where a norm bound of 0 removes the control) and the squared norm bounds
+#: (2: force, moment; NO_NORM where a block has no norm bound)
+NB = 8
+NO_NORM = 1e300
+
+
+def saturate(v, bd):
+    """u = the minimizer of (1/2) u^T W u - u^T W v over the control bounds, for the unconstrained minimizer v
+    (6; docs/mathematics.md §10): each component clipped to its box, then each block scaled into its norm ball,
+
+        u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2)).
+
+    Exact for the weights the indirect method accepts (a box with a diagonal block of W, a norm with an
+    isotropic one, see :func:`~transcription.methods.indirect.solve.not_covered`; a block has one kind of
+    bound).  Without bounds (b = inf, n^2 = NO_NORM) u = v bit for bit.  The squared form keeps the derivative finite at u = 0.
+    """
+    u = ca.fmin(ca.fmax(v, -bd[:NU]), bd[:NU])
+    blocks = []
+    for i, sl in enumerate((U_FORCE, U_MOMENT)):
+        ub, n2 = u[sl], bd[NU + i]
+        blocks.append(ub * ca.sqrt(n2 / ca.fmax(ca.dot(ub, ub), n2)))
+    return ca.vertcat(*blocks)
+
+
+@lru_cache(maxsize=None)
+def saturation() -> ca.Function:
+    """``saturation`` (v[6], bd[NB]) -> (u[6], D[6x6]): :func:`saturate` and its (generalized) Jacobian
+    D = du/dv, the element of the Clarke Jacobian that CasADi's derivatives of min/max pick (the active
+    branch; 1/2 at an exact tie) -- what the semismooth Newton method differentiates through."""
+    v, bd = ca.SX.sym("v", NU), ca.SX.sym("bd", NB)
+    u = saturate(v, bd)
+    return ca.Function("saturation", [v, bd], [u, ca.jacobian(u, v)], ["v", "bd"], ["u", "D"])
+
+
+def bound_data(problem: Problem) -> np.ndarray:
+    """The bound data ``bd`` (NB) of a smooth-control problem (see :data:`NB`)."""
+    bd = np.r_[np.full(NU, np.inf), NO_NORM, NO_NORM]
+    for i, (sl, bound) in enumerate(((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound))):
+        if isinstance(bound, BoxBound):
+            bd[sl] = bound.b
+        elif isinstance(bound, NormBound) and bound.b == 0:
+            bd[sl] = 0.0
+        elif isinstance(bound, NormBound):
+            bd[NU + i] = bound.b ** 2
+    return bd
+
+
+def bounded(bd: np.ndarray) -> bool:
+    """Whether bound data bd bounds a control (a removed control, b = 0, is structure, not a bound)."""
+    box = bd[:NU]
+    return bool(np.any(np.isfinite(box) & (box > 0)) or np.any(bd[NU:] < NO_NORM))
+
+
+@lru_cache(maxsize=None)
+def control_matrix(disc: Discretization) -> ca.Function:
+    """``{scheme}_control_matrix`` (h) -> B_c[12x6]: the tangent-coordinate derivative of X_{k+1} by the
+    control that the costate lambda_k determines (first_order: B_k w.r.t. u_{k+1}; lgvi: B^b).
+
+    Taken from the graph (``disc.variation_seeded``) and checked, when built, to be constant (no
+    dependence on X_k or the stage control), and the Cayley right-hand side g_k to be independent of
+    that control: the assumptions of the forward costate recursion.  The controls are
+    u = -(s/h) Winv B_c^T lambda with s = 1 (first_order) or 2 (lgvi, see LGVI_CONDITIONS).
+    """
+    X = ca.SX.sym("X", NX)
+    w = ca.SX.sym("w", disc.nw)
+    h = ca.SX.sym("h")
+    c0 = ca.SX.sym("c0", 3)
+    A, B = disc.variation_seeded(X, w, h, c0)
+    wb = w if disc.scheme == "first_order" else w[NU:]  # the control lambda_k determines
+    Bc = B[:, -NU:]
+    if ca.depends_on(A, wb) or ca.depends_on(Bc, ca.vertcat(X, w, c0)) or \
+            ca.depends_on(disc.cayley_rhs(X, w, h), wb):
+        raise ValueError("A_k or the Cayley equation depends on the control determined by lambda_k, or its B is not "
+                         "constant: the forward costate recursion does not apply")
+    return ca.Function(f"{disc.scheme}_control_matrix", [h], [Bc], ["h"], ["B"])
+
+
+def control_scale(disc: Discretization) -> float:
+    """s of the control law: 1 (first_order) or 2 (lgvi, see LGVI_CONDITIONS in .conditions)."""
+    return 1.0 if disc.scheme == "first_order" else 2.0
+
+
+def control_law(disc: Discretization, h, Winv, bd) -> Callable:
+    """The one saturated control law of the costate (SX or MX alike): lambda -> (u, D),
+
+        u = sat(-(s/h) Winv B_c^T lambda),   D = du/dv (the saturation's generalized Jacobian, :func:`saturation`)
+
+    with B_c = :func:`control_matrix` (built once here) and s = :func:`control_scale` (first_order: u_{k+1}
+    from lambda_k, eqs. 26-27; lgvi: u_j from lambda_{j-1})."""
+    Bc = control_matrix(disc)(h)
+    scale = control_scale(disc)
+
+    def law(lam):
+        return saturation()(-scale * ca.mtimes(Winv, ca.mtimes(Bc.T, lam)) / h, bd)
+
+    return law
+
+
+def weight_inverse(problem: Problem) -> np.ndarray:
+    """blkdiag(W_f, W_m)^-1 (6x6) of a smooth-control problem."""
+    return np.linalg.inv(problem.control.W)
+
+
+def control_cost(problem: Problem, U: np.ndarray, h: float | None = None) -> float:
+    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme at step
+    size h (default: the problem's)."""
+    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.h if h is None else h))

@@ -1,0 +1,138 @@
+"""The linearization of the indirect method's forward map (docs/mathematics.md §6 (29)-(31)): the exact
+Jacobian Psi of the shooting residual by the linearized recursion along the rollout."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import casadi as ca
+
+from ...layout import NU, NX, NZ, chart, tangent_readback
+from ...lgvi import Discretization
+from .conditions import costate_functions, orthonormalized, terminal_residual_function
+from .control import NB, control_law, control_matrix, control_scale
+from .elimination import unpivoted_elimination, unpivoted_substitution
+
+
+@lru_cache(maxsize=None)
+def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
+    """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam] at z = 0.
+
+    The derivative of the costate back-solve's matrix along a state variation, contracted with the
+    costate first: A^T lam is the gradient in z of lam^T readback(step(chart(X, z))) (one reverse
+    sweep; the readback is linear), and H its Jacobian in the chart coordinates of X (12 forward
+    directions), instead of 12 forward directions through all 144 entries of A.  The step is the
+    seeded one (two Newton iterations from the root c0 of step X's Cayley equation: exact up to
+    third derivatives there), so H is exact.
+    """
+    X = ca.SX.sym("X", NX)
+    w = ca.SX.sym("w", disc.nw)
+    lam = ca.SX.sym("lam", NZ)
+    h = ca.SX.sym("h")
+    c0 = ca.SX.sym("c0", 3)
+    z, zp = ca.SX.sym("z", NZ), ca.SX.sym("zp", NZ)
+    X1z = disc.step_seeded(chart(chart(X, zp), z), w, h, c0)
+    base = ca.SX.sym("base", NX)  # the readback point X_{k+1}(zp), not differentiated in z
+    g = ca.gradient(ca.dot(lam, tangent_readback(base, X1z)), z)
+    # one substitution for both, so that the step at z = 0 is one graph (not two copies, each differentiated)
+    v, X1p = ca.substitute([g, X1z], [z], [ca.DM.zeros(NZ)])
+    v = ca.substitute(v, base, X1p)
+    H = ca.substitute(ca.jacobian(v, zp), zp, ca.DM.zeros(NZ))
+    return ca.Function(f"{disc.scheme}_adjoint_variation_jacobian", [X, w, lam, h, c0], [H],
+                       ["X", "w", "lam", "h", "c0"], ["H"])
+
+
+def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
+    """The linearization of the costate forward map (docs/mathematics.md §6 (29)-(31)) along a rollout of the costate map.
+
+    Returns (costate_hessian, linearized_map):
+
+    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB]) -> H[12x12]
+        H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
+        orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
+        seeded with the step's Cayley root c (an output of the costate map).
+    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], Dk[6x6], D1[6x6], h, Winv[6x6])
+            -> (dZ1[12x12], dlam1[12x12])
+        dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, docs/mathematics.md §4) and of lambda_{k-1} by
+        the shooting unknown; (dZ1, dlam1) those of z_{k+1} and lambda_k.  Starting from the first step's
+        and iterating (``mapaccum``) gives dz_N/dlambda_0, hence Psi_12.
+
+    Differentiating lambda_{k-1} = A_k^T lambda_k and z_{k+1} = A_k z_k + B du_{k+1}:
+
+        dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k)
+        dz_{k+1}  = A_k dz~_k + B_c du_{k+1},     du_{k+1} = -(s/h) D_{k+1} Winv B_c^T dlambda_k
+
+    (D_{k+1} the Jacobian of the saturation at u_{k+1}, an output of the costate map; the identity
+    without bounds) with dz~_k = dz_k (first_order) or dz_k + B^b du_k, du_k = -(s/h) D_k Winv B_c^T
+    dlambda_{k-1} (lgvi: u_k enters as the momentum kick B^b u_k,
+    so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).  The 12
+    right-hand sides share one elimination (:func:`unpivoted_elimination` of A_k^T, then
+    :func:`unpivoted_substitution` per column, the operations of :func:`solve_unpivoted`).
+
+    Three per-step Functions (costate map, H, this update), each evaluated along the rollout, instead of
+    one: each is smaller to compile, the three compile concurrently, and the values (X_k, lambda_k, A_k)
+    are those of the residual's costate map, computed once.  First order: H 15k SX instructions
+    (LGVI 25k), the costate map 10k (23k); the update is an MX Function (matrix products, a map of the
+    column substitution) whose C is 1.5k lines of loops.  The previous construction (forward AD of the
+    18-state step in 12 directions) took 111k instructions per step (228k).  Psi equals forward AD
+    through the rollout (tests/test_perf_structure.py).
+    """
+    hessian = _costate_hessian_function(disc)
+    return hessian, _linearized_map_function(disc, hessian.sparsity_out("H"))
+
+
+def _costate_hessian_function(disc: Discretization) -> ca.Function:
+    """``{scheme}_costate_hessian`` of :func:`linearization_functions`."""
+    X = ca.SX.sym("X", NX)
+    lam_prev = ca.SX.sym("lam_prev", NZ)
+    lam = ca.SX.sym("lam", NZ)
+    c = ca.SX.sym("c", 3)
+    h = ca.SX.sym("h")
+    Winv = ca.SX.sym("Winv", NU, NU)
+    bd = ca.SX.sym("bd", NB)
+    zero = ca.DM.zeros(NU)
+    wA = zero if disc.scheme == "first_order" else ca.vertcat(control_law(disc, h, Winv, bd)(lam_prev)[0], zero)
+    H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
+    return ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv, bd], [H],
+                       ["X", "lam_prev", "lam", "c", "h", "Winv", "bd"], ["H"])
+
+
+def _linearized_map_function(disc: Discretization, spH: ca.Sparsity) -> ca.Function:
+    """``{scheme}_linearized_map`` of :func:`linearization_functions`, at the MX level (matrix products, a map
+    of the column solve): compact C, cheap to compile."""
+    spA = costate_functions(disc)[0].sparsity_out("A")               # its structural zeros save operations
+    As = ca.SX.sym("A", spA)
+    LUs = unpivoted_elimination(As.T)
+    factor = ca.Function(f"{disc.scheme}_costate_factor", [As], [LUs], ["A"], ["LU"])
+    LUc, col = ca.SX.sym("LU", LUs.sparsity()), ca.SX.sym("b", NZ)
+    column_solve = ca.Function(f"{disc.scheme}_costate_column_solve", [LUc, col], [unpivoted_substitution(LUc, col)],
+                               ["LU", "b"], ["y"])
+    A = ca.MX.sym("A", spA)
+    Hm = ca.MX.sym("H", spH)
+    dZ = ca.MX.sym("dZ", NZ, NZ)
+    dlam = ca.MX.sym("dlam", NZ, NZ)
+    Dk = ca.MX.sym("Dk", NU, NU)
+    D1 = ca.MX.sym("D1", NU, NU)
+    hm = ca.MX.sym("h")
+    Wm = ca.MX.sym("Winv", NU, NU)
+    Bm = control_matrix(disc)(hm)
+    G = -control_scale(disc) * ca.mtimes(Wm, Bm.T) / hm             # the unsaturated control by lambda
+
+    def M(D):                                                      # dz_{k+1} by lambda through the control
+        return ca.mtimes(Bm, ca.mtimes(D, G))
+
+    dZk = dZ if disc.scheme == "first_order" else dZ + ca.mtimes(M(Dk), dlam)
+    solve_columns = column_solve.map(f"{disc.scheme}_costate_column_solve_map", "serial", NZ, [0], [])
+    dlam1 = solve_columns(factor(A), dlam - ca.mtimes(Hm, dZk))
+    dZ1 = ca.mtimes(A, dZk) + ca.mtimes(M(D1), dlam1)
+    return ca.Function(f"{disc.scheme}_linearized_map", [dZ, dlam, A, Hm, Dk, D1, hm, Wm], [dZ1, dlam1],
+                       ["dZ", "dlam", "A", "H", "Dk", "D1", "h", "Winv"], ["dZ1", "dlam1"])
+
+
+@lru_cache(maxsize=None)
+def terminal_residual_jacobian() -> ca.Function:
+    """(XN[18], Xd[18]) -> (zN[12], J[12x12]): J = dzN(chart(XN, z))/dz at z = 0 (tangent coordinates)."""
+    XN, Xd, z = ca.SX.sym("XN", NX), ca.SX.sym("Xd", NX), ca.SX.sym("z", NZ)
+    zt = terminal_residual_function()(chart(XN, z), Xd)
+    J = ca.substitute(ca.jacobian(zt, z), z, ca.DM.zeros(NZ))
+    return ca.Function("terminal_residual_jac", [XN, Xd], [terminal_residual_function()(XN, Xd), J], ["XN", "Xd"],
+                       ["zN", "J"])

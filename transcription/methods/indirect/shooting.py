@@ -1,0 +1,140 @@
+"""The shooting Functions of the indirect method for one (Discretization, N): the residual z_N(lambda_0) and its
+exact Jacobian, the rollout of states, costates and controls, and the free-final-time gradient."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import casadi as ca
+
+from ... import codegen
+from ...layout import NU, NX, NZ, tangent_readback
+from ...lgvi import Discretization
+from .conditions import costate_functions, terminal_residual_function
+from .control import NB, control_law, control_matrix
+from .linearization import linearization_functions, terminal_residual_jacobian
+
+#: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
+#: took 0.04-0.18 s at N = 1000 (a single chain element N = 10^3), with base 4 0.004-0.014 s
+MAPACCUM_OPTS = {"base": 4}
+
+
+class ShootingFunctions:
+    """Shooting residual and its Jacobian for one (Discretization, N), built once.
+
+    The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS); bd the
+    bound data of the controls (:func:`~.control.bound_data`; no bounds: u = v bit for bit).
+
+    shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6], bd[NB])
+        -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
+            U[6 x n_controls] (first_order u_1..u_N; lgvi u_0..u_N), res[1 x N] Cayley residuals,
+            lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0 in first_order)
+    residual(lam0, X0, Xd, h, Winv, bd) -> (zN[12], lamN[12], res_max)  (line-search trials; lamN =
+        lambda_{N-1}, the multiplier of the last step, for the transversality conditions of free
+        terminal components; res_max = max relative Cayley residual over the steps: a rollout with
+        res_max > cayley_tol is not a solution of the discrete equations and is rejected)
+    shoot_jac(lam0, X0, Xd, h, Winv, bd) -> (zN[12], Psi[12 x 12], dlamN[12 x 12]),  Psi = dzN/dlam0 and
+        dlamN = dlambda_{N-1}/dlam0 by the linearized recursion (:func:`~.linearization.linearization_functions`) along the
+        mapaccum'ed rollout; equal to forward-mode AD through it (with bounds: the generalized derivative
+        of the saturation, for the semismooth Newton method).
+    """
+
+    def __init__(self, disc: Discretization, N: int, jit: bool = False):
+        if N < 1:
+            raise ValueError("N must be >= 1")
+        self.disc, self.N, self.jit = disc, int(N), bool(jit)
+        sch = disc.scheme
+        self.costate_map, self.first_step = costate_functions(disc)
+        self.costate_hessian, self.linearized_map = linearization_functions(disc)
+        # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
+        # libraries compiled concurrently, one set per scheme (and model), independent of N and of the data
+        step_map, hess_map, lin_map = self.costate_map, self.costate_hessian, self.linearized_map
+        if self.jit:
+            (hess_map,), (step_map,), (lin_map,) = codegen.compiled_libraries(
+                [codegen.Library(hess_map.name(), (hess_map,)),            # the largest first
+                 codegen.Library(step_map.name(), (step_map,), cse=True),  # evaluated most often
+                 codegen.Library(lin_map.name(), (lin_map,), cflags=tuple(codegen.LOOP_CFLAGS))],  # MX: loops
+                cflags=codegen.QUICK_CFLAGS)
+        self.compiled = self.jit and all(f.class_name() == "External" for f in (step_map, hess_map, lin_map))
+        self.terminal_residual = terminal_residual_function()
+
+        lam0 = ca.MX.sym("lam0", NZ)
+        X0 = ca.MX.sym("X0", NX)
+        Xd = ca.MX.sym("Xd", NX)
+        h = ca.MX.sym("h")
+        Winv = ca.MX.sym("Winv", NU, NU)
+        bd = ca.MX.sym("bd", NB)
+        Bc = control_matrix(disc)(h)
+        # the control lam0 determines (first_order u_1, lgvi u_0) and its saturation Jacobian
+        u_first, D_first = control_law(disc, h, Winv, bd)(lam0)
+        # the rollout: steps k = k0 .. N-1 by the costate map from (X_k0, lambda_k0-1)
+        if sch == "first_order":   # step 0 from lambda_0 itself
+            X1, u1, r1 = self.first_step(X0, lam0, h, Winv, bd)
+            Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
+            n, Xstart = N - 1, X1
+        else:
+            Xs, lams, Us, res, lres = [], [], [u_first], [], []
+            n, Xstart = N, X0
+        if n > 0:
+            acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
+            Xr, Lr, Ur, Rr, LRr, Ar, Cr, Dr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n),
+                                                  ca.repmat(bd, 1, n))
+            for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
+                a.append(b)
+        Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
+        zN, lamN = self.terminal_residual(Xs[:, -1], Xd), lams[:, -1]
+        names_in = ["lam0", "X0", "Xd", "h", "Winv", "bd"]
+        args = [lam0, X0, Xd, h, Winv, bd]
+        self.shoot = ca.Function(
+            f"{sch}_shoot{N}",
+            args,
+            [zN, Xs, lams, Us, res, lres],
+            names_in,
+            ["zN", "X", "lam", "U", "res", "lam_res"],
+        )
+        res_max = ca.mmax(res)
+        self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, lamN, res_max], names_in,
+                                    ["zN", "lamN", "res_max"])
+        # Psi = dzN/dlam0 by the linearized coupled recursion along the same rollout (tangent coordinates,
+        # see linearization_functions): the same derivative as forward AD through the rollout, cheaper
+        if sch == "first_order":   # first step: dz_1 = B du_1, du_1 = -(1/h) D_1 Winv B^T dlambda_0
+            dZ = ca.mtimes(Bc, ca.mtimes(D_first, -ca.mtimes(Winv, Bc.T) / h))
+        else:
+            dZ = ca.MX.zeros(NZ, NZ)
+        dlamN = ca.MX.eye(NZ)
+        if n > 0:
+            Xk = ca.horzcat(Xstart, Xr[:, :n - 1])         # X_k, lambda_{k-1}, lambda_k of the steps
+            Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
+            # D of the control each step's A_k is taken at (lgvi: u_k) and of the one it determines (u_{k+1})
+            Dk = ca.horzcat(D_first, Dr[:, :NU * (n - 1)])
+            hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5, 6], [])(Xk, Lprev, Lr, Cr, h, Winv,
+                                                                                            bd)
+            dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
+                dZ, ca.MX.eye(NZ), Ar, Hk, Dk, Dr, hs, Ws)
+            dZ, dlamN = dZs[:, -NZ:], dlams[:, -NZ:]
+        zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
+                                     ["zN", "Psi", "dlamN"])
+
+
+@lru_cache(maxsize=None)
+def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> ShootingFunctions:
+    """Cached :class:`ShootingFunctions` (one per Discretization object, N and jit)."""
+    return ShootingFunctions(disc, N, jit)
+
+
+@lru_cache(maxsize=None)
+def time_gradient_function(disc: Discretization, N: int) -> ca.Function:
+    """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h) -> g[1 x N]: the derivative
+    of each step's constraint term of the Lagrangian by the step size at fixed states, controls and multipliers,
+
+        g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h) / dh),
+
+    X_k the node states 0..N-1, w_k the stage controls, lambda_k the multiplier of step k (the free-final-
+    time condition, docs/mathematics.md §10).  Forward AD through the step (its unrolled Cayley Newton
+    iterations, converged to round-off)."""
+    X, w, lam, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("lam", NZ), ca.SX.sym("h")
+    X1 = disc.step(X, w, h)[0]
+    g = ca.dot(lam, tangent_readback(X1, ca.jacobian(X1, h)))
+    f = ca.Function(f"{disc.scheme}_step_time_derivative", [X, w, lam, h], [g], ["X", "w", "lam", "h"], ["g"])
+    return f.map(f"{disc.scheme}_step_time_derivative{N}", "serial", N, [3], [])

@@ -1,0 +1,273 @@
+"""The indirect method's solve: Newton-Armijo shooting on the initial costate (docs/mathematics.md §6, §10),
+its initial costate (from a warm start or the options), and the Solution."""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from ...layout import NU, NZ
+from ...newton import NewtonResult, newton_armijo
+from ...options import IndirectOptions
+from ...problem import STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetState, terminal_error
+from ...results import Iterate, Result, Solution, trajectory
+from ...warm import WarmStart, warm_start_of
+from ..base import Progress, failed_solution
+from .continuation import bound_continuation, free_final_time
+from .control import bound_data, bounded, control_cost, weight_inverse
+from .shooting import shooting_functions, time_gradient_function
+
+
+def not_covered(problem: Problem) -> str:
+    """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
+    smooth control what its necessary conditions do not cover -- they are those of the effort objective to a state target (free components by
+    transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
+    on a block with a diagonal weight, a norm bound on one with an isotropic weight."""
+    if problem.kind != "smooth":
+        return "the indirect method applies to smooth control; impulsive maneuvers are solved by method='direct'"
+    c = problem.control
+    reasons = []
+    if c.objective != "effort":
+        reasons.append(f"the {c.objective} objective")
+    if problem.constraints:
+        reasons.append("path constraints")
+    if not isinstance(problem.terminal, TargetState):
+        reasons.append("an orbit target")
+    for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
+        if isinstance(bound, BoxBound) and np.count_nonzero(W - np.diag(np.diag(W))):
+            reasons.append(f"a box bound on the {name} with a non-diagonal weight")
+        if isinstance(bound, NormBound) and bound.b > 0 and not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-14, atol=0):
+            reasons.append(f"a norm bound on the {name} with a weight that is not a multiple of the identity")
+    return ", ".join(reasons)
+
+
+def free_rows(target: TargetState) -> np.ndarray:
+    """Boolean (12): the rows of z_N (tangent coordinates [dx; dgamma; zeta; dPi]) of the free terminal
+    components, where the shooting residual is lambda_{N-1} instead (stationarity in z_N, docs/mathematics.md §10)."""
+    return np.repeat([c in target.free for c in STATE_COMPONENTS], 3)
+
+
+def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray) -> np.ndarray:
+    """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6): first_order
+    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control."""
+    lam = np.asarray(lam, dtype=float).reshape(NZ)
+    if problem.scheme == "lgvi":
+        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, np.zeros(NU)], problem.h)[0])
+        lam = A0.T @ lam
+    return lam
+
+
+def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart | None) -> tuple[np.ndarray, str, list]:
+    """(lambda_0, its source, notes) from ``warm`` -- fitted to the problem's grid
+    (:meth:`~transcription.warm.WarmStart.fit`): its lambda_0 on the same grid ('warm_start'), else from its
+    costates (:func:`lam0_from_costates`; 'from_direct' for a direct solution, whose costates are mapped from
+    its multipliers) -- or from ``options.initial_costate``: 'zero', 12 numbers ('explicit'), 'from_direct'
+    (needs the direct solution as ``warm``).  Raises ValueError when none is usable."""
+    notes: list[str] = []
+    if warm is not None:
+        origin = warm.describe()
+        fitted, resampled = warm.fit(problem.N, problem.scheme)
+        notes += [f"warm start from {origin}", *resampled]
+        if fitted.lam0 is not None:
+            return np.array(fitted.lam0, dtype=float), "warm_start", notes
+        if fitted.costates is not None:
+            if resampled:
+                notes.append("lambda_0 from the resampled costates")
+            return (lam0_from_costates(problem, fitted.costates[0], fitted.U[:, 0]),
+                    "from_direct" if warm.source == "direct" else "warm_start", notes)
+        notes.append("it carries no costates: lambda_0 from initial_costate")
+    spec = options.initial_costate
+    if spec == "zero":
+        return np.zeros(NZ), "zero", notes
+    if spec == "from_direct":
+        raise ValueError("initial_costate from_direct: no direct solution with costates was given (solve(problem, "
+                         "'indirect') runs the direct method first; its solution carries none)")
+    return np.asarray(spec, dtype=float).reshape(NZ), "explicit", notes
+
+
+class _Shooting:
+    """The shooting of one problem: its Functions and data, the Newton iteration on lambda_0 at a step size h
+    (from lambda_0 = 0 with bounds, by the bound continuation), dL/dh for a free final time, and the Solution
+    of the final lambda_0.  ``stats`` collects what the Solution reports."""
+
+    def __init__(self, problem: Problem, options: IndirectOptions, progress: Progress | None, source: str):
+        self.problem, self.options, self.progress, self.source = problem, options, progress, source
+        t0 = time.perf_counter()
+        self.fns = shooting_functions(problem.disc, problem.N, bool(options.jit))
+        self.build_s = time.perf_counter() - t0
+        self.X0, self.Xd = problem.X0, problem.terminal.X
+        self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
+        self.free = free_rows(problem.terminal)
+        self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
+
+    def cayley_residual(self, lam: np.ndarray) -> float:
+        """The largest relative Cayley residual of the rollout from lam at the problem's h."""
+        return float(self.fns.residual(lam, self.X0, self.Xd, self.problem.h, self.Winv, self.bd)[2])
+
+    def newton(self, lam, bd_stage, phase: str, h: float) -> NewtonResult:
+        fns, X0, Xd, Winv, free, opts = self.fns, self.X0, self.Xd, self.Winv, self.free, self.options
+
+        def residual(l):
+            # the given terminal components, and lambda_{N-1} = 0 on the free ones (transversality)
+            z, lamN, r = fns.residual(l, X0, Xd, h, Winv, bd_stage)
+            return np.where(free, np.array(lamN).ravel(), np.array(z).ravel()), float(r)
+
+        def jacobian(l):
+            # Psi only: z always comes from ``residual`` (one rounding for all comparisons)
+            _, Psi, dlamN = fns.shoot_jac(l, X0, Xd, h, Winv, bd_stage)
+            return np.where(free[:, None], np.array(dlamN), np.array(Psi))
+
+        progress = self.progress
+        tagged = (lambda it: progress(dataclasses.replace(it, phase=phase))) if progress and phase else progress
+        nr = newton_armijo(lam, residual, jacobian, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
+                           max_halvings=opts.max_halvings, aux_tol=opts.cayley_tol, floor_factor=opts.floor_factor,
+                           floor_accept=opts.floor_accept, progress=tagged)
+        if phase:
+            nr.history = [dataclasses.replace(it, phase=phase) for it in nr.history]
+        return nr
+
+    def solve_at(self, lam, h: float, first: bool, phase: str = "") -> NewtonResult:
+        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation."""
+        if first and self.source == "zero" and bounded(self.bd):
+            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, self.bd,
+                                            self.fns, (self.X0, self.Xd, h, self.Winv))
+            self.stats["bound_continuation"] = stages
+            return nr
+        return self.newton(lam, self.bd, phase, h)
+
+    def dL_dh(self, lam, h: float) -> float:
+        """dJ*/dh = dL/dh at the solution (envelope theorem): J/h (the weights are proportional to h) plus the
+        steps' terms (:func:`~.shooting.time_gradient_function`)."""
+        problem, X0 = self.problem, self.X0
+        _, Xs, lams, U, _, _ = (np.array(a) for a in self.fns.shoot(lam, X0, self.Xd, h, self.Winv, self.bd))
+        Xk = np.column_stack([X0, Xs[:, :-1]])
+        tg = time_gradient_function(problem.disc, problem.N)
+        return control_cost(problem, U, h) / h + float(np.sum(np.array(tg(Xk, problem.disc.stage_controls(U), lams,
+                                                                          h))))
+
+    def run(self, lam) -> tuple[NewtonResult, float]:
+        """The Newton iteration from lam (with a free final time, inside the secant iteration on h); the
+        result and the final step size."""
+        problem, h = self.problem, self.problem.h
+        if not problem.free_time:
+            return self.solve_at(lam, h, True), h
+        N = problem.N
+        lo, hi = (t / N for t in problem.time_bounds)
+        nr, h, outer = free_final_time(self.solve_at, self.dL_dh, lam, h, lo, hi, N)
+        self.stats["free_time"] = outer
+        return nr, h
+
+    def solution(self, nr: NewtonResult, h: float, solve_s: float) -> Solution:
+        """The Solution of the final lambda_0: controls and costates from it, the re-simulated trajectory."""
+        problem, stats, lam = self.problem, self.stats, nr.x
+        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, h, self.Winv, self.bd)
+        U, lams = np.array(U), np.array(lams).T
+        Xsim, res = problem.disc.simulate(self.X0, U, h, problem.N)
+        finite = bool(np.all(np.isfinite(Xsim)))
+        result, message = self._verdict(nr, finite)
+        stats.update(
+            residual_norm=float(np.linalg.norm(nr.F)),
+            roundoff_floor=nr.floor,
+            noise_level=nr.noise,
+            max_cayley_residual=float(np.max(res)) if res.size else 0.0,
+            max_costate_solve_residual=float(np.max(np.array(lres))),
+            quadratic_C=quadratic_constant(nr.history, floor=10.0 * nr.noise if nr.noise else 0.0),
+        )
+        traj = trajectory(problem, Xsim, h)
+        return Solution(method="indirect", solver="newton-armijo", result=result, message=message, trajectory=traj,
+                        cost=control_cost(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
+                        terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
+                        iterations=nr.iterations, build_s=self.build_s, solve_s=solve_s, problem=problem,
+                        controls=U, costates=lams, history=nr.history, stats=stats,
+                        warm=warm_start_of(traj.t, Xsim, U, problem.scheme, "indirect", costates=lams, lam0=lam.copy()))
+
+    def _verdict(self, nr: NewtonResult, finite: bool) -> tuple[Result, str]:
+        stats = self.stats
+        result, message = nr.result, nr.message.replace("|F|", "|z_N|").replace(" x ", " lambda_0 ")
+        if "bound_continuation" in stats:
+            message += f" (bound continuation from lambda_0 = 0: {'; '.join(stats['bound_continuation'])})"
+        if "free_time" in stats:
+            message += f"; {stats['free_time']['message']}"
+            if result.successful and not stats["free_time"]["converged"]:
+                result = Result.max_iterations
+        if not result.successful and nr.rejected_aux:
+            message += (f"; {len(nr.rejected_aux)} line-search trials were rejected because their controls turned the "
+                        f"body too far per step for the Cayley solve (residual up to {max(nr.rejected_aux):.1e} > "
+                        f"cayley_tol {self.options.cayley_tol:.0e}): a smaller step h = T/N (increase horizon.N) or a "
+                        "better initial costate (initial_costate: from_direct) may help")
+        if result.successful and not finite:
+            result, message = Result.non_finite, "re-simulation produced non-finite states"
+        return result, message
+
+
+def solve_indirect(problem: Problem, options: IndirectOptions | None = None, progress: Progress | None = None,
+                   warm: WarmStart | None = None) -> Solution:
+    """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6, §10) for a smooth-control effort
+    problem with a state target ('first_order' or 'lgvi'; for 'lgvi' the unknown is lambda_{-1}, see
+    LGVI_CONDITIONS); problems it does not cover (:func:`not_covered`) return Result.not_applicable.
+
+    Beyond the paper: control bounds (the control minimizes the discrete Hamiltonian over them,
+    :func:`~.control.saturate`; Newton differentiates through the saturation -- a semismooth Newton
+    method -- and from lambda_0 = 0 it first solves the unbounded problem,
+    :func:`~.continuation.bound_continuation`); free terminal components (lambda_{N-1} = 0 on them,
+    :func:`free_rows`); a free final time (the condition dL/dh = 0 by a secant iteration over fixed-T
+    shootings, :func:`~.continuation.free_final_time`).
+
+    The initial costate comes from ``warm`` (:func:`initial_costate`: an indirect solution's lambda_0, or
+    the costates of a direct solution, mapped from its multipliers; resampled from another N or scheme) or
+    from ``options.initial_costate`` ('from_direct': the direct solution is the warm start,
+    :func:`transcription.solve.solve` runs it first).  The iteration is
+    :func:`~transcription.newton.newton_armijo` on z_N(lambda_0) with the exact Jacobian Psi, the
+    round-off floor detection (``floor_factor``, ``floor_accept``) and trials whose rollout does
+    not solve the Cayley equation to ``cayley_tol`` rejected.
+
+    The Solution (method 'indirect', solver 'newton-armijo') has the controls (6 x N, u_1..u_N;
+    lgvi 6 x N+1, u_0..u_N) from the lambda_k, the costates (N, 12) lambda_0..lambda_{N-1}, the
+    trajectory re-simulated from those controls, the terminal error measured on it, the cost, and
+    the history (the initial rollout and every line-search trial).
+    """
+    options = options or IndirectOptions()
+    if problem.kind != "smooth":
+        raise ValueError("the indirect method solves smooth-control problems")
+    missing = not_covered(problem)
+    if missing:
+        return failed_solution(problem, "indirect", "newton-armijo", Result.not_applicable,
+                               f"the indirect method does not cover {missing}; solve it by the direct method (whose "
+                               "Solution carries costate estimates mapped from its multipliers)")
+    try:
+        lam, source, notes = initial_costate(problem, options, warm)
+    except ValueError as exc:
+        return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
+    shooting = _Shooting(problem, options, progress, source)
+    r0 = shooting.cayley_residual(lam)
+    if not r0 <= options.cayley_tol:
+        return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
+                               f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual "
+                               f"{r0:.1e} > cayley_tol {options.cayley_tol:.0e}): the rotation per step is too large; "
+                               f"use a smaller step h = T/N (increase horizon.N) or another initial costate",
+                               shooting.build_s)
+    t1 = time.perf_counter()
+    nr, h = shooting.run(lam)
+    sol = shooting.solution(nr, h, time.perf_counter() - t1)
+    if notes:
+        sol.stats.update(warm_start=notes[0].removeprefix("warm start from "),
+                         warm_start_resampled=any(n.startswith("resampled") for n in notes),
+                         warm_start_notes="; ".join(notes[1:]))
+        sol.message += "; " + "; ".join(notes)
+    return sol
+
+
+def outer_errors(history: list[Iterate]) -> np.ndarray:
+    """|z_N|_2 after each outer iteration (index 0: the initial guess) from a history."""
+    return np.array([r.residual for r in history if r.accepted])
+
+
+def quadratic_constant(history: list[Iterate], floor: float = 0.0, tail_from: float = 0.1) -> float | None:
+    """max e_{i+1}/e_i^2 over the full-step (c = 1) outer iterations of the local phase
+    (e_i <= tail_from) that end above ``floor`` (iterations that land at the round-off
+    floor measure the noise, not the convergence rate).  None if there is none."""
+    acc = [r for r in history if r.accepted]
+    ratios = [b.residual / a.residual ** 2 for a, b in zip(acc[:-1], acc[1:])
+              if b.step == 1.0 and 0 < a.residual <= tail_from and b.residual > floor]
+    return float(max(ratios)) if ratios else None

@@ -1,0 +1,136 @@
+"""The NLP solvers' set-up shared by every NLP of the project: IPOPT's options and solver on a
+:class:`~transcription.nlp.structured.StructuredNLP`, the progress callback, the iteration history and the
+split of a solve's time."""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from ..options import DirectOptions, raw_solver_value
+from ..results import Iterate
+from .structured import StructuredNLP
+
+#: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling,
+#: no row/column scaling.  Measured on E3 first_order N = 1000: the IPOPT call fell 1.9 s -> 0.7 s (MUMPS'
+#: automatic ordering and its maximum-transversal scaling cost more than they bring here); the scaling
+#: (``mumps_scaling`` 0 instead of IPOPT's automatic 77), computed at every factorization of a matrix whose
+#: rows and columns are already scaled (:func:`characteristic_scales`), costs ~10 % of the solve on the
+#: small NLPs (the slews and the time objective's 25-step starts) with the same iterations and optima to 10
+#: digits on the 15 maneuvers of configs/ (docs/bench_notes.md).  Raw ``options`` override them.
+MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_order": 0, "mumps_scaling": 0}
+
+
+#: IPOPT's relative objective change per iteration below which an 'acceptable' iterate may end the solve
+#: (IPOPT's default, 1e20, lets 15 acceptable iterates end it however fast the objective still moves)
+ACCEPTABLE_OBJ_CHANGE_TOL = 1e-12
+
+
+def ipopt_options(opts: DirectOptions, warm_duals: bool = False) -> dict[str, Any]:
+    """IPOPT options of a direct solve: tolerances, the exact Hessian, MUMPS_DEFAULTS, then the raw
+    ``options`` (IPOPT has no booleans: true/false become yes/no).  constr_viol_tol: the defects
+    are what the re-simulation accumulates over N steps, so they are driven well below tol.
+    acceptable_obj_change_tol: IPOPT stops at its 'acceptable' level (not a success here) only once the
+    objective has stopped changing, i.e. at a round-off floor, not while it still converges slowly (the
+    five-orbit phasing, configs/everyday/phasing_5_orbits.yaml: stopped at 85 iterations with the dual
+    infeasibility falling by a third per iteration; Solve_Succeeded at 120)."""
+    ipopt = {"tol": float(opts.tol), "constr_viol_tol": 1e-2 * float(opts.tol), "max_iter": int(opts.max_iter),
+             "acceptable_obj_change_tol": ACCEPTABLE_OBJ_CHANGE_TOL, "print_level": 0, "sb": "yes",
+             "hessian_approximation": "exact", **MUMPS_DEFAULTS}
+    ipopt.update({k: raw_solver_value(v) for k, v in opts.options.items()})
+    if warm_duals:
+        ipopt.setdefault("warm_start_init_point", "yes")
+    return ipopt
+
+
+def make_ipopt(name: str, nlp: StructuredNLP, ipopt: dict[str, Any], progress: Callable[[Iterate], None] | None,
+               obj_scale: float, phase: str = "") -> ca.Function:
+    """An IPOPT nlpsol on a StructuredNLP with its block-assembled derivatives."""
+    nlp_opts: dict[str, Any] = {"print_time": False, "ipopt": ipopt, "show_eval_warnings": False,
+                                **nlp.derivative_functions()}
+    if progress is not None:
+        # the callback must outlive the solver call: it is kept on the NLP object
+        nlp.callback = ProgressCallback(nlp.n, nlp.ng, progress, obj_scale, nlp.lbg, nlp.ubg, phase)
+        nlp_opts["iteration_callback"] = nlp.callback
+    return ca.nlpsol(name, "ipopt", {"x": nlp.w, "f": nlp.f, "g": nlp.g}, nlp_opts)
+
+
+class ProgressCallback(ca.Callback):
+    """NLP iteration callback: one :class:`~transcription.results.Iterate` per iteration to ``fn``
+    (cost = objective x ``obj_scale``, residual = max |g - bounds violation| of the scaled rows)."""
+
+    def __init__(self, nx: int, ng: int, fn: Callable[[Iterate], None], obj_scale: float, lbg, ubg, phase: str = ""):
+        ca.Callback.__init__(self)
+        self.nx, self.ng, self.fn, self.obj_scale, self.k = nx, ng, fn, obj_scale, 0
+        self.lbg, self.ubg, self.phase = np.asarray(lbg, float), np.asarray(ubg, float), phase
+        self.construct("nlp_progress", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.ng)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        # Ctrl-C (a KeyboardInterrupt raised here by the SIGINT handler, or by ``fn``) asks the
+        # solver to stop by returning 1 (IPOPT: User_Requested_Stop): an exception escaping a
+        # callback would make CasADi print a 'KeyboardInterruptException' warning on stderr.  The
+        # caller learns of the interrupt from its own record of the signal (problems/cli.py).
+        try:
+            g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
+            viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
+            f = float(arg[ca.nlpsol_out().index("f")])
+            self.fn(Iterate(iteration=self.k, cost=f * self.obj_scale, residual=float(viol.max()) if viol.size else 0.0,
+                            phase=self.phase))
+            self.k += 1
+            return [0]
+        except KeyboardInterrupt:
+            return [1]
+
+
+def ipopt_history(stats: dict, obj_scale: float, phase: str = "") -> list[Iterate]:
+    """The IPOPT (or fatrop) iterations recorded in a solver's stats as Iterates."""
+    it = stats.get("iterations", {}) or {}
+    keys = ("obj", "inf_pr", "inf_du", "alpha_pr")
+    cols = [it.get(k, []) for k in keys]
+    n = max((len(c) for c in cols), default=0)
+    cols = [list(c) + [float("nan")] * (n - len(c)) for c in cols]
+    return [Iterate(iteration=i, cost=float(o) * obj_scale, residual=float(p), dual=float(d), step=float(a), phase=phase)
+            for i, (o, p, d, a) in enumerate(zip(*cols))]
+
+
+def solve_time_split(stats: dict, solve_s: float) -> dict:
+    """Where a solve's wall time went, from CasADi's solver stats (IPOPT and fatrop alike).
+
+    ``evaluations_s`` is the wall time spent in the NLP Functions (objective, constraints, their
+    Jacobian and the Lagrangian Hessian: the ``t_wall_nlp_*`` stats), ``solver_internal_s`` the rest
+    of ``solve_s`` (the solver's own linear algebra, line search and bookkeeping),
+    ``evaluations_by_function`` the split of ``evaluations_s``.  For fatrop also ``fatrop_own_s``:
+    fatrop's own time (its ``time_total`` less its evaluation callbacks).
+    """
+    by = {k[len("t_wall_"):]: float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_")}
+    ev = float(sum(by.values()))
+    out = {"evaluations_s": ev, "solver_internal_s": max(float(solve_s) - ev, 0.0), "evaluations_by_function": by}
+    fat = stats.get("fatrop")
+    if isinstance(fat, dict) and "time_total" in fat:
+        cb = sum(float(fat.get(k, 0.0)) for k in ("eval_hess_time", "eval_jac_time", "eval_cv_time", "eval_grad_time",
+                                                   "eval_obj_time"))
+        out["fatrop_own_s"] = max(float(fat["time_total"]) - cb, 0.0)
+    return out

@@ -1,0 +1,150 @@
+"""Warm starts as data: what one solve hands to the next (continuation along a sweep, a finer grid, the other
+method), typed, and its resampling onto another grid on the Lie group.
+
+Every Solution carries one (``sol.warm``; None when there is nothing usable: no controls, or non-finite
+values); ``solve(problem, method, warm_start=sol)`` (or ``warm_start=sol.warm``) accepts it whatever method
+produced it and whatever its N and scheme: :meth:`WarmStart.fit` maps it onto the problem's grid and says
+what it did, and each method says in its Solution what it used and what it did not.
+
+Resampling (:meth:`WarmStart.fit`, docs/mathematics.md §4) is in normalized time: node k of N steps is at
+s = k/N of the horizon, whatever T, so a warm start of another horizon (a sweep along T) keeps its shape.
+Positions and momenta are interpolated linearly, attitudes along the geodesic of SO(3) between neighbouring
+nodes (R_a exp(s log(R_a^T R_b)), :func:`~transcription.lie.geodesic_interpolation`: the result stays on
+SO(3) to round-off), controls at the new control times (LGVI: the nodes; first order: u_{k+1} belongs to
+step k and is placed at its midpoint), costates lambda_k (the multipliers of step k) at the step midpoints
+likewise.  The NLP multipliers are reused only by an NLP of the identical structure (``nlp_key``), and the
+indirect method's shooting unknown ``lam0`` only on the same grid: elsewhere they are dropped and the notes
+say so.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, pack_state, unpack_states
+from .lie import geodesic_interpolation
+
+
+@dataclass(frozen=True, eq=False)
+class WarmStart:
+    """A solution handed to the next solve.
+
+    Primal: ``t`` (N+1,) node times, ``X`` (N+1, 18) node states (the re-simulated trajectory, layout of
+    transcription.layout), ``U`` (6, n_controls) controls at the scheme's control nodes (lgvi u_0..u_N,
+    first_order u_1..u_N), ``scheme``; T = t[-1].  Dual: ``multipliers``, the direct method's NLP constraint
+    multipliers in physical units (:meth:`~transcription.methods.direct.transcription.SmoothTranscription.
+    multipliers`), with ``nlp_key``, the structure of the NLP they belong to
+    (:attr:`~transcription.nlp.structured.StructuredNLP.key`); ``costates`` (N, 12) lambda_0..lambda_{N-1};
+    ``lam0`` (12,), the indirect method's shooting unknown (lambda_0; lgvi lambda_{-1}).  ``source``: the
+    method that produced it ('direct' or 'indirect').  Absent parts are None.
+    """
+
+    t: np.ndarray
+    X: np.ndarray
+    U: np.ndarray
+    scheme: str
+    source: str
+    multipliers: np.ndarray | None = None
+    nlp_key: tuple | None = None
+    costates: np.ndarray | None = None
+    lam0: np.ndarray | None = None
+
+    @property
+    def N(self) -> int:
+        return len(self.t) - 1
+
+    @property
+    def T(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def h(self) -> float:
+        return self.T / self.N
+
+    def describe(self) -> str:
+        """'the direct solution (N = 100, first_order)'."""
+        return f"the {self.source} solution (N = {self.N}, {self.scheme})"
+
+    def fit(self, N: int, scheme: str) -> tuple["WarmStart", tuple[str, ...]]:
+        """This warm start on a grid of N steps of ``scheme`` over its own T (module docstring), and notes
+        (sentences) on what was resampled and what was dropped.  Unchanged (the same object, no notes) when
+        N and the scheme agree."""
+        if N == self.N and scheme == self.scheme:
+            return self, ()
+        t = np.linspace(0.0, self.T, N + 1)
+        X = resample_states(self.X, N)
+        U = resample_controls(self.U, self.scheme, scheme, N)
+        lam = None if self.costates is None else resample_costates(self.costates, N)
+        notes = [f"resampled from N = {self.N} ({self.scheme}) to N = {N} ({scheme}) on SE(3)"]
+        dropped = [what for what, part in (("the NLP multipliers", self.multipliers),
+                                           ("the shooting unknown lambda_0", self.lam0)) if part is not None]
+        if dropped:
+            notes.append(f"{' and '.join(dropped)} not reused (they belong to the other grid)")
+        return WarmStart(t=t, X=X, U=U, scheme=scheme, source=self.source, costates=lam), tuple(notes)
+
+
+def warm_start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: str, source: str,
+                  **dual) -> WarmStart | None:
+    """The WarmStart of a solution (node times t, states X (N+1, 18), controls U, its scheme and method;
+    ``dual``: multipliers, nlp_key, costates, lam0), or None when there is nothing usable: no controls or
+    non-finite states or controls (a dual part that is not finite is left out)."""
+    if U is None or not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
+        return None
+    dual = {k: v for k, v in dual.items()
+            if v is not None and (k == "nlp_key" or np.all(np.isfinite(np.asarray(v, float))))}
+    if "multipliers" not in dual:
+        dual.pop("nlp_key", None)
+    arrays = {k: (np.array(v, dtype=float) if k != "nlp_key" else v) for k, v in dual.items()}
+    return WarmStart(t=np.array(t, dtype=float), X=np.array(X, dtype=float), U=np.array(U, dtype=float),
+                     scheme=scheme, source=source, **arrays)
+
+
+def as_warm_start(given) -> tuple[WarmStart | None, str]:
+    """The WarmStart of what a caller passed as ``warm_start`` (a WarmStart, a Solution or None), and a note
+    when a Solution carries nothing usable."""
+    if given is None or isinstance(given, WarmStart):
+        return given, ""
+    warm = getattr(given, "warm", None)
+    if isinstance(warm, WarmStart):
+        return warm, ""
+    if hasattr(given, "result") and hasattr(given, "trajectory"):
+        return None, f"the warm start given ({given.method}, {given.result}) carries nothing usable: solved cold"
+    raise TypeError(f"warm_start: expected a Solution or a WarmStart, got {type(given).__name__}")
+
+
+# ------------------------------------------------------------------------------- resampling
+def _grid(N: int, midpoints: bool) -> np.ndarray:
+    """Normalized times in [0, 1] of the N+1 nodes, or of the N step midpoints."""
+    s = np.linspace(0.0, 1.0, N + 1)
+    return s[1:] - 0.5 / N if midpoints else s
+
+
+def resample_states(X: np.ndarray, N: int) -> np.ndarray:
+    """Node states X (M+1, 18) at the N+1 nodes of the same horizon (module docstring): positions and momenta
+    linear in time, attitudes by geodesic interpolation; the end nodes are copied exactly."""
+    M = X.shape[0] - 1
+    sc, sf = _grid(M, False), _grid(N, False)
+    Xf = np.empty((N + 1, NX))
+    for sl in (X_POS, X_MOM, X_ANG):
+        for i in range(sl.start, sl.stop):
+            Xf[:, i] = np.interp(sf, sc, X[:, i])
+    s = unpack_states(Xf)
+    Xf = pack_state(s.x, s.gamma, geodesic_interpolation(unpack_states(X).R, sc, sf), s.Pi)
+    Xf[0], Xf[-1] = X[0], X[-1]
+    return Xf
+
+
+def resample_controls(U: np.ndarray, scheme: str, new_scheme: str, N: int) -> np.ndarray:
+    """Controls U (6, n) of ``scheme`` at the control times of N steps of ``new_scheme``: linear in time
+    between the control times (LGVI: nodes; first order: step midpoints), held beyond the first and last."""
+    M = U.shape[1] - 1 if scheme == "lgvi" else U.shape[1]
+    uc, uf = _grid(M, scheme != "lgvi"), _grid(N, new_scheme != "lgvi")
+    return np.vstack([np.interp(uf, uc, U[i]) for i in range(NU)])
+
+
+def resample_costates(lam: np.ndarray, N: int) -> np.ndarray:
+    """Costates lambda_k (M, 12) of the steps (at their midpoints) on N steps, linear in time."""
+    sc, sf = _grid(lam.shape[0], True), _grid(N, True)
+    return np.column_stack([np.interp(sf, sc, lam[:, i]) for i in range(NZ)])
+
