@@ -33,7 +33,8 @@ _EXPORTS = {
     "TargetState": "transcription.problem", "TargetOrbit": "transcription.problem",
     "state_from_velocities": "transcription.problem",
     "Solution": "transcription.results", "Trajectory": "transcription.results", "Result": "transcription.results",
-    "Iterate": "transcription.results", "SolveError": "transcription.results",
+    "Iterate": "transcription.results", "SolveError": "transcription.results", "Attempt": "transcription.results",
+    "WarmStart": "transcription.warm",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
 }
 __all__ = [*_EXPORTS, "__version__"]
@@ -58,5 +59,6 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401
     from .transcription.problem import (ImpulsiveControl, Problem, ProblemError, SmoothControl,  # noqa: F401
                                         TargetOrbit, TargetState, state_from_velocities)
-    from .transcription.results import Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
+    from .transcription.results import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
+    from .transcription.warm import WarmStart  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401

@@ -21,9 +21,11 @@ def test_the_readme_python_example_runs(monkeypatch, capsys):
     monkeypatch.chdir(ROOT)
     scope: dict = {}
     exec(compile(readme_example(), "README.md", "exec"), scope)
-    sol, both, ind, sim = scope["sol"], scope["both"], scope["ind"], scope["sim"]
+    sol, both, ind, sim, refined = scope["sol"], scope["both"], scope["ind"], scope["sim"], scope["refined"]
     assert sol.converged and both.same_extremal and ind.converged and sim.converged
     assert ind.stats["initial_costate"] == "from_direct"
+    assert refined.converged and refined.stats["warm_start_resampled"] and refined.N == 200
+    assert refined.stats["warm_start"] == "the direct solution (N = 100, first_order)"
     assert set(scope["figs"]) >= {"maneuver", "force", "moment", "convergence"}
     out = capsys.readouterr().out
     assert "converged" in out and "agree: same extremal" in out
