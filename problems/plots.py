@@ -24,7 +24,8 @@ from matplotlib.ticker import FixedLocator, MaxNLocator
 
 from ..transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, Problem,
                                      TargetOrbit, TargetState)
-from ..transcription.results import Solution, figures_of_merit, rotation_angle
+from ..transcription.lie import quaternions, rotation_angle
+from ..transcription.results import Solution, figures_of_merit
 from ..transcription.solve import Comparison
 from .io import save_figure
 from .units import units
@@ -111,34 +112,6 @@ class Run:
 
 
 # ------------------------------------------------------------------------ geometry
-def quaternions(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (w, x, y, z) of rotation matrices R (n, 3, 3) (Shepperd's method: accurate
-    at every angle), signs chosen continuous along the sequence, w >= 0 at the start."""
-    R = np.asarray(R, float).reshape(-1, 3, 3)
-    q = np.empty((len(R), 4))
-    for k, M in enumerate(R):
-        tr = np.trace(M)
-        i = int(np.argmax([tr, M[0, 0], M[1, 1], M[2, 2]]))
-        if i == 0:
-            s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
-            q[k] = (0.25 * s, (M[2, 1] - M[1, 2]) / s, (M[0, 2] - M[2, 0]) / s, (M[1, 0] - M[0, 1]) / s)
-        elif i == 1:
-            s = 2.0 * np.sqrt(max(1.0 + M[0, 0] - M[1, 1] - M[2, 2], 0.0))
-            q[k] = ((M[2, 1] - M[1, 2]) / s, 0.25 * s, (M[0, 1] + M[1, 0]) / s, (M[0, 2] + M[2, 0]) / s)
-        elif i == 2:
-            s = 2.0 * np.sqrt(max(1.0 - M[0, 0] + M[1, 1] - M[2, 2], 0.0))
-            q[k] = ((M[0, 2] - M[2, 0]) / s, (M[0, 1] + M[1, 0]) / s, 0.25 * s, (M[1, 2] + M[2, 1]) / s)
-        else:
-            s = 2.0 * np.sqrt(max(1.0 - M[0, 0] - M[1, 1] + M[2, 2], 0.0))
-            q[k] = ((M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s, (M[1, 2] + M[2, 1]) / s, 0.25 * s)
-    if len(q) and q[0, 0] < 0:
-        q[0] = -q[0]
-    for k in range(1, len(q)):
-        if q[k] @ q[k - 1] < 0:
-            q[k] = -q[k]
-    return q
-
-
 def osculating_elements(x: np.ndarray, v: np.ndarray, mu: float) -> dict[str, np.ndarray]:
     """Radius, inclination (deg, of the orbit normal to e3), eccentricity and semi-major axis of the
     osculating orbits of positions and velocities x, v (n, 3) about a point mass mu."""

@@ -2,7 +2,8 @@
 
 Grouped by property: hat/vee, Cayley map and its inverse, exp/log (uniform and near-identity
 samples, rotations by exactly pi), the inverse right Jacobian, CasADi derivatives at the
-identity, elementary rotations, the charts of the state space.
+identity, elementary rotations, the charts of the state space, rotation angles, quaternions (their
+convention), geodesic interpolation, orthonormalization, the one NumPy-or-CasADi check.
 All randomness is seeded; tolerances are stated next to each check.
 """
 from __future__ import annotations
@@ -16,14 +17,23 @@ from se3ocp.transcription.lie import (
     cayley,
     cayley_inv,
     exp_so3,
+    geodesic_interpolation,
     hat,
+    is_symbolic,
     log_so3,
     log_so3_any,
-    right_jacobian_inv,
+    mtimes,
     orthogonality_error,
+    orthonormalize,
+    quaternion_product,
+    quaternions,
+    right_jacobian_inv,
     rot_x,
     rot_y,
     rot_z,
+    rotation_angle,
+    rotation_of_quaternion,
+    step_cayley_vectors,
     vee,
 )
 
@@ -260,3 +270,105 @@ def test_tangent_basis_matches_left_perturbation():
     s = unpack_states(X)
     Xp = pack_state(s.x[0] + z[:3], s.gamma[0] + z[3:6], R @ exp_so3(z[6:9]), s.Pi[0] + z[9:])
     np.testing.assert_allclose(Xp - X, tangent_basis(X) @ z, rtol=0, atol=1e-13)
+
+
+# ------------------------------------------------------------- angles and quaternions
+def test_rotation_angle_and_quaternions_are_accurate_at_every_angle():
+    """The angle to 1e-12 and the quaternion (cos theta/2, sin theta/2 n) to 1e-12 in w, 1e-8 in the axis
+    part (the axis is ill-determined at theta = 0), from 0 to pi."""
+    rng = np.random.default_rng(1)
+    for theta in (0.0, 1e-9, 0.3, np.pi / 2, np.pi - 1e-9, np.pi):
+        n = random_unit(rng, 1)[0]
+        R = np.asarray(exp_so3(theta * n), float)
+        q = quaternions(R[None])[0]
+        assert abs(rotation_angle(R) - theta) <= 1e-12
+        np.testing.assert_allclose(abs(q[0]), np.cos(theta / 2), atol=1e-12)
+        np.testing.assert_allclose(np.abs(q[1:]), np.abs(np.sin(theta / 2) * n), atol=1e-8)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_quaternion_convention(seed):
+    """Scalar first, Hamilton, R body -> inertial (lie's docstring): the inverse of the textbook quaternion
+    -> matrix map of uniform_rotations (to 1e-15, up to the sign), (0, R v) = q (0, v) q*, and
+    R(p q) = R(p) R(q); unit norm to 1e-15."""
+    rng = np.random.default_rng(seed)
+    Rs = uniform_rotations(rng, 50)
+    qs = quaternions(Rs)
+    assert np.abs(np.linalg.norm(qs, axis=1) - 1.0).max() <= 4 * EPS
+    for R, q, v in zip(Rs, qs, rng.standard_normal((50, 3))):
+        assert np.abs(rotation_of_quaternion(q) - R).max() <= 4 * EPS
+        assert np.abs(rotation_of_quaternion(-q) - R).max() <= 4 * EPS
+        rotated = quaternion_product(quaternion_product(q, np.r_[0.0, v]), q * np.r_[1.0, -1.0, -1.0, -1.0])
+        assert abs(rotated[0]) <= 10 * EPS * np.linalg.norm(v)
+        assert np.abs(rotated[1:] - R @ v).max() <= 10 * EPS * np.linalg.norm(v)
+    for p, q in zip(qs[:-1], qs[1:]):
+        assert np.abs(rotation_of_quaternion(quaternion_product(p, q)) - rotation_of_quaternion(p)
+                      @ rotation_of_quaternion(q)).max() <= 10 * EPS
+
+
+def test_quaternion_of_a_quarter_turn_about_z():
+    """Rz(90 deg) takes the body e1 to the inertial e2; its quaternion is (cos 45, 0, 0, sin 45)."""
+    R = rot_z(90.0)
+    np.testing.assert_allclose(R @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(quaternions(R[None])[0], [np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)], atol=1e-15)
+
+
+def test_quaternion_signs_are_continuous_along_a_path():
+    """Two full turns about an axis: q(theta) = (cos theta/2, sin theta/2 n) changes sign after one turn, the
+    matrices do not; the returned signs follow the continuous branch from w >= 0 at the start."""
+    n = np.array([1.0, 2.0, 2.0]) / 3.0
+    theta = np.linspace(0.0, 4 * np.pi, 401)
+    q = quaternions(np.array([exp_so3(t * n) for t in theta]))
+    assert q[0, 0] >= 0 and np.all(np.einsum("ki,ki->k", q[1:], q[:-1]) >= 0)
+    ref = np.column_stack([np.cos(theta / 2), np.outer(np.sin(theta / 2), n)])
+    assert np.abs(q - ref).max() <= 1e-14
+
+
+# ------------------------------------------------------------- geodesics, orthonormalization
+def test_geodesic_interpolation_follows_a_constant_rate_rotation():
+    """Nodes of R(t) = R_0 exp(t w) interpolated anywhere in between give R(t) to 1e-14, on SO(3); held outside."""
+    rng = np.random.default_rng(2)
+    R0, w = uniform_rotations(rng, 1)[0], np.array([0.4, -1.1, 0.7])
+    t = np.linspace(0.0, 2.0, 9)
+    R = np.array([R0 @ exp_so3(tk * w) for tk in t])
+    tq = np.r_[-0.5, rng.uniform(0.0, 2.0, 30), 2.5]
+    out = geodesic_interpolation(R, t, tq)
+    ref = np.array([R0 @ exp_so3(np.clip(tk, 0.0, 2.0) * w) for tk in tq])
+    assert np.abs(out - ref).max() <= 1e-14
+    assert orthogonality_error(out)[0].max() <= ORTH_TOL
+
+
+def test_orthonormalize_is_second_order_and_the_identity_on_so3():
+    """R (3 I - R^T R) / 2: the identity on SO(3) (to round-off), an error E = R^T R - I of size d goes to O(d^2);
+    NumPy and CasADi alike."""
+    rng = np.random.default_rng(3)
+    R = uniform_rotations(rng, 1)[0]
+    assert np.abs(orthonormalize(R) - R).max() <= 4 * EPS
+    for d in (1e-3, 1e-5):
+        P = R @ (np.eye(3) + d * rng.standard_normal((3, 3)))
+        e0 = np.linalg.norm(P.T @ P - np.eye(3))
+        Q = orthonormalize(P)
+        assert np.linalg.norm(Q.T @ Q - np.eye(3)) <= 3 * e0 ** 2
+    S = ca.SX.sym("R", 3, 3)
+    f = ca.Function("o", [S], [orthonormalize(S)])
+    assert np.abs(np.array(f(P)) - orthonormalize(P)).max() <= 4 * EPS
+
+
+def test_step_cayley_vectors_rebuild_the_steps():
+    """R_{k+1} = R_k cay(c_k) to 1e-15 along uniform random attitudes."""
+    R = uniform_rotations(np.random.default_rng(4), 20)
+    c = step_cayley_vectors(R)
+    assert c.shape == (19, 3)
+    assert max(np.abs(R[k] @ cayley(c[k]) - R[k + 1]).max() for k in range(19)) <= 1e-14
+
+
+def test_the_one_backend_check():
+    """is_symbolic is True for SX, MX and DM, False for NumPy and numbers; mtimes follows it."""
+    assert all(is_symbolic(a) for a in (ca.SX.sym("a"), ca.MX.sym("b"), ca.DM(1.0)))
+    assert not any(is_symbolic(a) for a in (np.eye(3), 1.0, [1.0]))
+    A, B = np.arange(9.0).reshape(3, 3), np.eye(3) * 2
+    assert isinstance(mtimes(A, B), np.ndarray) and np.array_equal(mtimes(A, B), A @ B)
+    S = ca.SX.sym("S", 3, 3)
+    assert isinstance(mtimes(A, S), ca.SX)
+    assert np.array_equal(np.array(ca.Function("m", [S], [mtimes(A, S)])(B)), A @ B)
+

@@ -231,21 +231,6 @@ def test_attitude_views_show_target_and_error(both):
     assert not fig.axes[1].get_legend().get_window_extent(r).overlaps(fig.axes[1].get_window_extent(r))
 
 
-def test_quaternions_and_angles_are_accurate():
-    from se3ocp.transcription.lie import exp_so3
-    from se3ocp.transcription.results import rotation_angle
-
-    rng = np.random.default_rng(1)
-    for theta in (0.0, 1e-9, 0.3, np.pi / 2, np.pi - 1e-9, np.pi):
-        n = rng.normal(size=3)
-        n /= np.linalg.norm(n)
-        R = np.asarray(exp_so3(theta * n), float)
-        q = plots.quaternions(R[None])[0]
-        assert abs(rotation_angle(R) - theta) <= 1e-12
-        np.testing.assert_allclose(abs(q[0]), np.cos(theta / 2), atol=1e-12)
-        np.testing.assert_allclose(np.abs(q[1:]), np.abs(np.sin(theta / 2) * n), atol=1e-8)
-
-
 def test_rtn_and_orbital_elements_are_those_of_the_orbit(both):
     res, figs = both
     d = res.direct

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .layout import NU, pack_state, unpack_states
-from .lie import cayley_inv, exp_so3, log_so3_any
+from .lie import exp_so3, log_so3_any, step_cayley_vectors
 from .problem import Problem, TargetOrbit, TargetState, orbit_conditions
 
 
@@ -52,9 +52,9 @@ class Guess:
 
 
 def cayley_vectors(X: np.ndarray) -> np.ndarray:
-    """c_k = cay^-1(R_k^T R_{k+1}) (N, 3) of node states X (N+1, 18): consistent with the attitudes."""
-    R = unpack_states(X).R
-    return cayley_inv(np.einsum("kji,kjl->kil", R[:-1], R[1:]))
+    """c_k = cay^-1(R_k^T R_{k+1}) (N, 3) of node states X (N+1, 18): consistent with the attitudes
+    (:func:`~transcription.lie.step_cayley_vectors`)."""
+    return step_cayley_vectors(unpack_states(X).R)
 
 
 def rollout_guess(disc, X0: np.ndarray, N: int, h: float) -> Guess:

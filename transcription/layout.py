@@ -100,7 +100,7 @@ def chart(X, z):
     left-trivialized Jacobian.
     """
     x, gamma, R, Pi = split_state(X)
-    return join_state(x + z[0:3], gamma + z[3:6], ca.mtimes(R, cayley(0.5 * z[6:9])), Pi + z[9:12])
+    return join_state(x + z[Z_POS], gamma + z[Z_MOM], ca.mtimes(R, cayley(0.5 * z[Z_ROT])), Pi + z[Z_ANG])
 
 
 def tangent_readback(Xbar, dX):

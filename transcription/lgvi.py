@@ -36,7 +36,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .layout import NU, NX, NZ, chart, join_state, split_state, tangent_readback
+from .layout import NU, NX, NZ, U_FORCE, U_MOMENT, chart, join_state, split_state, tangent_readback
 from .lie import cayley, hat, is_symbolic
 from .model import BodyModel
 
@@ -166,22 +166,22 @@ class Discretization:
         if self.scheme == "lgvi":
             uk, uk1 = w[0:NU], w[NU:]
             f0, M0 = self.model.forces(x, R)
-            Fk0 = f0 + uk[0:3]
-            Mk0 = M0 + uk[3:6]
+            Fk0 = f0 + uk[U_FORCE]
+            Mk0 = M0 + uk[U_MOMENT]
             g = h * (Pi + (h / 2) * Mk0)                                       # (9)
             x1 = x + (h / m) * gamma + (h**2 / (2 * m)) * Fk0                  # (7)
             R1 = ca.mtimes(R, F)                                               # (10)
             f1, M1 = self.model.forces(x1, R1)
-            gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + uk1[0:3])         # (8)
-            Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[3:6])  # (11)
+            gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + uk1[U_FORCE])         # (8)
+            Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[U_MOMENT])  # (11)
         else:
             u1 = w
             g = h * Pi                                                         # (23)
             x1 = x + (h / m) * gamma                                           # (21)
             R1 = ca.mtimes(R, F)                                               # (24)
             f1, M1 = self.model.forces(x1, R1)
-            gamma1 = gamma + h * f1 + h * u1[0:3]                              # (22)
-            Pi1 = ca.mtimes(F.T, Pi) + h * M1 + h * u1[3:6]                    # (25)
+            gamma1 = gamma + h * f1 + h * u1[U_FORCE]                              # (22)
+            Pi1 = ca.mtimes(F.T, Pi) + h * M1 + h * u1[U_MOMENT]                    # (25)
         return join_state(x1, gamma1, R1, Pi1), g
 
     # --------------------------------------------------------------- controls

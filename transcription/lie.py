@@ -2,8 +2,10 @@
 
 SO(3) (symbolic CasADi SX/MX and numeric NumPy alike): hat/vee, the Cayley map and its
 inverse, exp/log (log also at exactly pi, with a chosen sign), the inverse right Jacobian,
-elementary rotations, orthogonality errors.  (The charts of the state space, built from these maps,
-are in :mod:`transcription.layout`.)
+elementary rotations, orthogonality errors, rotation angles, quaternions, geodesic interpolation,
+orthonormalization, the Cayley vectors of a sequence of attitudes, and the one NumPy-or-CasADi check
+(:func:`is_symbolic`).  (The charts of the state space, built from these maps, are in
+:mod:`transcription.layout`.)
 
 Conventions (docs/mathematics.md §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on
 skew matrices.  The Cayley map is ``cay(c) = (I + S(c)) (I - S(c))^-1``, written in
@@ -12,8 +14,15 @@ expression whatever the backend.  ``exp``/``log`` handle small angles by computi
 their coefficients from theta^2 behind a branch on theta^2 (jaxlie style), so that
 neither values nor derivatives become NaN at the identity.
 
-Every function accepts either NumPy arrays (returns NumPy) or CasADi SX/MX/DM
-(returns the same CasADi type).
+Quaternions (:func:`quaternions`, :func:`rotation_of_quaternion`; what exports rely on): q = (w, x, y, z),
+scalar first, unit, in Hamilton's convention (i j = k, products by :func:`quaternion_product`).  The
+quaternion of an attitude R -- body -> inertial, as everywhere here -- rotates body vectors into the
+inertial frame, (0, v_inertial) = q (0, v_body) q*, i.e. R = R(q) = (w^2 - |v|^2) I + 2 v v^T + 2 w S(v)
+with v = (x, y, z) (a rotation by theta about the unit axis n: q = (cos theta/2, sin theta/2 n)).  q and -q
+are the same attitude: along a path the sign is chosen continuous (q_k . q_{k-1} >= 0), w >= 0 at the start.
+
+The maps accept either NumPy arrays (returning NumPy) or CasADi SX/MX/DM (returning the same CasADi type),
+except where a docstring says NumPy.
 """
 from __future__ import annotations
 
@@ -196,12 +205,64 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
     return np.arctan2(s, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0))
 
 
+def quaternions(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w, x, y, z) of rotation matrices R (n, 3, 3) -> (n, 4), in the convention of the
+    module docstring (scalar first, Hamilton, R body -> inertial), by Shepperd's method (accurate at every
+    angle); the signs are chosen continuous along the sequence (q_k . q_{k-1} >= 0), w >= 0 at the start."""
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    q = np.empty((len(R), 4))
+    for k, M in enumerate(R):
+        tr = np.trace(M)
+        i = int(np.argmax([tr, M[0, 0], M[1, 1], M[2, 2]]))
+        if i == 0:
+            s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
+            q[k] = (0.25 * s, (M[2, 1] - M[1, 2]) / s, (M[0, 2] - M[2, 0]) / s, (M[1, 0] - M[0, 1]) / s)
+        elif i == 1:
+            s = 2.0 * np.sqrt(max(1.0 + M[0, 0] - M[1, 1] - M[2, 2], 0.0))
+            q[k] = ((M[2, 1] - M[1, 2]) / s, 0.25 * s, (M[0, 1] + M[1, 0]) / s, (M[0, 2] + M[2, 0]) / s)
+        elif i == 2:
+            s = 2.0 * np.sqrt(max(1.0 - M[0, 0] + M[1, 1] - M[2, 2], 0.0))
+            q[k] = ((M[0, 2] - M[2, 0]) / s, (M[0, 1] + M[1, 0]) / s, 0.25 * s, (M[1, 2] + M[2, 1]) / s)
+        else:
+            s = 2.0 * np.sqrt(max(1.0 - M[0, 0] - M[1, 1] + M[2, 2], 0.0))
+            q[k] = ((M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s, (M[1, 2] + M[2, 1]) / s, 0.25 * s)
+    if len(q) and q[0, 0] < 0:
+        q[0] = -q[0]
+    for k in range(1, len(q)):
+        if q[k] @ q[k - 1] < 0:
+            q[k] = -q[k]
+    return q
+
+
+def rotation_of_quaternion(q) -> np.ndarray:
+    """The rotation matrix (3, 3) of a unit quaternion q = (w, x, y, z) (module docstring; normalized first),
+    R = (w^2 - |v|^2) I + 2 v v^T + 2 w S(v), v = (x, y, z): the inverse of :func:`quaternions` (q and -q give
+    the same R)."""
+    q = np.asarray(q, dtype=float).reshape(4)
+    q = q / np.linalg.norm(q)
+    w, v = q[0], q[1:]
+    return (w * w - v @ v) * np.eye(3) + 2.0 * np.outer(v, v) + 2.0 * w * hat(v)
+
+
+def quaternion_product(p, q) -> np.ndarray:
+    """Hamilton's product p q of quaternions (w, x, y, z): rotation_of_quaternion(p q) = R(p) R(q)."""
+    p, q = np.asarray(p, dtype=float).reshape(4), np.asarray(q, dtype=float).reshape(4)
+    return np.r_[p[0] * q[0] - p[1:] @ q[1:], p[0] * q[1:] + q[0] * p[1:] + np.cross(p[1:], q[1:])]
+
+
 def orthonormalize(R):
     """R (3 I - R^T R) / 2: one Newton-Schulz step towards the polar factor of R (CasADi or NumPy).
 
     The identity on SO(3), and its derivative the identity on tangent vectors R S(zeta), so it changes
     nothing in exact arithmetic; off the manifold by E = R^T R - I it leaves O(E^2)."""
     return 0.5 * mtimes(R, 3 * _eye(R) - mtimes(R.T, R))
+
+
+def step_cayley_vectors(R: np.ndarray) -> np.ndarray:
+    """c_k = cay^-1(R_k^T R_{k+1}) (N, 3) of attitudes R (N+1, 3, 3): the Cayley vectors of the steps that take
+    each attitude to the next (docs/mathematics.md §2) (NumPy)."""
+    R = np.asarray(R, dtype=float)
+    return cayley_inv(np.einsum("kji,kjl->kil", R[:-1], R[1:]))
 
 
 def geodesic_interpolation(R: np.ndarray, t: np.ndarray, tq: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from ..layout import NU, NX, X_ANG, X_MOM, X_POS
+from ..layout import NU, NX, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS
 from ..problem import STATE_COMPONENTS, state_residual
 
 NC = 3
@@ -111,15 +111,15 @@ def control_node(free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> ca.Fun
     u = v[:NU] * sU
     rows = []
     if norm_f:
-        rows.append((ca.dot(u[:3], u[:3]) - bf**2) / bf**2)
+        rows.append((ca.dot(u[U_FORCE], u[U_FORCE]) - bf**2) / bf**2)
     if norm_m:
-        rows.append((ca.dot(u[3:], u[3:]) - bm**2) / bm**2)
+        rows.append((ca.dot(u[U_MOMENT], u[U_MOMENT]) - bm**2) / bm**2)
     cost = ca.SX(0)
     if fuel:
         sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
         df, dm = v[NU + 2:NU + 5], v[NU + 5:NU + 8]
         rows += [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0]
-        rows += [(u[:3] - sf * df) / sS[0], (u[3:] - sm * dm) / sS[1]]
+        rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
         cost = omega_per_h * h * (wf * sf + wm * sm) / s_obj
     tag = f"{'f' if norm_f else ''}{'m' if norm_m else ''}{'_fuel' if fuel else ''}{'_freeh' if free_h else ''}"
     return ca.Function(f"control_node_{tag}", [v, p], [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)],

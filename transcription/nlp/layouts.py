@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..layout import NU, NX
+from ..layout import NU, NX, U_FORCE, U_MOMENT
 from .blocks import NC
 
 
@@ -85,7 +85,7 @@ def fuel_slacks(U: np.ndarray) -> np.ndarray:
     """The fuel epigraph's variables (8, n) of controls U (6, n): magnitudes |u_f|, |u_m| and unit
     directions (u / |u|, or e1 where the control is 0)."""
     out = []
-    for sl in (slice(0, 3), slice(3, 6)):
+    for sl in (U_FORCE, U_MOMENT):
         n = np.linalg.norm(U[sl], axis=0)
         d = np.where(n > 0, U[sl] / np.where(n > 0, n, 1.0), np.array([[1.0], [0.0], [0.0]]))
         out.append((n, d))

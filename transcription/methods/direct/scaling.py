@@ -70,7 +70,7 @@ def characteristic_scales(problem: Problem) -> Scales:
         obj = T
     else:
         rf, rm = control.removed
-        obj = T * ((0.0 if rf else control.W_f[0, 0] * sU[:3].max()) + (0.0 if rm else control.W_m[0, 0] * sU[3:].max()))
+        obj = T * ((0.0 if rf else control.W_f[0, 0] * sU[U_FORCE].max()) + (0.0 if rm else control.W_m[0, 0] * sU[U_MOMENT].max()))
     return Scales(X=sX, U=sU, C=sC, objective=obj)
 
 
