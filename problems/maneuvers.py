@@ -59,7 +59,7 @@ from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut
 from ..transcription.results import Trajectory
 
 from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
-from .schema import ConfigError, Validator, apply_override, describe, join_field, load_with_overrides, read_yaml_file, yaml_load  # noqa: F401
+from .schema import Validator, describe, join_field, load_with_overrides
 from .units import units_for
 
 MODEL_DEFAULTS: dict[str, Any] = {

@@ -2,7 +2,7 @@
 process pool or a Dask cluster (issue 8).
 
 Sweep file (unknown keys rejected; every error is a one-line
-``FILE: FIELD: expected ...`` :class:`~problems.maneuvers.ConfigError`)::
+``FILE: FIELD: expected ...`` :class:`~problems.schema.ConfigError`)::
 
     name: e3_T_sweep                      # optional (default: the file's stem)
     base: ../e3_inclination_change.yaml   # the maneuver file, relative to this file

@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from se3ocp.problems import sweep as sw  # noqa: E402
-from se3ocp.problems.maneuvers import yaml_load  # noqa: E402
+from se3ocp.problems.schema import yaml_load  # noqa: E402
 from se3ocp.problems.io import write_yaml  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

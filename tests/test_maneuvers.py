@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from se3ocp.problems.models import Dumbbell
-from se3ocp.problems.maneuvers import ConfigError, load_maneuver, parse_maneuver, yaml_load
+from se3ocp.problems.maneuvers import load_maneuver, parse_maneuver
+from se3ocp.problems.schema import ConfigError, yaml_load
 from se3ocp.transcription.layout import unpack_states
 from se3ocp.transcription.lie import rot_x, rot_y, rot_z
 

@@ -14,7 +14,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from se3ocp.problems.maneuvers import ConfigError, Maneuver, parse_maneuver, yaml_load
+from se3ocp.problems.maneuvers import Maneuver, parse_maneuver
+from se3ocp.problems.schema import ConfigError, yaml_load
 
 CONFIGS = sorted((Path(__file__).resolve().parents[1] / "configs").glob("*.yaml"))
 BASES = [yaml_load(p.read_text()) for p in CONFIGS]

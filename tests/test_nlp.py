@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.nlp import blocks, structured
+from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.nlp import blocks
 from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
 from se3ocp.transcription.guess import make_guess
 from se3ocp.transcription.nlp import Block, NLPLayout, StructuredNLP, assemble, solve_time_split
@@ -96,7 +97,7 @@ def test_assemble_sums_duplicates_and_keeps_order():
 
 
 def test_block_shapes_are_checked():
-    fn = blocks.state_target(("position",))
+    fn = blocks.state_target(problem("e3", 10).disc, ("position",)).function
     with pytest.raises(ValueError, match="do not match"):
         Block("bad", fn, np.zeros((17, 1), dtype=int), np.zeros(2 * 18 + 3))
 
@@ -124,6 +125,12 @@ def test_solve_time_split_without_stats():
     assert solve_time_split({"t_wall_nlp_f": 2.0}, 1.0)["solver_internal_s"] == 0.0
 
 
-def test_derivatives_are_built_once_per_block_function():
-    fn = blocks.dynamics(problem("e3", 10, "first_order").disc, True, True, True)
-    assert structured.derivatives(fn, False) is structured.derivatives(fn, False)
+def test_blocks_and_their_derivatives_are_built_once_per_discretization():
+    """A block built for a Discretization is kept on it, with its derivatives: the same objects on a second
+    call; another Discretization of the same model and scheme builds its own."""
+    disc = problem("e3", 10, "first_order").disc
+    fn = blocks.dynamics(disc, True, True, True)
+    assert blocks.dynamics(disc, True, True, True) is fn and fn.derivatives(False) is fn.derivatives(False)
+    assert blocks.state_target(disc, ("position",)) is blocks.state_target(disc, ("position",))
+    other = Discretization(disc.model, disc.scheme)
+    assert blocks.dynamics(other, True, True, True) is not fn

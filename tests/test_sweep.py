@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from se3ocp.problems import sweep as sw
-from se3ocp.problems.maneuvers import ConfigError
+from se3ocp.problems.schema import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 E3 = ROOT / "configs" / "e3_inclination_change.yaml"

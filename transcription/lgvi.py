@@ -31,7 +31,9 @@ Functions built (all SX, inputs/outputs named):
 """
 from __future__ import annotations
 
-from functools import lru_cache
+import functools
+import inspect
+from typing import Any, Callable, Hashable
 
 import casadi as ca
 import numpy as np
@@ -68,19 +70,30 @@ def _solve3(A, b):
     return ca.mtimes(cof, b) / det
 
 
+def per_discretization(build: Callable) -> Callable:
+    """Decorator: ``build(disc, *args)`` is called once per Discretization and arguments (hashable: flags,
+    sizes), its result kept on the Discretization (:meth:`Discretization.cached`), so that what is built for
+    a scheme and a model lives exactly as long as they do."""
+    signature = inspect.signature(build)
+
+    @functools.wraps(build)
+    def get(disc: "Discretization", *args, **kwargs):
+        bound = signature.bind(disc, *args, **kwargs)
+        bound.apply_defaults()
+        key = (build.__module__, build.__qualname__, *list(bound.arguments.values())[1:])
+        return disc.cached(key, lambda: build(*bound.args, **bound.kwargs))
+
+    return get
+
+
 def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS) -> "Discretization":
-    """The :class:`Discretization` of ``model`` and ``scheme``, built once per process for a model
-    with a ``key`` (models equal by value share their Functions and everything cached on them:
-    NLP stage Functions, shooting Functions, compiled code)."""
-    if model.key is None:
-        return Discretization(model, scheme, newton_iters)
-    k = (model.key, scheme, int(newton_iters))
-    if k not in _DISCRETIZATIONS:
-        _DISCRETIZATIONS[k] = Discretization(model, scheme, newton_iters)
-    return _DISCRETIZATIONS[k]
-
-
-_DISCRETIZATIONS: dict = {}
+    """The :class:`Discretization` of ``model`` and ``scheme``, built once per model and kept on it
+    (``model.discretizations``): every Problem of that model and scheme shares its Functions and everything
+    cached on it (NLP blocks and their derivatives, shooting Functions, compiled code)."""
+    key = (scheme, int(newton_iters))
+    if key not in model.discretizations:
+        model.discretizations[key] = Discretization(model, scheme, newton_iters)
+    return model.discretizations[key]
 
 
 class Discretization:
@@ -91,6 +104,9 @@ class Discretization:
     model : BodyModel
     scheme : 'lgvi' | 'first_order'
     newton_iters : unrolled Newton iterations of the Cayley solve.
+
+    What the methods build for this scheme and model -- NLP blocks, shooting Functions, rollouts of a
+    length -- is built once and kept here (:meth:`cached`), so it lives as long as the Discretization.
     """
 
     def __init__(self, model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS):
@@ -99,6 +115,7 @@ class Discretization:
         self.model = model
         self.scheme = scheme
         self.newton_iters = int(newton_iters)
+        self._built: dict[Hashable, Any] = {}
         #: stage control dimension
         self.nw = 2 * NU if scheme == "lgvi" else NU
         J = model.inertia
@@ -201,10 +218,20 @@ class Discretization:
         U = np.asarray(U, dtype=float)
         return np.vstack([U[:, :-1], U[:, 1:]])
 
+    # ------------------------------------------------------------------ cache
+    def cached(self, key: Hashable, build: Callable[[], Any]) -> Any:
+        """What ``build()`` returns, built on the first call with ``key`` and kept on this Discretization
+        (keys name what is built and its structural arguments, e.g. ('rollout', N))."""
+        if key not in self._built:
+            self._built[key] = build()
+        return self._built[key]
+
     # ---------------------------------------------------------------- rollout
-    @lru_cache(maxsize=None)
     def rollout(self, N: int) -> ca.Function:
-        """(X0[18], W[nw x N], h) -> (X[18 x N] nodes 1..N, res[1 x N] Cayley residuals)."""
+        """(X0[18], W[nw x N], h) -> (X[18 x N] nodes 1..N, res[1 x N] Cayley residuals); built once per N."""
+        return self.cached(("rollout", int(N)), lambda: self._rollout(int(N)))
+
+    def _rollout(self, N: int) -> ca.Function:
         acc = self.step.mapaccum(f"{self.scheme}_acc{N}", N)
         X0 = ca.MX.sym("X0", NX)
         W = ca.MX.sym("W", self.nw, N)

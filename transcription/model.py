@@ -12,6 +12,8 @@ from typing import Hashable
 import casadi as ca
 import numpy as np
 
+from .layout import NX, split_state
+
 
 def forces_from_potential(potential: ca.Function) -> ca.Function:
     """Build ``forces(x[3], R[3x3]) -> (f[3] inertial, M[3] body)`` from U(x, R).
@@ -42,10 +44,13 @@ class BodyModel:
         used for orbit targets and orbital elements, never by the dynamics (U carries the gravity).
     markers: body-fixed points (k, 3) drawn by the figures (e.g. the dumbbell's spheres); empty:
         the figures draw the principal axes.
-    key: a hashable description of the model (e.g. its kind and parameters); models with a key
-        share one Discretization per scheme (lgvi.discretization), so that Functions built and
-        compiled for one are reused by every equal model.  None: no sharing.
+    key: a hashable description of the model (e.g. its kind and parameters), by which a front end may
+        share one model object between equal models (problems.models does), and with it its
+        Discretizations; None: none.
     name: a label for reports.
+    discretizations: the Discretization of each (scheme, Newton iterations) built for this model, kept on it
+        (lgvi.discretization), so that the Functions built and compiled for one are reused by every Problem
+        of the model.
     """
 
     mass: float
@@ -56,6 +61,7 @@ class BodyModel:
     markers: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     key: Hashable | None = None
     name: str = "rigid body"
+    discretizations: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         J = np.asarray(self.inertia, dtype=float)
@@ -72,8 +78,6 @@ class BodyModel:
 
     def energy(self) -> ca.Function:
         """E(X) = |gamma|^2/2m + Pi^T J^-1 Pi / 2 + U(x, R)  (docs/mathematics.md §8)."""
-        from .layout import NX, split_state
-
         X = ca.SX.sym("X", NX)
         x, gamma, R, Pi = split_state(X)
         Jinv = np.linalg.inv(self.inertia)

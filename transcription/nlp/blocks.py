@@ -4,7 +4,9 @@ Each builder returns an SX Function ``(v, p) -> (cost, rows)`` in *scaled* varia
 physical value of a local variable is v * (its scale), rows are divided by their scales and the
 cost by the objective scale, every scale being part of the data p.  Problem data (step size,
 weights, targets) are data too, so one Function -- and its compiled derivatives -- serves every
-problem of the same structure; builders with only structural arguments are cached.
+problem of the same structure: the builders with only structural arguments return a
+:class:`~.structured.BlockFunction` built once per Discretization and kept on it (its derivatives with it;
+``disc`` is their owner even where the block does not depend on the scheme).
 
     dynamics(disc, with_c, controls, effort, free_h)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
         v = [X_k (18); c_k (3, with_c); w_k (nw, controls); X_{k+1} (18); h / h_scale (1, free_h)]
@@ -12,27 +14,27 @@ problem of the same structure; builders with only structural arguments are cache
              s_obj; W_f (9); W_m (9) (effort)]
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
         cost = the step's share of sum_j omega_j (1/2) u_j^T W u_j, / s_obj (effort; else 0)
-    control_node(free_h, norm_f, norm_m, fuel)   one control node j (docs/mathematics.md §10)
+    control_node(disc, free_h, norm_f, norm_m, fuel)   one control node j (docs/mathematics.md §10)
         v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (fuel: magnitudes and directions); h / h_scale (1, free_h)]
         p = [sU (6); sS (2); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj]
         rows = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f, <= 0); (|u_m|^2 - b_m^2) / b_m^2 (norm_m, <= 0);
                 |d_f|^2 - 1, |d_m|^2 - 1 (fuel, <= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (fuel, = 0)]
         cost = omega_j (w_f s_f + w_m s_m) / s_obj (fuel; else 0)
-    time_cost()                                   the time objective
+    time_cost(disc)                               the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
-    state_target(fixed)                        the terminal conditions of a state target
+    state_target(disc, fixed)                  the terminal conditions of a state target
         v = X_N (18); p = [sX (18); Xd (18); row scales (3 per fixed component)]
         rows = terminal_residual(X_N, Xd) / scales (docs/mathematics.md §6); cost 0
 """
 from __future__ import annotations
 
-from functools import lru_cache
-
 import casadi as ca
 import numpy as np
 
 from ..layout import NU, NX, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS
+from ..lgvi import per_discretization
 from ..problem import STATE_COMPONENTS, state_residual
+from .structured import BlockFunction
 
 NC = 3
 
@@ -44,9 +46,9 @@ def dynamics_sizes(disc, with_c: bool, controls: bool, effort: bool, free_h: boo
     return NX + nc + nw + NX + (1 if free_h else 0), 1 + NX + nc + nw + nc + (1 + 18 if effort else 0)
 
 
-@lru_cache(maxsize=None)
-def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = False) -> ca.Function:
-    """The dynamics block of one step (module docstring); cached per (Discretization, flags)."""
+@per_discretization
+def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = False) -> BlockFunction:
+    """The dynamics block of one step (module docstring)."""
     nc = NC if with_c else 0
     nw = disc.nw if controls else 0
     nv, npar = dynamics_sizes(disc, with_c, controls, effort, free_h)
@@ -84,15 +86,15 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = Fa
         cost = cost / s_obj
     tag = f"{disc.scheme}{'_c' if with_c else ''}{'_u' if controls else ''}{'_effort' if effort else ''}" \
           f"{'_freeh' if free_h else ''}"
-    return ca.Function(f"dynamics_{tag}", [v, p], [cost, rows], ["v", "p"], ["cost", "rows"])
+    return BlockFunction(ca.Function(f"dynamics_{tag}", [v, p], [cost, rows], ["v", "p"], ["cost", "rows"]))
 
 
 #: the fuel epigraph's variables per control node: magnitudes s_f, s_m and unit directions d_f, d_m
 FUEL_SLACKS = 8
 
 
-@lru_cache(maxsize=None)
-def control_node(free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> ca.Function:
+@per_discretization
+def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> BlockFunction:
     """The block of one control node: norm bounds and the fuel epigraph (module docstring).
 
     The fuel epigraph is the magnitude-direction split u_f = s_f d_f, |d_f| <= 1, s_f >= 0 (the same
@@ -122,15 +124,16 @@ def control_node(free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> ca.Fun
         rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
         cost = omega_per_h * h * (wf * sf + wm * sm) / s_obj
     tag = f"{'f' if norm_f else ''}{'m' if norm_m else ''}{'_fuel' if fuel else ''}{'_freeh' if free_h else ''}"
-    return ca.Function(f"control_node_{tag}", [v, p], [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)],
-                       ["v", "p"], ["cost", "rows"])
+    return BlockFunction(ca.Function(f"control_node_{tag}", [v, p], [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)],
+                                     ["v", "p"], ["cost", "rows"]))
 
 
-@lru_cache(maxsize=None)
-def time_cost() -> ca.Function:
+@per_discretization
+def time_cost(disc) -> BlockFunction:
     """The time objective N h / s_obj (module docstring)."""
     v, p = ca.SX.sym("v", 1), ca.SX.sym("p", 2)
-    return ca.Function("time_cost", [v, p], [p[0] * v[0] * p[1], ca.SX(0, 1)], ["v", "p"], ["cost", "rows"])
+    return BlockFunction(ca.Function("time_cost", [v, p], [p[0] * v[0] * p[1], ca.SX(0, 1)], ["v", "p"],
+                                     ["cost", "rows"]))
 
 
 def node_rows(name: str, rows_of, scales: np.ndarray) -> ca.Function:
@@ -152,8 +155,8 @@ def dynamics_data(disc, h: float, sX, sC, sW, sG, s_obj=None, W_f=None, W_m=None
     return np.concatenate([np.asarray(a, dtype=float).ravel() for a in parts])
 
 
-@lru_cache(maxsize=None)
-def state_target(fixed: tuple[str, ...]) -> ca.Function:
+@per_discretization
+def state_target(disc, fixed: tuple[str, ...]) -> BlockFunction:
     """The terminal rows of a state target with the components ``fixed`` (module docstring)."""
     nr = 3 * len(fixed)
     v = ca.SX.sym("v", NX)
@@ -161,7 +164,7 @@ def state_target(fixed: tuple[str, ...]) -> ca.Function:
     sX, Xd, sr = p[:NX], p[NX:2 * NX], p[2 * NX:]
     rows = state_residual(v * sX, Xd, fixed) / sr
     tag = "_".join(c[:3] for c in fixed)
-    return ca.Function(f"state_target_{tag}", [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"])
+    return BlockFunction(ca.Function(f"state_target_{tag}", [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"]))
 
 
 def state_target_scales(sX: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:

@@ -27,7 +27,7 @@ MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_ord
 ACCEPTABLE_OBJ_CHANGE_TOL = 1e-12
 
 
-def ipopt_options(opts: DirectOptions, warm_duals: bool = False) -> dict[str, Any]:
+def ipopt_options(options: DirectOptions, warm_duals: bool = False) -> dict[str, Any]:
     """IPOPT options of a direct solve: tolerances, the exact Hessian, MUMPS_DEFAULTS, then the raw
     ``options`` (IPOPT has no booleans: true/false become yes/no).  constr_viol_tol: the defects
     are what the re-simulation accumulates over N steps, so they are driven well below tol.
@@ -35,10 +35,10 @@ def ipopt_options(opts: DirectOptions, warm_duals: bool = False) -> dict[str, An
     objective has stopped changing, i.e. at a round-off floor, not while it still converges slowly (the
     five-orbit phasing, configs/everyday/phasing_5_orbits.yaml: stopped at 85 iterations with the dual
     infeasibility falling by a third per iteration; Solve_Succeeded at 120)."""
-    ipopt = {"tol": float(opts.tol), "constr_viol_tol": 1e-2 * float(opts.tol), "max_iter": int(opts.max_iter),
+    ipopt = {"tol": float(options.tol), "constr_viol_tol": 1e-2 * float(options.tol), "max_iter": int(options.max_iter),
              "acceptable_obj_change_tol": ACCEPTABLE_OBJ_CHANGE_TOL, "print_level": 0, "sb": "yes",
              "hessian_approximation": "exact", **MUMPS_DEFAULTS}
-    ipopt.update({k: raw_solver_value(v) for k, v in opts.options.items()})
+    ipopt.update({k: raw_solver_value(v) for k, v in options.options.items()})
     if warm_duals:
         ipopt.setdefault("warm_start_init_point", "yes")
     return ipopt

@@ -24,54 +24,12 @@ Rows are ordered block by block, instance-major inside a block (:meth:`Structure
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
 from .. import codegen
-
-
-@dataclass
-class Block:
-    """One kind of NLP term, instantiated M times.
-
-    fn: SX Function (v[nv], p[np]) -> (cost (1x1), rows (nr x 1)), in scaled variables and rows.
-    idx: (nv, M) global indices of v per instance.  data: (np, M) (or (np,) shared) constants.
-    lbg, ubg: (nr, M) (or (nr,) shared, or scalars) row bounds.  compile: jit the derivatives.
-    """
-
-    name: str
-    fn: ca.Function
-    idx: np.ndarray
-    data: np.ndarray
-    lbg: np.ndarray | float = 0.0
-    ubg: np.ndarray | float = 0.0
-    compile: bool = False
-
-    def __post_init__(self):
-        self.idx = np.asarray(self.idx, dtype=np.int64)
-        if self.idx.ndim == 1:
-            self.idx = self.idx[:, None]
-        nv, M = self.idx.shape
-        data = np.asarray(self.data, dtype=float)
-        self.data = np.repeat(data.reshape(-1, 1), M, axis=1) if data.ndim <= 1 else data
-        if self.fn.size1_in(0) != nv or self.data.shape != (self.fn.size1_in(1), M):
-            raise ValueError(f"block {self.name}: shapes of idx {self.idx.shape} / data {self.data.shape} do not match "
-                             f"{self.fn.name()} (nv = {self.fn.size1_in(0)}, np = {self.fn.size1_in(1)})")
-        nr = self.nr
-        self.lbg = np.broadcast_to(np.asarray(self.lbg, dtype=float).reshape(-1, 1) if np.ndim(self.lbg) == 1
-                                   else np.asarray(self.lbg, dtype=float), (nr, M)).copy()
-        self.ubg = np.broadcast_to(np.asarray(self.ubg, dtype=float).reshape(-1, 1) if np.ndim(self.ubg) == 1
-                                   else np.asarray(self.ubg, dtype=float), (nr, M)).copy()
-
-    @property
-    def M(self) -> int:
-        return self.idx.shape[1]
-
-    @property
-    def nr(self) -> int:
-        return self.fn.size1_out(1)
 
 
 class _Derivatives:
@@ -101,17 +59,66 @@ class _Derivatives:
             self.compiled = self.jac.class_name() == "External" and self.hess.class_name() == "External"
 
 
-_DERIVATIVES: dict[tuple[int, bool], tuple[ca.Function, _Derivatives]] = {}
+class BlockFunction:
+    """A block's SX Function and its derivative Functions (:class:`_Derivatives`, one set per jit flag), built
+    on first use and kept here: whoever keeps the BlockFunction keeps its derivatives and their compiled code
+    (the Discretization keeps the blocks of :mod:`.blocks`; a block built for one problem -- a path constraint,
+    an orbit target -- lives with its NLP)."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._derivatives: dict[bool, _Derivatives] = {}
+
+    def derivatives(self, jit: bool) -> _Derivatives:
+        if bool(jit) not in self._derivatives:
+            self._derivatives[bool(jit)] = _Derivatives(self.function, bool(jit))
+        return self._derivatives[bool(jit)]
 
 
-def derivatives(fn: ca.Function, jit: bool) -> _Derivatives:
-    """Cached :class:`_Derivatives` of a block Function (keyed by the Function object)."""
-    key = (id(fn), bool(jit))
-    hit = _DERIVATIVES.get(key)
-    if hit is None or hit[0] is not fn:
-        hit = (fn, _Derivatives(fn, jit))
-        _DERIVATIVES[key] = hit
-    return hit[1]
+@dataclass
+class Block:
+    """One kind of NLP term, instantiated M times.
+
+    fn: SX Function (v[nv], p[np]) -> (cost (1x1), rows (nr x 1)), in scaled variables and rows, or a
+    :class:`BlockFunction` of one (whose derivatives are kept with it); ``fn`` is then its Function.
+    idx: (nv, M) global indices of v per instance.  data: (np, M) (or (np,) shared) constants.
+    lbg, ubg: (nr, M) (or (nr,) shared, or scalars) row bounds.  compile: jit the derivatives.
+    """
+
+    name: str
+    fn: ca.Function | BlockFunction
+    idx: np.ndarray
+    data: np.ndarray
+    lbg: np.ndarray | float = 0.0
+    ubg: np.ndarray | float = 0.0
+    compile: bool = False
+    block_function: BlockFunction = field(init=False, repr=False)
+
+    def __post_init__(self):
+        self.block_function = self.fn if isinstance(self.fn, BlockFunction) else BlockFunction(self.fn)
+        self.fn = self.block_function.function
+        self.idx = np.asarray(self.idx, dtype=np.int64)
+        if self.idx.ndim == 1:
+            self.idx = self.idx[:, None]
+        nv, M = self.idx.shape
+        data = np.asarray(self.data, dtype=float)
+        self.data = np.repeat(data.reshape(-1, 1), M, axis=1) if data.ndim <= 1 else data
+        if self.fn.size1_in(0) != nv or self.data.shape != (self.fn.size1_in(1), M):
+            raise ValueError(f"block {self.name}: shapes of idx {self.idx.shape} / data {self.data.shape} do not match "
+                             f"{self.fn.name()} (nv = {self.fn.size1_in(0)}, np = {self.fn.size1_in(1)})")
+        nr = self.nr
+        self.lbg = np.broadcast_to(np.asarray(self.lbg, dtype=float).reshape(-1, 1) if np.ndim(self.lbg) == 1
+                                   else np.asarray(self.lbg, dtype=float), (nr, M)).copy()
+        self.ubg = np.broadcast_to(np.asarray(self.ubg, dtype=float).reshape(-1, 1) if np.ndim(self.ubg) == 1
+                                   else np.asarray(self.ubg, dtype=float), (nr, M)).copy()
+
+    @property
+    def M(self) -> int:
+        return self.idx.shape[1]
+
+    @property
+    def nr(self) -> int:
+        return self.fn.size1_out(1)
 
 
 def assemble(nrow: int, ncol: int, rows, cols, vals):
@@ -161,7 +168,7 @@ class StructuredNLP:
         self.ng = off
         self.lbg = np.concatenate([b.lbg.ravel(order="F") for b in self.blocks]) if self.blocks else np.zeros(0)
         self.ubg = np.concatenate([b.ubg.ravel(order="F") for b in self.blocks]) if self.blocks else np.zeros(0)
-        self._d = {b.name: derivatives(b.fn, jit and b.compile) for b in self.blocks}
+        self._d = {b.name: b.block_function.derivatives(jit and b.compile) for b in self.blocks}
         self.compiled = all(self._d[b.name].compiled for b in self.blocks if b.compile) and jit
         self._V = {b.name: self._gather(b) for b in self.blocks}
         f = ca.MX(0)

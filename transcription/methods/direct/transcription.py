@@ -139,13 +139,13 @@ class SmoothTranscription:
         iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
         n_ineq = int(norm_f) + int(norm_m) + (2 if fuel else 0)
         lbg = np.r_[np.full(n_ineq, -np.inf), np.zeros(6 if fuel else 0)]
-        blk = Block("controls", blocks.control_node(self.free_h, norm_f, norm_m, fuel), iN, cdata, lbg=lbg, ubg=0.0)
+        blk = Block("controls", blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel), iN, cdata, lbg=lbg, ubg=0.0)
         return blk, np.r_[np.ones(n_ineq), np.repeat(sS, 3) if fuel else []]
 
     def _time_block(self):
         if self.problem.control.objective != "time":
             return None, None
-        return (Block("time", blocks.time_cost(), np.array([self.layout.ih]),
+        return (Block("time", blocks.time_cost(self.problem.disc), np.array([self.layout.ih]),
                       np.array([self.h_scale, self.problem.N / self.scales.objective])), np.zeros(0))
 
     def _constraint_blocks(self):
@@ -179,7 +179,7 @@ class SmoothTranscription:
             m, mu = problem.model.mass, problem.model.mu
             fn = blocks.node_rows("orbit_target", lambda X: orbit_residual(X, target, m, mu), tsc)
             return Block("terminal", fn, lay.iX[:, -1], sc.X), tsc
-        return (Block("terminal", blocks.state_target(target.fixed), lay.iX[:, -1],
+        return (Block("terminal", blocks.state_target(problem.disc, target.fixed), lay.iX[:, -1],
                       np.concatenate([sc.X, target.X, tsc])), tsc)
 
     def _variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:

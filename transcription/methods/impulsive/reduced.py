@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from functools import lru_cache
 
 import casadi as ca
 import numpy as np
@@ -14,7 +13,7 @@ import numpy as np
 from ...guess import cayley_vectors
 from ... import codegen
 from ...layout import NX, split_state, unpack_states
-from ...lgvi import CAYLEY_TOL
+from ...lgvi import CAYLEY_TOL, per_discretization
 from ...options import DirectOptions
 from ...problem import Problem, orbit_conditions
 from ...results import Iterate, Result
@@ -26,7 +25,7 @@ from .tpbvp import simulate_momenta
 MAX_STEP = 1.0
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, ca.Function]:
     """Per-step derivative Functions of the free step F (u = 0) in ambient coordinates (R as 9 numbers).
 
@@ -55,7 +54,7 @@ def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, c
     return fwd, adj, hess
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def _rollout_derivatives(disc, N: int, jit: bool) -> tuple[ca.Function, ca.Function]:
     """Sweeps over N free steps along given nodes X (18 x N, nodes 0..N-1) and Cayley roots (3 x N).
 

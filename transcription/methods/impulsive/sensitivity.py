@@ -2,12 +2,11 @@
 A_{N-1} ... A_0 (12 x 12) along the rollout, and a second route by AD of the whole rollout (for the tests)."""
 from __future__ import annotations
 
-from functools import lru_cache
-
 import casadi as ca
 import numpy as np
 
 from ...layout import NX, NZ, X_ANG, X_MOM, Z_ANG, Z_MOM, chart, tangent_readback
+from ...lgvi import per_discretization
 
 #: tangent coordinates of the unknowns p = (gamma_0^+, Pi_0^+) inside z
 P_COLS = np.r_[np.arange(Z_MOM.start, Z_MOM.stop), np.arange(Z_ANG.start, Z_ANG.stop)]
@@ -21,7 +20,7 @@ def with_momenta(X0: np.ndarray, p: np.ndarray) -> np.ndarray:
     return X
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def _variation_map(disc, N: int) -> ca.Function:
     return disc.variation.map(N)
 
@@ -41,7 +40,7 @@ def sensitivity(disc, X: np.ndarray, h: float, W: np.ndarray | None = None) -> n
     return Phi
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def _sensitivity_ad_fn(disc, N: int) -> ca.Function:
     X0 = ca.MX.sym("X0", NX)
     z = ca.MX.sym("z", NZ)

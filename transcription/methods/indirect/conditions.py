@@ -3,12 +3,11 @@
 package docstring (:mod:`transcription.methods.indirect`); the LGVI's in :data:`LGVI_CONDITIONS`."""
 from __future__ import annotations
 
-from functools import lru_cache
 
 import casadi as ca
 
 from ...layout import NU, NX, NZ, join_state, split_state
-from ...lgvi import Discretization
+from ...lgvi import Discretization, per_discretization
 from ...lie import orthonormalize
 from ...problem import state_residual
 from .control import NB, control_law
@@ -71,7 +70,7 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
     return {"c": c, "A": A, "lam": lam, "u": u, "D": D, "X1": X1, "res": hist[-1], "control": control}
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
     """The forward map of the necessary conditions for ``disc``.
 

@@ -2,14 +2,13 @@
 (docs/mathematics.md §6, §10), the control bounds as data, and the effort cost."""
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Callable
 
 import casadi as ca
 import numpy as np
 
 from ...layout import NU, NX, U_FORCE, U_MOMENT
-from ...lgvi import Discretization
+from ...lgvi import Discretization, per_discretization
 from ...problem import BoxBound, NormBound, Problem, effort_cost, quadrature_weights
 
 #: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
@@ -37,7 +36,6 @@ def saturate(v, bd):
     return ca.vertcat(*blocks)
 
 
-@lru_cache(maxsize=None)
 def saturation() -> ca.Function:
     """``saturation`` (v[6], bd[NB]) -> (u[6], D[6x6]): :func:`saturate` and its (generalized) Jacobian
     D = du/dv, the element of the Clarke Jacobian that CasADi's derivatives of min/max pick (the active
@@ -66,7 +64,7 @@ def bounded(bd: np.ndarray) -> bool:
     return bool(np.any(np.isfinite(box) & (box > 0)) or np.any(bd[NU:] < NO_NORM))
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def control_matrix(disc: Discretization) -> ca.Function:
     """``{scheme}_control_matrix`` (h) -> B_c[12x6]: the tangent-coordinate derivative of X_{k+1} by the
     control that the costate lambda_k determines (first_order: B_k w.r.t. u_{k+1}; lgvi: B^b).

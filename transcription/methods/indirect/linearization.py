@@ -2,18 +2,17 @@
 Jacobian Psi of the shooting residual by the linearized recursion along the rollout."""
 from __future__ import annotations
 
-from functools import lru_cache
 
 import casadi as ca
 
 from ...layout import NU, NX, NZ, chart, tangent_readback
-from ...lgvi import Discretization
+from ...lgvi import Discretization, per_discretization
 from .conditions import costate_functions, orthonormalized, terminal_residual_function
 from .control import NB, control_law, control_matrix, control_scale
 from .elimination import unpivoted_elimination, unpivoted_substitution
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
     """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam] at z = 0.
 
@@ -128,7 +127,6 @@ def _linearized_map_function(disc: Discretization, spH: ca.Sparsity) -> ca.Funct
                        ["dZ", "dlam", "A", "H", "Dk", "D1", "h", "Winv"], ["dZ1", "dlam1"])
 
 
-@lru_cache(maxsize=None)
 def terminal_residual_jacobian() -> ca.Function:
     """(XN[18], Xd[18]) -> (zN[12], J[12x12]): J = dzN(chart(XN, z))/dz at z = 0 (tangent coordinates)."""
     XN, Xd, z = ca.SX.sym("XN", NX), ca.SX.sym("Xd", NX), ca.SX.sym("z", NZ)

@@ -2,13 +2,12 @@
 exact Jacobian, the rollout of states, costates and controls, and the free-final-time gradient."""
 from __future__ import annotations
 
-from functools import lru_cache
 
 import casadi as ca
 
 from ... import codegen
 from ...layout import NU, NX, NZ, tangent_readback
-from ...lgvi import Discretization
+from ...lgvi import Discretization, per_discretization
 from .conditions import costate_functions, terminal_residual_function
 from .control import NB, control_law, control_matrix
 from .linearization import linearization_functions, terminal_residual_jacobian
@@ -117,13 +116,13 @@ class ShootingFunctions:
                                      ["zN", "Psi", "dlamN"])
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> ShootingFunctions:
-    """Cached :class:`ShootingFunctions` (one per Discretization object, N and jit)."""
+    """The :class:`ShootingFunctions` of ``disc`` and N, built once and kept on the Discretization."""
     return ShootingFunctions(disc, N, jit)
 
 
-@lru_cache(maxsize=None)
+@per_discretization
 def time_gradient_function(disc: Discretization, N: int) -> ca.Function:
     """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h) -> g[1 x N]: the derivative
     of each step's constraint term of the Lagrangian by the step size at fixed states, controls and multipliers,
