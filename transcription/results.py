@@ -10,6 +10,7 @@ measured on what a user would fly.
 from __future__ import annotations
 
 import enum
+import html
 import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
@@ -217,6 +218,9 @@ class Trajectory:
         orth, det = orthogonality_error(self.R)
         return {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max())}
 
+    def __repr__(self) -> str:
+        return f"Trajectory(N = {len(self.t) - 1}, T = {float(self.t[-1]):.6g}, mass {self.mass:g})"
+
 
 def trajectory(problem: "Problem", X: np.ndarray, h: float | None = None) -> Trajectory:
     """The Trajectory of node states X (N+1, 18) of ``problem``: times k h (h the problem's by default), the
@@ -287,6 +291,30 @@ class Solution:
     def converged(self) -> bool:
         return self.result.successful
 
+    # ------------------------------------------------------------------ display
+    def display(self) -> dict[str, str]:
+        """What a notebook shows of this Solution, as text (scalars only, never an array): method, status,
+        cost, terminal error, max |R^T R - I|, iterations, build and solve seconds, N, T, scheme."""
+        def num(x, fmt):
+            return "-" if x is None or not np.isfinite(x) else format(float(x), fmt)
+
+        na = self.result is Result.not_applicable
+        orth = self.trajectory.orthogonality()["max_orthogonality_error"] if len(self.trajectory.t) else math.nan
+        return {"method": self.method, "status": self.result.value, "cost": num(math.nan if na else self.cost, ".10g"),
+                "terminal error": num(math.nan if na else self.terminal_error, ".1e"),
+                "max |R^T R - I|": num(math.nan if na else orth, ".1e"), "iterations": str(self.iterations),
+                "build s": num(self.build_s, ".2f"), "solve s": num(self.solve_s, ".2f"), "N": str(self.N),
+                "T": num(self.T, ".6g"), "scheme": self.scheme or "-"}
+
+    def __repr__(self) -> str:
+        d = self.display()
+        return (f"Solution({d['method']} {d['status']}: cost {d['cost']}, terminal error {d['terminal error']}, "
+                f"max |R^T R - I| {d['max |R^T R - I|']}, {d['iterations']} iterations, build {d['build s']} s, "
+                f"solve {d['solve s']} s; N = {d['N']}, T = {d['T']}, {d['scheme']})")
+
+    def _repr_html_(self) -> str:
+        return html_table([self], caption=f"{self.method}: {self.result.message}")
+
     # ------------------------------------------------------------------ output
     def summary(self) -> dict[str, Any]:
         """JSON-ready scalar summary (the per-method block of summary.json)."""
@@ -330,6 +358,28 @@ class Solution:
 
 
 
+
+
+#: the colour of a status in notebooks (as in report.html: converged green, not applicable grey, else red)
+_STATUS_COLOUR = {True: "#1a7f37", None: "#6e7781", False: "#cf222e"}
+
+
+def html_table(solutions: list[Solution], caption: str = "", footer: str = "") -> str:
+    """An HTML table of Solutions for notebooks: a row per Solution with its :meth:`Solution.display` and its
+    message beneath (escaped), the status coloured; ``caption`` above and ``footer`` below (escaped)."""
+    cols = list(solutions[0].display())
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    rows = []
+    for s in solutions:
+        d = s.display()
+        ok = None if s.result is Result.not_applicable else s.converged
+        cells = "".join(f'<td style="color:{_STATUS_COLOUR[ok]};font-weight:bold">{html.escape(v)}</td>'
+                        if c == "status" else f"<td>{html.escape(v)}</td>" for c, v in d.items())
+        rows.append(f"<tr>{cells}</tr><tr><td colspan=\"{len(cols)}\" style=\"text-align:left;font-size:smaller\">"
+                    f"{html.escape(s.message)}</td></tr>")
+    cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
+    foot = f"<p>{html.escape(footer)}</p>" if footer else ""
+    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>{foot}"
 
 
 def figures_of_merit(sol: "Solution") -> dict[str, Any]:

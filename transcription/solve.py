@@ -25,7 +25,7 @@ from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, terminal_error
-from .results import Result, SolveError, Solution, trajectory
+from .results import Result, SolveError, Solution, html_table, trajectory
 from .warm import WarmStart, as_warm_start
 
 #: the registry: each method name and its implementations (one per kind of control)
@@ -63,6 +63,14 @@ class Comparison:
         return {"cost_relative_difference": self.cost_relative_difference,
                 "control_max_difference_relative": self.control_max_difference_relative,
                 "same_extremal": self.same_extremal, "verdict": self.verdict}
+
+    def __repr__(self) -> str:
+        return (f"Comparison({self.verdict}; cost relative difference {self.cost_relative_difference:.1e}\n"
+                f"  {self.direct!r}\n  {self.indirect!r})")
+
+    def _repr_html_(self) -> str:
+        return html_table([self.direct, self.indirect], caption=self.verdict,
+                          footer=f"cost relative difference {self.cost_relative_difference:.1e}")
 
 
 def compare(a: Solution, b: Solution) -> Comparison:

@@ -62,6 +62,11 @@ class WarmStart:
     def h(self) -> float:
         return self.T / self.N
 
+    def __repr__(self) -> str:
+        parts = [name for name, v in (("multipliers", self.multipliers), ("costates", self.costates),
+                                      ("lambda_0", self.lam0)) if v is not None]
+        return f"WarmStart({self.describe()}, T = {self.T:.6g}; states, controls{''.join(', ' + p for p in parts)})"
+
     def describe(self) -> str:
         """'the direct solution (N = 100, first_order)'."""
         return f"the {self.source} solution (N = {self.N}, {self.scheme})"
