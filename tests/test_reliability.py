@@ -632,8 +632,14 @@ def test_sweep_grid_validation_is_bounded_and_shows_progress(tmp_path):
 def test_worst_files_validate_within_10_s(tmp_path):
     """End to end, once, generously: the largest files of each kind that validation accepts or must
     read to reject (1 MB of values at the node limit, an alias bomb up to the limit, 64 constraints
-    and 64 rotations, every option of _IPOPT_VALID, N = 10^7) -> `se3ocp validate` exits within 10 s."""
+    and 64 rotations, every option of _IPOPT_VALID, N = 10^7) -> `se3ocp validate` exits within 10 s of
+    CPU time.  The bound is a resource limit on the child (RLIMIT_CPU: killed by SIGXCPU beyond it), not a
+    wall clock, so a loaded machine cannot make it fail."""
+    resource = pytest.importorskip("resource")
     from se3ocp.problems.schema import MAX_FILE_BYTES, MAX_NODES
+
+    def cpu_limit():
+        resource.setrlimit(resource.RLIMIT_CPU, (10, 10))
 
     from se3ocp.problems.schema import yaml_load
 
@@ -653,12 +659,14 @@ def test_worst_files_validate_within_10_s(tmp_path):
         assert len(text.encode()) <= MAX_FILE_BYTES, name
         p = tmp_path / f"{name}.yaml"
         p.write_text(text)
-        t0 = time.monotonic()
-        r = _cli("validate", p)
-        secs = time.monotonic() - t0
-        assert "Traceback" not in r.stderr and r.returncode in (0, 2), (name, r.stderr)
-        assert secs < 10.0, f"{name}: {secs:.1f} s"
-        print(f"{name}: exit {r.returncode} in {secs:.2f} s")
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "validate", str(p)], cwd=ROOT,
+                           capture_output=True, text=True, timeout=600, preexec_fn=cpu_limit)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+        assert r.returncode != -signal.SIGXCPU, f"{name}: more than 10 s of CPU time"
+        assert "Traceback" not in r.stderr and r.returncode in (0, 2), (name, r.returncode, r.stderr)
+        print(f"{name}: exit {r.returncode} in {cpu:.2f} s of CPU time")
 
 
 def test_out_of_memory_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):

@@ -126,3 +126,64 @@ def test_impulsive_maneuvers_take_the_direct_method_only():
         se3ocp.solve(maneuver("e1", 50), "both")
     with pytest.raises(ValueError, match="nothing to solve"):
         se3ocp.solve(maneuver("free", 50))
+
+
+# ------------------------------------------------------------------------------ the registry
+def test_which_methods_solve_which_problems():
+    """not_covered(problem, method) is the one place that says it ('' when the method can run), solve raises
+    exactly that, and the registry picks the implementation by the kind of control."""
+    from se3ocp.transcription.methods.direct import DIRECT
+    from se3ocp.transcription.methods.impulsive import IMPULSIVE
+    from se3ocp.transcription.methods.indirect import INDIRECT
+    from se3ocp.transcription.solve import implementation, not_covered
+
+    e1, e3, free = (maneuver(name, 10).problem for name in ("e1", "e3", "free"))
+    assert [not_covered(e3, m) for m in ("direct", "indirect", "both")] == ["", "", ""]
+    assert not_covered(e1, "direct") == ""
+    assert not_covered(e1, "indirect") == not_covered(e1, "both").replace("'both'", "'indirect'") == (
+        "method 'indirect': the indirect method applies to smooth control; impulsive maneuvers are solved by "
+        "method='direct'")
+    assert not_covered(free, "direct") == ("the problem has no terminal target and no control: there is nothing to "
+                                           "solve (simulate it)")
+    assert not_covered(e3, "shooting") == "method must be one of direct, indirect, both, got 'shooting'"
+    with pytest.raises(ValueError) as err:
+        se3ocp.solve(e1, "both")
+    assert str(err.value) == not_covered(e1, "both")
+    assert implementation(e3, "direct") is DIRECT and implementation(e1, "direct") is IMPULSIVE
+    assert implementation(e3, "indirect") is INDIRECT and implementation(e1, "indirect") is None
+    # what a method does not cover inside a problem it solves is its own: a Solution saying so
+    assert INDIRECT.not_covered(maneuver("e3_min_radius", 10).problem) == "path constraints"
+
+
+def test_progress_is_one_signature_naming_the_method():
+    """progress(Iterate) for every method, the Iterate naming its method: the direct iterations first."""
+    recs = []
+    c = se3ocp.solve(maneuver("e3", 20, "first_order"), "both", progress=recs.append)
+    methods = [r.method for r in recs]
+    assert c.converged and set(methods) == {"direct", "indirect"}
+    assert methods == sorted(methods) and methods.count("indirect") == c.indirect.iterations
+    assert all(r.method == "" for r in c.direct.history + c.indirect.history)   # a Solution knows its method
+
+
+def test_indirect_from_direct_alone_runs_the_direct_method_first(monkeypatch):
+    """'indirect' with initial_costate: from_direct runs the direct method once (the registry, not the indirect
+    method) and says so in the indirect Solution's stats; the indirect method asked for from_direct without a
+    direct solution says what is missing."""
+    import se3ocp.transcription.solve as registry
+
+    calls = []
+    direct, impulsive = registry.METHODS["direct"]
+
+    def counted(*a, **k):
+        calls.append(1)
+        return direct.solve_fn(*a, **k)
+
+    monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=counted), impulsive))
+    s = se3ocp.solve(maneuver("e3", 30, "first_order"), "indirect", initial_costate="from_direct")
+    assert len(calls) == 1 and s.converged and s.stats["initial_costate"] == "from_direct"
+    assert s.stats["direct_status"] == "converged" and s.stats["direct_cost"] == pytest.approx(s.cost, rel=1e-9)
+    from se3ocp.transcription.methods.indirect import solve_indirect
+    from se3ocp.transcription.options import IndirectOptions
+
+    alone = solve_indirect(maneuver("e3", 30, "first_order").problem, IndirectOptions(initial_costate="from_direct"))
+    assert alone.result is Result.invalid_option and "no direct solution with costates was given" in alone.message
