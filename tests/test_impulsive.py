@@ -148,7 +148,7 @@ def test_e1_failure_is_data():
     p = problem("e1", 100)
     nr, X = solve_tpbvp(p, initial_momenta(p, "rollout"), max_iter=1)
     assert nr.result is Result.max_iterations and nr.iterations == 1 and X.shape == (101, 18)
-    with pytest.raises(ValueError, match="indirect method applies to smooth control"):
+    with pytest.raises(ValueError, match="indirect method applies to smooth maneuvers"):
         se3ocp.solve(maneuver("e1", 100), "indirect")
 
 

@@ -107,8 +107,8 @@ def implementation(problem: Problem, name: str) -> Method | None:
 def not_covered(problem: Problem, method: str) -> str:
     """Why ``method`` ('direct', 'indirect' or 'both') cannot be run on ``problem`` at all, in one sentence
     ('' when it can): the one place that says which methods solve which problems (impulsive maneuvers: the
-    direct method only; a motion without control: none).  ``solve`` raises ValueError with it; the CLI
-    reports it as bad input.  What a method does not cover *within* a problem it solves (the indirect method
+    direct method only; a motion without control: none).  ``solve`` raises ValueError with it; the CLI and
+    the sweeps report it as bad input (and the CLI narrows 'both' to the method that applies).  What a method does not cover *within* a problem it solves (the indirect method
     and path constraints) is not decided here: that method's Solution says so (Result.not_applicable)."""
     if method not in METHOD_NAMES:
         return f"method must be one of {', '.join(METHOD_NAMES)}, got {method!r}"
@@ -116,7 +116,7 @@ def not_covered(problem: Problem, method: str) -> str:
         return "the problem has no terminal target and no control: there is nothing to solve (simulate it)"
     for name in (("direct", "indirect") if method == "both" else (method,)):
         if implementation(problem, name) is None:
-            return f"method {method!r}: {METHODS[name][0].not_covered(problem)}"
+            return METHODS[name][0].not_covered(problem)
     return ""
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, pack_state, unpack_states
-from .lie import geodesic_interpolation
+from .lie import exp_so3, geodesic_interpolation, log_so3_any
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +103,28 @@ def warm_start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: st
     arrays = {k: (np.array(v, dtype=float) if k != "nlp_key" else v) for k, v in dual.items()}
     return WarmStart(t=np.array(t, dtype=float), X=np.array(X, dtype=float), U=np.array(U, dtype=float),
                      scheme=scheme, source=source, **arrays)
+
+
+def secant(w0: WarmStart, w1: WarmStart, r: float) -> WarmStart | None:
+    """The secant predictor of a continuation: w1 + r (w1 - w0) for warm starts w0, w1 of one grid (the
+    solutions at parameter values p0, p1, extrapolated to p1 + r (p1 - p0)), on SE(3): node times,
+    positions, momenta, controls, costates, lambda_0 and the multipliers (of one NLP structure) linearly,
+    attitudes along the geodesic R_1 Exp(r Log(R_0^T R_1)).  None when their grids or schemes differ; a part
+    only one of them carries is left out."""
+    if (w0.N, w0.scheme, w0.U.shape) != (w1.N, w1.scheme, w1.U.shape):
+        return None
+
+    def lin(a, b):
+        return None if a is None or b is None or np.shape(a) != np.shape(b) else b + r * (b - a)
+
+    s0, s1 = unpack_states(w0.X), unpack_states(w1.X)
+    R = np.array([R1 @ exp_so3(r * log_so3_any(R0.T @ R1)) for R0, R1 in zip(s0.R, s1.R)])
+    X = pack_state(lin(s0.x, s1.x), lin(s0.gamma, s1.gamma), R, lin(s0.Pi, s1.Pi))
+    same_nlp = w0.nlp_key is not None and w0.nlp_key == w1.nlp_key
+    return WarmStart(t=lin(w0.t, w1.t), X=X, U=lin(w0.U, w1.U), scheme=w1.scheme, source=w1.source,
+                     multipliers=lin(w0.multipliers, w1.multipliers) if same_nlp else None,
+                     nlp_key=w1.nlp_key if same_nlp else None, costates=lin(w0.costates, w1.costates),
+                     lam0=lin(w0.lam0, w1.lam0))
 
 
 def as_warm_start(given) -> tuple[WarmStart | None, str]:

@@ -25,7 +25,7 @@ def not_covered(problem: Problem) -> str:
     transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
     on a block with a diagonal weight, a norm bound on one with an isotropic weight."""
     if problem.kind != "smooth":
-        return "the indirect method applies to smooth control; impulsive maneuvers are solved by method='direct'"
+        return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
     reasons = []
     if c.objective != "effort":
