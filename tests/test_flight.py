@@ -233,7 +233,7 @@ def test_reference_figures():
     e3 = continuous_check(solved("e3", 400, "lgvi"))
     assert 1e-4 / 1.5 <= e3.terminal_position <= 1.5e-4
     fo = continuous_check(solved("e3", 500))
-    assert solved("e3", 500).discretization == "first_order"
+    assert solved("e3", 500).scheme == "first_order"
     assert np.degrees(fo.terminal_attitude) == pytest.approx(1.0, rel=0.1)
     assert 1e-2 <= fo.terminal_position <= 2e-2
     for c in (slew, e3, fo):

@@ -22,9 +22,9 @@ def test_both_methods_agree_and_compare():
     assert c.cost_relative_difference <= 1e-8 and c.control_max_difference_relative <= 1e-6
 
 
-def test_from_direct_hand_off_reuses_the_direct_solution(monkeypatch):
-    """With initial_costate: from_direct, 'both' runs the direct method once and starts the indirect
-    method from its multipliers (at most 3 Newton iterations: they already nearly satisfy the conditions)."""
+@pytest.fixture
+def direct_solves(monkeypatch) -> list:
+    """The direct solves of the registry, counted (one entry per call)."""
     import se3ocp.transcription.solve as registry
 
     calls = []
@@ -35,6 +35,13 @@ def test_from_direct_hand_off_reuses_the_direct_solution(monkeypatch):
         return direct.solve_fn(*a, **k)
 
     monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=counted), impulsive))
+    return calls
+
+
+def test_from_direct_hand_off_reuses_the_direct_solution(direct_solves):
+    """With initial_costate: from_direct, 'both' runs the direct method once and starts the indirect
+    method from its multipliers (at most 3 Newton iterations: they already nearly satisfy the conditions)."""
+    calls = direct_solves
     c = se3ocp.solve(maneuver("e4", 60, "first_order"), "both", indirect={"initial_costate": "from_direct"})
     assert len(calls) == 1
     assert c.indirect.stats["initial_costate"] == "from_direct" and c.indirect.iterations <= 3
@@ -164,20 +171,11 @@ def test_progress_is_one_signature_naming_the_method():
     assert all(r.method == "" for r in c.direct.history + c.indirect.history)   # a Solution knows its method
 
 
-def test_indirect_from_direct_alone_runs_the_direct_method_first(monkeypatch):
+def test_indirect_from_direct_alone_runs_the_direct_method_first(direct_solves):
     """'indirect' with initial_costate: from_direct runs the direct method once (the registry, not the indirect
     method) and says so in the indirect Solution's stats; the indirect method asked for from_direct without a
     direct solution says what is missing."""
-    import se3ocp.transcription.solve as registry
-
-    calls = []
-    direct, impulsive = registry.METHODS["direct"]
-
-    def counted(*a, **k):
-        calls.append(1)
-        return direct.solve_fn(*a, **k)
-
-    monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=counted), impulsive))
+    calls = direct_solves
     s = se3ocp.solve(maneuver("e3", 30, "first_order"), "indirect", initial_costate="from_direct")
     assert len(calls) == 1 and s.converged and s.stats["initial_costate"] == "from_direct"
     assert s.stats["direct_status"] == "converged" and s.stats["direct_cost"] == pytest.approx(s.cost, rel=1e-9)

@@ -11,11 +11,15 @@ is the only place where an option's type, range and default are written.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Mapping
+
+import casadi as ca
 
 #: integer options are bounded (a typo such as 1e30 iterations must not overflow into 0)
 MAX_INT_OPTION = 10**7
@@ -152,10 +156,6 @@ _FILE_OPTIONS = {"output_file": "a file name", "option_file_name": None}
 def _check_raw_option(solver: str, k: str, v, name: str) -> None:
     """One raw option (cached: a sweep checks the same options at every grid point).  The trial
     prints nothing (the solver's output during it is discarded) and writes no file."""
-    import contextlib
-    import io
-
-    import casadi as ca
 
     if k in _FILE_OPTIONS:
         if _FILE_OPTIONS[k] is None:

@@ -102,12 +102,8 @@ class MaxAngularRate(_PositiveLimit):
 
     def expression(self, X, inertia):
         _, _, _, Pi = split_state(X)
-        Jinv = np.linalg.inv(inertia)
-        if is_symbolic(X):
-            Om = ca.mtimes(ca.DM(Jinv), Pi)
-            return self.value**2 - ca.dot(Om, Om)
-        Om = Jinv @ Pi
-        return self.value**2 - Om @ Om
+        Om = mtimes(np.linalg.inv(inertia), Pi)
+        return self.value**2 - (ca.dot(Om, Om) if is_symbolic(X) else Om @ Om)
 
     def margin(self, traj) -> np.ndarray:
         return self.value - np.linalg.norm(traj.Omega, axis=1)
