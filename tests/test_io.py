@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 import yaml
 
-from se3ocp.problems import io as rio
-from se3ocp.problems.io import (INCOMPLETE_MARKER, ResultsDirError, atomic_output, atomic_write_bytes,
-                                results_transaction, results_update, write_json, write_npz, write_yaml)
+from se3ocp.problems import results_dir as rdir
+from se3ocp.problems.io import ResultsDirError, atomic_output, atomic_write_bytes, write_json, write_npz, write_yaml
+from se3ocp.problems.results_dir import INCOMPLETE_MARKER, results_transaction, results_update
 from se3ocp.problems.schema import yaml_load
 
 #: how long a helper process may take to reach the point where the test acts on it (a bound
@@ -31,10 +31,10 @@ WAIT_S = 120
 def swap(request, monkeypatch):
     """Run with the atomic exchange (Linux renameat2) and with the two-rename fallback."""
     if request.param == "exchange":
-        if rio._renameat2 is None:
+        if rdir._renameat2 is None:
             pytest.skip("renameat2 is not available here")
     else:
-        monkeypatch.setattr(rio, "_renameat2", None)
+        monkeypatch.setattr(rdir, "_renameat2", None)
     return request.param
 
 
@@ -149,10 +149,10 @@ def test_ctrl_c_during_the_swap_waits_until_it_is_done(tmp_path, monkeypatch, sw
         os.kill(os.getpid(), signal.SIGINT)
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    monkeypatch.setattr(rio.os, "rename", rename_then_sigint)
+    monkeypatch.setattr(rdir.os, "rename", rename_then_sigint)
     if swap == "exchange":
-        real_exchange = rio._exchange
-        monkeypatch.setattr(rio, "_exchange", lambda a, b: (real_exchange(a, b), os.kill(os.getpid(), signal.SIGINT))[0])
+        real_exchange = rdir._exchange
+        monkeypatch.setattr(rdir, "_exchange", lambda a, b: (real_exchange(a, b), os.kill(os.getpid(), signal.SIGINT))[0])
     try:
         with pytest.raises(KeyboardInterrupt):
             with results_transaction(out, force=True) as tx:
@@ -275,11 +275,11 @@ def test_lock_on_a_file_removed_by_its_previous_holder_is_taken_again(tmp_path, 
     the removed file: B must notice and lock the file now under the name, or a third run C
     could lock that one and run alongside B."""
     path = tmp_path / ".run.lock"
-    a = rio._Lock(path)
+    a = rdir._Lock(path)
     assert a.try_acquire() is None
     stale = os.open(path, os.O_RDWR)  # B's open, before A releases
     a.release()
-    c = rio._Lock(path)
+    c = rdir._Lock(path)
     assert c.try_acquire() is None  # C: a new file under the name
     opened = []
     real_open = os.open
@@ -288,8 +288,8 @@ def test_lock_on_a_file_removed_by_its_previous_holder_is_taken_again(tmp_path, 
         opened.append(p)
         return stale if len(opened) == 1 else real_open(p, flags, mode)
 
-    monkeypatch.setattr(rio.os, "open", b_open)
-    b = rio._Lock(path)
+    monkeypatch.setattr(rdir.os, "open", b_open)
+    b = rdir._Lock(path)
     assert b.try_acquire() == os.getpid()  # B retried on C's file and found it held (by C's pid)
     assert len(opened) == 2
     monkeypatch.undo()
@@ -304,7 +304,8 @@ HOLDER = textwrap.dedent("""
     import signal, sys, time
     signal.signal(signal.SIGINT, signal.default_int_handler)
     from pathlib import Path
-    from se3ocp.problems.io import results_transaction, write_json
+    from se3ocp.problems.io import write_json
+    from se3ocp.problems.results_dir import results_transaction
     out, ready, mode = sys.argv[1:4]
     with results_transaction(out, force=True) as tx:
         for i in range(10**9):
@@ -376,7 +377,7 @@ def test_disk_full_is_one_line_and_writes_nothing(tmp_path, monkeypatch):
     with pytest.raises(ResultsDirError) as ei:
         with results_transaction(out, force=True) as tx:
             write_json(tx.path / "summary.json", {"ok": 1})
-            monkeypatch.setattr(rio.os, "write", full)
+            monkeypatch.setattr(rdir.os, "write", full)
             write_npz(tx.path / "direct.npz", {"x": np.zeros(10)})
     monkeypatch.undo()
     # the message names the file in the results directory, not the hidden temporary one
