@@ -23,9 +23,9 @@ PACKAGE = "se3ocp"
 LAYERS = ("transcription", "problems")
 MAX_FUNCTION_LINES = 80
 MAX_MODULE_LINES = 600
-#: the modules of problems/ still over MAX_MODULE_LINES when this was written (io.py: its results-directory
-#: transactions move to their own module on branch t23prob; schema.py: branch t28's)
-PROBLEMS_MODULES_PENDING = ("problems/io.py", "problems/schema.py")
+#: the modules of problems/ still over MAX_MODULE_LINES when this was written (schema.py, 603 lines: branch
+#: t28's); the module check of problems/ is switched on (the xfail below removed) once it is split
+PROBLEMS_MODULES_PENDING = ("problems/schema.py",)
 
 
 def modules(layer: str) -> dict[str, Path]:
