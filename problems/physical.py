@@ -39,8 +39,8 @@ SPEED_RATIO_MAX = 1e4
 FALL_TIMES_MAX = 100.0
 #: relative tolerance of the radians check and the fractions of π it knows
 RADIANS_TOL = 1e-4
-_PI_FRACTIONS = sorted({(k / n, f"{k}π/{n}" if n > 1 else f"{k}π") for n in (1, 2, 3, 4, 6, 8, 12)
-                        for k in range(1, 2 * n + 1) if math.gcd(k, n) == 1})
+_PI_FRACTIONS = sorted({(k / n, (f"{k}" if k > 1 else "") + "π" + (f"/{n}" if n > 1 else ""))
+                        for n in (1, 2, 3, 4, 6, 8, 12) for k in range(1, 2 * n + 1) if math.gcd(k, n) == 1})
 
 
 @dataclass(frozen=True)
