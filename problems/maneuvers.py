@@ -224,6 +224,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                           constraints=constraints)
     except ProblemError as e:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
+    _physical.declare(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
                     central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved,
                     physical=phys)

@@ -204,10 +204,18 @@ def check_radians(v, angle: float, where: str) -> None:
                       f"(a rotation of exactly {angle!r} degrees: give the attitude as a matrix)")
 
 
+def declare(problem, phys: Physical) -> None:
+    """Record the file's units for its Problem (problems.units.declare), so figures and reports of
+    its solutions label them."""
+    from .units import declare as _declare
+
+    _declare(problem, phys.units)
+
+
 def unit_system(man) -> UnitSystem | None:
     """The units a loaded maneuver names (None: normalized or unnamed)."""
     phys = getattr(man, "physical", None)
     return phys.units if phys is not None else None
 
 
-__all__ = ["KEYS", "Physical", "check_radians", "check_units", "expand", "radians_hint", "unit_system"]
+__all__ = ["KEYS", "Physical", "check_radians", "check_units", "declare", "expand", "radians_hint", "unit_system"]

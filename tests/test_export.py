@@ -125,11 +125,22 @@ def arrays(run: Path) -> dict:
         return {k: z[k] for k in z.files}
 
 
+def cli_export(run: Path, fmt: str, out: Path, kw: dict, capsys) -> tuple[int, str]:
+    """``se3ocp export RUN --format FMT --out OUT`` (in-process: the CLI's code path); (exit status, stderr)."""
+    from se3ocp.problems.cli import main
+
+    argv = ["export", str(run), "--format", fmt, "--out", str(out), "--quiet"]
+    if "reference_radius" in kw:
+        argv += ["--reference-radius", repr(kw["reference_radius"])]
+    rc = main(argv)
+    return rc, capsys.readouterr().err
+
+
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
-def test_every_example_exports_and_reads_back(path, root, tmp_path):
-    """OEM, AEM and CSV of every bundled example, read back and compared with its npz; a format the
-    example cannot give (an OEM without a central body, CCSDS without physical units) is refused
-    with one line saying why."""
+def test_every_example_exports_and_reads_back(path, root, tmp_path, capsys):
+    """``se3ocp export`` of every bundled example as OEM, AEM and CSV, read back and compared with its
+    npz; a format the example cannot give (an OEM without a central body, CCSDS without physical
+    units) is refused with one line saying why (exit 2, nothing written)."""
     run = run_of(path, root)
     man = read_run(run).maneuver
     a = arrays(run)
@@ -137,22 +148,24 @@ def test_every_example_exports_and_reads_back(path, root, tmp_path):
     start = man.physical.epoch.iso(12)
     has_units = not math.isnan(L)
     has_center = man.problem.model.mu is not None
-    for fmt in ("oem", "aem"):
-        if not has_units or (fmt == "oem" and not has_center):
-            with pytest.raises(ExportError, match="needs km and s|CENTER_NAME"):
-                export(run, fmt, **kw)
-            continue
+    for fmt in ("oem", "aem", "csv"):
         out = tmp_path / f"{path.stem}.{fmt}"
-        export(run, fmt, out, created=CREATED, **kw)
+        rc, err = cli_export(run, fmt, out, kw, capsys)
+        if fmt != "csv" and (not has_units or (fmt == "oem" and not has_center)):
+            assert rc == 2 and not out.exists(), err
+            assert len(err.splitlines()) == 1 and ("needs km and s" in err or "CENTER_NAME" in err), err
+            continue
+        assert rc == 0, err
+        if fmt == "csv":
+            check_csv(out.read_text(), a, man, L, Tu, start)
+            continue
         msg = ndm.NdmIo().from_path(out)
         (check_oem if fmt == "oem" else check_aem)(msg, a, man, L, Tu, start)
-    text = export(run, "csv", tmp_path / f"{path.stem}.csv", **kw)
-    check_csv(text, a, man, L, Tu, start)
 
 
 def check_oem(msg, a, man, L, Tu, start):
     assert msg.id == "CCSDS_OEM_VERS" and msg.version == "2.0"
-    assert msg.header.originator == "se3ocp" and msg.header.creation_date == CREATED
+    assert msg.header.originator == "se3ocp" and msg.header.creation_date
     (seg,) = msg.body.segment
     md = seg.metadata
     assert (md.object_name, md.center_name, md.ref_frame, str(md.time_system)) == (man.name, "EARTH", "EME2000", "UTC")
@@ -282,3 +295,15 @@ def test_quaternion_convention_on_a_known_attitude():
     q = quaternions(R[None])[0][[1, 2, 3, 0]]
     np.testing.assert_allclose(q, [0, 0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-16)
     np.testing.assert_allclose(ccsds_dcm(*q) @ [0, 1, 0], [1, 0, 0], atol=1e-15)
+
+
+def test_cli_export_into_the_results_directory(root, capsys):
+    """Without --out the plan goes into the results directory (plan.<format>), which stays one run."""
+    from se3ocp.problems.cli import main
+
+    run = run_of(CONFIGS / "leo_raise_slew.yaml", root)
+    before = (run / "summary.json").read_bytes()
+    assert main(["export", str(run), "--format", "aem", "--json"]) == 0
+    assert capsys.readouterr().out.strip() == f'["{run}/plan.aem"]'
+    assert ndm.NdmIo().from_path(run / "plan.aem").body.segment[0].metadata.object_name == "leo_raise_slew"
+    assert (run / "summary.json").read_bytes() == before and not list(run.glob(".*.tmp"))
