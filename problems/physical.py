@@ -150,9 +150,12 @@ def _expand_elements(v, d: dict, where: str, mu: float | None) -> dict:
     el = v.mapping(d["elements"], w, keys, required=keys)
     vals = {k: v.number(el[k], f"{w}.{k}") for k in keys}
     try:
-        x, vel = state_of(mu, **vals)
+        with np.errstate(all="ignore"):
+            x, vel = state_of(mu, **vals)
     except ElementsError as e:
         v.fail(f"{w}.{e.key}", str(e))
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(vel))):
+        v.fail(w, "the elements give a non-finite position or velocity (values too large)")
     out = {k: val for k, val in d.items() if k != "elements"}
     out["position"], out["velocity"] = x.tolist(), vel.tolist()
     return out
@@ -160,12 +163,15 @@ def _expand_elements(v, d: dict, where: str, mu: float | None) -> dict:
 
 def check_units(v, phys: Physical, mu: float | None, x: np.ndarray, vel: np.ndarray, T: float) -> None:
     """The GM check of the module docstring at the initial state (``mu`` None: no central body)."""
-    r, s = float(np.linalg.norm(x)), float(np.linalg.norm(vel))
-    if mu is None or not r > 0:
+    with np.errstate(all="ignore"):
+        r, s = float(np.linalg.norm(x)), float(np.linalg.norm(vel))
+        if mu is None or not (0 < r < math.inf and 0 <= s < math.inf):
+            return
+        vc = math.sqrt(mu / r)
+        t_ff = 0.5 * math.pi * r * math.sqrt(r / (2.0 * mu))  # no overflow of r^3
+    if not (0 < vc < math.inf and 0 < t_ff < math.inf):
         return
-    vc = math.sqrt(mu / r)
     q = s / vc
-    t_ff = 0.5 * math.pi * math.sqrt(r**3 / (2.0 * mu))
     if q > SPEED_RATIO_MAX:
         what = f"{q:.3g} times the circular speed sqrt(GM/|position|) = {vc:.4g} at |position| = {r:.6g}"
         likely = "GM in km^3/s^2 with positions in m?" if 0.01 < q / math.sqrt(1e9) < 100 else \
@@ -197,9 +203,10 @@ def radians_hint(angle: float) -> str | None:
 
 def check_radians(v, angle: float, where: str) -> None:
     """ConfigError naming ``where`` when ``angle`` (given in degrees) looks like radians (:func:`radians_hint`)."""
+    angle = float(angle)
     name = radians_hint(angle)
     if name is not None:
-        deg = math.degrees(float(angle))
+        deg = math.degrees(angle)
         v.fail(where, f"{angle!r} is {name} in radians, but angles here are in degrees: write {deg:.6g} for {name} "
                       f"(a rotation of exactly {angle!r} degrees: give the attitude as a matrix)")
 
