@@ -133,7 +133,10 @@ def _scale(where, phys, mu, reference_radius, body, mass_kg, center) -> Scale | 
     else:
         return None
     if mass_kg is not None:
-        s = Scale(s.length_m, s.time_s, float(mass_kg), s.center, s.origin)
+        if units is not None:
+            raise ExportError(f"{where}: the maneuver names its mass unit ({units.mass}); a mass scale applies to "
+                              f"normalized units only")
+        s = Scale(s.length_m, s.time_s, float(mass_kg), s.center, s.origin + f", 1 mass unit = {float(mass_kg):.10g} kg")
     if center is not None:
         s = Scale(s.length_m, s.time_s, s.mass_kg, str(center).upper(), s.origin)
     return s

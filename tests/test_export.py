@@ -273,6 +273,19 @@ def test_refusals_are_one_line(tmp_path):
     leo_sim = se3ocp.simulate(leo)
     with pytest.raises(ExportError, match="names its units"):
         export(leo_sim, "oem", maneuver=leo, reference_radius=7000.0)
+    with pytest.raises(ExportError, match="names its mass unit"):
+        export(leo_sim, "csv", maneuver=leo, mass_kg=500.0)
+    text = export(sim, "csv", maneuver=e3, reference_radius=REF_KM, mass_kg=500.0)   # E3 as a 500 kg LEO craft
+    head = next(line for line in text.splitlines() if not line.startswith("#")).split(",")
+    assert "fx [N]" in head and "mx [N*m]" in head and "1 mass unit = 500 kg" in text
+    sim_u = se3ocp.simulate(e3, np.full((6, e3.problem.disc.n_controls(e3.problem.N)), 0.3))
+    rows = [r.split(",") for r in export(sim_u, "csv", maneuver=e3, reference_radius=REF_KM, mass_kg=500.0).splitlines()
+            if not r.startswith("#")][2:]                             # the header, and row t_0 without a control
+    L = REF_KM * 1000.0
+    Tu = 2 * math.pi * math.sqrt(L**3 / GM_EARTH)
+    f = np.array([[float(r[head.index(c)]) for c in ("fx [N]", "fy [N]", "fz [N]")] for r in rows])
+    m = np.array([[float(r[head.index(c)]) for c in ("mx [N*m]", "my [N*m]", "mz [N*m]")] for r in rows])
+    assert rel(f, sim_u.u_f * 500.0 * L / Tu**2) <= 1e-12 and rel(m, sim_u.u_m * 500.0 * L**2 / Tu**2) <= 1e-12
     bad = se3ocp.load(CONFIGS / "e3_inclination_change.yaml", ["horizon.N=20", "solver.direct.max_iter=1"])
     with pytest.raises(ExportError, match="did not converge"):
         export(se3ocp.solve(bad, "direct"), "oem", maneuver=bad, reference_radius=REF_KM)
