@@ -275,12 +275,11 @@ def test_refusals_are_one_line(tmp_path):
         export(leo_sim, "oem", maneuver=leo, reference_radius=7000.0)
     with pytest.raises(ExportError, match="names its mass unit"):
         export(leo_sim, "csv", maneuver=leo, mass_kg=500.0)
-    text = export(sim, "csv", maneuver=e3, reference_radius=REF_KM, mass_kg=500.0)   # E3 as a 500 kg LEO craft
+    sim_u = se3ocp.simulate(e3, np.full((6, e3.problem.disc.n_controls(e3.problem.N)), 0.3))
+    text = export(sim_u, "csv", maneuver=e3, reference_radius=REF_KM, mass_kg=500.0)  # E3 as a 500 kg LEO craft
     head = next(line for line in text.splitlines() if not line.startswith("#")).split(",")
     assert "fx [N]" in head and "mx [N*m]" in head and "1 mass unit = 500 kg" in text
-    sim_u = se3ocp.simulate(e3, np.full((6, e3.problem.disc.n_controls(e3.problem.N)), 0.3))
-    rows = [r.split(",") for r in export(sim_u, "csv", maneuver=e3, reference_radius=REF_KM, mass_kg=500.0).splitlines()
-            if not r.startswith("#")][2:]                             # the header, and row t_0 without a control
+    rows = [r.split(",") for r in text.splitlines() if not r.startswith("#")][2:]  # header; row t_0 has no control
     L = REF_KM * 1000.0
     Tu = 2 * math.pi * math.sqrt(L**3 / GM_EARTH)
     f = np.array([[float(r[head.index(c)]) for c in ("fx [N]", "fy [N]", "fz [N]")] for r in rows])
