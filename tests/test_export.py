@@ -275,7 +275,8 @@ def test_refusals_are_one_line(tmp_path):
         export(leo_sim, "oem", maneuver=leo, reference_radius=7000.0)
     with pytest.raises(ExportError, match="names its mass unit"):
         export(leo_sim, "csv", maneuver=leo, mass_kg=500.0)
-    sim_u = se3ocp.simulate(e3, np.full((6, e3.problem.disc.n_controls(e3.problem.N)), 0.3))
+    n = e3.problem.disc.n_controls(e3.problem.N)
+    sim_u = se3ocp.simulate(e3, np.vstack([np.full((3, n), 0.3), np.full((3, n), 1e-4)]))
     text = export(sim_u, "csv", maneuver=e3, reference_radius=REF_KM, mass_kg=500.0)  # E3 as a 500 kg LEO craft
     head = next(line for line in text.splitlines() if not line.startswith("#")).split(",")
     assert "fx [N]" in head and "mx [N*m]" in head and "1 mass unit = 500 kg" in text
