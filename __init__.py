@@ -25,6 +25,7 @@ __version__ = "0.2.0"
 #: public name -> module (relative to this package) that defines it
 _EXPORTS = {
     "load": "problems.api", "solve": "problems.api", "simulate": "problems.api", "plot": "problems.api",
+    "export": "problems.export", "ExportError": "problems.export",
     "Maneuver": "problems.maneuvers", "ConfigError": "problems.schema",
     "DirectOptions": "transcription.options", "IndirectOptions": "transcription.options",
     "OptionError": "transcription.options",
@@ -54,6 +55,7 @@ def __dir__():
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .problems.api import load, plot, simulate, solve  # noqa: F401
+    from .problems.export import ExportError, export  # noqa: F401
     from .problems.maneuvers import Maneuver  # noqa: F401
     from .problems.schema import ConfigError  # noqa: F401
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401

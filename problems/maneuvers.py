@@ -58,6 +58,7 @@ from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut
                                      Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, spd_weight)
 from ..transcription.results import Trajectory
 
+from . import physical as _physical
 from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
 from .schema import Validator, describe, join_field, load_with_overrides
 from .units import units_for
@@ -131,6 +132,8 @@ class Maneuver:
     initial: StateSpec
     terminal: StateSpec | TargetOrbit | None
     resolved: dict[str, Any] = field(repr=False)
+    #: epoch, frame, units and preset central body (problems.physical)
+    physical: _physical.Physical | None = field(default=None, repr=False)
 
     # the Problem's headline numbers, for messages and summaries
     control_kind: str | None = field(init=False, repr=False)
@@ -152,7 +155,7 @@ class Maneuver:
 
 # ------------------------------------------------------------------ loading
 TOP_KEYS = ("name", "model", "gravity", "horizon", "discretization", "initial", "terminal", "control", "constraints",
-            "solver")
+            "solver") + _physical.KEYS
 STATE_KEYS = ("position", "velocity", "attitude", "angular_velocity")
 
 
@@ -173,6 +176,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
         v.fail("name", f"expected a name other than '.' or '..' (it names the results directory results/<name>/), "
                        f"got {name.strip()!r}")
     resolved = copy.deepcopy(doc)
+    doc, phys = _physical.expand(v, doc)  # presets and orbital elements (the resolved file keeps their form)
 
     body, central_radius, resolved["model"], resolved["gravity"] = _body(v, doc.get("model", {"kind": "dumbbell"}),
                                                                          doc.get("gravity", {"kind": "point_mass"}))
@@ -181,6 +185,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     resolved["discretization"] = disc
     extent = clearance(central_radius, body)
     initial = _state(v, doc["initial"], "initial", body, extent, all_required=True)
+    _physical.check_units(v, phys, body.central_mu, initial.position, initial.velocity, T)
 
     control_kind, control, resolved_control = _control(v, doc.get("control"))
     if resolved_control is not None:
@@ -219,8 +224,10 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                           constraints=constraints)
     except ProblemError as e:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
+    _physical.declare(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
-                    central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved)
+                    central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved,
+                    physical=phys)
 
 
 def _body(v: Validator, mdoc, gdoc):

@@ -84,16 +84,19 @@ def merit_rows(sols: dict[str, Solution], tol: float | None = None) -> list[dict
         if key.startswith("min_margin_"):
             kind = key[len("min_margin_"):].rstrip("_0123456789")
             label, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", "{:.4g}"
-            unit = un.unit(MARGIN_DIMENSION.get(kind, "none"))
+            unit_key = MARGIN_DIMENSION.get(kind, "none")
+            unit = un.unit(unit_key)
         else:
-            _, label, unit, fmt = next(r for r in ROWS if r[0] == key)
-            unit = _unit(un, unit)
+            _, label, unit_key, fmt = next(r for r in ROWS if r[0] == key)
+            unit = _unit(un, unit_key)
         if not any(key in s for s in summ.values()):
             continue
         cells = []
+        factor = un.factor(unit_key) if unit_key in DIMENSIONS else 1.0  # a km file's kN shown in N
         for s in summ.values():
             v = s.get(key)
             bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < -tol
+            v = v * factor if isinstance(v, float) and factor != 1.0 else v
             cells.append({"text": _fmt(v, fmt), "bad": bad})
         rows.append({"label": label, "unit": unit, "cells": cells, "margin": key.startswith("min_margin_")})
     return rows
@@ -101,20 +104,22 @@ def merit_rows(sols: dict[str, Solution], tol: float | None = None) -> list[dict
 
 def _bounds(problem) -> list[str]:
     out = []
-    ctrl = problem.control
+    ctrl, un = problem.control, units(problem)
     for name, b in (("force", getattr(ctrl, "force_bound", None)), ("moment", getattr(ctrl, "moment_bound", None))):
+        f, u = un.factor(name), (f" {un.unit(name)}" if un.system is not None else "")  # shown as the figures show it
         if isinstance(b, NormBound) and b.b == 0:
             out.append(f"{name}: removed (a norm bound of 0)")
         elif isinstance(b, NormBound):
-            out.append(f"{name}: |u| ≤ {b.b:g}")
+            out.append(f"{name}: |u| ≤ {f * b.b:g}{u}")
         elif isinstance(b, BoxBound):
-            out.append(f"{name}: |u_i| ≤ ({', '.join(f'{x:g}' for x in b.b)})")
+            out.append(f"{name}: |u_i| ≤ ({', '.join(f'{f * x:g}' for x in b.b)}){u}")
     return out
 
 
 def _horizon(problem) -> str:
     """The final time for the header: "T = 10 orbital periods", or free with its range and guess."""
-    unit = " orbital periods" if units(problem).normalized else ""
+    un = units(problem)
+    unit = " orbital periods" if un.normalized else f" {un.system.time}" if un.system is not None else ""
     if problem.free_time:
         lo, hi = problem.time_bounds
         return f"T free in [{lo:g}, {hi:g}]{unit} (guess {problem.T:g})"

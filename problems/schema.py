@@ -27,6 +27,7 @@ import yaml
 
 from ..transcription.lie import exp_so3, rot_x, rot_y, rot_z
 from ..transcription.options import describe, shorten as _short, show as _show
+from .physical import check_radians
 
 T = TypeVar("T")
 
@@ -511,6 +512,7 @@ class Validator:
                 self.fail(w, f"expected [ax, ay, az, angle_deg], got {describe(val)}")
             a = np.array([self.number(x, f"{w}[{i}]") for i, x in enumerate(val)])
             axis = _unit(self, a[:3], w, "expected a non-zero rotation axis")
+            check_radians(self, a[3], f"{w}[3]")
             # the angle modulo 360 degrees (exact): large angles keep their accuracy
             return np.asarray(exp_so3(axis * np.deg2rad(math.fmod(a[3], 360.0))))
         if kind == "rotations":
@@ -523,7 +525,9 @@ class Validator:
             for i, pair in enumerate(val):
                 if not isinstance(pair, (list, tuple)) or len(pair) != 2 or not isinstance(pair[0], str) or pair[0] not in elem:
                     self.fail(f"{w}[{i}]", f"expected a pair [x|y|z, angle_deg], got {describe(pair)}")
-                R = R @ elem[pair[0]](self.number(pair[1], f"{w}[{i}][1]"))
+                angle = self.number(pair[1], f"{w}[{i}][1]")
+                check_radians(self, angle, f"{w}[{i}][1]")
+                R = R @ elem[pair[0]](angle)
             return R
         self.fail(where, f"unknown attitude form {kind!r}; expected one of {forms}")
 

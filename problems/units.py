@@ -1,19 +1,29 @@
 """The units a problem's numbers are in, as labels: one function, :func:`units`, for every figure,
 the animation's clock and report.html.
 
-With a central body of GM = 4π² the numbers are in the project's normalized orbit units
-(docs/mathematics.md §1): length in radii of the reference circular orbit, time in its periods.
-Without one (``gravity: {kind: none}``), or with another GM, nothing is normalized: the numbers
-are in whatever units the configuration file used (the time-optimal slews give J in kg m², torques
-in N m and T in s, but the file does not say so), and the labels name only the dimension
-("mass·length²/time²") or nothing at all -- never "orbital periods".
+Three cases (problems/bodies.py):
+
+* **physical units** named by the maneuver file (``units:`` or ``central_body:``): labels in km, s,
+  rad/s, and forces and moments *shown* in N and N·m whatever the length unit (``Units.factor``
+  converts: a km-kg-s file's kN are drawn times 1000, its kN·km times 1e6);
+* **normalized orbit units** (a central body of GM = 4π², no ``units:``; docs/mathematics.md §1):
+  length in radii of the reference circular orbit, time in its periods;
+* **unnamed units**: no central body (``gravity: {kind: none}``) or another GM, and no ``units:`` --
+  the numbers are in whatever units the file used, and the labels name only the dimension
+  ("mass·length²/time²") or nothing at all -- never "orbital periods".
+
+A loaded maneuver declares its unit system for its Problem (:func:`declare`, called by
+problems.maneuvers), so that everything drawn from a Solution of that Problem finds it; a Problem
+built in Python has none (normalized or unnamed, by its GM).
 """
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 from ..transcription.problem import MARGIN_DIMENSION
+from .bodies import UnitSystem
 from .models import GM_NORMALIZED
 
 #: the dimension of each quantity the figures and the report label, in base dimensions
@@ -28,16 +38,23 @@ _NORMALIZED = {"length": "radii", "time": "period"}
 
 @dataclass(frozen=True)
 class Units:
-    """Unit labels of one problem.  ``normalized``: the orbit units of a central body with GM = 4π².
+    """Unit labels of one problem.  ``normalized``: the orbit units of a central body with GM = 4π²;
+    ``system``: the physical units the file names (then not normalized); ``mu``: GM (None: no central
+    body), for the summary.
 
-    ``unit(q)`` is the unit of a quantity q (a key of DIMENSIONS) for a table's unit column;
-    ``label(text, q)`` is an axis label "text (unit)" -- without the parenthesis when the unit
-    would only repeat the dimension's name ("time t", not "time t (time)");
-    ``duration(x)`` a length of time with its unit ("2.5 periods" or "2.5 time units")."""
+    ``unit(q)`` is the unit of a quantity q (a key of DIMENSIONS) as shown; ``factor(q)`` converts a
+    value in the file's units to it (1 but for forces and moments of a non-SI file);
+    ``label(text, q)`` is an axis label "text (unit)" -- without the parenthesis when the unit would
+    only repeat the dimension's name ("time t", not "time t (time)"); ``duration(x)`` a length of time
+    with its unit ("2.5 periods", "30 s" or "2.5 time units")."""
 
     normalized: bool
+    system: UnitSystem | None = None
+    mu: float | None = None
 
     def unit(self, quantity: str) -> str:
+        if self.system is not None:
+            return self.system.display(quantity)[0]
         dim = DIMENSIONS[quantity]
         if not self.normalized:
             return dim
@@ -46,36 +63,70 @@ class Units:
             out = out.replace(base, name)
         return "periods" if out == "period" else out  # plural alone, singular in a quotient
 
+    def factor(self, quantity: str) -> float:
+        return self.system.display(quantity)[1] if self.system is not None else 1.0
+
     def label(self, text: str, quantity: str) -> str:
         u = self.unit(quantity)
         return text if not u or u == quantity else f"{text} ({u})"
 
     @property
     def time_label(self) -> str:
-        """The label of a time axis: "time t (orbital periods)" or "time t"."""
+        """The label of a time axis: "time t (orbital periods)", "time t (s)" or "time t"."""
+        if self.system is not None:
+            return f"time t ({self.system.time})"
         return "time t (orbital periods)" if self.normalized else "time t"
 
     def duration(self, x: float, fmt: str = "{:.3g}") -> str:
+        if self.system is not None:
+            return fmt.format(x) + f" {self.system.time}"
         return fmt.format(x) + (" periods" if self.normalized else " time units")
 
     @property
     def summary(self) -> str:
         """One line for a report's header."""
+        if self.system is not None:
+            s = self.system
+            return (f"physical, as the configuration file names them: lengths in {s.length}, masses in {s.mass}, "
+                    f"times in {s.time}; forces shown in N and moments in N·m")
         if self.normalized:
             return ("normalized orbit units: length in radii of the reference orbit, time in its periods "
                     "(GM = 4π²), mass as in the file")
-        return ("those of the configuration file (no central body with GM = 4π², so nothing is normalized; "
-                "composite units are shown by dimension)")
+        body = "no central body" if self.mu is None else f"a central body of GM = {self.mu:.10g}, not the normalized 4π²"
+        return (f"those of the configuration file, which does not name them ({body}; units: or central_body: would); "
+                f"composite units are shown by dimension")
 
 
-def units_for(mu: float | None) -> Units:
-    """Normalized orbit units iff there is a central body (GM ``mu``; None without gravity) with GM = 4π²."""
-    return Units(normalized=mu is not None and math.isclose(mu, GM_NORMALIZED, rel_tol=1e-9))
+def units_for(mu: float | None, system: UnitSystem | None = None) -> Units:
+    """Physical units if ``system`` is given; else normalized orbit units iff there is a central body
+    (GM ``mu``; None without gravity) with GM = 4π²."""
+    if system is not None:
+        return Units(normalized=False, system=system, mu=mu)
+    return Units(normalized=mu is not None and math.isclose(mu, GM_NORMALIZED, rel_tol=1e-9), mu=mu)
+
+
+#: id(problem) -> (weak reference to it, its UnitSystem); see :func:`declare`
+_DECLARED: dict[int, tuple[weakref.ref, UnitSystem]] = {}
+
+
+def declare(problem, system: UnitSystem | None) -> None:
+    """Record that ``problem``'s numbers are in ``system`` (a loaded maneuver's ``units:`` or preset);
+    the record goes with the Problem object."""
+    if system is None:
+        return
+    key = id(problem)
+    _DECLARED[key] = (weakref.ref(problem, lambda _r, k=key: _DECLARED.pop(k, None)), system)
+
+
+def declared(problem) -> UnitSystem | None:
+    """The UnitSystem :func:`declare` recorded for this very Problem object, or None."""
+    entry = _DECLARED.get(id(problem))
+    return entry[1] if entry is not None and entry[0]() is problem else None
 
 
 def units(problem) -> Units:
-    """The units of a Problem (its ``model.mu``, :func:`units_for`)."""
-    return units_for(getattr(getattr(problem, "model", None), "mu", None))
+    """The units of a Problem: those its maneuver declared, else by its ``model.mu`` (:func:`units_for`)."""
+    return units_for(getattr(getattr(problem, "model", None), "mu", None), declared(problem))
 
 
-__all__ = ["DIMENSIONS", "MARGIN_DIMENSION", "Units", "units", "units_for"]
+__all__ = ["DIMENSIONS", "MARGIN_DIMENSION", "Units", "declare", "declared", "units", "units_for"]

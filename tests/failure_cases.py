@@ -110,6 +110,8 @@ def _fail(id, cls, config, *sets, method="direct", args=(), statuses=(), **kw):
                 expect=1, statuses=tuple(statuses), method=method, group="solver failure", **kw)
 
 
+#: a gravity field whose evaluation overflows while GM fits the state (the unit checks pass)
+NAN_GRAVITY = "gravity={kind: j2, J2: 1e300, radius: 0.5}"
 #: IPOPT's own values of the MUMPS options whose defaults the project tunes for speed
 IPOPT_MUMPS = {"mumps_permuting_scaling": 7, "mumps_pivot_order": 7, "mumps_scaling": 77}
 #: MUMPS' own ordering and scaling: every option of MUMPS_DEFAULTS set back (a KeyError here when a tuned
@@ -220,6 +222,10 @@ CASES: list[Case] = [
          out=False, field="name"),
     _bad("h_underflow", "T so small that h = T/N underflows", "validate", E3, "horizon.T", "horizon.T=1e-320"),
     _bad("h_overflow", "T so large that h^2 overflows", "validate", E3, "horizon.T", "horizon.N=1", "horizon.T=1e300"),
+    _bad("gm_units", "GM and the initial state in different units (mu = 1e300 with normalized positions)", "validate",
+         E3, "model.mu", "model.mu=1e300"),
+    _bad("angle_radians", "an axis_angle given in radians (π/2)", "validate", E3, "terminal.attitude.axis_angle[3]",
+         "terminal.attitude={axis_angle: [0, 0, 1, 1.5707963267948966]}"),
     _bad("free_T_min_underflow", "free final time whose min makes h underflow", "validate", "e3_free_time.yaml",
          "horizon.T.min", "horizon.T.min=1e-200"),
     _bad("N_huge", "N of 1e9 (refused before anything is allocated)", "solve", E3, "horizon.N", "horizon.N=1e9"),
@@ -267,10 +273,11 @@ CASES: list[Case] = [
     _fail("ipopt_restoration", "IPOPT restoration failure (the infeasible N = 1 problem, restoration declared failed)",
           E3, "horizon.N=1", "horizon.T=0.01", "solver.direct.options.resto_failure_feasibility_threshold=1e10",
           *MUMPS_OWN, statuses=("solver_failed",)),
-    _fail("nan_direct", "NaN/inf during evaluation (mu = 1e300), direct", E3, "horizon.N=10", "model.mu=1e300"),
-    _fail("nan_indirect", "NaN/inf during evaluation (mu = 1e300), indirect", E3, "horizon.N=10", "model.mu=1e300",
+    # J2 = 1e300, not GM = 1e300: a GM that does not fit the initial state is refused as bad input (gm_units)
+    _fail("nan_direct", "NaN/inf during evaluation (J2 = 1e300), direct", E3, "horizon.N=10", NAN_GRAVITY),
+    _fail("nan_indirect", "NaN/inf during evaluation (J2 = 1e300), indirect", E3, "horizon.N=10", NAN_GRAVITY,
           method="indirect", statuses=("non_finite",)),
-    _fail("nan_simulate", "NaN/inf during evaluation (mu = 1e300), simulate", FREE, "horizon.N=20", "model.mu=1e300",
+    _fail("nan_simulate", "NaN/inf during evaluation (J2 = 1e300), simulate", FREE, "horizon.N=20", NAN_GRAVITY,
           method=None),
     _fail("newton_line_search", "Newton-Armijo line search exhausted", E4, "horizon.N=50",
           "solver.indirect.max_halvings=1", "solver.indirect.alpha=0.99", method="indirect",

@@ -167,6 +167,39 @@ def cmd_plot(args) -> int:
     return _update_results(args, write, lambda d, written: f"wrote {len(written)} files in {d}/")
 
 
+def cmd_export(args) -> int:
+    """The plan of a results directory as CCSDS OEM/AEM or CSV (problems/export.py): into
+    DIR/plan.<format> (the directory updated as a whole, as ``plot`` does), --out FILE, or --out - (stdout).
+    Everything is checked before anything is written; what cannot be exported is one line, exit 2."""
+    from ..export import ExportError, export
+    from ..io import atomic_write_bytes
+
+    d = Path(args.results)
+    if _results_dir(d):
+        return 2
+    try:
+        text = export(d, args.format, method=args.method, reference_radius=args.reference_radius,
+                      body=args.central_body, mass_kg=args.mass, center=args.center)
+    except ExportError as e:
+        print(f"se3ocp: error: {e}", file=sys.stderr)
+        return 2
+    if args.out == "-":
+        sys.stdout.write(text)
+        return 0
+    if args.out is not None:
+        atomic_write_bytes(Path(args.out), text.encode("utf-8"))
+        say(args, f"wrote {args.out}")
+        if args.json:
+            print(json.dumps([args.out]))
+        return 0
+
+    def write(path: Path) -> list[str]:
+        atomic_write_bytes(path / f"plan.{args.format}", text.encode("utf-8"))
+        return [f"plan.{args.format}"]
+
+    return _update_results(args, write, lambda _d, written: f"wrote {written[0]}")
+
+
 def cmd_report(args) -> int:
     from ..report import write_report
 

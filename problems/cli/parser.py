@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from .commands import cmd_plot, cmd_report, cmd_simulate, cmd_solve, cmd_sweep, cmd_validate
+from .commands import cmd_export, cmd_plot, cmd_report, cmd_simulate, cmd_solve, cmd_sweep, cmd_validate
 
 EPILOG = """examples:
   se3ocp validate configs/e3_inclination_change.yaml
@@ -13,6 +13,7 @@ EPILOG = """examples:
   se3ocp plot results/e3_inclination_change
   se3ocp plot results/e3_inclination_change --animate --frames 150 --fps 25
   se3ocp report results/e3_inclination_change
+  se3ocp export results/leo_raise_slew --format oem
   se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
 """
 
@@ -103,6 +104,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the path written as JSON")
     p.set_defaults(func=cmd_report)
 
+    p = sub.add_parser("export", help="the plan of a results directory as CCSDS OEM/AEM (GMAT, STK, Orekit) or CSV",
+                       description="OEM 2.0 (position km, velocity km/s), AEM 1.0 (quaternions: QUATERNION_TYPE LAST, "
+                                   "ATTITUDE_DIR A2B from the inertial frame to the body), CSV (t, epoch, r, v, q, Ω, "
+                                   "thrust, torque; units in the header).  Epochs: UTC = the maneuver's epoch (default "
+                                   "J2000.0) + t.  A maneuver in normalized units needs --reference-radius for OEM/AEM.",
+                       epilog="examples:\n  se3ocp export results/leo_raise_slew --format oem\n"
+                              "  se3ocp export results/e3_inclination_change --format aem --reference-radius 6778.137\n"
+                              "  se3ocp export results/leo_raise_slew --format csv --out leo.csv",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("results", help="a results directory written by simulate, solve or compare")
+    p.add_argument("--format", required=True, choices=("oem", "aem", "csv"), help="oem, aem or csv")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help="where to write (default DIR/plan.<format>; - for standard output)")
+    p.add_argument("--method", choices=("direct", "indirect", "simulate"), default=None,
+                   help="which solution (default: direct, else the only one)")
+    p.add_argument("--reference-radius", type=_positive_float, default=None, metavar="KM",
+                   help="read normalized units as a circular orbit of this radius (km) about --central-body")
+    p.add_argument("--central-body", default="earth", metavar="NAME", help="the preset body of --reference-radius (earth)")
+    p.add_argument("--mass", type=_positive_float, default=None, metavar="KG",
+                   help="kilograms per mass unit of a normalized file (the CSV's thrust and torque in N, N*m)")
+    p.add_argument("--center", default=None, metavar="NAME", help="CENTER_NAME for a file without a preset central body")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--json", action="store_true", help="print the path written as JSON")
+    p.set_defaults(func=cmd_export)
+
     p = sub.add_parser("sweep", help="trade study: solve a grid of parameter values (local pool or Dask cluster)",
                        epilog="examples:\n  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T\n"
                               "  se3ocp sweep configs/sweeps/e3_T_inclination.yaml --scheduler tcp://127.0.0.1:8786",
@@ -134,6 +160,16 @@ def _positive_int(text: str) -> int:
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
     return int(text)
+
+
+def _positive_float(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        x = float("nan")
+    if not (x > 0 and x < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return x
 
 
 def _frames(text: str) -> int:

@@ -235,7 +235,8 @@ class Animation:
                 d["thrust"].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])
                 d["head"].set_data_3d([tip[0]], [tip[1]], [tip[2]])
         self.cursor.set_xdata([time_, time_])
-        self.clock.set_text(f"t = {time_:.3f}" + (" periods" if self.units.normalized else ""))
+        un = self.units
+        self.clock.set_text("t = " + (un.duration(time_, "{:.3f}") if un.normalized or un.system else f"{time_:.3f}"))
         for a in self.moving:
             self.fig.draw_artist(a)
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()

@@ -41,10 +41,12 @@ def fig_attitude_error(runs: list[Run], problem: Problem):
     return _finish(fig, runs, problem, what)
 
 
-def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None, controls=False):
+def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None, controls=False, quantity=None):
     """Three stacked component plots, methods overlaid; a BoxBound draws ±b_i and shades where a
     component is at its limit.  ``controls``: the values are the run's controls (drawn by
-    Run.plot_control: per-step controls as steps)."""
+    Run.plot_control: per-step controls as steps).  ``quantity``: the values are drawn times
+    ``units(problem).factor(quantity)`` (a km file's kN in N), bounds too."""
+    f = units(problem).factor(quantity) if quantity else 1.0
     fig, axs = _subplots(3, figsize=(W, 6.0))
     for run in runs:
         t, Y = key_fn(run)
@@ -52,9 +54,9 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None,
             continue
         for i, ax in enumerate(axs):
             if controls:
-                run.plot_control(ax, Y[:, i], lw=1.5, label=run.name)
+                run.plot_control(ax, f * Y[:, i], lw=1.5, label=run.name)
             else:
-                ax.plot(t, Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
+                ax.plot(t, f * Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
         if isinstance(bound, BoxBound):
             for i, ax in enumerate(axs):
                 _shade(ax, run.control_edges, bound.active_components(Y)[:, i], run.color,
@@ -70,8 +72,8 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None,
     if isinstance(bound, BoxBound):
         for i, ax in enumerate(axs):
             for sgn in (1, -1):
-                ax.axhline(sgn * bound.b[i], color=BOUND, ls="-.", lw=1.1, gid="bound-line",
-                           label=f"bound ±{bound.b[i]:.3g}" if sgn > 0 else None)
+                ax.axhline(sgn * f * bound.b[i], color=BOUND, ls="-.", lw=1.1, gid="bound-line",
+                           label=f"bound ±{f * bound.b[i]:.3g}" if sgn > 0 else None)
     for i, ax in enumerate(axs):
         ax.set_ylabel(ylabels[i])
     handles, labels = axs[0].get_legend_handles_labels()
@@ -135,14 +137,16 @@ def fig_force(runs, problem: Problem):
     b = _bound_of(problem, "force")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_f),
                        ["$u_{f,1}$", "$u_{f,2}$", "$u_{f,3}$"],
-                       units(problem).label("control force u_f, inertial components", "force"), bound=b, controls=True)
+                       units(problem).label("control force u_f, inertial components", "force"), bound=b, controls=True,
+                       quantity="force")
 
 
 def fig_moment(runs, problem: Problem):
     b = _bound_of(problem, "moment")
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_m),
                        ["$u_{m,1}$", "$u_{m,2}$", "$u_{m,3}$"],
-                       units(problem).label("control moment u_m, body components", "moment"), bound=b, controls=True)
+                       units(problem).label("control moment u_m, body components", "moment"), bound=b, controls=True,
+                       quantity="moment")
 
 
 def _active(u: np.ndarray, bound) -> np.ndarray:
@@ -160,9 +164,10 @@ def fig_control_norms(runs, problem: Problem):
     fig, axs = _subplots(len(panels), figsize=(W, 5.2 if len(panels) == 2 else 3.4))
     for ax, (which, key, ylab) in zip(axs, panels):
         bound = _bound_of(problem, which)
+        f = un.factor(which)  # drawn in the shown unit (a km file's kN in N); activity on the file's values
         for run in runs:
             u = getattr(run.sol, key)
-            run.plot_control(ax, np.linalg.norm(u, axis=1), lw=1.6, label=run.name)
+            run.plot_control(ax, f * np.linalg.norm(u, axis=1), lw=1.6, label=run.name)
             if bound is not None:
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
@@ -170,11 +175,11 @@ def fig_control_norms(runs, problem: Problem):
                        label=f"{run.label} at bound ({un.duration(tab)})" if isinstance(bound, NormBound) else
                        f"{run.label}: a component at its bound ({un.duration(tab)})")
         if isinstance(bound, NormBound):
-            ax.axhline(bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {bound.b:.3g}")
+            ax.axhline(f * bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {f * bound.b:.3g}")
         elif isinstance(bound, BoxBound):  # |u| reaches |b| only with every component at its bound
-            ax.axhline(float(np.linalg.norm(bound.b)), color=BOUND, ls=":", lw=1.2,
-                       label=f"|b| = {np.linalg.norm(bound.b):.3g}: every component at its bound")
-            ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{b:.3g}' for b in bound.b)}): see {which}")
+            nb = f * float(np.linalg.norm(bound.b))
+            ax.axhline(nb, color=BOUND, ls=":", lw=1.2, label=f"|b| = {nb:.3g}: every component at its bound")
+            ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{f * b:.3g}' for b in bound.b)}): see {which}")
         ax.set_ylim(0.0, 1.12 * max(ax.get_ylim()[1] / 1.05, 1e-300))  # room above a bound the data ride on
         ax.legend(fontsize=8, loc="best")
         ax.set_ylabel(un.label(ylab, which))
@@ -193,7 +198,7 @@ def fig_thrust_rtn(runs, problem: Problem):
     return _components([r for r in runs if r.sol.controls is not None], problem, comp,
                        ["radial $u_R$", "along-track $u_T$", "normal $u_N$"],
                        units(problem).label("control force in the orbit frame: radial, along-track, normal", "force"),
-                       controls=True)
+                       controls=True, quantity="force")
 
 
 def fig_orbital_elements(runs, problem: Problem):
@@ -219,9 +224,7 @@ def fig_orbital_elements(runs, problem: Problem):
     if tgt is not None:
         for ax, k in zip(axs, keys):
             ax.axhline(tgt[k], color="k", ls="--", lw=1.0, label="target")
-    for c in problem.constraints:
-        if isinstance(c, MinRadius):
-            axs[0].axhline(c.radius, color=BOUND, ls="-.", lw=1.1, gid="bound-line", label=f"min radius {c.radius:.3g}")
+    _min_radius_lines(axs[0], problem)
     axs[0].set_ylabel(units(problem).label("radius |x|", "length"))
     axs[1].set_ylabel("inclination (deg)")
     axs[2].set_ylabel("eccentricity")
@@ -234,6 +237,24 @@ def fig_orbital_elements(runs, problem: Problem):
     fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8.5, frameon=False)
     _time_axes(axs, problem)
     return _finish(fig, runs, problem, "osculating orbit")
+
+
+def _min_radius_lines(ax, problem: Problem) -> None:
+    """Each MinRadius as a line -- when it lies within the radii drawn widened by their own span on
+    either side; a limit far below (the Earth's radius under a 10 km raise) is named in the legend
+    only, so that it does not stretch the axis until the maneuver is a flat line."""
+    ys = np.concatenate([np.asarray(ln.get_ydata(), float) for ln in ax.get_lines()] or [np.zeros(0)])
+    ys = ys[np.isfinite(ys)]
+    lo, hi = (float(ys.min()), float(ys.max())) if ys.size else (-np.inf, np.inf)
+    span = hi - lo
+    for c in problem.constraints:
+        if not isinstance(c, MinRadius):
+            continue
+        if lo - span <= c.radius <= hi + span:
+            ax.axhline(c.radius, color=BOUND, ls="-.", lw=1.1, gid="bound-line", label=f"min radius {c.radius:.6g}")
+        else:
+            ax.plot([], [], color=BOUND, ls="-.", lw=1.1,
+                    label=f"min radius {c.radius:.6g} ({'below' if c.radius < lo else 'above'} the axis)")
 
 
 def fig_costates(runs, problem: Problem):

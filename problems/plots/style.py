@@ -58,32 +58,53 @@ def _subplots(nrows: int, ncols: int = 1, figsize=(W, H), sharex=True, **kw):
 def _time_axes(axs, problem: Problem):
     """Few, non-overlapping time ticks; the time label (in the problem's units) on the lowest axes
     only; grids."""
+    scale = max((_abs_max(ax) for ax in axs), default=0.0)
     for ax in axs:
         ax.xaxis.set_major_locator(MaxNLocator(nbins=6))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
         ax.grid(alpha=0.3)
-        _no_offset(ax)
+        _no_offset(ax, scale)
     axs[-1].set_xlabel(units(problem).time_label)
 
 
-def _no_offset(ax):
-    """Plain tick labels; a (nearly) constant quantity gets a sensible window -- one tick at 0 for
-    a quantity that is zero throughout (not ±0.00004: precision it does not have)."""
+def _finite_y(ax) -> np.ndarray:
+    ys = [np.asarray(ln.get_ydata(), float) for ln in ax.get_lines()]
+    return np.concatenate([y[np.isfinite(y)] for y in ys]) if ys else np.zeros(0)
+
+
+def _abs_max(ax) -> float:
+    y = _finite_y(ax)
+    return float(np.abs(y).max()) if y.size else 0.0
+
+
+#: a panel whose values are all below ZERO_REL times the largest value of its figure is drawn as
+#: zero; one that varies by less than FLAT_REL of its mean as constant (both relative: a torque of
+#: 1e-10 kN·km is a torque, not zero)
+ZERO_REL, FLAT_REL = 1e-12, 1e-6
+
+
+def _no_offset(ax, scale: float = 0.0):
+    """Plain tick labels; a (nearly) constant quantity gets a sensible window -- one tick at 0 for a
+    quantity that is zero throughout, or round-off against the figure's ``scale`` (its largest
+    value), not ±1e-17: precision it does not have."""
     try:
         ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     except AttributeError:  # a log axis
         return
-    ys = [np.asarray(ln.get_ydata(), float) for ln in ax.get_lines()]
-    ys = np.concatenate([y[np.isfinite(y)] for y in ys]) if ys else np.zeros(0)
-    lo, hi = (float(ys.min()), float(ys.max())) if ys.size else ax.get_ylim()
-    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    if half < 1e-6 * max(1.0, abs(mid)):
-        if abs(mid) < 1e-6:
-            ax.set_ylim(-1.0, 1.0)
-            ax.yaxis.set_major_locator(FixedLocator([0.0]))
-            return
+    ys = _finite_y(ax)
+    if not ys.size:
+        return
+    lo, hi = float(ys.min()), float(ys.max())
+    mid, half, amax = 0.5 * (lo + hi), 0.5 * (hi - lo), max(abs(lo), abs(hi))
+    if amax <= ZERO_REL * scale:  # also amax == 0
+        ax.set_ylim(-1.0, 1.0)
+        ax.yaxis.set_major_locator(FixedLocator([0.0]))
+        return
+    if half < FLAT_REL * abs(mid):
         w = 0.05 * abs(mid)
         ax.set_ylim(mid - w, mid + w)
+    elif amax < 1e-3 or amax >= 1e5:
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0))  # 1.5e-10 shown as 1.5 ×1e-10, not 0.000
 
 
 def _text_width(text: str, size: float, weight: str = "normal") -> float:

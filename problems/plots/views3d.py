@@ -157,7 +157,7 @@ def _zoom_on_path(az, runs: list[Run], problem: Problem, paths: np.ndarray, lim:
     az.set_ylabel("x₂")
     az.set_zlabel("x₃")
     un = units(problem)
-    az.set_title(f"zoom on the path: ±{lz:.2g}{' ' + un.unit('length') if un.normalized else ''}, "
+    az.set_title(f"zoom on the path: ±{lz:.2g}{' ' + un.unit('length') if un.normalized or un.system else ''}, "
                  f"body frame ×{Lz / size:.2g}", fontsize=10)
 
 

@@ -1,0 +1,101 @@
+"""Classical orbital elements <-> inertial position and velocity about a point mass GM = mu.
+
+The elements are (a, e, i, Ω, ω, ν): semi-major axis a (the file's length unit; a < 0 for a
+hyperbola), eccentricity e >= 0 (e != 1), and in **degrees** the inclination i of the orbit normal
+to the inertial e3 axis, the right ascension of the ascending node Ω (from e1 about e3), the argument
+of periapsis ω (from the node in the orbit plane) and the true anomaly ν (from periapsis).  In a file:
+
+    initial:
+      elements: {a: 6778.137, e: 0.0, i_deg: 51.6, raan_deg: 0.0, argp_deg: 0.0, nu_deg: 0.0}
+
+replaces ``position`` and ``velocity`` (the attitude and angular velocity are given as usual).
+
+The conversion (e.g. Vallado, *Fundamentals of Astrodynamics and Applications*, algorithm COE2RV):
+p = a (1 - e²), r = p / (1 + e cos ν), in the perifocal frame
+    r_pf = r (cos ν, sin ν, 0),   v_pf = sqrt(mu / p) (-sin ν, e + cos ν, 0),
+and x = Q r_pf, v = Q v_pf with Q = Rz(Ω) Rx(i) Rz(ω).  :func:`elements_of` is the inverse (for
+non-circular, non-equatorial orbits; circular or equatorial orbits get ω = 0 or Ω = 0 and the angle
+measured from the node or from e1 instead).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..transcription.lie import rot_x, rot_z
+
+#: the keys of an ``elements`` block: (file key, meaning)
+ELEMENT_KEYS = (("a", "semi-major axis (length unit; < 0 for a hyperbola)"), ("e", "eccentricity"),
+                ("i_deg", "inclination (deg)"), ("raan_deg", "right ascension of the ascending node (deg)"),
+                ("argp_deg", "argument of periapsis (deg)"), ("nu_deg", "true anomaly (deg)"))
+
+
+class ElementsError(ValueError):
+    """Elements that describe no orbit: ``key`` names the offending element, ``str(e)`` says why."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(message)
+        self.key = key
+
+
+def check_elements(a: float, e: float, nu_deg: float) -> None:
+    """ElementsError unless (a, e, ν) is a point of a conic: e >= 0, e != 1, p = a (1 - e²) > 0 and,
+    on a hyperbola, 1 + e cos ν > 0 (ν within the asymptotes)."""
+    if e < 0:
+        raise ElementsError("e", f"expected an eccentricity >= 0, got {e:g}")
+    if e == 1.0:
+        raise ElementsError("e", "a parabola (e = 1) has no semi-major axis; give e < 1 or e > 1")
+    if not a * (1.0 - e * e) > 0:
+        raise ElementsError("a", f"expected a > 0 for e < 1 and a < 0 for e > 1 (a hyperbola), got a = {a:g}, e = {e:g}")
+    if not 1.0 + e * math.cos(math.radians(nu_deg)) > 0:
+        limit = math.degrees(math.acos(-1.0 / e))
+        raise ElementsError("nu_deg", f"a hyperbola with e = {e:g} has |true anomaly| < {limit:.6g} deg, "
+                                      f"got {nu_deg:g}")
+
+
+def state_of(mu: float, a: float, e: float, i_deg: float, raan_deg: float, argp_deg: float,
+             nu_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """(position, velocity) in the inertial frame of the elements (see the module docstring)."""
+    check_elements(a, e, nu_deg)
+    p = a * (1.0 - e * e)
+    nu = math.radians(nu_deg)
+    c, s = math.cos(nu), math.sin(nu)
+    r = p / (1.0 + e * c)
+    Q = rot_z(raan_deg) @ rot_x(i_deg) @ rot_z(argp_deg)
+    k = math.sqrt(mu / p)
+    return Q @ np.array([r * c, r * s, 0.0]), Q @ np.array([-k * s, k * (e + c), 0.0])
+
+
+def elements_of(mu: float, x, v) -> dict[str, float]:
+    """The elements {a, e, i_deg, raan_deg, argp_deg, nu_deg} of a position and velocity (angles in
+    [0, 360) deg, i in [0, 180]).  Circular orbits (e < 1e-12) have ω = 0 (ν from the node); equatorial
+    ones (sin i < 1e-12) have Ω = 0 (ω from e1)."""
+    x, v = np.asarray(x, float), np.asarray(v, float)
+    r = np.linalg.norm(x)
+    h = np.cross(x, v)
+    hn = np.linalg.norm(h)
+    ev = np.cross(v, h) / mu - x / r
+    e = float(np.linalg.norm(ev))
+    a = 1.0 / (2.0 / r - v @ v / mu)
+    i = math.degrees(math.atan2(math.hypot(h[0], h[1]), h[2]))
+    node = np.array([-h[1], h[0], 0.0])
+    equatorial = np.linalg.norm(node) < 1e-12 * hn
+    if equatorial:
+        node = np.array([1.0, 0.0, 0.0])
+    node = node / np.linalg.norm(node)
+    raan = 0.0 if equatorial else math.degrees(math.atan2(node[1], node[0]))
+    hhat = h / hn
+    m = np.cross(hhat, node)          # in-plane, 90 deg ahead of the node
+
+    def angle_from_node(u):
+        return math.degrees(math.atan2(u @ m, u @ node))
+
+    circular = e < 1e-12
+    argp = 0.0 if circular else angle_from_node(ev)
+    nu = angle_from_node(x) - argp
+    return {"a": float(a), "e": e, "i_deg": i, "raan_deg": raan % 360.0, "argp_deg": argp % 360.0,
+            "nu_deg": nu % 360.0}
+
+
+__all__ = ["ELEMENT_KEYS", "ElementsError", "check_elements", "elements_of", "state_of"]
