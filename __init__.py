@@ -35,6 +35,7 @@ _EXPORTS = {
     "Solution": "transcription.results", "Trajectory": "transcription.results", "Result": "transcription.results",
     "Iterate": "transcription.results", "SolveError": "transcription.results",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
+    "tracking_gains": "transcription.tracking",
 }
 __all__ = [*_EXPORTS, "__version__"]
 
@@ -60,3 +61,4 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
                                         TargetOrbit, TargetState, state_from_velocities)
     from .transcription.results import Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
+    from .transcription.tracking import tracking_gains  # noqa: F401

@@ -17,6 +17,8 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       objective: effort | time | fuel    # smooth; default effort
       weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
       bounds: {force: {box: [3]} | {norm: b}, moment: ...}   # norm 0 removes the control
+      bounds_margin: 0.1                 # plan with 90 % of each bound (the actuators' are the bounds
+                                         # above), so that a tracker keeps authority; default 0
     constraints:                         # path constraints at every node (smooth control)
       - {kind: min_radius, radius: r}
       - {kind: keep_out, body_axis: [3], direction: [3], min_angle_deg: deg}
@@ -307,10 +309,10 @@ def _control(v: Validator, c):
     """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None)."""
     if c is None:
         return None, None, None
-    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds"), required=("kind",))
+    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds", "bounds_margin"), required=("kind",))
     kind = v.choice(c["kind"], "control.kind", ("smooth", "impulsive"))
     if kind == "impulsive":
-        for k in ("weights", "objective", "bounds"):
+        for k in ("weights", "objective", "bounds", "bounds_margin"):
             if k in c:
                 v.fail(f"control.{k}", f"{k} apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
         return kind, ImpulsiveControl(), {"kind": kind}
@@ -329,15 +331,31 @@ def _control(v: Validator, c):
         for k in ("force", "moment"):
             if k in bd:
                 bounds[k], bounds_doc[k] = _bound(v, bd[k], f"control.bounds.{k}")
+    margin = _bounds_margin(v, c, bounds)
     try:
         control = SmoothControl(W_f=W["force"], W_m=W["moment"], objective=objective, force_bound=bounds.get("force"),
-                                moment_bound=bounds.get("moment"))
+                                moment_bound=bounds.get("moment"), bounds_margin=margin)
     except ProblemError as e:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
     out = {"kind": kind, "objective": objective, "weights": weights_doc}
     if bounds_doc:
         out["bounds"] = bounds_doc
+    if "bounds_margin" in c:
+        out["bounds_margin"] = margin
     return kind, control, out
+
+
+def _bounds_margin(v: Validator, c, bounds: dict) -> float:
+    """control.bounds_margin m in [0, 1) (default 0): the bounds in ``bounds`` (the actuators') are
+    replaced, in place, by the (1 - m) fraction the plan respects (SmoothControl.bounds_margin)."""
+    if "bounds_margin" not in c:
+        return 0.0
+    m = v.number(c["bounds_margin"], "control.bounds_margin", nonneg=True, hi=1.0)
+    if not bounds:
+        v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
+    for k, b in bounds.items():
+        bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
+    return m
 
 
 def _bound(v: Validator, d, where):
