@@ -235,6 +235,23 @@ def test_on_its_own_discrete_model_the_tracker_removes_an_initial_dispersion(e3)
     assert np.abs(f.z).max() <= 1e-10 and f.saturated_fraction == 0.0
 
 
+def test_the_first_order_scheme_is_tracked_the_same_way():
+    """E3 with the paper's first-order scheme (N = 100, the correction entering as u_{k+1} + du_k): the same
+    initial dispersion ends 1.1e-2 off open loop, 4.2e-11 closed (the bandwidth is 0.3/h = 60 here, omega_c T
+    = 30, against 60 at N = 400).  Asserted: <= 1e-7 of open loop."""
+    sol = se3ocp.solve(maneuver("e3", 100, "first_order"), "direct")
+    G = tr.tracking_gains(sol)
+    assert G.B.shape == (100, 12, 6) and G.U.shape == (6, 100)
+    disc = sol.problem.disc
+    X0 = tr.retract(G.X[0], np.r_[1e-4 * np.ones(6), np.radians([0.5, -0.5, 0.5]), np.zeros(3)])
+    miss = {fb: np.abs(tr.fly_discrete(G, disc, X0, feedback=fb).z[-1]).max() for fb in (False, True)}
+    assert miss[False] >= 1e-3 and miss[True] <= 1e-7 * miss[False]
+    with pytest.raises(ValueError, match="scheme"):
+        tr.fly_discrete(G, discretization(disc.model, "lgvi"), X0)
+    with pytest.raises(ValueError, match="smooth controls"):
+        tr.tracking_gains(se3ocp.simulate(maneuver("e3", 100, "first_order")))
+
+
 def e3_truth_flights(sol, G, runs: int, seed: int):
     """E3 on a discrete truth: J2 (1.08e-3, radius 0.9), thrust scale 2 % and misalignment 0.5 deg (1-sigma
     about each axis), the issue's initial dispersions; terminal position miss and delta-v used, open and closed."""
