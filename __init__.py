@@ -35,7 +35,7 @@ _EXPORTS = {
     "Solution": "transcription.results", "Trajectory": "transcription.results", "Result": "transcription.results",
     "Iterate": "transcription.results", "SolveError": "transcription.results",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
-    "tracking_gains": "transcription.tracking",
+    "tracking_gains": "transcription.tracking", "fly": "problems.flight",
 }
 __all__ = [*_EXPORTS, "__version__"]
 
@@ -62,3 +62,4 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .transcription.results import Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
     from .transcription.tracking import tracking_gains  # noqa: F401
+    from .problems.flight import fly  # noqa: F401

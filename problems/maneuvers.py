@@ -25,6 +25,7 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       - {kind: keep_in, body_axis: [3], direction: [3], max_angle_deg: deg}
       - {kind: max_angular_rate, value: w}
     solver: {direct: {...}, indirect: {...}}
+    flight: {...}                        # how `se3ocp fly` flies the plan (problems/flight/schema.py)
 
 ``central_body_radius`` (default 0) is the radius of the central body.  The initial and terminal
 positions must keep the *clearance* central_body_radius + the body's bounding radius (the dumbbell's
@@ -60,7 +61,7 @@ from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut
                                      Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, _spd)
 from ..transcription.results import Trajectory
 
-from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
+from .models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody, parse_gravity
 from .schema import ConfigError, Validator, apply_override, describe, join_field, load_with_overrides, read_yaml_file, yaml_load  # noqa: F401
 from .units import units_for
 
@@ -154,7 +155,7 @@ class Maneuver:
 
 # ------------------------------------------------------------------ loading
 TOP_KEYS = ("name", "model", "gravity", "horizon", "discretization", "initial", "terminal", "control", "constraints",
-            "solver")
+            "solver", "flight")
 STATE_KEYS = ("position", "velocity", "attitude", "angular_velocity")
 
 
@@ -209,6 +210,9 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
         resolved["constraints"] = list(resolved.get("constraints", [])) + [{"kind": "min_radius",
                                                                             "radius": body_constraint.radius}]
 
+    if "flight" in doc:  # how the plan is flown (problems/flight): checked here, used by `se3ocp fly`
+        from .flight.schema import parse_flight
+        resolved["flight"] = parse_flight(doc["flight"], source).resolved
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
@@ -238,19 +242,8 @@ def _body(v: Validator, mdoc, gdoc):
             m[k] = v.number(mdoc[k], f"model.{k}", positive=True)
     if "central_body_radius" in mdoc:
         m["central_body_radius"] = v.number(mdoc["central_body_radius"], "model.central_body_radius", nonneg=True)
-    g = v.mapping(gdoc, "gravity", ("kind", "J2", "radius"), required=("kind",))
-    kind = v.choice(g["kind"], "gravity.kind", GRAVITY_KINDS)
-    rg = {"kind": kind}
-    if kind == "j2":
-        for k in ("J2", "radius"):
-            if k not in g:
-                v.fail(f"gravity.{k}", "missing required key (the j2 model needs J2 and the central body's radius)")
-        rg["J2"] = v.number(g["J2"], "gravity.J2")
-        rg["radius"] = v.number(g["radius"], "gravity.radius", positive=True)
-    else:
-        for k in ("J2", "radius"):
-            if k in g:
-                v.fail(f"gravity.{k}", f"applies to gravity kind j2 only (kind is {kind})")
+    rg = parse_gravity(v, gdoc, "gravity")
+    kind = rg["kind"]
     if m["kind"] == "rigid_body":
         J = _inertia(v, mdoc["inertia"], "model.inertia")
         m["inertia"] = J.tolist()

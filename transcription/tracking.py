@@ -340,12 +340,12 @@ class Tracker:
         self.z = self.dw = None
         self.saturated_steps = 0
 
-    def command(self, k: int, X) -> np.ndarray:
-        """The node commands (rows, 6) of step k from the state X at t_k (rows: 2 lgvi, 1 first_order)."""
+    def correction(self, k: int, X) -> np.ndarray:
+        """du_k (6,) for the state X at t_k, within the headroom of step k (0 without feedback); the flight
+        engine's per-interval law (transcription.flight.ClosedLoop) adds it to both ends of the interval."""
         g = self.gains
         if k != self.k + 1 or not 0 <= k < g.N:
-            raise ValueError(f"Tracker.command: expected step {self.k + 1} (steps 0..{g.N - 1} in order), got {k}")
-        plan = g.plan_stage(k)
+            raise ValueError(f"Tracker: expected step {self.k + 1} (steps 0..{g.N - 1} in order), got {k}")
         du = np.zeros(NU)
         if self.feedback:
             z = g.error(k, X)
@@ -353,11 +353,18 @@ class Tracker:
             if self.disturbance and k > 0:
                 du -= g.L[k] @ (z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
             self.z = z
-            du, limited = self.limit(k, du, plan)
+            du, limited = self.limit(k, du, g.plan_stage(k))
             self.saturated_steps += limited
-        cmd, _ = saturate(plan + du, g.force_bound, g.moment_bound)   # only a plan off its bounds by round-off
-        self.dw = np.ravel(cmd - plan)
+        self.dw = np.tile(du, 2 if g.scheme == "lgvi" else 1)
         self.k = k
+        return du
+
+    def command(self, k: int, X) -> np.ndarray:
+        """The node commands (rows, 6) of step k from the state X at t_k (rows: 2 lgvi, 1 first_order): the
+        plan's rows + :meth:`correction` (clipped to the actuators' bounds only where the plan itself
+        exceeds them by round-off)."""
+        plan = self.gains.plan_stage(k)
+        cmd, _ = saturate(plan + self.correction(k, X), self.gains.force_bound, self.gains.moment_bound)
         return cmd
 
     def limit(self, k: int, du: np.ndarray, plan: np.ndarray) -> tuple[np.ndarray, bool]:
