@@ -336,6 +336,7 @@ class Tracker:
         self.box = box_limits(gains.force_bound, gains.moment_bound)
         self.norms = [(sl, b.b) for sl, b in ((U_FORCE, gains.force_bound), (U_MOMENT, gains.moment_bound))
                       if isinstance(b, NormBound)]
+        self.bounded = bool(self.norms) or bool(np.isfinite(self.box).any())
         self.k = -1
         self.z = self.dw = None
         self.saturated_steps = 0
@@ -353,8 +354,9 @@ class Tracker:
             if self.disturbance and k > 0:
                 du -= g.L[k] @ (z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
             self.z = z
-            du, limited = self.limit(k, du, g.plan_stage(k))
-            self.saturated_steps += limited
+            if self.bounded:
+                du, limited = self.limit(k, du, g.plan_stage(k))
+                self.saturated_steps += limited
         self.dw = np.tile(du, 2 if g.scheme == "lgvi" else 1)
         self.k = k
         return du

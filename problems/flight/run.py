@@ -13,7 +13,7 @@ from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload
 from .schema import FlightSpec
-from .task import METRICS, fly_runs, gains_of, plan_usage, rtn_frame
+from .task import METRICS, fly_runs, gains_of, miss_frame, plan_usage
 
 #: the percentiles of summary.json (p99.7: the 3-sigma level of a Gaussian)
 PERCENTILES = {"p50": 50.0, "p95": 95.0, "p99_7": 99.7}
@@ -94,7 +94,7 @@ def plan_figures(sol, gains, spec: FlightSpec) -> dict:
     return {"method": sol.method, "discretization": gains.scheme, "N": int(gains.N), "T": float(gains.t[-1]),
             "delta_v": dv / sol.trajectory.mass, "angular_impulse": ang,
             "bounds_margin": float(sol.problem.control.bounds_margin),
-            "miss_frame": rtn_frame(sol.trajectory.X[-1], sol.trajectory.mass)[1]}
+            "miss_frame": miss_frame(sol.trajectory.X[-1], sol.trajectory.mass)}
 
 
 def run_flights(man: Maneuver, sol, spec: FlightSpec, *, workers: int | None = None, scheduler: str | None = None,

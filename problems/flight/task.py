@@ -12,6 +12,7 @@ from ...transcription.layout import X_POS, X_ROT
 from ...transcription.lie import log_so3, nearest_rotation
 from ...transcription.results import Trajectory, rotation_angle
 from ...transcription.tracking import saturate, tracking_gains
+from ..plots.orbits import rtn
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
 
@@ -38,16 +39,20 @@ def gains_of(payload: dict, weights: dict):
     return _GAINS[key]
 
 
-def rtn_frame(X_N: np.ndarray, mass: float) -> tuple[np.ndarray, str]:
-    """(rows, name) of the frame the position miss is given in: the target orbit's RTN frame at the plan's
-    final state (radial x/|x|, normal along x x v, along-track N x R), or the inertial axes ('inertial')
-    where the body does not move about a centre (x x v = 0)."""
+def miss_frame(X_N: np.ndarray, mass: float) -> str:
+    """The frame the position miss is given in: the target orbit's RTN frame at the plan's final state
+    (problems.plots.orbits.rtn: radial, along-track, normal), or the inertial axes where the body does
+    not move about a centre (x x v = 0)."""
     x, v = X_N[X_POS], X_N[3:6] / mass
-    n = np.cross(x, v)
-    if np.linalg.norm(n) <= 1e-12 * np.linalg.norm(x) * np.linalg.norm(v) or not np.linalg.norm(n) > 0:
-        return np.eye(3), "inertial"
-    r, n = x / np.linalg.norm(x), n / np.linalg.norm(n)
-    return np.vstack([r, np.cross(n, r), n]), "RTN"
+    n = np.linalg.norm(np.cross(x, v))
+    return "RTN" if n > 1e-12 * np.linalg.norm(x) * np.linalg.norm(v) and n > 0 else "inertial"
+
+
+def miss_components(X_N: np.ndarray, mass: float, dx: np.ndarray) -> np.ndarray:
+    """The position miss dx (3,) in :func:`miss_frame`."""
+    if miss_frame(X_N, mass) == "inertial":
+        return np.asarray(dx, float)
+    return rtn(X_N[None, X_POS], X_N[None, 3:6] / mass, np.asarray(dx, float)[None, :])[0]
 
 
 def impulse(control_t: np.ndarray, u: np.ndarray) -> float:
@@ -68,10 +73,10 @@ def plan_usage(gains, samples: int) -> tuple[float, float]:
     return impulse(t, u[:, :, :3]), impulse(t, u[:, :, 3:])
 
 
-def flight_metrics(flight, plan, tracker, rtn: np.ndarray, usage: tuple, constraints) -> tuple[dict, dict]:
+def flight_metrics(flight, plan, tracker, usage: tuple, constraints) -> tuple[dict, dict]:
     """The figures of merit (METRICS and the constraint margins) of one flight against the plan's nodes, and
     its track (the position and attitude deviation at the nodes).  Misses are against the plan's last node:
-    position and velocity (inertial; the position's components in the frame ``rtn``), the attitude angle
+    position and velocity (inertial; the position's components in :func:`miss_frame`), the attitude angle
     and rotation vector vee log(R_N^T R(T)) (body, deg), the rate |Omega(T) - Omega_N| (the truth's inertia).
     delta_v: the integral of |u_f|/m applied by the actuators, delta_v_commanded: of the commands (both by
     :func:`impulse` over the samples), their overheads over the plan's (``usage``)."""
@@ -89,7 +94,8 @@ def flight_metrics(flight, plan, tracker, rtn: np.ndarray, usage: tuple, constra
     s = (flight.control_t - flight.control_t[:, :1]) / np.diff(flight.control_t[:, [0, -1]], axis=1)
     cmd = flight.command_start[:, None, :3] + s[..., None] * (flight.command_end - flight.command_start)[:, None, :3]
     dvc = impulse(flight.control_t, cmd) / m
-    out = dict(position_miss=float(np.linalg.norm(dx[-1])), **dict(zip(("miss_r", "miss_t", "miss_n"), rtn @ dx[-1])),
+    comp = miss_components(tr.X[-1], tr.mass, dx[-1])
+    out = dict(position_miss=float(np.linalg.norm(dx[-1])), **dict(zip(("miss_r", "miss_t", "miss_n"), comp)),
                velocity_miss=float(np.linalg.norm(flown.v[-1] - tr.v[-1])), attitude_miss_deg=float(dR[-1]),
                **dict(zip(("attitude_x_deg", "attitude_y_deg", "attitude_z_deg"), att)),
                rate_miss=float(np.linalg.norm(flown.Omega[-1] - tr.Omega[-1])), delta_v=dv,
@@ -122,8 +128,8 @@ def fly_one(plan, gains, spec, err, base, mode: str):
     tracker = None
     if mode == "lqr":
         tracker = gains.tracker()
-        law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X),
-                         lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0])
+        clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
+        law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
     flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples)
     return flight, tracker
 
@@ -141,7 +147,7 @@ def fly_runs(task: dict) -> dict:
     gains = gains_of(task["plan"], spec.weights)
     base = truth_body(man, spec)
     seeds = run_seeds(spec)
-    rtn, usage = rtn_frame(plan.trajectory.X[-1], plan.trajectory.mass)[0], plan_usage(gains, spec.samples)
+    usage = plan_usage(gains, spec.samples)
     rows, tracks, saved = [], {}, {}
     for i in task["runs"]:
         err = sample_errors(spec, i, seeds[i], plan.trajectory.X[0], man.problem.model.mass, man.problem.model.inertia)
@@ -152,7 +158,7 @@ def fly_runs(task: dict) -> dict:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
                 flight, tracker = fly_one(plan, gains, spec, err, base, mode)
-                metrics, track = flight_metrics(flight, plan, tracker, rtn, usage, man.problem.constraints)
+                metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
             except (FlightError, ValueError, np.linalg.LinAlgError) as e:
                 rows.append({**row, "status": "failed", "message": " ".join(str(e).split())[:500], **cols})
                 continue
