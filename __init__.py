@@ -37,6 +37,7 @@ _EXPORTS = {
     "Iterate": "transcription.results", "SolveError": "transcription.results", "Attempt": "transcription.results",
     "WarmStart": "transcription.warm",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
+    "tracking_gains": "transcription.tracking", "fly": "problems.flight",
 }
 __all__ = [*_EXPORTS, "__version__"]
 
@@ -64,3 +65,5 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .transcription.results import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
     from .transcription.warm import WarmStart  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
+    from .transcription.tracking import tracking_gains  # noqa: F401
+    from .problems.flight import fly  # noqa: F401

@@ -17,12 +17,15 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       objective: effort | time | fuel    # smooth; default effort
       weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
       bounds: {force: {box: [3]} | {norm: b}, moment: ...}   # norm 0 removes the control
+      bounds_margin: 0.1                 # plan with 90 % of each bound (the actuators' are the bounds
+                                         # above), so that a tracker keeps authority; default 0
     constraints:                         # path constraints at every node (smooth control)
       - {kind: min_radius, radius: r}
       - {kind: keep_out, body_axis: [3], direction: [3], min_angle_deg: deg}
       - {kind: keep_in, body_axis: [3], direction: [3], max_angle_deg: deg}
       - {kind: max_angular_rate, value: w}
     solver: {direct: {...}, indirect: {...}}
+    flight: {...}                        # how `se3ocp fly` flies the plan (problems/flight/schema.py)
 
 ``central_body_radius`` (default 0) is the radius of the central body.  The initial and terminal
 positions must keep the *clearance* central_body_radius + the body's bounding radius (the dumbbell's
@@ -59,7 +62,7 @@ from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut
 from ..transcription.results import Trajectory
 
 from . import physical as _physical
-from .models import GM_NORMALIZED, GRAVITY_KINDS, Dumbbell, Gravity, RigidBody
+from .models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody, parse_gravity
 from .schema import Validator, describe, join_field, load_with_overrides
 from .units import units_for
 
@@ -155,7 +158,7 @@ class Maneuver:
 
 # ------------------------------------------------------------------ loading
 TOP_KEYS = ("name", "model", "gravity", "horizon", "discretization", "initial", "terminal", "control", "constraints",
-            "solver") + _physical.KEYS
+            "solver", "flight") + _physical.KEYS
 STATE_KEYS = ("position", "velocity", "attitude", "angular_velocity")
 
 
@@ -212,6 +215,9 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
         resolved["constraints"] = list(resolved.get("constraints", [])) + [{"kind": "min_radius",
                                                                             "radius": body_constraint.radius}]
 
+    if "flight" in doc:  # how the plan is flown (problems/flight): checked here, used by `se3ocp fly`
+        from .flight.schema import parse_flight
+        resolved["flight"] = parse_flight(doc["flight"], source).resolved
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
@@ -243,19 +249,8 @@ def _body(v: Validator, mdoc, gdoc):
             m[k] = v.number(mdoc[k], f"model.{k}", positive=True)
     if "central_body_radius" in mdoc:
         m["central_body_radius"] = v.number(mdoc["central_body_radius"], "model.central_body_radius", nonneg=True)
-    g = v.mapping(gdoc, "gravity", ("kind", "J2", "radius"), required=("kind",))
-    kind = v.choice(g["kind"], "gravity.kind", GRAVITY_KINDS)
-    rg = {"kind": kind}
-    if kind == "j2":
-        for k in ("J2", "radius"):
-            if k not in g:
-                v.fail(f"gravity.{k}", "missing required key (the j2 model needs J2 and the central body's radius)")
-        rg["J2"] = v.number(g["J2"], "gravity.J2")
-        rg["radius"] = v.number(g["radius"], "gravity.radius", positive=True)
-    else:
-        for k in ("J2", "radius"):
-            if k in g:
-                v.fail(f"gravity.{k}", f"applies to gravity kind j2 only (kind is {kind})")
+    rg = parse_gravity(v, gdoc, "gravity")
+    kind = rg["kind"]
     if m["kind"] == "rigid_body":
         J = _inertia(v, mdoc["inertia"], "model.inertia")
         m["inertia"] = J.tolist()
@@ -314,10 +309,10 @@ def _control(v: Validator, c):
     """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None)."""
     if c is None:
         return None, None, None
-    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds"), required=("kind",))
+    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds", "bounds_margin"), required=("kind",))
     kind = v.choice(c["kind"], "control.kind", ("smooth", "impulsive"))
     if kind == "impulsive":
-        for k in ("weights", "objective", "bounds"):
+        for k in ("weights", "objective", "bounds", "bounds_margin"):
             if k in c:
                 v.fail(f"control.{k}", f"{k} apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
         return kind, ImpulsiveControl(), {"kind": kind}
@@ -336,15 +331,31 @@ def _control(v: Validator, c):
         for k in ("force", "moment"):
             if k in bd:
                 bounds[k], bounds_doc[k] = _bound(v, bd[k], f"control.bounds.{k}")
+    margin = _bounds_margin(v, c, bounds)
     try:
         control = SmoothControl(W_f=W["force"], W_m=W["moment"], objective=objective, force_bound=bounds.get("force"),
-                                moment_bound=bounds.get("moment"))
+                                moment_bound=bounds.get("moment"), bounds_margin=margin)
     except ProblemError as e:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
     out = {"kind": kind, "objective": objective, "weights": weights_doc}
     if bounds_doc:
         out["bounds"] = bounds_doc
+    if "bounds_margin" in c:
+        out["bounds_margin"] = margin
     return kind, control, out
+
+
+def _bounds_margin(v: Validator, c, bounds: dict) -> float:
+    """control.bounds_margin m in [0, 1) (default 0): the bounds in ``bounds`` (the actuators') are
+    replaced, in place, by the (1 - m) fraction the plan respects (SmoothControl.bounds_margin)."""
+    if "bounds_margin" not in c:
+        return 0.0
+    m = v.number(c["bounds_margin"], "control.bounds_margin", nonneg=True, hi=1.0)
+    if not bounds:
+        v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
+    for k, b in bounds.items():
+        bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
+    return m
 
 
 def _bound(v: Validator, d, where):

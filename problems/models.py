@@ -38,6 +38,25 @@ GM_NORMALIZED = 4.0 * np.pi**2
 GRAVITY_KINDS = ("none", "point_mass", "gravity_gradient", "j2")
 
 
+def parse_gravity(v, g, where: str) -> dict:
+    """A gravity block {kind, J2, radius} checked with the Validator ``v`` (errors name ``where``):
+    the resolved block, with J2 and radius for (and only for) kind j2."""
+    g = v.mapping(g, where, ("kind", "J2", "radius"), required=("kind",))
+    kind = v.choice(g["kind"], f"{where}.kind", GRAVITY_KINDS)
+    rg = {"kind": kind}
+    if kind == "j2":
+        for k in ("J2", "radius"):
+            if k not in g:
+                v.fail(f"{where}.{k}", "missing required key (the j2 model needs J2 and the central body's radius)")
+        rg["J2"] = v.number(g["J2"], f"{where}.J2")
+        rg["radius"] = v.number(g["radius"], f"{where}.radius", positive=True)
+    else:
+        for k in ("J2", "radius"):
+            if k in g:
+                v.fail(f"{where}.{k}", f"applies to gravity kind j2 only (kind is {kind})")
+    return rg
+
+
 @dataclass(frozen=True)
 class Gravity:
     """The central body's field: kind (GRAVITY_KINDS), mu = GM, and for 'j2' the coefficient J2 and

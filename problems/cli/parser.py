@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..flight.command import cmd_fly
 from .commands import cmd_export, cmd_plot, cmd_report, cmd_simulate, cmd_solve, cmd_sweep, cmd_validate
 
 EPILOG = """examples:
@@ -15,6 +16,7 @@ EPILOG = """examples:
   se3ocp report results/e3_inclination_change
   se3ocp export results/leo_raise_slew --format oem
   se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
+  se3ocp fly configs/e3_inclination_change.yaml --flight configs/flights/e3_j2_thrust.yaml --runs 200
 """
 
 
@@ -143,7 +145,38 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=cmd_sweep)
+    _fly_parser(sub)
     return ap
+
+
+def _fly_parser(sub) -> None:
+    p = sub.add_parser("fly", help="Monte Carlo flights of a plan: truth model, errors, open loop and LQR tracking",
+                       epilog="examples:\n  se3ocp fly configs/e3_inclination_change.yaml --set horizon.N=400 "
+                              "--set discretization=lgvi --flight configs/flights/e3_j2_thrust.yaml\n"
+                              "  se3ocp fly results/slew_time_optimal --runs 500 --feedback lqr --workers 2\n"
+                              "  se3ocp fly results/e3_inclination_change --scheduler tcp://127.0.0.1:8786",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("plan", metavar="CONFIG|RESULTS_DIR",
+                   help="a maneuver file (solved first by the direct method) or a results directory holding the plan")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a value of the maneuver file by dotted key (repeatable)")
+    p.add_argument("--flight", default=None, metavar="FILE",
+                   help="a YAML file holding a 'flight:' block (default: the maneuver's own, else the defaults)")
+    p.add_argument("--runs", type=_positive_int, default=None, metavar="K", help="number of runs (default: the block's)")
+    p.add_argument("--feedback", choices=("none", "lqr", "both"), default=None,
+                   help="open loop, the LQR tracker, or both side by side (default: the block's, else both)")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                   help="local worker processes (default: one per core; 1 = in-process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on an existing dask.distributed cluster, e.g. tcp://host:8786")
+    p.add_argument("--save-runs", type=_nonneg_int, default=0, metavar="K",
+                   help="write runs/NNNN.npz (errors, applied controls, truth trajectory) of the first K runs")
+    p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="results directory (default results/flights/<name>/; a fresh numbered sibling if not empty)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=cmd_fly)
 
 
 def _version() -> str:
@@ -170,6 +203,12 @@ def _positive_float(text: str) -> float:
     if not (x > 0 and x < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return x
+
+
+def _nonneg_int(text: str) -> int:
+    if not text.isdigit():
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return int(text)
 
 
 def _frames(text: str) -> int:

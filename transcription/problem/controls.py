@@ -96,6 +96,9 @@ class SmoothControl:
       'fuel'   min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), the weights scalars (W = w I).
     force_bound, moment_bound: a BoxBound, a NormBound or None (unbounded); NormBound(0) removes the
     control (attitude-only or translation-only maneuvers).
+    bounds_margin: m in [0, 1): the bounds above are the ones the plan respects, a fraction 1 - m of the
+    actuators' (:func:`actuator_bounds`), so that a tracker keeps authority (a maneuver file's
+    ``control.bounds_margin`` shrinks its bounds so).
     """
 
     W_f: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -103,8 +106,12 @@ class SmoothControl:
     objective: str = "effort"
     force_bound: Bound | None = None
     moment_bound: Bound | None = None
+    bounds_margin: float = 0.0
 
     def __post_init__(self):
+        m = self.bounds_margin
+        if isinstance(m, bool) or not isinstance(m, (int, float, np.number)) or not (np.isfinite(m) and 0.0 <= m < 1.0):
+            raise ProblemError("control.bounds_margin", f"expected a number in [0, 1), got {self.bounds_margin!r}")
         object.__setattr__(self, "W_f", spd_weight(self.W_f, "control.W_f"))
         object.__setattr__(self, "W_m", spd_weight(self.W_m, "control.W_m"))
         if self.objective not in OBJECTIVES:
@@ -138,6 +145,16 @@ class SmoothControl:
     def removed(self) -> tuple[bool, bool]:
         """(force removed, moment removed): a NormBound of 0."""
         return tuple(isinstance(b, NormBound) and b.b == 0 for b in (self.force_bound, self.moment_bound))
+
+
+def actuator_bounds(control: SmoothControl) -> tuple[Bound | None, Bound | None]:
+    """(force, moment): the actuators' bounds, the plan's bounds divided by 1 - bounds_margin
+    (the plan's own without a margin; a removed control stays removed)."""
+    s = 1.0 / (1.0 - control.bounds_margin)
+    out = []
+    for b in (control.force_bound, control.moment_bound):
+        out.append(b if b is None or s == 1.0 else BoxBound(b.b * s) if isinstance(b, BoxBound) else NormBound(b.b * s))
+    return out[0], out[1]
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,91 @@
+"""Flying a plan (issue 25): a Monte Carlo of flights through the continuous equations of a truth model,
+open loop and with the tracker, on a local process pool or a Dask cluster.
+
+    import se3ocp
+    man = se3ocp.load("configs/e3_inclination_change.yaml", ["horizon.N=400", "discretization=lgvi"])
+    res = se3ocp.fly(man, {"truth": {"gravity": {"kind": "j2", "J2": 1.08e-3, "radius": 0.9}},
+                           "errors": {"force_scale": 0.02}, "runs": 50})
+    res.statistics()["lqr"]["position_miss"]["p95"]
+
+* ``schema`` -- the ``flight:`` block (:class:`FlightSpec`: truth, errors, feedback, weights, runs, seed);
+* ``plan`` -- the plan as plain data, the truth body, and each run's errors from its own
+  ``SeedSequence(seed).spawn(runs)[i]`` (so the statistics do not depend on the workers);
+* ``task`` -- :func:`fly_runs`, the unit of work (a few runs, every feedback mode), and the figures of
+  merit of a flight (terminal misses against the plan's last node, delta-v, peaks, saturation, margins);
+* ``run`` -- :func:`run_flights` on any executor of ``problems.sweep.executors``, :class:`FlightResult`
+  and its statistics (mean, p50, p95, p99.7);
+* ``output`` -- flights.csv, summary.json, runs/NNNN.npz, plan.npz, gains.npz; ``figures`` -- the figures;
+* ``command`` -- ``se3ocp fly``.
+
+How a flight is flown: the truth body (the plan's, under the flight's gravity, with the run's inertia)
+is integrated by the continuous engine (transcription/flight, docs/mathematics.md §11) from the run's
+initial state, the plan's controls applied between the nodes as the scheme defines them, through the
+run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
+(docs/mathematics.md §12), computed from the flown state at each node, is added over the interval.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping
+
+from .run import FlightResult, run_flights
+from .schema import FlightSpec, parse_flight, with_changes
+
+__all__ = ["FlightResult", "FlightSpec", "fly", "load_flight", "parse_flight", "run_flights", "with_changes"]
+
+
+def load_flight(path: str | Path) -> FlightSpec:
+    """The flight block of a YAML file holding ``{flight: {...}}`` (a maneuver file with one, or a file of
+    its own); ConfigError naming the file and field."""
+    from ..schema import Validator, read_yaml_file
+
+    doc = read_yaml_file(path)
+    if not isinstance(doc, dict) or "flight" not in doc:
+        Validator(str(path)).fail("flight", "missing: the file must hold a mapping with a 'flight' block")
+    return parse_flight(doc["flight"], str(path))
+
+
+def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuver=None, runs: int | None = None,
+        feedback: str | None = None, workers: int | None = 1, scheduler: str | None = None,
+        save_runs: int = 0) -> FlightResult:
+    """Fly a plan ``runs`` times (``se3ocp.fly``).
+
+    plan: a Maneuver (solved first by the direct method) or a converged smooth-control Solution with
+    ``maneuver=`` the Maneuver it solves.  flight: a FlightSpec, a flight block (mapping), a YAML file
+    holding one, or None (the maneuver's own ``flight:`` block, else the defaults).  runs, feedback
+    ('none', 'lqr', 'both'): change the block's.  workers (default 1: in-process), scheduler (a Dask
+    address): where the runs go.  save_runs: keep the whole flights of the first runs (``saved``)."""
+    from ...transcription.results import Solution
+    from ..api import solve
+    from ..maneuvers import Maneuver
+
+    if isinstance(plan, Maneuver):
+        maneuver, plan = plan, solve(plan, "direct")
+    if not isinstance(plan, Solution) or not isinstance(maneuver, Maneuver):
+        raise TypeError("fly: expected a Maneuver, or a Solution and maneuver= the Maneuver it solves")
+    check_plan(plan)
+    spec = _spec(flight, maneuver)
+    spec = with_changes(spec, spec_source(flight, maneuver), runs=runs, feedback=feedback)
+    return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
+
+
+def check_plan(sol) -> None:
+    """ValueError unless ``sol`` is a converged plan with smooth controls (what a flight flies)."""
+    if sol.controls is None or sol.problem is None or sol.problem.kind != "smooth":
+        raise ValueError(f"the {sol.method} solution has no smooth controls: only smooth-control plans are flown")
+    if not sol.converged:
+        raise ValueError(f"the {sol.method} plan did not converge ({sol.result}: {sol.message}); nothing to fly")
+
+
+def spec_source(flight: Any, maneuver) -> str:
+    return str(flight) if isinstance(flight, (str, Path)) else maneuver.source
+
+
+def _spec(flight: Any, maneuver) -> FlightSpec:
+    if isinstance(flight, FlightSpec):
+        return flight
+    if isinstance(flight, (str, Path)):
+        return load_flight(flight)
+    if flight is None:
+        flight = maneuver.resolved.get("flight", {})
+    return parse_flight(dict(flight), maneuver.source)

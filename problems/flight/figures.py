@@ -1,0 +1,160 @@
+"""The figures of a Monte Carlo flight (PNG and PDF each):
+
+* ``flight_miss``: terminal misses, one row per feedback mode -- the position miss in the target orbit's
+  RTN frame (radial-along-track, along-track-normal; inertial axes without a central motion) and the
+  attitude error (body rotation vector, deg), each with its 3-sigma ellipse (mean + 3 sqrt of the
+  covariance's eigenvalues along its eigenvectors);
+* ``flight_histograms``: log10 of the position, attitude and rate misses and the delta-v overhead, modes overlaid;
+* ``flight_tracks``: the position and attitude deviation from the plan's nodes of the first 20 runs;
+* ``flight_controls``: the applied controls of the first 20 runs against the actuators' bounds (solid)
+  and the plan's (dashed, with a bounds margin).
+
+Figures are made with matplotlib's Figure (no pyplot, no backend chosen)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ...transcription.problem import BoxBound, NormBound
+from ..io import save_figure
+from ..units import units
+from .run import FlightResult
+
+MODE_COLORS = {"none": "#e66101", "lqr": "#5e3c99"}
+MODE_LABELS = {"none": "open loop", "lqr": "LQR"}
+
+
+def draw_flights(out: Path, result: FlightResult) -> list[Path]:
+    """Every figure of the module into ``out``; returns the files written."""
+    written = []
+    for name, draw in (("flight_miss", _miss), ("flight_histograms", _histograms), ("flight_tracks", _tracks),
+                       ("flight_controls", _controls)):
+        fig = draw(result)
+        if fig is not None:
+            written += save_figure(fig, Path(out) / name)
+    return written
+
+
+def ellipse(points: np.ndarray, k: float = 3.0, n: int = 120) -> np.ndarray | None:
+    """The k-sigma ellipse (n, 2) of 2-D points (m, 2) about their mean; None for fewer than 3 points."""
+    if len(points) < 3:
+        return None
+    C = np.cov(points.T)
+    w, V = np.linalg.eigh(C)
+    a = np.linspace(0.0, 2.0 * np.pi, n)
+    circle = np.stack([np.cos(a), np.sin(a)], axis=1)
+    return points.mean(axis=0) + k * (circle * np.sqrt(np.maximum(w, 0.0))) @ V.T
+
+
+def _ok(result: FlightResult, mode: str) -> list:
+    return [r for r in result.rows if r["feedback"] == mode and r["status"] == "ok"]
+
+
+def _miss(result: FlightResult) -> Figure:
+    modes = result.spec.modes
+    u = units(result.maneuver.problem)
+    names = dict(zip(("miss_r", "miss_t", "miss_n"), ("R", "T", "N") if result.plan["miss_frame"] == "RTN"
+                     else ("x", "y", "z")))
+    panels = (("miss_r", "miss_t"), ("miss_t", "miss_n"), ("attitude_x_deg", "attitude_y_deg"))
+    fig = Figure(figsize=(11.0, 3.4 * len(modes)))
+    for i, mode in enumerate(modes):
+        rows = _ok(result, mode)
+        for j, (a, b) in enumerate(panels):
+            ax = fig.add_subplot(len(modes), 3, 3 * i + j + 1)
+            pts = np.array([[r[a], r[b]] for r in rows], float).reshape(-1, 2)
+            ax.scatter(pts[:, 0], pts[:, 1], s=6, color=MODE_COLORS[mode], alpha=0.6)
+            e = ellipse(pts)
+            if e is not None:
+                ax.plot(e[:, 0], e[:, 1], color="k", lw=1.0, label="3σ")
+                ax.legend(loc="upper right", fontsize=7)
+            if a in names:
+                ax.set_xlabel(u.label(f"{names[a]} miss", "length"))
+                ax.set_ylabel(u.label(f"{names[b]} miss", "length"))
+            else:
+                ax.set_xlabel("attitude error x (deg)")
+                ax.set_ylabel("attitude error y (deg)")
+            ax.set_title(f"{MODE_LABELS[mode]}: {len(rows)} runs", fontsize=9)
+            ax.ticklabel_format(style="sci", scilimits=(-3, 3))
+    fig.suptitle(f"{result.maneuver.name}: terminal misses (position in the "
+                 f"{'target orbit' + chr(39) + 's RTN' if result.plan['miss_frame'] == 'RTN' else 'inertial'} frame)")
+    fig.tight_layout()
+    return fig
+
+
+def _histograms(result: FlightResult) -> Figure:
+    cols = (("position_miss", "position miss"), ("attitude_miss_deg", "attitude miss (deg)"),
+            ("rate_miss", "rate miss"), ("delta_v_overhead", "delta-v overhead"))
+    fig = Figure(figsize=(11.0, 3.2))
+    for j, (c, label) in enumerate(cols):
+        ax = fig.add_subplot(1, 4, j + 1)
+        data = {}
+        for mode in result.spec.modes:
+            a = np.array([r[c] for r in _ok(result, mode)], float)
+            a = a[np.isfinite(a)]
+            data[mode] = 100.0 * a if c == "delta_v_overhead" else np.log10(np.maximum(a, 1e-300))
+        both = np.concatenate(list(data.values()))
+        bins = np.linspace(both.min(), both.max() + (both.max() == both.min()), 41) if both.size else 10
+        for mode, a in data.items():
+            if a.size:
+                ax.hist(a, bins=bins, color=MODE_COLORS[mode], alpha=0.6, label=MODE_LABELS[mode])
+        ax.set_xlabel(f"{label} (%)" if c == "delta_v_overhead" else f"log10 {label}")
+        if both.size:
+            ax.legend(fontsize=7)
+    fig.suptitle(f"{result.maneuver.name}: {result.finished_runs} runs")
+    fig.tight_layout()
+    return fig
+
+
+def _tracks(result: FlightResult) -> Figure | None:
+    if not result.tracks:
+        return None
+    t = result.gains.t
+    u = units(result.maneuver.problem)
+    fig = Figure(figsize=(10.0, 4.0))
+    axes = [fig.add_subplot(1, 2, k + 1) for k in range(2)]
+    for i, run in sorted(result.tracks.items()):
+        for mode, tr in run.items():
+            kw = dict(color=MODE_COLORS[mode], lw=0.7, alpha=0.7, label=MODE_LABELS[mode] if i == min(result.tracks)
+                      else None)
+            axes[0].semilogy(t, np.maximum(tr["dx"], 1e-300), **kw)
+            axes[1].semilogy(t, np.maximum(tr["dR_deg"], 1e-300), **kw)
+    axes[0].set_ylabel(u.label("|x - x_plan|", "length"))
+    axes[1].set_ylabel("angle(R_plan^T R) (deg)")
+    for ax in axes:
+        ax.set_xlabel(u.time_label)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{result.maneuver.name}: deviation from the plan, first {len(result.tracks)} runs")
+    fig.tight_layout()
+    return fig
+
+
+def _controls(result: FlightResult) -> Figure | None:
+    if not result.tracks:
+        return None
+    g = result.gains
+    control = result.maneuver.problem.control
+    mode = result.spec.modes[-1]
+    fig = Figure(figsize=(10.0, 4.0))
+    for j, (name, sl, act, planned) in enumerate((("force", slice(0, 3), g.force_bound, control.force_bound),
+                                                  ("moment", slice(3, 6), g.moment_bound, control.moment_bound))):
+        ax = fig.add_subplot(1, 2, j + 1)
+        for i, run in sorted(result.tracks.items()):
+            tr = run.get(mode)
+            if tr is None:
+                continue
+            tt, uu = tr["control_t"].ravel(), tr["control"][..., sl].reshape(-1, 3)
+            y = np.abs(uu).max(axis=1) if isinstance(act, BoxBound) else np.linalg.norm(uu, axis=1)
+            ax.plot(tt, y, color=MODE_COLORS[mode], lw=0.6, alpha=0.6)
+        for b, style in ((act, "-"), (planned, "--")):
+            if isinstance(b, (BoxBound, NormBound)) and np.max(b.b) > 0:
+                ax.axhline(float(np.max(b.b)), color="#444444", ls=style, lw=1.0)
+        ax.set_xlabel(units(result.maneuver.problem).time_label)
+        ax.set_ylabel(f"{'max_i |u_i|' if isinstance(act, BoxBound) else '|u|'} ({name})")
+        bounded = isinstance(act, (BoxBound, NormBound))
+        ax.set_title(f"{name}: {MODE_LABELS[mode]}" + (", actuators' bound solid, plan's dashed" if bounded
+                                                       else " (unbounded)"), fontsize=9)
+    fig.suptitle(f"{result.maneuver.name}: control usage, first {len(result.tracks)} runs")
+    fig.tight_layout()
+    return fig

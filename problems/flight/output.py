@@ -1,0 +1,56 @@
+"""What a Monte Carlo flight writes, each file atomically: flights.csv, summary.json, flight.resolved.yaml,
+config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker), runs/NNNN.npz and the figures."""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_write_bytes, write_json, write_npz, write_yaml
+from .run import FlightResult
+from .task import ERROR_COLUMNS
+
+
+def columns(result: FlightResult) -> list[str]:
+    """flights.csv's columns: run, feedback, status, the figures of merit, the sampled errors, message."""
+    return ["run", "feedback", "status", *result.metrics, *ERROR_COLUMNS, "message"]
+
+
+def _cell(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(v)
+    return v
+
+
+def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: bool = True) -> list[Path]:
+    """Every file of a flight into ``out``; summary.json last."""
+    out = Path(out)
+    cols = columns(result)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for r in result.rows:
+        w.writerow([_cell(r.get(c)) for c in cols])
+    atomic_write_bytes(out / "flights.csv", buf.getvalue().encode())
+    write_yaml(out / "flight.resolved.yaml", {"flight": result.spec.resolved})
+    write_yaml(out / "config.resolved.yaml", result.maneuver.resolved)
+    write_npz(out / "plan.npz", plan_arrays)
+    g = result.gains
+    write_npz(out / "gains.npz", {"K": g.K, "L": g.L, "t": g.t, "X": g.X, "U": g.U, "Q": g.weights.Q,
+                                  "R": g.weights.R, "Q_N": g.weights.Q_N})
+    written = [out / n for n in ("flights.csv", "flight.resolved.yaml", "config.resolved.yaml", "plan.npz", "gains.npz")]
+    for i, arrays in sorted(result.saved.items()):
+        p = out / "runs" / f"{i:04d}.npz"
+        p.parent.mkdir(exist_ok=True)
+        write_npz(p, {k: np.asarray(v) for k, v in arrays.items()})
+        written.append(p)
+    if figures and any(r["status"] == "ok" for r in result.rows):
+        from .figures import draw_flights
+
+        written += draw_flights(out, result)
+    write_json(out / "summary.json", result.summary())
+    return written + [out / "summary.json"]

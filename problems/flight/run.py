@@ -1,0 +1,157 @@
+"""Running a Monte Carlo flight on any executor of the sweep machinery, and its statistics."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ...transcription.flight import margin_keys
+from ..maneuvers import Maneuver
+from ..sweep.executors import Executor, make_executor
+from .plan import plan_payload
+from .schema import FlightSpec
+from .task import METRICS, fly_runs, gains_of, miss_frame, plan_usage
+
+#: the percentiles of summary.json (p99.7: the 3-sigma level of a Gaussian)
+PERCENTILES = {"p50": 50.0, "p95": 95.0, "p99_7": 99.7}
+#: runs whose node deviations and controls are kept for the figures
+TRACKS = 20
+#: the most runs in one task (fewer when there are few runs per worker: every worker gets several tasks)
+MAX_CHUNK = 25
+
+
+@dataclass
+class FlightResult:
+    """A Monte Carlo flight: rows (one per run and feedback mode, sorted), tracks and saved flights of
+    the first runs, the plan's figures, the tracker, where and how long it ran."""
+
+    maneuver: Maneuver
+    spec: FlightSpec
+    plan: dict
+    gains: object
+    rows: list
+    tracks: dict = field(default_factory=dict)
+    saved: dict = field(default_factory=dict)
+    executor: str = "serial"
+    workers: int | None = 1
+    wall_s: float = 0.0
+    interrupted: bool = False
+
+    @property
+    def metrics(self) -> tuple:
+        return METRICS + tuple(margin_keys(self.maneuver.problem.constraints))
+
+    @property
+    def finished_runs(self) -> int:
+        return len({r["run"] for r in self.rows})
+
+    @property
+    def failed(self) -> int:
+        return sum(r["status"] != "ok" for r in self.rows)
+
+    def statistics(self) -> dict:
+        """{mode: {metric: {mean, p50, p95, p99_7, max, n}}} over the flights that finished (rows in
+        run order: the same numbers whatever the workers)."""
+        out = {}
+        for mode in self.spec.modes:
+            ok = [r for r in self.rows if r["feedback"] == mode and r["status"] == "ok"]
+            out[mode] = {m: describe(np.array([r[m] for r in ok], dtype=float)) for m in self.metrics}
+        return out
+
+    def summary(self) -> dict:
+        stats = self.statistics()
+        out = {"name": self.maneuver.name, "config": self.maneuver.source, "plan": self.plan,
+               "flight": self.spec.resolved, "runs": self.spec.runs, "finished_runs": self.finished_runs,
+               "failed_flights": self.failed, "interrupted": self.interrupted, "executor": self.executor,
+               "workers": self.workers, "wall_s": self.wall_s,
+               "tracking": {"scales": self.gains.weights.scales, "removed": list(self.gains.removed)},
+               "statistics": stats}
+        if set(stats) == {"none", "lqr"}:
+            ratio = {}
+            for m in ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss"):
+                a, b = stats["none"][m]["p95"], stats["lqr"][m]["p95"]
+                ratio[f"{m}_p95"] = b / a if a and math.isfinite(a) and math.isfinite(b) else None
+            out["closed_over_open"] = ratio
+        return out
+
+
+def describe(a: np.ndarray) -> dict:
+    """mean, the PERCENTILES, max and n of the finite values of ``a`` (None where there are none)."""
+    a = a[np.isfinite(a)]
+    if a.size == 0:
+        return {"mean": None, **{k: None for k in PERCENTILES}, "max": None, "n": 0}
+    return {"mean": float(a.mean()), **{k: float(np.percentile(a, q)) for k, q in PERCENTILES.items()},
+            "max": float(a.max()), "n": int(a.size)}
+
+
+def plan_figures(sol, gains, spec: FlightSpec) -> dict:
+    """The plan's own numbers in summary.json: method, scheme, N, T and its delta-v and angular impulse
+    (the quadrature the flights use)."""
+    dv, ang = plan_usage(gains, spec.samples)
+    return {"method": sol.method, "discretization": gains.scheme, "N": int(gains.N), "T": float(gains.t[-1]),
+            "delta_v": dv / sol.trajectory.mass, "angular_impulse": ang,
+            "bounds_margin": float(sol.problem.control.bounds_margin),
+            "miss_frame": miss_frame(sol.trajectory.X[-1], sol.trajectory.mass)}
+
+
+def run_flights(man: Maneuver, sol, spec: FlightSpec, *, workers: int | None = None, scheduler: str | None = None,
+                executor: Executor | None = None, save_runs: int = 0,
+                progress: Callable[[int, int], None] | None = None,
+                check_interrupt: Callable[[], None] | None = None) -> FlightResult:
+    """Fly ``spec.runs`` runs of the plan ``sol`` (a converged smooth-control Solution of ``man``) in each
+    feedback mode, in tasks of a few runs on the executor (in-process, local pool, Dask).
+
+    save_runs: the first runs whose whole flights are kept (runs/NNNN.npz).  progress(done, total) after
+    each task (runs).  On KeyboardInterrupt the workers are stopped and the exception carries the runs
+    finished so far as ``exc.partial`` (a FlightResult with ``interrupted``)."""
+    payload = plan_payload(man, sol)
+    gains = gains_of(payload, spec.weights)
+    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [])
+    ex = executor or make_executor(workers, scheduler)
+    res.executor, res.workers = ex.kind, ex.workers
+    per = max(1, min(MAX_CHUNK, math.ceil(spec.runs / (4 * (ex.workers or 8)))))
+    chunks = [list(range(i, min(i + per, spec.runs))) for i in range(0, spec.runs, per)]
+    base = {"plan": payload, "flight": spec.resolved, "source": man.source, "tracks": TRACKS, "save": save_runs}
+    t0, done = time.perf_counter(), 0
+    pending = {}
+    try:
+        for c in chunks:
+            pending[ex.submit(fly_runs, {**base, "runs": c})] = c
+            if check_interrupt:
+                check_interrupt()
+        while pending:
+            for f in ex.wait_first(pending):
+                c = pending.pop(f)
+                _collect(res, c, f, spec)
+                done += len(c)
+                if progress:
+                    progress(done, spec.runs)
+            if check_interrupt:
+                check_interrupt()
+    except KeyboardInterrupt as exc:
+        ex.shutdown(cancel=True)
+        res.interrupted, res.wall_s = True, time.perf_counter() - t0
+        res.rows.sort(key=lambda r: (r["run"], spec.modes.index(r["feedback"])))
+        exc.partial = res
+        raise
+    if executor is None:
+        ex.shutdown()
+    res.wall_s = time.perf_counter() - t0
+    res.rows.sort(key=lambda r: (r["run"], spec.modes.index(r["feedback"])))
+    return res
+
+
+def _collect(res: FlightResult, runs: list, fut, spec: FlightSpec) -> None:
+    """A finished task's rows, tracks and saved flights into ``res`` (a task whose worker died: failed rows)."""
+    try:
+        out = fut.result()
+    except Exception as exc:  # noqa: BLE001 - the worker itself died (a failing flight is a row)
+        msg = f"worker failed: {type(exc).__name__}: {' '.join(str(exc).split())}"[:500]
+        res.rows += [{"run": i, "feedback": m, "status": "failed", "message": msg} for i in runs for m in spec.modes]
+        return
+    res.rows += out["rows"]
+    res.tracks.update(out["tracks"])
+    res.saved.update(out["saved"])

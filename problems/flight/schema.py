@@ -1,0 +1,119 @@
+"""The ``flight:`` block: how a plan is flown (truth model, errors, feedback, runs, seed).
+
+Schema (every key optional; unknown keys are rejected; errors are one line naming the field)::
+
+    flight:
+      truth:
+        gravity: {kind: j2, J2: 1.08e-3, radius: 0.9}   # the truth's gravity (default: the plan's)
+        integrator: cvodes                             # the continuous engine (transcription/flight)
+        samples: 4                                     # states per node interval (margins between nodes)
+      errors:                                          # 1-sigma, Gaussian, seeded; default 0
+        initial: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.5, angular_velocity: 1.0e-3}
+        force_scale: 0.02
+        force_misalignment_deg: 0.5
+        moment_scale: 0.02
+        moment_misalignment_deg: 0.0
+        inertia_scale: 0.01
+      feedback: both          # none | lqr | both (both: open and closed loop side by side)
+      weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.tracking.SCALE_KEYS)
+      runs: 200
+      seed: 1
+
+The block lives in a maneuver file (validated when the file is read) or in a file of its own
+(``se3ocp fly --flight FILE``, a document ``{flight: {...}}``).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any
+
+from ...transcription.flight import DEFAULT_SAMPLES
+from ...transcription.tracking import SCALE_KEYS
+from ..models import parse_gravity
+from ..schema import Validator
+
+FLIGHT_KEYS = ("truth", "errors", "feedback", "weights", "runs", "seed")
+TRUTH_KEYS = ("gravity", "integrator", "samples")
+ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
+              "inertia_scale")
+INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
+#: feedback modes flown for each value of ``feedback``
+FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "both": ("none", "lqr")}
+INTEGRATORS = ("cvodes",)
+#: the most runs one flight may ask for, and the largest seed (NumPy's SeedSequence takes any
+#: non-negative integer; the cap keeps the resolved file readable)
+MAX_RUNS = 1_000_000
+MAX_SEED = 2**63 - 1
+MAX_SAMPLES = 64
+
+
+@dataclass(frozen=True)
+class FlightSpec:
+    """A validated flight block.  gravity: the truth's gravity block (None: the plan's own);
+    samples: states per node interval; errors: 1-sigma values (initial: position, velocity (inertial),
+    attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
+    modes: the feedback modes flown ('none', 'lqr'); weights: tracking scales; runs; seed; resolved: the
+    block with its defaults (itself a valid flight block)."""
+
+    gravity: dict | None
+    samples: int
+    errors: dict
+    modes: tuple
+    weights: dict
+    runs: int
+    seed: int
+    resolved: dict = field(repr=False)
+
+
+def default_errors() -> dict:
+    return {"initial": {k: 0.0 for k in INITIAL_KEYS}, **{k: 0.0 for k in ERROR_KEYS if k != "initial"}}
+
+
+def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight") -> FlightSpec:
+    """Validate a flight block (the mapping under ``flight:``); FlightSpec or ConfigError naming ``where.FIELD``."""
+    v = Validator(source)
+    d = v.mapping({} if doc is None else doc, where, FLIGHT_KEYS)
+    t = v.mapping(d.get("truth", {}), f"{where}.truth", TRUTH_KEYS)
+    gravity = parse_gravity(v, t["gravity"], f"{where}.truth.gravity") if "gravity" in t else None
+    v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
+    samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
+                       at_most=MAX_SAMPLES)
+    errors = _errors(v, d.get("errors", {}), f"{where}.errors")
+    feedback = v.choice(d.get("feedback", "both"), f"{where}.feedback", tuple(FEEDBACK))
+    w = v.mapping(d.get("weights", {}), f"{where}.weights", SCALE_KEYS)
+    weights = {}
+    for k, val in w.items():
+        if isinstance(val, (list, tuple)) and k not in ("bandwidth", "terminal_ratio"):
+            weights[k] = [float(x) for x in v.vec3(val, f"{where}.weights.{k}")]
+            if min(weights[k]) < 0:
+                v.fail(f"{where}.weights.{k}", "expected non-negative numbers")
+        else:
+            weights[k] = v.number(val, f"{where}.weights.{k}", positive=True)
+    runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
+    seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
+    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), "integrator": "cvodes", "samples": samples},
+                "errors": errors, "feedback": feedback, "weights": weights, "runs": runs, "seed": seed}
+    return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
+                      runs=runs, seed=seed, resolved=resolved)
+
+
+def _errors(v: Validator, doc, where: str) -> dict:
+    """The errors block with every field (default 0): non-negative 1-sigma values."""
+    e = v.mapping(doc, where, ERROR_KEYS)
+    out = default_errors()
+    ini = v.mapping(e.get("initial", {}), f"{where}.initial", INITIAL_KEYS)
+    for k in INITIAL_KEYS:
+        if k in ini:
+            out["initial"][k] = v.number(ini[k], f"{where}.initial.{k}", nonneg=True)
+    for k in ERROR_KEYS[1:]:
+        if k in e:
+            out[k] = v.number(e[k], f"{where}.{k}", nonneg=True, hi=0.5 if k.endswith("scale") else 180.0)
+    return out
+
+
+def with_changes(spec: FlightSpec, source: str, **changes) -> FlightSpec:
+    """The spec with some resolved fields changed (runs, feedback, seed: the command line's options)."""
+    doc = copy.deepcopy(spec.resolved)
+    doc.update({k: val for k, val in changes.items() if val is not None})
+    return parse_flight(doc, source)

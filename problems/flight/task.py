@@ -1,0 +1,172 @@
+"""The unit of work of a Monte Carlo flight: :func:`fly_runs`, a few runs flown from plain data to plain
+data (so that it runs in another process or on a Dask worker), and the figures of merit of one flight."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from ...transcription.flight import ClosedLoop, FlightError, OpenLoop, fly, margin_keys
+from ...transcription.layout import X_POS, X_ROT
+from ...transcription.lie import log_so3, nearest_rotation
+from ...transcription.results import Trajectory, rotation_angle
+from ...transcription.tracking import saturate, tracking_gains
+from ..plots.orbits import rtn
+from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
+from .schema import parse_flight
+
+#: the figures of merit of a flight (flights.csv, after run, feedback, status), in this order
+METRICS = ("position_miss", "miss_r", "miss_t", "miss_n", "velocity_miss", "attitude_miss_deg", "attitude_x_deg",
+           "attitude_y_deg", "attitude_z_deg", "rate_miss", "delta_v", "delta_v_overhead", "delta_v_commanded",
+           "delta_v_commanded_overhead", "angular_impulse", "peak_force", "peak_moment", "saturated_fraction",
+           "max_position_deviation", "max_attitude_deviation_deg")
+#: the sampled errors reported with each flight (flights.csv)
+ERROR_COLUMNS = ("force_scale", "moment_scale", "force_misalignment_deg", "moment_misalignment_deg",
+                 "inertia_scale_1", "inertia_scale_2", "inertia_scale_3")
+
+_GAINS: dict = {}
+
+
+def gains_of(payload: dict, weights: dict):
+    """The plan's tracker (transcription.tracking), built once per process and plan."""
+    key = (payload["key"], json.dumps(weights, sort_keys=True))
+    if key not in _GAINS:
+        if len(_GAINS) >= 4:
+            _GAINS.clear()
+        _, sol = load_plan(payload)
+        _GAINS[key] = tracking_gains(sol, weights)
+    return _GAINS[key]
+
+
+def miss_frame(X_N: np.ndarray, mass: float) -> str:
+    """The frame the position miss is given in: the target orbit's RTN frame at the plan's final state
+    (problems.plots.orbits.rtn: radial, along-track, normal), or the inertial axes where the body does
+    not move about a centre (x x v = 0)."""
+    x, v = X_N[X_POS], X_N[3:6] / mass
+    n = np.linalg.norm(np.cross(x, v))
+    return "RTN" if n > 1e-12 * np.linalg.norm(x) * np.linalg.norm(v) and n > 0 else "inertial"
+
+
+def miss_components(X_N: np.ndarray, mass: float, dx: np.ndarray) -> np.ndarray:
+    """The position miss dx (3,) in :func:`miss_frame`."""
+    if miss_frame(X_N, mass) == "inertial":
+        return np.asarray(dx, float)
+    return rtn(X_N[None, X_POS], X_N[None, 3:6] / mass, np.asarray(dx, float)[None, :])[0]
+
+
+def impulse(control_t: np.ndarray, u: np.ndarray) -> float:
+    """sum over intervals of the trapezoidal integral of |u| over the samples: control_t (N, M+1), u (N, M+1, 3)."""
+    n = np.linalg.norm(u, axis=-1)
+    return float(np.sum(0.5 * (n[:, 1:] + n[:, :-1]) * np.diff(control_t, axis=1)))
+
+
+def plan_usage(gains, samples: int) -> tuple[float, float]:
+    """(delta-v, angular impulse) of the plan's commands with exact actuators, by the quadrature of :func:`impulse`
+    on ``samples`` samples per interval (so that a flight's overhead compares like with like)."""
+    a, b = gains.U[:, :-1].T, gains.U[:, 1:].T
+    if gains.scheme != "lgvi":
+        a = b = gains.U.T
+    s = np.arange(samples + 1) / samples
+    u = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
+    t = gains.t[:-1, None] + s[None, :] * np.diff(gains.t)[:, None]
+    return impulse(t, u[:, :, :3]), impulse(t, u[:, :, 3:])
+
+
+def flight_metrics(flight, plan, tracker, usage: tuple, constraints) -> tuple[dict, dict]:
+    """The figures of merit (METRICS and the constraint margins) of one flight against the plan's nodes, and
+    its track (the position and attitude deviation at the nodes).  Misses are against the plan's last node:
+    position and velocity (inertial; the position's components in :func:`miss_frame`), the attitude angle
+    and rotation vector vee log(R_N^T R(T)) (body, deg), the rate |Omega(T) - Omega_N| (the truth's inertia).
+    delta_v: the integral of |u_f|/m applied by the actuators, delta_v_commanded: of the commands (both by
+    :func:`impulse` over the samples), their overheads over the plan's (``usage``)."""
+    X = flight.X.copy()
+    R = nearest_rotation(flight.trajectory().R)
+    X[:, X_ROT] = np.swapaxes(R, -1, -2).reshape(-1, 9)
+    flown = Trajectory(t=flight.t, X=X, mass=flight.mass, inertia=flight.inertia)
+    tr = plan.trajectory
+    k = np.arange(tr.X.shape[0]) * flight.samples
+    dx = flown.x[k] - tr.x
+    dR = np.degrees(rotation_angle(np.einsum("kji,kjl->kil", tr.R, flown.R[k])))
+    att = np.degrees(log_so3(tr.R[-1].T @ flown.R[-1]))
+    m = flight.mass
+    dv, ang = impulse(flight.control_t, flight.control[..., :3]) / m, impulse(flight.control_t, flight.control[..., 3:])
+    s = (flight.control_t - flight.control_t[:, :1]) / np.diff(flight.control_t[:, [0, -1]], axis=1)
+    cmd = flight.command_start[:, None, :3] + s[..., None] * (flight.command_end - flight.command_start)[:, None, :3]
+    dvc = impulse(flight.control_t, cmd) / m
+    comp = miss_components(tr.X[-1], tr.mass, dx[-1])
+    out = dict(position_miss=float(np.linalg.norm(dx[-1])), **dict(zip(("miss_r", "miss_t", "miss_n"), comp)),
+               velocity_miss=float(np.linalg.norm(flown.v[-1] - tr.v[-1])), attitude_miss_deg=float(dR[-1]),
+               **dict(zip(("attitude_x_deg", "attitude_y_deg", "attitude_z_deg"), att)),
+               rate_miss=float(np.linalg.norm(flown.Omega[-1] - tr.Omega[-1])), delta_v=dv,
+               delta_v_overhead=dv / usage[0] * m - 1.0 if usage[0] > 0 else math.nan, delta_v_commanded=dvc,
+               delta_v_commanded_overhead=dvc / usage[0] * m - 1.0 if usage[0] > 0 else math.nan, angular_impulse=ang,
+               peak_force=float(np.linalg.norm(flight.control[..., :3], axis=-1).max()),
+               peak_moment=float(np.linalg.norm(flight.control[..., 3:], axis=-1).max()),
+               saturated_fraction=tracker.saturated_fraction if tracker is not None else 0.0,
+               max_position_deviation=float(np.linalg.norm(dx, axis=1).max()), max_attitude_deviation_deg=float(dR.max()))
+    out.update({key: float(np.min(c.margin(flown))) for key, c in zip(margin_keys(constraints), constraints)})
+    out = {key: float(v) for key, v in out.items()}
+    return out, {"dx": np.linalg.norm(dx, axis=1), "dR_deg": dR}
+
+
+def error_columns(err, plan_inertia: np.ndarray) -> dict:
+    """The sampled errors of a run as ERROR_COLUMNS: scale factors, misalignment angles (deg), and the
+    relative change of each diagonal inertia entry."""
+    a = err.actuators
+    out = {"force_scale": a.force_scale, "moment_scale": a.moment_scale,
+           "force_misalignment_deg": float(np.degrees(rotation_angle(a.force_misalignment))),
+           "moment_misalignment_deg": float(np.degrees(rotation_angle(a.moment_misalignment)))}
+    scale = np.diag(err.inertia) / np.diag(np.asarray(plan_inertia, float)) - 1.0
+    out.update({f"inertia_scale_{i + 1}": float(s) for i, s in enumerate(scale)})
+    return out
+
+
+def fly_one(plan, gains, spec, err, base, mode: str):
+    """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, tracker or None)."""
+    law = OpenLoop.of_controls(gains.scheme, gains.U)
+    tracker = None
+    if mode == "lqr":
+        tracker = gains.tracker()
+        clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
+        law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
+    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples)
+    return flight, tracker
+
+
+def fly_runs(task: dict) -> dict:
+    """Some runs of a Monte Carlo flight: the unit of work sent to a pool or a Dask cluster.
+
+    task: {'plan': problems.flight.plan.plan_payload, 'flight': the resolved flight block, 'source': its
+    name, 'runs': [run indices], 'tracks': runs below this index return their node deviations and
+    controls (figures), 'save': runs below this index return their whole flights (runs/NNNN.npz)}.
+    Returns {'rows': [one dict per run and feedback mode], 'tracks': {run: {mode: arrays}},
+    'saved': {run: arrays}}.  A flight that fails is a row (status 'failed'), never an exception."""
+    man, plan = load_plan(task["plan"])
+    spec = parse_flight(task["flight"], task["source"])
+    gains = gains_of(task["plan"], spec.weights)
+    base = truth_body(man, spec)
+    seeds = run_seeds(spec)
+    usage = plan_usage(gains, spec.samples)
+    rows, tracks, saved = [], {}, {}
+    for i in task["runs"]:
+        err = sample_errors(spec, i, seeds[i], plan.trajectory.X[0], man.problem.model.mass, man.problem.model.inertia)
+        cols = error_columns(err, man.problem.model.inertia)
+        if i < task.get("save", 0):
+            saved[i] = err.arrays()
+        for mode in spec.modes:
+            row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
+            try:
+                flight, tracker = fly_one(plan, gains, spec, err, base, mode)
+                metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
+            except (FlightError, ValueError, np.linalg.LinAlgError) as e:
+                rows.append({**row, "status": "failed", "message": " ".join(str(e).split())[:500], **cols})
+                continue
+            rows.append({**row, **metrics, **cols})
+            if i < task.get("tracks", 0):
+                tracks.setdefault(i, {})[mode] = {**track, "control_t": flight.control_t, "control": flight.control}
+            if i in saved:
+                saved[i].update({f"{mode}_{k}": v for k, v in (
+                    ("t", flight.t), ("X", flight.X), ("command_start", flight.command_start),
+                    ("command_end", flight.command_end), ("control_t", flight.control_t), ("control", flight.control))})
+    return {"rows": rows, "tracks": tracks, "saved": saved}

@@ -1,0 +1,124 @@
+"""Issue 25's acceptance figures for flying a plan (problems/flight), measured through the public API.
+
+    .venv/bin/python scripts/bench_flight.py [--case e3|slew|speed|dask|all] [--runs K] [--json FILE]
+
+* ``e3``: E3 with the LGVI at N = 400, truth J2 + 2 % thrust scale + 0.5 deg misalignment + the initial
+  dispersions (configs/flights/e3_j2_thrust.yaml), open loop and LQR: p95 terminal position miss (closed
+  over open: issue 25 asks <= 1 %) and the delta-v overhead p95 (<= 5 %), delivered and commanded;
+* ``slew``: the time-optimal slew planned with bounds_margin 0.1, and without, truth with 2 % torque and
+  1 % inertia errors (configs/flights/slew_torque_inertia.yaml): p95 attitude and rate misses (<= 0.01 deg,
+  <= 1e-4 rad/s with the margin) and the saturated fraction;
+* ``speed``: 1000 LQR flights of E3 (N = 400) on a local pool of 2 workers (issue 25: <= 60 s on 2 cores);
+* ``dask``: the same runs on a Dask LocalCluster with 1 and with 2 workers: the speed-up (>= 1.7) and
+  identical statistics.
+
+Timings are the flights' wall time (the plan is solved once, before).  Run on a quiet machine.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import se3ocp
+
+ROOT = Path(__file__).resolve().parents[1]
+E3 = (ROOT / "configs" / "e3_inclination_change.yaml", ["horizon.N=400", "discretization=lgvi"])
+E3_FLIGHT = ROOT / "configs" / "flights" / "e3_j2_thrust.yaml"
+SLEW = ROOT / "configs" / "slew_time_optimal.yaml"
+SLEW_FLIGHT = ROOT / "configs" / "flights" / "slew_torque_inertia.yaml"
+
+
+def plan(path, sets=()):
+    man = se3ocp.load(path, list(sets))
+    sol = se3ocp.solve(man, "direct")
+    assert sol.converged, sol.message
+    return man, sol
+
+
+def p95(res, mode, key):
+    return res.statistics()[mode][key]["p95"]
+
+
+def case_e3(runs: int, workers: int) -> dict:
+    man, sol = plan(*E3)
+    res = se3ocp.fly(sol, E3_FLIGHT, maneuver=man, runs=runs, workers=workers)
+    out = {"runs": runs, "wall_s": res.wall_s, "position_p95_open": p95(res, "none", "position_miss"),
+           "position_p95_lqr": p95(res, "lqr", "position_miss"),
+           "delta_v_overhead_p95_lqr": p95(res, "lqr", "delta_v_overhead"),
+           "delta_v_commanded_overhead_p95_lqr": p95(res, "lqr", "delta_v_commanded_overhead"),
+           "failed": res.failed}
+    out["position_p95_ratio"] = out["position_p95_lqr"] / out["position_p95_open"]
+    print(f"E3 LGVI N=400, {runs} runs ({res.wall_s:.1f} s): p95 position miss open {out['position_p95_open']:.3e}, "
+          f"LQR {out['position_p95_lqr']:.3e} (ratio {out['position_p95_ratio']:.2e}; issue: <= 1e-2); delta-v "
+          f"overhead p95 delivered {100 * out['delta_v_overhead_p95_lqr']:.2f} %, commanded "
+          f"{100 * out['delta_v_commanded_overhead_p95_lqr']:.2f} % (issue: <= 5 %)")
+    return out
+
+
+def case_slew(runs: int, workers: int) -> dict:
+    out = {}
+    for margin in (0.1, 0.0):
+        man, sol = plan(SLEW, [f"control.bounds_margin={margin}"] if margin else [])
+        res = se3ocp.fly(sol, SLEW_FLIGHT, maneuver=man, runs=runs, workers=workers)
+        o = {m: {k: p95(res, m, k) for k in ("attitude_miss_deg", "rate_miss", "saturated_fraction")}
+             for m in ("none", "lqr")}
+        out[f"margin_{margin}"] = {**o, "wall_s": res.wall_s, "failed": res.failed}
+        print(f"slew bounds_margin {margin}, {runs} runs ({res.wall_s:.1f} s): p95 attitude miss open "
+              f"{o['none']['attitude_miss_deg']:.3e} deg, LQR {o['lqr']['attitude_miss_deg']:.3e} deg; rate open "
+              f"{o['none']['rate_miss']:.3e}, LQR {o['lqr']['rate_miss']:.3e} rad/s; saturated fraction p95 "
+              f"{o['lqr']['saturated_fraction']:.3f} (issue, with the margin: <= 0.01 deg, <= 1e-4 rad/s)")
+    return out
+
+
+def case_speed(runs: int, workers: int) -> dict:
+    man, sol = plan(*E3)
+    res = se3ocp.fly(sol, E3_FLIGHT, maneuver=man, runs=runs, feedback="lqr", workers=workers)
+    print(f"{runs} LQR flights of E3 (N = 400) on {workers} local workers: {res.wall_s:.1f} s "
+          f"({res.wall_s / runs * workers * 1e3:.0f} ms per flight per worker; issue: 1000 in <= 60 s on 2 cores)")
+    return {"runs": runs, "workers": workers, "wall_s": res.wall_s}
+
+
+def case_dask(runs: int) -> dict:
+    from distributed import Client, LocalCluster
+
+    man, sol = plan(*E3)
+    out, stats = {}, {}
+    for n in (1, 2):
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            client.run(lambda: __import__("se3ocp.problems.flight.task"))    # imports counted out of the timing
+            res = se3ocp.fly(sol, E3_FLIGHT, maneuver=man, runs=runs, feedback="lqr", scheduler=cluster.scheduler_address)
+            out[f"wall_s_{n}"], stats[n] = res.wall_s, res.statistics()
+    out["speedup"] = out["wall_s_1"] / out["wall_s_2"]
+    out["identical_statistics"] = stats[1] == stats[2]
+    print(f"Dask LocalCluster, {runs} LQR flights: 1 worker {out['wall_s_1']:.1f} s, 2 workers {out['wall_s_2']:.1f} s, "
+          f"speed-up {out['speedup']:.2f} (issue: >= 1.7); identical statistics: {out['identical_statistics']}")
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", choices=("e3", "slew", "speed", "dask", "all"), default="all")
+    ap.add_argument("--runs", type=int, default=None, help="runs per case (default: 500, 500, 1000, 200)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    a = ap.parse_args()
+    out = {}
+    t0 = time.perf_counter()
+    if a.case in ("e3", "all"):
+        out["e3"] = case_e3(a.runs or 500, a.workers)
+    if a.case in ("slew", "all"):
+        out["slew"] = case_slew(a.runs or 500, a.workers)
+    if a.case in ("speed", "all"):
+        out["speed"] = case_speed(a.runs or 1000, a.workers)
+    if a.case in ("dask", "all"):
+        out["dask"] = case_dask(a.runs or 200)
+    print(f"({time.perf_counter() - t0:.0f} s in all)")
+    if a.json:
+        Path(a.json).write_text(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
