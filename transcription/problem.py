@@ -26,7 +26,7 @@ import numpy as np
 
 from .layout import NU, NX, U_FORCE, U_MOMENT, pack_state, split_state
 from .lgvi import Discretization
-from .lie import log_so3
+from .lie import log_so3, unit_direction
 
 #: the components of a state target, in the order of the terminal residual's blocks
 STATE_COMPONENTS = ("position", "velocity", "attitude", "angular_velocity")
@@ -87,11 +87,7 @@ class TargetOrbit:
             raise ProblemError("terminal.Pi", "expected a finite 3-vector")
         object.__setattr__(self, "Pi", Pi)
         for name in ("normal", "body_axis"):
-            v = np.asarray(getattr(self, name), dtype=float).reshape(-1)
-            n = np.linalg.norm(v) if v.shape == (3,) and np.all(np.isfinite(v)) else 0.0
-            if not n > 0:
-                raise ProblemError(f"terminal.{name}", "expected a non-zero finite 3-vector")
-            object.__setattr__(self, name, v / n)
+            object.__setattr__(self, name, _unit(getattr(self, name), f"terminal.{name}"))
 
     def plane_basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The unit normal e_n and an orthonormal basis (a, b) of the orbit plane."""
@@ -238,11 +234,11 @@ class SmoothControl:
 
 # ------------------------------------------------------------------------ path constraints
 def _unit(v, name):
-    v = np.asarray(v, dtype=float).reshape(-1)
-    n = np.linalg.norm(v) if v.shape == (3,) and np.all(np.isfinite(v)) else 0.0
-    if not n > 0:
+    """The unit direction of v (:func:`~transcription.lie.unit_direction`: any magnitude), else ProblemError."""
+    u = unit_direction(v)
+    if u is None:
         raise ProblemError(name, "expected a non-zero finite 3-vector")
-    return v / n
+    return u
 
 
 def _positive(value: float, name: str) -> None:
