@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 
 from .direct import solve_direct
+from .feasibility import necessary_conditions
 from .indirect import solve_indirect
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
@@ -103,6 +104,10 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     ``throw=True`` a Solution that is not successful raises :class:`~transcription.results.SolveError`.
     """
     _check_method(problem, method)
+    reason = necessary_conditions(problem)
+    if reason is not None:  # provably no solution: said at once, with the reason (feasibility.py)
+        out = _infeasible(problem, method, reason)
+        return raise_unconverged(out) if throw else out
     direct = direct or DirectOptions()
     indirect = indirect or IndirectOptions()
 
@@ -120,6 +125,20 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         isol = solve_indirect(problem, indirect, tagged("indirect"), warm_start=hand_off, direct_options=direct)
         out = compare(dsol, isol)
     return raise_unconverged(out) if throw else out
+
+
+def _infeasible(problem: Problem, method: str, reason: str) -> Solution | Comparison:
+    """The Solution(s) of a problem a necessary condition rules out: Result.infeasible, the reason, no
+    iteration; the trajectory is the free motion from the initial state (what the record can show)."""
+    free = simulate(problem)
+
+    def one(name: str) -> Solution:
+        return Solution(method=name, solver="necessary conditions", result=Result.infeasible,
+                        message=f"provably infeasible (checked before solving; no solver was run): {reason}",
+                        trajectory=free.trajectory, cost=float("nan"), terminal_error=free.terminal_error,
+                        iterations=0, build_s=0.0, solve_s=free.solve_s, problem=problem)
+
+    return compare(one("direct"), one("indirect")) if method == "both" else one(method)
 
 
 def raise_unconverged(out: Solution | Comparison) -> Solution | Comparison:
