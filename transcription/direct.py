@@ -54,6 +54,7 @@ import numpy as np
 from . import blocks
 from .guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess
 from .layout import NU, NX, X_ANG, X_MOM, X_POS, X_ROT, unpack_states
+from .feasibility import step_failure
 from .lgvi import CAYLEY_TOL
 from .lie import exp_so3, log_so3_any, tangent_basis
 from .nlp import Block, ProgressCallback, StructuredNLP, ipopt_history, solve_time_split
@@ -898,11 +899,9 @@ def _solution(problem: Problem, opts: DirectOptions, tr: SmoothTranscription, ou
         message = f"{label}: {status}; re-simulated terminal error {err:.2e}"
     else:
         message = f"{label} did not converge: {status}; re-simulated terminal error {err:.2e}"
-    if not result.successful and not worst_cayley <= CAYLEY_TOL:
-        result = Result.cayley_failed
-        message += (f"; the Cayley equation was not solved in the re-simulation (relative residual "
-                    f"{worst_cayley:.1e}): the rotation per step is too large, use a smaller step h = T/N "
-                    f"(increase horizon.N)")
+    if not result.successful and not worst_cayley <= CAYLEY_TOL:  # non-finite, or the Cayley fold: say which
+        result, why = step_failure(problem, Xsim, res, h)
+        message += f"; in the re-simulation, {why}"
     stats_out = {
         "solver_status": status,
         "kkt_tol": float(opts.tol),

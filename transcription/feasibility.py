@@ -25,9 +25,9 @@ import math
 import casadi as ca
 import numpy as np
 
-from .layout import split_state
+from .layout import X_ANG, split_state
 from .problem import BoxBound, MaxAngularRate, NormBound, Problem, SmoothControl, TargetState
-from .results import rotation_angle
+from .results import Result, rotation_angle
 
 #: a requirement is refused only when it exceeds the largest achievable value by more than this
 #: fraction of that value plus SLACK times the size of the quantities compared (a target met to a
@@ -35,6 +35,8 @@ from .results import rotation_angle
 RTOL, SLACK = 1e-9, 1e-6
 #: the sums over the steps are taken in chunks of this many steps (N may be 10^7)
 _CHUNK = 1_000_000
+#: the most steps a horizon may have (problems.maneuvers.MAX_N): a step hint beyond it is no hint
+MAX_STEPS = 10_000_000
 
 
 def _limit(bound) -> float:
@@ -129,7 +131,9 @@ def _rotation(problem, T, Tw, h, offset, no_moment, M, R0, P0, Rd, Pd, fixed) ->
     if "attitude" not in fixed:
         return None
     rates = [c.value for c in problem.constraints if isinstance(c, MaxAngularRate)]
-    W = min(rates) if rates else math.inf
+    # the rows hold at nodes 1..N; node 0 (and a given node N) as given, whatever the limit
+    ends = [np.linalg.norm(np.linalg.solve(problem.model.inertia, P)) for P in (P0, Pd)[:1 + ("angular_velocity" in fixed)]]
+    W = max([min(rates)] + ends) if rates else math.inf
     torque = no_moment and math.isfinite(M)
     if not torque and not (math.isfinite(W) and (offset == 0.0 or (no_moment and math.isfinite(M)))):
         return None  # nothing bounds the rotation (the LGVI's node moments act within a step)
@@ -155,4 +159,40 @@ def _rotation(problem, T, Tw, h, offset, no_moment, M, R0, P0, Rd, Pd, fixed) ->
     return None
 
 
-__all__ = ["RTOL", "necessary_conditions"]
+def step_failure(problem: Problem, X: np.ndarray, residuals: np.ndarray, h: float) -> tuple[Result, str]:
+    """(result, explanation) of a (re-)simulation whose steps failed (residuals above CAYLEY_TOL or not
+    finite).  Non-finite states or residuals are ``non_finite``: the data overflow, and no step size
+    helps.  Otherwise ``cayley_failed`` with the scheme's own condition (§2): a step turns the body by
+    s = h |Pi_k| / lambda_min(J) < 1; the hint is the horizon.N that brings s to 1/2, or -- when that
+    is beyond MAX_STEPS (a denormal inertia, an absurd spin) -- that no step size will do."""
+    X = np.asarray(X, dtype=float)
+    res = np.asarray(residuals, dtype=float).ravel()
+    finite = np.all(np.isfinite(X), axis=1)
+    if not finite.all() or not np.all(np.isfinite(res)):
+        k = int(np.argmin(finite)) if not finite.all() else int(np.argmin(np.isfinite(res)))
+        return Result.non_finite, (f"the state became non-finite at step {k}: the data overflow or "
+                                   f"underflow (check the magnitudes of the mass, the inertia, the bounds and the "
+                                   f"states); a smaller step does not help")
+    k = int(np.argmax(res)) if res.size else 0
+    lmin = float(np.linalg.eigvalsh(problem.model.inertia)[0])
+    Pi = X[min(k, len(X) - 1), X_ANG]
+    scale = float(np.abs(Pi).max())
+    P = scale * float(np.linalg.norm(Pi / scale)) if scale > 0 else 0.0  # |Pi| without overflow
+    with np.errstate(all="ignore"):
+        s = float(h * P / lmin)
+    text = f"the Cayley equation of step {k} was not solved (relative residual {res[k] if res.size else 0:.1e})"
+    need = math.ceil(problem.N * 2.0 * s) if math.isfinite(s) else math.inf
+    if not s > 1.0:
+        return Result.cayley_failed, f"{text}: the rotation per step is too large; use a smaller step h = T/N " \
+                                     f"(increase horizon.N)"
+    if need <= MAX_STEPS:
+        return Result.cayley_failed, (f"{text}: the step turns the body by h |Pi| / lambda_min(J) = {s:.3g}, beyond "
+                                      f"the scheme's limit 1; use a smaller step h = T/N (increase horizon.N to about "
+                                      f"{need})")
+    return Result.cayley_failed, (f"{text}: the step turns the body by h |Pi| / lambda_min(J) = {s:.3g}, beyond the "
+                                  f"scheme's limit 1, and no step size can fix it (horizon.N would exceed {MAX_STEPS}): "
+                                  f"the angular momentum |Pi| = {P:.3g} is too large for the "
+                                  f"smallest principal moment {lmin:.3g}; check the inertia and the angular velocities")
+
+
+__all__ = ["MAX_STEPS", "RTOL", "necessary_conditions", "step_failure"]

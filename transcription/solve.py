@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from .direct import solve_direct
-from .feasibility import necessary_conditions
+from .feasibility import necessary_conditions, step_failure
 from .indirect import solve_indirect
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
@@ -178,11 +178,8 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
         result = Result.non_finite
         message = (f"the state became non-finite at node {k} (overflow or a singular potential: check the model "
                    "parameters and that the body stays away from the central mass)")
-    else:
-        k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf)))
-        result = Result.cayley_failed
-        message = (f"the implicit Cayley equation was not solved at step {k} (relative residual {res[k]:.2e}): "
-                   "the rotation per step is too large; use a smaller step h = T/N (increase horizon.N)")
+    else:  # a step's Cayley equation not solved: the fold of the scheme, or data no step size can fix
+        result, message = step_failure(problem, X, res, h)
     miss = terminal_error(X[-1], problem) if problem.terminal is not None and finite.all() else float("nan")
     stats = {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max()),
              "energy_initial": float(E[0]), "max_relative_energy_error": float(np.nanmax(rel)),
