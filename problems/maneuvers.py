@@ -279,14 +279,23 @@ def _inertia(v: Validator, val, where) -> np.ndarray:
         J = np.diag(v.vec3(val, where))
     else:
         v.fail(where, f"expected 3 principal moments or a 3x3 matrix, got {describe(val)}")
-    scale = float(np.abs(J).max())  # the eigenvalues of J / scale: no overflow for entries up to 1.8e308
-    S = 0.5 * (J / scale + J.T / scale) if scale > 0 else J
-    if not np.allclose(J, J.T, rtol=1e-12, atol=0.0) or not np.linalg.eigvalsh(S).min() > 0:
+    if not np.allclose(J, J.T, rtol=1e-12, atol=0.0) or not np.all(np.diag(J) > 0):
         v.fail(where, "expected a symmetric positive definite inertia")
-    lo, mid, hi = np.linalg.eigvalsh(S) * scale
-    if not (MIN_MAGNITUDE <= lo and hi <= MAX_MAGNITUDE):
-        v.fail(where, f"expected principal moments from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g} (their squares and "
-                      f"inverses enter the equations), got {lo:.6g}, {mid:.6g}, {hi:.6g}")
+    # the diagonal of a positive definite J lies between its extreme eigenvalues: checked first, so
+    # that the eigenvalues are taken of J / max|J| (entries of 1e308 overflowed eigvalsh) without underflow
+    span = (MIN_MAGNITUDE, MAX_MAGNITUDE)
+    if not np.all((np.diag(J) >= span[0]) & (np.diag(J) <= span[1])):
+        v.fail(where, f"expected principal moments from {span[0]:g} to {span[1]:g} (their squares and inverses "
+                      f"enter the equations), got {', '.join(f'{x:.6g}' for x in np.diag(J))} on the diagonal")
+    scale = float(np.abs(J).max())
+    S = 0.5 * (J / scale + J.T / scale)
+    lam = np.linalg.eigvalsh(S)
+    if not lam.min() > 0:
+        v.fail(where, "expected a symmetric positive definite inertia")
+    lo, mid, hi = lam * scale
+    if not (span[0] <= lo and hi <= span[1]):
+        v.fail(where, f"expected principal moments from {span[0]:g} to {span[1]:g} (their squares and inverses "
+                      f"enter the equations), got {lo:.6g}, {mid:.6g}, {hi:.6g}")
     if hi - (lo + mid) > TRIANGLE_RTOL * hi:
         v.fail(where, f"expected principal moments that satisfy the triangle inequality J1 + J2 >= J3 (every rigid "
                       f"body does: J1 + J2 - J3 = 2 * integral of z^2 dm), got {lo:.6g} + {mid:.6g} < {hi:.6g}")
