@@ -84,6 +84,12 @@ class ResultsDirError(Exception):
 
 
 # ----------------------------------------------------------------------------- files
+def safe_name(name: str) -> str:
+    """A file or directory name from a user's name (a maneuver, a sweep, an axis): every character
+    other than a letter, a digit, '-', '_' or '.' becomes '_'."""
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in name)
+
+
 def _fs_error(path, e: OSError | ValueError, doing: str) -> ResultsDirError:
     """One line for a file-system fault: ``PATH: cannot DOING (reason)``."""
     if isinstance(e, ValueError):  # a NUL byte in the path

@@ -1,4 +1,4 @@
-"""The se3ocp command end to end (problems/cli.py): validate, simulate, solve, compare, plot -- files,
+"""The se3ocp command end to end (problems/cli/): validate, simulate, solve, compare, plot -- files,
 fields, exit codes, no tracebacks (small N)."""
 from __future__ import annotations
 

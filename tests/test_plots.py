@@ -1,4 +1,4 @@
-"""Figures (problems/plots.py) drawn from in-memory Solutions, without touching the backend.
+"""Figures (problems/plots/) drawn from in-memory Solutions, without touching the backend.
 
 Each figure is drawn from a small solve (N = 30) and checked by its artists: the methods named in
 a legend, bound lines where the Problem carries bounds, shading where a bound is active, the zero
@@ -491,9 +491,12 @@ def test_importing_and_plotting_keep_the_users_backend():
     assert out.stdout.strip().splitlines()[-1] == "svg"
 
 
-def test_plots_module_never_chooses_a_backend():
-    src = (ROOT / "problems" / "plots.py").read_text()
-    assert "matplotlib.use(" not in src and "plt.switch_backend" not in src
+def test_plots_package_never_chooses_a_backend():
+    files = sorted((ROOT / "problems" / "plots").glob("*.py"))
+    assert len(files) >= 8
+    for f in files:
+        src = f.read_text()
+        assert "matplotlib.use(" not in src and "plt.switch_backend" not in src, f.name
 
 
 def test_readme_shows_figures_that_exist():

@@ -245,7 +245,7 @@ def test_status_column_is_never_cut():
     solver status appear whole, and the columns after it stay aligned."""
     from types import SimpleNamespace
 
-    from se3ocp.problems.cli import _table
+    from se3ocp.problems.cli.progress import table
 
     long = SimpleNamespace(value="Maximum_Iterations_Exceeded")
     sols = [SimpleNamespace(method=m, result=r) for m, r in [("direct", long), *(("x", r) for r in Result)]]
@@ -253,7 +253,7 @@ def test_status_column_is_never_cut():
         s.result = SimpleNamespace(value=s.result.value) if s.result is not Result.not_applicable else s.result
         s.trajectory = SimpleNamespace(orthogonality=lambda: {"max_orthogonality_error": 0.0})
         s.cost, s.terminal_error, s.iterations, s.build_s, s.solve_s = 1.0, 0.0, 3, 0.0, 0.0
-    rows = _table(sols)
+    rows = table(sols)
     assert "Maximum_Iterations_Exceeded " in rows[2]
     for s, row in zip(sols, rows[2:]):
         assert f" {s.result.value} " in row
@@ -265,13 +265,13 @@ def test_casadi_interrupt_warning_is_dropped_and_nothing_else():
     is split into writes, and passes every other text through unchanged."""
     import io
 
-    from se3ocp.problems.cli import _DropInterruptWarnings
+    from se3ocp.problems.cli.signals import DropInterruptWarnings
 
     warning = 'CasADi - 2026-12-02 09:40:32 WARNING("KeyboardInterruptException") [.../ipopt_nlp.cpp:132]\n'
     other = "CasADi - 2026-12-02 09:40:32 WARNING(\"something else\") [x.cpp:1]\nplain text\nC"
     for cut in range(0, len(warning) + len(other), 7):
         buf = io.StringIO()
-        f = _DropInterruptWarnings(buf)
+        f = DropInterruptWarnings(buf)
         text = warning + other
         f.write(text[:cut])
         f.write(text[cut:])

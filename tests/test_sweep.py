@@ -114,12 +114,14 @@ def test_grid_points_and_chains(tmp_path):
 
 
 def test_secant_predictor_is_linear_extrapolation():
+    from se3ocp.problems.sweep.run import _predict as predict
+
     a, b = {"lam0": np.arange(3.0)}, {"lam0": np.arange(3.0) + 1.0}
-    p = sw._predict([(0.5, a), (0.6, b)], 0.75, numeric=True)
+    p = predict([(0.5, a), (0.6, b)], 0.75, numeric=True)
     assert p["kind"] == "secant" and np.allclose(p["lam0"], np.arange(3.0) + 2.5)
-    assert sw._predict([(0.5, a)], 0.6, numeric=True)["kind"] == "neighbour"
-    assert sw._predict([(0.5, a), (0.6, b)], 2.0, numeric=True)["kind"] == "neighbour"  # too far: no extrapolation
-    assert sw._predict([], 0.6, numeric=True) is None
+    assert predict([(0.5, a)], 0.6, numeric=True)["kind"] == "neighbour"
+    assert predict([(0.5, a), (0.6, b)], 2.0, numeric=True)["kind"] == "neighbour"  # too far: no extrapolation
+    assert predict([], 0.6, numeric=True) is None
 
 
 # ------------------------------------------------------------------ execution
@@ -208,14 +210,16 @@ continuation: true
 
 def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
     s = sw.load_sweep(write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {horizon.T: [0.5, 0.52]}\n"))
-    real = sw._solve
+    from se3ocp.problems.sweep import task
+
+    real = task._solve
 
     def flaky(man, method, warm):
         if man.T == 0.5:
             raise RuntimeError("solver blew up\nwith a two-line message")
         return real(man, method, warm)
 
-    monkeypatch.setattr(sw, "_solve", flaky)
+    monkeypatch.setattr(task, "_solve", flaky)
     res = sw.run_sweep(s, workers=1)
     assert [r["status"] for r in res.rows] == ["error", "converged"]
     assert res.rows[0]["message"] == "RuntimeError: solver blew up with a two-line message"
@@ -241,7 +245,7 @@ def test_warm_start_that_raises_falls_back_cold(tmp_path, monkeypatch):
 def test_bad_scheduler_is_bad_input():
     pytest.importorskip("distributed")
     with pytest.raises(ConfigError, match="cannot connect"):
-        sw._Dask("tcp://127.0.0.1:9", timeout=1)
+        sw.DaskExecutor("tcp://127.0.0.1:9", timeout=1)
 
 
 # ------------------------------------------------------------------ the command

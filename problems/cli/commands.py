@@ -1,0 +1,221 @@
+"""The commands of ``se3ocp``, one function each: ``cmd_NAME(args) -> exit status``.  Bad input
+raises ConfigError or ResultsDirError (exit 2, see :func:`se3ocp.problems.cli.main`); a run
+writes its results directory as one transaction (complete, or absent)."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..io import results_transaction, results_update, safe_name
+from ..maneuvers import Maneuver, load_maneuver
+from ..schema import ConfigError
+from .progress import Progress, ProgressBar, emit_summary, say, table
+from .signals import Interrupt
+
+
+def _load(args) -> Maneuver:
+    return load_maneuver(args.config, args.overrides)
+
+
+def _results(args, man: Maneuver):
+    """The results directory of a run, as a transaction: written aside, swapped in whole when the
+    block ends normally, absent (or the previous run, untouched) if it does not."""
+    return results_transaction(args.out, Path("results") / safe_name(man.name), args.force)
+
+
+def cmd_validate(args) -> int:
+    man = _load(args)
+    summary = {"config": man.source, "name": man.name, "valid": True, "control": man.control_kind,
+               "discretization": man.discretization, "N": man.N, "T": man.T}
+    say(args, f"{man.source}: valid ({man.name}: {man.control_kind or 'no control'}, "
+               f"{man.discretization}, N = {man.N}, T = {man.T:g})")
+    emit_summary(args, summary)
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    from .. import api, store
+
+    man = _load(args)
+    with _results(args, man) as tx:
+        sol = api.simulate(man)
+        Interrupt.check()
+        store.write_run(tx.path, man, sol)
+        _figures_and_report(args, tx.path)
+        Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
+    out = tx.target
+    st = sol.stats
+    say(args, f"{man.name}: {man.discretization} free motion, N = {man.N}, h = {man.h:.3g}, {sol.solve_s:.2f} s")
+    say(args, f"  max |R^T R - I|          {st['max_orthogonality_error']:.2e}")
+    say(args, f"  max |det R - 1|          {st['max_determinant_error']:.2e}")
+    say(args, f"  max relative energy err  {st['max_relative_energy_error']:.2e}")
+    if sol.problem.terminal is not None:
+        say(args, f"  miss at the target       {sol.terminal_error:.3e} (terminal error of the free motion)")
+    say(args, f"  status                   {sol.result}: {sol.message}")
+    say(args, f"  results in {out}/")
+    emit_summary(args, store.summary(man, sol))
+    return 0 if sol.converged else 1
+
+
+def cmd_solve(args) -> int:
+    from ...transcription.results import Result
+    from .. import api, store
+
+    man = _load(args)
+    if man.control_kind is None:
+        raise ConfigError(man.source, "control/terminal",
+                          "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
+    method = args.method
+    if man.control_kind == "impulsive":
+        if method == "indirect":
+            raise ConfigError(man.source, "control.kind", "the indirect method applies to smooth maneuvers; "
+                                                          "impulsive maneuvers are solved by --method direct")
+        method = "direct"
+    with _results(args, man) as tx:
+        say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
+                    f"-> {tx.target}/")
+        say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
+        result = api.solve(man, method, progress=Progress(args))  # with the central-body check of the path
+        Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
+        sols = store.solutions_of(result)
+        for m, sol in sols.items():
+            if sol.result is Result.not_applicable:
+                say(args, f"  {m}: {sol.result} ({sol.message})")
+                continue
+            say(args, f"  {m}: {sol.result} ({sol.message}); cost {sol.cost:.10g}, terminal error "
+                       f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
+                       f"solve {sol.solve_s:.2f} s")
+        store.write_run(tx.path, man, result)
+        _figures_and_report(args, tx.path)
+        Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
+    out = tx.target
+    for line in table(sols.values()):
+        say(args, line)
+    if hasattr(result, "verdict"):
+        say(args, f"comparison: {result.verdict}")
+    say(args, f"results in {out}/")
+    emit_summary(args, store.summary(man, result, with_history=False))
+    if store.all_converged(result):
+        return 0
+    if args.quiet:  # quiet is not silent: a failure is still said, in one line
+        failed = [f"{m}: {s.result} ({s.message})" for m, s in sols.items()
+                  if not s.converged and s.result is not Result.not_applicable]
+        print(" ".join(f"se3ocp: {man.name}: not converged: {' | '.join(failed) or 'no method applies'}; results in {out}/".split()),
+              file=sys.stderr)
+    return 1
+
+
+def _figures_and_report(args, out: Path) -> list[Path]:
+    """After simulate/solve/compare: the figures (unless --no-figures), the animation (--animate)
+    and report.html (always; with the figures just drawn embedded)."""
+    from ..plots import animate, draw_all
+    from ..report import write_report
+
+    written = []
+    if not args.no_figures:
+        written += draw_all(out)
+        if args.animate:
+            written.append(animate(out, frames=args.frames, fps=args.fps))
+    written.append(write_report(out, draw=False))
+    return written
+
+
+def _results_dir(d: Path) -> int:
+    """0 if d is a results directory, else the error printed and 2."""
+    if not (d / "summary.json").exists() or not (d / "config.resolved.yaml").exists():
+        print(f"se3ocp: error: {d}: not a results directory (needs summary.json and config.resolved.yaml)", file=sys.stderr)
+        return 2
+    if not any((d / n).is_file() for n in ("direct.npz", "indirect.npz", "trajectory.npz")):
+        print(f"se3ocp: error: {d}: not a results directory (no direct.npz, indirect.npz or trajectory.npz)",
+              file=sys.stderr)
+        return 2
+    return 0
+
+
+def _update_results(args, write, said) -> int:
+    """``plot`` and ``report``: ``write(path)`` adds files to a copy of the complete results directory
+    ``args.results`` (results_update: the copy is swapped in when it returns) and returns their names;
+    ``said(d, written)`` is the line printed.  2 if the directory is not a results directory."""
+    d = Path(args.results)
+    if _results_dir(d):
+        return 2
+    with results_update(d) as tx:
+        written = [str(d / name) for name in write(tx.path)]
+        Interrupt.check()
+    say(args, said(d, written))
+    if args.json:
+        print(json.dumps(written))
+    return 0
+
+
+def cmd_plot(args) -> int:
+    from ..plots import animate, draw_all
+    from ..report import write_report
+
+    def write(path: Path) -> list[str]:
+        # --animate: the animation, and only the static figures that are missing or stale
+        names = [p.name for p in draw_all(path, stale_only=args.animate)]
+        if names or not (path / "report.html").exists():
+            names.append(write_report(path, draw=False).name)
+        if args.animate:
+            names.append(animate(path, frames=args.frames, fps=args.fps).name)
+        return names
+
+    return _update_results(args, write, lambda d, written: f"wrote {len(written)} files in {d}/")
+
+
+def cmd_report(args) -> int:
+    from ..report import write_report
+
+    return _update_results(args, lambda path: [write_report(path, draw=not args.no_figures).name],
+                           lambda d, written: f"wrote {written[0]}")
+
+
+def cmd_sweep(args) -> int:
+    """``se3ocp sweep``: validate, connect, run, write.  Exit 0 if every point converged,
+    1 if some did not (all rows are still written), ConfigError/ResultsDirError for bad
+    input; on Ctrl-C the finished rows are written and KeyboardInterrupt propagates."""
+    from ..sweep import load_sweep, make_executor, run_sweep, write_results
+
+    tell = (lambda *m: None) if args.quiet else (lambda *m: print(*m, flush=True))  # noqa: E731
+
+    def validating(done, total):  # long validations show life (at most once a second)
+        if done < total:
+            tell(f"validating the grid: {done}/{total} points checked ...")
+
+    sw = load_sweep(args.sweep, progress=validating)
+    cont = False if args.no_continuation else sw.continuation
+    ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
+    try:
+        with results_transaction(args.out, Path("results") / "sweeps" / safe_name(sw.name), args.force) as tx:
+            n = len(sw.points())
+            where = {"serial": "in-process", "local": f"local pool of {ex.workers} workers",
+                     "dask": f"Dask cluster at {args.scheduler}"}[ex.kind]
+            axc = sw.axes[sw.continuation_axis].name
+            tell(f"{sw.name}: {n} points x {len(sw.row_methods())} method(s) = {n * len(sw.row_methods())} tasks on "
+                 f"{where}; continuation {('along ' + axc) if cont and sw.control_kind != 'impulsive' else 'off'} "
+                 f"-> {tx.target}/")
+            bar = ProgressBar(quiet=args.quiet)
+            try:
+                res = run_sweep(sw, continuation=cont, progress=bar, check_interrupt=Interrupt.check, executor=ex)
+            except KeyboardInterrupt as exc:
+                bar.close()
+                if getattr(exc, "partial", None) is not None:   # the finished rows, clearly marked incomplete
+                    write_results(tx.path, exc.partial, figures=False)
+                    tx.commit(incomplete=f"interrupted (Ctrl-C) after {len(exc.partial.rows)} of "
+                                         f"{exc.partial.n_tasks} tasks")
+                raise
+            bar.close()
+            write_results(tx.path, res)
+            Interrupt.check()  # a Ctrl-C swallowed meanwhile: do not commit
+        out = tx.target
+    finally:
+        ex.shutdown()
+    s = res.summary()
+    for m, b in s["by_method"].items():
+        tell(f"  {m:<9} {b['converged']}/{b['points']} converged, {b['iterations_total']} iterations "
+             f"({b['warm_started']} warm-started, {b['fallbacks_to_cold']} fell back to a cold start)")
+    tell(f"  {res.wall_s:.1f} s wall; results in {out}/ (results.csv, results.jsonl, figures)")
+    return 0 if res.all_converged else 1
+

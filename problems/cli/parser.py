@@ -1,0 +1,142 @@
+"""The arguments of ``se3ocp``: one subparser per command, its options, help and examples."""
+from __future__ import annotations
+
+import argparse
+
+from .commands import cmd_plot, cmd_report, cmd_simulate, cmd_solve, cmd_sweep, cmd_validate
+
+EPILOG = """examples:
+  se3ocp validate configs/e3_inclination_change.yaml
+  se3ocp simulate configs/free_tumble.yaml --set horizon.N=2000
+  se3ocp solve configs/e3_inclination_change.yaml --method both
+  se3ocp compare configs/e4_orbital_capture.yaml --set solver.indirect.initial_costate=from_direct
+  se3ocp plot results/e3_inclination_change
+  se3ocp plot results/e3_inclination_change --animate --frames 150 --fps 25
+  se3ocp report results/e3_inclination_change
+  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
+"""
+
+
+def _common(p: argparse.ArgumentParser, out=True):
+    p.add_argument("config", help="maneuver YAML file")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a config value by dotted key, e.g. --set horizon.N=1000 (repeatable)")
+    if out:
+        p.add_argument("--out", default=None, metavar="DIR",
+                       help="results directory (default results/<name>/; a fresh numbered sibling if that is not empty)")
+        p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+
+
+def _animation_options(p: argparse.ArgumentParser):
+    p.add_argument("--animate", action="store_true",
+                   help="also write maneuver.gif (every method, named; body frame, thrust arrow, target)")
+    p.add_argument("--frames", type=_frames, default=100, metavar="K", help="frames of the animation (default 100)")
+    p.add_argument("--fps", type=_positive_int, default=20, metavar="F", help="frames per second (default 20)")
+
+
+def _output_options(p: argparse.ArgumentParser):
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG/PDF figures (report.html is still written)")
+    _animation_options(p)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="se3ocp", description="Geometrically exact optimal control of a rigid body on SE(3).",
+                                 epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"se3ocp {_version()}",
+                    help="print the installed version and exit")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser("validate", help="check a maneuver file against the schema",
+                       epilog="example:\n  se3ocp validate configs/e1_impulsive_tpbvp.yaml",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    _common(p, out=False)
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("simulate", help="uncontrolled motion from the initial state over the horizon",
+                       epilog="example:\n  se3ocp simulate configs/free_tumble.yaml --out results/tumble",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    _common(p)
+    _output_options(p)
+    p.set_defaults(func=cmd_simulate)
+
+    for name, helptext, ex in (
+        ("solve", "solve the optimal control problem (direct, indirect or both)",
+         "examples:\n  se3ocp solve configs/e3_inclination_change.yaml --method direct\n"
+         "  se3ocp solve configs/e1_impulsive_tpbvp.yaml --set horizon.N=200\n"
+         "  se3ocp solve configs/e4_orbital_capture.yaml --method indirect --set solver.indirect.initial_costate=from_direct"),
+        ("compare", "solve by both methods and compare them side by side",
+         "example:\n  se3ocp compare configs/e3_inclination_change.yaml --set horizon.N=200"),
+    ):
+        p = sub.add_parser(name, help=helptext, epilog=ex, formatter_class=argparse.RawDescriptionHelpFormatter)
+        _common(p)
+        if name == "solve":
+            p.add_argument("--method", choices=("direct", "indirect", "both"), default="direct",
+                           help="direct (multiple shooting + NLP solver), indirect (Newton-Armijo shooting), "
+                                "or both (default: direct)")
+        _output_options(p)
+        p.set_defaults(func=cmd_solve)
+        if name == "compare":
+            p.set_defaults(method="both")
+
+    p = sub.add_parser("plot", help="(re)draw the figures, report.html and the animation of a results directory",
+                       description="Without --animate: redraw every figure and report.html.  With --animate: write "
+                                   "maneuver.gif, and draw only the figures that are missing or older than the run's "
+                                   "summary.json (so a new animation does not redraw up-to-date figures).",
+                       epilog="examples:\n  se3ocp plot results/e3_inclination_change\n"
+                              "  se3ocp plot results/e3_inclination_change --animate --frames 150 --fps 25",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("results", help="a results directory written by simulate, solve or compare")
+    _animation_options(p)
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--json", action="store_true", help="print the list of files written as JSON")
+    p.set_defaults(func=cmd_plot)
+
+    p = sub.add_parser("report", help="write report.html: a self-contained page (summary table, figures, history, config)",
+                       epilog="example:\n  se3ocp report results/e3_inclination_change",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("results", help="a results directory written by simulate, solve or compare")
+    p.add_argument("--no-figures", action="store_true", help="leave the figures out (no drawing)")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--json", action="store_true", help="print the path written as JSON")
+    p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("sweep", help="trade study: solve a grid of parameter values (local pool or Dask cluster)",
+                       epilog="examples:\n  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T\n"
+                              "  se3ocp sweep configs/sweeps/e3_T_inclination.yaml --scheduler tcp://127.0.0.1:8786",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("sweep", help="sweep YAML file (base maneuver, axes, methods; see problems/sweep/)")
+    p.add_argument("--out", default=None, metavar="DIR", help="results directory (default results/sweeps/<name>/)")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                   help="local worker processes (default: one per core; 1 = in-process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the tasks on an existing dask.distributed cluster, e.g. tcp://host:8786")
+    p.add_argument("--no-continuation", action="store_true", help="cold-start every point (ignore 'continuation')")
+    p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=cmd_sweep)
+    return ap
+
+
+def _version() -> str:
+    """The installed distribution's version (package metadata), so it cannot drift from pyproject.toml."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("se3ocp")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
+def _positive_int(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return int(text)
+
+
+def _frames(text: str) -> int:
+    if not text.isdigit() or int(text) < 2:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {text!r}")
+    return int(text)

@@ -1,0 +1,145 @@
+"""The catalogue of figures: their names (the files fig_<name>.png/.pdf), captions, which apply
+to a run, and drawing them -- in memory (:func:`figures`) or into a results directory
+(:func:`draw_all`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ...transcription.problem import Problem
+from ...transcription.results import Solution
+from ...transcription.solve import Comparison
+from ..io import save_figure
+from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence,
+                        fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity)
+from .runs import Run, _runs
+from .targets import removed
+from .views3d import fig_attitude, fig_maneuver
+
+
+FIGURES = {
+    "maneuver": fig_maneuver,
+    "attitude": fig_attitude,
+    "attitude_error": fig_attitude_error,
+    "control_norms": fig_control_norms,
+    "force": fig_force,
+    "moment": fig_moment,
+    "thrust_rtn": fig_thrust_rtn,
+    "orbital_elements": fig_orbital_elements,
+    "constraints": fig_constraints,
+    "velocity": fig_velocity,
+    "angular_velocity": fig_angular_velocity,
+    "costates": fig_costates,
+    "convergence": fig_convergence,
+}
+
+#: one line per figure (the report's captions, the README's table)
+CAPTIONS = {
+    "maneuver": "3-D path of each method about the central body, initial and desired orbits, the body frame at a few nodes",
+    "attitude": "the body axes' paths on the unit sphere (inertial), the final frame of each method against the target frame",
+    "attitude_error": "angle of the attitude error R_dᵀR(t) (or the rotation from the start) and its quaternion",
+    "control_norms": "|u_f| and |u_m| with their bounds; shaded where a bound is active (the switching structure)",
+    "force": "control force, inertial components, with box limits ±b_i",
+    "moment": "control moment, body components, with box limits ±b_i",
+    "thrust_rtn": "control force in the osculating orbit frame: radial, along-track, normal",
+    "orbital_elements": "osculating radius, inclination and eccentricity against the target's",
+    "constraints": "margin of each path constraint (≥ 0 where it holds), violations shaded",
+    "velocity": "inertial velocity components (impulses as jumps)",
+    "angular_velocity": "body angular velocity components and |Ω| (with a rate limit)",
+    "costates": "discrete costates λ_k by block (direct: mapped from the NLP multipliers)",
+    "convergence": "residual per iteration (Newton–Armijo: every line-search trial)",
+}
+
+
+def caption(name: str, problem: Problem) -> str:
+    """The caption of a figure for this problem (CAPTIONS, but the maneuver of a problem without a
+    central body has no orbits)."""
+    if name == "maneuver" and not problem.model.mu:
+        return "no central body: the path and the body frame at a few nodes (a slew: the frame at a few times)"
+    return CAPTIONS.get(name, name)
+
+
+def applicable(runs: list[Run], problem: Problem) -> list[str]:
+    """The names of the figures that apply to these runs (in FIGURES order)."""
+    ctrl = any(r.sol.controls is not None for r in runs)
+    central = bool(problem.model.mu)
+    gone = removed(problem)
+    skip = set(gone)  # a removed control: no component figure ("force", "moment")
+    if not ctrl or gone == {"force", "moment"}:
+        skip |= {"control_norms", "force", "moment", "thrust_rtn"}
+    if "force" in gone:
+        skip.add("thrust_rtn")
+        if not central:  # no force and no gravity: the velocity is constant, a figure of flat lines
+            skip.add("velocity")
+    if not central:
+        skip |= {"thrust_rtn", "orbital_elements"}
+    if not problem.constraints:
+        skip.add("constraints")
+    if not any(r.sol.costates is not None for r in runs):
+        skip.add("costates")
+    if not any(r.sol.history for r in runs):
+        skip.add("convergence")
+    return [n for n in FIGURES if n not in skip]
+
+
+def draw(name: str, runs: list[Run], problem: Problem):
+    """One figure by name (a failed run's non-finite states are drawn as gaps, without warnings)."""
+    with np.errstate(all="ignore"):
+        return FIGURES[name](runs, problem)
+
+
+
+def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None, *,
+            constraint_tol: float | None = None) -> dict:
+    """{name: Figure} of a Solution or a Comparison (both methods overlaid), drawn from memory;
+    ``which`` limits the names (figures that do not apply are left out); ``constraint_tol``: margins
+    of path constraints below -constraint_tol are drawn as violations (default
+    store.DEFAULT_PATH_TOL; a results directory uses its maneuver's terminal_tol)."""
+    runs = _runs(result, constraint_tol)
+    problem = runs[0].sol.problem
+    if which:
+        unknown = set(which) - set(FIGURES)
+        if unknown:
+            raise ValueError(f"unknown figures {sorted(unknown)}; expected some of {', '.join(FIGURES)}")
+    return {name: draw(name, runs, problem) for name in applicable(runs, problem) if not which or name in which}
+
+
+def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
+    """(Re)draw the figures of a results directory as PNG and PDF; returns the paths written.
+    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data.
+    Redrawing every figure also deletes the files of figures that no longer apply (drawn by an
+    earlier version: e.g. a force figure for a run whose force is removed)."""
+    from ..store import path_tolerance, read_run
+
+    d = Path(results_dir)
+    run = read_run(d)
+    tol = path_tolerance(run.maneuver)
+    if stale_only:
+        runs = _runs(run.result, tol)
+        todo = tuple(n for n in applicable(runs, runs[0].sol.problem) if not is_fresh(d, n) and (not which or n in which))
+        if not todo:
+            return []
+        which = todo
+    runs = _runs(run.result, tol)
+    names = applicable(runs, runs[0].sol.problem)
+    if not which:
+        for name in set(FIGURES) - set(names):
+            for ext in (".png", ".pdf"):
+                (d / f"fig_{name}{ext}").unlink(missing_ok=True)
+    written = []
+    for name in names:  # one at a time: one figure in memory
+        if which and name not in which:
+            continue
+        fig = draw(name, runs, runs[0].sol.problem)
+        written += save_figure(fig, d / f"fig_{name}")
+        plt.close(fig)
+    return written
+
+
+def is_fresh(results_dir: Path, name: str) -> bool:
+    """Whether fig_<name>.png exists and is newer than summary.json (the last file a run writes)."""
+    d = Path(results_dir)
+    png, summ = d / f"fig_{name}.png", d / "summary.json"
+    return png.is_file() and summ.is_file() and png.stat().st_mtime_ns >= summ.stat().st_mtime_ns
