@@ -14,6 +14,14 @@ EPILOG = """examples:
   se3ocp plot results/e3_inclination_change --animate --frames 150 --fps 25
   se3ocp report results/e3_inclination_change
   se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
+
+exit status:
+  0  success (converged)
+  1  a solver or the integrator did not converge, or the problem is provably infeasible
+     (results written, summary.json flagged converged: false with a status and message)
+  2  bad input: one line FILE (or --set): FIELD: expected ...; nothing written
+  3  internal error (a defect): one line naming the file that holds the traceback
+  130 interrupted (Ctrl-C): nothing half-written
 """
 
 
