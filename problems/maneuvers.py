@@ -36,9 +36,14 @@ method, which does not cover path constraints, stays applicable to the bundled m
 Velocities are inertial, angular velocities body-frame; momenta follow as gamma = m v,
 Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``, ``{axis_angle: [ax, ay, az, angle_deg]}``
 or ``{rotations: [[x|y|z, deg], ...]}`` (product left to right).  A matrix must satisfy
-|R^T R - I|_F <= 1e-6 and det R > 0; it is then projected onto SO(3).  Directions and axes must
-be non-zero; they are normalized.  A constraint that the initial (or a given terminal) state
-already violates is bad input.
+|R^T R - I|_F <= 1e-6 and det R > 0; it is then projected onto SO(3).  Directions and axes of any
+magnitude are normalized (scaled by their largest component first: transcription.lie.unit_direction);
+only zero and non-finite ones are refused.  The initial state and an impulsive terminal state give all
+four components (a smooth terminal state leaves out what is free).  Control bounds, rate limits and
+principal moments lie in [MIN_MAGNITUDE, MAX_MAGNITUDE]; principal moments satisfy J1 + J2 >= J3; at
+most one control is removed.  A constraint that the initial (or a given terminal) state already
+violates is bad input.  A check that involves several fields names the others (``also``), so that a
+``--set`` on any of them is named as the cause.
 
 Every error is a :class:`ConfigError` whose text is one line ``FILE: FIELD: what was expected``.
 """

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..transcription.lie import exp_so3, rot_x, rot_y, rot_z, unit_direction
 from ..transcription.options import describe, shorten as _short, show as _show
-from .yamlfile import (MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES, ConfigError, _parse, _TextError,  # noqa: F401
+from .yamlfile import (MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES, ConfigError, _parse, _TextError,
                        read_yaml_file, yaml_dump, yaml_load)
 
 T = TypeVar("T")
@@ -243,3 +243,8 @@ def load_with_overrides(path: str | Path, overrides: Iterable[str], parse: Calla
         return parse(doc, source)
     except ConfigError as e:
         raise blame_overrides(e, keys) from None
+
+
+__all__ = ["MAX_DEPTH", "MAX_FILE_BYTES", "MAX_INTEGER", "MAX_NODES", "MAX_ROTATIONS", "ORTHOGONALITY_TOL", "ConfigError",
+           "Validator", "apply_override", "blame_overrides", "describe", "join_field", "load_with_overrides",
+           "read_yaml_file", "yaml_dump", "yaml_load"]

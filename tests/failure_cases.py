@@ -154,11 +154,16 @@ def _keep_out_margin_as_read(o) -> list[str]:
     return v
 
 
+#: the groups of issue 28's classes that are not bad input or failures
+VALID = "valid input (read as written, never a crash)"
+CRASH = "crash (a defect, told apart from a failure)"
+
+
 def _valid(id, cls, command, config, *sets, **kw):
     """Valid input that was misread or crashed: it must run (exit 0) and read what was written."""
     args = ("--method", "direct", "--no-figures") if command == "solve" else ()
     return Case(id=id, cls=cls, command=command, config=config, sets=tuple(sets), args=args + tuple(kw.pop("args", ())),
-                expect=0, out=command != "validate", group="valid input (read as written, never a crash)",
+                expect=0, out=command != "validate", group=VALID,
                 method="direct" if command == "solve" else None, **kw)
 
 
@@ -421,7 +426,7 @@ CASES: list[Case] = [
     # --------------------------------------------------------------------------- crash
     Case(id="crash_injected", cls="an unexpected exception (a defect injected into solve)", command="solve", config=E3,
          sets=("horizon.N=10",), args=("--method", "direct", "--no-figures"), expect=3, inject=INJECT_CRASH,
-         group="crash (a defect, told apart from a failure)"),
+         group=CRASH),
     # ------------------------------------------------------------------------------- Ctrl-C
     Case(id="sigint_startup", cls="Ctrl-C during start-up (importing NumPy/CasADi)", command="validate", config=E3,
          out=False, expect=130, interrupt=("pending",), group="interrupt"),
@@ -545,10 +550,11 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
     argv = command_line(case, cfg)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
-    if case.inject is not None:  # the CLI in a process whose code was changed first
+    if case.inject is not None:  # the CLI in a process whose code was changed first; its temporary files here
         code = f"{case.inject}\nimport sys\nfrom se3ocp.problems.cli import main\nsys.exit(main({argv!r}))\n"
+        (workdir / "tmp").mkdir(exist_ok=True)
         r = subprocess.run([sys.executable, "-c", code], cwd=workdir, capture_output=True, text=True, timeout=timeout,
-                           env=env)
+                           env=dict(env, TMPDIR=str(workdir / "tmp")))
         rc, out, err = r.returncode, r.stdout, r.stderr
     elif case.interrupt is None:
         r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", *argv], cwd=workdir, capture_output=True, text=True,
@@ -782,7 +788,7 @@ def message_of(o: Outcome) -> str:
     if not lines and o.returncode == 0:
         lines = [ln for ln in o.stdout.splitlines() if ln.strip()]
     if o.returncode == 3 and lines:  # the crash file's name depends on the run
-        return re.sub(r"se3ocp-crash-\S+\.txt", "se3ocp-crash-....txt", lines[-1])
+        return re.sub(r"\S*se3ocp-crash-\S+\.txt", "$TMPDIR/se3ocp-crash-....txt", lines[-1])
     return lines[-1] if lines else ""
 
 
@@ -810,8 +816,12 @@ def render(outcomes: list[Outcome]) -> str:
         "CLI in a fresh temporary directory with small N; paths are relative to it. Contract: bad input ->",
         "exit 2 and one line `FILE: FIELD: expected ...` on stderr; solver or integrator failure -> exit 1,",
         "`summary.json` with `converged: false`, status and message, the last iterate's `.npz` written;",
-        "Ctrl-C -> exit 130, no temporary or truncated file; never a traceback. CasADi warning lines on",
-        "stderr are counted, not shown. The *contract* column lists what a class does not meet today.",
+        "Ctrl-C -> exit 130, no temporary or truncated file; valid input that was once misread or crashed",
+        "-> exit 0, read as written (what it must have read is checked); a defect (an exception nobody",
+        "expected, injected here) -> exit 3 and one line naming the file that holds the traceback, no",
+        "results directory; never a traceback on stderr. A message caused by a `--set` value names",
+        "`--set`. CasADi warning lines on stderr are counted, not shown. The *contract* column lists what",
+        "a class does not meet today.",
         "",
         f"**{n} classes tried; {len(tb)} produced a traceback" + (f" ({', '.join(tb)})" if tb else "")
         + f"; {len(broken)} do not meet the contract" + (f" ({', '.join(broken)})" if broken else "") + ".**",

@@ -172,7 +172,7 @@ def step_failure(problem: Problem, X: np.ndarray, residuals: np.ndarray, h: floa
         k = int(np.argmin(finite)) if not finite.all() else int(np.argmin(np.isfinite(res)))
         return Result.non_finite, (f"the state became non-finite at step {k}: the data overflow or "
                                    f"underflow (check the magnitudes of the mass, the inertia, the bounds and the "
-                                   f"states); a smaller step does not help")
+                                   f"states); reducing the step size does not help")
     k = int(np.argmax(res)) if res.size else 0
     lmin = float(np.linalg.eigvalsh(problem.model.inertia)[0])
     Pi = X[min(k, len(X) - 1), X_ANG]

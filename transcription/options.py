@@ -171,7 +171,7 @@ def _check_raw_option(solver: str, k: str, v, name: str) -> None:
             raise OptionError(f"{name}.{k}", f"expected a file that can be written ({solver} cannot start otherwise), "
                                              f"got {v!r}: {why}")
         return
-    if _option_kind(solver, k) == "int" and isinstance(v, (int, float)) and not isinstance(v, bool):
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and _option_kind(solver, k) == "int":
         # CasADi passes an integer option to the solver as a C int, silently truncated or wrapped
         # (max_iter 2.5 -> 2, 1e30 -> 0, 2^32 + 5 -> 5): refuse what does not convert exactly
         if not (float(v).is_integer() and -C_INT_MAX - 1 <= v <= C_INT_MAX):
@@ -215,12 +215,16 @@ def _unwritable(path: str) -> str:
 def _option_kind(solver: str, k: str) -> str:
     """'int', 'float' or 'other': the type the solver declares for option ``k``, asked by giving it a
     word (CasADi then names the type it expected: is_int / is_double; milliseconds, once per option)."""
+    import contextlib
+    import io
+
     import casadi as ca
 
     try:
-        ca.nlpsol("option_kind", solver, {"x": ca.SX.sym("x"), "f": ca.SX(0)},
-                  {solver: {"print_level": 0, **({"sb": "yes"} if solver == "ipopt" else {}), k: "?"},
-                   "print_time": False})
+        with contextlib.redirect_stdout(io.StringIO()):  # IPOPT lists a string option's settings on stdout
+            ca.nlpsol("option_kind", solver, {"x": ca.SX.sym("x"), "f": ca.SX(0)},
+                      {solver: {"print_level": 0, **({"sb": "yes"} if solver == "ipopt" else {}), k: "?"},
+                       "print_time": False})
     except RuntimeError as exc:
         text = str(exc)
         return "int" if "is_int" in text else "float" if "is_double" in text else "other"
