@@ -454,7 +454,7 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
             if margin < 0:
                 unit = units_for(body.central_mu).unit(con.dimension)
                 v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g}"
-                          f"{' ' + unit if unit else ''})", also=(label, "model"))
+                          f"{' ' + unit if unit else ''})", also=(label,))
         out.append(con)
     return tuple(out)
 

@@ -118,3 +118,24 @@ def test_step_failure_tells_non_finite_from_a_fold_from_hopeless_data():
     X[5, 15] = 1e300  # no horizon.N fixes that
     result, text = step_failure(p, X, res, 0.25)
     assert result is Result.cayley_failed and "no step size can fix it" in text and "smaller step h" not in text
+
+
+@pytest.mark.parametrize("name, published", [("slew_time_optimal_symmetric", 3.2431), ("slew_time_optimal", 28.6304077)])
+def test_published_minimum_times_are_never_refused(name, published):
+    """The time-optimal slews of test_constrained (published minima [BW93], [Bet10]): with the final time
+    free up to just below the published minimum nothing is refused (the conditions are necessary),
+    and the refusal threshold of the symmetric body is the bang-bang eigenaxis bound of the torque's
+    norm, T^2 >= 4 pi lambda / |b| = 4 pi / sqrt(3) (to the discrete scheme's 0.1 %)."""
+    p = se3ocp.load(config(name)).problem
+
+    def refused(t_max):
+        return necessary_conditions(p.replace(time_bounds=(0.25 * t_max, t_max), T=0.5 * t_max)) is not None
+
+    assert not refused(published * 0.999)
+    lo, hi = 0.01, published
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if refused(mid) else (lo, mid)
+    assert hi < published
+    if name == "slew_time_optimal_symmetric":
+        assert hi == pytest.approx(math.sqrt(4 * math.pi / math.sqrt(3)), rel=1e-3)

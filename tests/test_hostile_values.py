@@ -251,3 +251,20 @@ def test_tampered_summary_is_refused_or_reported_as_it_was(finished_run, tmp_pat
         return
     assert rc == 0 and not lines, (rc, lines)
     assert _verdicts(d / "report.html") == truth, f"{'.'.join(map(str, path))} = {value!r} changed the report"
+
+
+def test_orbit_target_and_axis_angle_directions_of_any_magnitude():
+    """The orbit target's normal and body axis and an axis-angle axis go through the same reader as the
+    cones (transcription.lie.unit_direction): huge and tiny vectors keep their direction."""
+    from se3ocp.transcription.lie import exp_so3
+    from se3ocp.transcription.problem import ProblemError, TargetOrbit
+
+    m = se3ocp.load(config("e2"), ["terminal.orbit.body_axis=[1e200, 0, 0]", "terminal.orbit.normal=[0, 1e-200, 1e-200]"])
+    assert m.terminal.body_axis.tolist() == [1.0, 0.0, 0.0]
+    assert np.allclose(m.terminal.normal, [0, 2**-0.5, 2**-0.5], rtol=0, atol=4e-16)
+    t = TargetOrbit(2.0, [0.0, 0.0, 5e-324], [3e250, 4e250, 0.0])
+    assert t.normal.tolist() == [0.0, 0.0, 1.0] and np.allclose(t.body_axis, [0.6, 0.8, 0.0], rtol=0, atol=4e-16)
+    with pytest.raises(ProblemError):
+        TargetOrbit(2.0, [0.0, 0.0, 0.0])
+    m = se3ocp.load(config("e3"), ["initial.attitude={axis_angle: [0, 0, 1e300, 90]}"])
+    assert np.allclose(m.initial.R, exp_so3(np.array([0.0, 0.0, np.pi / 2])), rtol=0, atol=1e-15)
