@@ -186,6 +186,9 @@ def apply_override(doc: dict, assignment: str, source: str = "--set") -> str:
         raise ConfigError(source, assignment, "expected a dotted key before '='")
     if not all(parts):
         raise ConfigError(source, key, "expected a dotted key such as horizon.N (an empty part between dots)")
+    if any(p.endswith("]") and "[" in p for p in parts):
+        raise ConfigError(source, key, "expected a dotted key of mapping keys: --set cannot index a list; give the "
+                                       "whole list, e.g. constraints=[{kind: min_radius, radius: 1.1}]")
     try:
         value = _parse(text)
     except _TextError as e:

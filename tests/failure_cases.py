@@ -9,7 +9,11 @@ must meet:
 * solver / integrator failure: exit code 1, ``summary.json`` with converged = false,
   the status (one of ``statuses`` if given) and a message, the ``.npz`` of the last
   iterate present and loadable, no traceback;
-* Ctrl-C: exit code 130, no traceback, no temporary file, every file present complete.
+* Ctrl-C: exit code 130, no traceback, no temporary file, every file present complete;
+* valid input once misread or crashed (issue 28): exit code 0, nothing on stderr, and what the run
+  must have read (``verify``);
+* a defect (an exception injected into the CLI's process): exit code 3, one line naming the file
+  that holds the traceback, no results directory.
 
 Every case runs in its own temporary directory (relative paths, so the messages in
 the table do not depend on where it ran), small N, one process at a time.
@@ -340,8 +344,8 @@ CASES: list[Case] = [
          "control.bounds={force: {norm: 1e-310}}"),
     _bad("rate_limit_denormal", "a denormal rate limit (1e-310)", "validate", E3, "constraints[0].value",
          "constraints=[{kind: max_angular_rate, value: 1e-310}]"),
-    _bad("set_list_index", "--set on a list element (the message named the file)", "validate", SLEW, "'constraints[0]'",
-         "constraints[0].body_axis=[1, 0, 0]"),
+    _bad("set_list_index", "--set on a list element (the message named the file)", "validate", SLEW,
+         "constraints[0].body_axis", "constraints[0].body_axis=[1, 0, 0]"),
     _tampered("report_cost_boolean", "report of a run whose summary.json cost is a boolean (was drawn as 1, 'agree')",
               "report", "methods.direct.cost", True, "methods.direct.cost", made_by="compare"),
     _tampered("report_comparison_string", "report of a run whose comparison holds a string for a number", "report",
