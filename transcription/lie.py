@@ -233,6 +233,17 @@ def unit_direction(v) -> np.ndarray | None:
     return u / np.linalg.norm(u)
 
 
+def nearest_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation nearest to each 3x3 matrix of R (..., 3, 3) in the Frobenius norm (NumPy): U V^T
+    of the SVD R = U S V^T, with the sign of the last singular direction flipped where det(U V^T) < 0
+    (the orthogonal polar factor).  Re-projects an attitude integrated as nine entries onto SO(3)."""
+    U, _, Vt = np.linalg.svd(np.asarray(R, dtype=float))
+    d = np.sign(np.linalg.det(U @ Vt))
+    U = U.copy()
+    U[..., :, 2] *= np.where(d == 0, 1.0, d)[..., None]
+    return U @ Vt
+
+
 # ------------------------------------------------------------- charts of the state space
 def chart(X, z):
     """Left-trivialized chart around a state X (18) (docs/mathematics.md §4): additive on x, gamma,
