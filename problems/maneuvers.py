@@ -39,9 +39,14 @@ method, which does not cover path constraints, stays applicable to the bundled m
 Velocities are inertial, angular velocities body-frame; momenta follow as gamma = m v,
 Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``, ``{axis_angle: [ax, ay, az, angle_deg]}``
 or ``{rotations: [[x|y|z, deg], ...]}`` (product left to right).  A matrix must satisfy
-|R^T R - I|_F <= 1e-6 and det R > 0; it is then projected onto SO(3).  Directions and axes must
-be non-zero; they are normalized.  A constraint that the initial (or a given terminal) state
-already violates is bad input.
+|R^T R - I|_F <= 1e-6 and det R > 0; it is then projected onto SO(3).  Directions and axes of any
+magnitude are normalized (scaled by their largest component first: transcription.lie.unit_direction);
+only zero and non-finite ones are refused.  The initial state and an impulsive terminal state give all
+four components (a smooth terminal state leaves out what is free).  Control bounds, rate limits and
+principal moments lie in [MIN_MAGNITUDE, MAX_MAGNITUDE]; principal moments satisfy J1 + J2 >= J3; at
+most one control is removed.  A constraint that the initial (or a given terminal) state already
+violates is bad input.  A check that involves several fields names the others (``also``), so that a
+``--set`` on any of them is named as the cause.
 
 Every error is a :class:`ConfigError` whose text is one line ``FILE: FIELD: what was expected``.
 """
@@ -80,10 +85,17 @@ CONSTRAINT_KEYS = {"min_radius": ("radius",), "keep_out": ("body_axis", "directi
 #: the most steps a horizon may have (a typo such as N = 1e9 is refused before anything is allocated;
 #: 10^7 steps of the 18-number state already take 1.4 GB)
 MAX_N = 10_000_000
+#: positive limits whose squares enter the equations (control bounds, a rate limit, principal moments
+#: of inertia) must lie in [MIN_MAGNITUDE, MAX_MAGNITUDE], so that their squares and inverse squares are
+#: finite, normal double-precision numbers (a denormal bound is bad input, not a solver failure)
+MIN_MAGNITUDE, MAX_MAGNITUDE = 1e-150, 1e150
 #: the step h = T/N must lie in [MIN_STEP, MAX_STEP]: the discrete equations use h^2 and 1/h^2, which
 #: must stay finite and non-zero in double precision (a T so small that h underflows is bad input,
 #: not a solver failure)
-MIN_STEP, MAX_STEP = 1e-150, 1e150
+MIN_STEP, MAX_STEP = MIN_MAGNITUDE, MAX_MAGNITUDE
+#: a principal moment may exceed the sum of the other two by at most this fraction (round-off of the
+#: eigenvalues) -- J1 + J2 >= J3 holds for every rigid body
+TRIANGLE_RTOL = 1e-12
 #: the most path constraints a file may give (each adds N + 1 rows to the NLP; the bound also keeps the
 #: validation of a file, and of every point of a sweep, short)
 MAX_CONSTRAINTS = 64
@@ -91,6 +103,9 @@ MAX_CONSTRAINTS = 64
 _PROBLEM_FIELDS = {"time_bounds": "horizon.T", "control.bounds": "control.bounds", "control.W_f": "control.weights.force",
                    "control.W_m": "control.weights.moment", "control.objective": "control.objective",
                    "terminal": "terminal", "terminal.free": "terminal", "constraints": "constraints"}
+#: the other fields a ProblemError's check involves (an override of any of them is named as the cause)
+_PROBLEM_ALSO = {"time_bounds": ("control.objective",), "control.bounds": ("control.objective",),
+                 "control.W_f": ("control.objective",), "control.W_m": ("control.objective",)}
 
 
 # ----------------------------------------------------------------- data types
@@ -229,7 +244,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                           terminal=target, control=control, name=name.strip(), time_bounds=time_bounds,
                           constraints=constraints)
     except ProblemError as e:
-        v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
+        v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1], also=_PROBLEM_ALSO.get(e.field, ()))
     _physical.declare(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
                     central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved,
@@ -271,9 +286,27 @@ def _inertia(v: Validator, val, where) -> np.ndarray:
         J = np.diag(v.vec3(val, where))
     else:
         v.fail(where, f"expected 3 principal moments or a 3x3 matrix, got {describe(val)}")
-    if not np.allclose(J, J.T, rtol=1e-12, atol=0.0) or np.linalg.eigvalsh(0.5 * (J + J.T)).min() <= 0:
+    if not np.allclose(J, J.T, rtol=1e-12, atol=0.0) or not np.all(np.diag(J) > 0):
         v.fail(where, "expected a symmetric positive definite inertia")
-    return 0.5 * (J + J.T)
+    # the diagonal of a positive definite J lies between its extreme eigenvalues: checked first, so
+    # that the eigenvalues are taken of J / max|J| (entries of 1e308 overflowed eigvalsh) without underflow
+    span = (MIN_MAGNITUDE, MAX_MAGNITUDE)
+    if not np.all((np.diag(J) >= span[0]) & (np.diag(J) <= span[1])):
+        v.fail(where, f"expected principal moments from {span[0]:g} to {span[1]:g} (their squares and inverses "
+                      f"enter the equations), got {', '.join(f'{x:.6g}' for x in np.diag(J))} on the diagonal")
+    scale = float(np.abs(J).max())
+    S = 0.5 * (J / scale + J.T / scale)
+    lam = np.linalg.eigvalsh(S)
+    if not lam.min() > 0:
+        v.fail(where, "expected a symmetric positive definite inertia")
+    lo, mid, hi = lam * scale
+    if not (span[0] <= lo and hi <= span[1]):
+        v.fail(where, f"expected principal moments from {span[0]:g} to {span[1]:g} (their squares and inverses "
+                      f"enter the equations), got {lo:.6g}, {mid:.6g}, {hi:.6g}")
+    if hi - (lo + mid) > TRIANGLE_RTOL * hi:
+        v.fail(where, f"expected principal moments that satisfy the triangle inequality J1 + J2 >= J3 (every rigid "
+                      f"body does: J1 + J2 - J3 = 2 * integral of z^2 dm), got {lo:.6g} + {mid:.6g} < {hi:.6g}")
+    return S * scale
 
 
 def _step(v: Validator, T: float, N: int, where: str) -> None:
@@ -336,7 +369,10 @@ def _control(v: Validator, c):
         control = SmoothControl(W_f=W["force"], W_m=W["moment"], objective=objective, force_bound=bounds.get("force"),
                                 moment_bound=bounds.get("moment"), bounds_margin=margin)
     except ProblemError as e:
-        v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1])
+        v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1], also=_PROBLEM_ALSO.get(e.field, ()))
+    if control.removed == (True, True):
+        v.fail("control.bounds", "expected at most one control removed: a norm bound of 0 on both the force and the "
+                                 "moment leaves nothing to steer the body (its free motion is `se3ocp simulate`)")
     out = {"kind": kind, "objective": objective, "weights": weights_doc}
     if bounds_doc:
         out["bounds"] = bounds_doc
@@ -369,9 +405,19 @@ def _bound(v: Validator, d, where):
         for i, x in enumerate(b):
             if not x > 0:
                 v.fail(f"{w}[{i}]", f"expected a positive limit, got {float(x)!r}")
+            _magnitude(v, float(x), f"{w}[{i}]", "a limit")
         return BoxBound(b), {"box": b.tolist()}
     b = v.number(val, w, nonneg=True)
+    if b != 0:
+        _magnitude(v, b, w, "a limit (or 0, which removes the control)")
     return NormBound(b), {"norm": b}
+
+
+def _magnitude(v: Validator, x: float, where: str, what: str) -> None:
+    """ConfigError unless MIN_MAGNITUDE <= x <= MAX_MAGNITUDE (a positive limit whose square is used)."""
+    if not MIN_MAGNITUDE <= x <= MAX_MAGNITUDE:
+        v.fail(where, f"expected {what} from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g} (its square enters the "
+                      f"equations and must be a normal double-precision number), got {x:g}")
 
 
 def _orbit(v: Validator, t, body, extent) -> TargetOrbit:
@@ -381,16 +427,13 @@ def _orbit(v: Validator, t, body, extent) -> TargetOrbit:
     if body.body_model().mu is None:
         v.fail("terminal.orbit", "an orbit target needs a central body (gravity kind other than none)")
     r = v.number(o["radius"], "terminal.orbit.radius", positive=True)
-    n = v.vec3(o["normal"], "terminal.orbit.normal")
-    if np.linalg.norm(n) < 1e-12:
-        v.fail("terminal.orbit.normal", "expected a non-zero vector (it is normalized)")
+    n = v.unit_vector(o["normal"], "terminal.orbit.normal")
     if extent is not None and not r > extent:
-        v.fail("terminal.orbit.radius", "expected an orbit outside the central body")
-    axis = v.vec3(o.get("body_axis", [1.0, 0.0, 0.0]), "terminal.orbit.body_axis")
-    if np.linalg.norm(axis) < 1e-12:
-        v.fail("terminal.orbit.body_axis", "expected a non-zero vector (it is normalized)")
+        v.fail("terminal.orbit.radius", "expected an orbit outside the central body",
+               also=("model.central_body_radius", "model.length", "model.sphere_radius"))
+    axis = v.unit_vector(o.get("body_axis", [1.0, 0.0, 0.0]), "terminal.orbit.body_axis")
     spin = v.vec3(o.get("angular_velocity", [0.0, 0.0, 0.0]), "terminal.orbit.angular_velocity")
-    return TargetOrbit(r, n / np.linalg.norm(n), axis, body.inertia @ spin)
+    return TargetOrbit(r, n, axis, body.inertia @ spin)
 
 
 def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tuple:
@@ -410,13 +453,11 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
         if kind == "min_radius":
             con = MinRadius(v.number(c["radius"], f"{w}.radius", positive=True))
         elif kind == "max_angular_rate":
-            con = MaxAngularRate(v.number(c["value"], f"{w}.value", positive=True))
+            rate = v.number(c["value"], f"{w}.value", positive=True)
+            _magnitude(v, rate, f"{w}.value", "a rate limit")
+            con = MaxAngularRate(rate)
         else:
-            vecs = {}
-            for k in ("body_axis", "direction"):
-                vecs[k] = v.vec3(c[k], f"{w}.{k}")
-                if not np.linalg.norm(vecs[k]) > 0:
-                    v.fail(f"{w}.{k}", "expected a non-zero vector (it is normalized)")
+            vecs = {k: v.unit_vector(c[k], f"{w}.{k}") for k in ("body_axis", "direction")}
             ak = CONSTRAINT_KEYS[kind][2]
             angle = v.number(c[ak], f"{w}.{ak}", lo=0.0, hi=180.0)
             con = (KeepOut if kind == "keep_out" else KeepIn)(vecs["body_axis"], vecs["direction"], angle)
@@ -431,7 +472,7 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
             if margin < 0:
                 unit = units_for(body.central_mu).unit(con.dimension)
                 v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g}"
-                          f"{' ' + unit if unit else ''})")
+                          f"{' ' + unit if unit else ''})", also=(label,))
         out.append(con)
     return tuple(out)
 
@@ -462,12 +503,16 @@ def _state(v: Validator, d, where, body, extent: float | None, all_required: boo
     """A state block; ``extent``: the distance from the central body's centre the body must keep
     (None: no central body).  Without ``all_required`` any component may be left out (free), but
     at least one must be given."""
-    v.mapping(d, where, STATE_KEYS, required=("position", "velocity", "angular_velocity") if all_required else ())
+    v.mapping(d, where, STATE_KEYS)
+    for k in STATE_KEYS if all_required else ():  # identity is written out: an attitude left out is never assumed
+        if k not in d:
+            v.fail(f"{where}.{k}", "missing required key (this state is complete: only the terminal state of a "
+                                   "smooth maneuver may leave components out, and those are free)")
     if not all_required and not any(k in d for k in STATE_KEYS):
         v.fail(where, f"expected at least one of {', '.join(STATE_KEYS)} (the others are then free)")
     x = v.vec3(d["position"], f"{where}.position") if "position" in d else None
     vel = v.vec3(d["velocity"], f"{where}.velocity") if "velocity" in d else None
-    R = v.attitude(d["attitude"], f"{where}.attitude") if "attitude" in d else (np.eye(3) if all_required else None)
+    R = v.attitude(d["attitude"], f"{where}.attitude") if "attitude" in d else None
     w = v.vec3(d["angular_velocity"], f"{where}.angular_velocity") if "angular_velocity" in d else None
     # The body's bounding sphere must lie outside the central body; this also keeps the potential
     # away from its singularity at the centre.
@@ -475,12 +520,13 @@ def _state(v: Validator, d, where, body, extent: float | None, all_required: boo
         what = "the dumbbell" if isinstance(body, Dumbbell) else "the body"
         v.fail(f"{where}.position",
                f"expected {what} outside the central body: |position| = {np.linalg.norm(x):.3g} (needs > "
-               f"{extent:.3g}: central_body_radius{' + length/2 + sphere_radius' if isinstance(body, Dumbbell) else ''})")
+               f"{extent:.3g}: central_body_radius{' + length/2 + sphere_radius' if isinstance(body, Dumbbell) else ''})",
+               also=("model.central_body_radius", "model.length", "model.sphere_radius"))
     with np.errstate(over="ignore", invalid="ignore"):
         momenta = np.concatenate([body.mass * (vel if vel is not None else np.zeros(3)),
                                   body.inertia @ (w if w is not None else np.zeros(3))])
     if not np.all(np.isfinite(momenta)):
-        v.fail(where, "expected finite momenta m v and J Omega (the values overflow)")
+        v.fail(where, "expected finite momenta m v and J Omega (the values overflow)", also=("model",))
     return StateSpec(x, vel, R, w)
 
 

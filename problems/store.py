@@ -19,10 +19,10 @@ import numpy as np
 
 from ..transcription.layout import pack_state
 from ..transcription.results import Iterate, Result, Solution, Trajectory, to_jsonable
-from ..transcription.solve import Comparison
+from ..transcription.solve import Comparison, compare
 from .io import write_json, write_npz, write_yaml
 from .maneuvers import Maneuver, parse_maneuver
-from .schema import ConfigError, read_yaml_file
+from .schema import ConfigError, describe, read_yaml_file
 
 #: margins of path constraints more negative than this are violations, smaller ones round-off, when
 #: the run's options are not at hand (with them: DirectOptions.terminal_tol, the direct method's own
@@ -100,14 +100,97 @@ class Run:
 
     @property
     def result(self) -> Solution | Comparison:
-        """The Solution, or the Comparison of a run with both methods."""
+        """The Solution, or the Comparison of a run with both methods -- compared again from the
+        Solutions read back (costs, controls, statuses), so that its verdict is always the one of what is
+        drawn, whatever summary.json's comparison block says."""
         if {"direct", "indirect"} <= set(self.solutions):
-            c = self.summary.get("comparison", {})
-            return Comparison(self.solutions["direct"], self.solutions["indirect"],
-                              float(c.get("cost_relative_difference", math.nan)),
-                              c.get("control_max_difference_relative"), bool(c.get("same_extremal", False)),
-                              str(c.get("verdict", "")))
+            return compare(self.solutions["direct"], self.solutions["indirect"])
         return next(iter(self.solutions.values()))
+
+
+# ----------------------------------------------------------------- summary.json, read back
+#: the fields of summary.json that figures and reports use, by kind: "number" (a JSON number, NaN and
+#: Infinity included, or null), "count" (an integer >= 0), str, bool.  Other fields are kept, unread.
+_NUMBERS = ("cost", "terminal_error", "build_s", "solve_s", "T", "h", "delta_v", "angular_impulse", "peak_force",
+            "peak_moment", "force_time_at_bound", "moment_time_at_bound", "max_orthogonality_error",
+            "max_determinant_error", "max_relative_energy_error", "final_relative_energy_error", "energy_initial",
+            "max_cayley_residual", "terminal_attitude_error_deg", "min_constraint_margin")
+BLOCK_FIELDS: dict[str, Any] = {"status": str, "message": str, "converged": bool, "cost": "number",
+                                "terminal_error": "number", "iterations": "count", "N": "count", "method": str,
+                                "solver": str, "discretization": str, **{k: "number" for k in _NUMBERS[2:]}}
+#: required in every method block (simulate: in the summary itself)
+BLOCK_REQUIRED = ("status", "message", "converged", "cost", "terminal_error", "iterations")
+RUN_FIELDS: dict[str, Any] = {"name": str, "config": str, "command": str, "discretization": str, "N": "count",
+                              "T": "number", "converged": bool}
+COMPARISON_FIELDS: dict[str, Any] = {"cost_relative_difference": "number", "control_max_difference_relative": "number",
+                                     "same_extremal": bool, "verdict": str}
+#: the progress records of ``history`` (transcription.results.Iterate)
+HISTORY_FIELDS: dict[str, Any] = {"iteration": "count", "trial": "count", "accepted": bool, "phase": str,
+                                  **{k: "number" for k in ("residual", "residual_inf", "cost", "dual", "step", "aux",
+                                                           "elapsed_s")}}
+_KINDS = {str: "a string", bool: "true or false", dict: "a JSON object", "number": "a number (or null)",
+          "count": "an integer >= 0"}
+
+
+def _fits(v, kind) -> bool:
+    if kind == "number":
+        return v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+    if kind == "count":
+        return isinstance(v, int) and not isinstance(v, bool) and v >= 0
+    return isinstance(v, kind)
+
+
+def _check_fields(d, where: str, fields: dict, required: tuple, fail) -> None:
+    if not isinstance(d, dict):
+        fail(where, f"expected a JSON object, got {describe(d)}")
+    for k in required:
+        if k not in d:
+            fail(f"{where}.{k}" if where else k, "missing required key")
+    for k, v in d.items():
+        kind = fields.get(k, "number" if isinstance(k, str) and k.startswith("min_margin_") else None)
+        if kind is not None and not _fits(v, kind):
+            fail(f"{where}.{k}" if where else k, f"expected {_KINDS[kind]}, got {describe(v)}")
+
+
+def check_summary(summ: Any, source: str, npz_methods: list[str]) -> None:
+    """Validate summary.json as read back (``npz_methods``: the methods whose .npz is present):
+    every field figures and reports use has its type, every status is a Result and agrees with its
+    ``converged`` flag, and the run's ``converged`` with its methods.  ConfigError naming ``source``
+    and the field otherwise -- a tampered or foreign file is refused, never drawn wrongly."""
+    def fail(where, msg):
+        raise ConfigError(source, where, msg)
+
+    _check_fields(summ, "", RUN_FIELDS, (), fail)
+    simulate = npz_methods == ["simulate"]
+    if simulate:
+        blocks = {"": summ}
+    else:
+        _check_fields(summ, "", {**RUN_FIELDS, "methods": dict}, ("methods", "converged"), fail)
+        blocks = {f"methods.{m}": b for m, b in summ["methods"].items()}
+        for m in npz_methods:
+            if m not in summ["methods"]:
+                fail(f"methods.{m}", f"missing required key ({NPZ[m]} is present)")
+        if "comparison" in summ:
+            _check_fields(summ["comparison"], "comparison", COMPARISON_FIELDS, (), fail)
+    agree = []
+    for where, b in blocks.items():
+        _check_fields(b, where, BLOCK_FIELDS, BLOCK_REQUIRED, fail)
+        at = f"{where}." if where else ""
+        if b["status"] not in Result._value2member_map_:
+            fail(f"{at}status", f"expected one of {', '.join(Result._value2member_map_)}, got {describe(b['status'])}")
+        if b["converged"] != Result(b["status"]).successful:
+            fail(f"{at}converged", f"expected {Result(b['status']).successful} for status {b['status']}, got "
+                                   f"{b['converged']}")
+        history = b.get("history", [])
+        if not isinstance(history, list):
+            fail(f"{at}history", f"expected a list of progress records, got {describe(history)}")
+        for i, rec in enumerate(history):
+            _check_fields(rec, f"{at}history[{i}]", HISTORY_FIELDS, ("iteration",), fail)
+        if b["status"] != Result.not_applicable.value:
+            agree.append(b["converged"])
+    if not simulate and summ["converged"] != (bool(agree) and all(agree)):
+        fail("converged", f"expected {bool(agree) and all(agree)} (the methods' converged flags), got "
+                          f"{summ['converged']}")
 
 
 def _solution(method: str, arrays: dict[str, np.ndarray], block: dict[str, Any], man: Maneuver) -> Solution:
@@ -115,22 +198,18 @@ def _solution(method: str, arrays: dict[str, np.ndarray], block: dict[str, Any],
     X = pack_state(arrays["x"], arrays["gamma"], arrays["R"], arrays["Pi"])
     controls = np.vstack([arrays["u_f"].T, arrays["u_m"].T]) if "u_f" in arrays else None
     impulses = {k: arrays[k] for k in _IMPULSE_KEYS if k in arrays} or None
-    try:
-        result = Result(block.get("status", "converged" if method == "simulate" else "solver_failed"))
-    except ValueError:
-        result = Result.solver_failed
+    result = Result(block["status"])  # check_summary: a Result's value
     hist = [Iterate(**{k: (math.nan if v is None else v) for k, v in h.items() if k in Iterate.__dataclass_fields__})
             for h in block.get("history", [])]
     known = ("method", "status", "message", "converged", "cost", "terminal_error", "iterations", "build_s", "solve_s",
              "solver", "history")
-    return Solution(method=method, solver=str(block.get("solver", "")), result=result,
-                    message=str(block.get("message", "")),
+    def number(key, default=math.nan):
+        return float(default if block.get(key) is None else block[key])
+
+    return Solution(method=method, solver=str(block.get("solver", "")), result=result, message=block["message"],
                     trajectory=Trajectory(t=arrays["t"], X=X, mass=model.mass, inertia=model.inertia),
-                    cost=float(block.get("cost", math.nan) if block.get("cost") is not None else math.nan),
-                    terminal_error=float(block.get("terminal_error") if block.get("terminal_error") is not None
-                                         else math.nan),
-                    iterations=int(block.get("iterations", 0)), build_s=float(block.get("build_s", 0.0)),
-                    solve_s=float(block.get("solve_s", 0.0)), problem=man.problem, controls=controls,
+                    cost=number("cost"), terminal_error=number("terminal_error"), iterations=block["iterations"],
+                    build_s=number("build_s", 0.0), solve_s=number("solve_s", 0.0), problem=man.problem, controls=controls,
                     impulses=impulses, costates=arrays.get("lam"), history=hist,
                     stats={k: v for k, v in block.items() if k not in known})
 
@@ -149,17 +228,14 @@ def read_run(results_dir: Path) -> Run:
     if not isinstance(summ, dict):
         raise ConfigError(str(d / "summary.json"), "", "expected a JSON object")
     man = parse_maneuver(read_yaml_file(d / "config.resolved.yaml"), str(d / "config.resolved.yaml"))
-    methods = summ.get("methods", {})
-    if not isinstance(methods, dict):
-        raise ConfigError(str(d / "summary.json"), "methods", "expected a JSON object")
+    present = [m for m, fname in NPZ.items() if (d / fname).is_file()]
+    if not present:
+        raise ConfigError(str(d), "", "no direct.npz, indirect.npz or trajectory.npz")
+    check_summary(summ, str(d / "summary.json"), present)
     sols = {}
-    for method, fname in NPZ.items():
-        p = d / fname
-        if not p.is_file():
-            continue
-        block = summ if method == "simulate" else methods.get(method, {})
-        if not isinstance(block, dict):
-            raise ConfigError(str(d / "summary.json"), f"methods.{method}", "expected a JSON object")
+    for method in present:
+        p = d / NPZ[method]
+        block = summ if method == "simulate" else summ["methods"][method]
         # A truncated or foreign file can fail in many ways (zipfile.BadZipFile, zlib.error, a
         # missing or misshapen array): any of them is one line naming the file, never a traceback.
         try:
@@ -172,9 +248,7 @@ def read_run(results_dir: Path) -> Run:
         except Exception as e:  # noqa: BLE001 - see above; KeyboardInterrupt is not an Exception
             raise ConfigError(str(p), "", f"unreadable or not written by se3ocp ({type(e).__name__}: "
                                           f"{str(e).splitlines()[0] if str(e) else 'no details'})") from None
-    if not sols:
-        raise ConfigError(str(d), "", "no direct.npz, indirect.npz or trajectory.npz")
     return Run(man, sols, summ)
 
 
-__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "path_tolerance", "read_run", "solutions_of", "summary", "to_jsonable", "write_run"]
+__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "path_tolerance", "read_run", "solutions_of", "summary", "to_jsonable", "write_run"]

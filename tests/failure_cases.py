@@ -9,7 +9,11 @@ must meet:
 * solver / integrator failure: exit code 1, ``summary.json`` with converged = false,
   the status (one of ``statuses`` if given) and a message, the ``.npz`` of the last
   iterate present and loadable, no traceback;
-* Ctrl-C: exit code 130, no traceback, no temporary file, every file present complete.
+* Ctrl-C: exit code 130, no traceback, no temporary file, every file present complete;
+* valid input once misread or crashed (issue 28): exit code 0, nothing on stderr, and what the run
+  must have read (``verify``);
+* a defect (an exception injected into the CLI's process): exit code 3, one line naming the file
+  that holds the traceback, no results directory.
 
 Every case runs in its own temporary directory (relative paths, so the messages in
 the table do not depend on where it ran), small N, one process at a time.
@@ -67,6 +71,13 @@ class Case:
     corrupt: (FILE, N_BYTES) for ``plot``/``report``: a complete results directory ``out`` is made
     first (a small solve of ``config`` with ``sets``), then out/FILE is cut to its first N_BYTES
     (prefill 'results'); the command runs on ``out`` and must name out/FILE and change nothing.
+    tamper: (JSON_PATH, VALUE or DELETE): instead of cutting it, out/summary.json's field at the dotted
+    path (list indices as numbers) is replaced (or deleted); made_by: the command that makes ``out``.
+    source: the source the message must name when it is not decided by the keys set (``--set`` for a
+    check of several fields one of which --set gave).  verify: a function of the Outcome returning
+    violations (a run that must succeed: what it must have read or computed).  inject: Python code run
+    in the CLI's process before it starts (a fault that no input can cause: the crash contract).
+    message_not_re: a pattern the failure message must not match.
     """
 
     id: str
@@ -89,6 +100,12 @@ class Case:
     interrupt: tuple | None = None
     group: str = "bad input"
     corrupt: tuple | None = None
+    tamper: tuple | None = None
+    made_by: str = "solve"
+    source: str | None = None
+    verify: object = None
+    inject: str | None = None
+    message_not_re: str | None = None
 
 
 E1, E2, E3, E4, FREE = ("e1_impulsive_tpbvp.yaml", "e2_impulsive_relaxed.yaml", "e3_inclination_change.yaml",
@@ -103,9 +120,10 @@ def _bad(id, cls, command, config, field, *sets, **kw):
                 out=command not in ("validate", "plot"), **kw)
 
 
-def _fail(id, cls, config, *sets, method="direct", args=(), statuses=(), **kw):
+def _fail(id, cls, config, *sets, method="direct", args=(), statuses=(), figures=False, **kw):
     command = "simulate" if method is None else "solve"
-    margs = () if method is None else ("--method", "indirect" if method == "indirect" else "direct", "--no-figures")
+    margs = () if method is None else ("--method", "indirect" if method == "indirect" else "direct") + \
+        (() if figures else ("--no-figures",))
     return Case(id=id, cls=cls, command=command, config=config, sets=tuple(sets), args=margs + tuple(args),
                 expect=1, statuses=tuple(statuses), method=method, group="solver failure", **kw)
 
@@ -117,6 +135,56 @@ IPOPT_MUMPS = {"mumps_permuting_scaling": 7, "mumps_pivot_order": 7, "mumps_scal
 #: MUMPS' own ordering and scaling: every option of MUMPS_DEFAULTS set back (a KeyError here when a tuned
 #: option is added without IPOPT's value of it)
 MUMPS_OWN = tuple(f"solver.direct.options.{k}={IPOPT_MUMPS[k]}" for k in MUMPS_DEFAULTS)
+
+SLEW = "slew_keep_out.yaml"
+#: slew_keep_out's keep-out source direction
+SOURCE = (0.7071067811865476, 0.7071067811865476, 0.2)
+
+
+def _keep_out_margin_as_read(o) -> list[str]:
+    """A keep-out cone whose body axis was given as [1e200, 0, 0]: the margin summary.json reports
+    must be that of the unit axis e1 on the re-simulated path (direct.npz), and the path outside."""
+    b = o.block()
+    if b is None or not (o.out_dir / "direct.npz").is_file():
+        return ["no summary.json block or direct.npz"]
+    with np.load(o.out_dir / "direct.npz") as z:
+        axis = z["R"][:, :, 0]  # R e1 at every node
+    s = np.array(SOURCE) / np.linalg.norm(SOURCE)
+    margin = float(np.degrees(np.arccos(np.clip(axis @ s, -1.0, 1.0))).min() - 20.0)
+    v = []
+    if not abs(b.get("min_margin_keep_out", np.nan) - margin) <= 1e-6:
+        v.append(f"summary.json reports a keep-out margin of {b.get('min_margin_keep_out')!r} deg; the path's is "
+                 f"{margin:.4g} deg")
+    if margin < -1e-6:
+        v.append(f"the re-simulated camera axis enters the cone by {-margin:.3g} deg")
+    return v
+
+
+#: the groups of issue 28's classes that are not bad input or failures
+VALID = "valid input (read as written, never a crash)"
+CRASH = "crash (a defect, told apart from a failure)"
+
+
+def _valid(id, cls, command, config, *sets, **kw):
+    """Valid input that was misread or crashed: it must run (exit 0) and read what was written."""
+    args = ("--method", "direct", "--no-figures") if command == "solve" else ()
+    return Case(id=id, cls=cls, command=command, config=config, sets=tuple(sets), args=args + tuple(kw.pop("args", ())),
+                expect=0, out=command != "validate", group=VALID,
+                method="direct" if command == "solve" else None, **kw)
+
+
+def _tampered(id, cls, command, path, value, field, made_by="solve"):
+    """``command`` (report or plot) on a finished run whose summary.json has ``path`` set to ``value``."""
+    return Case(id=id, cls=cls, command=command, config=E3, sets=("horizon.N=10",), out=False, prefill="results",
+                tamper=(path, value), made_by=made_by, field=field)
+
+
+#: a defect that no input causes: the CLI's solve replaced by a function that raises
+INJECT_CRASH = ("import se3ocp.problems.api as _api\n"
+                "def _defect(*a, **k):\n    raise ZeroDivisionError('an injected defect')\n"
+                "_api.solve = _defect\n")
+#: the message of a crash: one line naming the file that holds the traceback
+CRASH_RE = r"^se3ocp: internal error \(.+\); the details \(traceback\) are in (\S+) "
 
 CASES: list[Case] = [
     # ------------------------------------------------------------------ bad input: structure
@@ -164,7 +232,7 @@ CASES: list[Case] = [
     _bad("inside_body_initial", "initial position inside the dumbbell's own extent (|x + R rho| can vanish)",
          "validate", E3, "initial.position", "initial.position=[0.01, 0, 0]"),
     _bad("inside_central_body", "initial position inside the central body", "validate", E3, "initial.position",
-         "model.central_body_radius=1.5"),
+         "model.central_body_radius=1.5", source="--set"),
     _bad("terminal_inside", "terminal position inside the central body", "validate", E3, "terminal.position",
          "terminal.position=[0, 0, 0.05]"),
     _bad("orbit_inside", "target orbit inside the central body", "validate", E2, "terminal.orbit.radius",
@@ -178,9 +246,9 @@ CASES: list[Case] = [
     _bad("bound_norm_negative", "negative norm bound", "validate", E3, "control.bounds.force.norm",
          "control.bounds={force: {norm: -2}}"),
     _bad("time_objective_fixed_T", "time objective with a fixed final time", "validate", E3, "horizon.T",
-         "control={kind: smooth, objective: time, bounds: {force: {norm: 10}, moment: {norm: 1}}}"),
+         "control={kind: smooth, objective: time, bounds: {force: {norm: 10}, moment: {norm: 1}}}", source="--set"),
     _bad("time_objective_unbounded", "time objective without bounds", "validate", E3, "control.bounds",
-         "control.objective=time"),
+         "control.objective=time", source="--set"),
     _bad("free_T_min_above_max", "free final time with min > max", "validate", E3, "horizon.T",
          "horizon.T={free: true, guess: 0.5, min: 0.6, max: 0.4}"),
     _bad("keep_out_violated_at_start", "keep-out cone the initial attitude already violates", "validate", E3,
@@ -256,6 +324,42 @@ CASES: list[Case] = [
          field="name"),
     _bad("out_exists", "results dir exists, no --force", "simulate", FREE, None, "horizon.N=20", prefill="dir"),
     _bad("out_is_file", "--out is an existing file", "simulate", FREE, None, "horizon.N=20", prefill="file"),
+    # ------------------------------------------------------------- bad input: round 3 (issue 28)
+    _bad("impulsive_terminal_no_attitude", "impulsive terminal state without an attitude (was read as identity)",
+         "validate", E1, "terminal.attitude", edit={"terminal.attitude": DELETE}, note="terminal.attitude deleted"),
+    Case(id="sweep_overlapping_keys", cls="sweep axis inside the sweep's set (control.bounds.moment.norm in control.bounds)",
+         command="sweep", config="overlap.yaml", field="control.bounds.moment.norm lies inside control.bounds",
+         raw=f"name: overlap\nbase: {CONFIGS / E3}\nset: {{horizon.N: 10, control.bounds: {{force: {{norm: 100}}}}}}\n"
+             f"axes:\n  control.bounds.moment.norm: [0.001, 1.0]\n", note="base: the E3 file"),
+    _bad("ipopt_int_overflow", "raw IPOPT integer option beyond a C int (max_iter 1e30 ran 0 iterations)", "validate", E3,
+         "solver.direct.options.max_iter", "solver.direct.options.max_iter=1e30"),
+    _bad("ipopt_int_wraps", "raw IPOPT integer option that wraps around a C int (acceptable_iter 99999999999)",
+         "validate", E3, "solver.direct.options.acceptable_iter", "solver.direct.options.acceptable_iter=99999999999"),
+    _bad("ipopt_output_file_no_dir", "raw IPOPT output_file in a directory that does not exist", "solve", E3,
+         "solver.direct.options.output_file", "horizon.N=10", "solver.direct.options.output_file=no_such_dir/ipopt.out",
+         args=("--method", "direct", "--no-figures")),
+    _bad("rate_limit_huge", "max_angular_rate of 1e200 (its square overflows)", "validate", E3, "constraints[0].value",
+         "constraints=[{kind: max_angular_rate, value: 1e200}]"),
+    _bad("inertia_huge", "inertia of 1e308 (overflowed the eigenvalue routine)", "validate", E3, "model.inertia",
+         "model={kind: rigid_body, inertia: [1e308, 1e308, 1e308]}"),
+    _bad("inertia_triangle", "principal moments violating J1 + J2 >= J3 (no rigid body has them)", "validate", E3,
+         "model.inertia", "model={kind: rigid_body, inertia: [1, 1, 3]}"),
+    _bad("both_controls_removed", "force and moment both removed (norm 0 on each)", "validate", E3, "control.bounds",
+         "control.bounds={force: {norm: 0}, moment: {norm: 0}}"),
+    _bad("bound_denormal", "a denormal norm bound (1e-310)", "validate", E3, "control.bounds.force.norm",
+         "control.bounds={force: {norm: 1e-310}}"),
+    _bad("rate_limit_denormal", "a denormal rate limit (1e-310)", "validate", E3, "constraints[0].value",
+         "constraints=[{kind: max_angular_rate, value: 1e-310}]"),
+    _bad("set_list_index", "--set on a list element (the message named the file)", "validate", SLEW,
+         "constraints[0].body_axis", "constraints[0].body_axis=[1, 0, 0]"),
+    _tampered("report_cost_boolean", "report of a run whose summary.json cost is a boolean (was drawn as 1, 'agree')",
+              "report", "methods.direct.cost", True, "methods.direct.cost", made_by="compare"),
+    _tampered("report_comparison_string", "report of a run whose comparison holds a string for a number", "report",
+              "comparison.cost_relative_difference", "small", "comparison.cost_relative_difference", made_by="compare"),
+    _tampered("report_status_number", "report of a run whose status is a number (a converged run was called NOT "
+              "CONVERGED)", "report", "methods.direct.status", 3, "methods.direct.status"),
+    _tampered("plot_history_not_numbers", "plot of a run whose history holds words", "plot",
+              "methods.direct.history.0.residual", "large", "methods.direct.history[0].residual"),
     # ------------------------------------------------------------------ solver / integrator failures
     _fail("ipopt_max_iter", "IPOPT max_iter reached", E3, "horizon.N=20", "solver.direct.max_iter=2",
           statuses=("max_iterations",)),
@@ -301,6 +405,37 @@ CASES: list[Case] = [
           "initial.angular_velocity=[0, 0, 3000]", "solver.direct.max_iter=30", message_re=SMALLER_H),
     _fail("cayley_indirect", "Cayley solve not converging (solve, indirect)", E3, "horizon.N=10",
           "initial.angular_velocity=[0, 0, 3000]", method="indirect", message_re=SMALLER_H),
+    _fail("infeasible_rate_limit", "rate limit below what the rest-to-rest slew needs in T (first order)", SLEW,
+          "horizon.N=20", "discretization=first_order", "constraints=[{kind: max_angular_rate, value: 0.05}]",
+          statuses=("infeasible",), message_re=r"provably infeasible.*rate limit"),
+    _fail("infeasible_torque", "moment bound below what the slew needs in T", SLEW, "horizon.N=20",
+          "control.bounds={force: {norm: 0}, moment: {norm: 0.01}}", statuses=("infeasible",),
+          message_re=r"provably infeasible.*moment bound"),
+    _fail("infeasible_delta_v", "force bound below the momentum change the transfer needs (no gravity)", E3,
+          "horizon.N=20", "gravity={kind: none}", "control.bounds={force: {norm: 10}}", statuses=("infeasible",),
+          message_re=r"provably infeasible.*linear momentum"),
+    _fail("nonfinite_j2_figures", "non-finite solve (J2 = 1e300) with figures: the exit-1 record must be written",
+          E3, "horizon.N=10", "gravity={kind: j2, J2: 1e300, radius: 0.5}", figures=True),
+    _fail("nonfinite_mass_denormal", "denormal mass (1e-310): non_finite, not the 'smaller step h' hint", E3,
+          "horizon.N=10", "model.mass=1e-310", statuses=("non_finite",), message_not_re=SMALLER_H),
+    # ------------------------------------------------------ valid input: read as written, never a crash
+    _valid("cone_axis_huge", "keep-out body axis [1e200, 0, 0] (the cone was dropped, +70 deg reported)", "solve", SLEW,
+           "horizon.N=30", f"constraints=[{{kind: keep_out, body_axis: [1e200, 0, 0], direction: {list(SOURCE)}, "
+           "min_angle_deg: 20}]", verify=_keep_out_margin_as_read),
+    _valid("keep_in_axis_huge", "keep-in body axis [1e200, 0, 0] (a false violation at the start)", "validate", SLEW,
+           "constraints=[{kind: keep_in, body_axis: [1e200, 0, 0], direction: [1, 1, 0], max_angle_deg: 60}]"),
+    _valid("direction_tiny", "keep-out body axis [1e-200, 0, 0] (was refused as zero)", "validate", SLEW,
+           f"constraints=[{{kind: keep_out, body_axis: [1e-200, 0, 0], direction: {list(SOURCE)}, min_angle_deg: 20}}]"),
+    _valid("orbit_normal_tiny", "orbit normal [0, 0, 1e-13] (was refused as zero)", "validate", E2,
+           "terminal.orbit.normal=[0, 0, 1e-13]"),
+    _valid("fuel_box_bounds", "fuel objective with box bounds (crashed on a Function name)", "solve", E3, "horizon.N=10",
+           "control.objective=fuel", "control.bounds={force: {box: [30, 30, 30]}, moment: {box: [1, 1, 1]}}"),
+    _valid("fuel_unbounded", "fuel objective without bounds (crashed on a Function name)", "solve", E3, "horizon.N=10",
+           "control.objective=fuel"),
+    # --------------------------------------------------------------------------- crash
+    Case(id="crash_injected", cls="an unexpected exception (a defect injected into solve)", command="solve", config=E3,
+         sets=("horizon.N=10",), args=("--method", "direct", "--no-figures"), expect=3, inject=INJECT_CRASH,
+         group=CRASH),
     # ------------------------------------------------------------------------------- Ctrl-C
     Case(id="sigint_startup", cls="Ctrl-C during start-up (importing NumPy/CasADi)", command="validate", config=E3,
          out=False, expect=130, interrupt=("pending",), group="interrupt"),
@@ -332,6 +467,8 @@ class Outcome:
     seconds: float
     workdir: Path
     summary: dict | None = None
+    #: {file name: bytes} of the results directory before the command (prefill 'results')
+    before: dict | None = None
 
     @property
     def traceback(self) -> bool:
@@ -384,7 +521,7 @@ def prepare(case: Case, workdir: Path) -> str:
 
 
 def command_line(case: Case, cfg: str) -> list[str]:
-    if case.corrupt is not None:
+    if case.prefill == "results":
         return [case.command, "out"]
     argv = [case.command, cfg]
     for s in case.sets:
@@ -392,7 +529,7 @@ def command_line(case: Case, cfg: str) -> list[str]:
     argv += list(case.args)
     if case.out:
         argv += ["--out", "out"]
-    if case.interrupt is None and case.command != "plot":
+    if case.interrupt is None and case.command != "plot" and case.expect != 0:
         argv += ["--quiet"]
     return argv
 
@@ -407,24 +544,36 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
         (workdir / "out" / "earlier_run.txt").write_text("results of an earlier run\n")
     elif case.prefill == "file":
         (workdir / "out").write_text("not a directory\n")
-    elif case.prefill == "results":  # a complete run, then one of its files cut short
+    elif case.prefill == "results":  # a complete run, then one of its files cut short or tampered with
         sets = [a for s in case.sets for a in ("--set", s)]
-        subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "solve", cfg, *sets, "--out", "out", "--quiet",
-                        "--no-figures"], cwd=workdir, check=True, capture_output=True, timeout=timeout)
-        name, keep = case.corrupt
-        f = workdir / "out" / name
-        f.write_bytes(f.read_bytes()[:keep])
+        r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", case.made_by, cfg, *sets, "--out", "out",
+                            "--quiet", "--no-figures"], cwd=workdir, capture_output=True, timeout=timeout)
+        assert r.returncode in (0, 1) and (workdir / "out" / "summary.json").is_file(), r.stderr
+        if case.corrupt is not None:
+            name, keep = case.corrupt
+            f = workdir / "out" / name
+            f.write_bytes(f.read_bytes()[:keep])
+        else:
+            tamper_summary(workdir / "out" / "summary.json", *case.tamper)
+    before = snapshot(workdir / "out") if case.prefill == "results" else None
     argv = command_line(case, cfg)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
-    if case.interrupt is None:
+    if case.inject is not None:  # the CLI in a process whose code was changed first; its temporary files here
+        code = f"{case.inject}\nimport sys\nfrom se3ocp.problems.cli import main\nsys.exit(main({argv!r}))\n"
+        (workdir / "tmp").mkdir(exist_ok=True)
+        r = subprocess.run([sys.executable, "-c", code], cwd=workdir, capture_output=True, text=True, timeout=timeout,
+                           env=dict(env, TMPDIR=str(workdir / "tmp")))
+        rc, out, err = r.returncode, r.stdout, r.stderr
+    elif case.interrupt is None:
         r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", *argv], cwd=workdir, capture_output=True, text=True,
                            timeout=timeout, env=env)
         rc, out, err = r.returncode, r.stdout, r.stderr
     else:
         rc, out, err = _run_interrupted(case, argv, workdir, env, timeout)
     secs = time.perf_counter() - t0
-    o = Outcome(case=case, argv=argv, returncode=rc, stdout=out, stderr=err, seconds=secs, workdir=workdir)
+    o = Outcome(case=case, argv=argv, returncode=rc, stdout=out, stderr=err, seconds=secs, workdir=workdir,
+                before=before)
     p = o.out_dir / "summary.json"
     if p.is_file():
         try:
@@ -432,6 +581,27 @@ def run_case(case: Case, workdir: Path | str, timeout: float = 600) -> Outcome:
         except ValueError:
             o.summary = None
     return o
+
+
+def tamper_summary(path: Path, where: str, value) -> None:
+    """Set (or with DELETE remove) the field at the dotted path ``where`` of a JSON file (a number
+    as a part indexes a list)."""
+    doc = json.loads(path.read_text())
+    *parents, last = where.split(".")
+    node = doc
+    for part in parents:
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    key = int(last) if isinstance(node, list) else last
+    if value == DELETE:
+        del node[key]
+    else:
+        node[key] = value
+    path.write_text(json.dumps(doc, indent=2))
+
+
+def snapshot(d: Path) -> dict:
+    """{relative file name: bytes} of every file under ``d``."""
+    return {str(f.relative_to(d)): f.read_bytes() for f in sorted(d.rglob("*")) if f.is_file()} if d.is_dir() else {}
 
 
 def _block_sigint():  # the child starts with SIGINT blocked: a Ctrl-C sent at once stays pending
@@ -534,8 +704,8 @@ def check(o: Outcome) -> list[str]:
             v.append(f"{len(lines)} lines on stderr, expected exactly 1")
         elif c.prefill is None:
             keys = [a.partition("=")[0].strip() for a in c.sets]
-            by_set = c.field is not None and any(c.field == k or c.field.startswith((k + ".", k + "[")) for k in keys)
-            src = "--set" if c.id.startswith("set_") or by_set else prepare_name(c)
+            by_set = c.field is not None and any(_inside(c.field, k) or _inside(k, c.field) for k in keys)
+            src = c.source or ("--set" if c.id.startswith("set_") or by_set else prepare_name(c))
             if f"{src}: " not in lines[0]:
                 v.append(f"message does not name the file {src!r}")
             if c.field is not None and c.field not in lines[0]:
@@ -543,6 +713,10 @@ def check(o: Outcome) -> list[str]:
         elif c.prefill == "results":
             if f"{prepare_name(c)}: " not in lines[0]:
                 v.append(f"message does not name the file {prepare_name(c)!r}")
+            if c.tamper is not None and c.field not in lines[0]:
+                v.append(f"message does not name the field {c.field!r}")
+            if o.before is not None and snapshot(o.out_dir) != o.before:
+                v.append("the results directory was changed")
         elif "out" not in (lines[0] if lines else ""):
             v.append("message does not name the results directory")
     elif c.expect == 1:
@@ -557,10 +731,30 @@ def check(o: Outcome) -> list[str]:
             if not b.get("message"):
                 v.append("no message")
             if c.message_re and not re.search(c.message_re, str(b.get("message", "")), re.I):
-                v.append("message does not suggest a smaller step h (increase horizon.N)")
+                v.append(f"message does not match {c.message_re!r}")
+            if c.message_not_re and re.search(c.message_not_re, str(b.get("message", "")), re.I):
+                v.append(f"message matches {c.message_not_re!r} (a misleading hint)")
         npz = o.out_dir / ("trajectory.npz" if c.method is None else f"{c.method}.npz")
         if not npz.is_file():
             v.append(f"{npz.name} (last iterate) not written")
+    elif c.expect == 0:
+        extra = stderr_lines(o, drop_casadi_warnings=True)
+        if extra:
+            v.append(f"{len(extra)} lines on stderr (a run that succeeds prints none): {extra[0][:80]!r}")
+        b = o.block() if c.command in ("solve", "compare", "simulate") else None
+        if c.command in ("solve", "compare", "simulate") and (b is None or b.get("converged") is not True):
+            v.append("no converged summary.json")
+        if c.verify is not None and o.returncode == 0:
+            v += c.verify(o)
+    elif c.expect == 3:
+        lines = stderr_lines(o)
+        m = re.search(CRASH_RE, lines[0]) if len(lines) == 1 else None
+        if m is None:
+            v.append(f"{len(lines)} lines on stderr, expected one matching {CRASH_RE!r}")
+        elif not (Path(m.group(1)).is_file() and TRACEBACK in Path(m.group(1)).read_text()):
+            v.append(f"{m.group(1)} does not hold the traceback")
+        if o.out_dir.exists():
+            v.append("a crashed run left a results directory")
     elif c.expect == 130:
         if "nothing half-written" not in (o.stderr.strip().splitlines() or [""])[-1] and o.returncode == 130:
             v.append("no interruption message")
@@ -574,10 +768,15 @@ def check(o: Outcome) -> list[str]:
     return v
 
 
+def _inside(a: str, b: str) -> bool:
+    """Field ``a`` is ``b`` or lies inside it."""
+    return a == b or a.startswith((b + ".", b + "["))
+
+
 def prepare_name(c: Case) -> str:
     """The config path as passed on the command line (what the message must name)."""
-    if c.corrupt is not None:
-        return f"out/{c.corrupt[0]}"
+    if c.prefill == "results":
+        return f"out/{c.corrupt[0] if c.corrupt is not None else 'summary.json'}"
     if c.missing or c.raw is not None:
         return c.config
     if c.edit:
@@ -595,6 +794,10 @@ def message_of(o: Outcome) -> str:
         pre = "(not interrupted) " if o.case.expect == 130 else ""
         return f"{pre}`{b.get('status')}`: {b.get('message')}"
     lines = stderr_lines(o, drop_casadi_warnings=True)
+    if not lines and o.returncode == 0:
+        lines = [ln for ln in o.stdout.splitlines() if ln.strip()]
+    if o.returncode == 3 and lines:  # the crash file's name depends on the run
+        return re.sub(r"\S*se3ocp-crash-\S+\.txt", "$TMPDIR/se3ocp-crash-....txt", lines[-1])
     return lines[-1] if lines else ""
 
 
@@ -622,8 +825,12 @@ def render(outcomes: list[Outcome]) -> str:
         "CLI in a fresh temporary directory with small N; paths are relative to it. Contract: bad input ->",
         "exit 2 and one line `FILE: FIELD: expected ...` on stderr; solver or integrator failure -> exit 1,",
         "`summary.json` with `converged: false`, status and message, the last iterate's `.npz` written;",
-        "Ctrl-C -> exit 130, no temporary or truncated file; never a traceback. CasADi warning lines on",
-        "stderr are counted, not shown. The *contract* column lists what a class does not meet today.",
+        "Ctrl-C -> exit 130, no temporary or truncated file; valid input that was once misread or crashed",
+        "-> exit 0, read as written (what it must have read is checked); a defect (an exception nobody",
+        "expected, injected here) -> exit 3 and one line naming the file that holds the traceback, no",
+        "results directory; never a traceback on stderr. A message caused by a `--set` value names",
+        "`--set`. CasADi warning lines on stderr are counted, not shown. The *contract* column lists what",
+        "a class does not meet today.",
         "",
         f"**{n} classes tried; {len(tb)} produced a traceback" + (f" ({', '.join(tb)})" if tb else "")
         + f"; {len(broken)} do not meet the contract" + (f" ({', '.join(broken)})" if broken else "") + ".**",

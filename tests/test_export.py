@@ -301,7 +301,6 @@ def test_refusals_are_one_line(tmp_path):
 def test_quaternion_convention_on_a_known_attitude():
     """Body x along inertial y (R = Rz(90)): the CCSDS quaternion (A2B, scalar last) is
     (0, 0, sin 45, cos 45), whose matrix maps the inertial y axis to the body x axis."""
-    from se3ocp.problems.export import QUATERNION_CONVENTION  # noqa: F401 - the comment the files carry
     from se3ocp.problems.plots import quaternions
 
     R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])

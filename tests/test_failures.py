@@ -7,7 +7,8 @@ The classes and their contract live in tests/failure_cases.py (``CASES``, ``run_
 * bad input: exit 2, exactly one stderr line naming FILE: FIELD, no traceback, nothing written;
 * solver / integrator failure: exit 1, summary.json flagged converged = false with status
   and message, the last iterate's .npz written, no traceback;
-* Ctrl-C: exit 130, no traceback, no temporary file, every file present complete.
+* Ctrl-C: exit 130, no traceback, no temporary file, every file present complete;
+* valid input once misread or crashed: exit 0, read as written; a defect: exit 3, one line.
 
 Classes not handled correctly today are strict xfails whose reason names the place to fix;
 when the owner's fix lands the xfail turns into a failure (XPASS) and the marker goes.
@@ -51,11 +52,27 @@ def test_bad_input_exit_2_one_line(case, tmp_path):
     if case.prefill == "dir":  # the earlier run is left alone
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["earlier_run.txt"]
     if case.prefill == "results":  # the damaged run is left as it was: no copy, no temporary, no file added
-        name, keep = case.corrupt
-        assert (tmp_path / "out" / name).stat().st_size == keep
-        assert sorted(p.name for p in (tmp_path / "out").iterdir()) == \
-            ["config.resolved.yaml", "direct.npz", "report.html", "summary.json"]
+        assert o.before and ft.snapshot(tmp_path / "out") == o.before
+        if case.corrupt is not None:
+            name, keep = case.corrupt
+            assert (tmp_path / "out" / name).stat().st_size == keep
         assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+@pytest.mark.parametrize("case", _params(ft.VALID))
+def test_valid_input_is_read_as_written_and_runs(case, tmp_path):
+    """Issue 28: directions of any magnitude, fuel without norm bounds -- misread or crashed before."""
+    o = ft.run_case(case, tmp_path)
+    assert ft.check(o) == [], _explain(o)
+
+
+@pytest.mark.parametrize("case", _params(ft.CRASH))
+def test_a_defect_exits_3_with_its_traceback_in_a_file(case, tmp_path):
+    """Issue 28: an unexpected exception is one line naming the file with the traceback, exit 3 (not 1, a
+    failure), and no results directory."""
+    o = ft.run_case(case, tmp_path)
+    assert ft.check(o) == [], _explain(o)
+    assert o.returncode == 3 and "Traceback" not in o.stderr and not (tmp_path / "out").exists()
 
 
 def test_every_bad_input_class_of_issue_7_is_in_the_catalogue():

@@ -1,4 +1,4 @@
-"""The YAML layer (problems/schema.py) against hostile input: every bad file or --set value is
+"""The YAML layer (problems/yamlfile.py, problems/schema.py) against hostile input: every bad file or --set value is
 one ConfigError line, bounded by the loader's limits; YAML 1.2 core schema; Validator edge cases."""
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from se3ocp.problems import schema
+from se3ocp.problems import yamlfile
 from se3ocp.problems.schema import (MAX_DEPTH, MAX_INTEGER, ConfigError, Validator, apply_override,
                                     blame_overrides, describe, load_with_overrides, read_yaml_file, yaml_dump,
                                     yaml_load)
@@ -23,13 +23,13 @@ CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 E3 = CONFIGS / "e3_inclination_change.yaml"
 
 #: the event sources the loader can use: libyaml's C parser (if PyYAML has it) and PyYAML's own
-PARSERS = [p for p in (schema._CParser, schema._PyParser) if p is not None]
+PARSERS = [p for p in (yamlfile._CParser, yamlfile._PyParser) if p is not None]
 
 
 @pytest.fixture(params=PARSERS, ids=lambda p: p.__name__)
 def parser(request, monkeypatch):
     """Run the test with each event source: the checks must not depend on which one is used."""
-    monkeypatch.setattr(schema, "_Parser", request.param)
+    monkeypatch.setattr(yamlfile, "_Parser", request.param)
     return request.param
 
 
@@ -89,18 +89,18 @@ def test_size_limit_refuses_before_reading(tmp_path):
     with pytest.raises(ConfigError) as ei:
         read_yaml_file(p)
     msg = one_line(ei.value, str(p))
-    assert msg == f"{p}: <document>: file too large (50000000 bytes; the limit is 1000000 bytes = 1 MB, schema.MAX_FILE_BYTES)"
+    assert msg == f"{p}: <document>: file too large (50000000 bytes; the limit is 1000000 bytes = 1 MB, yamlfile.MAX_FILE_BYTES)"
 
 
 def test_size_limit_bounds_reading_files_without_a_size():
     with pytest.raises(ConfigError) as ei:
         read_yaml_file("/dev/zero")  # endless: only MAX_FILE_BYTES + 1 bytes are read
     assert one_line(ei.value, "/dev/zero").endswith("file too large (the limit is 1000000 bytes = 1 MB, "
-                                                    "schema.MAX_FILE_BYTES)")
+                                                    "yamlfile.MAX_FILE_BYTES)")
 
 
 def test_size_limit_applies_to_text_and_is_exact(monkeypatch):
-    monkeypatch.setattr(schema, "MAX_FILE_BYTES", 20)
+    monkeypatch.setattr(yamlfile, "MAX_FILE_BYTES", 20)
     assert yaml_load("a: '" + "x" * 14 + "'") == {"a": "x" * 14}  # 20 bytes
     with pytest.raises(ConfigError, match="too large \\(21 bytes; the limit is 20 bytes"):
         yaml_load("a: '" + "é" * 8 + "'")  # 13 characters, 21 bytes
@@ -139,11 +139,11 @@ def test_alias_bomb_is_rejected_at_the_alias_that_crosses_the_limit(tmp_path, pa
     assert len(BILLION_LAUGHS) < 2048  # expands to 9**9 = 387 million strings
     msg = file_error(tmp_path, BILLION_LAUGHS.encode())
     # rejected while reading line 6 (9**6 * ... > MAX_NODES): nothing was expanded, only counted
-    assert ": line 6, column " in msg and "more than 200000 values" in msg and "schema.MAX_NODES" in msg, msg
+    assert ": line 6, column " in msg and "more than 200000 values" in msg and "yamlfile.MAX_NODES" in msg, msg
 
 
 def test_node_limit_counts_aliases_as_copies(monkeypatch, parser):
-    monkeypatch.setattr(schema, "MAX_NODES", 10)
+    monkeypatch.setattr(yamlfile, "MAX_NODES", 10)
     assert yaml_load("[" + ",".join("1" * 9) + "]") == [1] * 9  # 10 values with the list
     with pytest.raises(ConfigError, match="more than 10 values"):
         yaml_load("[" + ",".join("1" * 10) + "]")
@@ -447,15 +447,15 @@ def test_any_bytes_give_a_document_or_one_config_error(which, data, tmp_path_fac
     bounded by the limits (size, depth, values), not asserted."""
     p = tmp_path_factory.mktemp("fuzz") / "fuzz.yaml"
     p.write_bytes(data)
-    old = schema._Parser
-    schema._Parser = which
+    old = yamlfile._Parser
+    yamlfile._Parser = which
     try:
         doc = read_yaml_file(p)
     except ConfigError as e:
         one_line(e, str(p))
         return
     finally:
-        schema._Parser = old
+        yamlfile._Parser = old
     assert only_core_types(doc)
 
 

@@ -3,7 +3,7 @@
 SO(3) (symbolic CasADi SX/MX and numeric NumPy alike): hat/vee, the Cayley map and its
 inverse, exp/log (log also at exactly pi, with a chosen sign), the inverse right Jacobian,
 elementary rotations, orthogonality errors, rotation angles, quaternions, geodesic interpolation,
-orthonormalization, the Cayley vectors of a sequence of attitudes, and the one NumPy-or-CasADi check
+orthonormalization, unit directions, the Cayley vectors of a sequence of attitudes, and the one NumPy-or-CasADi check
 (:func:`is_symbolic`).  (The charts of the state space, built from these maps, are in
 :mod:`transcription.layout`.)
 
@@ -304,6 +304,24 @@ def orthogonality_error(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     R = np.asarray(R, dtype=float)
     E = np.einsum("...ji,...jk->...ik", R, R) - np.eye(3)
     return np.linalg.norm(E, axis=(-2, -1)), np.abs(np.linalg.det(R) - 1.0)
+
+
+def unit_direction(v) -> np.ndarray | None:
+    """v / |v| for a direction given as 3 numbers of any magnitude (NumPy), or None if it has none.
+
+    The vector is divided by its largest |component| before the norm is taken, so that neither
+    |v|^2 overflows (components of 1e200 would give |v| = inf and a zero "unit" vector) nor
+    underflows (1e-200 would give |v| = 0): every finite non-zero vector, denormal components
+    included, has its direction.  None: not 3 finite numbers, or exactly zero.  The one place
+    where a direction given by a user (a cone's axes, an orbit's normal, a rotation axis) is read."""
+    a = np.asarray(v, dtype=float).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        return None
+    scale = float(np.max(np.abs(a)))
+    if scale == 0.0:
+        return None
+    u = a / scale
+    return u / np.linalg.norm(u)
 
 
 def nearest_rotation(R: np.ndarray) -> np.ndarray:

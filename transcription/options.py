@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import io
 import math
+import os
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Mapping
@@ -23,6 +24,8 @@ import casadi as ca
 
 #: integer options are bounded (a typo such as 1e30 iterations must not overflow into 0)
 MAX_INT_OPTION = 10**7
+#: the largest C int: what the solvers' integer options hold
+C_INT_MAX = 2**31 - 1
 
 
 class OptionError(ValueError):
@@ -163,7 +166,17 @@ def _check_raw_option(solver: str, k: str, v, name: str) -> None:
                                              "option file")
         if not isinstance(v, str) or not v.strip() or "\0" in v:
             raise OptionError(f"{name}.{k}", f"expected {_FILE_OPTIONS[k]}, got {describe(v)}")
+        why = _unwritable(v)
+        if why:
+            raise OptionError(f"{name}.{k}", f"expected a file that can be written ({solver} cannot start otherwise), "
+                                             f"got {v!r}: {why}")
         return
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and _option_kind(solver, k) == "int":
+        # CasADi passes an integer option to the solver as a C int, silently truncated or wrapped
+        # (max_iter 2.5 -> 2, 1e30 -> 0, 2^32 + 5 -> 5): refuse what does not convert exactly
+        if not (float(v).is_integer() and -C_INT_MAX - 1 <= v <= C_INT_MAX):
+            raise OptionError(f"{name}.{k}", f"expected an integer from {-C_INT_MAX - 1} to {C_INT_MAX} ({solver}'s "
+                                             f"int), got {show(v)}")
     x = ca.SX.sym("x")
     quiet = {"ipopt": {"print_level": 0, "sb": "yes"}, "fatrop": {"print_level": 0}}[solver]
     try:
@@ -180,6 +193,42 @@ def _check_raw_option(solver: str, k: str, v, name: str) -> None:
     if status == "Invalid_Option":
         raise OptionError(f"{name}.{k}", f"{solver} cannot use the value {v!r} here (Invalid_Option: e.g. a linear "
                                          "solver that is not installed)")
+
+
+def _unwritable(path: str) -> str:
+    """Why ``path`` cannot be opened for writing ('' if it can): an existing file is checked for
+    access, a new one is created and removed again (so nothing is left behind)."""
+    if os.path.isdir(path):
+        return "it is a directory"
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    except FileExistsError:
+        return "" if os.access(path, os.W_OK) else "no permission to write it"
+    except OSError as e:
+        return e.strerror or str(e)
+    os.close(fd)
+    os.unlink(path)
+    return ""
+
+
+@lru_cache(maxsize=4096)
+def _option_kind(solver: str, k: str) -> str:
+    """'int', 'float' or 'other': the type the solver declares for option ``k``, asked by giving it a
+    word (CasADi then names the type it expected: is_int / is_double; milliseconds, once per option)."""
+    import contextlib
+    import io
+
+    import casadi as ca
+
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # IPOPT lists a string option's settings on stdout
+            ca.nlpsol("option_kind", solver, {"x": ca.SX.sym("x"), "f": ca.SX(0)},
+                      {solver: {"print_level": 0, **({"sb": "yes"} if solver == "ipopt" else {}), k: "?"},
+                       "print_time": False})
+    except RuntimeError as exc:
+        text = str(exc)
+        return "int" if "is_int" in text else "float" if "is_double" in text else "other"
+    return "other"
 
 
 class Options:

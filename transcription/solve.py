@@ -16,10 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .feasibility import necessary_conditions, step_failure
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
 from .lie import orthogonality_error
-from .methods.base import Method, Progress
+from .methods.base import Method, Progress, failed_solution
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
@@ -156,6 +157,10 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     reason = not_covered(problem, method)
     if reason:
         raise ValueError(reason)
+    reason = necessary_conditions(problem)
+    if reason is not None:  # provably no solution: said at once, with the reason (feasibility.py)
+        out = _infeasible(problem, method, reason)
+        return raise_unconverged(out) if throw else out
     direct = direct or DirectOptions()
     indirect = indirect or IndirectOptions()
     warm, note = as_warm_start(warm_start)
@@ -179,6 +184,16 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
             s.message += f"; {note}"
     return raise_unconverged(out) if throw else out
+
+
+def _infeasible(problem: Problem, method: str, reason: str) -> Solution | Comparison:
+    """The Solution(s) of a problem a necessary condition rules out (feasibility.py): Result.infeasible, the
+    reason, no iteration; the trajectory is the free motion from the initial state (what the record can show)."""
+    def one(name: str) -> Solution:
+        return failed_solution(problem, name, "necessary conditions", Result.infeasible,
+                               f"provably infeasible (checked before solving; no solver was run): {reason}")
+
+    return compare(one("direct"), one("indirect")) if method == "both" else one(method)
 
 
 def raise_unconverged(out: Solution | Comparison) -> Solution | Comparison:
@@ -210,7 +225,7 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     rel = np.abs(E - E[0]) / max(abs(E[0]), 1e-300)
     orth, det = orthogonality_error(unpack_states(X).R)
     worst = float(res.max()) if res.size else 0.0
-    result, message = _simulation_verdict(X, res, worst)
+    result, message = _simulation_verdict(problem, X, res, worst)
     finite = np.all(np.isfinite(X))
     miss = terminal_error(X[-1], problem) if problem.terminal is not None and finite else float("nan")
     stats = {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max()),
@@ -221,7 +236,7 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
                     build_s=0.0, solve_s=run_s, problem=problem, controls=U, stats=stats)
 
 
-def _simulation_verdict(X: np.ndarray, res: np.ndarray, worst: float) -> tuple[Result, str]:
+def _simulation_verdict(problem: Problem, X: np.ndarray, res: np.ndarray, worst: float) -> tuple[Result, str]:
     finite = np.all(np.isfinite(X), axis=1)
     if finite.all() and worst <= CAYLEY_TOL:
         return Result.converged, "simulated: every step solves the discrete equations"
@@ -229,7 +244,5 @@ def _simulation_verdict(X: np.ndarray, res: np.ndarray, worst: float) -> tuple[R
         k = int(np.argmin(finite))
         return Result.non_finite, (f"the state became non-finite at node {k} (overflow or a singular potential: check "
                                    "the model parameters and that the body stays away from the central mass)")
-    k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf)))
-    return Result.cayley_failed, (f"the implicit Cayley equation was not solved at step {k} (relative residual "
-                                  f"{res[k]:.2e}): the rotation per step is too large; use a smaller step h = T/N "
-                                  "(increase horizon.N)")
+    # a step's Cayley equation not solved: the fold of the scheme, or data no step size can fix
+    return step_failure(problem, X, res, problem.h)

@@ -2,10 +2,11 @@
 
 Exit codes: 0 success / converged; 1 a solver or integrator did not converge
 (results are still written and flagged); 2 bad input (config, options, results
-directory); 130 interrupted.
+directory); 3 an internal error (a defect: one line naming the file that holds the
+traceback; ``crash``); 130 interrupted.
 
 Modules: ``signals`` (Ctrl-C and stderr plumbing), ``parser`` (the arguments), ``commands``
-(one function per command), ``progress`` (what a run prints).  This module and ``signals``
+(one function per command), ``progress`` (what a run prints), ``crash`` (a defect: exit 3).  This module and ``signals``
 import nothing heavy, so that the program installs its Ctrl-C handler before NumPy and CasADi
 load (:func:`signals.start_as_program`); the others load when a command runs.
 """
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 
 from . import signals
 
@@ -40,6 +42,8 @@ def _main(argv: list[str] | None) -> int:
     from .signals import Interrupt, interrupted
 
     args = build_parser().parse_args(argv)
+    # a failed run's non-finite numbers are reported by its status, not by NumPy's warnings on stderr
+    warnings.simplefilter("ignore", RuntimeWarning)
     codegen.notify = lambda msg: say(args, f"  [jit] {msg}")
     try:
         return args.func(args)
@@ -58,7 +62,9 @@ def _main(argv: list[str] | None) -> int:
     except BrokenPipeError:  # stdout's reader went away while the result was printed (--json ... | head)
         stdout_gone()
         return 141  # 128 + SIGPIPE, as a shell reports a process killed by it
-    except Exception:
+    except Exception as e:  # a defect: one line, the traceback in a file, its own exit status
         if Interrupt.flag:  # an error caused by the interrupt inside a library
             return interrupted()
-        raise
+        from .crash import report_crash
+
+        return report_crash(e)

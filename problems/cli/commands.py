@@ -26,11 +26,16 @@ def _results(args, man: Maneuver):
 
 
 def cmd_validate(args) -> int:
+    from ...transcription.feasibility import necessary_conditions
+
     man = _load(args)
+    infeasible = necessary_conditions(man.problem)  # valid, but provably without a solution: said now
     summary = {"config": man.source, "name": man.name, "valid": True, "control": man.control_kind,
-               "discretization": man.discretization, "N": man.N, "T": man.T}
+               "discretization": man.discretization, "N": man.N, "T": man.T, "provably_infeasible": infeasible}
     say(args, f"{man.source}: valid ({man.name}: {man.control_kind or 'no control'}, "
                f"{man.discretization}, N = {man.N}, T = {man.T:g})")
+    if infeasible:
+        say(args, f"  but provably infeasible (solve will say so without iterating): {infeasible}")
     emit_summary(args, summary)
     return 0
 

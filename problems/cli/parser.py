@@ -17,6 +17,14 @@ EPILOG = """examples:
   se3ocp export results/leo_raise_slew --format oem
   se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T
   se3ocp fly configs/e3_inclination_change.yaml --flight configs/flights/e3_j2_thrust.yaml --runs 200
+
+exit status:
+  0  success (converged)
+  1  a solver or the integrator did not converge, or the problem is provably infeasible
+     (results written, summary.json flagged converged: false with a status and message)
+  2  bad input: one line FILE (or --set): FIELD: expected ...; nothing written
+  3  internal error (a defect): one line naming the file that holds the traceback
+  130 interrupted (Ctrl-C): nothing half-written
 """
 
 

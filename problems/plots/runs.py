@@ -2,11 +2,13 @@
 and the runs of a Solution or a Comparison."""
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...transcription.results import Solution
+from ...transcription.results import Solution, Trajectory
 from ...transcription.solve import Comparison
 from .style import COLORS, STYLES
 
@@ -22,7 +24,8 @@ class Run:
 
     @classmethod
     def of(cls, sol: Solution, tol: float = 1e-8) -> "Run":
-        return cls(sol.method, sol, tol)
+        """The Run of a Solution; a failed one is drawn from :func:`drawable` values."""
+        return cls(sol.method, sol if sol.converged else drawable(sol), tol)
 
     @property
     def color(self):
@@ -38,8 +41,12 @@ class Run:
 
     @property
     def name(self) -> str:
-        """The legend name: the method, and the result code when it did not converge."""
-        return f"{self.label} (FAILED: {self.sol.result.value})" if self.failed else self.label
+        """The legend name: the method, the result code when it did not converge, and a mark when
+        values of the run could not be drawn (:func:`drawable`)."""
+        if not self.failed:
+            return self.label
+        gaps = "; values beyond 1e100 or not finite left out" if self.sol.stats.get("not_drawn") else ""
+        return f"{self.label} (FAILED: {self.sol.result.value}{gaps})"
 
     @property
     def t(self) -> np.ndarray:
@@ -76,6 +83,38 @@ class Run:
         """The node index of each control (first order: u_1..u_N at nodes 1..N; lgvi: 0..N)."""
         n = self.sol.controls.shape[1]
         return np.arange(1, n + 1) if n == self.sol.N else np.arange(n)
+
+
+#: a failed run's values beyond this magnitude are not drawn (gaps): matplotlib's scales, ticks and
+#: layout overflow on values near the largest double, and a run that ended there shows nothing at that scale
+DRAWABLE = 1e100
+
+
+def drawable(sol: Solution) -> Solution:
+    """A copy of a failed Solution whose states, controls, costates and history hold NaN (a gap in
+    every figure) where they are not finite or beyond :data:`DRAWABLE`; ``stats['not_drawn']``
+    says whether anything was left out (the legend then says so).  The record on disk is not changed."""
+    def clean(a):
+        if a is None:
+            return None, False
+        a = np.asarray(a, dtype=float)
+        bad = ~(np.abs(a) <= DRAWABLE)
+        return (np.where(bad, np.nan, a), True) if bad.any() else (a, False)
+
+    X, bx = clean(sol.trajectory.X)
+    U, bu = clean(sol.controls)
+    lam, bl = clean(sol.costates)
+    history, bh = [], False
+    for rec in sol.history:
+        changes = {k: math.nan for k, v in rec.as_dict().items()
+                   if isinstance(v, float) and not abs(v) <= DRAWABLE and not math.isnan(v)}
+        bh |= bool(changes)
+        history.append(dataclasses.replace(rec, **changes) if changes else rec)
+    if not (bx or bu or bl or bh):
+        return sol
+    tr = sol.trajectory
+    return dataclasses.replace(sol, trajectory=Trajectory(t=tr.t, X=X, mass=tr.mass, inertia=tr.inertia),
+                               controls=U, costates=lam, history=history, stats={**sol.stats, "not_drawn": True})
 
 
 def node_cells(t: np.ndarray) -> np.ndarray:

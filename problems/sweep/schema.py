@@ -220,6 +220,13 @@ def parse_sweep(doc: Any, source: str) -> Sweep:
     dup = next((k for i, k in enumerate(keys) if k in keys[:i] or k in fixed_doc), None)
     if dup:
         v.fail("axes", f"expected each maneuver key to be set once; {dup} is set twice")
+    # one key inside another (control.bounds and control.bounds.moment.norm): whichever is applied
+    # last would replace the other's values, and rows would be labelled with values never applied
+    every = list(fixed_doc) + keys
+    nested = next(((a, b) for a in every for b in every if b.startswith(a + ".")), None)
+    if nested:
+        v.fail("axes" if nested[1] in keys else "set", f"expected keys that do not overlap; {nested[1]} lies inside "
+                                                      f"{nested[0]} (set both through {nested[0]})")
     methods = doc.get("methods", ["direct"])
     if not isinstance(methods, (list, tuple)) or not methods:
         v.fail("methods", f"expected a non-empty list of {', '.join(METHODS)}, got {describe(methods)}")
@@ -248,7 +255,7 @@ def sweep_from_doc(doc: Any, source: str, progress: Callable[[int, int], None] |
     """parse_sweep, then the base maneuver and every grid point (its overrides on the base
     document, read once, through parse_maneuver) and the raw IPOPT options: a valid Sweep or
     a ConfigError, before any solve.  The work is bounded by MAX_GRID_POINTS parses of a base
-    file of at most schema.MAX_FILE_BYTES; ``progress``: see :func:`load_sweep`."""
+    file of at most yamlfile.MAX_FILE_BYTES; ``progress``: see :func:`load_sweep`."""
     sw = parse_sweep(doc, source)
     if not sw.base.is_file():
         raise ConfigError(source, "base", f"expected a maneuver file; {sw.base} does not exist")

@@ -123,9 +123,11 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> 
         rows += [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0]
         rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
         cost = omega_per_h * h * (wf * sf + wm * sm) / s_obj
-    tag = f"{'f' if norm_f else ''}{'m' if norm_m else ''}{'_fuel' if fuel else ''}{'_freeh' if free_h else ''}"
-    return BlockFunction(ca.Function(f"control_node_{tag}", [v, p], [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)],
-                                     ["v", "p"], ["cost", "rows"]))
+    # the name from its non-empty parts: CasADi refuses empty parts ("control_node__fuel": fuel without norm bounds)
+    parts = ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}", "fuel" if fuel else "",
+             "freeh" if free_h else "")
+    return BlockFunction(ca.Function("_".join(w for w in parts if w), [v, p],
+                                     [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)], ["v", "p"], ["cost", "rows"]))
 
 
 @per_discretization

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..lie import unit_direction
+
 
 class ProblemError(ValueError):
     """An inconsistent Problem: ``field`` names the offending attribute."""
@@ -13,12 +15,12 @@ class ProblemError(ValueError):
 
 
 def unit(v, name: str) -> np.ndarray:
-    """``v`` (a non-zero finite 3-vector) normalized; ProblemError naming ``name`` otherwise."""
-    v = np.asarray(v, dtype=float).reshape(-1)
-    n = np.linalg.norm(v) if v.shape == (3,) and np.all(np.isfinite(v)) else 0.0
-    if not n > 0:
+    """The unit direction of ``v`` (:func:`~transcription.lie.unit_direction`: 3 finite numbers of any magnitude,
+    not all zero); ProblemError naming ``name`` otherwise."""
+    u = unit_direction(v)
+    if u is None:
         raise ProblemError(name, "expected a non-zero finite 3-vector")
-    return v / n
+    return u
 
 
 def positive(value: float, name: str) -> None:

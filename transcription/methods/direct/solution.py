@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...feasibility import step_failure
 from ...lgvi import CAYLEY_TOL
 from ...nlp.solvers import ipopt_history, solve_time_split
 from ...options import DirectOptions
@@ -13,9 +14,11 @@ from ...warm import warm_start_of
 from .transcription import SmoothTranscription
 
 
-def _verdict(status: str, solver: str, err: float, worst_cayley: float, options: DirectOptions) -> tuple[Result, str]:
-    """The result and message of a solve from the solver's status and the re-simulation's terminal error and
-    largest Cayley residual."""
+def _verdict(problem: Problem, status: str, solver: str, Xsim: np.ndarray, res: np.ndarray, h: float, err: float,
+             options: DirectOptions) -> tuple[Result, str]:
+    """The result and message of a solve from the solver's status and the re-simulation (states Xsim, Cayley
+    residuals res at step size h): its terminal error err and largest Cayley residual."""
+    worst_cayley = float(np.max(res)) if res.size else 0.0
     result = result_of_solver_status(status)
     label = "IPOPT" if solver == "ipopt" else solver
     if result is Result.converged and not err <= options.terminal_tol:
@@ -26,11 +29,9 @@ def _verdict(status: str, solver: str, err: float, worst_cayley: float, options:
         message = f"{label}: {status}; re-simulated terminal error {err:.2e}"
     else:
         message = f"{label} did not converge: {status}; re-simulated terminal error {err:.2e}"
-    if not result.successful and not worst_cayley <= CAYLEY_TOL:
-        result = Result.cayley_failed
-        message += (f"; the Cayley equation was not solved in the re-simulation (relative residual "
-                    f"{worst_cayley:.1e}): the rotation per step is too large, use a smaller step h = T/N "
-                    f"(increase horizon.N)")
+    if not result.successful and not worst_cayley <= CAYLEY_TOL:  # non-finite, or the Cayley fold: say which
+        result, why = step_failure(problem, Xsim, res, h)
+        message += f"; in the re-simulation, {why}"
     return result, message
 
 
@@ -49,7 +50,7 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
     err = terminal_error(Xsim[-1], problem)
     traj = trajectory(problem, Xsim, h)
     worst_cayley = float(np.max(res)) if res.size else 0.0
-    result, message = _verdict(status, solver, err, worst_cayley, options)
+    result, message = _verdict(problem, status, solver, Xsim, res, h, err, options)
     stats_out = {
         "solver_status": status,
         "kkt_tol": float(options.tol),

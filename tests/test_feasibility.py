@@ -1,0 +1,141 @@
+"""The necessary conditions checked before solving (transcription/feasibility.py, docs/mathematics.md §13).
+
+For each condition: a problem at 0.9 of its continuous bound is not refused and solves (converged,
+bounds and path constraints held on the re-simulated path); one at 1.1 is refused as infeasible with
+its reason and without an iteration.  The bounds used here are the continuous ones, written
+independently of the module: the bang-bang distance F T^2 / 4m and angle M T^2 / 4 lambda_min (both
+attained: rest to rest along a line / about the minor principal axis), T F and T M for the momenta,
+Omega_max T for the rate limit.  The body is the keep-out slew's (inertia [1, 1.5, 2], no gravity).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import se3ocp
+from se3ocp.transcription.feasibility import necessary_conditions, step_failure
+from se3ocp.transcription.results import Result
+
+from support import config
+
+N = 40
+T = 10.0
+BASE = (f"horizon.N={N}", f"horizon.T={T}", "constraints=[]", "solver.direct.jit=false",
+        "initial={position: [0, 0, 0], velocity: [0, 0, 0], attitude: identity, angular_velocity: [0, 0, 0]}")
+LAMBDA_MIN = 1.0  # the minor principal moment, about body x
+
+
+def _load(*sets):
+    return se3ocp.load(config("slew_keep_out"), BASE + sets)
+
+
+def _cases(f: float):
+    """(name, maneuver) at the fraction f of each condition's bound."""
+    F, M, W = 0.02, 0.01, 0.05
+    angle_M = math.degrees(f * M * T**2 / (4 * LAMBDA_MIN))
+    angle_W = math.degrees(f * W * T)
+    return [
+        ("distance", _load("control.bounds={force: {norm: 0.02}, moment: {norm: 0}}",
+                           f"terminal={{position: [{f * F * T**2 / 4}, 0, 0], velocity: [0, 0, 0], attitude: identity, "
+                           "angular_velocity: [0, 0, 0]}")),
+        ("linear momentum", _load("control.bounds={force: {norm: 0.02}, moment: {norm: 0}}",
+                                  f"terminal={{velocity: [0, {f * F * T}, 0], attitude: identity, "
+                                  "angular_velocity: [0, 0, 0]}")),
+        ("angular momentum", _load("control.bounds={force: {norm: 0}, moment: {norm: 0.01}}",
+                                   f"terminal={{angular_velocity: [0, 0, {f * M * T / 2.0}]}}")),  # J_z = 2
+        ("moment bound", _load("control.bounds={force: {norm: 0}, moment: {norm: 0.01}}",
+                               f"terminal={{attitude: {{axis_angle: [1, 0, 0, {angle_M}]}}, angular_velocity: [0, 0, 0]}}")),
+        ("rate limit", _load("control.bounds={force: {norm: 0}}", "discretization=first_order",
+                             f"constraints=[{{kind: max_angular_rate, value: {W}}}]",
+                             f"terminal={{attitude: {{axis_angle: [1, 0, 0, {angle_W}]}}, angular_velocity: [0, 0, 0]}}")),
+    ]
+
+
+@pytest.mark.parametrize("name", ["distance", "linear momentum", "angular momentum", "moment bound", "rate limit"])
+def test_just_inside_each_bound_is_solved(name):
+    man = dict(_cases(0.9))[name]
+    assert necessary_conditions(man.problem) is None
+    sol = se3ocp.solve(man, direct={"max_iter": 500})
+    assert sol.converged, sol.message
+    assert sol.terminal_error <= 1e-6
+    ctrl = man.problem.control
+    for u, bound in ((sol.u_f, ctrl.force_bound), (sol.u_m, ctrl.moment_bound)):
+        if bound is not None:
+            assert np.all(np.linalg.norm(u, axis=1) <= bound.b * (1 + 1e-6) + 1e-12)
+    for c in man.problem.constraints:
+        assert c.margin(sol.trajectory).min() >= -1e-6
+    # near the bound the bound is active: the case tests the boundary, not the interior
+    if name == "distance":
+        assert np.linalg.norm(sol.u_f, axis=1).max() >= 0.999 * ctrl.force_bound.b
+    elif name == "moment bound":
+        assert np.linalg.norm(sol.u_m, axis=1).max() >= 0.999 * ctrl.moment_bound.b
+    elif name == "rate limit":
+        assert np.linalg.norm(sol.trajectory.Omega, axis=1).max() >= 0.999 * man.problem.constraints[0].value
+
+
+@pytest.mark.parametrize("name", ["distance", "linear momentum", "angular momentum", "moment bound", "rate limit"])
+def test_just_outside_each_bound_is_refused_at_once(name):
+    man = dict(_cases(1.1))[name]
+    reason = necessary_conditions(man.problem)
+    assert reason is not None and name in reason, reason
+    for method in ("direct", "both"):
+        out = se3ocp.solve(man, method)
+        for s in (out.solutions.values() if method == "both" else [out]):
+            assert s.result is Result.infeasible and s.iterations == 0 and s.history == []
+            assert s.message.startswith("provably infeasible") and name in s.message
+            assert s.trajectory.X.shape == (N + 1, 18) and np.all(np.isfinite(s.trajectory.X))
+
+
+def test_external_forces_and_moments_switch_the_checks_off():
+    """Under gravity nothing is refused: the force check does not apply to E3 with a small thrust bound."""
+    e3 = se3ocp.load(config("e3"), ["horizon.N=20", "control.bounds={force: {norm: 1}}"])
+    assert necessary_conditions(e3.problem) is None
+    e3_free = se3ocp.load(config("e3"), ["horizon.N=20", "control.bounds={force: {norm: 1}}", "gravity={kind: none}"])
+    assert "linear momentum" in necessary_conditions(e3_free.problem)
+
+
+def test_lgvi_rate_limit_without_a_moment_bound_is_not_checked():
+    """The LGVI's node moments act within a step: without a moment bound the node rates bound nothing."""
+    man = _load("control.bounds={force: {norm: 0}}", "constraints=[{kind: max_angular_rate, value: 0.001}]",
+                "terminal={attitude: {axis_angle: [1, 0, 0, 90]}, angular_velocity: [0, 0, 0]}")
+    assert necessary_conditions(man.problem) is None
+
+
+def test_step_failure_tells_non_finite_from_a_fold_from_hopeless_data():
+    man = _load("control.bounds={force: {norm: 0}}")
+    p = man.problem
+    X = np.tile(p.X0, (N + 1, 1))
+    res = np.zeros(N)
+    X[3, 0] = np.nan
+    assert step_failure(p, X, res, 0.25)[0] is Result.non_finite
+    X = np.tile(p.X0, (N + 1, 1))
+    X[5, 15] = 8.0  # h |Pi| / lambda_min = 2 at step 5: N = 40 * 2 * 2 = 160 brings it to 1/2
+    res[5] = 1.0
+    result, text = step_failure(p, X, res, 0.25)
+    assert result is Result.cayley_failed and "smaller step" in text and "about 160" in text
+    X[5, 15] = 1e300  # no horizon.N fixes that
+    result, text = step_failure(p, X, res, 0.25)
+    assert result is Result.cayley_failed and "no step size can fix it" in text and "smaller step h" not in text
+
+
+@pytest.mark.parametrize("name, published", [("slew_time_optimal_symmetric", 3.2431), ("slew_time_optimal", 28.6304077)])
+def test_published_minimum_times_are_never_refused(name, published):
+    """The time-optimal slews of test_constrained (published minima [BW93], [Bet10]): with the final time
+    free up to just below the published minimum nothing is refused (the conditions are necessary),
+    and the refusal threshold of the symmetric body is the bang-bang eigenaxis bound of the torque's
+    norm, T^2 >= 4 pi lambda / |b| = 4 pi / sqrt(3) (to the discrete scheme's 0.1 %)."""
+    p = se3ocp.load(config(name)).problem
+
+    def refused(t_max):
+        return necessary_conditions(p.replace(time_bounds=(0.25 * t_max, t_max), T=0.5 * t_max)) is not None
+
+    assert not refused(published * 0.999)
+    lo, hi = 0.01, published
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if refused(mid) else (lo, mid)
+    assert hi < published
+    if name == "slew_time_optimal_symmetric":
+        assert hi == pytest.approx(math.sqrt(4 * math.pi / math.sqrt(3)), rel=1e-3)
