@@ -6,9 +6,7 @@ Imports are read from the whole module, inside functions too (a deferred import 
 only those under ``if TYPE_CHECKING:`` are left out (they never run).  A function's length is the lines from
 its ``def`` to its last line, docstring and nested functions included.
 
-The limits hold for transcription/, and the function limit for problems/ (split into packages by issue 23).
-The module limit for problems/ is expected to fail until its last long modules are split (``xfail``, not
-strict, so that it reports XPASS the day it holds): see PROBLEMS_MODULES_PENDING.
+The limits hold for both layers (problems/ was split into packages by issue 23, its schema by issue 28).
 """
 from __future__ import annotations
 
@@ -23,10 +21,6 @@ PACKAGE = "se3ocp"
 LAYERS = ("transcription", "problems")
 MAX_FUNCTION_LINES = 80
 MAX_MODULE_LINES = 600
-#: the modules of problems/ still over MAX_MODULE_LINES when this was written (schema.py, 603 lines: branch
-#: t28's); the module check of problems/ is switched on (the xfail below removed) once it is split
-PROBLEMS_MODULES_PENDING = ("problems/schema.py",)
-
 
 def modules(layer: str) -> dict[str, Path]:
     """{dotted module name: file} of every module below ROOT/layer (a package's __init__ is the package)."""
@@ -149,8 +143,6 @@ def test_transcription_never_imports_problems():
 
 
 LAYER_PARAMS = list(LAYERS)
-MODULE_LAYER_PARAMS = ["transcription", pytest.param("problems", marks=pytest.mark.xfail(
-    strict=False, reason=f"not yet split: {', '.join(PROBLEMS_MODULES_PENDING)}"))]
 
 
 def long_functions(path: Path, limit: int = MAX_FUNCTION_LINES) -> list[str]:
@@ -167,7 +159,7 @@ def test_functions_fit_in_mind(layer):
     assert not found, found
 
 
-@pytest.mark.parametrize("layer", MODULE_LAYER_PARAMS)
+@pytest.mark.parametrize("layer", LAYER_PARAMS)
 def test_modules_hold_one_concept(layer):
     """No module over MAX_MODULE_LINES lines."""
     found = {str(p.relative_to(ROOT)): n for p in modules(layer).values()

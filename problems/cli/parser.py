@@ -59,13 +59,23 @@ def build_parser() -> argparse.ArgumentParser:
                     help="print the installed version and exit")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    for add in (_validate_parser, _simulate_parser, _solve_parser, _plot_parser, _report_parser, _export_parser,
+                _sweep_parser, _fly_parser):
+        add(sub)
+    return ap
 
+
+def _validate_parser(sub) -> None:
+    """The `validate` subcommand."""
     p = sub.add_parser("validate", help="check a maneuver file against the schema",
                        epilog="example:\n  se3ocp validate configs/e1_impulsive_tpbvp.yaml",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     _common(p, out=False)
     p.set_defaults(func=cmd_validate)
 
+
+def _simulate_parser(sub) -> None:
+    """The `simulate` subcommand."""
     p = sub.add_parser("simulate", help="uncontrolled motion from the initial state over the horizon",
                        epilog="example:\n  se3ocp simulate configs/free_tumble.yaml --out results/tumble",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -73,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
     _output_options(p)
     p.set_defaults(func=cmd_simulate)
 
+
+def _solve_parser(sub) -> None:
+    """The `solve and compare` subcommands."""
     for name, helptext, ex in (
         ("solve", "solve the optimal control problem (direct, indirect or both)",
          "examples:\n  se3ocp solve configs/e3_inclination_change.yaml --method direct\n"
@@ -92,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
         if name == "compare":
             p.set_defaults(method="both")
 
+
+def _plot_parser(sub) -> None:
+    """The `plot` subcommand."""
     p = sub.add_parser("plot", help="(re)draw the figures, report.html and the animation of a results directory",
                        description="Without --animate: redraw every figure and report.html.  With --animate: write "
                                    "maneuver.gif, and draw only the figures that are missing or older than the run's "
@@ -105,6 +121,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the list of files written as JSON")
     p.set_defaults(func=cmd_plot)
 
+
+def _report_parser(sub) -> None:
+    """The `report` subcommand."""
     p = sub.add_parser("report", help="write report.html: a self-contained page (summary table, figures, history, config)",
                        epilog="example:\n  se3ocp report results/e3_inclination_change",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -114,6 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the path written as JSON")
     p.set_defaults(func=cmd_report)
 
+
+def _export_parser(sub) -> None:
+    """The `export` subcommand."""
     p = sub.add_parser("export", help="the plan of a results directory as CCSDS OEM/AEM (GMAT, STK, Orekit) or CSV",
                        description="OEM 2.0 (position km, velocity km/s), AEM 1.0 (quaternions: QUATERNION_TYPE LAST, "
                                    "ATTITUDE_DIR A2B from the inertial frame to the body), CSV (t, epoch, r, v, q, Ω, "
@@ -139,6 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the path written as JSON")
     p.set_defaults(func=cmd_export)
 
+
+def _sweep_parser(sub) -> None:
+    """The `sweep` subcommand."""
     p = sub.add_parser("sweep", help="trade study: solve a grid of parameter values (local pool or Dask cluster)",
                        epilog="examples:\n  se3ocp sweep configs/sweeps/e3_T.yaml --out results/e3_T\n"
                               "  se3ocp sweep configs/sweeps/e3_T_inclination.yaml --scheduler tcp://127.0.0.1:8786",
@@ -153,8 +178,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=cmd_sweep)
-    _fly_parser(sub)
-    return ap
 
 
 def _fly_parser(sub) -> None:
