@@ -197,7 +197,7 @@ def test_solve_impulsive_and_json(tmp_path):
     r = run("solve", CONFIGS / "e1_impulsive_tpbvp.yaml", "--method", "indirect", "--out", tmp_path / "x")
     assert r.returncode == 2 and r.stderr == (f"se3ocp: error: {CONFIGS / 'e1_impulsive_tpbvp.yaml'}: control.kind: the "
                                               f"indirect method applies to smooth maneuvers; impulsive maneuvers are "
-                                              f"solved by --method direct\n")
+                                              f"solved by the direct method\n")   # transcription.solve.not_covered
     assert not (tmp_path / "x").exists()
 
 
