@@ -1,4 +1,4 @@
-"""Every bad-input and failure class, run through the real CLI: the catalogue of tests/test_reliability.py,
+"""Every bad-input and failure class, run through the real CLI: the catalogue of tests/test_failures.py,
 and (run as a program) the generator of docs/failures.md.
 
 Each :class:`Case` is one class: a stock config from ``configs/`` (optionally edited,
@@ -17,7 +17,7 @@ the table do not depend on where it ran), small N, one process at a time.
     .venv/bin/python tests/failure_cases.py                  # all cases -> docs/failures.md
     .venv/bin/python tests/failure_cases.py --only nan_direct --print
 
-tests/test_reliability.py runs this catalogue (``CASES``, :func:`run_case`, :func:`check`), so the
+tests/test_failures.py runs this catalogue (``CASES``, :func:`run_case`, :func:`check`), so the
 table and the tests cannot drift apart.
 """
 from __future__ import annotations
@@ -641,16 +641,17 @@ def render(outcomes: list[Outcome]) -> str:
     lines += ["",
               "Ctrl-C rows depend on where the signal lands, so the CLI records the interrupt in a flag before",
               "raising and checks it after every solve (a library may swallow the exception itself).",
-              "`pytest -m slow tests/test_reliability.py -k ctrl_c_repeated` interrupts simulate 20 times and",
+              "`pytest -m slow tests/test_failures.py -k ctrl_c_repeated` interrupts simulate 20 times and",
               "Newton-Armijo 16 times at spread-out moments; every run must exit 130 with complete files.",
-              "`pytest -m slow tests/test_reliability.py -k 'random_moments or concurrent'` interrupts solve,",
+              "`pytest -m slow tests/test_cli_interrupts.py tests/test_results_dir.py -k 'random_moments or "
+              "concurrent'` interrupts solve,",
               "compare, plot --animate and sweep 20 times each at random moments over a finished run, and starts",
               "three solves on one --out: every directory is then checked file by file to be the previous run,",
               "one complete new run, or (sweep) its finished rows marked INCOMPLETE.",
               "",
               "Not reproduced from a config: IPOPT `Invalid_Number_Detected` (IPOPT recovers from NaN/inf trial",
               "points by cutting the step; NaN at the initial point makes the direct method fail before IPOPT).",
-              "A NaN-producing potential is exercised through the Python API in tests/test_reliability.py.", ""]
+              "A NaN-producing potential is exercised through the Python API in tests/test_failures.py.", ""]
     return "\n".join(lines)
 
 

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 import yaml
 
+from se3ocp.transcription.results import Result
+
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 
@@ -44,8 +46,12 @@ def test_results_dir_not_mixed(tmp_path):
     args = ("simulate", CONFIGS / "free_tumble.yaml", "--set", "horizon.N=100", "--set", "horizon.T=0.1", "--out", out,
             "--no-figures")
     assert run(*args).returncode == 0
+    before = {f.name: f.stat().st_mtime_ns for f in out.iterdir()}
     r = run(*args)
-    assert r.returncode == 2 and "--force" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == (f"se3ocp: error: {out}: results directory already holds files; pass --force to overwrite, "
+                        f"or choose another --out\n")
+    assert {f.name: f.stat().st_mtime_ns for f in out.iterdir()} == before     # the earlier run untouched
     assert run(*args, "--force").returncode == 0
 
 
@@ -76,7 +82,8 @@ def test_bad_config_exit_2_one_line(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and str(p) in lines[0] and "horizon.N" in lines[0], r.stderr
     r = run("simulate", p, "--set", "horizon.N=oops", "--out", tmp_path / "x")
-    assert r.returncode == 2 and "horizon.N" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and r.stderr == "se3ocp: error: --set: horizon.N: expected an integer, got the string 'oops'\n"
+    assert not (tmp_path / "x").exists()
 
 
 def test_validate_json(tmp_path):
@@ -147,10 +154,11 @@ def test_plot_redraws(compared, tmp_path):
     written = json.loads(r.stdout.strip().splitlines()[-1])
     assert str(out / "fig_force.png") in written and str(out / "fig_maneuver.png") in written   # every figure
     assert str(out / "report.html") in written and (out / "fig_force.png").is_file()
-    r = run("plot", tmp_path)
-    assert r.returncode == 2 and "not a results directory" in r.stderr
-    r = run("report", tmp_path)
-    assert r.returncode == 2 and "not a results directory" in r.stderr
+    for command in ("plot", "report"):
+        r = run(command, tmp_path)
+        assert r.returncode == 2 and r.stderr == (f"se3ocp: error: {tmp_path}: not a results directory (needs "
+                                                  f"summary.json and config.resolved.yaml)\n"), command
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
 def test_plot_animate_draws_only_stale_figures(compared):
@@ -187,7 +195,10 @@ def test_solve_impulsive_and_json(tmp_path):
     with np.load(tmp_path / "e1" / "direct.npz") as z:
         assert {"dgamma0", "dPi0", "dgammaN", "dPiN"} <= set(z.files)
     r = run("solve", CONFIGS / "e1_impulsive_tpbvp.yaml", "--method", "indirect", "--out", tmp_path / "x")
-    assert r.returncode == 2 and "control.kind" in r.stderr
+    assert r.returncode == 2 and r.stderr == (f"se3ocp: error: {CONFIGS / 'e1_impulsive_tpbvp.yaml'}: control.kind: the "
+                                              f"indirect method applies to smooth maneuvers; impulsive maneuvers are "
+                                              f"solved by --method direct\n")
+    assert not (tmp_path / "x").exists()
 
 
 def test_not_converged_exit_1_results_flagged(tmp_path):
@@ -198,3 +209,58 @@ def test_not_converged_exit_1_results_flagged(tmp_path):
     assert s["converged"] is False and s["methods"]["direct"]["status"] == "max_iterations"
     assert s["methods"]["direct"]["solver_status"] == "Maximum_Iterations_Exceeded"
     assert (tmp_path / "o" / "direct.npz").is_file()
+
+
+def test_solve_default_method_is_direct(tmp_path):
+    r = run("solve", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.N=20", "--out", tmp_path / "o",
+            "--no-figures", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (tmp_path / "o").glob("*.npz")) == ["direct.npz"]
+    assert list(json.loads((tmp_path / "o" / "summary.json").read_text())["methods"]) == ["direct"]
+
+
+def test_version_from_package_metadata():
+    """``se3ocp --version`` prints the installed distribution's version (not a copy that can drift), exit 0."""
+    from importlib.metadata import version
+
+    r = run("--version")
+    assert r.returncode == 0 and r.stderr == ""
+    assert r.stdout.strip() == f"se3ocp {version('se3ocp')}"
+
+
+def test_status_column_is_never_cut():
+    """The CLI table's status column is as wide as its widest status: every Result and a long
+    solver status appear whole, and the columns after it stay aligned."""
+    from types import SimpleNamespace
+
+    from se3ocp.problems.cli.progress import table
+
+    long = SimpleNamespace(value="Maximum_Iterations_Exceeded")
+    sols = [SimpleNamespace(method=m, result=r) for m, r in [("direct", long), *(("x", r) for r in Result)]]
+    for s in sols:  # only not_applicable rows are printed without numbers; make every row one
+        s.result = SimpleNamespace(value=s.result.value) if s.result is not Result.not_applicable else s.result
+        s.trajectory = SimpleNamespace(orthogonality=lambda: {"max_orthogonality_error": 0.0})
+        s.cost, s.terminal_error, s.iterations, s.build_s, s.solve_s = 1.0, 0.0, 3, 0.0, 0.0
+    rows = table(sols)
+    assert "Maximum_Iterations_Exceeded " in rows[2]
+    for s, row in zip(sols, rows[2:]):
+        assert f" {s.result.value} " in row
+    assert len({len(r) for r in rows}) == 1  # aligned
+
+
+def test_out_of_memory_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    """A MemoryError (a horizon.N the schema allows but the machine cannot hold) is one line on
+    stderr and exit 1, and the results transaction leaves nothing behind."""
+    from se3ocp.problems import cli
+    from se3ocp.transcription import solve as solve_module
+
+    def no_memory(*a, **k):
+        raise MemoryError
+
+    monkeypatch.setattr(solve_module, "solve", no_memory)
+    monkeypatch.chdir(tmp_path)
+    rc = cli.main(["solve", str(CONFIGS / "e3_inclination_change.yaml"), "--set", "horizon.N=10", "--out", "o",
+                   "--quiet", "--no-figures"])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.count("\n") == 1 and "out of memory" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

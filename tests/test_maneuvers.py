@@ -240,3 +240,15 @@ def test_rigid_body_bounds_free_time_constraints_resolved_round_trip():
     assert np.allclose(p.control.moment_bound.b, [1, 2, 3]) and p.constraints[0].value == 50.0
     again = parse_maneuver(yaml.safe_load(yaml.safe_dump(man.resolved)), "resolved")
     assert again.problem.time_bounds == p.time_bounds and again.problem.control.objective == "time"
+
+
+def test_orbit_normal_is_normalized_and_near_rotation_projected():
+    """Documented choices: a non-unit orbit normal is normalized; a matrix within 1e-6 of SO(3) is projected onto it."""
+    from se3ocp.problems.maneuvers import load_maneuver
+
+    m = load_maneuver(CONFIGS / "e2_impulsive_relaxed.yaml", ["terminal.orbit.normal=[0, 0, 2.5]"])
+    assert np.allclose(m.terminal.normal, [0, 0, 1], atol=0, rtol=1e-15)
+    m = load_maneuver(CONFIGS / "e3_inclination_change.yaml",
+                      ["initial.attitude={matrix: [[1.0000001, 0, 0], [0, 1, 0], [0, 0, 1]]}"])
+    R = m.initial.R
+    assert np.abs(R.T @ R - np.eye(3)).max() <= 1e-15 and abs(np.linalg.det(R) - 1) <= 1e-15

@@ -7,7 +7,8 @@ import json
 import sys
 from pathlib import Path
 
-from ..io import results_transaction, results_update, safe_name
+from ..io import safe_name
+from ..results_dir import results_transaction, results_update
 from ..maneuvers import Maneuver, load_maneuver
 from ..schema import ConfigError
 from .progress import Progress, ProgressBar, emit_summary, say, table

@@ -144,7 +144,7 @@ def run_guarded(run, argv: list[str] | None) -> int:
 
 def interrupted() -> int:
     """Say in one line what an interrupted run left, and return its exit status, 130."""
-    from ..io import ResultsTransaction
+    from ..results_dir import ResultsTransaction
 
     if ResultsTransaction.committed:  # Ctrl-C after a commit: say what is in place
         where, incomplete = ResultsTransaction.committed[-1]

@@ -4,17 +4,12 @@ the times a condition holds, and the title that marks a failed run (red, with a 
 Importing this module does not choose a matplotlib backend."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import FixedLocator, MaxNLocator
 
 from ...transcription.problem import Problem
 from ..units import units
-
-if TYPE_CHECKING:  # pragma: no cover - runs.py imports this module
-    from .runs import Run
 
 #: colours of the methods (distinct from those of the components and body axes below)
 COLORS = {"direct": "#5e3c99", "indirect": "#e66101", "impulsive": "#5e3c99", "simulate": "#555555"}
@@ -99,11 +94,11 @@ def _text_width(text: str, size: float, weight: str = "normal") -> float:
     return TextToPath().get_text_width_height_descent(text, FontProperties(size=size, weight=weight), ismath=False)[0]
 
 
-def _finish(fig, runs: list[Run], problem: Problem, what: str):
-    """The figure's title (the maneuver and what is shown); a failed run marks it (a red title with
-    a line NOT CONVERGED) and adds a red banner in the top right corner naming each failed method
-    and its result code.  The title is wrapped (and if need be made smaller) so that it never runs
-    into the banner."""
+def _finish(fig, runs: list, problem: Problem, what: str):
+    """The figure's title (the maneuver and what is shown); a failed run among ``runs`` (the
+    :class:`~problems.plots.runs.Run` drawn) marks it (a red title with a line NOT CONVERGED) and
+    adds a red banner in the top right corner naming each failed method and its result code.  The
+    title is wrapped (and if need be made smaller) so that it never runs into the banner."""
     failed = [r for r in runs if r.failed]
     name = problem.name or "maneuver"
     banner = [f"{r.label}: {r.sol.result.value}" for r in failed]
