@@ -9,7 +9,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..io import results_transaction, safe_name
+from ..io import safe_name
+from ..results_dir import results_transaction
 from ..schema import ConfigError
 from . import _spec, check_plan, load_flight, spec_source, with_changes
 
