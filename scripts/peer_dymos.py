@@ -69,6 +69,8 @@ MAX_ITER = 2000      # SLSQP's major iterations
 
 #: case -> bundled maneuver file
 STEMS = {"slew": "slew_time_optimal", "slew_sym": "slew_time_optimal_symmetric", "orbit_raise": "orbit_raise_fuel"}
+#: the readable parts of the re-flown terminal error (see _miss)
+MISSES = ("attitude_miss_deg", "rate_miss", "radius_miss", "speed_miss")
 #: published optima (T* of Betts 2010 sect. 6.8; Bilimoria & Wie 1993)
 PUBLISHED = {"slew": 28.6304077, "slew_sym": 3.2431}
 
@@ -203,8 +205,19 @@ def _problem(case: str, N: int, scheme: str | None = None):
 
 
 def _driver():
-    """The OpenMDAO driver a pip user has: SLSQP through scipy, with total-derivative colouring."""
-    d = om.ScipyOptimizeDriver(optimizer="SLSQP", tol=1e-9, maxiter=MAX_ITER, disp=False)
+    """The OpenMDAO driver: SLSQP through scipy (what pip installs; the default), or with
+    PEER_OPTIMIZER=ipopt IPOPT through OpenMDAO's modOpt driver (modOpt installed from its source), with
+    total-derivative colouring either way."""
+    import os
+
+    if os.environ.get("PEER_OPTIMIZER", "slsqp") == "ipopt":
+        d = om.modOptDriver(optimizer="IPOPT", maxiter=MAX_ITER, disp=False, turn_off_outputs=True)
+        # the settings Dymos' own examples give IPOPT
+        d.opt_settings.update({"tol": 1e-9, "print_level": int(os.environ.get("PEER_PRINT", "0")),
+                               "mu_init": 1e-3, "mu_strategy": "monotone", "nlp_scaling_method": "gradient-based",
+                               "alpha_for_y": "safer-min-dual-infeas", "bound_mult_init_method": "mu-based"})
+    else:
+        d = om.ScipyOptimizeDriver(optimizer="SLSQP", maxiter=MAX_ITER, disp=False)   # OpenMDAO's tol, 1e-6
     d.declare_coloring()
     return d
 
@@ -218,24 +231,32 @@ def _phase(ode_class, N: int, ode_kwargs: dict):
     return dm.Phase(ode_class=ode_class, transcription=tx, ode_init_kwargs=ode_kwargs)
 
 
-def slew_guess(prob, N: int) -> dict:
-    """Our first start of the time objective (the screw interpolation with the seed-0 torques) as node
-    times, quaternions on one continuous branch, body rates and torques."""
-    from se3ocp.transcription.direct import target_estimate
-    from se3ocp.transcription.guess import perturbed_interpolation_guess
+def slew_guess(prob, N: int, kick: float = 0.2, seed: int = 0) -> dict:
+    """The eigenaxis maneuver (rest to rest about the axis of R_0^T R_d, bang-bang angular acceleration
+    at the largest rate the torque box allows, the torque from the inverse dynamics J a theta'' +
+    w x J w), with seeded normal torques of ``kick`` times the bound added to break its symmetry (it is
+    a stationary point of the time objective), at N + 1 equally spaced times over its duration."""
     from se3ocp.transcription.layout import unpack_states
+    from se3ocp.transcription.lie import log_so3
 
-    size = np.concatenate([np.zeros(3), prob.control.moment_bound.b])
-    g = perturbed_interpolation_guess(prob.disc, prob.X0, target_estimate(prob), N, prob.T, size, seed=0)
-    s = unpack_states(g.X)
-    t = np.linspace(0.0, prob.T, N + 1)
-    q = np.array([R_to_quat(R) for R in s.R])
-    for k in range(1, N + 1):               # q and -q are one attitude: keep the branch continuous
-        if q[k] @ q[k - 1] < 0:
-            q[k] = -q[k]
-    U = g.U[3:6].T
-    return {"t": t, "q": q, "w": s.Pi @ np.linalg.inv(prob.model.inertia).T,
-            "t_u": t if U.shape[0] == N + 1 else t[1:], "tau": U}
+    J, b = prob.model.inertia, prob.control.moment_bound.b
+    R0, Rd = unpack_states(prob.X0).R[0], unpack_states(prob.Xd).R[0]
+    e = np.asarray(log_so3(R0.T @ Rd), float).ravel()
+    th, a = float(np.linalg.norm(e)), e / np.linalg.norm(e)
+    acc = float(np.min(b / np.maximum(np.abs(J @ a), 1e-300)))
+    T = 2 * np.sqrt(th / acc)
+    t = np.linspace(0.0, T, N + 1)
+    first = t <= T / 2
+    ang = np.where(first, 0.5 * acc * t**2, th - 0.5 * acc * (T - t) ** 2)
+    rate = np.where(first, acc * t, acc * (T - t))
+    w = rate[:, None] * a
+    q0 = R_to_quat(R0)
+    dq = np.hstack([np.cos(ang / 2)[:, None], np.sin(ang / 2)[:, None] * a])     # body-frame rotation
+    q = np.array([[q0[0] * d[0] - q0[1:] @ d[1:], *(q0[0] * d[1:] + d[0] * q0[1:] + np.cross(q0[1:], d[1:]))]
+                  for d in dq])
+    tau = np.where(first, acc, -acc)[:, None] * (J @ a) + np.cross(w, w @ J.T)
+    tau += kick * b * np.random.default_rng(seed).standard_normal(tau.shape)
+    return {"T": T, "t": t, "q": q, "w": w, "t_u": t, "tau": np.clip(tau, -b, b)}
 
 
 def build_slew(prob, N: int, guess: dict):
@@ -252,18 +273,18 @@ def build_slew(prob, N: int, guess: dict):
     p.driver = _driver()
     traj = p.model.add_subsystem("traj", dm.Trajectory())
     phase = traj.add_phase("phase0", _phase(SlewODE, N, {"inertia": np.asarray(J, float)}))
-    phase.set_time_options(fix_initial=True, duration_bounds=(lo, hi), duration_ref=prob.T, units="s")
-    w_ref = float(b / np.min(np.diag(J)) * prob.T / 4)     # the rate reached in a quarter of the guess at full torque
+    phase.set_time_options(fix_initial=True, duration_bounds=(lo, hi), duration_ref=guess["T"], units="s")
+    w_ref = float(np.abs(guess["w"]).max())                   # the eigenaxis maneuver's peak rate
     phase.add_state("q", shape=(4,), rate_source="q_dot", targets="q", fix_initial=True)
     phase.add_state("w", shape=(3,), rate_source="w_dot", targets="w", units="rad/s", ref=w_ref,
                     fix_initial=True, fix_final=True)
     phase.add_control("tau", shape=(3,), targets="tau", units="N*m", lower=-b, upper=b, ref=b,
                       continuity=False, rate_continuity=False)
     phase.add_boundary_constraint("q", loc="final", indices=[1, 2, 3], equals=guess["q"][-1, 1:])
-    phase.add_objective("time", loc="final", ref=prob.T)
+    phase.add_objective("time", loc="final", ref=guess["T"])
     p.model.linear_solver = om.DirectSolver()
     p.setup()
-    phase.set_time_val(initial=0.0, duration=prob.T)
+    phase.set_time_val(initial=0.0, duration=guess["T"])
     phase.set_state_val("q", guess["q"], time_vals=guess["t"])
     phase.set_state_val("w", guess["w"], time_vals=guess["t"])
     phase.set_control_val("tau", guess["tau"], time_vals=guess["t_u"])
@@ -411,8 +432,27 @@ def _reflown(rec: dict, prob, control, breaks: np.ndarray, T: float) -> dict:
 
     XN = refly(prob.model, prob.X0, control, breaks)
     rec["terminal_error"] = terminal_error(XN, prob) if np.all(np.isfinite(XN)) else float("inf")
+    rec.update(_miss(XN, prob))
     rec["bound_violation"] = _bound_violation(prob, control, T)
     return rec
+
+
+def _miss(XN: np.ndarray, prob) -> dict:
+    """The re-flown terminal error in readable units: for a state target the attitude miss (deg) and the
+    body-rate miss (rad/s); for an orbit target the radius miss and the speed miss (normalized units)."""
+    from se3ocp.transcription.layout import unpack_states
+    from se3ocp.transcription.lie import log_so3
+
+    if not np.all(np.isfinite(XN)):
+        return {}
+    s = unpack_states(XN[None])
+    if prob.Xd is not None:
+        d = unpack_states(prob.Xd[None])
+        return {"attitude_miss_deg": float(np.degrees(np.linalg.norm(np.asarray(log_so3(d.R[0].T @ s.R[0]), float)))),
+                "rate_miss": float(np.linalg.norm(np.linalg.solve(prob.model.inertia, s.Pi[0] - d.Pi[0])))}
+    rd, mu = prob.terminal.radius, prob.model.mu
+    return {"radius_miss": float(abs(np.linalg.norm(s.x[0]) - rd)),
+            "speed_miss": float(abs(np.linalg.norm(s.gamma[0]) / prob.model.mass - np.sqrt(mu / rd)))}
 
 
 def _peer_state(p, prob) -> np.ndarray:
@@ -428,11 +468,45 @@ def _peer_state(p, prob) -> np.ndarray:
     return pack_state(x, prob.model.mass * v, quat_to_R(q), prob.model.inertia @ w)
 
 
+def _instrument(driver) -> dict:
+    """Measurement only: a dict that receives the time the optimizer starts (after OpenMDAO's set-up, its
+    initial run and the colourings), its iterations and its status, from SLSQP (scipy) or IPOPT (modOpt)."""
+    info: dict = {"iterations": 0, "status": "", "optimizer": "scipy SLSQP"}
+    if isinstance(driver, om.ScipyOptimizeDriver):
+        objfunc = driver._objfunc
+
+        def first(x):
+            info.setdefault("start", time.perf_counter())
+            return objfunc(x)
+        driver._objfunc = first
+        run = driver.run
+
+        def done():
+            fail = run()
+            res = driver._scipy_optimize_result
+            info.update(iterations=int(getattr(res, "nit", 0)), status=str(getattr(res, "message", "")))
+            return fail
+        driver.run = done
+        return info
+    import modopt
+
+    solve = modopt.IPOPT.solve
+    info["optimizer"] = f"IPOPT (modOpt {_version('modopt')}, limited-memory Hessian)"
+
+    def timed(self):
+        info["start"] = time.perf_counter()
+        out = solve(self)
+        info.update(iterations=int(out["iterations"]), status=str(out["return_status"]))
+        return out
+    modopt.IPOPT.solve = timed
+    return info
+
+
 def solve_peer(case: str, N: int) -> dict:
     """Build and solve the Dymos model of ``case`` at N (a multiple of 3); returns a bench record.
 
-    build = set-up up to SLSQP's first evaluation (OpenMDAO set-up, the initial run, the partial and
-    total colourings); solve = SLSQP's first evaluation to the end."""
+    build = set-up up to the optimizer's start (OpenMDAO set-up, the initial run, the partial and total
+    colourings); solve = the optimizer's start to the end of ``run_driver``."""
     import os
     import tempfile
 
@@ -447,21 +521,18 @@ def solve_peer(case: str, N: int) -> dict:
         try:
             t0 = time.perf_counter()
             p, phase = (build_slew if slew else build_orbit_raise)(prob, N, guess)
-            marks: list[float] = []
-            objfunc = p.driver._objfunc                   # instrumentation only: when SLSQP starts
-            p.driver._objfunc = lambda x: (marks.append(time.perf_counter()), objfunc(x))[1]
+            info = _instrument(p.driver)
             p.run_driver()
             t_end = time.perf_counter()
         finally:
             os.chdir(here)
-    res = p.driver._scipy_optimize_result
-    start = marks[0] if marks else t0
+    start = info.get("start", t0)
     ts = "traj.phase0.timeseries."
     t = p.get_val(ts + "time").ravel()
     T = float(t[-1])
-    rec = {"method": "dymos", "solver": f"dymos {_version('dymos')} Radau({N // ORDER}x{ORDER}) + scipy SLSQP",
-           "build_s": start - t0, "solve_s": t_end - start, "iterations": int(getattr(res, "nit", 0)),
-           "converged": bool(p.driver.result.success), "status": str(getattr(res, "message", "")), "T": T,
+    rec = {"method": "dymos", "solver": f"dymos {_version('dymos')} Radau({N // ORDER}x{ORDER}) + {info['optimizer']}",
+           "build_s": start - t0, "solve_s": t_end - start, "iterations": info["iterations"],
+           "converged": not p.driver.fail, "status": info["status"], "T": T,
            "cost": T if slew else float(p.get_val(ts + "J")[-1, 0])}
     rec["nlp_terminal_error"] = terminal_error(_peer_state(p, prob), prob)
     if slew:
@@ -543,7 +614,7 @@ def compare(cases: list[str], Ns: list[int], runs: int, timeout: float) -> list[
                             "total_s": med(x["build_s"] + x["solve_s"] for x in xs),
                             "loads": [x.get("load") for x in xs],
                             **{k: xs[-1][k] for k in ("iterations", "converged", "status", "cost", "T", "terminal_error",
-                                                      "nlp_terminal_error", "bound_violation") if k in xs[-1]}}
+                                                      "nlp_terminal_error", "bound_violation", *MISSES) if k in xs[-1]}}
             both = rec["ours"].get("converged") and rec["peer"].get("converged")
             rec["solve_ratio"] = rec["peer"]["solve_s"] / rec["ours"]["solve_s"] if both else None
             rec["total_ratio"] = rec["peer"]["total_s"] / rec["ours"]["total_s"] if both else None
@@ -556,14 +627,22 @@ def print_table(out: list[dict], runs: int) -> None:
     """The --compare table (Markdown)."""
     print(f"\nmedians of {runs} fresh-process run(s) each; ratio = peer / ours; objective: T (slews) or fuel")
     print("| maneuver | N | ours: it / build s / solve s | peer: it / build s / solve s | solve ratio | "
-          "build+solve ratio | objective ours / peer (published) | re-flown terminal error ours / peer (DOP853) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "build+solve ratio | objective ours / peer (published) | re-flown terminal error ours / peer (DOP853) | "
+          "peer's control over its bound between nodes |")
+    print("|---|---|---|---|---|---|---|---|---|")
 
     def ratio(x):
         return "-" if x is None else f"{x:.0f}x"
 
     def cost(r):
         return f"{r['cost']:.8g}" if r.get("converged") else "-"
+
+    def miss(r):
+        if "attitude_miss_deg" in r:
+            return f"{r['terminal_error']:.1e} ({r['attitude_miss_deg']:.1e} deg, {r['rate_miss']:.1e} rad/s)"
+        if "radius_miss" in r:
+            return f"{r['terminal_error']:.1e} (radius {r['radius_miss']:.1e}, speed {r['speed_miss']:.1e})"
+        return f"{r['terminal_error']:.1e}"
 
     for r in out:
         if "ours" not in r:
@@ -575,7 +654,7 @@ def print_table(out: list[dict], runs: int) -> None:
         print(f"| {r['case']} | {r['N']} | {o['iterations']} / {o['build_s']:.2f} / {o['solve_s']:.2f} | "
               f"{p['iterations']} / {p['build_s']:.2f} / {p['solve_s']:.2f}{note} | {ratio(r['solve_ratio'])} | "
               f"{ratio(r['total_ratio'])} | {cost(o)} / {cost(p)}{pub} | "
-              f"{o['terminal_error']:.1e} / {p['terminal_error']:.1e} |")
+              f"{miss(o)} / {miss(p)} | {p.get('bound_violation', float('nan')):.2g} |")
 
 
 if __name__ == "__main__":
