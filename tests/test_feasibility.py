@@ -1,4 +1,4 @@
-"""The necessary conditions checked before solving (transcription/feasibility.py, docs/mathematics.md §11).
+"""The necessary conditions checked before solving (transcription/feasibility.py, docs/mathematics.md §12).
 
 For each condition: a problem at 0.9 of its continuous bound is not refused and solves (converged,
 bounds and path constraints held on the re-simulated path); one at 1.1 is refused as infeasible with

@@ -1,4 +1,4 @@
-"""Necessary conditions checked before a solve (docs/mathematics.md §11).
+"""Necessary conditions checked before a solve (docs/mathematics.md §12).
 
 A smooth problem whose requirements exceed what any admissible control can achieve in the
 horizon is reported at once -- ``Result.infeasible`` with the reason, no iteration -- instead of
