@@ -109,7 +109,7 @@ def plan_of(source, *, maneuver=None, method: str | None = None, reference_radiu
     scale = _scale(where, phys, mu, reference_radius, body, mass_kg, center)
     tr = sol.trajectory
     return Plan(name=getattr(maneuver, "name", None) or getattr(problem, "name", "") or "se3ocp", source=where,
-                method=method, scheme=sol.discretization, t=np.asarray(tr.t, float), x=tr.x, v=tr.v, R=tr.R,
+                method=method, scheme=sol.scheme, t=np.asarray(tr.t, float), x=tr.x, v=tr.v, R=tr.R,
                 Omega=tr.Omega, t_u=sol.control_times, u_f=sol.u_f, u_m=sol.u_m, impulses=sol.impulses,
                 epoch=phys.epoch if phys else default_epoch(), frame=phys.frame if phys else DEFAULT_FRAME, mu=mu,
                 scale=scale)
