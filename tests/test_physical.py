@@ -161,7 +161,7 @@ def test_elements_in_a_file_and_their_errors():
 
 
 # ---------------------------------------------------------------------------- unit checks
-LEO_KM = {"position": [6778.137, 0.0, 0.0], "velocity": [0.0, 7.668558, 0.0], "angular_velocity": [0, 0, 0]}
+LEO_KM = {"position": [6778.137, 0.0, 0.0], "velocity": [0.0, 7.668558, 0.0], "attitude": "identity", "angular_velocity": [0, 0, 0]}
 
 
 def test_gm_in_m3_with_positions_in_km_is_refused():
@@ -178,7 +178,7 @@ def test_gm_in_m3_with_positions_in_km_is_refused():
 
 def test_positions_in_m_with_the_km_preset_and_a_contradicting_mu_are_refused():
     doc = leo()
-    doc["initial"] = {"position": [6778137.0, 0, 0], "velocity": [0, 7668.6, 0], "angular_velocity": [0, 0, 0]}
+    doc["initial"] = {"position": [6778137.0, 0, 0], "velocity": [0, 7668.6, 0], "attitude": "identity", "angular_velocity": [0, 0, 0]}
     refused(doc, "initial.velocity", "GM in km^3/s^2 with positions in m", "central_body earth")
     doc = leo()
     doc["model"]["mu"] = 3.986004418e14
@@ -193,13 +193,13 @@ def test_gm_check_accepts_legitimate_borderline_states():
     r = 7000.0
     doc["model"]["mu"] = MU_KM
     doc["initial"] = {"position": [r, 0, 0], "velocity": [0, 9000 * math.sqrt(MU_KM / r), 0],
-                      "angular_velocity": [0, 0, 0]}
+                      "attitude": "identity", "angular_velocity": [0, 0, 0]}
     parse_maneuver(doc, "fast")
     doc["initial"]["velocity"] = [0, 1.1e4 * math.sqrt(MU_KM / r), 0]
     refused(doc, "model.mu", "times the circular speed")
     doc = leo(central_body=None, horizon={"T": 60.0, "N": 10})
     doc["model"]["mu"] = 4902.8
-    doc["initial"] = {"position": [1740.0, 0, 0], "velocity": [0, 1e-4, 0], "angular_velocity": [0, 0, 0]}
+    doc["initial"] = {"position": [1740.0, 0, 0], "velocity": [0, 1e-4, 0], "attitude": "identity", "angular_velocity": [0, 0, 0]}
     parse_maneuver(doc, "hover")
     t_ff = 0.5 * math.pi * math.sqrt(1740.0**3 / (2 * 4902.8))
     doc["horizon"]["T"] = 101 * t_ff
