@@ -14,6 +14,7 @@ wherever Python and matplotlib do.
 from __future__ import annotations
 
 import contextlib
+import csv
 import errno
 import io
 import json
@@ -115,6 +116,27 @@ def write_json(path: Path, obj: Any) -> None:
 def write_yaml(path: Path, obj: Any) -> None:
     """YAML that reads back as written with the project's YAML 1.2 loader and with YAML 1.1."""
     atomic_write_bytes(path, yaml_dump(to_jsonable(obj)).encode())
+
+
+def _csv_cell(v):
+    """One CSV cell: booleans as true/false, floats by repr (round-trips), lists and mappings as JSON, None empty."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (list, dict)):
+        return json.dumps(v)
+    return "" if v is None else v
+
+
+def write_csv(path: Path, columns: list[str], rows: list[dict]) -> None:
+    """A CSV file (atomically) of ``rows`` (mappings) with the header ``columns``; absent cells empty."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow([_csv_cell(r.get(c)) for c in columns])
+    atomic_write_bytes(path, buf.getvalue().encode())
 
 
 def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:

@@ -47,6 +47,14 @@ def _animation_options(p: argparse.ArgumentParser):
     p.add_argument("--fps", type=_positive_int, default=20, metavar="F", help="frames per second (default 20)")
 
 
+def _executor_options(p: argparse.ArgumentParser):
+    """Where a sweep's or a flight's tasks run: --workers (local pool) or --scheduler (a Dask cluster)."""
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                   help="local worker processes (default: one per core; 1 = in-process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the tasks on an existing dask.distributed cluster, e.g. tcp://host:8786")
+
+
 def _output_options(p: argparse.ArgumentParser):
     p.add_argument("--no-figures", action="store_true", help="skip the PNG/PDF figures (report.html is still written)")
     _animation_options(p)
@@ -170,10 +178,7 @@ def _sweep_parser(sub) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("sweep", help="sweep YAML file (base maneuver, axes, methods; see problems/sweep/)")
     p.add_argument("--out", default=None, metavar="DIR", help="results directory (default results/sweeps/<name>/)")
-    p.add_argument("--workers", type=_positive_int, default=None, metavar="K",
-                   help="local worker processes (default: one per core; 1 = in-process)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the tasks on an existing dask.distributed cluster, e.g. tcp://host:8786")
+    _executor_options(p)
     p.add_argument("--no-continuation", action="store_true", help="cold-start every point (ignore 'continuation')")
     p.add_argument("--force", action="store_true", help="write into a non-empty results directory")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -196,10 +201,7 @@ def _fly_parser(sub) -> None:
     p.add_argument("--runs", type=_positive_int, default=None, metavar="K", help="number of runs (default: the block's)")
     p.add_argument("--feedback", choices=("none", "lqr", "both"), default=None,
                    help="open loop, the LQR tracker, or both side by side (default: the block's, else both)")
-    p.add_argument("--workers", type=_positive_int, default=None, metavar="K",
-                   help="local worker processes (default: one per core; 1 = in-process)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on an existing dask.distributed cluster, e.g. tcp://host:8786")
+    _executor_options(p)
     p.add_argument("--save-runs", type=_nonneg_int, default=0, metavar="K",
                    help="write runs/NNNN.npz (errors, applied controls, truth trajectory) of the first K runs")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")

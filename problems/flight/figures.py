@@ -26,6 +26,14 @@ MODE_COLORS = {"none": "#e66101", "lqr": "#5e3c99"}
 MODE_LABELS = {"none": "open loop", "lqr": "LQR"}
 
 
+
+def _titled(fig: Figure, result: FlightResult, what: str) -> Figure:
+    """``fig`` titled '<maneuver>: <what>' and laid out."""
+    fig.suptitle(f"{result.maneuver.name}: {what}")
+    fig.tight_layout()
+    return fig
+
+
 def draw_flights(out: Path, result: FlightResult) -> list[Path]:
     """Every figure of the module into ``out``; returns the files written."""
     written = []
@@ -77,10 +85,8 @@ def _miss(result: FlightResult) -> Figure:
                 ax.set_ylabel("attitude error y (deg)")
             ax.set_title(f"{MODE_LABELS[mode]}: {len(rows)} runs", fontsize=9)
             ax.ticklabel_format(style="sci", scilimits=(-3, 3))
-    fig.suptitle(f"{result.maneuver.name}: terminal misses (position in the "
-                 f"{'target orbit' + chr(39) + 's RTN' if result.plan['miss_frame'] == 'RTN' else 'inertial'} frame)")
-    fig.tight_layout()
-    return fig
+    return _titled(fig, result, f"terminal misses (position in the "
+                             f"{'target orbit' + chr(39) + 's RTN' if result.plan['miss_frame'] == 'RTN' else 'inertial'} frame)")
 
 
 def _histograms(result: FlightResult) -> Figure:
@@ -102,9 +108,7 @@ def _histograms(result: FlightResult) -> Figure:
         ax.set_xlabel(f"{label} (%)" if c == "delta_v_overhead" else f"log10 {label}")
         if both.size:
             ax.legend(fontsize=7)
-    fig.suptitle(f"{result.maneuver.name}: {result.finished_runs} runs")
-    fig.tight_layout()
-    return fig
+    return _titled(fig, result, f"{result.finished_runs} runs")
 
 
 def _tracks(result: FlightResult) -> Figure | None:
@@ -125,9 +129,7 @@ def _tracks(result: FlightResult) -> Figure | None:
     for ax in axes:
         ax.set_xlabel(u.time_label)
         ax.legend(fontsize=7)
-    fig.suptitle(f"{result.maneuver.name}: deviation from the plan, first {len(result.tracks)} runs")
-    fig.tight_layout()
-    return fig
+    return _titled(fig, result, f"deviation from the plan, first {len(result.tracks)} runs")
 
 
 def _controls(result: FlightResult) -> Figure | None:
@@ -155,6 +157,4 @@ def _controls(result: FlightResult) -> Figure | None:
         bounded = isinstance(act, (BoxBound, NormBound))
         ax.set_title(f"{name}: {MODE_LABELS[mode]}" + (", actuators' bound solid, plan's dashed" if bounded
                                                        else " (unbounded)"), fontsize=9)
-    fig.suptitle(f"{result.maneuver.name}: control usage, first {len(result.tracks)} runs")
-    fig.tight_layout()
-    return fig
+    return _titled(fig, result, f"control usage, first {len(result.tracks)} runs")

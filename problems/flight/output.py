@@ -2,13 +2,11 @@
 config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker), runs/NNNN.npz and the figures."""
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_bytes, write_json, write_npz, write_yaml
+from ..io import write_csv, write_json, write_npz, write_yaml
 from .run import FlightResult
 from .task import ERROR_COLUMNS
 
@@ -18,24 +16,11 @@ def columns(result: FlightResult) -> list[str]:
     return ["run", "feedback", "status", *result.metrics, *ERROR_COLUMNS, "message"]
 
 
-def _cell(v):
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return repr(v)
-    return v
-
-
 def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: bool = True) -> list[Path]:
     """Every file of a flight into ``out``; summary.json last."""
     out = Path(out)
     cols = columns(result)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for r in result.rows:
-        w.writerow([_cell(r.get(c)) for c in cols])
-    atomic_write_bytes(out / "flights.csv", buf.getvalue().encode())
+    write_csv(out / "flights.csv", cols, result.rows)
     write_yaml(out / "flight.resolved.yaml", {"flight": result.spec.resolved})
     write_yaml(out / "config.resolved.yaml", result.maneuver.resolved)
     write_npz(out / "plan.npz", plan_arrays)

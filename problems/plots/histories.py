@@ -133,20 +133,25 @@ def fig_angular_velocity(runs, problem: Problem):
     return _finish(fig, runs, problem, units(problem).label("angular velocity Ω = J⁻¹Π, body frame", "angular_rate"))
 
 
+#: per control: its Solution attribute, component symbol and title
+_CONTROL_FIGURES = {"force": ("u_f", "f", "control force u_f, inertial components"),
+                    "moment": ("u_m", "m", "control moment u_m, body components")}
+
+
+def _control_components(runs, problem: Problem, which: str):
+    """The components of one control ('force' or 'moment') against time, with its bound."""
+    attr, sym, title = _CONTROL_FIGURES[which]
+    return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, getattr(r.sol, attr)),
+                       [f"$u_{{{sym},{i}}}$" for i in (1, 2, 3)], units(problem).label(title, which),
+                       bound=_bound_of(problem, which), controls=True, quantity=which)
+
+
 def fig_force(runs, problem: Problem):
-    b = _bound_of(problem, "force")
-    return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_f),
-                       ["$u_{f,1}$", "$u_{f,2}$", "$u_{f,3}$"],
-                       units(problem).label("control force u_f, inertial components", "force"), bound=b, controls=True,
-                       quantity="force")
+    return _control_components(runs, problem, "force")
 
 
 def fig_moment(runs, problem: Problem):
-    b = _bound_of(problem, "moment")
-    return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, r.sol.u_m),
-                       ["$u_{m,1}$", "$u_{m,2}$", "$u_{m,3}$"],
-                       units(problem).label("control moment u_m, body components", "moment"), bound=b, controls=True,
-                       quantity="moment")
+    return _control_components(runs, problem, "moment")
 
 
 def _active(u: np.ndarray, bound) -> np.ndarray:

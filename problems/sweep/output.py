@@ -2,26 +2,14 @@
 figures, each file atomically."""
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 from pathlib import Path
 
-from ..io import atomic_write_bytes, write_json, write_yaml
+from ..io import atomic_write_bytes, write_csv, write_json, write_yaml
 from .figures import draw_sweep
 from .run import SweepResult
 from .schema import RESULT_COLUMNS, Sweep
-
-
-def _cell(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return repr(v)
-    if isinstance(v, (list, dict)):
-        return json.dumps(v)
-    return v
 
 
 def _finite_or_none(v):
@@ -37,12 +25,7 @@ def write_results(out: Path, result: SweepResult, figures: bool = True) -> list[
     """results.csv, results.jsonl, summary.json, sweep.resolved.yaml and the figures (atomic writes)."""
     out = Path(out)
     cols = columns(result.sweep)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for r in result.rows:
-        w.writerow([_cell(r.get(c)) for c in cols])
-    atomic_write_bytes(out / "results.csv", buf.getvalue().encode())
+    write_csv(out / "results.csv", cols, result.rows)
     pts = result.sweep.points()
     lines = [json.dumps({**{c: _finite_or_none(r.get(c)) for c in cols}, "overrides": list(pts[r["point"]].overrides)},
                         allow_nan=False) for r in result.rows]
