@@ -446,3 +446,29 @@ def test_energy_contrast_script_runs():
     assert last <= 2 * first and orth <= 1e-12, rows
     first, last, orth = rows["RK4"]
     assert last >= 1.5 * first and orth >= 1e-12, rows
+
+
+@pytest.mark.parametrize("scheme", ["lgvi", "first_order"])
+def test_body_force_frame_is_the_inertial_scheme_with_rotated_controls(model, db, scheme):
+    """force_frame='body': a body-frame control u_f at node j applies R_j u_f (the node's attitude), so a
+    body-frame rollout with u_b,j equals the inertial rollout with u_i,j = R_j u_b,j to round-off (the
+    frame is a change of variables node by node)."""
+    rng = np.random.default_rng(7)
+    inertial = Discretization(model, scheme)
+    body = Discretization(model, scheme, force_frame="body")
+    N, h = 40, 1e-3
+    X0 = tumbling_state(db)
+    Ub = 1e-2 * rng.standard_normal((6, body.n_controls(N)))
+    Xb, _ = body.simulate(X0, Ub, h, N)
+    R = unpack_states(Xb).R
+    nodes = np.arange(N + 1) if scheme == "lgvi" else np.arange(1, N + 1)
+    Ui = Ub.copy()
+    Ui[:3] = body.applied_force(R[nodes], Ub[:3].T).T
+    Xi, _ = inertial.simulate(X0, Ui, h, N)
+    assert np.max(np.abs(Xb - Xi)) <= 1e-12 * max(1.0, np.max(np.abs(Xi)))
+    assert not np.allclose(Ub[:3], Ui[:3])
+
+
+def test_unknown_force_frame_is_refused(model):
+    with pytest.raises(ValueError, match="force_frame"):
+        Discretization(model, "lgvi", force_frame="lvlh")

@@ -44,6 +44,10 @@ from .model import BodyModel
 
 SCHEMES = ("lgvi", "first_order")
 
+#: the frame the force control u_f is given in: 'inertial' (the paper's case) or 'body' (engines fixed in
+#: the body; the applied inertial force is R u_f at the node the control belongs to, docs/mathematics.md §14)
+FORCE_FRAMES = ("inertial", "body")
+
 #: default number of unrolled Newton iterations in the Cayley solve.  From the
 #: (2J)^-1 g start, s = h|Pi|/lambda_min(J) <= 0.999 needs at most 7 to reach
 #: |G|/|g| <= 1e-12 in every direction (tests/test_lgvi.py); ordinary steps
@@ -86,13 +90,14 @@ def per_discretization(build: Callable) -> Callable:
     return get
 
 
-def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS) -> "Discretization":
-    """The :class:`Discretization` of ``model`` and ``scheme``, built once per model and kept on it
-    (``model.discretizations``): every Problem of that model and scheme shares its Functions and everything
-    cached on it (NLP blocks and their derivatives, shooting Functions, compiled code)."""
-    key = (scheme, int(newton_iters))
+def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
+                   force_frame: str = "inertial") -> "Discretization":
+    """The :class:`Discretization` of ``model``, ``scheme`` and ``force_frame``, built once per model and kept
+    on it (``model.discretizations``): every Problem of that model and scheme shares its Functions and
+    everything cached on it (NLP blocks and their derivatives, shooting Functions, compiled code)."""
+    key = (scheme, int(newton_iters), force_frame)
     if key not in model.discretizations:
-        model.discretizations[key] = Discretization(model, scheme, newton_iters)
+        model.discretizations[key] = Discretization(model, scheme, newton_iters, force_frame)
     return model.discretizations[key]
 
 
@@ -104,16 +109,22 @@ class Discretization:
     model : BodyModel
     scheme : 'lgvi' | 'first_order'
     newton_iters : unrolled Newton iterations of the Cayley solve.
+    force_frame : 'inertial' | 'body' -- the frame of the force control u_f; with 'body' the applied
+        inertial force of a control at node j is R_j u_{f,j} (:meth:`applied_force`).
 
     What the methods build for this scheme and model -- NLP blocks, shooting Functions, rollouts of a
     length -- is built once and kept here (:meth:`cached`), so it lives as long as the Discretization.
     """
 
-    def __init__(self, model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS):
+    def __init__(self, model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
+                 force_frame: str = "inertial"):
         if scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+        if force_frame not in FORCE_FRAMES:
+            raise ValueError(f"force_frame must be one of {FORCE_FRAMES}, got {force_frame!r}")
         self.model = model
         self.scheme = scheme
+        self.force_frame = force_frame
         self.newton_iters = int(newton_iters)
         self._built: dict[Hashable, Any] = {}
         #: stage control dimension
@@ -183,13 +194,13 @@ class Discretization:
         if self.scheme == "lgvi":
             uk, uk1 = w[0:NU], w[NU:]
             f0, M0 = self.model.forces(x, R)
-            Fk0 = f0 + uk[U_FORCE]
+            Fk0 = f0 + self.applied_force(R, uk[U_FORCE])
             Mk0 = M0 + uk[U_MOMENT]
             g = h * (Pi + (h / 2) * Mk0)                                       # (9)
             x1 = x + (h / m) * gamma + (h**2 / (2 * m)) * Fk0                  # (7)
             R1 = ca.mtimes(R, F)                                               # (10)
             f1, M1 = self.model.forces(x1, R1)
-            gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + uk1[U_FORCE])         # (8)
+            gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]))  # (8)
             Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[U_MOMENT])  # (11)
         else:
             u1 = w
@@ -197,9 +208,18 @@ class Discretization:
             x1 = x + (h / m) * gamma                                           # (21)
             R1 = ca.mtimes(R, F)                                               # (24)
             f1, M1 = self.model.forces(x1, R1)
-            gamma1 = gamma + h * f1 + h * u1[U_FORCE]                              # (22)
+            gamma1 = gamma + h * f1 + h * self.applied_force(R1, u1[U_FORCE])      # (22)
             Pi1 = ca.mtimes(F.T, Pi) + h * M1 + h * u1[U_MOMENT]                    # (25)
         return join_state(x1, gamma1, R1, Pi1), g
+
+    def applied_force(self, R, u_f):
+        """The inertial force (3) a force control u_f (3) applies at a node of attitude R (3x3): u_f itself
+        ('inertial') or R u_f ('body').  NumPy or CasADi; R and u_f may also be stacks (n,3,3), (n,3)."""
+        if self.force_frame == "inertial":
+            return u_f
+        if is_symbolic(R) or is_symbolic(u_f):
+            return ca.mtimes(R, u_f)
+        return np.einsum("...ij,...j->...i", np.asarray(R, dtype=float), np.asarray(u_f, dtype=float))
 
     # --------------------------------------------------------------- controls
     def n_controls(self, N: int) -> int:

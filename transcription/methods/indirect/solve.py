@@ -34,6 +34,8 @@ def not_covered(problem: Problem) -> str:
         reasons.append("path constraints")
     if not isinstance(problem.terminal, TargetState):
         reasons.append("an orbit target")
+    if problem.disc.force_frame != "inertial":
+        reasons.append("a force in the body frame")
     for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
         if isinstance(bound, BoxBound) and np.count_nonzero(W - np.diag(np.diag(W))):
             reasons.append(f"a box bound on the {name} with a non-diagonal weight")
