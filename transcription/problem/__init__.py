@@ -25,7 +25,7 @@ from .conditions import (orbit_conditions, orbit_residual, state_residual, termi
                          terminal_rows)
 from .constraints import MARGIN_DIMENSION, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius
 from .controls import (AT_BOUND_RTOL, OBJECTIVES, Bound, BoxBound, Control, ImpulsiveControl, NormBound,
-                       SmoothControl, actuator_bounds, spd_weight)
+                       SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
 from .costs import control_activity, effort_cost, fuel_cost, impulse_cost, objective_value, quadrature_weights
 from .definition import Problem, state_from_velocities
 from .errors import ProblemError
@@ -33,7 +33,7 @@ from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetState
 
 __all__ = ["AT_BOUND_RTOL", "Bound", "BoxBound", "Control", "ImpulsiveControl", "KeepIn", "KeepOut", "MARGIN_DIMENSION",
            "MaxAngularRate", "MinRadius", "NormBound", "OBJECTIVES", "PATH_CONSTRAINTS", "Problem", "ProblemError",
-           "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit", "TargetState", "actuator_bounds",
+           "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit", "TargetState", "ThrusterBound", "actuator_bounds",
            "control_activity",
            "effort_cost", "fuel_cost", "impulse_cost", "objective_value", "orbit_conditions", "orbit_residual",
            "quadrature_weights", "spd_weight", "state_from_velocities", "state_residual", "terminal_error",

@@ -80,7 +80,50 @@ class NormBound:
         """(n,) bool: |u| within AT_BOUND_RTOL of b (never for b = 0: a removed control is absent)."""
         return (np.linalg.norm(np.asarray(u, float), axis=1) >= self.b * (1.0 - AT_BOUND_RTOL)) & (self.b > 0)
 
-Bound = Union[BoxBound, NormBound]
+@dataclass(frozen=True)
+class ThrusterBound:
+    """One engine fixed in the body (force_frame 'body' only): u_f = T a, a the unit engine axis (body
+    frame, normalized here) and min <= T <= max (0 <= min < max, finite).  Off-axis force is not available."""
+
+    axis: np.ndarray
+    max: float
+    min: float = 0.0
+
+    def __post_init__(self):
+        a = np.asarray(self.axis, dtype=float).reshape(-1)
+        if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
+            raise ProblemError("bounds.thruster.axis", "expected a non-zero 3-vector (the engine axis in the body frame)")
+        lo, hi = float(self.min), float(self.max)
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 <= lo < hi):
+            raise ProblemError("bounds.thruster", f"expected 0 <= min < max, finite, got min {lo!r}, max {hi!r}")
+        object.__setattr__(self, "axis", a / np.linalg.norm(a))
+        object.__setattr__(self, "max", hi)
+        object.__setattr__(self, "min", lo)
+
+    def thrust(self, u: np.ndarray) -> np.ndarray:
+        """T = a^T u_f for force controls u (n, 3) in the body frame."""
+        return np.asarray(u, float) @ self.axis
+
+    def off_axis(self, u: np.ndarray) -> np.ndarray:
+        """|u_f - T a| (n,): the force the engine cannot give (0 for a feasible control)."""
+        u = np.asarray(u, float)
+        return np.linalg.norm(u - np.outer(self.thrust(u), self.axis), axis=1)
+
+    def margin(self, u: np.ndarray) -> np.ndarray:
+        """min(max - T, T - min) - |off-axis force| for controls u (n, 3): >= 0 where the bound holds."""
+        T = self.thrust(u)
+        return np.minimum(self.max - T, T - self.min) - self.off_axis(u)
+
+    def scale(self) -> float:
+        return self.max
+
+    def active(self, u: np.ndarray) -> np.ndarray:
+        """(n,) bool: the thrust within AT_BOUND_RTOL (of max) of max or of min."""
+        T, tol = self.thrust(u), AT_BOUND_RTOL * self.max
+        return (T >= self.max - tol) | (T <= self.min + tol)
+
+
+Bound = Union[BoxBound, NormBound, ThrusterBound]
 
 OBJECTIVES = ("effort", "time", "fuel")
 
@@ -118,8 +161,10 @@ class SmoothControl:
             raise ProblemError("control.objective", f"expected one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
         for name in ("force_bound", "moment_bound"):
             b = getattr(self, name)
-            if b is not None and not isinstance(b, (BoxBound, NormBound)):
-                raise ProblemError(f"control.{name}", "expected a BoxBound, a NormBound or None")
+            if b is not None and not isinstance(b, (BoxBound, NormBound, ThrusterBound)):
+                raise ProblemError(f"control.{name}", "expected a BoxBound, a NormBound, a ThrusterBound or None")
+        if isinstance(self.moment_bound, ThrusterBound):
+            raise ProblemError("control.moment_bound", "a thruster bounds the force; the moment takes a box or a norm bound")
         if self.objective == "fuel":
             for name in ("W_f", "W_m"):
                 W = getattr(self, name)
@@ -153,7 +198,12 @@ def actuator_bounds(control: SmoothControl) -> tuple[Bound | None, Bound | None]
     s = 1.0 / (1.0 - control.bounds_margin)
     out = []
     for b in (control.force_bound, control.moment_bound):
-        out.append(b if b is None or s == 1.0 else BoxBound(b.b * s) if isinstance(b, BoxBound) else NormBound(b.b * s))
+        if b is None or s == 1.0:
+            out.append(b)
+        elif isinstance(b, ThrusterBound):
+            out.append(ThrusterBound(b.axis, b.max * s, b.min))
+        else:
+            out.append(BoxBound(b.b * s) if isinstance(b, BoxBound) else NormBound(b.b * s))
     return out[0], out[1]
 
 
