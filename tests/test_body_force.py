@@ -43,3 +43,63 @@ def test_the_problem_refuses_a_thruster_on_an_inertial_force():
         p.replace(control=thruster)
     body = p.replace(disc=discretization(p.model, p.scheme, force_frame="body"), control=thruster)
     assert isinstance(body.control.force_bound, ThrusterBound)
+
+
+# ------------------------------------------------------------------------------------ the direct method
+@pytest.mark.parametrize("scheme", ["first_order", "lgvi"])
+def test_e3_with_a_body_frame_force_is_e3(scheme):
+    """Without a force bound the frame is a change of variables node by node (u_b,j = R_j^T u_i,j, the same
+    |u|): the same optimum as E3 to 1e-10 relative in cost, the applied inertial force R_j u_b,j equal to
+    E3's inertial controls and the moments equal (to 1e-10 of their largest), while u_f itself differs."""
+    import se3ocp
+
+    a = se3ocp.solve(maneuver("e3", 100, scheme))
+    b = se3ocp.solve(maneuver("e3", 100, scheme, "control.force_frame=body"))
+    assert a.converged and b.converged, (a.message, b.message)
+    assert abs(b.cost - a.cost) <= 1e-10 * a.cost
+    assert np.max(np.abs(b.f_inertial - a.u_f)) <= 1e-10 * np.max(np.abs(a.u_f))
+    assert np.max(np.abs(b.u_m - a.u_m)) <= 1e-10 * np.max(np.abs(a.u_m))
+    assert np.max(np.abs(b.u_f - a.u_f)) >= 0.1 * np.max(np.abs(a.u_f))          # the frames do differ
+    R = b.trajectory.R[np.searchsorted(b.trajectory.t, b.control_times)]
+    assert np.max(np.abs(np.einsum("nji,nj->ni", R, b.f_inertial) - b.u_f)) <= 1e-12 * np.max(np.abs(b.u_f))
+    assert b.force_frame == "body" and a.force_frame == "inertial" and a.f_inertial is a.u_f
+    arrays, summary = b.arrays(), b.summary()
+    assert np.array_equal(arrays["f_inertial"], b.f_inertial) and np.array_equal(arrays["u_f"], b.u_f)
+    assert summary["force_frame"] == "body"
+
+
+#: a rest-to-rest 90 deg slew without gravity (configs/slew_keep_out.yaml without its cone) that must also move
+#: the body to (1, 1, 0) with one engine along body x: the body has to turn to aim it
+ENGINE_SLEW = ("constraints=[]", "control.force_frame=body", "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 0.1}}}",
+               "terminal={position: [1, 1, 0], attitude: {axis_angle: [0, 0, 1, 90]}, angular_velocity: [0, 0, 0]}",
+               "horizon.N=40")
+OBJECTIVES = {"effort": (),
+              "fuel": ("control.objective=fuel", "control.weights={force: 1.0, moment: 1.0}"),
+              "time": ("control.objective=time", "horizon.T={free: true, guess: 10, min: 1, max: 30}",
+                       "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 0.1}}, moment: {norm: 0.1}}")}
+
+
+@pytest.mark.parametrize("objective", list(OBJECTIVES))
+def test_the_engine_thrusts_along_its_axis_within_its_range(objective):
+    """Every objective with the direct method: converged, the force along the engine axis to 1e-10 of max (the
+    linear rows hold to round-off), 0 <= T <= max to the solver's tolerance (1e-8 of max), and the figures
+    of merit say so; the fuel cost's force part is sum_j omega_j T_j (|u_f| = T for a feasible control)."""
+    import se3ocp
+    from se3ocp.transcription.problem import quadrature_weights
+
+    man = maneuver("slew_keep_out", None, None, *ENGINE_SLEW, *OBJECTIVES[objective])
+    sol = se3ocp.solve(man)
+    b = man.problem.control.force_bound
+    assert sol.converged, sol.message
+    T = b.thrust(sol.u_f)
+    assert np.max(b.off_axis(sol.u_f)) <= 1e-10 * b.max
+    assert T.min() >= -1e-8 * b.max and T.max() <= b.max * (1 + 1e-8)
+    s = sol.summary()
+    assert s["engine_off_axis_relative"] <= 1e-10 and 0 < s["engine_on_time"] <= sol.T
+    om = quadrature_weights(sol.scheme, sol.N, sol.h)
+    assert s["engine_on_time"] == pytest.approx(float(om @ (np.abs(T) > 1e-3 * b.max)), rel=1e-14)
+    if objective == "fuel":
+        assert sol.cost == pytest.approx(float(om @ T + om @ np.linalg.norm(sol.u_m, axis=1)), rel=1e-8)
+    # the body turns to aim: the engine axis is not the inertial x axis wherever the engine pushes hard
+    push = T > 0.5 * T.max()
+    assert np.max(np.abs(sol.f_inertial[push, 1]) / T[push]) > 0.3

@@ -333,3 +333,43 @@ def nearest_rotation(R: np.ndarray) -> np.ndarray:
     U = U.copy()
     U[..., :, 2] *= np.where(d == 0, 1.0, d)[..., None]
     return U @ Vt
+
+
+def rotation_with_first_column(a) -> np.ndarray:
+    """A rotation Q = [a, b, c] (3x3, NumPy) whose first column is the unit vector a (3,): b is a unit vector
+    perpendicular to a (from the coordinate axis least aligned with a, so the construction is well
+    conditioned), c = a x b.  The frame of a body-fixed engine: a^T u is its thrust, b^T u and c^T u the
+    off-axis force it cannot give."""
+    a = np.asarray(a, dtype=float).reshape(3)
+    a = a / np.linalg.norm(a)
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(a)))] = 1.0
+    b = e - (e @ a) * a
+    b /= np.linalg.norm(b)
+    return np.column_stack([a, b, np.cross(a, b)])
+
+
+def rotation_between(u, v) -> np.ndarray:
+    """The smallest rotations (..., 3, 3) taking the unit vectors u (..., 3) onto the unit vectors v (..., 3)
+    (NumPy): Exp(theta n) with n = u x v / |u x v|, theta = angle(u, v) (the identity where u = v; for
+    v = -u a rotation by pi about an axis perpendicular to u)."""
+    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+    w = np.cross(u, v)
+    s, c = np.linalg.norm(w, axis=-1), np.einsum("...i,...i->...", u, v)
+    theta = np.arctan2(s, c)
+    n = np.where((s > 1e-12)[..., None], w / np.where(s > 0, s, 1.0)[..., None],
+                 np.apply_along_axis(lambda a: rotation_with_first_column(a)[:, 1], -1, u.reshape(-1, 3)).reshape(u.shape))
+    return np.asarray(exp_so3_batch(theta[..., None] * n))
+
+
+def exp_so3_batch(w) -> np.ndarray:
+    """Exp of rotation vectors w (..., 3) (NumPy, Rodrigues), shape (..., 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    th = np.linalg.norm(w, axis=-1)[..., None, None]
+    K = np.zeros(w.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    K = K - np.swapaxes(K, -1, -2)
+    small = th < 1e-8
+    a = np.where(small, 1.0 - th**2 / 6, np.sin(th) / np.where(small, 1.0, th))
+    b = np.where(small, 0.5 - th**2 / 24, (1 - np.cos(th)) / np.where(small, 1.0, th**2))
+    return np.eye(3) + a * K + b * (K @ K)
