@@ -126,7 +126,7 @@ def _dop853_deviation(sol):
     Jinv = np.linalg.inv(J)
 
     def rhs(t, y, t0, h, a, b):
-        x, v, R, Om = y[0:3], y[3:6], y[6:15].reshape(3, 3), y[15:18]
+        v, R, Om = y[3:6], y[6:15].reshape(3, 3), y[15:18]
         u = a + (t - t0) / h * (b - a)
         W = np.array([[0, -Om[2], Om[1]], [Om[2], 0, -Om[0]], [-Om[1], Om[0], 0]])
         return np.concatenate([v, R @ u[0:3] / m, (R @ W).ravel(), Jinv @ (np.cross(J @ Om, Om) + u[3:6])])
@@ -173,3 +173,27 @@ def test_the_continuous_miss_of_body_frame_plans_is_second_order():
     slope = -np.polyfit(np.log(Ns), np.log(miss), 1)[0]
     print(f"engine slew: continuous miss {np.array(miss)}, slope {slope:.3f}")
     assert abs(slope - 2.0) <= 0.15
+
+
+# ------------------------------------------------------------------------------------------------ figure
+def test_the_thrust_direction_figure_is_drawn_for_body_frame_problems():
+    """Body frame: the figure is among the defaults, its engine-axis curve lies at 0 deg wherever the engine is
+    on (the force along the axis), e2 and e3 at 90 deg, its labels name the units; inertial E3: no such figure."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import se3ocp
+
+    sol = se3ocp.solve(maneuver("slew_keep_out", None, None, *ENGINE_SLEW))
+    figs = se3ocp.plot(sol)
+    fig = figs["thrust_direction"]
+    top = fig.axes[0]
+    lines = {ln.get_label(): ln.get_ydata() for ln in top.get_lines()}
+    engine = np.asarray(lines["engine axis"], float)
+    assert np.nanmax(np.abs(engine)) <= 1e-6 and np.isfinite(engine).sum() > 10
+    for e in ("body axis e2", "body axis e3"):
+        assert np.nanmax(np.abs(np.asarray(lines[e], float) - 90.0)) <= 1e-6
+    assert "deg" in top.get_ylabel() and "deg" in fig.axes[1].get_ylabel()
+    e3 = se3ocp.plot(se3ocp.simulate(maneuver("e3", 20).problem, np.zeros((6, 20))))
+    assert "thrust_direction" not in e3
+    import matplotlib.pyplot as plt
+    plt.close("all")
