@@ -392,8 +392,9 @@ class Tracker:
             a, T = self.engine.axis, plan[:, U_FORCE] @ self.engine.axis
             hn = max(min(self.engine.max - T.max(), T.min() - self.engine.min), 0.0)
             dT = float(du[U_FORCE] @ a)
-            limited = limited or abs(dT) > hn or bool(np.linalg.norm(du[U_FORCE] - dT * a) > 0)
-            du[U_FORCE] = float(np.clip(dT, -hn, hn)) * a
+            kept = float(np.clip(dT, -hn, hn)) * a
+            limited = limited or bool(np.linalg.norm(du[U_FORCE] - kept) > 1e-9 * self.engine.max)
+            du[U_FORCE] = kept
         return du, limited
 
     @property
