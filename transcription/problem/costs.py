@@ -49,7 +49,8 @@ def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray,
     AT_BOUND_RTOL), time_at_bound = sum_j omega_j over them (``weights`` the quadrature weights, so that
     it is the time the controls at the bound act), and switch_times: for a box bound every sign change
     of a component (the switches of a bang-bang control; linear interpolation between the node
-    ``times``), for a norm bound the times where the control enters or leaves the bound (midpoints).
+    ``times``), for a norm bound the times where the control enters or leaves the bound (midpoints), for a
+    body-fixed engine (ThrusterBound) those where the thrust reaches or leaves max or min (midpoints).
     Removed and unbounded controls are left out."""
     U = np.asarray(U, dtype=float)
     t = np.asarray(times, dtype=float)
