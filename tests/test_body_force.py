@@ -220,3 +220,39 @@ def test_the_tracker_steers_a_body_fixed_engine_along_its_axis():
     uf = np.asarray(closed.commands)[..., 0:3].reshape(-1, 3)
     assert np.max(b.off_axis(uf)) <= 1e-15 * b.max and b.thrust(uf).min() >= 0.0 and b.thrust(uf).max() <= b.max
     assert tr.fly_discrete(G, disc, G.X[0]).saturated_fraction == 0.0
+
+
+# ------------------------------------------------------------------------------------------------ the LEO engine
+def _along_track_angle(sol) -> np.ndarray:
+    """The angle (deg) between the engine's applied force and the osculating along-track direction n x r at each
+    control's node."""
+    tr = sol.trajectory
+    x, v = tr.x[np.searchsorted(tr.t, sol.control_times)], tr.v[np.searchsorted(tr.t, sol.control_times)]
+    h = np.cross(x, v)
+    t_hat = np.cross(h / np.linalg.norm(h, axis=1)[:, None], x / np.linalg.norm(x, axis=1)[:, None])
+    f = sol.f_inertial / np.maximum(np.linalg.norm(sol.f_inertial, axis=1), 1e-300)[:, None]
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", f, t_hat), -1.0, 1.0)))
+
+
+@pytest.mark.slow
+def test_the_leo_engine_raise_converges_and_aims_its_burns():
+    """configs/leo_body_engine.yaml with its default settings (N = 400): converged, the re-simulated terminal
+    error <= 1e-6 (km, km/s, rad), the force along the engine axis to 1e-10 of max, 0 <= T <= max to the solver's
+    tolerance (1e-8 of max), and the attitude aims the burns: wherever the engine gives more than half its
+    largest thrust, the force lies within 20 deg of the along-track direction (the raise's efficient direction),
+    while the initial attitude points the engine 108 deg away from it."""
+    import se3ocp
+
+    man = maneuver("leo_body_engine")
+    sol = se3ocp.solve(man)
+    b = man.problem.control.force_bound
+    assert sol.converged and sol.terminal_error <= 1e-6, sol.message
+    T = b.thrust(sol.u_f)
+    assert np.max(b.off_axis(sol.u_f)) <= 1e-10 * b.max
+    assert T.min() >= -1e-8 * b.max and T.max() <= b.max * (1 + 1e-8)
+    ang = _along_track_angle(sol)
+    assert np.max(ang[T > 0.5 * T.max()]) <= 20.0
+    tr = sol.trajectory
+    x0, v0 = tr.x[0], tr.v[0]
+    t0 = np.cross(np.cross(x0, v0), x0)
+    assert np.degrees(np.arccos(tr.R[0][:, 0] @ t0 / np.linalg.norm(t0))) >= 90.0
