@@ -256,3 +256,26 @@ def test_the_leo_engine_raise_converges_and_aims_its_burns():
     x0, v0 = tr.x[0], tr.v[0]
     t0 = np.cross(np.cross(x0, v0), x0)
     assert np.degrees(np.arccos(tr.R[0][:, 0] @ t0 / np.linalg.norm(t0))) >= 90.0
+
+
+def test_the_engine_frame_and_the_aiming_rotation():
+    """lie.rotation_with_first_column(a): a rotation (orthonormal to 1e-15, det 1) whose first column is a;
+    lie.rotation_between(u, v): rotations taking u onto v to 1e-15, also for u = v and u = -v, by the angle
+    between them (the smallest rotation; to 1e-7, the arccos of a cosine near 1)."""
+    from se3ocp.transcription.lie import rotation_angle, rotation_between, rotation_with_first_column
+
+    rng = np.random.default_rng(3)
+    for a in [np.array([1.0, 0, 0]), np.array([0, 0, -1.0]), *rng.standard_normal((5, 3))]:
+        a = a / np.linalg.norm(a)
+        Q = rotation_with_first_column(a)
+        assert np.max(np.abs(Q.T @ Q - np.eye(3))) <= 1e-15 * 4 and abs(np.linalg.det(Q) - 1) <= 1e-15 * 4
+        assert np.max(np.abs(Q[:, 0] - a)) <= 1e-16 * 2
+    u = rng.standard_normal((6, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    v = rng.standard_normal((6, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    v[0], v[1] = u[0], -u[1]
+    Rs = rotation_between(u, v)
+    assert np.max(np.abs(np.einsum("nij,nj->ni", Rs, u) - v)) <= 1e-15 * 4
+    ang = np.arccos(np.clip(np.einsum("ni,ni->n", u, v), -1, 1))
+    assert np.max(np.abs(rotation_angle(Rs) - ang)) <= 1e-7

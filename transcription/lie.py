@@ -350,26 +350,14 @@ def rotation_with_first_column(a) -> np.ndarray:
 
 
 def rotation_between(u, v) -> np.ndarray:
-    """The smallest rotations (..., 3, 3) taking the unit vectors u (..., 3) onto the unit vectors v (..., 3)
-    (NumPy): Exp(theta n) with n = u x v / |u x v|, theta = angle(u, v) (the identity where u = v; for
-    v = -u a rotation by pi about an axis perpendicular to u)."""
-    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
-    w = np.cross(u, v)
-    s, c = np.linalg.norm(w, axis=-1), np.einsum("...i,...i->...", u, v)
-    theta = np.arctan2(s, c)
-    n = np.where((s > 1e-12)[..., None], w / np.where(s > 0, s, 1.0)[..., None],
-                 np.apply_along_axis(lambda a: rotation_with_first_column(a)[:, 1], -1, u.reshape(-1, 3)).reshape(u.shape))
-    return np.asarray(exp_so3_batch(theta[..., None] * n))
-
-
-def exp_so3_batch(w) -> np.ndarray:
-    """Exp of rotation vectors w (..., 3) (NumPy, Rodrigues), shape (..., 3, 3)."""
-    w = np.asarray(w, dtype=float)
-    th = np.linalg.norm(w, axis=-1)[..., None, None]
-    K = np.zeros(w.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    small = th < 1e-8
-    a = np.where(small, 1.0 - th**2 / 6, np.sin(th) / np.where(small, 1.0, th))
-    b = np.where(small, 0.5 - th**2 / 24, (1 - np.cos(th)) / np.where(small, 1.0, th**2))
-    return np.eye(3) + a * K + b * (K @ K)
+    """The smallest rotations (n, 3, 3) taking the unit vectors u (n, 3) onto the unit vectors v (n, 3) (NumPy):
+    Exp(theta n) with n = u x v / |u x v|, theta = angle(u, v) (the identity where u = v; for v = -u a rotation
+    by pi about an axis perpendicular to u)."""
+    u, v = np.atleast_2d(np.asarray(u, dtype=float)), np.atleast_2d(np.asarray(v, dtype=float))
+    out = []
+    for a, b in zip(u, v):
+        w = np.cross(a, b)
+        s = float(np.linalg.norm(w))
+        axis = w / s if s > 1e-12 else rotation_with_first_column(a)[:, 1]
+        out.append(np.asarray(exp_so3(np.arctan2(s, float(a @ b)) * axis), dtype=float))
+    return np.array(out)
