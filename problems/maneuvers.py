@@ -417,6 +417,9 @@ def _bound(v: Validator, d, where, thruster: bool = False):
     """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min}}) -> (BoxBound |
     NormBound | ThrusterBound, resolved)."""
     forms = ("box", "norm") + (("thruster",) if thruster else ())
+    if not thruster and isinstance(d, dict) and "thruster" in d:
+        v.fail(where, "a thruster is an engine: it bounds the force (control.bounds.force); the moment takes "
+                      "{box: [b1, b2, b3]} or {norm: b}")
     if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in forms:
         engine = " or {thruster: {axis: [3], max: F, min: 0}}" if thruster else ""
         v.fail(where, f"expected {{box: [b1, b2, b3]}}, {{norm: b}}{engine}, got {describe(d)}")
