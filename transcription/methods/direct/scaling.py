@@ -17,7 +17,7 @@ import numpy as np
 
 from ...guess import target_estimate
 from ...layout import U_FORCE, U_MOMENT, X_ANG, X_MOM, unpack_states
-from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, terminal_rows
+from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, terminal_rows
 from ...nlp import blocks
 
 #: smallest allowed ratio of scaled control cost curvatures (characteristic_scales, module docstring)
@@ -78,10 +78,13 @@ def terminal_row_scales(problem: Problem, sc: Scales) -> np.ndarray:
     """Scales of the terminal rows of the NLP (the row divided by its scale is what the solver sees):
     a state target's fixed components (:func:`~transcription.nlp.blocks.state_target_scales`); an orbit
     target's :func:`~transcription.problem.orbit_residual` rows (radius, out-of-plane position, the body
-    axis (2), linear and angular momentum)."""
+    axis (2), linear and angular momentum); a rendezvous target's rows as a state target's with its given
+    components."""
     target = problem.terminal
     if isinstance(target, TargetOrbit):
         return np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[X_MOM], sc.X[X_ANG]])
+    if isinstance(target, TargetRendezvous):
+        return blocks.state_target_scales(sc.X, target.fixed)
     return blocks.state_target_scales(sc.X, target.fixed)
 
 
