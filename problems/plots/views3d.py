@@ -228,11 +228,12 @@ def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
     return _finish(fig, runs, problem, what)
 
 
-def _cones(ax, problem: Problem, runs: list[Run]) -> list:
+def _cones(ax, problem: Problem, runs: list[Run] | None = None) -> list:
     """Draw each cone constraint (keep-out, keep-in) on the unit sphere of a 3-D axes: its boundary
     about its direction s (dotted); a moving direction (nadir, velocity) as its path s(t) along the first
-    run (dotted) with the cone's boundary at its start and end; returns the cones."""
-    cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+    run (dotted) with the cone's boundary at its start and end (not drawn without ``runs``); returns the
+    cones drawn."""
+    cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn)) and (runs or not c.moving)]
     for c in cones:
         th = np.radians(c.angle_deg)
         if c.moving:
