@@ -89,6 +89,8 @@ def test_rendezvous_point_agrees_with_orbital_elements_for_inclined_planes():
         # the same plane by its normal: the ascending node is the reference, so the point is the same
         same = TargetRendezvous(r, tgt.normal, np.radians(ph))
         assert np.abs(same.point(T, mu)[0] - x).max() <= 1e-12 * r
+        # a re-plan from t = 0.3 T aims at the same instant
+        assert np.abs(tgt.advanced(0.3 * T, mu).point(0.7 * T, mu)[0] - x).max() <= 1e-12 * r
 
 
 def test_rendezvous_residual_derivative_in_T_matches_finite_differences_and_the_closed_form():

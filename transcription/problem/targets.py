@@ -130,6 +130,11 @@ class TargetRendezvous:
         """omega = sqrt(mu / r^3), the target's angular rate."""
         return float(np.sqrt(mu / self.radius**3))
 
+    def advanced(self, dt: float, mu: float) -> "TargetRendezvous":
+        """The same target with the clock started dt later (phase + omega dt): for a re-plan from time dt,
+        whose final time T - dt is the same instant."""
+        return TargetRendezvous(self.radius, self.normal, self.phase + self.rate(mu) * dt, self.node, self.R, self.Pi)
+
     def point(self, T, mu: float):
         """(p(T), v(T)): the target's position and velocity (inertial) at time T (a number, or CasADi symbolic:
         then CasADi (3,1) expressions of T)."""
