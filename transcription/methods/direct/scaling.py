@@ -17,7 +17,7 @@ import numpy as np
 
 from ...guess import target_estimate
 from ...layout import U_FORCE, U_MOMENT, X_ANG, X_MOM, unpack_states
-from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, terminal_rows
+from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, terminal_rows
 from ...nlp import blocks
 
 #: smallest allowed ratio of scaled control cost curvatures (characteristic_scales, module docstring)
@@ -83,9 +83,7 @@ def terminal_row_scales(problem: Problem, sc: Scales) -> np.ndarray:
     target = problem.terminal
     if isinstance(target, TargetOrbit):
         return np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[X_MOM], sc.X[X_ANG]])
-    if isinstance(target, TargetRendezvous):
-        return blocks.state_target_scales(sc.X, target.fixed)
-    return blocks.state_target_scales(sc.X, target.fixed)
+    return blocks.state_target_scales(sc.X, target.fixed)    # a state or a rendezvous target
 
 
 def scaled_terminal_miss(problem: Problem, XN: np.ndarray) -> float:

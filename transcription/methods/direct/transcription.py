@@ -44,8 +44,9 @@ class SmoothTranscription:
     Blocks (transcription.nlp.blocks), in this order: the dynamics of every step (with the effort cost), the
     control nodes' norm bounds and fuel epigraph (with the fuel cost), the time cost, one block per path
     constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
-    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  Box bounds on the controls, removed controls (a norm
-    bound of 0), the slacks' signs and the free step size's range are variable bounds.
+    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  Box
+    bounds on the controls, removed controls (a norm bound of 0), the slacks' signs and the free step size's
+    range are variable bounds.
 
     ``stage_order``: fatrop's stage-ordered layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0
     as constraint rows (fatrop takes no fixed variables) and, for the LGVI, the lifting rows (fixed-time
