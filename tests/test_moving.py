@@ -190,3 +190,23 @@ def test_a_velocity_cone_at_rest_is_refused():
             "constraints=[{kind: keep_out, body_axis: [1, 0, 0], direction: velocity, min_angle_deg: 10}]")
     with pytest.raises(ConfigError, match=r"constraints\[0\]: the initial state leaves the direction 'velocity' undefined"):
         se3ocp.load(config(NAME), sets)
+
+
+def test_figures_draw_the_moving_direction_and_the_rendezvous_points():
+    import matplotlib.pyplot as plt
+
+    man, sol = _solved()
+    figs = se3ocp.plot(sol, ("attitude", "maneuver", "constraints"))
+    try:
+        nadir = _cone(man.problem).directions(sol.trajectory)
+        assert np.allclose(nadir, -sol.trajectory.x / np.linalg.norm(sol.trajectory.x, axis=1)[:, None], atol=1e-15)
+        paths = [np.array(ln.get_data_3d()).T for ln in figs["attitude"].axes[0].lines]
+        assert any(p.shape == nadir.shape and np.allclose(p, nadir, atol=1e-15) for p in paths)
+        margins = figs["constraints"].axes[0].lines[0].get_ydata()
+        assert np.allclose(margins, _cone(man.problem).margin(sol.trajectory), rtol=0, atol=1e-12)
+        pts = [np.asarray(c._offsets3d, float).T.reshape(-1, 3) for c in figs["maneuver"].axes[0].collections
+               if c.get_label() == "target at arrival"]
+        assert len(pts) == 1 and np.abs(pts[0][0] - sol.trajectory.x[-1]).max() <= 1e-8
+    finally:
+        for f in figs.values():
+            plt.close(f)

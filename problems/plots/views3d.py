@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from ...transcription.problem import KeepIn, KeepOut, Problem, TargetOrbit, TargetState
+from ...transcription.problem import KeepIn, KeepOut, Problem, TargetOrbit, TargetRendezvous, TargetState
 from ...transcription.results import Solution
 from ..units import units
 from .orbits import _circle, _orbit_ellipse
@@ -98,6 +98,7 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
         ax.plot(*target.T, color="k", lw=1, ls="--", label="desired orbit", zorder=1)
     if _has_target_position(problem):
         ax.scatter(*problem.terminal.X[0:3], marker="x", s=70, color="k", label="desired position", zorder=6)
+    _rendezvous_marks(ax, problem, first)
     L = 0.14 * lim  # the body frame at a seventh of the view, so that its rotation shows at orbit scale
     if not zoom:
         _bodies(ax, problem, first, L, n_bodies)
@@ -121,6 +122,15 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
     fig.legend(handles, labels, loc="outside lower center", ncols=5 if zoom else 3, fontsize=10 if zoom else 8.5,
                frameon=False)  # the wide figure is shown wider: the same size on the page
     return _finish(fig, runs, problem, what)
+
+
+def _rendezvous_marks(ax, problem: Problem, sol: Solution) -> None:
+    """A rendezvous target where it is at t = 0 (triangle) and at the solution's final time (x)."""
+    if isinstance(problem.terminal, TargetRendezvous) and np.isfinite(sol.trajectory.t[-1]):
+        tgt, mu = problem.terminal, problem.model.mu
+        ax.scatter(*tgt.point(0.0, mu)[0], marker="^", s=50, color="k", label="target at t = 0", zorder=6)
+        ax.scatter(*tgt.point(float(sol.trajectory.t[-1]), mu)[0], marker="x", s=70, color="k",
+                   label="target at arrival", zorder=6)
 
 
 def _has_target_position(problem: Problem) -> bool:
