@@ -11,6 +11,7 @@ from ...lgvi import Discretization, per_discretization
 from ...lie import orthonormalize
 from ...problem import state_residual
 from .control import NB, control_law
+from .coordinates import body_coordinates, frame, frame_inverse
 from .elimination import solve_unpivoted
 
 
@@ -48,7 +49,10 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
 
     The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
     not depend on u_{k+1}) for the step (``disc.step_given_c``: X1 and res are those of ``disc.step``).
-    A_k = ``disc.variation`` at orthonormalized(X) (forward AD through the unrolled Newton iterations).
+    A_k = ``disc.variation`` at orthonormalized(X) (forward AD through the unrolled Newton iterations); with a
+    body-fixed force in the body-momentum coordinates of :mod:`.coordinates`, A'_k = T(Y) A_k T(X)^-1 at the
+    state Y the step reaches without the next control (A'_k does not depend on it), and lam, lam_prev are
+    lambda'_k, lambda'_{k-1} (docs/mathematics.md §15).
     ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
     accurate, but its different rounding changes the iteration counts at the round-off floor that tests
     pin; the costate map gives the same values as before, bit for bit.
@@ -63,7 +67,10 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
         uk = control(lam_prev)[0]
         wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
     c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
-    A = disc.variation(orthonormalized(X), wA, h)[0]
+    Xo = orthonormalized(X)
+    A = disc.variation(Xo, wA, h)[0]
+    if body_coordinates(disc):  # A'_k = T(Y) A_k T(X_k)^-1, Y = step(X_k, [u_k;] 0): free of u_{k+1} (§15)
+        A = ca.mtimes(frame(disc.step_given_c(Xo, c, wA, h)[0]), ca.mtimes(A, frame_inverse(Xo)))
     lam = solve_unpivoted(A.T, lam_prev)
     u, D = control(lam)
     X1 = disc.step_given_c(X, c, stage(u), h)[0]

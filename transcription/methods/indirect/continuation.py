@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from ...layout import NU, U_FORCE, U_MOMENT
-from .control import NO_NORM
+from .control import NB, NO_NORM
 
 #: bound continuation (indirect method from lambda_0 = 0): the stages of the bounds' geometric path from
 #: the unbounded peak to the given bounds, tried when the step from the unbounded solution fails
@@ -20,7 +20,7 @@ def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
     geometrically from the unbounded controls' peaks to bd.  A semismooth Newton method converges
     locally; this brings it there.  Returns the last stage's NewtonResult (its history and iteration
     count those of all stages) and a line per stage."""
-    free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM]
+    free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM, np.zeros(NB - NU - 2)]  # no engine
     first = newton(lam, free_bd, "unbounded")
     history, iters, stages = list(first.history), first.iterations, [f"unbounded: {first.result.value} in "
                                                                       f"{first.iterations} iterations"]
@@ -34,9 +34,11 @@ def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
         x, ok = first.x, True
         for t in path:
             # bounds at fraction t of the way (geometrically) from max(peak, bound) down to the bound
+            # (an engine's data, bd[NU + 2:], is not continued: the stages are all on its segment)
+            bn = bd[:NU + 2]
             with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(np.isfinite(bd) & (bd > 0) & (bd < NO_NORM), np.maximum(peak / bd, 1.0), 1.0)
-            stage_bd = np.where(ratio > 1.0, bd * ratio ** (1.0 - t), bd)
+                ratio = np.where(np.isfinite(bn) & (bn > 0) & (bn < NO_NORM), np.maximum(peak / bn, 1.0), 1.0)
+            stage_bd = np.r_[np.where(ratio > 1.0, bn * ratio ** (1.0 - t), bn), bd[NU + 2:]]
             nr = newton(x, stage_bd, f"bounds {t:.2g}")
             history += nr.history
             iters += nr.iterations

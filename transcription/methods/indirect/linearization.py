@@ -9,6 +9,7 @@ from ...layout import NU, NX, NZ, chart, tangent_readback
 from ...lgvi import Discretization, per_discretization
 from .conditions import costate_functions, orthonormalized, terminal_residual_function
 from .control import NB, control_law, control_matrix, control_scale
+from .coordinates import costate_chart
 from .elimination import unpivoted_elimination, unpivoted_substitution
 
 
@@ -21,7 +22,8 @@ def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
     sweep; the readback is linear), and H its Jacobian in the chart coordinates of X (12 forward
     directions), instead of 12 forward directions through all 144 entries of A.  The step is the
     seeded one (two Newton iterations from the root c0 of step X's Cayley equation: exact up to
-    third derivatives there), so H is exact.
+    third derivatives there), so H is exact.  With a body-fixed force chart and readback are those of the
+    body-momentum coordinates (:func:`.coordinates.costate_chart`): H' of A'(X) = T(X_{k+1}) A(X) T(X)^-1.
     """
     X = ca.SX.sym("X", NX)
     w = ca.SX.sym("w", disc.nw)
@@ -29,9 +31,10 @@ def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
     h = ca.SX.sym("h")
     c0 = ca.SX.sym("c0", 3)
     z, zp = ca.SX.sym("z", NZ), ca.SX.sym("zp", NZ)
-    X1z = disc.step_seeded(chart(chart(X, zp), z), w, h, c0)
+    chart_c, readback_c = costate_chart(disc)  # z (inertial force) or the body-momentum z' (§15)
+    X1z = disc.step_seeded(chart_c(chart_c(X, zp), z), w, h, c0)
     base = ca.SX.sym("base", NX)  # the readback point X_{k+1}(zp), not differentiated in z
-    g = ca.gradient(ca.dot(lam, tangent_readback(base, X1z)), z)
+    g = ca.gradient(ca.dot(lam, readback_c(base, X1z)), z)
     # one substitution for both, so that the step at z = 0 is one graph (not two copies, each differentiated)
     v, X1p = ca.substitute([g, X1z], [z], [ca.DM.zeros(NZ)])
     v = ca.substitute(v, base, X1p)

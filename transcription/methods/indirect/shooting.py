@@ -10,6 +10,7 @@ from ...layout import NU, NX, NZ, tangent_readback
 from ...lgvi import Discretization, per_discretization
 from .conditions import costate_functions, terminal_residual_function
 from .control import NB, control_law, control_matrix
+from .coordinates import body_coordinates, tangent_costate_function, terminal_costate_function
 from .linearization import linearization_functions, terminal_residual_jacobian
 
 #: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
@@ -21,7 +22,9 @@ class ShootingFunctions:
     """Shooting residual and its Jacobian for one (Discretization, N), built once.
 
     The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS); bd the
-    bound data of the controls (:func:`~.control.bound_data`; no bounds: u = v bit for bit).
+    bound data of the controls (:func:`~.control.bound_data`; no bounds: u = v bit for bit).  With a body-fixed
+    force the unknown and the recursion are in the body-momentum coordinates of :mod:`.coordinates`; the outputs
+    lam, lamN, dlamN and Psi are in tangent coordinates z all the same (docs/mathematics.md §15).
 
     shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6], bd[NB])
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
@@ -80,6 +83,9 @@ class ShootingFunctions:
             for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
                 a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
+        body, lam_last = body_coordinates(disc), lams[:, -1]
+        if body:   # lambda_k = T(X_{k+1})^T lambda'_k: the outputs in tangent coordinates (docs/mathematics.md §15)
+            lams = tangent_costate_function().map(f"{sch}_tangent_costates{N}", "serial", N, [], [])(Xs, lams)
         zN, lamN = self.terminal_residual(Xs[:, -1], Xd), lams[:, -1]
         names_in = ["lam0", "X0", "Xd", "h", "Winv", "bd"]
         args = [lam0, X0, Xd, h, Winv, bd]
@@ -111,6 +117,9 @@ class ShootingFunctions:
             dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
                 dZ, ca.MX.eye(NZ), Ar, Hk, Dk, Dr, hs, Ws)
             dZ, dlamN = dZs[:, -NZ:], dlams[:, -NZ:]
+        if body:   # dlambda_{N-1} = T^T dlambda' + Q dz'_N and dz_N = T^-1 dz'_N at X_N
+            _, Tt, Q, Tinv = terminal_costate_function()(Xs[:, -1], lam_last)
+            dlamN, dZ = ca.mtimes(Tt, dlamN) + ca.mtimes(Q, dZ), ca.mtimes(Tinv, dZ)
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
         self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
                                      ["zN", "Psi", "dlamN"])

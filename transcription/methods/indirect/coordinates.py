@@ -1,0 +1,86 @@
+"""The costate coordinates of the indirect method (docs/mathematics.md §15).
+
+With an inertial force (the paper's case) the costates live in the tangent coordinates of §4,
+z = [dx; dgamma; zeta; dPi], and nothing here applies.  With a body-fixed force the control at node j
+applies R_j u_{f,j}: in z its control matrix carries R_j, and A_k = d step / d z_k depends on the next
+control through the term -c R_{k+1} S(u_{f,k+1}) of the rotation column, which would make the forward
+costate recursion implicit.  Carried with the body instead, the linear momentum p = R^T gamma takes the
+body-frame force additively (p += c u_f), and in the coordinates
+
+    z' = T(X) z = [dx; dp; zeta; dPi],   dp = R^T dgamma + S(p) zeta   (the variation of p = R^T gamma),
+
+    T(X) = [[I, 0, 0, 0], [0, R^T, S(p), 0], [0, 0, I, 0], [0, 0, 0, I]],
+    T(X)^-1 = [[I, 0, 0, 0], [0, R, -R S(p), 0], [0, 0, I, 0], [0, 0, 0, I]],
+
+the step's Jacobian A'_k = T(X_{k+1}) A_k T(X_k)^-1 no longer depends on u_{k+1} and the control matrix
+T(X_{k+1}) B_k is the inertial scheme's constant one.  The multipliers transform as lambda_k =
+T(X_{k+1})^T lambda'_k, so lambda' satisfies the same explicit recursion lambda'_{k-1} = A'_k^T lambda'_k
+and the same control law as the inertial case, in body coordinates.
+
+Everything is SX (numbers through :func:`tangent_costate_function`).
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from ...layout import NX, NZ, Z_MOM, Z_ROT, chart, split_state, tangent_readback
+from ...lgvi import Discretization
+from ...lie import hat
+
+
+def body_coordinates(disc: Discretization) -> bool:
+    """Whether the indirect method of ``disc`` uses the body-momentum coordinates z' (a body-fixed force)."""
+    return disc.force_frame == "body"
+
+
+def _momentum(X):
+    _, gamma, R, _ = split_state(X)
+    return R, ca.mtimes(R.T, gamma)
+
+
+def frame(X):
+    """T(X) (12x12): z' = T(X) z, the body-momentum coordinates of a tangent vector z at X (module docstring)."""
+    R, p = _momentum(X)
+    T = ca.SX.eye(NZ)
+    T[Z_MOM, Z_MOM] = R.T
+    T[Z_MOM, Z_ROT] = hat(p)
+    return T
+
+
+def frame_inverse(X):
+    """T(X)^-1 (12x12): z = T(X)^-1 z'."""
+    R, p = _momentum(X)
+    T = ca.SX.eye(NZ)
+    T[Z_MOM, Z_MOM] = R
+    T[Z_MOM, Z_ROT] = -ca.mtimes(R, hat(p))
+    return T
+
+
+def costate_chart(disc: Discretization):
+    """(chart, readback) of the costate coordinates: :func:`~transcription.layout.chart` and
+    :func:`~transcription.layout.tangent_readback` (inertial force), or their composition with T (body force):
+    chart'(X, z') = chart(X, T(X)^-1 z'), readback'_X(dX) = T(X) readback_X(dX); first-order charts of the
+    same state space, so derivatives taken through them are those in z'."""
+    if not body_coordinates(disc):
+        return chart, tangent_readback
+    return (lambda X, z: chart(X, ca.mtimes(frame_inverse(X), z)),
+            lambda X, dX: ca.mtimes(frame(X), tangent_readback(X, dX)))
+
+
+def tangent_costate_function() -> ca.Function:
+    """``tangent_costate`` (X[18], lam[12]) -> lam_z[12] = T(X)^T lam: a costate lam' in body-momentum
+    coordinates at X as the costate of the tangent coordinates z (docs/mathematics.md §15)."""
+    X, lam = ca.SX.sym("X", NX), ca.SX.sym("lam", NZ)
+    return ca.Function("tangent_costate", [X, lam], [ca.mtimes(frame(X).T, lam)], ["X", "lam"], ["lam_z"])
+
+
+def terminal_costate_function() -> ca.Function:
+    """``terminal_costate`` (X[18], lam[12]) -> (lam_z[12], Tt[12x12], Q[12x12], Tinv[12x12]): lam_z = T(X)^T lam
+    as :func:`tangent_costate_function`, Tt = T(X)^T, Q = d lam_z / d z' (X moved along chart'(X, z'), lam
+    fixed) and Tinv = T(X)^-1: what the shooting needs to turn derivatives in z' at X_N into those of z_N and
+    of lambda_{N-1} in z."""
+    X, lam, z = ca.SX.sym("X", NX), ca.SX.sym("lam", NZ), ca.SX.sym("z", NZ)
+    Xz = chart(X, ca.mtimes(frame_inverse(X), z))
+    Q = ca.substitute(ca.jacobian(ca.mtimes(frame(Xz).T, lam), z), z, ca.DM.zeros(NZ))
+    return ca.Function("terminal_costate", [X, lam], [ca.mtimes(frame(X).T, lam), frame(X).T, Q, frame_inverse(X)],
+                       ["X", "lam"], ["lam_z", "Tt", "Q", "Tinv"])
