@@ -1,11 +1,15 @@
-"""The costate coordinates of the indirect method (docs/mathematics.md §15).
+"""The body-fixed force in the indirect method (docs/mathematics.md §15): the costate of the end kick, the control
+law's body-frame costate, and the body-momentum coordinates of the linearization.
 
 With an inertial force (the paper's case) the costates live in the tangent coordinates of §4,
 z = [dx; dgamma; zeta; dPi], and nothing here applies.  With a body-fixed force the control at node j
 applies R_j u_{f,j}: in z its control matrix carries R_j, and A_k = d step / d z_k depends on the next
-control through the term -c R_{k+1} S(u_{f,k+1}) of the rotation column, which would make the forward
-costate recursion implicit.  Carried with the body instead, the linear momentum p = R^T gamma takes the
-body-frame force additively (p += c u_f), and in the coordinates
+control through the term -kick R_{k+1} S(u_{f,k+1}) of the rotation column (the end kick's Jacobian K_z).
+The forward recursion nevertheless stays explicit: K_z^T changes only the zeta block and the control reads
+only the gamma and Pi blocks (:func:`kicked_costate`, :func:`rotated`); the values are computed so, in z.
+
+Carried with the body, the linear momentum p = R^T gamma takes the body-frame force additively (p += kick u_f),
+and in the coordinates
 
     z' = T(X) z = [dx; dp; zeta; dPi],   dp = R^T dgamma + S(p) zeta   (the variation of p = R^T gamma),
 
@@ -13,11 +17,12 @@ body-frame force additively (p += c u_f), and in the coordinates
     T(X)^-1 = [[I, 0, 0, 0], [0, R, -R S(p), 0], [0, 0, I, 0], [0, 0, 0, I]],
 
 the step's Jacobian A'_k = T(X_{k+1}) A_k T(X_k)^-1 no longer depends on u_{k+1} and the control matrix
-T(X_{k+1}) B_k is the inertial scheme's constant one.  The multipliers transform as lambda_k =
-T(X_{k+1})^T lambda'_k, so lambda' satisfies the same explicit recursion lambda'_{k-1} = A'_k^T lambda'_k
-and the same control law as the inertial case, in body coordinates.
+T(X_{k+1}) B_k is the inertial scheme's constant one: lambda' = T^-T lambda satisfies the inertial recursion.
+The linearization (Psi) runs in z' and so reuses the inertial code; the values do not, because
+lambda'_zeta = lambda_zeta + p x lambda'_p carries a large term that cancels, and its rounding raised the
+round-off floor ~300x on E3.
 
-Everything is SX (numbers through :func:`tangent_costate_function`).
+Everything is SX (numbers through the Functions).
 """
 from __future__ import annotations
 
@@ -84,3 +89,29 @@ def terminal_costate_function() -> ca.Function:
     Q = ca.substitute(ca.jacobian(ca.mtimes(frame(Xz).T, lam), z), z, ca.DM.zeros(NZ))
     return ca.Function("terminal_costate", [X, lam], [ca.mtimes(frame(X).T, lam), frame(X).T, Q, frame_inverse(X)],
                        ["X", "lam"], ["lam_z", "Tt", "Q", "Tinv"])
+
+
+def initial_costate_function() -> ca.Function:
+    """``initial_costate`` (X[18], lam[12]) -> (Tit[12x12], Qi[12x12]): a tangent-coordinate costate lam at X in
+    body-momentum coordinates is lam' = T(X)^-T lam; Tit = T(X)^-T and Qi = d lam' / d z' (X moved along
+    chart'(X, z'), lam fixed): the start of the linearized recursion in z' when the shooting unknown is a
+    tangent-coordinate costate."""
+    X, lam, z = ca.SX.sym("X", NX), ca.SX.sym("lam", NZ), ca.SX.sym("z", NZ)
+    Xz = chart(X, ca.mtimes(frame_inverse(X), z))
+    Qi = ca.substitute(ca.jacobian(ca.mtimes(frame_inverse(Xz).T, lam), z), z, ca.DM.zeros(NZ))
+    return ca.Function("initial_costate", [X, lam], [frame_inverse(X).T, Qi], ["X", "lam"], ["Tit", "Qi"])
+
+
+def rotated(lam, R):
+    """lam with its linear-momentum block in the body frame, R^T lam_gamma (the p-block of T(X)^-T lam, which does
+    not depend on p): what the control law of a body-fixed force reads, B_c(R)^T lam = B_c^T rotated(lam, R)."""
+    return ca.vertcat(lam[:3], ca.mtimes(R.T, lam[Z_MOM]), lam[6:])
+
+
+def kicked_costate(mu, R1, u_f, kick):
+    """lambda_k = K_z^-T mu_k from mu_k = Abar_k^-T lambda_{k-1} (docs/mathematics.md §15; SX): the end kick
+    gamma += kick R_{k+1} u_f has the tangent Jacobian K_z = I with -kick R_{k+1} S(u_f) in the (gamma, zeta) block,
+    and K_z^T changes only the zeta block, by kick u_f x (R^T lambda_gamma) with lambda_gamma = mu_gamma; so
+    lambda_zeta = mu_zeta - kick u_f x (R_{k+1}^T mu_gamma), the other blocks those of mu."""
+    corr = kick * ca.cross(u_f, ca.mtimes(R1.T, mu[Z_MOM]))
+    return ca.vertcat(mu[:6], mu[Z_ROT] - corr, mu[9:])

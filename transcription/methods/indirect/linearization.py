@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ...layout import NU, NX, NZ, chart, tangent_readback
+from ...layout import NU, NX, NZ, chart, split_state
 from ...lgvi import Discretization, per_discretization
-from .conditions import costate_functions, orthonormalized, terminal_residual_function
-from .control import NB, control_law, control_matrix, control_scale
+from .conditions import costate_functions, node_law, orthonormalized, terminal_residual_function
+from .control import NB, control_matrix, control_scale
 from .coordinates import costate_chart
 from .elimination import unpivoted_elimination, unpivoted_substitution
 
@@ -51,7 +51,9 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB]) -> H[12x12]
         H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
         orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
-        seeded with the step's Cayley root c (an output of the costate map).
+        seeded with the step's Cayley root c (an output of the costate map).  With a body-fixed force lam is
+        lambda'_k (the costate map's lamp) and H, A, dZ, dlam are in body-momentum coordinates
+        (docs/mathematics.md §15); lam_prev stays the tangent-coordinate costate the control u_k is read from.
     linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], Dk[6x6], D1[6x6], h, Winv[6x6])
             -> (dZ1[12x12], dlam1[12x12])
         dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, docs/mathematics.md §4) and of lambda_{k-1} by
@@ -92,7 +94,8 @@ def _costate_hessian_function(disc: Discretization) -> ca.Function:
     Winv = ca.SX.sym("Winv", NU, NU)
     bd = ca.SX.sym("bd", NB)
     zero = ca.DM.zeros(NU)
-    wA = zero if disc.scheme == "first_order" else ca.vertcat(control_law(disc, h, Winv, bd)(lam_prev)[0], zero)
+    R = split_state(X)[2]
+    wA = zero if disc.scheme == "first_order" else ca.vertcat(node_law(disc, h, Winv, bd)(lam_prev, R)[0], zero)
     H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
     return ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv, bd], [H],
                        ["X", "lam_prev", "lam", "c", "h", "Winv", "bd"], ["H"])

@@ -16,7 +16,7 @@ from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
-from .coordinates import body_coordinates, terminal_costate_function
+from .coordinates import body_coordinates
 from .shooting import shooting_functions, time_gradient_function
 
 
@@ -52,24 +52,17 @@ def free_rows(target: TargetState) -> np.ndarray:
 
 
 def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, u1: np.ndarray | None = None) -> np.ndarray:
-    """The shooting unknown from the costate lambda_0 (12, tangent coordinates) of a solution (docs/mathematics.md
-    §6, §15): first_order lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's
-    first control.  With a body-fixed force, in the body-momentum coordinates (:mod:`.coordinates`):
-    first_order T(X_1)^-T lambda_0, X_1 = step(X_0, u0) (u0 the first control, u_1 of that scheme); lgvi
-    T(X_0)^-T A_0(X_0, [u_0; u_1])^T lambda_0 (A_0 then depends on u_1, the second control, required)."""
+    """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6, §15): first_order
+    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control.  With a
+    body-fixed force A_0 depends on the next control too (the end kick R_1 u_{f,1}): lambda_{-1} =
+    A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
-    disc, X0, h = problem.disc, problem.X0, problem.h
-    body = body_coordinates(disc)
-    if body and problem.scheme == "lgvi" and u1 is None:
-        raise ValueError("lam0_from_costates: a body-fixed force with the LGVI needs the second control u_1")
-    X = X0
     if problem.scheme == "lgvi":
-        A0 = np.array(disc.variation(X0, np.r_[u0, u1 if body else np.zeros(NU)], h)[0])
+        body = body_coordinates(problem.disc)
+        if body and u1 is None:
+            raise ValueError("lam0_from_costates: a body-fixed force with the LGVI needs the second control u_1")
+        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, u1 if body else np.zeros(NU)], problem.h)[0])
         lam = A0.T @ lam
-    elif body:
-        X = np.array(disc.step(X0, u0, h)[0]).ravel()
-    if body:
-        lam = np.array(terminal_costate_function()(X, lam)[3]).T @ lam
     return lam
 
 
