@@ -72,16 +72,9 @@ def costate_chart(disc: Discretization):
             lambda X, dX: ca.mtimes(frame(X), tangent_readback(X, dX)))
 
 
-def tangent_costate_function() -> ca.Function:
-    """``tangent_costate`` (X[18], lam[12]) -> lam_z[12] = T(X)^T lam: a costate lam' in body-momentum
-    coordinates at X as the costate of the tangent coordinates z (docs/mathematics.md §15)."""
-    X, lam = ca.SX.sym("X", NX), ca.SX.sym("lam", NZ)
-    return ca.Function("tangent_costate", [X, lam], [ca.mtimes(frame(X).T, lam)], ["X", "lam"], ["lam_z"])
-
-
 def terminal_costate_function() -> ca.Function:
-    """``terminal_costate`` (X[18], lam[12]) -> (lam_z[12], Tt[12x12], Q[12x12], Tinv[12x12]): lam_z = T(X)^T lam
-    as :func:`tangent_costate_function`, Tt = T(X)^T, Q = d lam_z / d z' (X moved along chart'(X, z'), lam
+    """``terminal_costate`` (X[18], lam[12]) -> (lam_z[12], Tt[12x12], Q[12x12], Tinv[12x12]): a costate lam' in
+    body-momentum coordinates at X as the tangent-coordinate costate lam_z = T(X)^T lam', Tt = T(X)^T, Q = d lam_z / d z' (X moved along chart'(X, z'), lam
     fixed) and Tinv = T(X)^-1: what the shooting needs to turn derivatives in z' at X_N into those of z_N and
     of lambda_{N-1} in z."""
     X, lam, z = ca.SX.sym("X", NX), ca.SX.sym("lam", NZ), ca.SX.sym("z", NZ)
