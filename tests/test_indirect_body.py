@@ -281,3 +281,29 @@ def test_leo_body_engine_direct_equals_indirect():
     assert d.converged and r.converged and r.stats["initial_costate"] == "from_direct" and r.iterations <= 3
     assert rel <= 1e-6 and u_rel <= 1e-6
     assert np.abs(b.off_axis(r.controls[U_FORCE].T)).max() <= 1e-15 * b.max and T.min() >= 0 and T.max() <= b.max
+
+
+def test_engine_max_is_continued_from_the_free_peak():
+    """The engine problem with W_f = I, LGVI, T_max = 3.5: from lambda_0 = 0 the step from the free-force solution
+    straight to the engine fails, and the staged path (T_max shrinking geometrically from the free force's peak,
+    stage_bounds) reaches the floor; the optimum is the independent NLP's (cost to 1e-9).  stage_bounds leaves
+    the axis and T_min, and gives the bounds themselves at t = 1."""
+    from se3ocp.transcription.methods.indirect.continuation import stage_bounds
+    from se3ocp.transcription.methods.indirect.control import THRUSTER
+
+    p = engine_problem("lgvi")
+    b = ThrusterBound(p.control.force_bound.axis, 3.5, 0.0)
+    p = p.replace(control=SmoothControl(W_f=np.eye(3), W_m=p.control.W_m, force_bound=b))
+    s = solve_indirect(p, IndirectOptions(eps_S=0.0))
+    stages = s.stats["bound_continuation"]
+    status, cost, _ = independent_nlp(p)
+    print(f"engine lgvi, W_f = I, T_max 3.5: {s.result.value} in {s.iterations} it ({stages}); cost {s.cost:.14g}, NLP "
+          f"{cost:.14g}")
+    assert s.converged and s.terminal_error <= 1e-11 and len(stages) == 6 and "line_search_failed" in stages[1]
+    assert status == "Solve_Succeeded" and abs(cost - s.cost) <= 1e-9 * s.cost
+    bd = bound_data(p)
+    peak = np.r_[np.full(NU, 10.0), 100.0, 100.0, 7.0]
+    assert np.array_equal(stage_bounds(bd, peak, 1.0), bd)
+    half = stage_bounds(bd, peak, 0.5)
+    assert half[THRUSTER][7] == pytest.approx(np.sqrt(3.5 * 7.0), rel=1e-15)
+    assert np.array_equal(np.delete(half, THRUSTER.start + 7), np.delete(bd, THRUSTER.start + 7))
