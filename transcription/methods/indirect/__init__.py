@@ -94,8 +94,8 @@ the floor was ~1e-11 at N = 500, with it ~6e-13).  The floor is *measured*
 Modules: :mod:`.elimination` (unpivoted Gaussian elimination), :mod:`.control` (the saturated control law,
 the bounds as data, the effort cost), :mod:`.conditions` (the forward map of the necessary conditions),
 :mod:`.linearization` (its exact linearization), :mod:`.shooting` (the shooting Functions per N),
-:mod:`.continuation` (bound continuation, free final time), :mod:`.coordinates` (the body-fixed force), :mod:`.solve` (the solve; :data:`INDIRECT`,
-the method).
+:mod:`.continuation` (bound continuation, free final time), :mod:`.coordinates` (the body-fixed force),
+:mod:`.solve` (the solve; :data:`INDIRECT`, the method).
 """
 from __future__ import annotations
 

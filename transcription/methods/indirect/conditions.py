@@ -3,10 +3,9 @@
 package docstring (:mod:`transcription.methods.indirect`); the LGVI's in :data:`LGVI_CONDITIONS`."""
 from __future__ import annotations
 
+from typing import Callable
 
 import casadi as ca
-
-from typing import Callable
 
 from ...layout import NU, NX, NZ, U_FORCE, join_state, split_state
 from ...lgvi import Discretization, per_discretization
@@ -90,7 +89,8 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
     R1 = ca.mtimes(R, cayley(c))
     u, D = law(mu, R1)
     X1 = disc.step_given_c(X, c, stage(u), h)[0]
-    out = {"c": c, "A": A, "Abar": A, "mu": mu, "lam": mu, "lamp": mu, "u": u, "D": D, "X1": X1, "res": hist[-1], "law": law}
+    out = {"c": c, "A": A, "Abar": A, "mu": mu, "lam": mu, "lamp": mu, "u": u, "D": D, "X1": X1, "res": hist[-1],
+           "law": law}
     if body_coordinates(disc):
         kick = 0.5 * h if disc.scheme == "lgvi" else h
         lam = kicked_costate(mu, R1, u[U_FORCE], kick)

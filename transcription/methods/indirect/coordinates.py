@@ -74,9 +74,9 @@ def costate_chart(disc: Discretization):
 
 def terminal_costate_function() -> ca.Function:
     """``terminal_costate`` (X[18], lam[12]) -> (lam_z[12], Tt[12x12], Q[12x12], Tinv[12x12]): a costate lam' in
-    body-momentum coordinates at X as the tangent-coordinate costate lam_z = T(X)^T lam', Tt = T(X)^T, Q = d lam_z / d z' (X moved along chart'(X, z'), lam
-    fixed) and Tinv = T(X)^-1: what the shooting needs to turn derivatives in z' at X_N into those of z_N and
-    of lambda_{N-1} in z."""
+    body-momentum coordinates at X as the tangent-coordinate costate lam_z = T(X)^T lam', Tt = T(X)^T,
+    Q = d lam_z / d z' (X moved along chart'(X, z'), lam fixed) and Tinv = T(X)^-1: what the shooting needs to
+    turn derivatives in z' at X_N into those of z_N and of lambda_{N-1} in z."""
     X, lam, z = ca.SX.sym("X", NX), ca.SX.sym("lam", NZ), ca.SX.sym("z", NZ)
     Xz = chart(X, ca.mtimes(frame_inverse(X), z))
     Q = ca.substitute(ca.jacobian(ca.mtimes(frame(Xz).T, lam), z), z, ca.DM.zeros(NZ))
