@@ -123,7 +123,7 @@ def test_e3_body_frame_conditions_and_the_direct_method(scheme, e3_solutions):
     print(f"E3 body {scheme}: direct {d.cost:.14g} rel {rel:.1e}, controls {u_rel:.1e}, multipliers {l_rel:.1e}; "
           f"from_direct: {r.iterations} it, |z_N| {r.terminal_error:.1e}")
     assert d.converged and rel <= 1e-10 and u_rel <= 1e-6 and l_rel <= 1e-6
-    lam0 = lam0_from_costates(p, d.costates[0], *d.controls[:, :2].T)     # lgvi: A_0(X_0, [u_0; u_1])^T lambda_0
+    lam0 = lam0_from_costates(p, d.costates[0], d.controls[:, 0], u1=d.controls[:, 1])  # lgvi: A_0(X_0, [u_0; u_1])^T
     assert np.abs(lam0 - sb.warm.lam0).max() <= 1e-9 * np.abs(sb.warm.lam0).max()
     assert r.converged and r.stats["initial_costate"] == "from_direct" and r.iterations <= 3
     assert r.terminal_error <= 1e-11

@@ -51,17 +51,19 @@ def free_rows(target: TargetState) -> np.ndarray:
     return np.repeat([c in target.free for c in STATE_COMPONENTS], 3)
 
 
-def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, u1: np.ndarray | None = None) -> np.ndarray:
+def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: float | None = None,
+                       u1: np.ndarray | None = None) -> np.ndarray:
     """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6, §15): first_order
-    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control.  With a
-    body-fixed force A_0 depends on the next control too (the end kick R_1 u_{f,1}): lambda_{-1} =
-    A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
+    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control, at the step
+    size h (default the problem's).  With a body-fixed force A_0 depends on the next control too (the end kick
+    R_1 u_{f,1}): lambda_{-1} = A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
     if problem.scheme == "lgvi":
         body = body_coordinates(problem.disc)
         if body and u1 is None:
             raise ValueError("lam0_from_costates: a body-fixed force with the LGVI needs the second control u_1")
-        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, u1 if body else np.zeros(NU)], problem.h)[0])
+        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, u1 if body else np.zeros(NU)],
+                                             problem.h if h is None else h)[0])
         lam = A0.T @ lam
     return lam
 
@@ -82,7 +84,8 @@ def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart 
         if fitted.costates is not None:
             if resampled:
                 notes.append("lambda_0 from the resampled costates")
-            return (lam0_from_costates(problem, fitted.costates[0], *fitted.U[:, :2].T),
+            U = fitted.U
+            return (lam0_from_costates(problem, fitted.costates[0], U[:, 0], u1=U[:, 1] if U.shape[1] > 1 else None),
                     "from_direct" if warm.source == "direct" else "warm_start", notes)
         notes.append("it carries no costates: lambda_0 from initial_costate")
     spec = options.initial_costate
