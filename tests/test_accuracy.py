@@ -108,3 +108,119 @@ def test_no_figure_without_a_check():
 
     sol = se3ocp.solve(maneuver("e3", 20), continuous_check=False)
     assert "continuous" not in figures(sol)
+
+
+# ---------------------------------------------------------------------------- refinement to a tolerance
+def independent_miss(sol) -> dict[str, float]:
+    """The plan's terminal miss flown by the test's own integrator (tests/test_flight.py's ``reflight``: scipy's
+    DOP853 at rtol 1e-13 on a NumPy right-hand side, a unit quaternion as the attitude), the controls applied
+    between the nodes as the scheme defines them (LGVI: linear u_k -> u_{k+1}; first order: u_{k+1} held),
+    against the plan's last node: position relative to the orbit radius |x_0|, velocity relative to the circular
+    speed, attitude angle (rad), rate (rad per time unit)."""
+    from test_flight import reflight
+
+    from se3ocp.transcription.lie import rotation_angle
+
+    prob, tr, U = sol.problem, sol.trajectory, sol.controls
+    start, end = (U[:, :-1], U[:, 1:]) if sol.scheme == "lgvi" else (U, U)
+    x, v, R, Om = reflight(prob.model, tr.X[0], tr.t, start, end, prob.model.inertia)
+    L = np.linalg.norm(tr.x[0])
+    return {"position": np.linalg.norm(x[-1] - tr.x[-1]) / L,
+            "velocity": np.linalg.norm(v[-1] - tr.v[-1]) / np.sqrt(prob.model.mu / L),
+            "attitude": float(rotation_angle(tr.R[-1].T @ R[-1])), "rate": np.linalg.norm(Om[-1] - tr.Omega[-1])}
+
+
+def test_refinement_to_1e_3_lands_within_it():
+    """E3 with the LGVI from N = 40 refined to 1e-3: two levels or more, N growing at least twice per level, the
+    second warm-started from the first; the plan re-flown by the test's own integrator misses by <= 1e-3 in every
+    component (position relative to the radius, velocity to the circular speed, rad, rad per period), and the
+    history's last miss is that flight's to 1e-9."""
+    sol = se3ocp.solve(maneuver("e3", 40, "lgvi"), accuracy=1e-3)
+    assert sol.converged and sol.stats["accuracy_met"] is True, sol.message
+    Ns = [r["N"] for r in sol.mesh]
+    assert len(Ns) >= 2 and Ns[0] == 40 and all(b >= 2 * a for a, b in zip(Ns, Ns[1:])) and sol.N == Ns[-1]
+    assert sol.mesh[0]["miss"] > 1e-3 >= sol.mesh[-1]["miss"]
+    assert sol.stats["warm_start"] and "refined to accuracy 0.001" in sol.message
+    miss = independent_miss(sol)
+    print(f"E3 lgvi 1e-3: N = {Ns}, independent miss {miss}")
+    assert max(miss.values()) <= 1e-3
+    assert max(miss.values()) == pytest.approx(sol.mesh[-1]["miss"], abs=1e-9)
+
+
+def test_mesh_history_in_summary_and_the_cli(tmp_path):
+    import subprocess
+    import sys
+
+    from support import ROOT
+
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "solve", str(config("e3")), "--set",
+                        "discretization=lgvi", "--set", "horizon.N=40", "--set", "solver.accuracy=1e-3", "--out",
+                        str(out), "--no-figures"], capture_output=True, text=True, cwd=ROOT.parent, timeout=600)
+    assert r.returncode == 0, r.stderr
+    summ = json.loads((out / "summary.json").read_text())
+    hist = summ["methods"]["direct"]["mesh_history"]
+    assert [h["level"] for h in hist] == list(range(len(hist))) and hist[0]["N"] == 40 and len(hist) >= 2
+    assert summ["methods"]["direct"]["accuracy_met"] is True
+    for h in hist:
+        assert f"mesh level {h['level']}: N = {h['N']}, continuous miss {h['miss']:.2e}" in r.stdout + r.stderr
+    assert "Mesh refinement" in (out / "report.html").read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["e3", "e4"])
+def test_lgvi_refined_to_1e_6_lands_within_it(name):
+    """Acceptance (issue 26): E3 and E4 with the LGVI and accuracy 1e-6, re-flown by the test's own DOP853: every
+    component of the terminal miss <= 1e-6 (position relative to the orbit radius, velocity to the circular speed,
+    rad, rad per period)."""
+    sol = se3ocp.solve(maneuver(name, None, "lgvi"), accuracy=1e-6)
+    assert sol.converged and sol.stats["accuracy_met"] is True, sol.message
+    miss = independent_miss(sol)
+    print(f"{name} lgvi 1e-6: N = {[r['N'] for r in sol.mesh]}, independent miss {miss}")
+    assert max(miss.values()) <= 1e-6
+
+
+# ---------------------------------------------------------------------------- the answer before solving
+def test_first_order_at_1e_6_is_refused_before_solving(monkeypatch):
+    """E3 with the first-order scheme at 1e-6: ValueError before any solve, naming the N it would need (1.5e7 by
+    the free-motion estimate at N = 500) and the lgvi scheme; the estimate agrees with what a solved plan says
+    (its own miss at N = 200 extrapolated at order 1) to a factor 2."""
+    from se3ocp.transcription import solve as solve_module
+    from se3ocp.transcription.accuracy import scaled_miss
+
+    def no_solve(*a, **k):
+        raise AssertionError("a solve was started")
+
+    man = maneuver("e3", None, "first_order")
+    with monkeypatch.context() as m:
+        m.setattr(solve_module, "_dispatch", no_solve)
+        with pytest.raises(ValueError, match=r"out of reach of the first_order scheme") as e:
+            se3ocp.solve(man, accuracy=1e-6)
+    text = str(e.value)
+    assert "\n" not in text and "discretization: lgvi" in text
+    need = float(text.split("would need N ≈ ")[1].split(" ")[0])
+    plan = se3ocp.solve(maneuver("e3", 200, "first_order"))
+    assert 0.5 <= need / (200 * scaled_miss(plan.continuous, plan.problem) / 1e-6) <= 2.0
+
+
+def test_refusal_in_the_cli_is_one_line_and_writes_nothing(tmp_path):
+    import subprocess
+    import sys
+
+    from support import ROOT
+
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "se3ocp.problems.cli", "solve", str(config("e3")), "--set",
+                        "solver.accuracy=1e-6", "--out", str(out)], capture_output=True, text=True, cwd=ROOT.parent,
+                       timeout=600)
+    assert r.returncode == 2 and not out.exists()
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "solver.accuracy: accuracy 1e-06 is out of reach" in lines[0] and "lgvi" in lines[0]
+
+
+def test_the_cap_stops_refinement_and_says_what_it_needs():
+    sol = se3ocp.solve(maneuver("e3", 40, "lgvi"), accuracy=1e-4, max_levels=1)
+    assert sol.converged and sol.stats["accuracy_met"] is False and len(sol.mesh) == 1
+    assert "accuracy 0.0001 not reached" in sol.message and "solver.max_levels = 1" in sol.message
+    with pytest.raises(ValueError, match=r"within solver.max_N = 100: it would need N ≈ 9.7e\+03"):
+        se3ocp.solve(maneuver("e3", 40, "lgvi"), accuracy=1e-6, max_N=100)

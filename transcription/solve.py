@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accuracy import AccuracyOptions, attach_checks
+from .accuracy import AccuracyOptions, attach_checks, out_of_reach, refine
 from .feasibility import necessary_conditions, step_failure
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
@@ -154,7 +154,8 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
     Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
     :class:`~transcription.results.SolveError`.  A method that cannot solve the problem at all
-    (:func:`not_covered`) raises ValueError.  accuracy: the continuous check and refinement to a tolerance
+    (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.accuracy.out_of_reach`), raises
+    ValueError with the one-line answer.  accuracy: the continuous check and refinement to a tolerance
     (:class:`~transcription.accuracy.AccuracyOptions`; default: the check on, N fixed): every successful
     smooth-control Solution carries its continuous check (``sol.continuous``).
     """
@@ -168,8 +169,14 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     direct = direct or DirectOptions()
     indirect = indirect or IndirectOptions()
     accuracy = accuracy or AccuracyOptions.default()
+    reason = out_of_reach(problem, accuracy)      # a tolerance the scheme cannot reach: said before solving
+    if reason:
+        raise ValueError(reason)
     warm, note = as_warm_start(warm_start)
-    out = _dispatch(problem, method, direct, indirect, progress, warm)
+    if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
+        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm)
+    else:
+        out = _dispatch(problem, method, direct, indirect, progress, warm)
     if accuracy.continuous_check:
         attach_checks(out)
     if note:
