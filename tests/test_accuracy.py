@@ -224,3 +224,19 @@ def test_the_cap_stops_refinement_and_says_what_it_needs():
     assert "accuracy 0.0001 not reached" in sol.message and "solver.max_levels = 1" in sol.message
     with pytest.raises(ValueError, match=r"within solver.max_N = 100: it would need N ≈ 9.7e\+03"):
         se3ocp.solve(maneuver("e3", 40, "lgvi"), accuracy=1e-6, max_N=100)
+
+
+def test_a_path_constraint_violated_between_nodes_triggers_refinement(monkeypatch):
+    """The keep-out slew at N = 100 enters its cone between the nodes by 0.0057 deg (9.9e-5 rad); with the terminal
+    miss taken as met (scaled_miss patched to 0), accuracy 5e-5 refines on the violation alone until the flown
+    path's smallest margin is within -5e-5 rad."""
+    from se3ocp.transcription import accuracy
+
+    monkeypatch.setattr(accuracy, "scaled_miss", lambda check, problem: 0.0)
+    sol = se3ocp.solve(maneuver("slew_keep_out"), accuracy=5e-5)
+    assert sol.converged and sol.stats["accuracy_met"] is True, sol.message
+    first, last = sol.mesh[0], sol.mesh[-1]
+    assert first["N"] == 100 and first["path_violation"] > 5e-5 and len(sol.mesh) >= 2
+    assert last["path_violation"] <= 5e-5
+    assert np.radians(-sol.continuous.min_margins["min_margin_keep_out"]) == pytest.approx(last["path_violation"],
+                                                                                          rel=1e-12)

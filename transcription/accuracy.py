@@ -89,18 +89,32 @@ def scaled_miss(check, problem) -> float:
     rate miss (rad per time unit).  With a central body L = |x_0| (the orbit radius: 1 in normalized units) and
     V = sqrt(mu / L) (the circular speed, 2 pi normalized); without one L = V = 1 (the file's units).  nan if the
     flight failed."""
-    mu = problem.model.mu
-    L = float(np.linalg.norm(problem.X0[0:3])) if mu else 1.0
-    L = L if L > 0 else 1.0
+    mu, L = problem.model.mu, _length(problem)
     V = float(np.sqrt(mu / L)) if mu else 1.0
     return float(max(check.terminal_position / L, check.terminal_velocity / V, check.terminal_attitude,
                      check.terminal_rate))
 
 
-def path_violation(check) -> float:
-    """How far the flown path leaves the path constraints between the nodes: max(0, -smallest margin) over the
-    constraints (each in its own unit), 0 without constraints."""
-    return float(max([0.0, *(-m for m in check.min_margins.values())]))
+def path_violation(check, problem) -> float:
+    """How far the flown path leaves the path constraints between the nodes, in the units of :func:`scaled_miss`:
+    max(0, -smallest margin) over the constraints, a cone's margin (deg) in rad, a radius relative to L, a rate in
+    rad per time unit; 0 without constraints."""
+    from .flight.check import margin_keys
+    from .problem import MARGIN_DIMENSION
+
+    L = _length(problem)
+    scale = {"angle": np.pi / 180.0, "length": 1.0 / L}
+    worst = 0.0
+    for key, c in zip(margin_keys(problem.constraints), problem.constraints):
+        m = check.min_margins.get(key, 0.0) * scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0)
+        worst = max(worst, -m)
+    return float(worst)
+
+
+def _length(problem) -> float:
+    """The characteristic length L of :func:`scaled_miss`: |x_0| with a central body, else 1."""
+    L = float(np.linalg.norm(problem.X0[0:3])) if problem.model.mu else 1.0
+    return L if L > 0 else 1.0
 
 
 def next_N(N: int, ratio: float, order: float, max_N: int) -> int:
@@ -175,7 +189,7 @@ def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | Non
     sols = [s for s in _solutions(out) if s.continuous is not None and s.continuous.ok]
     check_s = sum(s.continuous.elapsed_s for s in sols)
     miss = max((scaled_miss(s.continuous, problem) for s in sols), default=math.nan)
-    viol = max((path_violation(s.continuous) for s in sols), default=math.nan)
+    viol = max((path_violation(s.continuous, problem) for s in sols), default=math.nan)
     rec = {"level": level, "N": int(problem.N), "miss": float(miss), "path_violation": float(viol),
            "iterations": int(sum(s.iterations for s in _solutions(out))), "solve_s": float(wall - check_s),
            "check_s": float(check_s), "status": ", ".join(f"{s.method} {s.result.value}" for s in _solutions(out))}
