@@ -254,3 +254,14 @@ def test_time_optimal_slew_refined_to_1e_6_reproduces_the_published_optimum():
     miss = independent_miss(sol)
     print(f"slew 1e-6: N = {[r['N'] for r in sol.mesh]}, T = {sol.cost:.10f}, independent miss {miss}")
     assert max(miss.values()) <= 1e-6
+
+
+def test_both_methods_refine_together_and_agree_on_the_refined_mesh():
+    """'both' with accuracy 1e-3 (E3, LGVI, from N = 40): one mesh history for both (the worst method's miss), both
+    on the final N, the costs equal to 1e-8 relative there; the indirect method alone reaches the same N."""
+    b = se3ocp.solve(maneuver("e3", 40, "lgvi"), "both", accuracy=1e-3)
+    assert b.converged and b.direct.N == b.indirect.N == b.direct.mesh[-1]["N"] and b.direct.mesh == b.indirect.mesh
+    assert b.cost_relative_difference <= 1e-8 and b.direct.mesh[-1]["miss"] <= 1e-3
+    assert "indirect converged" in b.direct.mesh[-1]["status"]
+    ind = se3ocp.solve(maneuver("e3", 40, "lgvi"), "indirect", accuracy=1e-3)
+    assert ind.converged and ind.N == b.direct.N and ind.stats["accuracy_met"] is True
