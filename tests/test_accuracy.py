@@ -265,3 +265,10 @@ def test_both_methods_refine_together_and_agree_on_the_refined_mesh():
     assert "indirect converged" in b.direct.mesh[-1]["status"]
     ind = se3ocp.solve(maneuver("e3", 40, "lgvi"), "indirect", accuracy=1e-3)
     assert ind.converged and ind.N == b.direct.N and ind.stats["accuracy_met"] is True
+
+
+def test_accuracy_of_an_impulsive_maneuver_is_refused():
+    with pytest.raises(ValueError, match="applies to smooth control"):
+        se3ocp.solve(maneuver("e1"), accuracy=1e-6)
+    with pytest.raises(se3ocp.ConfigError, match=r"solver\.accuracy: expected a number > 0"):
+        se3ocp.load(config("e3"), ["solver.accuracy=-1"])

@@ -233,8 +233,11 @@ def out_of_reach(problem, opts: AccuracyOptions) -> str:
     """The one-line answer before solving ('' when there is none): ``opts.accuracy`` needs more than ``opts.max_N``
     steps of the problem's scheme by the a-priori estimate (:func:`free_motion_miss` extrapolated with the scheme's
     order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the LGVI would need."""
-    if opts.accuracy is None or problem.kind != "smooth":
+    if opts.accuracy is None or problem.kind is None:
         return ""
+    if problem.kind != "smooth":
+        return ("refinement to an accuracy applies to smooth control (an impulsive plan coasts between its impulses "
+                "on the scheme's free motion): remove solver.accuracy")
     tol, scheme, N = float(opts.accuracy), problem.scheme, problem.N
     miss = free_motion_miss(problem)
     need = N * (miss / tol) ** (1.0 / ORDER[scheme]) if miss > tol else 0.0
