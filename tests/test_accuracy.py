@@ -272,3 +272,16 @@ def test_accuracy_of_an_impulsive_maneuver_is_refused():
         se3ocp.solve(maneuver("e1"), accuracy=1e-6)
     with pytest.raises(se3ocp.ConfigError, match=r"solver\.accuracy: expected a number > 0"):
         se3ocp.load(config("e3"), ["solver.accuracy=-1"])
+
+
+def test_the_figure_of_a_slew_has_the_attitude_panel_only():
+    """The keep-out slew does not translate: its flight's position deviation is 0 at every node, and the figure draws
+    the attitude deviation alone, its last value the check's terminal attitude miss (deg)."""
+    from se3ocp.problems.plots import figures
+
+    sol = se3ocp.solve(maneuver("slew_keep_out"), continuous_check=True)
+    assert sol.continuous.position_deviation.max() == 0.0
+    fig = figures(sol, ("continuous",))["continuous"]
+    assert len(fig.axes) == 1 and "deg" in fig.axes[0].get_ylabel()
+    assert fig.axes[0].get_lines()[0].get_ydata()[-1] == pytest.approx(np.degrees(sol.continuous.terminal_attitude),
+                                                                       rel=1e-15)

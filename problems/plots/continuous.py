@@ -20,16 +20,18 @@ def fig_continuous(runs: list[Run], problem: Problem):
     continuous flight from the plan's nodes, log scale (node 0 is exact and left out); the terminal values are
     the continuous check's terminal position and attitude misses."""
     un = units(problem)
-    fig, axs = _subplots(2, figsize=(W, 5.2))
+    moved = any(r.sol.continuous.position_deviation.max() > 0 for r in flown(runs))  # a slew: no position panel
+    fig, axs = _subplots(2 if moved else 1, figsize=(W, 5.2 if moved else 3.2))
     for run in flown(runs):
         c = run.sol.continuous
         dx = c.position_deviation * un.factor("length")
         dR = np.degrees(c.attitude_deviation)
-        for ax, y in ((axs[0], dx), (axs[1], dR)):
+        for ax, y in zip(axs, (dx, dR) if moved else (dR,)):
             ax.semilogy(c.t[1:], np.where(y[1:] > 0, y[1:], np.nan), color=run.color, ls=run.ls, lw=1.5,
                         label=f"{run.name} (N = {run.sol.N})")
-    axs[0].set_ylabel(un.label("$|x(t_k) - x_k|$", "length"))
-    axs[1].set_ylabel(r"$\angle(R_k^{\mathsf{T}}R(t_k))$ (deg)")
+    if moved:
+        axs[0].set_ylabel(un.label("$|x(t_k) - x_k|$", "length"))
+    axs[-1].set_ylabel(r"$\angle(R_k^{\mathsf{T}}R(t_k))$ (deg)")
     axs[0].legend(fontsize=8, loc="best")
     for ax in axs:
         ax.grid(alpha=0.3, which="both")
