@@ -25,12 +25,12 @@ from support import config, maneuver
 
 @pytest.fixture(scope="module")
 def e3_both():
-    return se3ocp.solve(maneuver("e3", 40, "lgvi"), "both")
+    return se3ocp.solve(maneuver("e3", 40, "lgvi"), "both", continuous_check=True)
 
 
 def test_the_check_is_on_by_default_and_is_the_check(e3_both, monkeypatch):
     monkeypatch.delenv(CHECK_ENV, raising=False)
-    sol = se3ocp.solve(maneuver("e3", 40, "lgvi"), continuous_check=True)
+    sol = se3ocp.solve(maneuver("e3", 40, "lgvi").problem)       # no option given: the default, on
     for s in (sol, e3_both.direct, e3_both.indirect):
         assert s.continuous is not None and s.continuous.ok
         again = continuous_check(s)
@@ -199,7 +199,7 @@ def test_first_order_at_1e_6_is_refused_before_solving(monkeypatch):
     text = str(e.value)
     assert "\n" not in text and "discretization: lgvi" in text
     need = float(text.split("would need N ≈ ")[1].split(" ")[0])
-    plan = se3ocp.solve(maneuver("e3", 200, "first_order"))
+    plan = se3ocp.solve(maneuver("e3", 200, "first_order"), continuous_check=True)
     assert 0.5 <= need / (200 * scaled_miss(plan.continuous, plan.problem) / 1e-6) <= 2.0
 
 
