@@ -245,7 +245,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect", *own))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
-    accuracy = _accuracy(v, {k: sdoc[k] for k in own if k in sdoc})
+    accuracy = _options(v, AccuracyOptions, {k: sdoc[k] for k in own if k in sdoc}, "solver")
     resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict(),
                           **{k: x for k, x in accuracy.as_dict().items() if k in sdoc}}
 
@@ -584,15 +584,6 @@ def _weight(v: Validator, val, where) -> np.ndarray:
         except ProblemError as e:
             v.fail(where, str(e).split(": ", 1)[1])
     return v.weights(val, where)
-
-
-def _accuracy(v: Validator, d: dict) -> AccuracyOptions:
-    """The solver block's own keys (``solver.continuous_check``, ``solver.accuracy``, ...); the defaults where
-    absent (the continuous check as the environment says, transcription.accuracy.CHECK_ENV)."""
-    try:
-        return AccuracyOptions.default().replace(**d)
-    except OptionError as e:
-        v.fail(f"solver.{e.field}", e.detail)
 
 
 def _options(v: Validator, cls, d, where):

@@ -54,6 +54,11 @@ class AccuracyOptions(Options):
                 object.__setattr__(self, f.name, _check(f.name, f.metadata, v))
 
     @classmethod
+    def from_mapping(cls, d=None) -> "AccuracyOptions":
+        """The defaults (:meth:`default`) changed by a mapping (the solver block's own keys); unknown keys raise."""
+        return cls.default().replace(**dict(d or {}))
+
+    @classmethod
     def default(cls) -> "AccuracyOptions":
         """The defaults, with the continuous check as the environment says (:data:`CHECK_ENV`)."""
         return cls(continuous_check=_default_check())
