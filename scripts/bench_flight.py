@@ -1,6 +1,6 @@
 """Issue 25's acceptance figures for flying a plan (problems/flight), measured through the public API.
 
-    .venv/bin/python scripts/bench_flight.py [--case e3|slew|speed|dask|all] [--runs K] [--json FILE]
+    .venv/bin/python scripts/bench_flight.py [--case e3|slew|speed|dask|mpc|all] [--runs K] [--json FILE]
 
 * ``e3``: E3 with the LGVI at N = 400, truth J2 + 2 % thrust scale + 0.5 deg misalignment + the initial
   dispersions (configs/flights/e3_j2_thrust.yaml), open loop and LQR: p95 terminal position miss (closed
@@ -10,7 +10,12 @@
   <= 1e-4 rad/s with the margin) and the saturated fraction;
 * ``speed``: 1000 LQR flights of E3 (N = 400) on a local pool of 2 workers (issue 25: <= 60 s on 2 cores);
 * ``dask``: the same runs on a Dask LocalCluster with 1 and with 2 workers: the speed-up (>= 1.7) and
-  identical statistics.
+  identical statistics;
+* ``mpc``: one MPC re-plan step (transcription/mpc.py) of E3 (LGVI, N = 400) at a 50-step horizon (node 350),
+  warm (its Functions built and compiled before), from the plan's node pushed off by 1e-4 in position and
+  velocity: the median and p95 wall time of 1 and of 2 Newton steps over ``--runs`` repetitions (default 200;
+  issue 25: median <= 10 ms), and the residual each leaves; then ``--runs`` / 10 MPC flights (re-plans every
+  10 steps) under configs/flights/e3_j2_thrust.yaml against open loop and LQR.
 
 Timings are the flights' wall time (the plan is solved once, before).  Run on a quiet machine.
 """
@@ -98,10 +103,42 @@ def case_dask(runs: int) -> dict:
     return out
 
 
+def case_mpc(runs: int, workers: int) -> dict:
+    import numpy as np
+
+    from se3ocp.transcription.mpc import Replanner
+
+    man, sol = plan(*E3)
+    X = sol.trajectory.X[350].copy()
+    X[0:6] += 1e-4
+    out = {}
+    for it in (1, 2):
+        rp = Replanner(man.problem, sol.h, iterations=it)
+        tail = rp.start(sol.warm).tail(350)
+        rp.replan(X, tail)                                   # build (and compile, or load) the Functions
+        recs = [rp.replan(X, tail)[1] for _ in range(runs)]
+        ms = 1e3 * np.array([r.solve_s for r in recs])
+        out[f"iterations_{it}"] = {"median_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95)),
+                                   "residual_before": recs[0].residual_before, "residual_after": recs[0].residual_after}
+        print(f"MPC step, E3 LGVI, 50-step horizon, {it} Newton step(s), {runs} repetitions: median "
+              f"{np.median(ms):.2f} ms, p95 {np.percentile(ms, 95):.2f} ms (issue: median <= 10 ms); |F| "
+              f"{recs[0].residual_before:.1e} -> {recs[0].residual_after:.1e}")
+    n = max(2, runs // 10)
+    res = se3ocp.fly(sol, E3_FLIGHT, maneuver=man, runs=n, feedback="all", workers=workers)
+    s = res.summary()
+    out["flights"] = {"runs": n, "wall_s": res.wall_s, "mpc": s["mpc"],
+                      **{f"position_p95_{m}": p95(res, m, "position_miss") for m in ("none", "lqr", "mpc")}}
+    print(f"{n} flights ({res.wall_s:.1f} s): p95 position miss open {out['flights']['position_p95_none']:.3e}, "
+          f"LQR {out['flights']['position_p95_lqr']:.3e}, MPC {out['flights']['position_p95_mpc']:.3e}; "
+          f"re-plans {s['mpc']['replans']}, solve ms median {s['mpc']['solve_ms']['median']:.2f}, p95 "
+          f"{s['mpc']['solve_ms']['p95']:.2f}")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", choices=("e3", "slew", "speed", "dask", "all"), default="all")
-    ap.add_argument("--runs", type=int, default=None, help="runs per case (default: 500, 500, 1000, 200)")
+    ap.add_argument("--case", choices=("e3", "slew", "speed", "dask", "mpc", "all"), default="all")
+    ap.add_argument("--runs", type=int, default=None, help="runs per case (default: 500, 500, 1000, 200, 200)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     a = ap.parse_args()
@@ -115,6 +152,8 @@ def main() -> None:
         out["speed"] = case_speed(a.runs or 1000, a.workers)
     if a.case in ("dask", "all"):
         out["dask"] = case_dask(a.runs or 200)
+    if a.case in ("mpc", "all"):
+        out["mpc"] = case_mpc(a.runs or 200, a.workers)
     print(f"({time.perf_counter() - t0:.0f} s in all)")
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=2))

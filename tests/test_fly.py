@@ -61,7 +61,7 @@ def test_the_flight_block_defaults_and_its_one_line_errors(tmp_path):
     assert spec.errors["force_scale"] == 0.0 and spec.errors["initial"]["attitude_deg"] == 0.0
     assert parse_flight(spec.resolved).resolved == spec.resolved           # the resolved block is a valid block
     for doc, message in (({"runs": 0}, "flight.runs: expected a positive integer"),
-                         ({"feedback": "mpc"}, "flight.feedback: expected one of none, lqr, both"),
+                         ({"feedback": "pid"}, "flight.feedback: expected one of none, lqr, mpc, both, all"),
                          ({"errors": {"force_scale": -0.1}}, "flight.errors.force_scale: expected a non-negative"),
                          ({"errors": {"initial": {"attitude": 1}}}, "flight.errors.initial.attitude: unknown key"),
                          ({"truth": {"gravity": {"kind": "j2"}}}, "flight.truth.gravity.J2: missing required key"),

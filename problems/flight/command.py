@@ -12,7 +12,7 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import _spec, check_plan, load_flight, spec_source, with_changes
+from . import _spec, check_feedback, check_plan, load_flight, spec_source, with_changes
 
 
 def _plan(args):
@@ -81,6 +81,7 @@ def cmd_fly(args) -> int:
     flight = args.flight
     spec = load_flight(flight) if flight else _spec(None, man)
     spec = with_changes(spec, spec_source(flight, man), runs=args.runs, feedback=args.feedback)
+    check_feedback(man, spec, spec_source(flight, man))
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
         with results_transaction(args.out, Path("results") / "flights" / safe_name(man.name), args.force) as tx:

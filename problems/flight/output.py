@@ -8,12 +8,14 @@ import numpy as np
 
 from ..io import write_csv, write_json, write_npz, write_yaml
 from .run import FlightResult
-from .task import ERROR_COLUMNS
+from .task import ERROR_COLUMNS, MPC_COLUMNS
 
 
 def columns(result: FlightResult) -> list[str]:
-    """flights.csv's columns: run, feedback, status, the figures of merit, the sampled errors, message."""
-    return ["run", "feedback", "status", *result.metrics, *ERROR_COLUMNS, "message"]
+    """flights.csv's columns: run, feedback, status, the figures of merit, the re-plans (with MPC), the sampled
+    errors, message."""
+    mpc = MPC_COLUMNS if "mpc" in result.spec.modes else ()
+    return ["run", "feedback", "status", *result.metrics, *mpc, *ERROR_COLUMNS, "message"]
 
 
 def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: bool = True) -> list[Path]:

@@ -1,0 +1,169 @@
+"""Re-planning (MPC): shrinking-horizon re-plans of a plan from the flown state, each a fixed budget of the
+indirect method's Newton steps warm-started from the previous plan (docs/mathematics.md §12, *Re-planning*).
+
+At node k (every ``replan_every`` steps) the flown state X(t_k) becomes the initial state of the remaining
+problem: the plan's Problem (model, weights, bounds, terminal target) over the N - k remaining steps of the
+same h.  Its unknown is the remaining problem's shooting unknown (lgvi lambda_{k-1}, first order lambda_k),
+warm-started from the current plan's costate there (:meth:`~transcription.warm.WarmStart.tail`): by
+Bellman's principle the current plan's remainder solves the remaining problem's conditions, so from the
+plan's own node the warm start is already the answer, and from a nearby state one Newton step
+(the exact Jacobian Psi of the shooting residual) is a step of a quadratically convergent iteration --
+the real-time iteration of acados in the indirect method's coordinates: ``iterations`` full steps, no line
+search, the plan re-rolled from the result.  A step whose rollout is not finite or does not solve the
+Cayley equation to ``cayley_tol`` is rejected and the current plan kept.
+
+Why the indirect method and not IPOPT capped at one or two iterations: the re-plan's unknown is 12 numbers,
+its Jacobian is one rollout of the linearized map (compiled to C), so a step costs one rollout with its
+linearization and one plain rollout -- about 4 ms at a 50-step horizon (scripts/bench_flight.py --case
+mpc) -- where the direct method would rebuild an NLP for every horizon length and IPOPT's own overhead per
+call (scaling, restoration machinery, the KKT factorization of 1000+ variables) is of the same order or
+more.  What the indirect method does not cover (path constraints, other objectives, orbit targets) the
+re-planner refuses with that reason.
+
+* :class:`Replanner` -- one Problem's re-plan: ``replan(X, tail) -> (new plan | None, Replan)``;
+* :class:`Replanning` -- the flight engine's control law (transcription.flight.ControlLaw): re-plans at
+  k = 0, e, 2e, ... and flies the current plan's interval commands in between.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .flight.engine import interval_commands
+from .layout import NU, NX, NZ
+from .methods.indirect.control import bound_data, weight_inverse
+from .methods.indirect.shooting import shooting_functions
+from .methods.indirect.solve import free_rows, lam0_from_costates, not_covered
+from .options import IndirectOptions
+from .warm import WarmStart
+
+#: re-plan every this many node steps (the flight block's ``mpc.replan_every``)
+DEFAULT_REPLAN_EVERY = 10
+#: Newton steps per re-plan (the flight block's ``mpc.iterations``): one, as acados' real-time iteration
+DEFAULT_ITERATIONS = 1
+
+
+@dataclass(frozen=True)
+class Replan:
+    """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start from the flown state
+    (``residual_before``) and of the re-plan (``residual_after``, the terminal conditions of its own
+    prediction), the wall time of the Newton steps and the final rollout (``solve_s``), ``accepted`` (else
+    the current plan was kept) and why not (``message``)."""
+
+    k: int
+    horizon: int
+    residual_before: float
+    residual_after: float
+    solve_s: float
+    accepted: bool
+    message: str = ""
+
+
+class Replanner:
+    """Re-plans of one Problem (a smooth-control effort problem with a state target, the indirect method's
+    coverage) at step size h: ``iterations`` Newton steps on the remaining problem's shooting unknown from
+    a warm start, ``jit``: the per-step maps compiled to C (transcription.codegen; interpreter without a
+    compiler).  ValueError for a problem the indirect method does not cover."""
+
+    def __init__(self, problem, h: float, iterations: int = DEFAULT_ITERATIONS, jit: bool = True,
+                 cayley_tol: float = IndirectOptions.cayley_tol):
+        reason = not_covered(problem)
+        if reason:
+            raise ValueError(f"MPC re-plans by the indirect method's Newton step, which does not cover {reason}")
+        if int(iterations) < 1:
+            raise ValueError(f"iterations: expected a positive integer, got {iterations}")
+        self.problem, self.h, self.iterations, self.jit = problem, float(h), int(iterations), bool(jit)
+        self.Xd, self.Winv, self.bd = problem.terminal.X, weight_inverse(problem), bound_data(problem)
+        self.free, self.cayley_tol = free_rows(problem.terminal), float(cayley_tol)
+
+    def functions(self, n: int):
+        """The indirect method's shooting Functions of n steps (built once per n and Discretization)."""
+        return shooting_functions(self.problem.disc, int(n), self.jit)
+
+    def start(self, plan: WarmStart) -> WarmStart:
+        """``plan`` with its shooting unknown: the plan's own lam0, else mapped from its costates (a direct
+        plan's, from its multipliers: docs/mathematics.md §7).  ValueError without costates."""
+        if plan.lam0 is not None:
+            return plan
+        if plan.costates is None:
+            raise ValueError("MPC: the plan carries no costates to warm-start the re-plans from")
+        lam0 = lam0_from_costates(self.problem, plan.costates[0], plan.U[:, 0]) if plan.scheme == "lgvi" \
+            else plan.costates[0]
+        return WarmStart(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
+                         costates=plan.costates, lam0=np.asarray(lam0, float))
+
+    def replan(self, X, tail: WarmStart, k: int = 0) -> tuple[WarmStart | None, Replan]:
+        """The remaining problem from the state X (18,) over ``tail.N`` steps, warm-started from ``tail``
+        (:meth:`WarmStart.tail` of the current plan, its lam0 the remaining problem's unknown): the new plan
+        (node times from 0, the predicted states X_0 = X .. X_n, controls, costates, lam0), or None when
+        the step was rejected; and the :class:`Replan` record (k: the node, for the record)."""
+        X, n = np.asarray(X, float).reshape(NX), tail.N
+        fns, args = self.functions(n), (X, self.Xd, self.h, self.Winv, self.bd)
+        lam, before, msg = np.asarray(tail.lam0, float).reshape(NZ), np.nan, ""
+        t0 = time.perf_counter()
+        try:
+            for i in range(self.iterations):
+                F, J = self._newton_system(fns, lam, args)
+                before = np.linalg.norm(F) if i == 0 else before
+                lam = lam - np.linalg.solve(J, F)
+            zN, Xs, lams, U, res, _ = (np.array(a) for a in fns.shoot(lam, *args))
+        except np.linalg.LinAlgError as e:
+            zN, res, msg = np.full(NZ, np.nan), np.array([np.inf]), f"singular Newton system ({e})"
+        solve_s = time.perf_counter() - t0
+        after = float(np.linalg.norm(np.where(self.free, 0.0, zN.ravel())))
+        ok = not msg and np.isfinite(after) and bool(np.all(np.isfinite(U))) and float(np.max(res)) <= self.cayley_tol
+        if not ok and not msg:
+            msg = f"the re-planned rollout is not finite or leaves a Cayley residual {float(np.max(res)):.1e}"
+        rec = Replan(k=int(k), horizon=int(n), residual_before=float(before), residual_after=after, solve_s=solve_s,
+                     accepted=bool(ok), message=msg)
+        if not ok:
+            return None, rec
+        new = WarmStart(t=np.arange(n + 1) * self.h, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
+                        source="mpc", costates=lams.T, lam0=lam)
+        return new, rec
+
+    def _newton_system(self, fns, lam, args) -> tuple[np.ndarray, np.ndarray]:
+        """(F, dF/dlam): the shooting residual (z_N, lambda_{n-1} on free terminal rows) and its Jacobian."""
+        zN, Psi, dlamN = fns.shoot_jac(lam, *args)
+        F, J = np.array(zN).ravel(), np.array(Psi)
+        if self.free.any():
+            lamN = np.array(fns.residual(lam, *args)[1]).ravel()
+            F, J = np.where(self.free, lamN, F), np.where(self.free[:, None], np.array(dlamN), J)
+        return F, J
+
+
+class Replanning:
+    """The control law of a re-planned flight (transcription.flight.ControlLaw): at nodes k = 0, e, 2e, ...
+    (e = ``every``; none in the last ``min_horizon - 1`` steps) the :class:`Replanner` re-plans the
+    remainder of the current plan from the flown state X(t_k); over every interval the current plan's
+    command as the scheme defines it between nodes (transcription.flight.interval_commands).
+    ``replans``: the :class:`Replan` records, in order."""
+
+    def __init__(self, replanner: Replanner, plan: WarmStart, every: int = DEFAULT_REPLAN_EVERY,
+                 min_horizon: int = 1):
+        if int(every) < 1 or int(min_horizon) < 1:
+            raise ValueError("every and min_horizon: expected positive integers")
+        self.replanner, self.every, self.min_horizon = replanner, int(every), int(min_horizon)
+        self.current, self.k0, self.N = replanner.start(plan), 0, plan.N
+        self.replans: list[Replan] = []
+
+    def commands(self, k: int, t: float, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if k % self.every == 0 and self.N - k >= self.min_horizon:
+            new, rec = self.replanner.replan(X, self.current.tail(k - self.k0), k)
+            self.replans.append(rec)
+            if new is not None:
+                self.current, self.k0 = new, k
+        j = k - self.k0
+        start, end = interval_commands(self.current.scheme, self.current.U[:, j:j + 2])
+        return start[:NU, 0], end[:NU, 0]
+
+    @property
+    def solve_times(self) -> np.ndarray:
+        """The wall time (s) of every re-plan so far."""
+        return np.array([r.solve_s for r in self.replans], float)
+
+    @property
+    def rejected(self) -> int:
+        return sum(not r.accepted for r in self.replans)
