@@ -105,7 +105,7 @@ def cmd_fly(args) -> int:
         ex.shutdown()
     for line in table(res):
         _say(args, line)
-    _say(args, f"  {res.wall_s:.1f} s wall; results in {out}/ (flights.csv, summary.json, figures)")
+    _say(args, f"  {res.wall_s:.1f} s wall; results in {out}/ (flights.csv, summary.json, figures, report.html)")
     if res.failed:
         print(f"se3ocp: {man.name}: {res.failed} flights failed (see flights.csv); results in {out}/", file=sys.stderr)
     return 1 if res.failed else 0
