@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from ...transcription.flight import ClosedLoop, FlightError, OpenLoop, fly, margin_keys
+from ...transcription.flight.loop import TrackingLoop
 from ...transcription.layout import X_POS, X_ROT
 from ...transcription.lie import log_so3, nearest_rotation
 from ...transcription.mpc import Replanner, Replanning
@@ -137,6 +138,8 @@ def fly_one(plan, gains, spec, err, base, mode: str):
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
+        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+            law = TrackingLoop.of_gains(gains)
     flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples)
     return flight, tracker, law if mode == "mpc" else None
 
