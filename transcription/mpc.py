@@ -22,10 +22,12 @@ re-planner refuses with that reason.
 
 * :class:`Replanner` -- one Problem's re-plan: ``replan(X, tail) -> (new plan | None, Replan)``;
 * :class:`Replanning` -- the flight engine's control law (transcription.flight.ControlLaw): re-plans at
-  k = 0, e, 2e, ... and flies the current plan's interval commands in between.
+  k = 0, e, 2e, ... and flies the current plan's interval commands in between, optionally with the LQR
+  tracker's correction around the current plan (:func:`around`: the original plan's gains).
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -37,6 +39,7 @@ from .methods.indirect.control import bound_data, weight_inverse
 from .methods.indirect.shooting import shooting_functions
 from .methods.indirect.solve import free_rows, lam0_from_costates, not_covered
 from .options import IndirectOptions
+from .tracking import saturate
 from .warm import WarmStart
 
 #: re-plan every this many node steps (the flight block's ``mpc.replan_every``)
@@ -138,16 +141,19 @@ class Replanning:
     """The control law of a re-planned flight (transcription.flight.ControlLaw): at nodes k = 0, e, 2e, ...
     (e = ``every``; none in the last ``min_horizon - 1`` steps) the :class:`Replanner` re-plans the
     remainder of the current plan from the flown state X(t_k); over every interval the current plan's
-    command as the scheme defines it between nodes (transcription.flight.interval_commands).
-    ``replans``: the :class:`Replan` records, in order."""
+    command as the scheme defines it between nodes (transcription.flight.interval_commands), plus, with
+    ``gains`` (the original plan's tracker, transcription.tracking.Gains), the tracker's correction around
+    the current plan (:func:`around`).  ``replans``: the :class:`Replan` records, in order."""
 
     def __init__(self, replanner: Replanner, plan: WarmStart, every: int = DEFAULT_REPLAN_EVERY,
-                 min_horizon: int = 1):
+                 min_horizon: int = 1, gains=None):
         if int(every) < 1 or int(min_horizon) < 1:
             raise ValueError("every and min_horizon: expected positive integers")
         self.replanner, self.every, self.min_horizon = replanner, int(every), int(min_horizon)
         self.current, self.k0, self.N = replanner.start(plan), 0, plan.N
+        self.gains, self.tracker = gains, None if gains is None else gains.tracker()
         self.replans: list[Replan] = []
+        self._saturated, self._steps = 0, 0
 
     def commands(self, k: int, t: float, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if k % self.every == 0 and self.N - k >= self.min_horizon:
@@ -155,9 +161,20 @@ class Replanning:
             self.replans.append(rec)
             if new is not None:
                 self.current, self.k0 = new, k
-        j = k - self.k0
+                if self.gains is not None:
+                    self._saturated += self.tracker.saturated_steps
+                    self.tracker = around(self.gains, k, new).tracker()
+        j, self._steps = k - self.k0, k + 1
         start, end = interval_commands(self.current.scheme, self.current.U[:, j:j + 2])
-        return start[:NU, 0], end[:NU, 0]
+        a, b = start[:NU, 0], end[:NU, 0]
+        if self.tracker is None:
+            return a, b
+        du = self.tracker.correction(j, X)
+        a, b = a + du, b + du
+        if self.tracker.bounded:       # the plan's round-off only (the correction keeps within the headroom)
+            g = self.gains
+            a, b = (saturate(u, g.force_bound, g.moment_bound)[0] for u in (a, b))
+        return a, b
 
     @property
     def solve_times(self) -> np.ndarray:
@@ -167,3 +184,17 @@ class Replanning:
     @property
     def rejected(self) -> int:
         return sum(not r.accepted for r in self.replans)
+
+    @property
+    def saturated_fraction(self) -> float:
+        """The fraction of the steps so far whose tracker correction the actuators' bounds limited."""
+        steps = self._saturated + (self.tracker.saturated_steps if self.tracker is not None else 0)
+        return steps / self._steps if self._steps else 0.0
+
+
+def around(gains, k: int, plan: WarmStart):
+    """The tracker ``gains`` (transcription.tracking.Gains of the original plan) from node k on, around the
+    re-planned ``plan`` (its nodes X and controls U over the remaining N - k steps): the original gains and
+    linearization, which the re-plan, a nearby trajectory, changes only to first order in its distance."""
+    return dataclasses.replace(gains, K=gains.K[k:], L=gains.L[k:], P=gains.P[k:], S=gains.S[k:], A=gains.A[k:],
+                               B=gains.B[k:], t=gains.t[k:], X=plan.X, U=plan.U)

@@ -15,7 +15,7 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
         moment_misalignment_deg: 0.0
         inertia_scale: 0.01
       feedback: both          # none | lqr | mpc | both (none and lqr side by side) | all (none, lqr, mpc)
-      mpc: {replan_every: 10, iterations: 1, min_horizon: 1}   # re-planning (transcription/mpc.py)
+      mpc: {replan_every: 10, iterations: 1, min_horizon: 1, between: lqr}   # re-planning (transcription/mpc.py)
       weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.tracking.SCALE_KEYS)
       runs: 200
       seed: 1
@@ -43,9 +43,12 @@ INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
 #: feedback modes flown for each value of ``feedback``
 FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "mpc": ("mpc",), "both": ("none", "lqr"), "all": ("none", "lqr", "mpc")}
 #: the ``mpc`` block: re-plan every this many node steps, Newton steps per re-plan, no re-plan with fewer
-#: steps left than min_horizon (transcription.mpc)
-MPC_KEYS = ("replan_every", "iterations", "min_horizon")
-MPC_DEFAULTS = {"replan_every": DEFAULT_REPLAN_EVERY, "iterations": DEFAULT_ITERATIONS, "min_horizon": 1}
+#: steps left than min_horizon, and between re-plans the LQR tracker around the current plan or nothing
+#: (transcription.mpc)
+MPC_KEYS = ("replan_every", "iterations", "min_horizon", "between")
+MPC_DEFAULTS = {"replan_every": DEFAULT_REPLAN_EVERY, "iterations": DEFAULT_ITERATIONS, "min_horizon": 1,
+                "between": "lqr"}
+MPC_BETWEEN = ("lqr", "none")
 MAX_ITERATIONS = 50
 INTEGRATORS = ("cvodes",)
 #: the most runs one flight may ask for, and the largest seed (NumPy's SeedSequence takes any
@@ -100,7 +103,9 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight") -> F
             weights[k] = v.number(val, f"{where}.weights.{k}", positive=True)
     m = v.mapping(d.get("mpc", {}), f"{where}.mpc", MPC_KEYS)
     mpc = {k: v.number(m.get(k, dv), f"{where}.mpc.{k}", positive=True, integer=True,
-                       at_most=MAX_ITERATIONS if k == "iterations" else MAX_RUNS) for k, dv in MPC_DEFAULTS.items()}
+                       at_most=MAX_ITERATIONS if k == "iterations" else MAX_RUNS)
+           for k, dv in MPC_DEFAULTS.items() if k != "between"}
+    mpc["between"] = v.choice(m.get("between", "lqr"), f"{where}.mpc.between", MPC_BETWEEN)
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
     resolved = {"truth": {**({"gravity": gravity} if gravity else {}), "integrator": "cvodes", "samples": samples},

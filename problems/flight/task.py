@@ -127,13 +127,14 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
 
 
 def fly_one(plan, gains, spec, err, base, mode: str):
-    """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, tracker, re-planning law or None)."""
+    """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
+    (the tracker, the re-planning law) or None, the re-planning law or None)."""
     law = OpenLoop.of_controls(gains.scheme, gains.U)
     tracker = None
     if mode == "mpc":
         o = spec.mpc
-        law = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
-                         o["min_horizon"])
+        law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
+                                   o["min_horizon"], gains if o["between"] == "lqr" else None)
     if mode == "lqr":
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
