@@ -52,8 +52,9 @@ DEFAULT_ITERATIONS = 1
 class Replan:
     """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start from the flown state
     (``residual_before``) and of the re-plan (``residual_after``, the terminal conditions of its own
-    prediction), the wall time of the Newton steps and the final rollout (``solve_s``), ``accepted`` (else
-    the current plan was kept) and why not (``message``)."""
+    prediction), the wall time from the flown state to the new plan (``solve_s``: the Newton steps and the
+    final rollout; with a prepared Jacobian the feedback phase only) and of the preparation before it
+    (``prepare_s``), ``accepted`` (else the current plan was kept) and why not (``message``)."""
 
     k: int
     horizon: int
@@ -62,6 +63,7 @@ class Replan:
     solve_s: float
     accepted: bool
     message: str = ""
+    prepare_s: float = 0.0
 
 
 class Replanner:
@@ -97,18 +99,30 @@ class Replanner:
         return WarmStart(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
                          costates=plan.costates, lam0=np.asarray(lam0, float))
 
-    def replan(self, X, tail: WarmStart, k: int = 0) -> tuple[WarmStart | None, Replan]:
+    def prepare(self, tail: WarmStart) -> tuple[np.ndarray, float]:
+        """The preparation phase of a re-plan (acados' real-time iteration): the Jacobian dF/dlam at the
+        predicted state ``tail.X[0]`` (the current plan's node) and the warm start, computable before the
+        flown state is known; and its wall time (s)."""
+        t0 = time.perf_counter()
+        _, J = self._newton_system(self.functions(tail.N), np.asarray(tail.lam0, float).reshape(NZ),
+                                   (tail.X[0], self.Xd, self.h, self.Winv, self.bd))
+        return J, time.perf_counter() - t0
+
+    def replan(self, X, tail: WarmStart, k: int = 0, J0: np.ndarray | None = None) -> tuple[WarmStart | None, Replan]:
         """The remaining problem from the state X (18,) over ``tail.N`` steps, warm-started from ``tail``
         (:meth:`WarmStart.tail` of the current plan, its lam0 the remaining problem's unknown): the new plan
         (node times from 0, the predicted states X_0 = X .. X_n, controls, costates, lam0), or None when
-        the step was rejected; and the :class:`Replan` record (k: the node, for the record)."""
+        the step was rejected; and the :class:`Replan` record (k: the node, for the record).  ``J0``: the
+        prepared Jacobian (:meth:`prepare`) for the first step, whose residual is then one plain rollout from
+        X (the feedback phase); without it every step takes the exact Jacobian at X."""
         X, n = np.asarray(X, float).reshape(NX), tail.N
         fns, args = self.functions(n), (X, self.Xd, self.h, self.Winv, self.bd)
         lam, before, msg = np.asarray(tail.lam0, float).reshape(NZ), np.nan, ""
         t0 = time.perf_counter()
         try:
             for i in range(self.iterations):
-                F, J = self._newton_system(fns, lam, args)
+                F, J = (self._residual(fns, lam, args), J0) if i == 0 and J0 is not None else \
+                    self._newton_system(fns, lam, args)
                 before = np.linalg.norm(F) if i == 0 else before
                 lam = lam - np.linalg.solve(J, F)
             zN, Xs, lams, U, res, _ = (np.array(a) for a in fns.shoot(lam, *args))
@@ -127,6 +141,11 @@ class Replanner:
                         source="mpc", costates=lams.T, lam0=lam)
         return new, rec
 
+    def _residual(self, fns, lam, args) -> np.ndarray:
+        """F: the shooting residual (z_N, lambda_{n-1} on free terminal rows) of one rollout."""
+        zN, lamN, _ = fns.residual(lam, *args)
+        return np.where(self.free, np.array(lamN).ravel(), np.array(zN).ravel())
+
     def _newton_system(self, fns, lam, args) -> tuple[np.ndarray, np.ndarray]:
         """(F, dF/dlam): the shooting residual (z_N, lambda_{n-1} on free terminal rows) and its Jacobian."""
         zN, Psi, dlamN = fns.shoot_jac(lam, *args)
@@ -143,22 +162,27 @@ class Replanning:
     remainder of the current plan from the flown state X(t_k); over every interval the current plan's
     command as the scheme defines it between nodes (transcription.flight.interval_commands), plus, with
     ``gains`` (the original plan's tracker, transcription.tracking.Gains), the tracker's correction around
-    the current plan (:func:`around`).  ``replans``: the :class:`Replan` records, in order."""
+    the current plan (:func:`around`).  ``prepared``: each re-plan's first Newton step takes the Jacobian
+    prepared at the current plan's node (:meth:`Replanner.prepare`, the real-time iteration's preparation
+    phase), so the time from the flown state to the new plan is one rollout, a 12 x 12 solve and the final
+    rollout.  ``replans``: the :class:`Replan` records, in order."""
 
     def __init__(self, replanner: Replanner, plan: WarmStart, every: int = DEFAULT_REPLAN_EVERY,
-                 min_horizon: int = 1, gains=None):
+                 min_horizon: int = 1, gains=None, prepared: bool = True):
         if int(every) < 1 or int(min_horizon) < 1:
             raise ValueError("every and min_horizon: expected positive integers")
         self.replanner, self.every, self.min_horizon = replanner, int(every), int(min_horizon)
-        self.current, self.k0, self.N = replanner.start(plan), 0, plan.N
+        self.current, self.k0, self.N, self.prepared = replanner.start(plan), 0, plan.N, bool(prepared)
         self.gains, self.tracker = gains, None if gains is None else gains.tracker()
         self.replans: list[Replan] = []
         self._saturated, self._steps = 0, 0
 
     def commands(self, k: int, t: float, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if k % self.every == 0 and self.N - k >= self.min_horizon:
-            new, rec = self.replanner.replan(X, self.current.tail(k - self.k0), k)
-            self.replans.append(rec)
+            tail = self.current.tail(k - self.k0)
+            J0, prep = self.replanner.prepare(tail) if self.prepared else (None, 0.0)
+            new, rec = self.replanner.replan(X, tail, k, J0)
+            self.replans.append(dataclasses.replace(rec, prepare_s=prep))
             if new is not None:
                 self.current, self.k0 = new, k
                 if self.gains is not None:
@@ -178,8 +202,13 @@ class Replanning:
 
     @property
     def solve_times(self) -> np.ndarray:
-        """The wall time (s) of every re-plan so far."""
+        """The wall time (s) of every re-plan so far, from the flown state to the new plan."""
         return np.array([r.solve_s for r in self.replans], float)
+
+    @property
+    def prepare_times(self) -> np.ndarray:
+        """The wall time (s) of every re-plan's preparation phase so far (0 without)."""
+        return np.array([r.prepare_s for r in self.replans], float)
 
     @property
     def rejected(self) -> int:

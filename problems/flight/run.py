@@ -78,14 +78,20 @@ class FlightResult:
         return out
 
     def replan_summary(self) -> dict:
-        """The re-planning options and every re-plan's solve time (ms) pooled over the finished runs: median,
-        p95, max, how many (summary.json ``mpc``; timings, so not among the statistics)."""
-        ms = 1e3 * np.array([t for run in sorted(self.replan_s) for t in self.replan_s[run]], float)
+        """The re-planning options and every re-plan's times (ms) pooled over the finished runs -- from the flown
+        state to the new plan (``solve_ms``) and the preparation before it (``prepare_ms``): median, p95, max --
+        and how many (summary.json ``mpc``; timings, so not among the statistics)."""
+        ms = 1e3 * np.array([t for run in sorted(self.replan_s) for t in self.replan_s[run]], float).reshape(-1, 2)
         rejected = sum(int(r.get("replans_rejected", 0)) for r in self.rows if r["feedback"] == "mpc")
-        return {**self.spec.mpc, "replans": int(ms.size), "rejected": rejected,
-                "solve_ms": {"median": float(np.median(ms)) if ms.size else None,
-                             "p95": float(np.percentile(ms, 95)) if ms.size else None,
-                             "max": float(ms.max()) if ms.size else None}}
+        return {**self.spec.mpc, "replans": int(ms.shape[0]), "rejected": rejected, "solve_ms": timing(ms[:, 0]),
+                "prepare_ms": timing(ms[:, 1])}
+
+
+def timing(ms: np.ndarray) -> dict:
+    """median, p95 and max of some times (None where there are none)."""
+    if ms.size == 0:
+        return {"median": None, "p95": None, "max": None}
+    return {"median": float(np.median(ms)), "p95": float(np.percentile(ms, 95)), "max": float(ms.max())}
 
 
 def p95_ratios(open_loop: dict, closed: dict) -> dict:

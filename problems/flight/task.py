@@ -24,7 +24,7 @@ METRICS = ("position_miss", "miss_r", "miss_t", "miss_n", "velocity_miss", "atti
            "delta_v_commanded_overhead", "angular_impulse", "peak_force", "peak_moment", "saturated_fraction",
            "max_position_deviation", "max_attitude_deviation_deg")
 #: an MPC flight's re-plans (flights.csv; timings, so not among the statistics)
-MPC_COLUMNS = ("replans", "replans_rejected", "replan_ms_median", "replan_ms_max")
+MPC_COLUMNS = ("replans", "replans_rejected", "replan_ms_median", "replan_ms_max", "prepare_ms_median")
 #: the sampled errors reported with each flight (flights.csv)
 ERROR_COLUMNS = ("force_scale", "moment_scale", "force_misalignment_deg", "moment_misalignment_deg",
                  "inertia_scale_1", "inertia_scale_2", "inertia_scale_3")
@@ -149,10 +149,11 @@ def replan_columns(law) -> dict:
     """An MPC flight's re-plans (MPC_COLUMNS): how many, how many rejected, median and largest solve time (ms)."""
     if law is None:
         return {}
-    ms = 1e3 * law.solve_times
+    ms, prep = 1e3 * law.solve_times, 1e3 * law.prepare_times
     return {"replans": len(ms), "replans_rejected": law.rejected,
             "replan_ms_median": float(np.median(ms)) if ms.size else math.nan,
-            "replan_ms_max": float(ms.max()) if ms.size else math.nan}
+            "replan_ms_max": float(ms.max()) if ms.size else math.nan,
+            "prepare_ms_median": float(np.median(prep)) if prep.size else math.nan}
 
 
 def fly_runs(task: dict) -> dict:
@@ -162,7 +163,7 @@ def fly_runs(task: dict) -> dict:
     name, 'runs': [run indices], 'tracks': runs below this index return their node deviations and
     controls (figures), 'save': runs below this index return their whole flights (runs/NNNN.npz)}.
     Returns {'rows': [one dict per run and feedback mode], 'tracks': {run: {mode: arrays}},
-    'saved': {run: arrays}, 'replan_s': {run: the MPC flight's re-plan times (s)}}.  A flight that fails is
+    'saved': {run: arrays}, 'replan_s': {run: the MPC flight's re-plan times (s): [solve, prepare] each}}.  A flight that fails is
     a row (status 'failed'), never an exception."""
     man, plan = load_plan(task["plan"])
     spec = parse_flight(task["flight"], task["source"])
@@ -183,7 +184,7 @@ def fly_runs(task: dict) -> dict:
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:
-                    replan_s[i] = mpc.solve_times.tolist()
+                    replan_s[i] = np.column_stack([mpc.solve_times, mpc.prepare_times]).tolist()
             except (FlightError, ValueError, np.linalg.LinAlgError) as e:
                 rows.append({**row, "status": "failed", "message": " ".join(str(e).split())[:500], **cols})
                 continue
