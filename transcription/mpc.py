@@ -12,10 +12,15 @@ the real-time iteration of acados in the indirect method's coordinates: ``iterat
 search, the plan re-rolled from the result.  A step whose rollout is not finite or does not solve the
 Cayley equation to ``cayley_tol`` is rejected and the current plan kept.
 
+As in acados the work is split (:meth:`Replanner.prepare`): the Jacobian is prepared at the current plan's
+node before the flown state is known, and the feedback phase -- from the flown state to the new plan -- is
+one rollout for the residual, a 12 x 12 solve and the final rollout (a chord step; further iterations take
+the exact Jacobian).
+
 Why the indirect method and not IPOPT capped at one or two iterations: the re-plan's unknown is 12 numbers,
-its Jacobian is one rollout of the linearized map (compiled to C), so a step costs one rollout with its
-linearization and one plain rollout -- about 4 ms at a 50-step horizon (scripts/bench_flight.py --case
-mpc) -- where the direct method would rebuild an NLP for every horizon length and IPOPT's own overhead per
+its Jacobian is one rollout of the linearized map (compiled to C), so the feedback phase costs two plain
+rollouts -- 2.4 ms at a 50-step horizon on a quiet machine, 4.1 ms for an exact Newton step
+(scripts/bench_flight.py --case mpc, docs/performance.md) -- where the direct method would rebuild an NLP for every horizon length and IPOPT's own overhead per
 call (scaling, restoration machinery, the KKT factorization of 1000+ variables) is of the same order or
 more.  What the indirect method does not cover (path constraints, other objectives, orbit targets) the
 re-planner refuses with that reason.
