@@ -168,3 +168,26 @@ def test_mpc_refuses_what_the_indirect_method_does_not_cover(tmp_path):
         with pytest.raises(ConfigError, match=message):
             parse_flight(doc, "f.yaml")
     assert parse_flight({}).mpc == {"replan_every": 10, "iterations": 1, "min_horizon": 1, "between": "lqr"}
+
+
+def test_a_replan_that_misses_more_than_the_warm_start_is_rejected():
+    """E3 bounded (a plan on its thrust bound at both ends; LGVI, N = 60) under a 2 % thrust scale, re-planned
+    every 5 steps: near the end the saturated remaining problem becomes infeasible and the Newton step there
+    misses its own target by 2 (against 3e-3 for the warm start).  Such re-plans are rejected and the current
+    plan kept: terminal miss 2.6e-3 (8.2e-2 without the safeguard; open loop 3.6e-3)."""
+    from se3ocp.transcription.flight import Actuators, OpenLoop, fly as fly_law
+
+    man = maneuver("e3_bounded", 60, "lgvi")
+    sol = se3ocp.solve(man, "direct")
+    assert sol.converged
+    p, act, X0 = man.problem, Actuators(force_scale=1.02), sol.trajectory.X[0]
+    law = Replanning(Replanner(p, sol.h), sol.warm, every=5)
+    mpc = fly_law(p.model, X0, sol.trajectory.t, law, act)
+    open_loop = fly_law(p.model, X0, sol.trajectory.t, OpenLoop.of_controls("lgvi", sol.controls), act)
+    miss = [np.linalg.norm(f.X[-1, :3] - sol.trajectory.X[-1, :3]) for f in (mpc, open_loop)]
+    print(f"miss MPC {miss[0]:.2e}, open loop {miss[1]:.2e}; rejected {law.rejected} of {len(law.replans)}: "
+          + ", ".join(f"k = {r.k}: {r.residual_after:.1e} > {r.residual_before:.1e}" for r in law.replans if not r.accepted))
+    assert law.rejected >= 1 and miss[0] < miss[1]
+    for r in law.replans:
+        assert r.accepted == (r.residual_after <= r.residual_before or r.residual_after <= 1e-9)
+        assert r.accepted or "misses its own target by more than the warm start" in r.message

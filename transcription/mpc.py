@@ -9,8 +9,9 @@ Bellman's principle the current plan's remainder solves the remaining problem's 
 plan's own node the warm start is already the answer, and from a nearby state one Newton step
 (the exact Jacobian Psi of the shooting residual) is a step of a quadratically convergent iteration --
 the real-time iteration of acados in the indirect method's coordinates: ``iterations`` full steps, no line
-search, the plan re-rolled from the result.  A step whose rollout is not finite or does not solve the
-Cayley equation to ``cayley_tol`` is rejected and the current plan kept.
+search, the plan re-rolled from the result.  A step whose rollout is not finite, does not solve the
+Cayley equation to ``cayley_tol``, or misses the terminal conditions by more than the warm start did (a
+remaining problem made infeasible by saturated bounds near the end) is rejected and the current plan kept.
 
 As in acados the work is split (:meth:`Replanner.prepare`): the Jacobian is prepared at the current plan's
 node before the flown state is known, and the feedback phase -- from the flown state to the new plan -- is
@@ -51,6 +52,10 @@ from .warm import WarmStart
 DEFAULT_REPLAN_EVERY = 10
 #: Newton steps per re-plan (the flight block's ``mpc.iterations``): one, as acados' real-time iteration
 DEFAULT_ITERATIONS = 1
+#: a re-plan is accepted when its own prediction misses the terminal conditions by less than the warm start
+#: did from the flown state, or by less than this (round-off): otherwise the current plan is kept -- near the
+#: end of a plan on its bounds the remaining problem can become infeasible, and a Newton step there is no plan
+ACCEPT_BELOW = 1e-9
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,8 @@ class Replanner:
         ok = not msg and np.isfinite(after) and bool(np.all(np.isfinite(U))) and float(np.max(res)) <= self.cayley_tol
         if not ok and not msg:
             msg = f"the re-planned rollout is not finite or leaves a Cayley residual {float(np.max(res)):.1e}"
+        elif ok and not (after <= before or after <= ACCEPT_BELOW):
+            ok, msg = False, f"the re-plan misses its own target by more than the warm start ({after:.1e} > {before:.1e})"
         rec = Replan(k=int(k), horizon=int(n), residual_before=float(before), residual_after=after, solve_s=solve_s,
                      accepted=bool(ok), message=msg)
         if not ok:
