@@ -191,15 +191,16 @@ class Replanning:
 
     def commands(self, k: int, t: float, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if k % self.every == 0 and self.N - k >= self.min_horizon:
-            tail = self.current.tail(k - self.k0)
+            tail, k0 = self.current.tail(k - self.k0), self.k0
             J0, prep = self.replanner.prepare(tail) if self.prepared else (None, 0.0)
             new, rec = self.replanner.replan(X, tail, k, J0)
             self.replans.append(dataclasses.replace(rec, prepare_s=prep))
             if new is not None:
                 self.current, self.k0 = new, k
-                if self.gains is not None:
+                if self.gains is not None:       # the disturbance estimate carries over to the new plan's tracker
+                    r = self.tracker.unexplained(k - k0, X)
                     self._saturated += self.tracker.saturated_steps
-                    self.tracker = around(self.gains, k, new).tracker()
+                    self.tracker = around(self.gains, k, new).tracker(r0=r)
         j, self._steps = k - self.k0, k + 1
         start, end = interval_commands(self.current.scheme, self.current.U[:, j:j + 2])
         a, b = start[:NU, 0], end[:NU, 0]
