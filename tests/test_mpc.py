@@ -29,7 +29,7 @@ from se3ocp.problems.cli import main
 from se3ocp.problems.flight import fly, parse_flight
 from se3ocp.problems.flight.run import run_flights
 from se3ocp.problems.schema import ConfigError
-from se3ocp.problems.sweep.executors import SerialExecutor
+from se3ocp.problems.sweep.executors import PoolExecutor, SerialExecutor
 from se3ocp.transcription.mpc import Replanner, Replanning
 
 from support import config, maneuver
@@ -151,8 +151,13 @@ def test_mpc_the_same_seed_gives_the_same_statistics():
     sol = se3ocp.solve(man, "direct")
     spec = parse_flight({"errors": {"force_scale": 0.02, "initial": {"position": 1e-4}}, "runs": 2, "seed": 5,
                          "feedback": "mpc", "mpc": {"replan_every": 10, "iterations": 2}})
-    a, b = (run_flights(man, sol, spec, executor=SerialExecutor()) for _ in range(2))
-    assert a.statistics() == b.statistics()
+    a = run_flights(man, sol, spec, executor=SerialExecutor())
+    pool = PoolExecutor(2)
+    try:
+        b = run_flights(man, sol, spec, executor=pool)       # other processes, the runs in other tasks
+    finally:
+        pool.shutdown()
+    assert b.workers == 2 and a.statistics() == b.statistics()
     timing = ("replan_ms_median", "replan_ms_max", "prepare_ms_median")
     assert [{k: v for k, v in r.items() if k not in timing} for r in a.rows] == \
         [{k: v for k, v in r.items() if k not in timing} for r in b.rows]
