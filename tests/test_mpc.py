@@ -164,10 +164,16 @@ def test_mpc_the_same_seed_gives_the_same_statistics():
     assert a.statistics()["mpc"]["position_miss"]["n"] == 2 and a.summary()["mpc"]["replans"] == 2 * 3
 
 
-def test_mpc_refuses_what_the_indirect_method_does_not_cover(tmp_path):
+def test_mpc_refuses_what_the_indirect_method_does_not_cover(tmp_path, capsys):
     with pytest.raises(ConfigError, match="flight.feedback: mpc re-plans by the indirect method's Newton step, which "
                                           "does not cover the time objective"):
         fly(maneuver("slew_time_optimal", 20), {"feedback": "mpc", "runs": 1})
+    # the command says so before planning: exit 2, one line, nothing written
+    assert main(["fly", str(config("slew_time_optimal")), "--set", "horizon.N=20", "--feedback", "mpc",
+                 "--out", str(tmp_path / "o")]) == 2
+    out, err = capsys.readouterr()
+    assert "planning" not in out and not (tmp_path / "o").exists()
+    assert err.strip().count("\n") == 0 and "flight.feedback: mpc re-plans" in err
     for doc, message in (({"mpc": {"replan_every": 0}}, "flight.mpc.replan_every: expected a positive integer"),
                          ({"mpc": {"every": 3}}, "flight.mpc.every: unknown key"),
                          ({"feedback": "pid"}, "flight.feedback: expected one of none, lqr, mpc, both, all")):
