@@ -64,9 +64,10 @@ def stylesheet() -> str:
     return m.group(1) if m else ""
 
 
-def table(summary: dict, un: Units) -> list[dict]:
+def table(summary: dict, un: Units, tol: float = 0.0) -> list[dict]:
     """The statistics table: a row per figure of merit any mode has, cells (mean, p95, p99.7) per mode;
-    overheads and fractions in %, forces and moments in the report's units."""
+    overheads and fractions in %, forces and moments in the report's units; a margin row ``bad`` where one of
+    its statistics is below -tol (a path constraint violated by more than round-off)."""
     stats = summary["statistics"]
     rows = list(ROWS)
     margins = sorted({k for s in stats.values() for k in s if k.startswith("min_margin_")})
@@ -83,13 +84,14 @@ def table(summary: dict, un: Units) -> list[dict]:
             for s, _ in STATS:
                 v = d.get(s)
                 cells.append("—" if v is None or not math.isfinite(v) else fmt.format(factor * v))
+        values = [stats[m].get(key, {}).get(st) for m in stats for st, _ in STATS]
         out.append({"label": label, "unit": q if q == "%" else un.unit(q) if q in DIMENSIONS else q, "cells": cells,
-                    "bad": key.startswith("min_margin_") and any((stats[m].get(key, {}).get("p99_7") or 0) < 0
-                                                                   for m in stats)})
+                    "bad": key.startswith("min_margin_") and any(v is not None and v < -tol for v in values)})
     return out
 
 
-def render(summary: dict, un: Units, images: list[tuple[str, str, bytes]], flight_text: str, config_text: str) -> str:
+def render(summary: dict, un: Units, images: list[tuple[str, str, bytes]], flight_text: str, config_text: str,
+           tol: float = 0.0) -> str:
     """The HTML of a flight's report."""
     import jinja2
 
@@ -103,7 +105,7 @@ def render(summary: dict, un: Units, images: list[tuple[str, str, bytes]], fligh
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
     return env.get_template("flight.html.j2").render(
         style=stylesheet(), s=summary, version=__version__, units=un, modes=[MODE_LABELS[m] for m in modes],
-        stats=[label for _, label in STATS], rows=table(summary, un), ratios=ratios, mpc=summary.get("mpc"),
+        stats=[label for _, label in STATS], rows=table(summary, un, tol), ratios=ratios, mpc=summary.get("mpc"),
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         figures=[{"name": n, "caption": c, "data": base64.b64encode(b).decode("ascii")} for n, c, b in images],
         flight=flight_text, config=config_text)
@@ -114,13 +116,15 @@ def write_flight_report(d: Path, summary: dict | None = None) -> Path:
     content when it is not written yet (``se3ocp fly`` writes summary.json last)."""
     from ..maneuvers import parse_maneuver
     from ..schema import read_yaml_file
+    from ..store import path_tolerance
 
     d = Path(d)
     summary = summary if summary is not None else json.loads((d / "summary.json").read_text())
     config_text = (d / "config.resolved.yaml").read_text()
     man = parse_maneuver(read_yaml_file(d / "config.resolved.yaml"), str(summary.get("config", "")))
     images = [(n, c, (d / f"{n}.png").read_bytes()) for n, c in FIGURES if (d / f"{n}.png").is_file()]
-    html = render(summary, units(man.problem), images, (d / "flight.resolved.yaml").read_text(), config_text)
+    html = render(summary, units(man.problem), images, (d / "flight.resolved.yaml").read_text(), config_text,
+                  path_tolerance(man))
     out = d / "report.html"
     atomic_write_bytes(out, html.encode("utf-8"))
     return out
