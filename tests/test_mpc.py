@@ -203,3 +203,16 @@ def test_a_replan_that_misses_more_than_the_warm_start_is_rejected():
     for r in law.replans:
         assert r.accepted == (r.residual_after <= r.residual_before or r.residual_after <= 1e-9)
         assert r.accepted or "misses its own target by more than the warm start" in r.message
+
+
+def test_a_free_time_plan_is_re_planned_over_its_own_final_time():
+    """E3 with a free final time (LGVI, N = 60): the plan's T (0.5155, not the Problem's guess 0.5) fixes the
+    remaining horizon; re-planned from its own initial state the plan is reproduced (controls 3e-14 relative)."""
+    man = maneuver("e3_free_time", 60, "lgvi")
+    sol = se3ocp.solve(man, "direct")
+    assert sol.converged and abs(sol.T - man.problem.T) > 1e-3
+    rp = Replanner(man.problem, sol.h)
+    new, rec = rp.replan(sol.trajectory.X[0], rp.start(sol.warm).tail(0))
+    assert rec.accepted and rec.residual_before <= 1e-11
+    assert np.abs(new.U - sol.controls).max() <= 1e-10 * np.abs(sol.controls).max()
+    assert new.T == pytest.approx(sol.T, rel=1e-14)

@@ -43,7 +43,7 @@ from .flight.engine import interval_commands
 from .layout import NU, NX, NZ
 from .methods.indirect.control import bound_data, weight_inverse
 from .methods.indirect.shooting import shooting_functions
-from .methods.indirect.solve import free_rows, lam0_from_costates, not_covered
+from .methods.indirect.solve import free_rows, not_covered
 from .options import IndirectOptions
 from .tracking import saturate
 from .warm import WarmStart
@@ -99,13 +99,17 @@ class Replanner:
 
     def start(self, plan: WarmStart) -> WarmStart:
         """``plan`` with its shooting unknown: the plan's own lam0, else mapped from its costates (a direct
-        plan's, from its multipliers: docs/mathematics.md §7).  ValueError without costates."""
+        plan's, from its multipliers: docs/mathematics.md §7; lgvi lambda_{-1} = A_0^T lambda_0 as
+        methods.indirect.solve.lam0_from_costates, at the plan's X_0 and h -- a free final time's h is the
+        plan's, not the Problem's guess).  ValueError without costates."""
         if plan.lam0 is not None:
             return plan
         if plan.costates is None:
             raise ValueError("MPC: the plan carries no costates to warm-start the re-plans from")
-        lam0 = lam0_from_costates(self.problem, plan.costates[0], plan.U[:, 0]) if plan.scheme == "lgvi" \
-            else plan.costates[0]
+        lam0 = np.asarray(plan.costates[0], float)
+        if plan.scheme == "lgvi":             # lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0 at the plan's own X_0 and h
+            A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], self.h)[0])
+            lam0 = A0.T @ lam0
         return WarmStart(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
                          costates=plan.costates, lam0=np.asarray(lam0, float))
 
