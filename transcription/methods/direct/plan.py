@@ -14,10 +14,10 @@ from typing import Callable
 
 import numpy as np
 
-from ...guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
+from ...guess import Guess, aimed_guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
 from ...layout import U_FORCE, U_MOMENT
 from ...options import DirectOptions
-from ...problem import BoxBound, Problem
+from ...problem import BoxBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
 from .scaling import scaled_terminal_miss
@@ -95,7 +95,8 @@ def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
     disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
     size = np.zeros(6)
     for sl, bound in ((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound)):
-        size[sl] = bound.b if isinstance(bound, BoxBound) else bound.b / np.sqrt(3.0)
+        size[sl] = bound.b if isinstance(bound, BoxBound) else bound.max if isinstance(bound, ThrusterBound) else \
+            bound.b / np.sqrt(3.0)      # an engine's random force is projected onto its axis (initial_point)
     starts = [(f"interpolate with symmetry-breaking controls (seed {k})",
                lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
                options.max_iter) for k in range(TIME_STARTS)]
@@ -134,12 +135,17 @@ def relaxation(problem: Problem) -> Problem | None:
 
 
 def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, subsolve: SubSolve) -> Guess | None:
-    """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time."""
+    """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time;
+    for a body-fixed engine the body turned to aim the relaxed solution's force (:func:`aimed_guess`)."""
     sol = subsolve(relaxed, options)
     if not sol.converged or sol.warm is None:
         return None
-    return replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
-                   prepared_on="the relaxed problem", h=None)
+    guess = replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
+                    prepared_on="the relaxed problem", h=None)
+    engine = problem.control.force_bound
+    if isinstance(engine, ThrusterBound):
+        guess = aimed_guess(problem.disc, guess, engine.axis, (engine.min, engine.max), problem.h)
+    return guess
 
 
 def warm_guess(warm: WarmStart) -> Guess:
