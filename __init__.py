@@ -28,7 +28,7 @@ _EXPORTS = {
     "export": "problems.export", "ExportError": "problems.export",
     "Maneuver": "problems.maneuvers", "ConfigError": "problems.schema",
     "DirectOptions": "transcription.options", "IndirectOptions": "transcription.options",
-    "OptionError": "transcription.options",
+    "OptionError": "transcription.options", "AccuracyOptions": "transcription.accuracy",
     "Problem": "transcription.problem", "ProblemError": "transcription.problem",
     "SmoothControl": "transcription.problem", "ImpulsiveControl": "transcription.problem",
     "TargetState": "transcription.problem", "TargetOrbit": "transcription.problem",
@@ -61,6 +61,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .problems.maneuvers import Maneuver  # noqa: F401
     from .problems.schema import ConfigError  # noqa: F401
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401
+    from .transcription.accuracy import AccuracyOptions  # noqa: F401
     from .transcription.problem import (ImpulsiveControl, Problem, ProblemError, SmoothControl,  # noqa: F401
                                         TargetOrbit, TargetRendezvous, TargetState, state_from_velocities)
     from .transcription.results import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401

@@ -12,12 +12,14 @@ Problem and its ``solver`` blocks as default options) or a
 """
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..transcription.accuracy import AccuracyOptions
 from ..transcription.options import DirectOptions, IndirectOptions, Options
 from ..transcription.problem import Problem
 from ..transcription import solve as _solve
@@ -68,6 +70,16 @@ def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, in
     return prob, d, i
 
 
+def accuracy_options(problem: Maneuver | Problem, options: dict[str, Any]) -> AccuracyOptions:
+    """The continuous check and accuracy options of a solve (transcription.accuracy.AccuracyOptions): a
+    Maneuver's ``solver`` block (or the defaults), changed by the keywords among ``options`` that name them
+    (``continuous_check=False``, ``accuracy=1e-6``, ...), which are removed from ``options``."""
+    base = problem.accuracy if isinstance(problem, Maneuver) else AccuracyOptions.default()
+    names = [f.name for f in dataclasses.fields(AccuracyOptions)]
+    changes = {k: options.pop(k) for k in list(options) if k in names}
+    return base.replace(**changes) if changes else base
+
+
 def check_clearance(maneuver: Maneuver, result: Solution | Comparison) -> Solution | Comparison:
     """Check every solution's whole re-simulated path against the central body: a path whose
     centre of mass comes closer to the centre than ``maneuver.clearance`` (central_body_radius
@@ -114,7 +126,8 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     Options: a Maneuver's ``solver`` blocks are the defaults; ``direct=`` / ``indirect=`` replace
     them (a DirectOptions/IndirectOptions, or a mapping of changes, e.g. ``direct={"tol": 1e-8}``);
     keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
-    initial_costate="from_direct")``).  ``progress``: True prints one line per iteration on stderr,
+    initial_costate="from_direct")``), except the solver block's own keys (``continuous_check=False``,
+    ``accuracy=1e-6``, ``max_N``, ...: :class:`~se3ocp.transcription.accuracy.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
     or a callable(Iterate) (``Iterate.method`` names the method).  ``warm_start``: a previous Solution (or
     its ``warm``, a WarmStart) of either method and any N or scheme: it is resampled onto this problem's grid
     and the Solution's message and ``stats['warm_start*']`` say what was reused.
@@ -123,9 +136,10 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     :class:`~se3ocp.transcription.solve.Comparison` of the two).  A solver that fails returns a
     Solution saying why (``sol.result``, ``sol.message``); ``throw=True`` raises SolveError instead.
     """
+    acc = accuracy_options(problem, options)
     prob, d, i = resolve(problem, method, direct, indirect, options)
     cb = _printer if progress is True else (progress or None)
-    out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start)
+    out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, accuracy=acc)
     if isinstance(problem, Maneuver):
         out = check_clearance(problem, out)
     return _solve.raise_unconverged(out) if throw else out

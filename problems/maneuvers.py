@@ -57,6 +57,7 @@ Every error is a :class:`ConfigError` whose text is one line ``FILE: FIELD: what
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,6 +66,7 @@ import numpy as np
 
 from ..transcription.layout import pack_state
 from ..transcription.lgvi import SCHEMES, discretization
+from ..transcription.accuracy import AccuracyOptions
 from ..transcription.options import DirectOptions, IndirectOptions, OptionError
 from ..transcription.lgvi import FORCE_FRAMES
 from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
@@ -159,6 +161,8 @@ class Maneuver:
     resolved: dict[str, Any] = field(repr=False)
     #: epoch, frame, units and preset central body (problems.physical)
     physical: _physical.Physical | None = field(default=None, repr=False)
+    #: the solver block's own keys: the continuous check and refinement to a tolerance (transcription.accuracy)
+    accuracy: AccuracyOptions = field(default_factory=AccuracyOptions.default, repr=False)
 
     # the Problem's headline numbers, for messages and summaries
     control_kind: str | None = field(init=False, repr=False)
@@ -242,10 +246,13 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     if "flight" in doc:  # how the plan is flown (problems/flight): checked here, used by `se3ocp fly`
         from .flight.schema import parse_flight
         resolved["flight"] = parse_flight(doc["flight"], source).resolved
-    sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect"))
+    own = [f.name for f in dataclasses.fields(AccuracyOptions)]  # the solver block's own keys (issue 26)
+    sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect", *own))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
-    resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict()}
+    accuracy = _options(v, AccuracyOptions, {k: sdoc[k] for k in own if k in sdoc}, "solver")
+    resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict(),
+                          **{k: x for k, x in accuracy.as_dict().items() if k in sdoc}}
 
     target = TargetState(terminal.vector(body, initial), terminal.free) if isinstance(terminal, StateSpec) else terminal
     try:
@@ -259,7 +266,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     _physical.declare(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
                     central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved,
-                    physical=phys)
+                    physical=phys, accuracy=accuracy)
 
 
 def _body(v: Validator, mdoc, gdoc):

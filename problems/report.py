@@ -50,6 +50,49 @@ ROWS = (
 )
 
 
+#: rows of the continuous check's table (issue 26; docs/mathematics.md §11), as ROWS: summary key, label, unit, format
+CONTINUOUS_ROWS = (
+    ("continuous_terminal_error", "terminal miss (largest of the four below)", "", "{:.2e}"),
+    ("continuous_terminal_position", "terminal position miss |x(T) − x_N|", "length", "{:.2e}"),
+    ("continuous_terminal_velocity", "terminal velocity miss |v(T) − v_N|", "velocity", "{:.2e}"),
+    ("continuous_terminal_attitude_rad", "terminal attitude miss ∠(R_NᵀR(T))", "rad", "{:.2e}"),
+    ("continuous_terminal_rate", "terminal rate miss |Ω(T) − Ω_N|", "angular_rate", "{:.2e}"),
+    ("continuous_target_error", "terminal error of the flight (as the plan's)", "", "{:.2e}"),
+    ("continuous_max_position_deviation", "largest position deviation at the nodes", "length", "{:.2e}"),
+    ("continuous_max_attitude_deviation_rad", "largest attitude deviation at the nodes", "rad", "{:.2e}"),
+    ("continuous_check_s", "time of the check", "s", "{:.3f}"),
+)
+
+
+def continuous_section(sols: dict[str, Solution]) -> dict[str, Any] | None:
+    """The report's continuous-check section: a table (CONTINUOUS_ROWS, then every path constraint's smallest
+    margin between the nodes) with a cell per method that was flown, and each method's mesh history when it was
+    refined to ``solver.accuracy``; None when no method was flown (failed runs, impulsive plans, the check off)."""
+    flown = {m: s for m, s in sols.items() if s.continuous is not None}
+    if not flown:
+        return None
+    un = units(next(iter(flown.values())).problem)
+    summ = {m: s.continuous.summary() for m, s in flown.items()}
+    extra = sorted({k for d in summ.values() for k in d if k.startswith("continuous_min_margin_")})
+    rows = []
+    for key, label, unit, fmt in CONTINUOUS_ROWS + tuple((k, f"smallest margin between the nodes: "
+                                                             f"{k[len('continuous_min_margin_'):].replace('_', ' ')}",
+                                                          MARGIN_DIMENSION.get(k[len('continuous_min_margin_'):]
+                                                                               .rstrip('_0123456789'), "none"), "{:.4g}")
+                                                         for k in extra):
+        f = un.factor(unit) if unit in DIMENSIONS else 1.0
+        cells = [_fmt(d.get(key) * f if isinstance(d.get(key), float) else d.get(key), fmt) for d in summ.values()]
+        rows.append({"label": label, "unit": _unit(un, unit), "cells": cells})
+    meshes = [{"method": m, "rows": [[_cell(r.get(c)) for c in MESH_COLUMNS] for r in s.mesh]}
+              for m, s in flown.items() if s.mesh]
+    return {"methods": list(flown), "rows": rows, "meshes": meshes, "mesh_cols": list(MESH_COLUMNS),
+            "messages": [f"{m}: {s.continuous.message}" for m, s in flown.items() if s.continuous.message]}
+
+
+#: the columns of a mesh history (transcription.accuracy: one record per refinement level)
+MESH_COLUMNS = ("level", "N", "miss", "path_violation", "iterations", "solve_s", "check_s", "status")
+
+
 def _unit(un: Units, u: str) -> str:
     return un.unit(u) if u in DIMENSIONS else u
 
@@ -226,7 +269,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
         figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii"),
                   "wide": w} for (n, b), w in zip(images, _wide(images))],
-        history=history, config=config_text)
+        history=history, config=config_text, continuous=continuous_section(sols))
 
 
 def _status_cards(sols: dict[str, Solution], summ: dict) -> list[dict[str, Any]]:
@@ -293,4 +336,4 @@ def write_report(results_dir: Path, draw: bool = True) -> Path:
     return out
 
 
-__all__ = ["ROWS", "figure_images", "merit_rows", "render", "write_report"]
+__all__ = ["CONTINUOUS_ROWS", "ROWS", "continuous_section", "figure_images", "merit_rows", "render", "write_report"]

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ..transcription.flight.check import ContinuousCheck
 from ..transcription.layout import pack_state
 from ..transcription.results import Iterate, Result, Solution, Trajectory, to_jsonable
 from ..transcription.solve import Comparison, compare
@@ -114,10 +115,15 @@ class Run:
 _NUMBERS = ("cost", "terminal_error", "build_s", "solve_s", "T", "h", "delta_v", "angular_impulse", "peak_force",
             "peak_moment", "force_time_at_bound", "moment_time_at_bound", "max_orthogonality_error",
             "max_determinant_error", "max_relative_energy_error", "final_relative_energy_error", "energy_initial",
-            "max_cayley_residual", "terminal_attitude_error_deg", "min_constraint_margin")
+            "max_cayley_residual", "terminal_attitude_error_deg", "min_constraint_margin",
+            *(f"continuous_{k}" for k in ("terminal_error", "terminal_position", "terminal_velocity",
+                                          "terminal_attitude_rad", "terminal_rate", "target_error",
+                                          "max_position_deviation", "max_attitude_deviation_rad",
+                                          "orthogonality_drift", "check_s")))
 BLOCK_FIELDS: dict[str, Any] = {"status": str, "message": str, "converged": bool, "cost": "number",
                                 "terminal_error": "number", "iterations": "count", "N": "count", "method": str,
-                                "solver": str, "discretization": str, **{k: "number" for k in _NUMBERS[2:]}}
+                                "solver": str, "discretization": str, **{k: "number" for k in _NUMBERS[2:]},
+                                "continuous_samples": "count", "continuous_message": str, "mesh_history": list}
 #: required in every method block (simulate: in the summary itself)
 BLOCK_REQUIRED = ("status", "message", "converged", "cost", "terminal_error", "iterations")
 RUN_FIELDS: dict[str, Any] = {"name": str, "config": str, "command": str, "discretization": str, "N": "count",
@@ -128,7 +134,7 @@ COMPARISON_FIELDS: dict[str, Any] = {"cost_relative_difference": "number", "cont
 HISTORY_FIELDS: dict[str, Any] = {"iteration": "count", "trial": "count", "accepted": bool, "phase": str,
                                   **{k: "number" for k in ("residual", "residual_inf", "cost", "dual", "step", "aux",
                                                            "elapsed_s")}}
-_KINDS = {str: "a string", bool: "true or false", dict: "a JSON object", "number": "a number (or null)",
+_KINDS = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a list", "number": "a number (or null)",
           "count": "an integer >= 0"}
 
 
@@ -147,7 +153,8 @@ def _check_fields(d, where: str, fields: dict, required: tuple, fail) -> None:
         if k not in d:
             fail(f"{where}.{k}" if where else k, "missing required key")
     for k, v in d.items():
-        kind = fields.get(k, "number" if isinstance(k, str) and k.startswith("min_margin_") else None)
+        kind = fields.get(k, "number" if isinstance(k, str) and k.startswith(("min_margin_", "continuous_min_margin_"))
+                          else None)
         if kind is not None and not _fits(v, kind):
             fail(f"{where}.{k}" if where else k, f"expected {_KINDS[kind]}, got {describe(v)}")
 
@@ -202,7 +209,7 @@ def _solution(method: str, arrays: dict[str, np.ndarray], block: dict[str, Any],
     hist = [Iterate(**{k: (math.nan if v is None else v) for k, v in h.items() if k in Iterate.__dataclass_fields__})
             for h in block.get("history", [])]
     known = ("method", "status", "message", "converged", "cost", "terminal_error", "iterations", "build_s", "solve_s",
-             "solver", "history")
+             "solver", "history", "mesh_history")
     def number(key, default=math.nan):
         return float(default if block.get(key) is None else block[key])
 
@@ -211,7 +218,9 @@ def _solution(method: str, arrays: dict[str, np.ndarray], block: dict[str, Any],
                     cost=number("cost"), terminal_error=number("terminal_error"), iterations=block["iterations"],
                     build_s=number("build_s", 0.0), solve_s=number("solve_s", 0.0), problem=man.problem, controls=controls,
                     impulses=impulses, costates=arrays.get("lam"), history=hist,
-                    stats={k: v for k, v in block.items() if k not in known})
+                    stats={k: v for k, v in block.items() if k not in known and not k.startswith("continuous_")},
+                    continuous=ContinuousCheck.from_record(block, arrays),
+                    mesh=[m for m in block.get("mesh_history", []) if isinstance(m, dict)])
 
 
 def read_run(results_dir: Path) -> Run:

@@ -94,7 +94,7 @@ def test_validate_json(tmp_path):
 
 
 FIGS = ("maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn", "orbital_elements",
-        "velocity", "angular_velocity", "costates", "convergence")
+        "velocity", "angular_velocity", "costates", "convergence", "continuous")
 METHOD_KEYS = {"status", "converged", "cost", "terminal_error", "max_orthogonality_error", "iterations", "build_s",
                "solve_s", "N", "h", "discretization", "solver", "message", "history"}
 

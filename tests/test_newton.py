@@ -82,3 +82,16 @@ def test_noise_level_measures_the_nonlinear_remainder():
     A = np.array([[2.0, 1.0], [1.0, 3.0]])
     x = np.array([0.3, -0.7])
     assert noise_level(lambda y: A @ y, x, A @ x, A) <= 1e-14
+
+
+def test_a_step_below_the_resolution_of_x_is_the_floor():
+    """|F| = max(|x - 1|, 1e-12) at x = 1: a residual floor that ulp perturbations of x do not see (the measured
+    noise is ~1e-16).  The line search halves until x + c D == x; with floor detection that is the round-off floor
+    (accepted below floor_accept), without it the iteration stagnated."""
+    F = lambda x: (np.array([max(abs(x[0] - 1.0), 1e-12)]), 0.0)          # noqa: E731
+    J = lambda x: np.array([[1.0]])                                         # noqa: E731
+    r = newton_armijo(np.array([1.0]), F, J, tol=0.0, floor_factor=10.0)
+    assert r.result is Result.round_off_floor and r.floor == 1e-12 and r.x[0] == 1.0
+    assert newton_armijo(np.array([1.0]), F, J, tol=0.0).result is Result.stagnated
+    assert newton_armijo(np.array([1.0]), F, J, tol=0.0, floor_factor=10.0, floor_accept=1e-13).result is \
+        Result.floor_too_high

@@ -22,7 +22,8 @@ from se3ocp.transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularR
 from support import ROOT, maneuver, slew_comparison
 
 SMOOTH = {"maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn",
-          "orbital_elements", "velocity", "angular_velocity", "costates", "convergence"}
+          "orbital_elements", "velocity", "angular_velocity", "costates", "convergence",
+          "continuous"}  # the continuous check (issue 26), on by default
 
 
 def _close(figs):

@@ -19,7 +19,8 @@ Refinements, each optional and reported in the result:
   level of F at x is *measured* (:func:`noise_level`); if |F| is within ``floor_factor`` of it
   there is no further decrease to be had: stop with Result.round_off_floor (or floor_too_high
   above ``floor_accept``).  Also after NEAR_FLOOR_HALVINGS failed halvings within
-  floor_factor^2 of the level.
+  floor_factor^2 of the level.  And when the line search has halved the step until x + c D == x (the full
+  step having failed): no representable change of x along D decreases |F|, the floor of x's resolution.
 * ``stagnation_steps``: stop (stagnated) after that many consecutive steps with c < 1e-2.
 
 Every rollout is recorded as an :class:`~transcription.results.Iterate` (the initial point, then
@@ -124,6 +125,10 @@ class _Run:
                 return None, (Result.interrupted, f"interrupted at iteration {it} (|F| = {e:.3e})")
             xt = x + c * D
             if np.array_equal(xt, x):
+                if self.floor_factor is not None:   # the full step failed: the resolution of x is the floor
+                    self.floor = e
+                    return None, (Result.round_off_floor, f"round-off floor reached after {it - 1} iterations: |F| = "
+                                                          f"{e:.3e}; the step c D no longer changes x (c = {c:.1e})")
                 return None, (Result.stagnated, f"the step no longer changes x (|F| = {e:.3e}, c = {c:.1e})")
             Ft, at = self.residual(xt)
             valid = bool(np.all(np.isfinite(Ft)) and at <= self.aux_tol)

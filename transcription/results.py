@@ -269,6 +269,12 @@ class Solution:
     stats: dict[str, Any] = field(default_factory=dict)
     attempts: tuple[Attempt, ...] = ()
     warm: WarmStart | None = field(default=None, repr=False, compare=False)
+    #: the continuous check (transcription.flight.check.ContinuousCheck; issue 26): the plan flown through the
+    #: continuous equations, on by default for successful smooth-control solves (None: not flown)
+    continuous: Any = field(default=None, repr=False, compare=False)
+    #: refinement to ``solver.accuracy`` (transcription/accuracy.py): one record per mesh level (level, N, miss,
+    #: iterations, time, ...); empty without refinement
+    mesh: list = field(default_factory=list, repr=False, compare=False)
 
     # derived, computed once: the horizon, the scheme, the controls' times and components
     N: int = field(init=False, repr=False)
@@ -305,7 +311,8 @@ class Solution:
     # ------------------------------------------------------------------ display
     def display(self) -> dict[str, str]:
         """What a notebook shows of this Solution, as text (scalars only, never an array): method, status,
-        cost, terminal error, max |R^T R - I|, iterations, build and solve seconds, N, T, scheme."""
+        cost, terminal error, continuous miss (the continuous check's terminal error; '-' when not flown), max
+        |R^T R - I|, iterations, build and solve seconds, N, T, scheme."""
         def num(x, fmt):
             return "-" if x is None or not np.isfinite(x) else format(float(x), fmt)
 
@@ -313,6 +320,7 @@ class Solution:
         orth = self.trajectory.orthogonality()["max_orthogonality_error"] if len(self.trajectory.t) else math.nan
         return {"method": self.method, "status": self.result.value, "cost": num(math.nan if na else self.cost, ".10g"),
                 "terminal error": num(math.nan if na else self.terminal_error, ".1e"),
+                "continuous miss": num(getattr(self.continuous, "terminal_error", None), ".1e"),
                 "max |R^T R - I|": num(math.nan if na else orth, ".1e"), "iterations": str(self.iterations),
                 "build s": num(self.build_s, ".2f"), "solve s": num(self.solve_s, ".2f"), "N": str(self.N),
                 "T": num(self.T, ".6g"), "scheme": self.scheme or "-"}
@@ -320,6 +328,7 @@ class Solution:
     def __repr__(self) -> str:
         d = self.display()
         return (f"Solution({d['method']} {d['status']}: cost {d['cost']}, terminal error {d['terminal error']}, "
+                f"continuous miss {d['continuous miss']}, "
                 f"max |R^T R - I| {d['max |R^T R - I|']}, {d['iterations']} iterations, build {d['build s']} s, "
                 f"solve {d['solve s']} s; N = {d['N']}, T = {d['T']}, {d['scheme']})")
 
@@ -354,6 +363,10 @@ class Solution:
         if self.attempts:                   # the initial guesses tried (what a failure tried), in words
             out["guesses_tried"] = [a.line() for a in self.attempts]
         out.update(figures_of_merit(self))
+        if self.continuous is not None:     # the continuous check (issue 26): continuous_* keys
+            out.update(self.continuous.summary())
+        if self.mesh:                       # refinement to solver.accuracy: the mesh history
+            out["mesh_history"] = [dict(m) for m in self.mesh]
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -369,6 +382,8 @@ class Solution:
             out.update({k: np.asarray(v) for k, v in self.impulses.items()})
         if self.costates is not None:
             out["lam"] = self.costates
+        if self.continuous is not None:     # the continuous check's deviation at each node (its figure)
+            out.update(self.continuous.arrays())
         return out
 
 

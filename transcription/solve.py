@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .accuracy import AccuracyOptions, attach_checks, out_of_reach, refine
 from .feasibility import necessary_conditions, step_failure
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
@@ -142,7 +143,8 @@ def _indirect_after_direct(problem: Problem, indirect: IndirectOptions, progress
 
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
           indirect: IndirectOptions | None = None, progress: Progress | None = None,
-          warm_start: Solution | WarmStart | None = None, throw: bool = False) -> Solution | Comparison:
+          warm_start: Solution | WarmStart | None = None, throw: bool = False,
+          accuracy: AccuracyOptions | None = None) -> Solution | Comparison:
     """Solve ``problem`` by ``method`` ('direct', 'indirect' or 'both').
 
     direct, indirect: the options of each method (defaults if None).  progress: called as progress(Iterate)
@@ -152,7 +154,10 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
     Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
     :class:`~transcription.results.SolveError`.  A method that cannot solve the problem at all
-    (:func:`not_covered`) raises ValueError.
+    (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.accuracy.out_of_reach`), raises
+    ValueError with the one-line answer.  accuracy: the continuous check and refinement to a tolerance
+    (:class:`~transcription.accuracy.AccuracyOptions`; default: the check on, N fixed): every successful
+    smooth-control Solution carries its continuous check (``sol.continuous``).
     """
     reason = not_covered(problem, method)
     if reason:
@@ -163,7 +168,26 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         return raise_unconverged(out) if throw else out
     direct = direct or DirectOptions()
     indirect = indirect or IndirectOptions()
+    accuracy = accuracy or AccuracyOptions.default()
+    reason = out_of_reach(problem, accuracy)      # a tolerance the scheme cannot reach: said before solving
+    if reason:
+        raise ValueError(reason)
     warm, note = as_warm_start(warm_start)
+    if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
+        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm)
+    else:
+        out = _dispatch(problem, method, direct, indirect, progress, warm)
+    if accuracy.continuous_check:
+        attach_checks(out)
+    if note:
+        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
+            s.message += f"; {note}"
+    return raise_unconverged(out) if throw else out
+
+
+def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: IndirectOptions,
+              progress: Progress | None, warm: WarmStart | None) -> Solution | Comparison:
+    """One solve of ``problem`` by ``method`` on its own grid (``solve`` without its checks and notes)."""
     out: Solution | Comparison
     if method == "direct":
         out = _run(problem, "direct", direct, progress, warm)
@@ -180,10 +204,7 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         else:
             isol = _run(problem, "indirect", indirect, progress, warm)
         out = compare(dsol, isol)
-    if note:
-        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
-            s.message += f"; {note}"
-    return raise_unconverged(out) if throw else out
+    return out
 
 
 def _infeasible(problem: Problem, method: str, reason: str) -> Solution | Comparison:

@@ -66,6 +66,7 @@ def cmd_simulate(args) -> int:
 
 def cmd_solve(args) -> int:
     from ...transcription.results import Result
+    from ...transcription.accuracy import out_of_reach
     from ...transcription.solve import not_covered
     from .. import api, store
 
@@ -79,6 +80,9 @@ def cmd_solve(args) -> int:
     reason = not_covered(man.problem, method)       # which methods solve which problems: decided there
     if reason:
         raise ConfigError(man.source, "control.kind", reason)
+    reason = out_of_reach(man.problem, man.accuracy)  # a tolerance out of reach: the N it needs, before solving
+    if reason:
+        raise ConfigError(man.source, "solver.accuracy", reason)
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
@@ -93,6 +97,10 @@ def cmd_solve(args) -> int:
             say(args, f"  {m}: {sol.result} ({sol.message}); cost {sol.cost:.10g}, terminal error "
                        f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
                        f"solve {sol.solve_s:.2f} s")
+            for rec in sol.mesh:    # refinement to solver.accuracy: one line per mesh level
+                say(args, f"    mesh level {rec['level']}: N = {rec['N']}, continuous miss {rec['miss']:.2e}, path "
+                          f"violation {rec['path_violation']:.1e}, {rec['iterations']} iterations, solve "
+                          f"{rec['solve_s']:.2f} s, check {rec['check_s']:.2f} s ({rec['status']})")
         store.write_run(tx.path, man, result)
         _figures_and_report(args, tx.path)
         Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit

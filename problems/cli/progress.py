@@ -64,15 +64,18 @@ def table(sols) -> list[str]:
     sols = list(sols)
     mw = max([len("method")] + [len(s.method) for s in sols])
     sw = max([len("status")] + [len(str(s.result.value)) for s in sols])
-    head = (f"{'method':<{mw}} {'status':<{sw}} {'cost':>14} {'term. err':>10} {'orth. err':>10} {'iters':>6} "
-            f"{'build s':>8} {'solve s':>8}")
+    head = (f"{'method':<{mw}} {'status':<{sw}} {'cost':>14} {'term. err':>10} {'cont. miss':>10} {'orth. err':>10} "
+            f"{'iters':>6} {'build s':>8} {'solve s':>8}")
     rows = [head, "-" * len(head)]
     for s in sols:
         if s.result is Result.not_applicable:
-            rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {'-':>14} {'-':>10} {'-':>10} {'-':>6} {'-':>8} {'-':>8}")
+            rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {'-':>14} {'-':>10} {'-':>10} {'-':>10} {'-':>6} "
+                        f"{'-':>8} {'-':>8}")
             continue
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
-        rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {o:>10.2e} "
+        check = getattr(s, "continuous", None)      # the continuous check's terminal miss (issue 26); '-' if not flown
+        miss = f"{check.terminal_error:>10.2e}" if check is not None else f"{'-':>10}"
+        rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {miss} {o:>10.2e} "
                     f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
     return rows
 

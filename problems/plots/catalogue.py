@@ -14,6 +14,7 @@ from ...transcription.solve import Comparison
 from ..io import save_figure
 from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence,
                         fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity)
+from .continuous import fig_continuous, flown
 from .engine import fig_thrust_direction
 from .runs import Run, _runs
 from .targets import removed
@@ -35,6 +36,7 @@ FIGURES = {
     "angular_velocity": fig_angular_velocity,
     "costates": fig_costates,
     "convergence": fig_convergence,
+    "continuous": fig_continuous,
 }
 
 #: one line per figure (the report's captions, the README's table)
@@ -53,6 +55,7 @@ CAPTIONS = {
     "angular_velocity": "body angular velocity components and |Ω| (with a rate limit)",
     "costates": "discrete costates λ_k by block (direct: mapped from the NLP multipliers)",
     "convergence": "residual per iteration (Newton–Armijo: every line-search trial)",
+    "continuous": "the plan flown through the continuous equations: position and attitude deviation from its nodes",
 }
 
 
@@ -86,6 +89,8 @@ def applicable(runs: list[Run], problem: Problem) -> list[str]:
         skip.add("costates")
     if not any(r.sol.history for r in runs):
         skip.add("convergence")
+    if not flown(runs):             # no continuous check (failed, impulsive, switched off)
+        skip.add("continuous")
     return [n for n in FIGURES if n not in skip]
 
 

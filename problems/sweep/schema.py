@@ -14,6 +14,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ...transcription.accuracy import out_of_reach
 from ...transcription.solve import not_covered
 from ..maneuvers import Maneuver, load_maneuver, parse_maneuver
 from ..schema import ConfigError, Validator, apply_override, blame_overrides, describe, join_field, read_yaml_file
@@ -269,6 +270,9 @@ def sweep_from_doc(doc: Any, source: str, progress: Callable[[int, int], None] |
     reason = next(filter(None, (not_covered(base_man.problem, m) for m in sw.methods)), "")
     if reason:                                      # which methods solve which problems: decided there
         raise ConfigError(source, "methods", f"{reason} (methods: [direct])")
+    reason = out_of_reach(base_man.problem, base_man.accuracy)   # solver.accuracy: the N it needs, said at once
+    if reason:
+        raise ConfigError(source, "base", f"solver.accuracy: {reason}")
     base_doc = read_yaml_file(sw.base) or {}
     points = sw.points()
     last = time.monotonic()

@@ -35,7 +35,8 @@ def _solve(man, method: str, warm: dict | None):
     problem = man.problem
 
     def run(ws=None):
-        return check_clearance(man, solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws))
+        return check_clearance(man, solve(problem, method, direct=man.direct, indirect=man.indirect, warm_start=ws,
+                                          accuracy=man.accuracy))
 
     ws = warm["start"] if warm and man.control_kind == "smooth" else None
     if ws is None:

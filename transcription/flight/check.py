@@ -79,6 +79,34 @@ class ContinuousCheck:
             out["continuous_message"] = self.message
         return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in out.items()}
 
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The per-node arrays, named for the .npz file of a results directory (``continuous_...``)."""
+        return {"continuous_t": self.t, "continuous_position_deviation": self.position_deviation,
+                "continuous_attitude_deviation": self.attitude_deviation}
+
+    @classmethod
+    def from_record(cls, block: dict[str, Any], arrays: dict[str, np.ndarray]) -> "ContinuousCheck | None":
+        """The check read back from a results directory: the ``continuous_...`` scalars of a summary.json method
+        block (:meth:`summary`) and the arrays of its .npz (:meth:`arrays`); None if the run has none."""
+        if "continuous_terminal_error" not in block or "continuous_t" not in arrays:
+            return None
+
+        def num(key):
+            v = block.get(f"continuous_{key}")
+            return float("nan") if v is None else float(v)
+
+        margins = {k[len("continuous_"):]: num(k[len("continuous_"):]) for k in block
+                   if k.startswith("continuous_min_margin_")}
+        return cls(*(num(k) for k in _SCALARS), margins, num("orthogonality_drift"), int(block.get("continuous_samples") or 0),
+                   num("check_s"), np.asarray(arrays["continuous_t"], float),
+                   np.asarray(arrays["continuous_position_deviation"], float),
+                   np.asarray(arrays["continuous_attitude_deviation"], float), str(block.get("continuous_message", "")))
+
+
+#: the summary keys (after ``continuous_``) of the first eight fields of ContinuousCheck, in order
+_SCALARS = ("terminal_position", "terminal_velocity", "terminal_attitude_rad", "terminal_rate", "terminal_error",
+            "target_error", "max_position_deviation", "max_attitude_deviation_rad")
+
 
 def margin_keys(constraints) -> list[str]:
     """The summary keys of path constraints' margins: ``min_margin_<kind>``, with ``_2``, ``_3``, ... for a

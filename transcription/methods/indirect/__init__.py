@@ -73,6 +73,14 @@ momentum kick: u_j = -W^-1 [lambda^2_{j-1}; lambda^4_{j-1}] for j = 0..N with
 lambda_{-1} = A_0^T lambda_0, and lambda_k = A_k(X_k, u_k)^-T lambda_{k-1}.  The
 shooting unknown is then lambda_{-1}; see :data:`.conditions.LGVI_CONDITIONS`.
 
+Body-fixed force (docs/mathematics.md §15)
+-------------------------------------------
+With ``force_frame = 'body'`` the control at node j applies R_j u_{f,j}: u_f reads R_j^T lambda_gamma, A_k
+depends on u_{k+1} through the end kick, and the recursion stays explicit in triangular form
+(mu_k = Abar_k^-T lambda_{k-1}, u_{k+1} at R_{k+1}, then lambda_k's zeta block corrected); the linearization
+runs in body-momentum coordinates (:mod:`.coordinates`).  One body-fixed engine (ThrusterBound) is the clip
+T = clip(q^T v_f, T_min, T_max) of :func:`.control.saturate`.
+
 Round-off
 ---------
 Forward costate shooting amplifies rounding: on E3/E4 the rod-axis rotation (tiny
@@ -86,8 +94,8 @@ the floor was ~1e-11 at N = 500, with it ~6e-13).  The floor is *measured*
 Modules: :mod:`.elimination` (unpivoted Gaussian elimination), :mod:`.control` (the saturated control law,
 the bounds as data, the effort cost), :mod:`.conditions` (the forward map of the necessary conditions),
 :mod:`.linearization` (its exact linearization), :mod:`.shooting` (the shooting Functions per N),
-:mod:`.continuation` (bound continuation, free final time), :mod:`.solve` (the solve; :data:`INDIRECT`,
-the method).
+:mod:`.continuation` (bound continuation, free final time), :mod:`.coordinates` (the body-fixed force),
+:mod:`.solve` (the solve; :data:`INDIRECT`, the method).
 """
 from __future__ import annotations
 

@@ -3,14 +3,16 @@
 package docstring (:mod:`transcription.methods.indirect`); the LGVI's in :data:`LGVI_CONDITIONS`."""
 from __future__ import annotations
 
+from typing import Callable
 
 import casadi as ca
 
-from ...layout import NU, NX, NZ, join_state, split_state
+from ...layout import NU, NX, NZ, U_FORCE, join_state, split_state
 from ...lgvi import Discretization, per_discretization
-from ...lie import orthonormalize
+from ...lie import cayley, orthonormalize
 from ...problem import state_residual
 from .control import NB, control_law
+from .coordinates import body_coordinates, frame, frame_inverse, kicked_costate, rotated
 from .elimination import solve_unpivoted
 
 
@@ -37,10 +39,20 @@ def orthonormalized(X):
 
 
 def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
-    """``{scheme}_costate_map`` (X, lam_prev, h, Winv, bd) -> (X1, lam, u, res, lam_res, A, c, D), one signature for
-    both schemes."""
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv, bd) -> (X1, lam, u, res, lam_res, A, c, D, lamp), one
+    signature for both schemes and force frames."""
     return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv", "bd"],
-                       ["X1", "lam", "u", "res", "lam_res", "A", "c", "D"])
+                       ["X1", "lam", "u", "res", "lam_res", "A", "c", "D", "lamp"])
+
+
+def node_law(disc: Discretization, h, Winv, bd) -> Callable:
+    """(lambda, R) -> (u, D): the control law (:func:`~.control.control_law`) of a tangent-coordinate costate for
+    a control applied at attitude R; with a body-fixed force it reads R^T lambda_gamma (:func:`.coordinates.rotated`,
+    docs/mathematics.md §15), otherwise R is not used."""
+    control = control_law(disc, h, Winv, bd)
+    if body_coordinates(disc):
+        return lambda lam, R: control(rotated(lam, R))
+    return lambda lam, R: control(lam)
 
 
 def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
@@ -52,22 +64,39 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
     ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
     accurate, but its different rounding changes the iteration counts at the round-off floor that tests
     pin; the costate map gives the same values as before, bit for bit.
-    Returns a dict with c (the Cayley root), A, lam, u (u_{k+1}), D (its saturation Jacobian), X1, res
-    and control (lambda -> (u, D)).
+
+    With a body-fixed force (docs/mathematics.md §15) A_k is taken without the next control (Abar_k, the step's
+    Jacobian up to the end kick K_z), mu = Abar_k^-T lambda_{k-1}, u_{k+1} from R_{k+1}^T mu_gamma (R_{k+1} =
+    R_k cay(c) is known before u_{k+1}) and lambda_k = :func:`.coordinates.kicked_costate` (mu): explicit, in
+    tangent coordinates.  For the linearization it also gives A = A'_k = T(Y) Abar_k T(X_k)^-1 and lamp =
+    lambda'_k = T(X_{k+1})^-T lambda_k in body-momentum coordinates (:mod:`.coordinates`), where the recursion
+    has the inertial form; without a body-fixed force A = A_k and lamp = lam.
+    Returns a dict with c (the Cayley root), A, Abar, mu, lam, lamp, u (u_{k+1}), D (its saturation Jacobian), X1,
+    res and law ((lambda, R) -> (u, D)).
     """
-    control = control_law(disc, h, Winv, bd)
+    law = node_law(disc, h, Winv, bd)
     zero = ca.DM.zeros(NU)
+    R = split_state(X)[2]
     if disc.scheme == "first_order":
         wA, stage = zero, (lambda u1: u1)
     else:
-        uk = control(lam_prev)[0]
+        uk = law(lam_prev, R)[0]
         wA, stage = ca.vertcat(uk, zero), (lambda u1: ca.vertcat(uk, u1))
     c, hist = disc.cayley_solve(disc.cayley_rhs(X, wA, h))
-    A = disc.variation(orthonormalized(X), wA, h)[0]
-    lam = solve_unpivoted(A.T, lam_prev)
-    u, D = control(lam)
+    Xo = orthonormalized(X)
+    A = disc.variation(Xo, wA, h)[0]
+    mu = solve_unpivoted(A.T, lam_prev)
+    R1 = ca.mtimes(R, cayley(c))
+    u, D = law(mu, R1)
     X1 = disc.step_given_c(X, c, stage(u), h)[0]
-    return {"c": c, "A": A, "lam": lam, "u": u, "D": D, "X1": X1, "res": hist[-1], "control": control}
+    out = {"c": c, "A": A, "Abar": A, "mu": mu, "lam": mu, "lamp": mu, "u": u, "D": D, "X1": X1, "res": hist[-1],
+           "law": law}
+    if body_coordinates(disc):
+        kick = 0.5 * h if disc.scheme == "lgvi" else h
+        lam = kicked_costate(mu, R1, u[U_FORCE], kick)
+        Ap = ca.mtimes(frame(disc.step_given_c(Xo, c, wA, h)[0]), ca.mtimes(A, frame_inverse(Xo)))
+        out.update(lam=lam, A=Ap, lamp=ca.mtimes(frame_inverse(X1).T, lam))
+    return out
 
 
 @per_discretization
@@ -80,12 +109,13 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     first_order (module docstring):
 
     * costate_map (X[18], lam_prev[12], h, Winv[6x6], bd[NB]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12],
-      c[3], D[6x6]): X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
+      c[3], D[6x6], lamp[12]): X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
       u = u_{k+1} = sat(-(1/h) Winv B_k^T lambda_k) (26)-(27), saturated to the bounds bd
       (:func:`saturate`; D its Jacobian); X1 = X_{k+1} = step(X_k, u_{k+1});
       res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf;
       A = A_k and c the root of the step's Cayley equation, for the linearization
-      (:func:`linearization_functions`) along the same rollout.
+      (:func:`linearization_functions`) along the same rollout; lamp = lam (with a body-fixed force: A, lamp
+      in body-momentum coordinates, lam_res of the solve for mu, see :func:`_forward_step`).
     * first_step (X0[18], lam0[12], h, Winv, bd) -> (X1[18], u[6], res): the k = 0 step,
       where lambda_0 is the unknown itself.
 
@@ -99,13 +129,15 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     Winv = ca.SX.sym("Winv", NU, NU)
     bd = ca.SX.sym("bd", NB)
     s = _forward_step(disc, X, lam_prev, h, Winv, bd)
-    lam_res = ca.norm_inf(ca.mtimes(s["A"].T, s["lam"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
+    lam_res = ca.norm_inf(ca.mtimes(s["Abar"].T, s["mu"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
     costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv, bd],
-                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"], s["D"]])
+                                        [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"], s["D"],
+                                         s["lamp"]])
     if disc.scheme != "first_order":
         return costate_map, None
     lam0 = ca.SX.sym("lam0", NZ)
-    u0 = s["control"](lam0)[0]
+    R1 = ca.mtimes(split_state(X)[2], cayley(disc.cayley_solve(disc.cayley_rhs(X, ca.DM.zeros(NU), h))[0]))
+    u0 = s["law"](lam0, R1)[0]
     X1, res = disc.step(X, u0, h)
     first_step = ca.Function(
         "first_order_costate_first_step", [X, lam0, h, Winv, bd], [X1, u0, res], ["X0", "lam0", "h", "Winv", "bd"],

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from ...layout import NU, U_FORCE, U_MOMENT
-from .control import NO_NORM
+from .control import NB, NO_NORM, THRUSTER
 
 #: bound continuation (indirect method from lambda_0 = 0): the stages of the bounds' geometric path from
 #: the unbounded peak to the given bounds, tried when the step from the unbounded solution fails
@@ -17,10 +17,11 @@ CONTINUATION_STAGES = 4
 def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
     """Newton from lambda_0 = 0 on the unbounded problem (removed controls stay removed), then on the
     bounded one from its solution; if that fails, along CONTINUATION_STAGES bounds shrinking
-    geometrically from the unbounded controls' peaks to bd.  A semismooth Newton method converges
+    geometrically from the unbounded controls' peaks to bd (:func:`stage_bounds`; an engine keeps its
+    axis throughout, its T_max shrinks from the free force's peak).  A semismooth Newton method converges
     locally; this brings it there.  Returns the last stage's NewtonResult (its history and iteration
     count those of all stages) and a line per stage."""
-    free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM]
+    free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM, np.zeros(NB - NU - 2)]  # no engine
     first = newton(lam, free_bd, "unbounded")
     history, iters, stages = list(first.history), first.iterations, [f"unbounded: {first.result.value} in "
                                                                       f"{first.iterations} iterations"]
@@ -28,16 +29,13 @@ def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
         first.message = f"the unbounded first stage of the bound continuation: {first.message}"
         return first, stages
     U = np.array(fns.shoot(first.x, *args, free_bd)[3])
-    peak = np.r_[np.abs(U).max(axis=1), [np.linalg.norm(U[sl], axis=0).max() ** 2 for sl in (U_FORCE, U_MOMENT)]]
+    peak = np.r_[np.abs(U).max(axis=1), [np.linalg.norm(U[sl], axis=0).max() ** 2 for sl in (U_FORCE, U_MOMENT)],
+                 np.linalg.norm(U[U_FORCE], axis=0).max()]
     paths = [[1.0], [(j + 1) / CONTINUATION_STAGES for j in range(CONTINUATION_STAGES)]]
     for path in paths:
         x, ok = first.x, True
         for t in path:
-            # bounds at fraction t of the way (geometrically) from max(peak, bound) down to the bound
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(np.isfinite(bd) & (bd > 0) & (bd < NO_NORM), np.maximum(peak / bd, 1.0), 1.0)
-            stage_bd = np.where(ratio > 1.0, bd * ratio ** (1.0 - t), bd)
-            nr = newton(x, stage_bd, f"bounds {t:.2g}")
+            nr = newton(x, stage_bounds(bd, peak, t), f"bounds {t:.2g}")
             history += nr.history
             iters += nr.iterations
             stages.append(f"bounds at {t:.2g} of the way: {nr.result.value} in {nr.iterations} iterations")
@@ -48,6 +46,20 @@ def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
             break
     nr.history, nr.iterations = history, iters
     return nr, stages
+
+
+def stage_bounds(bd: np.ndarray, peak: np.ndarray, t: float) -> np.ndarray:
+    """The bound data at fraction t of the way (geometrically) from max(peak, bound) down to the bound, b(t) =
+    b max(peak / b, 1)^(1 - t): the box half-widths and squared norm bounds (peak: the free solution's largest
+    |u_i| and |u_blk|^2, NU + 2 values) and an engine's T_max (peak[-1]: the free force's largest norm; its axis
+    and T_min stay).  Absent bounds and removed controls stay as they are."""
+    idx = list(range(NU + 2)) + ([THRUSTER.start + 7] if bd[THRUSTER][-1] else [])
+    b, pk = bd[idx], np.r_[peak[:NU + 2], peak[-1]][:len(idx)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(np.isfinite(b) & (b > 0) & (b < NO_NORM), np.maximum(pk / b, 1.0), 1.0)
+    out = bd.copy()
+    out[idx] = np.where(ratio > 1.0, b * ratio ** (1.0 - t), b)
+    return out
 
 
 #: free final time (indirect): outer iterations on the step size, and their relative step tolerance

@@ -8,31 +8,42 @@ import casadi as ca
 import numpy as np
 
 from ...layout import NU, NX, U_FORCE, U_MOMENT
-from ...lgvi import Discretization, per_discretization
-from ...problem import BoxBound, NormBound, Problem, effort_cost, quadrature_weights
+from ...lgvi import Discretization, discretization, per_discretization
+from ...problem import BoxBound, NormBound, Problem, ThrusterBound, effort_cost, quadrature_weights
 
 #: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
-#: component has no box, 0 where a norm bound of 0 removes the control) and the squared norm bounds
-#: (2: force, moment; NO_NORM where a block has no norm bound)
-NB = 8
+#: component has no box, 0 where a norm bound of 0 removes the control), the squared norm bounds
+#: (2: force, moment; NO_NORM where a block has no norm bound), and a body-fixed engine (:data:`THRUSTER`, 9)
+NB = 17
 NO_NORM = 1e300
+#: the engine's part of ``bd`` (:class:`~transcription.problem.ThrusterBound`, docs/mathematics.md §15): the unit
+#: axis a (3), q = W_f a / (a^T W_f a) (3), T_min, T_max, and 1 (0 without an engine: all 0)
+THRUSTER = slice(8, 17)
 
 
 def saturate(v, bd):
     """u = the minimizer of (1/2) u^T W u - u^T W v over the control bounds, for the unconstrained minimizer v
-    (6; docs/mathematics.md §10): each component clipped to its box, then each block scaled into its norm ball,
+    (6; docs/mathematics.md §10, §15): each component clipped to its box, then each block scaled into its norm ball,
 
-        u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2)).
+        u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2)),
+
+    or, for a force with one body-fixed engine (axis a, min <= T <= max), the W_f-projection onto that segment,
+
+        u_f = T a,   T = min(max(q^T v_f, T_min), T_max),   q = W_f a / (a^T W_f a).
 
     Exact for the weights the indirect method accepts (a box with a diagonal block of W, a norm with an
-    isotropic one, see :func:`~transcription.methods.indirect.solve.not_covered`; a block has one kind of
-    bound).  Without bounds (b = inf, n^2 = NO_NORM) u = v bit for bit.  The squared form keeps the derivative finite at u = 0.
+    isotropic one, see :func:`~transcription.methods.indirect.solve.not_covered`; an engine with any; a block
+    has one kind of bound).  Without bounds (b = inf, n^2 = NO_NORM, no engine) u = v bit for bit.  The squared
+    form keeps the derivative finite at u = 0.
     """
     u = ca.fmin(ca.fmax(v, -bd[:NU]), bd[:NU])
     blocks = []
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         ub, n2 = u[sl], bd[NU + i]
         blocks.append(ub * ca.sqrt(n2 / ca.fmax(ca.dot(ub, ub), n2)))
+    e = bd[THRUSTER]
+    thrust = ca.fmin(ca.fmax(ca.dot(e[3:6], v[U_FORCE]), e[6]), e[7])
+    blocks[0] = ca.if_else(e[8], thrust * e[0:3], blocks[0])
     return ca.vertcat(*blocks)
 
 
@@ -47,9 +58,12 @@ def saturation() -> ca.Function:
 
 def bound_data(problem: Problem) -> np.ndarray:
     """The bound data ``bd`` (NB) of a smooth-control problem (see :data:`NB`)."""
-    bd = np.r_[np.full(NU, np.inf), NO_NORM, NO_NORM]
+    bd = np.r_[np.full(NU, np.inf), NO_NORM, NO_NORM, np.zeros(NB - NU - 2)]
     for i, (sl, bound) in enumerate(((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound))):
-        if isinstance(bound, BoxBound):
+        if isinstance(bound, ThrusterBound):
+            a, Wf = bound.axis, problem.control.W_f
+            bd[THRUSTER] = np.r_[a, Wf @ a / (a @ Wf @ a), bound.min, bound.max, 1.0]
+        elif isinstance(bound, BoxBound):
             bd[sl] = bound.b
         elif isinstance(bound, NormBound) and bound.b == 0:
             bd[sl] = 0.0
@@ -61,7 +75,7 @@ def bound_data(problem: Problem) -> np.ndarray:
 def bounded(bd: np.ndarray) -> bool:
     """Whether bound data bd bounds a control (a removed control, b = 0, is structure, not a bound)."""
     box = bd[:NU]
-    return bool(np.any(np.isfinite(box) & (box > 0)) or np.any(bd[NU:] < NO_NORM))
+    return bool(np.any(np.isfinite(box) & (box > 0)) or np.any(bd[NU:NU + 2] < NO_NORM) or bd[THRUSTER][-1] != 0)
 
 
 @per_discretization
@@ -73,7 +87,14 @@ def control_matrix(disc: Discretization) -> ca.Function:
     dependence on X_k or the stage control), and the Cayley right-hand side g_k to be independent of
     that control: the assumptions of the forward costate recursion.  The controls are
     u = -(s/h) Winv B_c^T lambda with s = 1 (first_order) or 2 (lgvi, see LGVI_CONDITIONS).
+
+    With a body-fixed force the costates are in the body-momentum coordinates (:mod:`.coordinates`), where
+    B'_c = T(X_{k+1}) B_c is the inertial scheme's constant matrix (R^T R = I, which the graph does not
+    simplify symbolically): the inertial scheme's, built and checked there (docs/mathematics.md §15;
+    tests/test_indirect_body.py checks T B_c against it numerically).
     """
+    if disc.force_frame != "inertial":
+        return control_matrix(discretization(disc.model, disc.scheme, disc.newton_iters))
     X = ca.SX.sym("X", NX)
     w = ca.SX.sym("w", disc.nw)
     h = ca.SX.sym("h")

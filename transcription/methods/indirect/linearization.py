@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ...layout import NU, NX, NZ, chart, tangent_readback
+from ...layout import NU, NX, NZ, chart, split_state
 from ...lgvi import Discretization, per_discretization
-from .conditions import costate_functions, orthonormalized, terminal_residual_function
-from .control import NB, control_law, control_matrix, control_scale
+from .conditions import costate_functions, node_law, orthonormalized, terminal_residual_function
+from .control import NB, control_matrix, control_scale
+from .coordinates import costate_chart
 from .elimination import unpivoted_elimination, unpivoted_substitution
 
 
@@ -21,7 +22,8 @@ def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
     sweep; the readback is linear), and H its Jacobian in the chart coordinates of X (12 forward
     directions), instead of 12 forward directions through all 144 entries of A.  The step is the
     seeded one (two Newton iterations from the root c0 of step X's Cayley equation: exact up to
-    third derivatives there), so H is exact.
+    third derivatives there), so H is exact.  With a body-fixed force chart and readback are those of the
+    body-momentum coordinates (:func:`.coordinates.costate_chart`): H' of A'(X) = T(X_{k+1}) A(X) T(X)^-1.
     """
     X = ca.SX.sym("X", NX)
     w = ca.SX.sym("w", disc.nw)
@@ -29,9 +31,10 @@ def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
     h = ca.SX.sym("h")
     c0 = ca.SX.sym("c0", 3)
     z, zp = ca.SX.sym("z", NZ), ca.SX.sym("zp", NZ)
-    X1z = disc.step_seeded(chart(chart(X, zp), z), w, h, c0)
+    chart_c, readback_c = costate_chart(disc)  # z (inertial force) or the body-momentum z' (§15)
+    X1z = disc.step_seeded(chart_c(chart_c(X, zp), z), w, h, c0)
     base = ca.SX.sym("base", NX)  # the readback point X_{k+1}(zp), not differentiated in z
-    g = ca.gradient(ca.dot(lam, tangent_readback(base, X1z)), z)
+    g = ca.gradient(ca.dot(lam, readback_c(base, X1z)), z)
     # one substitution for both, so that the step at z = 0 is one graph (not two copies, each differentiated)
     v, X1p = ca.substitute([g, X1z], [z], [ca.DM.zeros(NZ)])
     v = ca.substitute(v, base, X1p)
@@ -48,7 +51,9 @@ def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Funct
     costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB]) -> H[12x12]
         H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
         orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
-        seeded with the step's Cayley root c (an output of the costate map).
+        seeded with the step's Cayley root c (an output of the costate map).  With a body-fixed force lam is
+        lambda'_k (the costate map's lamp) and H, A, dZ, dlam are in body-momentum coordinates
+        (docs/mathematics.md §15); lam_prev stays the tangent-coordinate costate the control u_k is read from.
     linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], Dk[6x6], D1[6x6], h, Winv[6x6])
             -> (dZ1[12x12], dlam1[12x12])
         dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, docs/mathematics.md §4) and of lambda_{k-1} by
@@ -89,7 +94,8 @@ def _costate_hessian_function(disc: Discretization) -> ca.Function:
     Winv = ca.SX.sym("Winv", NU, NU)
     bd = ca.SX.sym("bd", NB)
     zero = ca.DM.zeros(NU)
-    wA = zero if disc.scheme == "first_order" else ca.vertcat(control_law(disc, h, Winv, bd)(lam_prev)[0], zero)
+    R = split_state(X)[2]
+    wA = zero if disc.scheme == "first_order" else ca.vertcat(node_law(disc, h, Winv, bd)(lam_prev, R)[0], zero)
     H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
     return ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv, bd], [H],
                        ["X", "lam_prev", "lam", "c", "h", "Winv", "bd"], ["H"])

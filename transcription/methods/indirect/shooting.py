@@ -6,10 +6,11 @@ from __future__ import annotations
 import casadi as ca
 
 from ... import codegen
-from ...layout import NU, NX, NZ, tangent_readback
+from ...layout import NU, NX, NZ, split_state, tangent_readback
 from ...lgvi import Discretization, per_discretization
-from .conditions import costate_functions, terminal_residual_function
-from .control import NB, control_law, control_matrix
+from .conditions import costate_functions, node_law, terminal_residual_function
+from .control import NB, control_matrix
+from .coordinates import body_coordinates, initial_costate_function, terminal_costate_function
 from .linearization import linearization_functions, terminal_residual_jacobian
 
 #: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
@@ -21,7 +22,9 @@ class ShootingFunctions:
     """Shooting residual and its Jacobian for one (Discretization, N), built once.
 
     The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS); bd the
-    bound data of the controls (:func:`~.control.bound_data`; no bounds: u = v bit for bit).
+    bound data of the controls (:func:`~.control.bound_data`; no bounds: u = v bit for bit).  With a body-fixed
+    force the unknown and the recursion are in the body-momentum coordinates of :mod:`.coordinates`; the outputs
+    lam, lamN, dlamN and Psi are in tangent coordinates z all the same (docs/mathematics.md §15).
 
     shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6], bd[NB])
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
@@ -62,22 +65,23 @@ class ShootingFunctions:
         h = ca.MX.sym("h")
         Winv = ca.MX.sym("Winv", NU, NU)
         bd = ca.MX.sym("bd", NB)
-        Bc = control_matrix(disc)(h)
-        # the control lam0 determines (first_order u_1, lgvi u_0) and its saturation Jacobian
-        u_first, D_first = control_law(disc, h, Winv, bd)(lam0)
         # the rollout: steps k = k0 .. N-1 by the costate map from (X_k0, lambda_k0-1)
         if sch == "first_order":   # step 0 from lambda_0 itself
             X1, u1, r1 = self.first_step(X0, lam0, h, Winv, bd)
             Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
             n, Xstart = N - 1, X1
         else:
-            Xs, lams, Us, res, lres = [], [], [u_first], [], []
+            Xs, lams, Us, res, lres = [], [], [], [], []
             n, Xstart = N, X0
+        # the control lam0 determines (first_order u_1 at R_1, lgvi u_0 at R_0) and its saturation Jacobian
+        u_first, D_first = node_law(disc, h, Winv, bd)(lam0, split_state(Xstart)[2])
+        if sch != "first_order":
+            Us.append(u_first)
+        steps = None
         if n > 0:
             acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
-            Xr, Lr, Ur, Rr, LRr, Ar, Cr, Dr = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n),
-                                                  ca.repmat(bd, 1, n))
-            for a, b in ((Xs, Xr), (lams, Lr), (Us, Ur), (res, Rr), (lres, LRr)):
+            steps = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n))
+            for a, b in zip((Xs, lams, Us, res, lres), steps[:5]):
                 a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
         zN, lamN = self.terminal_residual(Xs[:, -1], Xd), lams[:, -1]
@@ -93,27 +97,50 @@ class ShootingFunctions:
         res_max = ca.mmax(res)
         self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, lamN, res_max], names_in,
                                     ["zN", "lamN", "res_max"])
-        # Psi = dzN/dlam0 by the linearized coupled recursion along the same rollout (tangent coordinates,
-        # see linearization_functions): the same derivative as forward AD through the rollout, cheaper
-        if sch == "first_order":   # first step: dz_1 = B du_1, du_1 = -(1/h) D_1 Winv B^T dlambda_0
-            dZ = ca.mtimes(Bc, ca.mtimes(D_first, -ca.mtimes(Winv, Bc.T) / h))
+        dZ, dlamN = self._linearization(hess_map, lin_map, args, Xstart, D_first, steps, n)
+        zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
+        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
+                                     ["zN", "Psi", "dlamN"])
+
+    def _linearization(self, hess_map, lin_map, args, Xstart, D_first, steps, n):
+        """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates): Psi = dzN/dlam0 by the linearized
+        coupled recursion along the rollout (see linearization_functions), the same derivative as forward AD
+        through it, cheaper.  With a body-fixed force the recursion runs in body-momentum coordinates
+        (docs/mathematics.md §15): started from dlambda' = T^-T (+ Qi dz'_1 in first_order, where the unknown
+        sits at X_1), and mapped back at X_N, dlambda_{N-1} = T^T dlambda' + Q dz'_N, dz_N = T^-1 dz'_N."""
+        disc, sch = self.disc, self.disc.scheme
+        lam0, X0, _, h, Winv, bd = args
+        Bc = control_matrix(disc)(h)
+        body = body_coordinates(disc)
+        dlam = ca.MX.eye(NZ)
+        if body:
+            Tit, Qi = initial_costate_function()(Xstart, lam0)
+            dlam = Tit
+        if sch == "first_order":   # first step: dz_1 = B du_1, du_1 = -(1/h) D_1 Winv B^T dlambda'_0
+            G = -ca.mtimes(Winv, Bc.T) / h
+            dZ = ca.mtimes(Bc, ca.mtimes(D_first, ca.mtimes(G, dlam) if body else G))
+            if body:               # lambda'_0 = T(X_1)^-T lambda_0 moves with X_1 (B^T Qi B = 0: dz_1 as above)
+                dlam = dlam + ca.mtimes(Qi, dZ)
         else:
             dZ = ca.MX.zeros(NZ, NZ)
-        dlamN = ca.MX.eye(NZ)
+        dlamN, lam_last = dlam, (ca.mtimes(Tit, lam0) if body else lam0)
         if n > 0:
-            Xk = ca.horzcat(Xstart, Xr[:, :n - 1])         # X_k, lambda_{k-1}, lambda_k of the steps
+            Xr, Lr, Ar, Cr, Dr, LPr = (steps[i] for i in (0, 1, 5, 6, 7, 8))
+            Xk = ca.horzcat(Xstart, Xr[:, :n - 1])         # X_k, lambda_{k-1}, lambda'_k of the steps
             Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
             # D of the control each step's A_k is taken at (lgvi: u_k) and of the one it determines (u_{k+1})
             Dk = ca.horzcat(D_first, Dr[:, :NU * (n - 1)])
             hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
-            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5, 6], [])(Xk, Lprev, Lr, Cr, h, Winv,
-                                                                                            bd)
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5, 6], [])(Xk, Lprev, LPr, Cr, h,
+                                                                                            Winv, bd)
             dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
-                dZ, ca.MX.eye(NZ), Ar, Hk, Dk, Dr, hs, Ws)
-            dZ, dlamN = dZs[:, -NZ:], dlams[:, -NZ:]
-        zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
-        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
-                                     ["zN", "Psi", "dlamN"])
+                dZ, dlam, Ar, Hk, Dk, Dr, hs, Ws)
+            dZ, dlamN, lam_last = dZs[:, -NZ:], dlams[:, -NZ:], LPr[:, -1]
+        if body:   # dlambda_{N-1} = T^T dlambda' + Q dz'_N and dz_N = T^-1 dz'_N at X_N
+            XN = Xr[:, -1] if n > 0 else Xstart
+            _, Tt, Q, Tinv = terminal_costate_function()(XN, lam_last)
+            dlamN, dZ = ca.mtimes(Tt, dlamN) + ca.mtimes(Q, dZ), ca.mtimes(Tinv, dZ)
+        return dZ, dlamN
 
 
 @per_discretization

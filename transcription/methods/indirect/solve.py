@@ -10,12 +10,14 @@ import numpy as np
 from ...layout import NU, NZ
 from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...problem import STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, terminal_error
+from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, ThrusterBound,
+                        terminal_error)
 from ...results import Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
+from .coordinates import body_coordinates
 from .shooting import shooting_functions, time_gradient_function
 
 
@@ -38,8 +40,8 @@ def not_covered(problem: Problem) -> str:
         reasons.append("a rendezvous target (its point moves with the final time)")
     elif not isinstance(problem.terminal, TargetState):
         reasons.append("an orbit target")
-    if problem.disc.force_frame != "inertial":
-        reasons.append("a force in the body frame")
+    if isinstance(c.force_bound, ThrusterBound) and problem.disc.force_frame != "body":
+        reasons.append("a thruster on a force in the inertial frame")
     for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
         if isinstance(bound, BoxBound) and np.count_nonzero(W - np.diag(np.diag(W))):
             reasons.append(f"a box bound on the {name} with a non-diagonal weight")
@@ -54,12 +56,19 @@ def free_rows(target: TargetState) -> np.ndarray:
     return np.repeat([c in target.free for c in STATE_COMPONENTS], 3)
 
 
-def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray) -> np.ndarray:
-    """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6): first_order
-    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control."""
+def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: float | None = None,
+                       u1: np.ndarray | None = None) -> np.ndarray:
+    """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6, §15): first_order
+    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control, at the step
+    size h (default the problem's).  With a body-fixed force A_0 depends on the next control too (the end kick
+    R_1 u_{f,1}): lambda_{-1} = A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
     if problem.scheme == "lgvi":
-        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, np.zeros(NU)], problem.h)[0])
+        body = body_coordinates(problem.disc)
+        if body and u1 is None:
+            raise ValueError("lam0_from_costates: a body-fixed force with the LGVI needs the second control u_1")
+        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, u1 if body else np.zeros(NU)],
+                                             problem.h if h is None else h)[0])
         lam = A0.T @ lam
     return lam
 
@@ -80,7 +89,8 @@ def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart 
         if fitted.costates is not None:
             if resampled:
                 notes.append("lambda_0 from the resampled costates")
-            return (lam0_from_costates(problem, fitted.costates[0], fitted.U[:, 0]),
+            U = fitted.U
+            return (lam0_from_costates(problem, fitted.costates[0], U[:, 0], u1=U[:, 1] if U.shape[1] > 1 else None),
                     "from_direct" if warm.source == "direct" else "warm_start", notes)
         notes.append("it carries no costates: lambda_0 from initial_costate")
     spec = options.initial_costate

@@ -1,0 +1,261 @@
+"""Accuracy on demand (issue 26, docs/mathematics.md §11): every smooth-control Solution of ``solve`` is flown
+in continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined
+until that flight lands within the tolerance.
+
+:class:`AccuracyOptions` are the ``solver`` block's own keys (beside ``direct`` and ``indirect``):
+``continuous_check`` (default true), ``accuracy`` (absent or null: today's fixed N), ``max_N`` and
+``max_levels``.  :func:`attach_checks` stores a :class:`~transcription.flight.check.ContinuousCheck` on every
+successful smooth-control Solution (``sol.continuous``); failed solves skip it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from .options import Options, _check, _opt
+from .results import Result, Solution, trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .solve import Comparison
+
+#: the environment variable that switches the default continuous check off (``0``, ``false``, ``no``, ``off``):
+#: for test runs of code that does not test the check; an explicit ``continuous_check`` always wins
+CHECK_ENV = "SE3OCP_CONTINUOUS_CHECK"
+
+
+def _default_check() -> bool:
+    return os.environ.get(CHECK_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+@dataclass(frozen=True)
+class AccuracyOptions(Options):
+    """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...)."""
+
+    continuous_check: bool = _opt(True, "bool", doc="fly every successful smooth-control Solution through the continuous "
+                                                     "equations and report how it lands (Solution.continuous)")
+    accuracy: float | None = field(default=None, metadata={
+        **_opt(1.0, "float", lo=0.0, doc="refine the mesh until the continuous-time terminal miss (scaled_miss) and the "
+                                          "path constraints' violation between the nodes are at most this; absent or "
+                                          "null: the given N, no refinement").metadata, "optional": True})
+    max_N: int = _opt(50000, "int", lo=1, doc="the largest N refinement may solve on; an accuracy that needs more is "
+                                               "refused before solving (or the refinement stops) with the N it needs")
+    max_levels: int = _opt(8, "int", lo=1, hi=50, doc="the most mesh levels (solves) of one refinement")
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (f.metadata.get("optional") and v is None):
+                object.__setattr__(self, f.name, _check(f.name, f.metadata, v))
+
+    @classmethod
+    def from_mapping(cls, d=None) -> "AccuracyOptions":
+        """The defaults (:meth:`default`) changed by a mapping (the solver block's own keys); unknown keys raise."""
+        return cls.default().replace(**dict(d or {}))
+
+    @classmethod
+    def default(cls) -> "AccuracyOptions":
+        """The defaults, with the continuous check as the environment says (:data:`CHECK_ENV`)."""
+        return cls(continuous_check=_default_check())
+
+
+def _solutions(out: "Solution | Comparison") -> list[Solution]:
+    return list(out.solutions.values()) if hasattr(out, "solutions") else [out]
+
+
+def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
+    """Fly every successful smooth-control Solution of ``out`` (:func:`~transcription.flight.check.continuous_check`)
+    and store the check as ``sol.continuous`` (a check already there is kept).  Failed solves, impulsive plans
+    and simulations are left alone.  Returns ``out``."""
+    from .flight.check import continuous_check
+
+    for s in _solutions(out):
+        if s.continuous is None and s.converged and s.problem is not None and s.problem.kind == "smooth" \
+                and s.controls is not None:
+            s.continuous = continuous_check(s)
+    return out
+
+
+# ---------------------------------------------------------------------------- refinement to a tolerance
+#: the order of each scheme's global error in h (docs/mathematics.md §2, §3; measured slopes 2.00 and 1.04)
+ORDER = {"lgvi": 2, "first_order": 1}
+#: N of the next level = SAFETY N (miss / tol)^(1/p), at least twice N and at most GROWTH N
+SAFETY, GROWTH = 1.2, 32
+
+
+def scaled_miss(check, problem) -> float:
+    """The one scalar refinement drives below ``solver.accuracy``: the largest of the continuous check's terminal
+    position miss relative to the characteristic length L, velocity miss relative to V, attitude miss (rad) and
+    rate miss (rad per time unit).  With a central body L = |x_0| (the orbit radius: 1 in normalized units) and
+    V = sqrt(mu / L) (the circular speed, 2 pi normalized); without one L = V = 1 (the file's units).  nan if the
+    flight failed."""
+    mu, L = problem.model.mu, _length(problem)
+    V = float(np.sqrt(mu / L)) if mu else 1.0
+    return float(max(check.terminal_position / L, check.terminal_velocity / V, check.terminal_attitude,
+                     check.terminal_rate))
+
+
+def path_violation(check, problem) -> float:
+    """How far the flown path leaves the path constraints between the nodes, in the units of :func:`scaled_miss`:
+    max(0, -smallest margin) over the constraints, a cone's margin (deg) in rad, a radius relative to L, a rate in
+    rad per time unit; 0 without constraints."""
+    from .flight.check import margin_keys
+    from .problem import MARGIN_DIMENSION
+
+    L = _length(problem)
+    scale = {"angle": np.pi / 180.0, "length": 1.0 / L}
+    worst = 0.0
+    for key, c in zip(margin_keys(problem.constraints), problem.constraints):
+        m = check.min_margins.get(key, 0.0) * scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0)
+        worst = max(worst, -m)
+    return float(worst)
+
+
+def _length(problem) -> float:
+    """The characteristic length L of :func:`scaled_miss`: |x_0| with a central body, else 1."""
+    L = float(np.linalg.norm(problem.X0[0:3])) if problem.model.mu else 1.0
+    return L if L > 0 else 1.0
+
+
+def next_N(N: int, ratio: float, order: float, max_N: int) -> int:
+    """The N of the next level from this level's error ratio (miss / tol, > 1) and the scheme's observed order:
+    SAFETY N ratio^(1/order), at least 2 N (uniform doubling at least), at most GROWTH N; not capped at max_N
+    (the caller refuses a level beyond it)."""
+    want = SAFETY * N * ratio ** (1.0 / order) if np.isfinite(ratio) else 2 * N
+    return int(min(max(np.ceil(want), 2 * N), GROWTH * N))
+
+
+def observed_order(levels: list[dict], scheme: str) -> float:
+    """The order to extrapolate with: the scheme's (ORDER), or the slope of the last two levels' misses in N when
+    it is lower (clamped to at least 0.5)."""
+    p = float(ORDER[scheme])
+    if len(levels) >= 2:
+        a, b = levels[-2], levels[-1]
+        if a["miss"] > 0 and b["miss"] > 0 and b["N"] > a["N"]:
+            slope = np.log(a["miss"] / b["miss"]) / np.log(b["N"] / a["N"])
+            if np.isfinite(slope):
+                p = float(min(p, max(slope, 0.5)))
+    return p
+
+
+def refine(problem, run: Callable, opts: AccuracyOptions, warm=None) -> "Solution | Comparison":
+    """Solve ``problem`` on uniform meshes until the continuous check lands within ``opts.accuracy``
+    (docs/mathematics.md §11, "Refinement to a tolerance").
+
+    run(problem, warm) -> Solution | Comparison is one solve on the problem's own grid.  Level 0 solves on the given
+    N (from ``warm`` if any); each following level on :func:`next_N` steps, warm-started from the previous level's
+    solution (resampled on SE(3) by the methods, transcription.warm).  It stops when the miss and the path violation
+    are within the tolerance, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.  The last
+    level's result is returned, its Solutions carrying the mesh history (``sol.mesh``: level, N, miss,
+    path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']`` and a sentence in the message."""
+    tol, levels, prob = float(opts.accuracy), [], problem
+    while True:
+        t0 = time.perf_counter()
+        out = attach_checks(run(prob, warm))
+        rec, best = _record(out, prob, len(levels), time.perf_counter() - t0)
+        levels.append(rec)
+        if best is None:
+            return _finish(out, levels, False, f"refinement stopped at level {rec['level']} (N = {prob.N}): "
+                                                f"{rec['status']}")
+        worst = max(rec["miss"], rec["path_violation"]) / tol
+        if not worst > 1.0:
+            return _finish(out, levels, True, f"refined to accuracy {tol:.3g}: continuous miss {rec['miss']:.2e} at "
+                                              f"N = {prob.N} after {len(levels)} level(s)")
+        p = observed_order(levels, prob.scheme)
+        N = next_N(prob.N, worst, p, opts.max_N)
+        if N > opts.max_N or len(levels) >= opts.max_levels:
+            limit = f"solver.max_N = {opts.max_N}" if N > opts.max_N else f"solver.max_levels = {opts.max_levels}"
+            return _finish(out, levels, False, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit))
+        T = min(max(best.T, prob.time_bounds[0]), prob.time_bounds[1]) if prob.free_time else prob.T
+        prob, warm = dataclasses.replace(prob, N=N, T=T), best.warm
+
+
+def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str) -> str:
+    """'accuracy 1e-06 not reached: ... would need N ~ 1.6e+07 (first_order, error O(h^1)), above ...; the lgvi
+    scheme (O(h^2)) would need N ~ ...' -- the one line of a tolerance out of reach."""
+    need = N * (miss / tol) ** (1.0 / order)
+    out = (f"accuracy {tol:.3g} not reached: the continuous miss {miss:.2e} at N = {N} would need N ≈ {need:.2g} "
+           f"({scheme}, error O(h^{order:g})), above {limit}")
+    if scheme != "lgvi":
+        # the second-order scheme's error constant is about the first-order one's (E3, E4: within a factor 10)
+        lg = N * (miss / tol) ** 0.5
+        out += f"; the lgvi scheme (O(h²)) would need N ≈ {lg:.2g}: use discretization: lgvi"
+    return out
+
+
+def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | None]:
+    """The mesh-history record of one level and the Solution to continue from (the direct one if flown; None
+    when no method converged and was flown)."""
+    sols = [s for s in _solutions(out) if s.continuous is not None and s.continuous.ok]
+    check_s = sum(s.continuous.elapsed_s for s in sols)
+    miss = max((scaled_miss(s.continuous, problem) for s in sols), default=math.nan)
+    viol = max((path_violation(s.continuous, problem) for s in sols), default=math.nan)
+    rec = {"level": level, "N": int(problem.N), "miss": float(miss), "path_violation": float(viol),
+           "iterations": int(sum(s.iterations for s in _solutions(out))), "solve_s": float(wall - check_s),
+           "check_s": float(check_s), "status": ", ".join(f"{s.method} {s.result.value}" for s in _solutions(out))}
+    best = next((s for s in sols if s.method == "direct"), sols[0] if sols else None)
+    return rec, best
+
+
+def _finish(out, levels: list[dict], met: bool, sentence: str):
+    """The mesh history, the verdict and its sentence on every Solution of the last level."""
+    for s in _solutions(out):
+        s.mesh = [dict(r) for r in levels]
+        s.stats.update(accuracy_met=bool(met), accuracy_levels=len(levels))
+        s.message += f"; {sentence}"
+    return out
+
+
+# ---------------------------------------------------------------------------- the answer before solving
+def free_motion_miss(problem, scheme: str | None = None) -> float:
+    """The a-priori error estimate of a scheme on ``problem``'s grid: :func:`scaled_miss` of its free motion (the
+    discrete motion without control, ``simulate``) against the same motion flown in continuous time.  Measured on
+    E3 and E4 (N = 100, 400), it is within a factor 1/2..16 of the converged plans' own miss (the controls add
+    their part), so the N it predicts is the right order of magnitude (docs/mathematics.md §11).  nan when the
+    free motion cannot be flown."""
+    from .flight.check import continuous_check
+    from .lgvi import discretization
+
+    scheme = scheme or problem.scheme
+    d = problem.disc
+    if scheme != problem.scheme:
+        problem = dataclasses.replace(problem, disc=discretization(d.model, scheme, d.newton_iters,
+                                                                   force_frame=d.force_frame))
+    X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
+    free = Solution(method="simulate", solver=scheme, result=Result.converged, message="free motion",
+                    trajectory=trajectory(problem, X), cost=math.nan, terminal_error=math.nan, iterations=0,
+                    build_s=0.0, solve_s=0.0, problem=problem)
+    check = continuous_check(free)
+    return scaled_miss(check, problem) if check is not None and check.ok else math.nan
+
+
+def out_of_reach(problem, opts: AccuracyOptions) -> str:
+    """The one-line answer before solving ('' when there is none): ``opts.accuracy`` needs more than ``opts.max_N``
+    steps of the problem's scheme by the a-priori estimate (:func:`free_motion_miss` extrapolated with the scheme's
+    order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the LGVI would need."""
+    if opts.accuracy is None or problem.kind is None:
+        return ""
+    if problem.kind != "smooth":
+        return ("refinement to an accuracy applies to smooth control (an impulsive plan coasts between its impulses "
+                "on the scheme's free motion): remove solver.accuracy")
+    tol, scheme, N = float(opts.accuracy), problem.scheme, problem.N
+    miss = free_motion_miss(problem)
+    need = N * (miss / tol) ** (1.0 / ORDER[scheme]) if miss > tol else 0.0
+    if not need > opts.max_N:
+        return ""
+    out = (f"accuracy {tol:.3g} is out of reach of the {scheme} scheme within solver.max_N = {opts.max_N}: it would "
+           f"need N ≈ {need:.2g} steps (error O(h^{ORDER[scheme]}); its free motion at N = {N} misses the continuous "
+           f"flight by {miss:.2e}); nothing was solved")
+    if scheme != "lgvi":
+        lg = free_motion_miss(problem, "lgvi")
+        need_lg = N * (lg / tol) ** 0.5 if lg > tol else N
+        out += (f"; the lgvi scheme (O(h²)) would need N ≈ {need_lg:.2g}" +
+                (": use discretization: lgvi" if need_lg <= opts.max_N else ", also above the cap"))
+    if "also above" in out or scheme == "lgvi":
+        out += ": loosen solver.accuracy or raise solver.max_N"
+    return out
