@@ -193,9 +193,10 @@ def test_the_thrust_direction_figure_is_drawn_for_body_frame_problems():
     for e in ("body axis e2", "body axis e3"):
         assert np.nanmax(np.abs(np.asarray(lines[e], float) - 90.0)) <= 1e-6
     assert "deg" in top.get_ylabel() and "deg" in fig.axes[1].get_ylabel()
+    import matplotlib.pyplot as plt
+    plt.close("all")
     e3 = se3ocp.plot(se3ocp.simulate(maneuver("e3", 20).problem, np.zeros((6, 20))))
     assert "thrust_direction" not in e3
-    import matplotlib.pyplot as plt
     plt.close("all")
 
 
