@@ -64,15 +64,14 @@ from typing import Any
 import numpy as np
 
 from ..transcription.layout import pack_state
-from ..transcription.lgvi import SCHEMES, discretization
+from ..transcription.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
-from ..transcription.lgvi import FORCE_FRAMES
-from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
-                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState,
+from ..transcription.problem import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState,
                                      ThrusterBound, spd_weight)
 from ..transcription.results import Trajectory
 
 from . import moving as _moving
+from .bounds import MAX_MAGNITUDE, MIN_MAGNITUDE, bounds_margin, control_bound, magnitude
 from . import physical as _physical
 from .models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody, parse_gravity
 from .schema import Validator, describe, join_field, load_with_overrides
@@ -92,10 +91,6 @@ CONSTRAINT_KEYS = {"min_radius": ("radius",), "keep_out": ("body_axis", "directi
 #: the most steps a horizon may have (a typo such as N = 1e9 is refused before anything is allocated;
 #: 10^7 steps of the 18-number state already take 1.4 GB)
 MAX_N = 10_000_000
-#: positive limits whose squares enter the equations (control bounds, a rate limit, principal moments
-#: of inertia) must lie in [MIN_MAGNITUDE, MAX_MAGNITUDE], so that their squares and inverse squares are
-#: finite, normal double-precision numbers (a denormal bound is bad input, not a solver failure)
-MIN_MAGNITUDE, MAX_MAGNITUDE = 1e-150, 1e150
 #: the step h = T/N must lie in [MIN_STEP, MAX_STEP]: the discrete equations use h^2 and 1/h^2, which
 #: must stay finite and non-zero in double precision (a T so small that h underflows is bad input,
 #: not a solver failure)
@@ -378,11 +373,11 @@ def _control(v: Validator, c):
         bd = v.mapping(c["bounds"], "control.bounds", ("force", "moment"))
         for k in ("force", "moment"):
             if k in bd:
-                bounds[k], bounds_doc[k] = _bound(v, bd[k], f"control.bounds.{k}", thruster=k == "force")
+                bounds[k], bounds_doc[k] = control_bound(v, bd[k], f"control.bounds.{k}", thruster=k == "force")
         if isinstance(bounds.get("force"), ThrusterBound) and frame != "body":
             v.fail("control.bounds.force.thruster", "a thruster is fixed in the body: it needs control.force_frame: "
                                                     f"body (got {frame})", also=("control.force_frame",))
-    margin = _bounds_margin(v, c, bounds)
+    margin = bounds_margin(v, c, bounds)
     try:
         control = SmoothControl(W_f=W["force"], W_m=W["moment"], objective=objective, force_bound=bounds.get("force"),
                                 moment_bound=bounds.get("moment"), bounds_margin=margin)
@@ -399,72 +394,6 @@ def _control(v: Validator, c):
     if "force_frame" in c:
         out["force_frame"] = frame
     return kind, control, out
-
-
-def _bounds_margin(v: Validator, c, bounds: dict) -> float:
-    """control.bounds_margin m in [0, 1) (default 0): the bounds in ``bounds`` (the actuators') are
-    replaced, in place, by the (1 - m) fraction the plan respects (SmoothControl.bounds_margin)."""
-    if "bounds_margin" not in c:
-        return 0.0
-    m = v.number(c["bounds_margin"], "control.bounds_margin", nonneg=True, hi=1.0)
-    if not bounds:
-        v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
-    for k, b in bounds.items():
-        if isinstance(b, ThrusterBound):
-            if not b.min < b.max * (1.0 - m):
-                v.fail("control.bounds_margin", f"leaves the thruster no range: min {b.min:g} >= (1 - margin) max "
-                                                f"{b.max * (1.0 - m):g}", also=(f"control.bounds.{k}",))
-            bounds[k] = ThrusterBound(b.axis, b.max * (1.0 - m), b.min)
-        else:
-            bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
-    return m
-
-
-def _bound(v: Validator, d, where, thruster: bool = False):
-    """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min}}) -> (BoxBound |
-    NormBound | ThrusterBound, resolved)."""
-    forms = ("box", "norm") + (("thruster",) if thruster else ())
-    if not thruster and isinstance(d, dict) and "thruster" in d:
-        v.fail(where, "a thruster is an engine: it bounds the force (control.bounds.force); the moment takes "
-                      "{box: [b1, b2, b3]} or {norm: b}")
-    if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in forms:
-        engine = " or {thruster: {axis: [3], max: F, min: 0}}" if thruster else ""
-        v.fail(where, f"expected {{box: [b1, b2, b3]}}, {{norm: b}}{engine}, got {describe(d)}")
-    (form, val), = d.items()
-    w = f"{where}.{form}"
-    if form == "thruster":
-        return _thruster(v, val, w)
-    if form == "box":
-        b = v.vec3(val, w)
-        for i, x in enumerate(b):
-            if not x > 0:
-                v.fail(f"{w}[{i}]", f"expected a positive limit, got {float(x)!r}")
-            _magnitude(v, float(x), f"{w}[{i}]", "a limit")
-        return BoxBound(b), {"box": b.tolist()}
-    b = v.number(val, w, nonneg=True)
-    if b != 0:
-        _magnitude(v, b, w, "a limit (or 0, which removes the control)")
-    return NormBound(b), {"norm": b}
-
-
-def _thruster(v: Validator, d, w: str):
-    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0)} -> (ThrusterBound,
-    resolved): one engine fixed in the body, u_f = T axis with min <= T <= max."""
-    v.mapping(d, w, ("axis", "max", "min"), required=("axis", "max"))
-    axis = v.unit_vector(d["axis"], f"{w}.axis", "expected a non-zero engine axis (body frame; it is normalized)")
-    hi = v.number(d["max"], f"{w}.max", positive=True)
-    _magnitude(v, hi, f"{w}.max", "a thrust limit")
-    lo = v.number(d.get("min", 0.0), f"{w}.min", nonneg=True)
-    if not lo < hi:
-        v.fail(f"{w}.min", f"expected min < max (the engine's thrust range), got min {lo:g} >= max {hi:g}", also=(f"{w}.max",))
-    return ThrusterBound(axis, hi, lo), {"thruster": {"axis": axis.tolist(), "max": hi, "min": lo}}
-
-
-def _magnitude(v: Validator, x: float, where: str, what: str) -> None:
-    """ConfigError unless MIN_MAGNITUDE <= x <= MAX_MAGNITUDE (a positive limit whose square is used)."""
-    if not MIN_MAGNITUDE <= x <= MAX_MAGNITUDE:
-        v.fail(where, f"expected {what} from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g} (its square enters the "
-                      f"equations and must be a normal double-precision number), got {x:g}")
 
 
 def _orbit(v: Validator, t, body, extent) -> TargetOrbit:
@@ -501,7 +430,7 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
             con = MinRadius(v.number(c["radius"], f"{w}.radius", positive=True))
         elif kind == "max_angular_rate":
             rate = v.number(c["value"], f"{w}.value", positive=True)
-            _magnitude(v, rate, f"{w}.value", "a rate limit")
+            magnitude(v, rate, f"{w}.value", "a rate limit")
             con = MaxAngularRate(rate)
         else:
             vecs = {"body_axis": v.unit_vector(c["body_axis"], f"{w}.body_axis"),

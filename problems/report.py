@@ -319,10 +319,14 @@ def _cell(v) -> str:
 
 def write_report(results_dir: Path, draw: bool = True) -> Path:
     """Write ``report.html`` into a results directory (atomically); figures are taken from the
-    directory where up to date, else drawn in memory (``draw=False``: the page without them)."""
+    directory where up to date, else drawn in memory (``draw=False``: the page without them).  A flight
+    directory (``se3ocp fly``) gets the flight report (problems/flight/report.py)."""
+    from .flight.report import is_flight_dir, write_flight_report
     from .store import path_tolerance, read_run
 
     d = Path(results_dir)
+    if is_flight_dir(d):
+        return write_flight_report(d)
     run = read_run(d)
     images = figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver))
     cfg = d / "config.resolved.yaml"

@@ -61,7 +61,7 @@ def test_the_flight_block_defaults_and_its_one_line_errors(tmp_path):
     assert spec.errors["force_scale"] == 0.0 and spec.errors["initial"]["attitude_deg"] == 0.0
     assert parse_flight(spec.resolved).resolved == spec.resolved           # the resolved block is a valid block
     for doc, message in (({"runs": 0}, "flight.runs: expected a positive integer"),
-                         ({"feedback": "mpc"}, "flight.feedback: expected one of none, lqr, both"),
+                         ({"feedback": "pid"}, "flight.feedback: expected one of none, lqr, mpc, both, all"),
                          ({"errors": {"force_scale": -0.1}}, "flight.errors.force_scale: expected a non-negative"),
                          ({"errors": {"initial": {"attitude": 1}}}, "flight.errors.initial.attitude: unknown key"),
                          ({"truth": {"gravity": {"kind": "j2"}}}, "flight.truth.gravity.J2: missing required key"),
@@ -208,7 +208,7 @@ def test_cli_fly_writes_every_file(tmp_path):
                "--workers", "1", "--save-runs", "1", "--out", str(out), "--quiet"])
     assert rc == 0
     for name in ("flights.csv", "summary.json", "flight.resolved.yaml", "config.resolved.yaml", "plan.npz",
-                 "gains.npz", "runs/0000.npz", "flight_miss.png", "flight_histograms.png", "flight_tracks.png",
+                 "gains.npz", "runs/0000.npz", "report.html", "flight_miss.png", "flight_histograms.png", "flight_tracks.png",
                  "flight_controls.png"):
         assert (out / name).stat().st_size > 0, name
     assert not (out / "runs" / "0001.npz").exists()
@@ -219,6 +219,18 @@ def test_cli_fly_writes_every_file(tmp_path):
     assert set(s["statistics"]) == {"none", "lqr"} and s["finished_runs"] == 3 and s["interrupted"] is False
     assert set(s["statistics"]["lqr"]["position_miss"]) == {"mean", "p50", "p95", "p99_7", "max", "n"}
     assert np.load(out / "gains.npz")["K"].shape == (40, 6, 12)
+    # report.html: the flight section, self-contained, the same page when `se3ocp report` redraws it
+    html = (out / "report.html").read_text()
+    for part in ('id="flight-summary"', 'id="flight-ratios"', "open loop", "LQR", "terminal position miss",
+                 'id="fig-flight_miss"', 'id="fig-flight_controls"', "3 of 3 runs", 'id="flight"'):
+        assert part in html, part
+    assert html.count("data:image/png;base64,") == 4 and "http" not in html.replace("http-equiv", "")
+    p95 = s["statistics"]["lqr"]["position_miss"]["p95"]
+    assert f"{p95:.3e}" in html
+    (out / "report.html").unlink()
+    assert main(["report", str(out), "--quiet"]) == 0
+    again = (out / "report.html").read_text()
+    assert again.split("<footer>")[0] == html.split("<footer>")[0]
 
 
 def test_cli_fly_a_results_directory_and_bad_input(tmp_path):

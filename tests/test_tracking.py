@@ -397,3 +397,26 @@ def test_bad_bounds_margin_is_one_line_naming_the_field(value, message):
         se3ocp.load(config("e3_bounded"), [f"control.bounds_margin={value}"])
     with pytest.raises(ConfigError, match="control.bounds_margin: applies to bounded controls only"):
         se3ocp.load(config("e3"), ["control.bounds_margin=0.1"])
+
+
+def test_a_disturbance_estimate_is_handed_over_exactly(e3):
+    """Tracker.unexplained(k, X) is the r_k the tracker's own step k uses (du_k = -K_k z_k - L_k r_k to round-off),
+    and a tracker given it as r0 applies it at its step 0 (MPC hands it to the re-planned trajectory's tracker)."""
+    sol, g = e3
+    disc = sol.problem.disc
+    law = g.tracker()
+    X = np.asarray(sol.trajectory.X[0], float).copy()
+    X[0:6] += 1e-4
+    assert law.unexplained(0, X) is None
+    for k in range(5):
+        r = law.unexplained(k, X)
+        z = g.error(k, X)
+        du = law.correction(k, X)
+        if k > 0:
+            assert np.allclose(du, -g.K[k] @ z - g.L[k] @ r, rtol=1e-12, atol=1e-15 * np.abs(du).max())
+        X = np.asarray(disc.step(X, np.ravel(g.plan_stage(k) + du) * 1.01, g.h)[0]).ravel()
+    r = law.unexplained(5, X)
+    assert np.abs(r).max() > 0
+    fresh = g.tracker(r0=r)
+    assert np.allclose(fresh.correction(0, g.X[0]), -g.L[0] @ r, rtol=1e-12, atol=0)
+    assert law.unexplained(7, X) is None                   # not the next step

@@ -155,6 +155,23 @@ def log_so3(R):
     return coef * vee(R - R.T)
 
 
+def log_so3_small(R):
+    """Logarithm SO(3) -> R^3 for angles well below pi (below ~0.9 pi), by the NumPy branch's formula
+    theta = atan2(|vee(R - R^T)|/2, (tr R - 1)/2), theta/(2 sin theta) vee(R - R^T) (Taylor at the identity),
+    so NumPy and CasADi give the same numbers to round-off, where :func:`log_so3`'s CasADi branch (acos)
+    loses eps/theta^2 relative for small angles.  CasADi: for values only (the norm is not differentiable at
+    the identity); the tracking error of a flight (transcription/flight/loop.py)."""
+    if not is_symbolic(R):
+        return _log_so3_np(np.asarray(R, dtype=float))
+    w2 = vee(R - R.T)
+    s = 0.5 * ca.norm_2(w2)
+    t = ca.atan2(s, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0))
+    t2 = t * t
+    small = t2 < _SMALL_THETA2
+    coef = _where(small, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * _where(small, 1.0, s)))
+    return coef * w2
+
+
 def _log_so3_np(R: np.ndarray) -> np.ndarray:
     w2 = vee(R - R.T)                      # 2 sin(theta) n
     s = 0.5 * np.linalg.norm(w2)

@@ -310,9 +310,9 @@ class Gains:
         """The plan's node controls of step k as rows: lgvi (2, 6) [u_k; u_{k+1}], first_order (1, 6) [u_{k+1}]."""
         return self.U[:, k:k + 2].T if self.scheme == "lgvi" else self.U[:, k:k + 1].T
 
-    def tracker(self, feedback: bool = True, disturbance: bool = True) -> "Tracker":
-        """A fresh feedback law for one flight (:class:`Tracker`)."""
-        return Tracker(self, feedback, disturbance)
+    def tracker(self, feedback: bool = True, disturbance: bool = True, r0: np.ndarray | None = None) -> "Tracker":
+        """A fresh feedback law for one flight (:class:`Tracker`; r0: a disturbance estimate handed over)."""
+        return Tracker(self, feedback, disturbance, r0)
 
 
 class Tracker:
@@ -324,7 +324,8 @@ class Tracker:
 
     r_k is what the last step did that the linearization does not explain (unmodelled forces, actuator
     errors, the linearization's own error), taken as persisting (certainty equivalence: the LQR of
-    :func:`riccati` with a constant disturbance r = r_k); it uses the commands actually issued.
+    :func:`riccati` with a constant disturbance r = r_k); it uses the commands actually issued.  ``r0``: an
+    estimate handed over for step 0 (the tracker of a re-planned trajectory, :meth:`unexplained`).
 
     Saturation: the correction may use the headroom the plan leaves in *every* direction (:meth:`limit`):
     |du_i| <= b_i - max |u_i| over the rows of the step for a box, |du_f| <= b - max |u_f| for a norm.  A
@@ -336,8 +337,9 @@ class Tracker:
     feedback False: the plan's controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps``
     counts the steps whose correction was limited."""
 
-    def __init__(self, gains: Gains, feedback: bool = True, disturbance: bool = True):
+    def __init__(self, gains: Gains, feedback: bool = True, disturbance: bool = True, r0: np.ndarray | None = None):
         self.gains, self.feedback, self.disturbance = gains, bool(feedback), bool(disturbance)
+        self.r0 = None if r0 is None else np.asarray(r0, float).reshape(NZ)
         self.box = box_limits(gains.force_bound, gains.moment_bound)
         self.norms = [(sl, b.b) for sl, b in ((U_FORCE, gains.force_bound), (U_MOMENT, gains.moment_bound))
                       if isinstance(b, NormBound)]
@@ -359,6 +361,8 @@ class Tracker:
             du = -g.K[k] @ z
             if self.disturbance and k > 0:
                 du -= g.L[k] @ (z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
+            elif self.disturbance and self.r0 is not None:          # k = 0: an estimate handed over
+                du -= g.L[0] @ self.r0
             self.z = z
             if self.bounded:
                 du, limited = self.limit(k, du, g.plan_stage(k))
@@ -366,6 +370,15 @@ class Tracker:
         self.dw = np.tile(du, 2 if g.scheme == "lgvi" else 1)
         self.k = k
         return du
+
+    def unexplained(self, k: int, X) -> np.ndarray | None:
+        """r_k (12,) for the state X at t_k, the next step, without taking it: what the last step did that the
+        linearization does not explain (None before the first step or without the disturbance estimate) --
+        handed to the tracker of a re-planned trajectory (transcription.mpc)."""
+        g = self.gains
+        if not (self.feedback and self.disturbance) or self.k < 0 or k != self.k + 1 or k >= g.N:
+            return None
+        return g.error(k, X) - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw
 
     def command(self, k: int, X) -> np.ndarray:
         """The node commands (rows, 6) of step k from the state X at t_k (rows: 2 lgvi, 1 first_order): the

@@ -88,6 +88,24 @@ class WarmStart:
             notes.append(f"{' and '.join(dropped)} not reused (they belong to the other grid)")
         return WarmStart(t=t, X=X, U=U, scheme=scheme, source=self.source, costates=lam), tuple(notes)
 
+    def tail(self, k: int) -> "WarmStart":
+        """The remaining horizon from node k (0 <= k < N) as a warm start of its own, shifted to start at t = 0
+        (shrinking-horizon re-plans, docs/mathematics.md §12): states X_k..X_N, the controls of steps k..N-1
+        (lgvi u_k..u_N, first_order u_{k+1}..u_N), costates lambda_k..lambda_{N-1}, and the shooting unknown of
+        the remaining problem: lambda_{k-1} (lgvi; for k = 0 this warm start's own lam0) or lambda_k (first
+        order); None where the parts are absent.  The NLP multipliers are dropped (they belong to the whole
+        horizon's NLP)."""
+        if not 0 <= k < self.N:
+            raise ValueError(f"tail: expected a node 0 <= k < {self.N}, got {k}")
+        lam = self.costates
+        if self.scheme == "lgvi":
+            lam0 = self.lam0 if k == 0 else (None if lam is None else lam[k - 1])
+        else:
+            lam0 = self.lam0 if k == 0 and self.lam0 is not None else (None if lam is None else lam[k])
+        return WarmStart(t=self.t[k:] - self.t[k], X=self.X[k:], U=self.U[:, k:], scheme=self.scheme,
+                         source=self.source, costates=None if lam is None else lam[k:],
+                         lam0=None if lam0 is None else np.array(lam0, dtype=float))
+
 
 def warm_start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: str, source: str,
                   **dual) -> WarmStart | None:

@@ -136,8 +136,13 @@ def _figures_and_report(args, out: Path) -> list[Path]:
     return written
 
 
-def _results_dir(d: Path) -> int:
-    """0 if d is a results directory, else the error printed and 2."""
+def _results_dir(d: Path, flights: bool = False) -> int:
+    """0 if d is a results directory (``flights``: or a flight directory of ``se3ocp fly``), else the error
+    printed and 2."""
+    from ..flight.report import is_flight_dir
+
+    if flights and is_flight_dir(d):
+        return 0
     if not (d / "summary.json").exists() or not (d / "config.resolved.yaml").exists():
         print(f"se3ocp: error: {d}: not a results directory (needs summary.json and config.resolved.yaml)", file=sys.stderr)
         return 2
@@ -148,12 +153,13 @@ def _results_dir(d: Path) -> int:
     return 0
 
 
-def _update_results(args, write, said) -> int:
+def _update_results(args, write, said, flights: bool = False) -> int:
     """``plot`` and ``report``: ``write(path)`` adds files to a copy of the complete results directory
     ``args.results`` (results_update: the copy is swapped in when it returns) and returns their names;
-    ``said(d, written)`` is the line printed.  2 if the directory is not a results directory."""
+    ``said(d, written)`` is the line printed.  2 if the directory is not a results directory (``flights``:
+    nor a flight directory)."""
     d = Path(args.results)
-    if _results_dir(d):
+    if _results_dir(d, flights):
         return 2
     with results_update(d) as tx:
         written = [str(d / name) for name in write(tx.path)]
@@ -217,7 +223,7 @@ def cmd_report(args) -> int:
     from ..report import write_report
 
     return _update_results(args, lambda path: [write_report(path, draw=not args.no_figures).name],
-                           lambda d, written: f"wrote {written[0]}")
+                           lambda d, written: f"wrote {written[0]}", flights=True)
 
 
 def cmd_sweep(args) -> int:

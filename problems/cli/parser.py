@@ -199,8 +199,9 @@ def _fly_parser(sub) -> None:
     p.add_argument("--flight", default=None, metavar="FILE",
                    help="a YAML file holding a 'flight:' block (default: the maneuver's own, else the defaults)")
     p.add_argument("--runs", type=_positive_int, default=None, metavar="K", help="number of runs (default: the block's)")
-    p.add_argument("--feedback", choices=("none", "lqr", "both"), default=None,
-                   help="open loop, the LQR tracker, or both side by side (default: the block's, else both)")
+    p.add_argument("--feedback", choices=("none", "lqr", "mpc", "both", "all"), default=None,
+                   help="open loop, the LQR tracker, re-planning (MPC), open loop and LQR side by side (both), or "
+                        "all three (default: the block's, else both)")
     _executor_options(p)
     p.add_argument("--save-runs", type=_nonneg_int, default=0, metavar="K",
                    help="write runs/NNNN.npz (errors, applied controls, truth trajectory) of the first K runs")

@@ -7,7 +7,7 @@ open loop and with the tracker, on a local process pool or a Dask cluster.
                            "errors": {"force_scale": 0.02}, "runs": 50})
     res.statistics()["lqr"]["position_miss"]["p95"]
 
-* ``schema`` -- the ``flight:`` block (:class:`FlightSpec`: truth, errors, feedback, weights, runs, seed);
+* ``schema`` -- the ``flight:`` block (:class:`FlightSpec`: truth, errors, feedback, mpc, weights, runs, seed);
 * ``plan`` -- the plan as plain data, the truth body, and each run's errors from its own
   ``SeedSequence(seed).spawn(runs)[i]`` (so the statistics do not depend on the workers);
 * ``task`` -- :func:`fly_runs`, the unit of work (a few runs, every feedback mode), and the figures of
@@ -21,7 +21,9 @@ How a flight is flown: the truth body (the plan's, under the flight's gravity, w
 is integrated by the continuous engine (transcription/flight, docs/mathematics.md §11) from the run's
 initial state, the plan's controls applied between the nodes as the scheme defines them, through the
 run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
-(docs/mathematics.md §12), computed from the flown state at each node, is added over the interval.
+(docs/mathematics.md §12), computed from the flown state at each node, is added over the interval; with
+``mpc`` the remainder of the plan is re-planned from the flown state every ``mpc.replan_every`` steps
+(transcription/mpc.py, docs/mathematics.md §12) and flown open loop in between.
 """
 from __future__ import annotations
 
@@ -53,7 +55,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     plan: a Maneuver (solved first by the direct method) or a converged smooth-control Solution with
     ``maneuver=`` the Maneuver it solves.  flight: a FlightSpec, a flight block (mapping), a YAML file
     holding one, or None (the maneuver's own ``flight:`` block, else the defaults).  runs, feedback
-    ('none', 'lqr', 'both'): change the block's.  workers (default 1: in-process), scheduler (a Dask
+    ('none', 'lqr', 'mpc', 'both', 'all'): change the block's.  workers (default 1: in-process), scheduler (a Dask
     address): where the runs go.  save_runs: keep the whole flights of the first runs (``saved``)."""
     from ...transcription.results import Solution
     from ..api import solve
@@ -66,6 +68,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     check_plan(plan)
     spec = _spec(flight, maneuver)
     spec = with_changes(spec, spec_source(flight, maneuver), runs=runs, feedback=feedback)
+    check_feedback(maneuver, spec, spec_source(flight, maneuver))
     return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
 
 
@@ -75,6 +78,18 @@ def check_plan(sol) -> None:
         raise ValueError(f"the {sol.method} solution has no smooth controls: only smooth-control plans are flown")
     if not sol.converged:
         raise ValueError(f"the {sol.method} plan did not converge ({sol.result}: {sol.message}); nothing to fly")
+
+
+def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
+    """ConfigError (``flight.feedback``) when MPC is asked for a plan whose re-plans the indirect method's
+    Newton step does not cover (transcription.mpc)."""
+    from ...transcription.methods.indirect.solve import not_covered
+    from ..schema import ConfigError
+
+    reason = not_covered(maneuver.problem) if "mpc" in spec.modes else ""
+    if reason:
+        raise ConfigError(source, "flight.feedback", f"mpc re-plans by the indirect method's Newton step, which "
+                          f"does not cover {reason}; fly this plan with none or lqr")
 
 
 def spec_source(flight: Any, maneuver) -> str:

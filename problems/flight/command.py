@@ -12,12 +12,22 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import _spec, check_plan, load_flight, spec_source, with_changes
+from . import _spec, check_feedback, check_plan, load_flight, spec_source, with_changes
+
+
+def _flight_spec(args, man):
+    """The flight block flown: --flight FILE, else the maneuver's own, with --runs and --feedback; ConfigError
+    when it cannot be flown (MPC for a plan the re-planner does not cover)."""
+    flight = args.flight
+    spec = load_flight(flight) if flight else _spec(None, man)
+    spec = with_changes(spec, spec_source(flight, man), runs=args.runs, feedback=args.feedback)
+    check_feedback(man, spec, spec_source(flight, man))
+    return spec
 
 
 def _plan(args):
-    """(Maneuver, its plan): a maneuver file solved by the direct method, or a results directory's
-    direct solution (else its indirect one)."""
+    """(Maneuver, its plan, the flight spec): a maneuver file solved by the direct method (after the flight
+    block is checked), or a results directory's direct solution (else its indirect one)."""
     from .. import api
     from ..maneuvers import load_maneuver
     from ..store import read_run
@@ -29,15 +39,16 @@ def _plan(args):
         run = read_run(src)
         sols = run.solutions
         sol = sols.get("direct") or sols.get("indirect") or next(iter(sols.values()))
-        return run.maneuver, sol
+        return run.maneuver, sol, _flight_spec(args, run.maneuver)
     man = load_maneuver(src, args.overrides)
     if man.control_kind != "smooth":
         raise ConfigError(man.source, "control.kind", "only smooth-control plans are flown (give kind: smooth)")
+    spec = _flight_spec(args, man)
     _say(args, f"{man.name}: planning by the direct method ({man.discretization}, N = {man.N}) ...")
     t0 = time.perf_counter()
     sol = api.solve(man, "direct")
     _say(args, f"  {sol.result} ({sol.message}); cost {sol.cost:.10g}, {time.perf_counter() - t0:.1f} s")
-    return man, sol
+    return man, sol, spec
 
 
 def _say(args, *msg):
@@ -72,15 +83,12 @@ def cmd_fly(args) -> int:
     from .output import write_flights
     from .run import run_flights
 
-    man, sol = _plan(args)
+    man, sol, spec = _plan(args)
     try:
         check_plan(sol)
     except ValueError as e:
         print(f"se3ocp: {man.name}: {e}", file=sys.stderr)
         return 1
-    flight = args.flight
-    spec = load_flight(flight) if flight else _spec(None, man)
-    spec = with_changes(spec, spec_source(flight, man), runs=args.runs, feedback=args.feedback)
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
         with results_transaction(args.out, Path("results") / "flights" / safe_name(man.name), args.force) as tx:
@@ -104,7 +112,7 @@ def cmd_fly(args) -> int:
         ex.shutdown()
     for line in table(res):
         _say(args, line)
-    _say(args, f"  {res.wall_s:.1f} s wall; results in {out}/ (flights.csv, summary.json, figures)")
+    _say(args, f"  {res.wall_s:.1f} s wall; results in {out}/ (flights.csv, summary.json, figures, report.html)")
     if res.failed:
         print(f"se3ocp: {man.name}: {res.failed} flights failed (see flights.csv); results in {out}/", file=sys.stderr)
     return 1 if res.failed else 0

@@ -22,8 +22,8 @@ from ..io import save_figure
 from ..units import units
 from .run import FlightResult
 
-MODE_COLORS = {"none": "#e66101", "lqr": "#5e3c99"}
-MODE_LABELS = {"none": "open loop", "lqr": "LQR"}
+MODE_COLORS = {"none": "#e66101", "lqr": "#5e3c99", "mpc": "#1b9e77"}
+MODE_LABELS = {"none": "open loop", "lqr": "LQR", "mpc": "MPC"}
 
 
 

@@ -1,5 +1,6 @@
 """What a Monte Carlo flight writes, each file atomically: flights.csv, summary.json, flight.resolved.yaml,
-config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker), runs/NNNN.npz and the figures."""
+config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker), runs/NNNN.npz, the figures and
+report.html (problems/flight/report.py)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,13 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from ..io import write_csv, write_json, write_npz, write_yaml
+from .report import write_flight_report
 from .run import FlightResult
-from .task import ERROR_COLUMNS
+from .task import ERROR_COLUMNS, MPC_COLUMNS
 
 
 def columns(result: FlightResult) -> list[str]:
-    """flights.csv's columns: run, feedback, status, the figures of merit, the sampled errors, message."""
-    return ["run", "feedback", "status", *result.metrics, *ERROR_COLUMNS, "message"]
+    """flights.csv's columns: run, feedback, status, the figures of merit, the re-plans (with MPC), the sampled
+    errors, message."""
+    mpc = MPC_COLUMNS if "mpc" in result.spec.modes else ()
+    return ["run", "feedback", "status", *result.metrics, *mpc, *ERROR_COLUMNS, "message"]
 
 
 def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: bool = True) -> list[Path]:
@@ -37,5 +41,7 @@ def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: b
         from .figures import draw_flights
 
         written += draw_flights(out, result)
-    write_json(out / "summary.json", result.summary())
+    summary = result.summary()
+    written.append(write_flight_report(out, summary))
+    write_json(out / "summary.json", summary)
     return written + [out / "summary.json"]

@@ -24,6 +24,7 @@ from ...transcription.layout import NX, X_ANG, X_MOM, X_POS, X_ROT
 from ...transcription.lie import exp_so3
 from ...transcription.model import BodyModel
 from ...transcription.results import Result, Solution, Trajectory
+from ...transcription.warm import warm_start_of
 from ..maneuvers import Maneuver, _body, parse_maneuver
 from ..schema import Validator
 from .schema import FlightSpec
@@ -35,10 +36,14 @@ DRAWS = (("position", 3), ("velocity", 3), ("attitude", 3), ("angular_velocity",
 
 def plan_payload(man: Maneuver, sol: Solution) -> dict:
     """The plan as plain data: the resolved maneuver document, its source, the method, the node times,
-    states and controls; ``key`` identifies it (workers cache what they build from it)."""
+    states and controls, and the costates of its warm start (the re-plans' warm start, transcription.mpc;
+    absent when it has none); ``key`` identifies it (workers cache what they build from it)."""
     doc = copy.deepcopy(man.resolved)
     arrays = {"t": np.asarray(sol.trajectory.t, float), "X": np.asarray(sol.trajectory.X, float),
               "U": np.asarray(sol.controls, float)}
+    warm = sol.warm
+    dual = {"costates": sol.costates if warm is None else warm.costates, "lam0": None if warm is None else warm.lam0}
+    arrays.update({k: np.asarray(v, float) for k, v in dual.items() if v is not None})
     h = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode())
     for a in arrays.values():
         h.update(a.tobytes())
@@ -57,10 +62,12 @@ def load_plan(payload: dict) -> tuple[Maneuver, Solution]:
             _PLANS.clear()
         man = parse_maneuver(copy.deepcopy(payload["doc"]), payload["source"])
         model = man.problem.model
+        warm = warm_start_of(payload["t"], payload["X"], payload["U"], man.problem.scheme, payload["method"],
+                             costates=payload.get("costates"), lam0=payload.get("lam0"))
         sol = Solution(method=payload["method"], solver="", result=Result.converged, message="the plan",
                        trajectory=Trajectory(t=payload["t"], X=payload["X"], mass=model.mass, inertia=model.inertia),
                        cost=float("nan"), terminal_error=float("nan"), iterations=0, build_s=0.0, solve_s=0.0,
-                       problem=man.problem, controls=payload["U"])
+                       problem=man.problem, controls=payload["U"], warm=warm)
         _PLANS[key] = (man, sol)
     return _PLANS[key]
 

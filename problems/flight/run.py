@@ -35,6 +35,7 @@ class FlightResult:
     rows: list
     tracks: dict = field(default_factory=dict)
     saved: dict = field(default_factory=dict)
+    replan_s: dict = field(default_factory=dict)
     executor: str = "serial"
     workers: int | None = 1
     wall_s: float = 0.0
@@ -69,13 +70,37 @@ class FlightResult:
                "workers": self.workers, "wall_s": self.wall_s,
                "tracking": {"scales": self.gains.weights.scales, "removed": list(self.gains.removed)},
                "statistics": stats}
-        if set(stats) == {"none", "lqr"}:
-            ratio = {}
-            for m in ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss"):
-                a, b = stats["none"][m]["p95"], stats["lqr"][m]["p95"]
-                ratio[f"{m}_p95"] = b / a if a and math.isfinite(a) and math.isfinite(b) else None
-            out["closed_over_open"] = ratio
+        for mode, key in (("lqr", "closed_over_open"), ("mpc", "mpc_over_open")):
+            if {"none", mode} <= set(stats):
+                out[key] = p95_ratios(stats["none"], stats[mode])
+        if "mpc" in stats:
+            out["mpc"] = self.replan_summary()
         return out
+
+    def replan_summary(self) -> dict:
+        """The re-planning options and every re-plan's times (ms) pooled over the finished runs -- from the flown
+        state to the new plan (``solve_ms``) and the preparation before it (``prepare_ms``): median, p95, max --
+        and how many (summary.json ``mpc``; timings, so not among the statistics)."""
+        ms = 1e3 * np.array([t for run in sorted(self.replan_s) for t in self.replan_s[run]], float).reshape(-1, 2)
+        rejected = sum(int(r.get("replans_rejected", 0)) for r in self.rows if r["feedback"] == "mpc")
+        return {**self.spec.mpc, "replans": int(ms.shape[0]), "rejected": rejected, "solve_ms": timing(ms[:, 0]),
+                "prepare_ms": timing(ms[:, 1])}
+
+
+def timing(ms: np.ndarray) -> dict:
+    """median, p95 and max of some times (None where there are none)."""
+    if ms.size == 0:
+        return {"median": None, "p95": None, "max": None}
+    return {"median": float(np.median(ms)), "p95": float(np.percentile(ms, 95)), "max": float(ms.max())}
+
+
+def p95_ratios(open_loop: dict, closed: dict) -> dict:
+    """closed p95 / open-loop p95 of the terminal misses (None where undefined)."""
+    ratio = {}
+    for m in ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss"):
+        a, b = open_loop[m]["p95"], closed[m]["p95"]
+        ratio[f"{m}_p95"] = b / a if a and math.isfinite(a) and b is not None and math.isfinite(b) else None
+    return ratio
 
 
 def describe(a: np.ndarray) -> dict:
@@ -155,3 +180,4 @@ def _collect(res: FlightResult, runs: list, fut, spec: FlightSpec) -> None:
     res.rows += out["rows"]
     res.tracks.update(out["tracks"])
     res.saved.update(out["saved"])
+    res.replan_s.update(out.get("replan_s", {}))

@@ -14,7 +14,8 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
         moment_scale: 0.02
         moment_misalignment_deg: 0.0
         inertia_scale: 0.01
-      feedback: both          # none | lqr | both (both: open and closed loop side by side)
+      feedback: both          # none | lqr | mpc | both (none and lqr side by side) | all (none, lqr, mpc)
+      mpc: {replan_every: 10, iterations: 1, min_horizon: 1, between: lqr}   # re-planning (transcription/mpc.py)
       weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.tracking.SCALE_KEYS)
       runs: 200
       seed: 1
@@ -29,17 +30,26 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ...transcription.flight import DEFAULT_SAMPLES
+from ...transcription.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_EVERY
 from ...transcription.tracking import SCALE_KEYS
 from ..models import parse_gravity
 from ..schema import Validator
 
-FLIGHT_KEYS = ("truth", "errors", "feedback", "weights", "runs", "seed")
+FLIGHT_KEYS = ("truth", "errors", "feedback", "mpc", "weights", "runs", "seed")
 TRUTH_KEYS = ("gravity", "integrator", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
 #: feedback modes flown for each value of ``feedback``
-FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "both": ("none", "lqr")}
+FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "mpc": ("mpc",), "both": ("none", "lqr"), "all": ("none", "lqr", "mpc")}
+#: the ``mpc`` block: re-plan every this many node steps, Newton steps per re-plan, no re-plan with fewer
+#: steps left than min_horizon, and between re-plans the LQR tracker around the current plan or nothing
+#: (transcription.mpc)
+MPC_KEYS = ("replan_every", "iterations", "min_horizon", "between")
+MPC_DEFAULTS = {"replan_every": DEFAULT_REPLAN_EVERY, "iterations": DEFAULT_ITERATIONS, "min_horizon": 1,
+                "between": "lqr"}
+MPC_BETWEEN = ("lqr", "none")
+MAX_ITERATIONS = 50
 INTEGRATORS = ("cvodes",)
 #: the most runs one flight may ask for, and the largest seed (NumPy's SeedSequence takes any
 #: non-negative integer; the cap keeps the resolved file readable)
@@ -53,8 +63,8 @@ class FlightSpec:
     """A validated flight block.  gravity: the truth's gravity block (None: the plan's own);
     samples: states per node interval; errors: 1-sigma values (initial: position, velocity (inertial),
     attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
-    modes: the feedback modes flown ('none', 'lqr'); weights: tracking scales; runs; seed; resolved: the
-    block with its defaults (itself a valid flight block)."""
+    modes: the feedback modes flown ('none', 'lqr', 'mpc'); weights: tracking scales; mpc: the re-planning
+    options (MPC_KEYS); runs; seed; resolved: the block with its defaults (itself a valid flight block)."""
 
     gravity: dict | None
     samples: int
@@ -64,6 +74,7 @@ class FlightSpec:
     runs: int
     seed: int
     resolved: dict = field(repr=False)
+    mpc: dict = field(default_factory=lambda: dict(MPC_DEFAULTS))
 
 
 def default_errors() -> dict:
@@ -90,12 +101,17 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight") -> F
                 v.fail(f"{where}.weights.{k}", "expected non-negative numbers")
         else:
             weights[k] = v.number(val, f"{where}.weights.{k}", positive=True)
+    m = v.mapping(d.get("mpc", {}), f"{where}.mpc", MPC_KEYS)
+    mpc = {k: v.number(m.get(k, dv), f"{where}.mpc.{k}", positive=True, integer=True,
+                       at_most=MAX_ITERATIONS if k == "iterations" else MAX_RUNS)
+           for k, dv in MPC_DEFAULTS.items() if k != "between"}
+    mpc["between"] = v.choice(m.get("between", "lqr"), f"{where}.mpc.between", MPC_BETWEEN)
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
     resolved = {"truth": {**({"gravity": gravity} if gravity else {}), "integrator": "cvodes", "samples": samples},
-                "errors": errors, "feedback": feedback, "weights": weights, "runs": runs, "seed": seed}
+                "errors": errors, "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
-                      runs=runs, seed=seed, resolved=resolved)
+                      runs=runs, seed=seed, resolved=resolved, mpc=mpc)
 
 
 def _errors(v: Validator, doc, where: str) -> dict:

@@ -8,8 +8,10 @@ import math
 import numpy as np
 
 from ...transcription.flight import ClosedLoop, FlightError, OpenLoop, fly, margin_keys
+from ...transcription.flight.loop import TrackingLoop
 from ...transcription.layout import X_POS, X_ROT
 from ...transcription.lie import log_so3, nearest_rotation
+from ...transcription.mpc import Replanner, Replanning
 from ...transcription.results import Trajectory, rotation_angle
 from ...transcription.tracking import saturate, tracking_gains
 from ..plots.orbits import rtn
@@ -21,6 +23,8 @@ METRICS = ("position_miss", "miss_r", "miss_t", "miss_n", "velocity_miss", "atti
            "attitude_y_deg", "attitude_z_deg", "rate_miss", "delta_v", "delta_v_overhead", "delta_v_commanded",
            "delta_v_commanded_overhead", "angular_impulse", "peak_force", "peak_moment", "saturated_fraction",
            "max_position_deviation", "max_attitude_deviation_deg")
+#: an MPC flight's re-plans (flights.csv; timings, so not among the statistics)
+MPC_COLUMNS = ("replans", "replans_rejected", "replan_ms_median", "replan_ms_max", "prepare_ms_median")
 #: the sampled errors reported with each flight (flights.csv)
 ERROR_COLUMNS = ("force_scale", "moment_scale", "force_misalignment_deg", "moment_misalignment_deg",
                  "inertia_scale_1", "inertia_scale_2", "inertia_scale_3")
@@ -123,15 +127,33 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
 
 
 def fly_one(plan, gains, spec, err, base, mode: str):
-    """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, tracker or None)."""
+    """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
+    (the tracker, the re-planning law) or None, the re-planning law or None)."""
     law = OpenLoop.of_controls(gains.scheme, gains.U)
     tracker = None
+    if mode == "mpc":
+        o = spec.mpc
+        law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
+                                   o["min_horizon"], gains if o["between"] == "lqr" else None)
     if mode == "lqr":
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
+        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+            law = TrackingLoop.of_gains(gains)
     flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples)
-    return flight, tracker
+    return flight, tracker, law if mode == "mpc" else None
+
+
+def replan_columns(law) -> dict:
+    """An MPC flight's re-plans (MPC_COLUMNS): how many, how many rejected, median and largest solve time (ms)."""
+    if law is None:
+        return {}
+    ms, prep = 1e3 * law.solve_times, 1e3 * law.prepare_times
+    return {"replans": len(ms), "replans_rejected": law.rejected,
+            "replan_ms_median": float(np.median(ms)) if ms.size else math.nan,
+            "replan_ms_max": float(ms.max()) if ms.size else math.nan,
+            "prepare_ms_median": float(np.median(prep)) if prep.size else math.nan}
 
 
 def fly_runs(task: dict) -> dict:
@@ -141,14 +163,15 @@ def fly_runs(task: dict) -> dict:
     name, 'runs': [run indices], 'tracks': runs below this index return their node deviations and
     controls (figures), 'save': runs below this index return their whole flights (runs/NNNN.npz)}.
     Returns {'rows': [one dict per run and feedback mode], 'tracks': {run: {mode: arrays}},
-    'saved': {run: arrays}}.  A flight that fails is a row (status 'failed'), never an exception."""
+    'saved': {run: arrays}, 'replan_s': {run: the MPC flight's re-plan times (s): [solve, prepare] each}}.  A flight that fails is
+    a row (status 'failed'), never an exception."""
     man, plan = load_plan(task["plan"])
     spec = parse_flight(task["flight"], task["source"])
     gains = gains_of(task["plan"], spec.weights)
     base = truth_body(man, spec)
     seeds = run_seeds(spec)
     usage = plan_usage(gains, spec.samples)
-    rows, tracks, saved = [], {}, {}
+    rows, tracks, saved, replan_s = [], {}, {}, {}
     for i in task["runs"]:
         err = sample_errors(spec, i, seeds[i], plan.trajectory.X[0], man.problem.model.mass, man.problem.model.inertia,
                             man.problem.disc.force_frame)
@@ -158,8 +181,11 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker = fly_one(plan, gains, spec, err, base, mode)
+                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
+                metrics.update(replan_columns(mpc))
+                if mpc is not None:
+                    replan_s[i] = np.column_stack([mpc.solve_times, mpc.prepare_times]).tolist()
             except (FlightError, ValueError, np.linalg.LinAlgError) as e:
                 rows.append({**row, "status": "failed", "message": " ".join(str(e).split())[:500], **cols})
                 continue
@@ -170,4 +196,4 @@ def fly_runs(task: dict) -> dict:
                 saved[i].update({f"{mode}_{k}": v for k, v in (
                     ("t", flight.t), ("X", flight.X), ("command_start", flight.command_start),
                     ("command_end", flight.command_end), ("control_t", flight.control_t), ("control", flight.control))})
-    return {"rows": rows, "tracks": tracks, "saved": saved}
+    return {"rows": rows, "tracks": tracks, "saved": saved, "replan_s": replan_s}

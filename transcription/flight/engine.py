@@ -277,8 +277,10 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
     through eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default: nominal), one node
     interval at a time (:func:`interval_integrator`), sampled ``samples`` times per interval.
 
-    An :class:`OpenLoop` law is flown in one call (the intervals chained in C); any other law (e.g.
-    :class:`ClosedLoop`) is asked for each interval's command from the flown state at its start.
+    An :class:`OpenLoop` law is flown in one call (the intervals chained in C), and so is a law with a
+    ``flown(fn, X0, h, p) -> (start, end, Xs)`` method that evaluates itself inside the integrator's
+    Function (transcription.flight.loop.TrackingLoop); any other law (e.g. :class:`ClosedLoop`) is asked for
+    each interval's command from the flown state at its start.
     X0 holds the truth body's momenta (Pi = J_truth Omega).  Raises FlightError if the integrator fails."""
     times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
     h = np.diff(times)
@@ -296,6 +298,8 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
                 raise ValueError(f"commands: expected finite start and end of shape (6, {N}), got {A.shape} and {B.shape}")
             _, Xs = _open_loop_run(fn, N)(X0, np.vstack([A, B, h[None, :]]), np.repeat(p[:, None], N, axis=1))
             Xs = Xs.full().T
+        elif hasattr(law, "flown"):           # a law flown in one call (transcription.flight.loop.TrackingLoop)
+            A, B, Xs = law.flown(fn, X0, h, p)
         else:
             A, B, out, Xk = np.zeros((NU, N)), np.zeros((NU, N)), [], X0
             for k in range(N):
@@ -322,5 +326,12 @@ def _applied(X: np.ndarray, A: np.ndarray, B: np.ndarray, M: int, q: np.ndarray)
     idx = np.arange(N)[:, None] * M + np.arange(M + 1)[None, :]            # sample index of (k, j)
     cmd = A.T[:, None, :] + s[None, :, None] * (B - A).T[:, None, :]        # (N, M+1, 6)
     n = N * (M + 1)
-    u = actuator_output().map(n)(X[idx.ravel()].T, cmd.reshape(n, NU).T, q)
+    if n not in _APPLIED:                  # built once per size: building it cost as much as evaluating it
+        if len(_APPLIED) >= _MAX_INTEGRATORS:
+            _APPLIED.pop(next(iter(_APPLIED)))
+        _APPLIED[n] = actuator_output().map(n)
+    u = _APPLIED[n](X[idx.ravel()].T, cmd.reshape(n, NU).T, q)
     return np.asarray(u.full()).T.reshape(N, M + 1, NU)
+
+
+_APPLIED: dict = {}

@@ -1,0 +1,77 @@
+"""Control bounds in a maneuver file: ``control.bounds.{force,moment}`` as {box}, {norm} or (force only) one
+body-fixed engine {thruster: {axis, max, min}}, and ``control.bounds_margin`` (docs/mathematics.md §10, §14)."""
+from __future__ import annotations
+
+from .schema import Validator, describe
+from ..transcription.problem import BoxBound, NormBound, ThrusterBound
+
+#: positive limits whose squares enter the equations (control bounds, a rate limit, principal moments
+#: of inertia) must lie in [MIN_MAGNITUDE, MAX_MAGNITUDE], so that their squares and inverse squares are
+#: finite, normal double-precision numbers (a denormal bound is bad input, not a solver failure)
+MIN_MAGNITUDE, MAX_MAGNITUDE = 1e-150, 1e150
+
+
+def bounds_margin(v: Validator, c, bounds: dict) -> float:
+    """control.bounds_margin m in [0, 1) (default 0): the bounds in ``bounds`` (the actuators') are
+    replaced, in place, by the (1 - m) fraction the plan respects (SmoothControl.bounds_margin)."""
+    if "bounds_margin" not in c:
+        return 0.0
+    m = v.number(c["bounds_margin"], "control.bounds_margin", nonneg=True, hi=1.0)
+    if not bounds:
+        v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
+    for k, b in bounds.items():
+        if isinstance(b, ThrusterBound):
+            if not b.min < b.max * (1.0 - m):
+                v.fail("control.bounds_margin", f"leaves the thruster no range: min {b.min:g} >= (1 - margin) max "
+                                                f"{b.max * (1.0 - m):g}", also=(f"control.bounds.{k}",))
+            bounds[k] = ThrusterBound(b.axis, b.max * (1.0 - m), b.min)
+        else:
+            bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
+    return m
+
+
+def control_bound(v: Validator, d, where, thruster: bool = False):
+    """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min}}) -> (BoxBound |
+    NormBound | ThrusterBound, resolved)."""
+    forms = ("box", "norm") + (("thruster",) if thruster else ())
+    if not thruster and isinstance(d, dict) and "thruster" in d:
+        v.fail(where, "a thruster is an engine: it bounds the force (control.bounds.force); the moment takes "
+                      "{box: [b1, b2, b3]} or {norm: b}")
+    if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in forms:
+        engine = " or {thruster: {axis: [3], max: F, min: 0}}" if thruster else ""
+        v.fail(where, f"expected {{box: [b1, b2, b3]}}, {{norm: b}}{engine}, got {describe(d)}")
+    (form, val), = d.items()
+    w = f"{where}.{form}"
+    if form == "thruster":
+        return engine_bound(v, val, w)
+    if form == "box":
+        b = v.vec3(val, w)
+        for i, x in enumerate(b):
+            if not x > 0:
+                v.fail(f"{w}[{i}]", f"expected a positive limit, got {float(x)!r}")
+            magnitude(v, float(x), f"{w}[{i}]", "a limit")
+        return BoxBound(b), {"box": b.tolist()}
+    b = v.number(val, w, nonneg=True)
+    if b != 0:
+        magnitude(v, b, w, "a limit (or 0, which removes the control)")
+    return NormBound(b), {"norm": b}
+
+
+def engine_bound(v: Validator, d, w: str):
+    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0)} -> (ThrusterBound,
+    resolved): one engine fixed in the body, u_f = T axis with min <= T <= max."""
+    v.mapping(d, w, ("axis", "max", "min"), required=("axis", "max"))
+    axis = v.unit_vector(d["axis"], f"{w}.axis", "expected a non-zero engine axis (body frame; it is normalized)")
+    hi = v.number(d["max"], f"{w}.max", positive=True)
+    magnitude(v, hi, f"{w}.max", "a thrust limit")
+    lo = v.number(d.get("min", 0.0), f"{w}.min", nonneg=True)
+    if not lo < hi:
+        v.fail(f"{w}.min", f"expected min < max (the engine's thrust range), got min {lo:g} >= max {hi:g}", also=(f"{w}.max",))
+    return ThrusterBound(axis, hi, lo), {"thruster": {"axis": axis.tolist(), "max": hi, "min": lo}}
+
+
+def magnitude(v: Validator, x: float, where: str, what: str) -> None:
+    """ConfigError unless MIN_MAGNITUDE <= x <= MAX_MAGNITUDE (a positive limit whose square is used)."""
+    if not MIN_MAGNITUDE <= x <= MAX_MAGNITUDE:
+        v.fail(where, f"expected {what} from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g} (its square enters the "
+                      f"equations and must be a normal double-precision number), got {x:g}")
