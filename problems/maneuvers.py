@@ -57,7 +57,6 @@ Every error is a :class:`ConfigError` whose text is one line ``FILE: FIELD: what
 from __future__ import annotations
 
 import copy
-import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,9 +64,8 @@ from typing import Any
 import numpy as np
 
 from ..transcription.layout import pack_state
-from ..transcription.accuracy import AccuracyOptions
 from ..transcription.lgvi import FORCE_FRAMES, SCHEMES, discretization
-from ..transcription.options import DirectOptions, IndirectOptions, OptionError
+from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
 from ..transcription.problem import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState,
                                      ThrusterBound, spd_weight)
 from ..transcription.results import Trajectory
@@ -156,8 +154,7 @@ class Maneuver:
     resolved: dict[str, Any] = field(repr=False)
     #: epoch, frame, units and preset central body (problems.physical)
     physical: _physical.Physical | None = field(default=None, repr=False)
-    #: the solver block's own keys: the continuous check and refinement to a tolerance (transcription.accuracy)
-    accuracy: AccuracyOptions = field(default_factory=AccuracyOptions.default, repr=False)
+    accuracy: AccuracyOptions = field(default_factory=AccuracyOptions.default, repr=False)  # the solver block's own keys
 
     # the Problem's headline numbers, for messages and summaries
     control_kind: str | None = field(init=False, repr=False)
@@ -241,13 +238,11 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     if "flight" in doc:  # how the plan is flown (problems/flight): checked here, used by `se3ocp fly`
         from .flight.schema import parse_flight
         resolved["flight"] = parse_flight(doc["flight"], source).resolved
-    own = [f.name for f in dataclasses.fields(AccuracyOptions)]  # the solver block's own keys (issue 26)
-    sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect", *own))
+    sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect", *AccuracyOptions.KEYS))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")
-    accuracy = _options(v, AccuracyOptions, {k: sdoc[k] for k in own if k in sdoc}, "solver")
-    resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict(),
-                          **{k: x for k, x in accuracy.as_dict().items() if k in sdoc}}
+    accuracy = _options(v, AccuracyOptions, {k: x for k, x in sdoc.items() if k in AccuracyOptions.KEYS}, "solver")
+    resolved["solver"] = {"direct": direct.as_dict(), "indirect": indirect.as_dict(), **accuracy.given(sdoc)}
 
     target = TargetState(terminal.vector(body, initial), terminal.free) if isinstance(terminal, StateSpec) else terminal
     try:

@@ -2,67 +2,27 @@
 in continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined
 until that flight lands within the tolerance.
 
-:class:`AccuracyOptions` are the ``solver`` block's own keys (beside ``direct`` and ``indirect``):
-``continuous_check`` (default true), ``accuracy`` (absent or null: today's fixed N), ``max_N`` and
-``max_levels``.  :func:`attach_checks` stores a :class:`~transcription.flight.check.ContinuousCheck` on every
+:class:`AccuracyOptions` (transcription/options.py, with the other options) are the ``solver`` block's own
+keys (beside ``direct`` and ``indirect``): ``continuous_check`` (default true), ``accuracy`` (absent or null:
+today's fixed N), ``max_N`` and ``max_levels``.  :func:`attach_checks` stores a :class:`~transcription.flight.check.ContinuousCheck` on every
 successful smooth-control Solution (``sol.continuous``); failed solves skip it.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import time
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from .options import Options, _check, _opt
+from .options import CHECK_ENV, AccuracyOptions
 from .results import Result, Solution, trajectory
 
 if TYPE_CHECKING:  # pragma: no cover
     from .solve import Comparison
 
-#: the environment variable that switches the default continuous check off (``0``, ``false``, ``no``, ``off``):
-#: for test runs of code that does not test the check; an explicit ``continuous_check`` always wins
-CHECK_ENV = "SE3OCP_CONTINUOUS_CHECK"
-
-
-def _default_check() -> bool:
-    return os.environ.get(CHECK_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
-
-
-@dataclass(frozen=True)
-class AccuracyOptions(Options):
-    """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...)."""
-
-    continuous_check: bool = _opt(True, "bool", doc="fly every successful smooth-control Solution through the continuous "
-                                                     "equations and report how it lands (Solution.continuous)")
-    accuracy: float | None = field(default=None, metadata={
-        **_opt(1.0, "float", lo=0.0, doc="refine the mesh until the continuous-time terminal miss (scaled_miss) and the "
-                                          "path constraints' violation between the nodes are at most this; absent or "
-                                          "null: the given N, no refinement").metadata, "optional": True})
-    max_N: int = _opt(50000, "int", lo=1, doc="the largest N refinement may solve on; an accuracy that needs more is "
-                                               "refused before solving (or the refinement stops) with the N it needs")
-    max_levels: int = _opt(8, "int", lo=1, hi=50, doc="the most mesh levels (solves) of one refinement")
-
-    def __post_init__(self):
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not (f.metadata.get("optional") and v is None):
-                object.__setattr__(self, f.name, _check(f.name, f.metadata, v))
-
-    @classmethod
-    def from_mapping(cls, d=None) -> "AccuracyOptions":
-        """The defaults (:meth:`default`) changed by a mapping (the solver block's own keys); unknown keys raise."""
-        return cls.default().replace(**dict(d or {}))
-
-    @classmethod
-    def default(cls) -> "AccuracyOptions":
-        """The defaults, with the continuous check as the environment says (:data:`CHECK_ENV`)."""
-        return cls(continuous_check=_default_check())
-
+__all__ = ["CHECK_ENV", "AccuracyOptions", "attach_checks", "out_of_reach", "refine", "scaled_miss"]
 
 def _solutions(out: "Solution | Comparison") -> list[Solution]:
     return list(out.solutions.values()) if hasattr(out, "solutions") else [out]

@@ -18,7 +18,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import casadi as ca
 
@@ -314,3 +314,49 @@ class IndirectOptions(Options):
     jit: bool = _opt(True, "bool", doc="compile the per-step maps to C (cached on disk; the first build takes ~1-2 s; "
                                       "the interpreter without a compiler)")
 
+
+#: the environment variable that switches the default continuous check off (``0``, ``false``, ``no``, ``off``):
+#: for test runs of code that does not test the check; an explicit ``continuous_check`` always wins
+CHECK_ENV = "SE3OCP_CONTINUOUS_CHECK"
+
+
+def _default_check() -> bool:
+    return os.environ.get(CHECK_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+@dataclass(frozen=True)
+class AccuracyOptions(Options):
+    """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...): the continuous
+    check and refinement to a tolerance (transcription/accuracy.py, issue 26)."""
+
+    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "max_N", "max_levels")
+
+    continuous_check: bool = _opt(True, "bool", doc="fly every successful smooth-control Solution through the continuous "
+                                                     "equations and report how it lands (Solution.continuous)")
+    accuracy: float | None = field(default=None, metadata={
+        **_opt(1.0, "float", lo=0.0, doc="refine the mesh until the continuous-time terminal miss (scaled_miss) and the "
+                                          "path constraints' violation between the nodes are at most this; absent or "
+                                          "null: the given N, no refinement").metadata, "optional": True})
+    max_N: int = _opt(50000, "int", lo=1, doc="the largest N refinement may solve on; an accuracy that needs more is "
+                                               "refused before solving (or the refinement stops) with the N it needs")
+    max_levels: int = _opt(8, "int", lo=1, hi=50, doc="the most mesh levels (solves) of one refinement")
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (f.metadata.get("optional") and v is None):
+                object.__setattr__(self, f.name, _check(f.name, f.metadata, v))
+
+    @classmethod
+    def from_mapping(cls, d=None) -> "AccuracyOptions":
+        """The defaults (:meth:`default`) changed by a mapping (the solver block's own keys); unknown keys raise."""
+        return cls.default().replace(**dict(d or {}))
+
+    def given(self, d) -> dict[str, Any]:
+        """The options among the keys of ``d`` (the resolved file keeps what the file gave)."""
+        return {k: x for k, x in self.as_dict().items() if k in d}
+
+    @classmethod
+    def default(cls) -> "AccuracyOptions":
+        """The defaults, with the continuous check as the environment says (:data:`CHECK_ENV`)."""
+        return cls(continuous_check=_default_check())
