@@ -24,6 +24,7 @@ from .methods.base import Method, Progress, failed_solution
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
+from .methods.indirect.solve import needs_fallback, with_fallback
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, terminal_error
 from .results import Result, SolveError, Solution, html_table, trajectory
@@ -140,6 +141,22 @@ def _indirect_after_direct(problem: Problem, indirect: IndirectOptions, progress
     return isol
 
 
+def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect: IndirectOptions,
+              progress: Progress | None, warm: WarmStart | None, dsol: Solution | None) -> Solution:
+    """``isol`` if it succeeded or needs no fallback (:func:`~.methods.indirect.solve.needs_fallback`), else the
+    indirect method started again from the direct solution ``dsol`` (solved here when None) -- the cold start's
+    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`)."""
+    if not needs_fallback(isol, indirect, warm):
+        return isol
+    direct_s = None
+    if dsol is None:
+        t0 = time.perf_counter()
+        dsol = _run(problem, "direct", direct, progress, None)
+        direct_s = time.perf_counter() - t0
+    retry = _run(problem, "indirect", indirect, progress, dsol.warm) if dsol.converged and dsol.warm else None
+    return with_fallback(isol, retry, dsol, direct_s)
+
+
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
           indirect: IndirectOptions | None = None, progress: Progress | None = None,
           warm_start: Solution | WarmStart | None = None, throw: bool = False) -> Solution | Comparison:
@@ -168,7 +185,8 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     if method == "direct":
         out = _run(problem, "direct", direct, progress, warm)
     elif method == "indirect" and (warm is not None or indirect.initial_costate != "from_direct"):
-        out = _run(problem, "indirect", indirect, progress, warm)
+        out = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
+                        warm, None)
     elif method == "indirect":                       # from_direct: the direct solution first
         t0 = time.perf_counter()
         dsol = _run(problem, "direct", direct, progress, None)
@@ -178,7 +196,8 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         if indirect.initial_costate == "from_direct":
             isol = _indirect_after_direct(problem, indirect, progress, dsol, None)
         else:
-            isol = _run(problem, "indirect", indirect, progress, warm)
+            isol = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
+                             warm, dsol)
         out = compare(dsol, isol)
     if note:
         for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
