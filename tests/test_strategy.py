@@ -64,3 +64,46 @@ def test_no_fallback_without_a_direct_solution():
     assert sol.result is Result.max_iterations and sol.message.startswith("no convergence in 50 iterations")
     assert sol.attempts[1].result is None and "not available (the direct method ended" in sol.attempts[1].note
     assert sol.stats["fallback"] == "failed" and np.isfinite(sol.stats["direct_solve_s"])
+
+
+# --------------------------------------------------------------- a verdict that accounts for the tolerances
+#: E3 with the thrust norm bounded and the attitude and angular velocity free (a partially free problem), N = 100
+PARTIAL = ("horizon.N=100", "terminal={position: [-1.0, 0.0, 0.0], velocity: [0.0, -5.441398092702654, "
+           "-3.1415926535897927]}")
+
+
+def test_a_difference_the_direct_tolerance_explains_is_no_mismatch():
+    """At IPOPT tol 1e-7 the direct solution sits 1e-4..2e-3 inside the thrust bound where the indirect one is on
+    it, 1.6e-6 dearer (relative): more than MISMATCH_COST_RTOL.  'both' re-solves the direct method at tol 1e-12
+    from its own solution before comparing: the costs then agree to 1e-9, and the verdict names both tolerances."""
+    from se3ocp.transcription.solve import MISMATCH_COST_RTOL, compare
+
+    man = maneuver("e3_bounded", None, None, *PARTIAL)
+    c = se3ocp.solve(man, "both", direct={"tol": 1e-7})
+    d = c.direct
+    assert c.same_extremal and c.cost_relative_difference <= 1e-9, c.verdict
+    assert d.stats["retightened_from_tol"] == 1e-7 and d.stats["kkt_tol"] == 1e-12
+    before = d.stats["cost_difference_before_retightening"]
+    assert before > MISMATCH_COST_RTOL             # without the re-solve it would be a MISMATCH
+    assert c.verdict.startswith("agree: same extremal (direct at tol 1e-12, re-solved from its solution at tol 1e-07")
+    assert "indirect at |z_N| = " in c.verdict and d.attempts[-1].label == "its solution at tol 1e-12"
+    F = man.problem.control.force_bound.b
+    on = np.linalg.norm(c.indirect.u_f, axis=1) >= F * (1 - 1e-12)
+    assert on.sum() >= 5 and np.abs(np.linalg.norm(d.u_f, axis=1)[on] - F).max() <= 1e-6 * F
+    assert compare(d, c.indirect).verdict == c.verdict     # read back (store.Run.result): the same sentence
+
+
+def test_a_genuine_mismatch_survives_the_re_solve():
+    """Solutions of two grids (N = 100 direct, N = 60 indirect): different problems on purpose.  The direct re-solve
+    at tol 1e-12 does not bring them together, and the verdict stays MISMATCH, naming the tolerances."""
+    from se3ocp.transcription.options import DirectOptions
+    from se3ocp.transcription.solve import compare, reconcile
+
+    d = se3ocp.solve(maneuver("e3_bounded", None, None, *PARTIAL))
+    i = se3ocp.solve(maneuver("e3_bounded", None, None, PARTIAL[1], "horizon.N=60"), "indirect")
+    first = compare(d, i)
+    assert not first.same_extremal and first.verdict.startswith("MISMATCH")
+    c = reconcile(first, DirectOptions())
+    assert not c.same_extremal and c.direct.stats["retightened_from_tol"] == 1e-10
+    assert c.verdict.startswith("MISMATCH") and "direct at tol 1e-12, re-solved from its solution at tol 1e-10" in c.verdict
+    assert abs(c.cost_relative_difference - first.cost_relative_difference) <= 1e-6
