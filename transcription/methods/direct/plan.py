@@ -17,7 +17,7 @@ import numpy as np
 from ...guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
 from ...layout import U_FORCE, U_MOMENT
 from ...options import DirectOptions
-from ...problem import BoxBound, Problem
+from ...problem import BoxBound, NormBound, Problem
 from ...results import Result, Solution
 from ...warm import WarmStart
 from .scaling import scaled_terminal_miss
@@ -56,6 +56,36 @@ TIME_STARTS = 3
 #: maneuver is resampled to N steps and finished there; the fine-grid starts remain the fallback.
 #: Each start costs a quarter (or less) of a fine one and the finish takes few iterations.
 TIME_COARSE_MIN = 25
+
+
+#: IPOPT options of an effort problem with bounds or path constraints (those with a :func:`relaxation`), unless
+#: the raw options set them: IPOPT's heuristics for a problem expected to be infeasible (the restoration phase
+#: called sooner, more reduction of the violation before leaving it; off once the violation is below 1e-3) ...
+INFEASIBILITY_DETECTION = {"expect_infeasible_problem": "yes"}
+#: ... and for the start from the relaxation's solution a phase 1: IPOPT starts in its restoration phase, which
+#: minimizes the violation of the bounds and constraints the relaxed optimum breaks.  If that ends at a least
+#: violation > 0 (Infeasible_Problem_Detected) the problem is reported infeasible and the other starts are not
+#: tried (NOT_TRIED).  E3 with the thrust norm bounded by 10 instead of 12 (configs/e3_bounded.yaml, no solution),
+#: N = 500: infeasible in 54 iterations from the relaxed optimum, where without the phase 1 IPOPT spent its 200
+#: there, then 69 (rollout) and 79 (interpolation) more to Infeasible_Problem_Detected, and without either
+#: option 200 + 3000 + 3000 iterations (> 900 s on the loaded machine).  The price on feasible problems: the
+#: bounded E3 (N = 500) 57 iterations instead of 43, the keep-out slew 42 instead of 14, E3 with a minimum
+#: radius 34 instead of 26, to the same solutions.  Not for the time and fuel objectives (no relaxation):
+#: expect_infeasible_problem took the fuel raise (N = 100) to another local minimum (0.819710 against 0.819595).
+PHASE1 = {"start_with_resto": "yes"}
+#: Guess.prepared_on of the relaxation's solution
+RELAXED = "the relaxed problem"
+#: the note of the starts not tried after the phase 1 found the problem infeasible
+NOT_TRIED = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally infeasible; "
+             "solver.direct.initial_guess=rollout or interpolate tries this start)")
+
+
+def plan_ipopt_options(problem: Problem, phase1: bool = False) -> dict:
+    """IPOPT options the plan adds for ``problem`` (:data:`INFEASIBILITY_DETECTION`; ``phase1``, the start from
+    the relaxation's solution: :data:`PHASE1` too)."""
+    if relaxation(problem) is None:
+        return {}
+    return {**INFEASIBILITY_DETECTION, **(PHASE1 if phase1 else {})}
 
 
 def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> tuple[list[PlanEntry], str]:
@@ -139,7 +169,7 @@ def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, su
     if not sol.converged or sol.warm is None:
         return None
     return replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
-                   prepared_on="the relaxed problem", h=None)
+                   prepared_on=RELAXED, h=None)
 
 
 def warm_guess(warm: WarmStart) -> Guess:
@@ -158,6 +188,10 @@ def failure_hint(sol: Solution, options: DirectOptions) -> str:
     if sol.converged or r in (Result.interrupted, Result.cayley_failed, Result.invalid_option, Result.non_finite):
         return ""
     tips = []
+    binding = binding_bound(sol)
+    if binding and r in (Result.infeasible, Result.max_iterations, Result.acceptable, Result.time_limit,
+                                          Result.solver_failed):
+        tips.append(binding)
     if r is Result.acceptable:
         tips.append("a looser solver.direct.tol (IPOPT stalled at its 'acceptable' level above it) or "
                     "solver.direct.options.acceptable_iter=0 (keep iterating)")
@@ -168,3 +202,34 @@ def failure_hint(sol: Solution, options: DirectOptions) -> str:
     tips.append("an easier neighbouring maneuver (longer horizon.T, smaller change) reached by continuation: a sweep "
                 "along the changed key with continuation (configs/sweeps/)")
     return "try " + "; or ".join(tips)
+
+
+#: a bound binds a failed solve when at least this fraction of the control nodes of its last iterate is at it
+BINDING_FRACTION = 0.1
+
+
+def binding_bound(sol: Solution) -> str:
+    """The control bound that binds the last iterate of a failed solve, in words ('' if none does): the one with
+    the largest fraction of control nodes at it (within AT_BOUND_RTOL, :meth:`NormBound.active`), at least
+    BINDING_FRACTION, with its value and the key to change.  Why: a solve that ends infeasible or at its
+    iteration limit with the controls pinned to a bound is usually asking more than that bound gives in the
+    horizon, and naming the bound says what to change."""
+    if sol.controls is None or sol.problem is None or sol.problem.kind != "smooth":
+        return ""
+    c, U = sol.problem.control, np.asarray(sol.controls, float)
+    best = None
+    for name, sl, bound in (("force", U_FORCE, c.force_bound), ("moment", U_MOMENT, c.moment_bound)):
+        if not hasattr(bound, "active") or (isinstance(bound, NormBound) and bound.b == 0):
+            continue
+        at = float(np.mean(bound.active(U[sl].T)))
+        if at >= BINDING_FRACTION and (best is None or at > best[0]):
+            best = (at, name, bound)
+    if best is None:
+        return ""
+    at, name, bound = best
+    sym = "u_f" if name == "force" else "u_m"
+    what = (f"|{sym}| <= {bound.b:.6g}" if isinstance(bound, NormBound) else
+            f"|{sym},i| <= [{', '.join(f'{b:.6g}' for b in bound.b)}]" if isinstance(bound, BoxBound) else
+            f"the {name} bound")
+    return (f"the {name} bound {what} binds ({at:.0%} of the control nodes of the last iterate are at it): a larger "
+            f"control.bounds.{name} or a longer horizon.T")
