@@ -69,8 +69,9 @@ INFEASIBILITY_DETECTION = {"expect_infeasible_problem": "yes"}
 #: N = 500: infeasible in 54 iterations from the relaxed optimum, where without the phase 1 IPOPT spent its 200
 #: there, then 69 (rollout) and 79 (interpolation) more to Infeasible_Problem_Detected, and without either
 #: option 200 + 3000 + 3000 iterations (> 900 s on the loaded machine).  The price on feasible problems: the
-#: bounded E3 (N = 500) 57 iterations instead of 43, the keep-out slew 42 instead of 14, E3 with a minimum
-#: radius 34 instead of 26, to the same solutions.  Not for the time and fuel objectives (no relaxation):
+#: bounded E3 (N = 500) 57 iterations instead of 43 to the same solution.  Only with a control bound: with path
+#: constraints alone it cost the keep-out slew 42 iterations instead of 14 and E3 with a minimum radius 34
+#: instead of 26.  Not for the time and fuel objectives (no relaxation):
 #: expect_infeasible_problem took the fuel raise (N = 100) to another local minimum (0.819710 against 0.819595).
 PHASE1 = {"start_with_resto": "yes"}
 #: Guess.prepared_on of the relaxation's solution
@@ -85,7 +86,9 @@ def plan_ipopt_options(problem: Problem, phase1: bool = False) -> dict:
     the relaxation's solution: :data:`PHASE1` too)."""
     if relaxation(problem) is None:
         return {}
-    return {**INFEASIBILITY_DETECTION, **(PHASE1 if phase1 else {})}
+    c = problem.control
+    bounded = any(b is not None and not r for b, r in zip((c.force_bound, c.moment_bound), c.removed))
+    return {**INFEASIBILITY_DETECTION, **(PHASE1 if phase1 and bounded else {})}
 
 
 def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> tuple[list[PlanEntry], str]:
