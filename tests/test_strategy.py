@@ -134,3 +134,34 @@ def test_the_phase_1_reaches_the_same_solution():
     plain = se3ocp.solve(man, options={"start_with_resto": "no", "expect_infeasible_problem": "no"})
     assert sol.converged and plain.converged, (sol.message, plain.message)
     assert abs(sol.cost - plain.cost) <= 1e-9 * plain.cost
+
+
+# --------------------------------------------------------------- multistart for the time objective: the spread
+def test_time_optimal_starts_report_their_spread():
+    """Betts' slew (configs/slew_time_optimal.yaml) on 25 steps, the coarsest grid: three seeded starts at the
+    guess T = 30 and two at the geometric means with the bounds (5.48, 54.8).  Measured: the seeded ones end at
+    28.5464, the bracketing ones at 29.32 (another local minimum): the message and the stats say so and the
+    lowest is kept.  On 40 steps the coarse grid's spread is carried into the Solution and summary.json."""
+    sol = se3ocp.solve(maneuver("slew_time_optimal", 25))
+    assert sol.converged, sol.message
+    costs = [a.cost for a in sol.attempts if a.result.successful]
+    assert len(sol.attempts) == 5 and sol.attempts[3].label.startswith("interpolate over T = 5.47723")
+    assert sol.cost == min(costs) and sol.stats["multistart_starts"] == 5
+    assert sol.stats["multistart_optima"] >= 2 and sol.stats["multistart_spread"] > 1e-2
+    assert "the 5 starts on 25 steps ended at" in sol.message and "different optima" in sol.message
+    fine = se3ocp.solve(maneuver("slew_time_optimal", 40))
+    summary = fine.summary()
+    assert fine.converged and summary["multistart_grid"] == 25 and summary["multistart_optima"] >= 2
+    assert fine.cost > sol.cost and abs(fine.cost - 28.594) < 0.01   # the discrete minimum grows with N
+
+
+def test_multistart_counts_optima_within_a_relative_tolerance():
+    from se3ocp.transcription.methods.direct.plan import multistart
+    from se3ocp.transcription.results import Attempt
+
+    ok = Result.converged
+    same = multistart([Attempt("a", ok, 3, 2.0), Attempt("b", ok, 4, 2.0 * (1 + 1e-9)), Attempt("c", None)], 10)
+    assert same["multistart_optima"] == 1 and same["multistart"].startswith("the 2 starts on 10 steps ended at the same")
+    two = multistart([Attempt("a", ok, 3, 2.0), Attempt("b", ok, 4, 3.0), Attempt("c", Result.max_iterations, 9)], 10)
+    assert two["multistart_optima"] == 2 and two["multistart_spread"] == 0.5
+    assert multistart([Attempt("a", ok, 3, 2.0)], 10) == {}

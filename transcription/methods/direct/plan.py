@@ -129,14 +129,27 @@ def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
     size = np.zeros(6)
     for sl, bound in ((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound)):
         size[sl] = bound.b if isinstance(bound, BoxBound) else bound.b / np.sqrt(3.0)
-    starts = [(f"interpolate with symmetry-breaking controls (seed {k})",
-               lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
-               options.max_iter) for k in range(TIME_STARTS)]
+    def start(Ts: float, k: int):
+        return lambda: replace(perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, Ts, size, seed=k),
+                               h=Ts / N)
+
+    starts = [(f"interpolate with symmetry-breaking controls (seed {k})", start(T, k), options.max_iter)
+              for k in range(TIME_STARTS)]
     Nc = max(TIME_COARSE_MIN, N // 4)
     if Nc < N:
         return [(f"the best start on {Nc} steps, resampled",
                  lambda: coarse_guess(problem, options, Nc, subsolve), options.max_iter)] + starts, "coarse"
-    return starts, "best"
+    return starts + [(f"interpolate over T = {Ts:.6g} with symmetry-breaking controls (seed 0)", start(Ts, 0),
+                      options.max_iter) for Ts in bracketing_times(problem)], "best"
+
+
+def bracketing_times(problem: Problem) -> list[float]:
+    """The final times of the starts that bracket the guess T on the coarsest grid: the geometric means of T and
+    each of the time bounds (those not equal to T).  Why: a time-optimal maneuver's local minima differ in
+    their time, and the starts at the guess alone may all fall into the one nearest to it."""
+    lo, hi = problem.time_bounds
+    T = problem.T
+    return [float(np.sqrt(T * b)) for b in (lo, hi) if not np.isclose(b, T, rtol=1e-9, atol=0.0)]
 
 
 def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: SubSolve) -> Guess | None:
@@ -148,7 +161,8 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
         return None
     fitted, _ = sol.warm.fit(problem.N, problem.scheme)
     return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
-                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h)
+                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h,
+                 stats={k: v for k, v in sol.stats.items() if k.startswith("multistart")})
 
 
 def relaxation(problem: Problem) -> Problem | None:
@@ -236,3 +250,28 @@ def binding_bound(sol: Solution) -> str:
             f"the {name} bound")
     return (f"the {name} bound {what} binds ({at:.0%} of the control nodes of the last iterate are at it): a larger "
             f"control.bounds.{name} or a longer horizon.T")
+
+
+#: converged starts whose costs differ by at most this (relative) count as one optimum
+SAME_OPTIMUM_RTOL = 1e-6
+
+
+def multistart(attempts, N: int) -> dict:
+    """The spread of the starts of a multistart ('best' pick: every start solved on this grid of N steps), as
+    Solution stats: ``multistart_starts`` (converged starts), ``multistart_optima`` (distinct optima, costs
+    within SAME_OPTIMUM_RTOL of one another counted once), ``multistart_spread`` = (max - min) / min of their
+    costs, ``multistart_grid`` = N, and ``multistart`` (the sentence of the message); {} with fewer than two."""
+    costs = sorted(a.cost for a in attempts if a.result is not None and a.result.successful and np.isfinite(a.cost))
+    if len(costs) < 2:
+        return {}
+    optima = [costs[0]]
+    for c in costs[1:]:
+        if c - optima[-1] > SAME_OPTIMUM_RTOL * abs(optima[-1]):
+            optima.append(c)
+    spread = (costs[-1] - costs[0]) / max(abs(costs[0]), 1e-300)
+    said = (f"the {len(costs)} starts on {N} steps ended at the same optimum (spread {spread:.1e})" if len(optima) == 1
+            else f"the {len(costs)} starts on {N} steps ended at {len(optima)} different optima (costs "
+                 f"{', '.join(f'{c:.6g}' for c in optima)}; spread {spread:.1%}): the lowest is kept, and a lower one "
+                 f"may exist (more starts: a sweep over horizon.T.guess or the seeds)")
+    return {"multistart_starts": len(costs), "multistart_optima": len(optima), "multistart_spread": float(spread),
+            "multistart_grid": N, "multistart": said}

@@ -15,7 +15,8 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
-from .plan import NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, plan_ipopt_options, warm_guess
+from .plan import (NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
+                   warm_guess)
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
@@ -69,6 +70,7 @@ class _PlanRun:
         self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
                                      guess.iterations, guess.prepared_on))
         sol.stats["initial_guess"] = label
+        sol.stats.update(guess.stats)
         return sol
 
     def run(self, plan: list[PlanEntry], pick: str) -> Solution | None:
@@ -148,6 +150,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     sol.attempts = tuple(run.attempts)
     if len(run.attempts) > 1:
         sol.message += "; initial guesses tried: " + "; ".join(a.line() for a in run.attempts)
+    if pick == "best":
+        sol.stats.update(multistart(run.attempts, problem.N))
+    if sol.converged and "multistart" in sol.stats:
+        sol.message += f"; {sol.stats['multistart']}"
     hint = failure_hint(sol, options) if warm is None else ""
     if hint:
         sol.stats["hint"] = hint
