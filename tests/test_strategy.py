@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import se3ocp
 from se3ocp.transcription.results import Result
@@ -166,33 +165,3 @@ def test_multistart_counts_optima_within_a_relative_tolerance():
     two = multistart([Attempt("a", ok, 3, 2.0), Attempt("b", ok, 4, 3.0), Attempt("c", Result.max_iterations, 9)], 10)
     assert two["multistart_optima"] == 2 and two["multistart_spread"] == 0.5
     assert multistart([Attempt("a", ok, 3, 2.0)], 10) == {}
-
-
-# --------------------------------------------------------------- multi-revolution effort: the cheaper start
-def test_multi_revolution_effort_races_its_starts_on_a_coarse_grid():
-    """The five-orbit phasing (T = 5 periods >= MULTI_REVOLUTION): the coarse-grid entry first (N = 1000 -> 250,
-    then 200, where both starts are solved and the cheaper kept); E3 (half a period) keeps its one-start plan."""
-    from se3ocp.transcription.methods.direct import plan, solve_direct
-
-    def labels(man):
-        entries, pick = plan.guess_plan(man.problem, man.direct, solve_direct)
-        return [(label, budget) for label, _, budget in entries], pick
-
-    mx = se3ocp.DirectOptions().max_iter
-    entries, pick = labels(maneuver("everyday/phasing_5_orbits"))
-    assert pick == "coarse" and entries[0] == ("the cheaper of the rollout and the interpolation on 250 steps, "
-                                               "resampled", mx)
-    assert [lb for lb, _ in entries[1:]] == ["interpolate", "rollout"]
-    assert labels(maneuver("everyday/phasing_5_orbits", 200)) == ([("interpolate", mx), ("rollout", mx)], "best")
-    assert labels(maneuver("e3"))[1] == "first"
-
-
-@pytest.mark.slow
-def test_the_phasing_reaches_the_cheap_optimum_by_default():
-    """Issue 27's acceptance: the five-orbit phasing by default at cost ~0.03 near r = 1 (before: 17.38 from the
-    interpolation, swinging out to r = 4.7)."""
-    sol = se3ocp.solve(maneuver("everyday/phasing_5_orbits"))
-    assert sol.converged, sol.message
-    assert sol.cost < 0.1, sol.message
-    r = np.linalg.norm(sol.trajectory.x, axis=1)
-    assert r.max() < 1.5

@@ -119,34 +119,7 @@ def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
         plan.insert(0, ("the solution without bounds and path constraints",
                         lambda: relaxed_guess(problem, relaxed, options, subsolve),
                         min(options.max_iter, AUTO_FIRST_BUDGET)))
-    elif revolutions(problem) >= MULTI_REVOLUTION:
-        Nc = max(EFFORT_COARSE_MIN, N // 4)
-        if Nc >= N:   # the coarsest grid: both starts solved, the cheaper kept
-            return [(label, maker, options.max_iter) for label, maker, _ in plan], "best"
-        return [(f"the cheaper of the rollout and the interpolation on {Nc} steps, resampled",
-                 lambda: coarse_guess(problem, options, Nc, subsolve), options.max_iter)] + plan, "coarse"
     return plan, "first"
-
-
-#: an effort problem (without bounds or path constraints) over at least this many orbital periods of its initial
-#: radius solves both starts -- the rollout and the interpolation -- on a coarse grid of
-#: max(EFFORT_COARSE_MIN, N // 4) steps (recursively), keeps the cheaper and finishes it on N steps (the starts
-#: on N steps in the usual order are the fallback).  Multi-revolution transfers have local minima far apart: the
-#: five-orbit phasing (configs/everyday/phasing_5_orbits.yaml, N = 1000) ended from the interpolation at cost
-#: 17.38 on a path swinging out to r = 4.7, where the rollout leads to 0.03 near r = 1 (at N = 100: 27.2 against
-#: 0.0016).  On fewer revolutions one start is enough (E3, E4, the one-orbit everyday cases).
-MULTI_REVOLUTION = 2.0
-#: ... the coarsest grid (the LGVI's rigid body of the phasing fails its Cayley solve at 50 steps over 5 periods)
-EFFORT_COARSE_MIN = 200
-
-
-def revolutions(problem: Problem) -> float:
-    """T in periods of the circular orbit of the initial radius, 2 pi sqrt(r^3 / mu) (0 without a central body)."""
-    mu = problem.model.mu
-    r = float(np.linalg.norm(problem.X0[:3]))
-    if not mu or not r > 0:
-        return 0.0
-    return float(problem.T / (2.0 * np.pi * np.sqrt(r ** 3 / mu)))
 
 
 def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> tuple[list[PlanEntry], str]:
@@ -180,8 +153,8 @@ def bracketing_times(problem: Problem) -> list[float]:
 
 
 def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: SubSolve) -> Guess | None:
-    """The starts solved on Nc steps (recursively; the time objective's, TIME_COARSE_MIN, or a multi-revolution
-    effort problem's, MULTI_REVOLUTION), the best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
+    """The time objective's starts solved on Nc = max(TIME_COARSE_MIN, N // 4) steps (recursively), the
+    best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
     the coarse solve did not converge)."""
     sol = subsolve(problem.replace(N=Nc), options)
     if not sol.converged or sol.warm is None:
