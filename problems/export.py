@@ -54,7 +54,8 @@ class ExportError(ValueError):
 
 @dataclass(frozen=True)
 class Plan:
-    """What an export writes: a converged Solution's node arrays (file units) and its context."""
+    """What an export writes: a converged Solution's node arrays (file units) and its context; ``u_f`` is the
+    applied inertial force (``Solution.f_inertial``: R_j u_f,j for a body-frame force)."""
 
     name: str
     source: str
@@ -110,7 +111,7 @@ def plan_of(source, *, maneuver=None, method: str | None = None, reference_radiu
     tr = sol.trajectory
     return Plan(name=getattr(maneuver, "name", None) or getattr(problem, "name", "") or "se3ocp", source=where,
                 method=method, scheme=sol.scheme, t=np.asarray(tr.t, float), x=tr.x, v=tr.v, R=tr.R,
-                Omega=tr.Omega, t_u=sol.control_times, u_f=sol.u_f, u_m=sol.u_m, impulses=sol.impulses,
+                Omega=tr.Omega, t_u=sol.control_times, u_f=sol.f_inertial, u_m=sol.u_m, impulses=sol.impulses,
                 epoch=phys.epoch if phys else default_epoch(), frame=phys.frame if phys else DEFAULT_FRAME, mu=mu,
                 scale=scale)
 

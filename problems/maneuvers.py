@@ -16,7 +16,9 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       kind: smooth | impulsive
       objective: effort | time | fuel    # smooth; default effort
       weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
-      bounds: {force: {box: [3]} | {norm: b}, moment: ...}   # norm 0 removes the control
+      force_frame: inertial | body       # the frame of u_f (default inertial); body: engines fixed in the body
+      bounds: {force: {box: [3]} | {norm: b} | {thruster: {axis: [3], max: F, min: 0}}, moment: ...}
+                                         # norm 0 removes the control; thruster: force_frame body only
       bounds_margin: 0.1                 # plan with 90 % of each bound (the actuators' are the bounds
                                          # above), so that a tracker keeps authority; default 0
     constraints:                         # path constraints at every node (smooth control)
@@ -62,8 +64,10 @@ import numpy as np
 from ..transcription.layout import pack_state
 from ..transcription.lgvi import SCHEMES, discretization
 from ..transcription.options import DirectOptions, IndirectOptions, OptionError
+from ..transcription.lgvi import FORCE_FRAMES
 from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
-                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, spd_weight)
+                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, ThrusterBound,
+                                     spd_weight)
 from ..transcription.results import Trajectory
 
 from . import physical as _physical
@@ -240,7 +244,9 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
 
     target = TargetState(terminal.vector(body, initial), terminal.free) if isinstance(terminal, StateSpec) else terminal
     try:
-        problem = Problem(disc=discretization(body.body_model(), disc), N=N, T=T, X0=initial.vector(body),
+        frame = (resolved_control or {}).get("force_frame", "inertial")
+        problem = Problem(disc=discretization(body.body_model(), disc, force_frame=frame), N=N, T=T,
+                          X0=initial.vector(body),
                           terminal=target, control=control, name=name.strip(), time_bounds=time_bounds,
                           constraints=constraints)
     except ProblemError as e:
@@ -342,14 +348,16 @@ def _control(v: Validator, c):
     """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None)."""
     if c is None:
         return None, None, None
-    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds", "bounds_margin"), required=("kind",))
+    c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds", "bounds_margin", "force_frame"),
+                  required=("kind",))
     kind = v.choice(c["kind"], "control.kind", ("smooth", "impulsive"))
     if kind == "impulsive":
-        for k in ("weights", "objective", "bounds", "bounds_margin"):
+        for k in ("weights", "objective", "bounds", "bounds_margin", "force_frame"):
             if k in c:
                 v.fail(f"control.{k}", f"{k} apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
         return kind, ImpulsiveControl(), {"kind": kind}
     objective = v.choice(c.get("objective", "effort"), "control.objective", ("effort", "time", "fuel"))
+    frame = v.choice(c.get("force_frame", "inertial"), "control.force_frame", FORCE_FRAMES)
     W = {"force": np.ones(3), "moment": np.full(3, 1e4)}
     weights_doc = {"force": 1.0, "moment": 1e4}
     if "weights" in c:
@@ -363,7 +371,10 @@ def _control(v: Validator, c):
         bd = v.mapping(c["bounds"], "control.bounds", ("force", "moment"))
         for k in ("force", "moment"):
             if k in bd:
-                bounds[k], bounds_doc[k] = _bound(v, bd[k], f"control.bounds.{k}")
+                bounds[k], bounds_doc[k] = _bound(v, bd[k], f"control.bounds.{k}", thruster=k == "force")
+        if isinstance(bounds.get("force"), ThrusterBound) and frame != "body":
+            v.fail("control.bounds.force.thruster", "a thruster is fixed in the body: it needs control.force_frame: "
+                                                    f"body (got {frame})", also=("control.force_frame",))
     margin = _bounds_margin(v, c, bounds)
     try:
         control = SmoothControl(W_f=W["force"], W_m=W["moment"], objective=objective, force_bound=bounds.get("force"),
@@ -378,6 +389,8 @@ def _control(v: Validator, c):
         out["bounds"] = bounds_doc
     if "bounds_margin" in c:
         out["bounds_margin"] = margin
+    if "force_frame" in c:
+        out["force_frame"] = frame
     return kind, control, out
 
 
@@ -390,16 +403,27 @@ def _bounds_margin(v: Validator, c, bounds: dict) -> float:
     if not bounds:
         v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
     for k, b in bounds.items():
-        bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
+        if isinstance(b, ThrusterBound):
+            if not b.min < b.max * (1.0 - m):
+                v.fail("control.bounds_margin", f"leaves the thruster no range: min {b.min:g} >= (1 - margin) max "
+                                                f"{b.max * (1.0 - m):g}", also=(f"control.bounds.{k}",))
+            bounds[k] = ThrusterBound(b.axis, b.max * (1.0 - m), b.min)
+        else:
+            bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
     return m
 
 
-def _bound(v: Validator, d, where):
-    """{box: [3 positive]} or {norm: b >= 0} -> (BoxBound | NormBound, resolved)."""
-    if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in ("box", "norm"):
-        v.fail(where, f"expected {{box: [b1, b2, b3]}} or {{norm: b}}, got {describe(d)}")
+def _bound(v: Validator, d, where, thruster: bool = False):
+    """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min}}) -> (BoxBound |
+    NormBound | ThrusterBound, resolved)."""
+    forms = ("box", "norm") + (("thruster",) if thruster else ())
+    if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in forms:
+        engine = " or {thruster: {axis: [3], max: F, min: 0}}" if thruster else ""
+        v.fail(where, f"expected {{box: [b1, b2, b3]}}, {{norm: b}}{engine}, got {describe(d)}")
     (form, val), = d.items()
     w = f"{where}.{form}"
+    if form == "thruster":
+        return _thruster(v, val, w)
     if form == "box":
         b = v.vec3(val, w)
         for i, x in enumerate(b):
@@ -411,6 +435,19 @@ def _bound(v: Validator, d, where):
     if b != 0:
         _magnitude(v, b, w, "a limit (or 0, which removes the control)")
     return NormBound(b), {"norm": b}
+
+
+def _thruster(v: Validator, d, w: str):
+    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0)} -> (ThrusterBound,
+    resolved): one engine fixed in the body, u_f = T axis with min <= T <= max."""
+    v.mapping(d, w, ("axis", "max", "min"), required=("axis", "max"))
+    axis = v.unit_vector(d["axis"], f"{w}.axis", "expected a non-zero engine axis (body frame; it is normalized)")
+    hi = v.number(d["max"], f"{w}.max", positive=True)
+    _magnitude(v, hi, f"{w}.max", "a thrust limit")
+    lo = v.number(d.get("min", 0.0), f"{w}.min", nonneg=True)
+    if not lo < hi:
+        v.fail(f"{w}.min", f"expected min < max (the engine's thrust range), got min {lo:g} >= max {hi:g}", also=(f"{w}.max",))
+    return ThrusterBound(axis, hi, lo), {"thruster": {"axis": axis.tolist(), "max": hi, "min": lo}}
 
 
 def _magnitude(v: Validator, x: float, where: str, what: str) -> None:

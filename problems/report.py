@@ -19,7 +19,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..transcription.problem import BoxBound, NormBound
+from ..transcription.problem import BoxBound, NormBound, ThrusterBound
 from ..transcription.results import Result, Solution
 from .io import atomic_write_bytes
 from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
@@ -113,6 +113,11 @@ def _bounds(problem) -> list[str]:
             out.append(f"{name}: |u| ≤ {f * b.b:g}{u}")
         elif isinstance(b, BoxBound):
             out.append(f"{name}: |u_i| ≤ ({', '.join(f'{f * x:g}' for x in b.b)}){u}")
+        elif isinstance(b, ThrusterBound):
+            out.append(f"force: one engine along body ({', '.join(f'{x:.4g}' for x in b.axis)}), "
+                       f"{f * b.min:g} ≤ T ≤ {f * b.max:g}{u}")
+    if getattr(getattr(problem, "disc", None), "force_frame", "inertial") == "body":
+        out.append("force: in the body frame (applied inertial force R u_f)")
     return out
 
 

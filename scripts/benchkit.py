@@ -53,3 +53,43 @@ def spawn(script: Path, args: list[str], timeout: float, env: dict | None = None
         tail = (out.stderr or out.stdout).strip().splitlines()[-1:] or ["no output"]
         return {"status": f"error: {tail[0][:200]}", "converged": False}
     return json.loads(lines[-1])
+
+
+def round_robin(script: Path, cases: list[str], Ns: list[int], runs: int, timeout: float,
+                keep: tuple[str, ...], line: "callable") -> list[dict]:
+    """Ours and a peer, each (case, N, who) run ``runs`` times in a fresh process (:func:`spawn` with the
+    arguments ``case N who``), round-robin over the configurations so that a change of the machine's load
+    hits them alike.  ``line(run, key, rec)`` prints one progress line.  Returns per (case, N) the medians
+    of build, solve and build+solve time of each side, the last run's ``keep`` fields, the loads, and the
+    ratios peer / ours -- None where either side did not converge (a time to no solution is not a speed)."""
+    import statistics
+
+    print(f"machine: {machine()}; load average before: {load()}", flush=True)
+    keys = [(c, N, who) for c in cases for N in Ns for who in ("ours", "peer")]
+    got: dict = {k: [] for k in keys}
+    for r in range(runs):
+        for k in keys:
+            rec = spawn(script, [k[0], str(k[1]), k[2]], timeout)
+            got[k].append(rec)
+            line(r, k, rec)
+    print(f"load average after: {load()}")
+    med = statistics.median
+    out = []
+    for c in cases:
+        for N in Ns:
+            o = [x for x in got[(c, N, "ours")] if "solve_s" in x]
+            p = [x for x in got[(c, N, "peer")] if "solve_s" in x]
+            if not o or not p:
+                out.append({"case": c, "N": N, "status": "missing runs"})
+                continue
+            rec = {"case": c, "N": N, "runs": min(len(o), len(p))}
+            for who, xs in (("ours", o), ("peer", p)):
+                rec[who] = {"build_s": med(x["build_s"] for x in xs), "solve_s": med(x["solve_s"] for x in xs),
+                            "total_s": med(x["build_s"] + x["solve_s"] for x in xs),
+                            "loads": [x.get("load") for x in xs],
+                            **{f: xs[-1][f] for f in ("iterations", "converged", "status", *keep) if f in xs[-1]}}
+            both = rec["ours"].get("converged") and rec["peer"].get("converged")
+            rec["solve_ratio"] = rec["peer"]["solve_s"] / rec["ours"]["solve_s"] if both else None
+            rec["total_ratio"] = rec["peer"]["total_s"] / rec["ours"]["total_s"] if both else None
+            out.append(rec)
+    return out

@@ -300,45 +300,18 @@ def _resimulated(rec: dict, prob, U: np.ndarray, T: float) -> dict:
 
 
 def compare(cases: list[str], Ns: list[int], runs: int, timeout: float) -> list[dict]:
-    """Ours and the peer, each run in a fresh process, round-robin over the configurations (so that a
-    change of the machine's load hits them alike); per (case, N): medians and the ratios peer / ours."""
-    import statistics
-
+    """Ours and the peer, fresh processes, round-robin (benchkit.round_robin); per (case, N): medians and
+    the ratios peer / ours."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from benchkit import load, machine, spawn
+    from benchkit import round_robin
 
-    print(f"machine: {machine()}; load average before: {load()}", flush=True)
-    keys = [(c, N, who) for c in cases for N in Ns for who in ("ours", "peer")]
-    got: dict = {k: [] for k in keys}
-    for r in range(runs):
-        for k in keys:
-            rec = spawn(Path(__file__).resolve(), [k[0], str(k[1]), k[2]], timeout)
-            got[k].append(rec)
-            print(f"  run {r + 1} {k[0]:10s} N={k[1]:4d} {k[2]:5s} {rec.get('status', '?')!s:18s} it "
-                  f"{rec.get('iterations', '-')!s:>5} build {rec.get('build_s', float('nan')):7.2f} s solve "
-                  f"{rec.get('solve_s', float('nan')):7.2f} s cost {rec.get('cost', float('nan')):.10g} "
-                  f"terminal error {rec.get('terminal_error', float('nan')):.1e}", flush=True)
-    print(f"load average after: {load()}")
-    out = []
-    med = statistics.median
-    for c in cases:
-        for N in Ns:
-            o = [x for x in got[(c, N, "ours")] if "solve_s" in x]
-            p = [x for x in got[(c, N, "peer")] if "solve_s" in x]
-            if not o or not p:
-                out.append({"case": c, "N": N, "status": "missing runs"})
-                continue
-            rec = {"case": c, "N": N, "runs": min(len(o), len(p))}
-            for who, xs in (("ours", o), ("peer", p)):
-                rec[who] = {"build_s": med(x["build_s"] for x in xs), "solve_s": med(x["solve_s"] for x in xs),
-                            "total_s": med(x["build_s"] + x["solve_s"] for x in xs),
-                            **{k: xs[-1][k] for k in ("iterations", "converged", "status", "cost", "T", "terminal_error")
-                               if k in xs[-1]}}
-            # a time ratio compares two solutions: none when either side did not converge
-            both = rec["ours"].get("converged") and rec["peer"].get("converged")
-            rec["solve_ratio"] = rec["peer"]["solve_s"] / rec["ours"]["solve_s"] if both else None
-            rec["total_ratio"] = rec["peer"]["total_s"] / rec["ours"]["total_s"] if both else None
-            out.append(rec)
+    def line(r, k, rec):
+        print(f"  run {r + 1} {k[0]:10s} N={k[1]:4d} {k[2]:5s} {rec.get('status', '?')!s:18s} it "
+              f"{rec.get('iterations', '-')!s:>5} build {rec.get('build_s', float('nan')):7.2f} s solve "
+              f"{rec.get('solve_s', float('nan')):7.2f} s cost {rec.get('cost', float('nan')):.10g} "
+              f"terminal error {rec.get('terminal_error', float('nan')):.1e}", flush=True)
+
+    out = round_robin(Path(__file__).resolve(), cases, Ns, runs, timeout, ("cost", "T", "terminal_error"), line)
     print(f"\nmedians of {runs} fresh-process run(s) each; ratio = peer / ours")
     print("| maneuver | N | ours: it / build s / solve s | peer: it / build s / solve s | solve ratio | "
           "build+solve ratio | cost ours / peer | terminal error ours / peer (DOP853) |")

@@ -236,7 +236,7 @@ def check_csv(text, a, man, L, Tu, start):
         f_scale, m_scale = mass * L / Tu**2, mass * L**2 / Tu**2
     else:
         f_scale, m_scale = (L / 1000.0 / Tu**2, (L / 1000.0) ** 2 / Tu**2) if physical else (1.0, 1.0)
-    assert rel(num(["fx", "fy", "fz"], slice(first, None)), a["u_f"] * f_scale) <= 1e-12
+    assert rel(num(["fx", "fy", "fz"], slice(first, None)), a["f_inertial"] * f_scale) <= 1e-12
     assert rel(num(["mx", "my", "mz"], slice(first, None)), a["u_m"] * m_scale) <= 1e-12
 
 

@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from .layout import X_ANG, split_state
-from .problem import BoxBound, MaxAngularRate, NormBound, Problem, SmoothControl, TargetState
+from .problem import BoxBound, MaxAngularRate, NormBound, Problem, SmoothControl, TargetState, ThrusterBound
 from .lie import rotation_angle
 from .results import Result
 
@@ -41,9 +41,12 @@ MAX_STEPS = 10_000_000
 
 
 def _limit(bound) -> float:
-    """The largest |u| a bound allows (inf without one)."""
+    """The largest |u| a bound allows (inf without one): a body-fixed engine's max (|R u_f| = |u_f| = T, so the
+    bounds of docs/mathematics.md §13 hold in either frame)."""
     if isinstance(bound, NormBound):
         return bound.b
+    if isinstance(bound, ThrusterBound):
+        return bound.max
     if isinstance(bound, BoxBound):
         return float(np.linalg.norm(bound.b))
     return math.inf

@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .layout import NU, pack_state, unpack_states
-from .lie import exp_so3, log_so3_any, step_cayley_vectors
+from .layout import NU, U_FORCE, X_ANG, X_ROT, pack_state, unpack_states
+from .lie import exp_so3, log_so3_any, rotation_between, step_cayley_vectors
 from .problem import Problem, TargetOrbit, TargetState, orbit_conditions
 
 
@@ -63,6 +63,41 @@ def rollout_guess(disc, X0: np.ndarray, N: int, h: float) -> Guess:
     """Free motion of ``disc`` from X0 over N steps of size h (controls zero)."""
     X, _ = disc.simulate(X0, None, h, N)
     return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
+
+
+#: aimed_guess turns the body fully where |f_j| >= this fraction of max_j |f_j|, proportionally below
+AIM_FRACTION = 0.1
+
+
+def aimed_guess(disc, guess: Guess, axis: np.ndarray, thrust_range: tuple[float, float], h: float) -> Guess:
+    """A body-fixed engine's start from a guess whose force points anywhere (the problem's solution without the
+    engine): its inertial force f_j = applied_force(R_j, u_f,j) kept, the attitude turned by the smallest
+    rotation taking the engine axis R_j a onto f_j / |f_j| (by a fraction min(1, |f_j| / (AIM_FRACTION max |f|))
+    of its angle, so that a vanishing force leaves the attitude as it was), the force then T_j a with T_j = |f_j|
+    clipped to ``thrust_range``; Pi from the new attitudes (Pi_k = J Log(R_k^T R_{k+1}) / h, the last node's
+    kept).  A control at node j of the first-order scheme belongs to node j = 1..N.  The dynamics' defects are
+    not zero: the solver closes them."""
+    X, U = guess.X.copy(), guess.U.copy()
+    s = unpack_states(X)
+    nodes = np.arange(X.shape[0]) if U.shape[1] == X.shape[0] else np.arange(1, X.shape[0])
+    f = np.asarray(disc.applied_force(s.R[nodes], U[U_FORCE].T), dtype=float)
+    nf = np.linalg.norm(f, axis=1)
+    if not nf.max(initial=0.0) > 0:
+        return guess
+    a = np.asarray(axis, dtype=float)
+    pointing = np.einsum("nij,j->ni", s.R[nodes], a)
+    target = np.where((nf > 0)[:, None], f / np.where(nf > 0, nf, 1.0)[:, None], pointing)
+    turn = rotation_between(pointing, target)
+    share = np.minimum(1.0, nf / (AIM_FRACTION * nf.max()))
+    partial = np.array([exp_so3(w * c) for w, c in zip(np.array([log_so3_any(Q) for Q in turn]), share)])
+    R = s.R.copy()
+    R[nodes] = np.einsum("nij,njk->nik", partial, s.R[nodes])
+    Omega = np.array([log_so3_any(R[k].T @ R[k + 1]) / h for k in range(len(R) - 1)])
+    X[:, X_ROT] = np.swapaxes(R, 1, 2).reshape(len(R), 9)
+    X[:-1, X_ANG] = Omega @ np.asarray(disc.J).T
+    U[U_FORCE] = np.outer(a, np.clip(nf, *thrust_range))
+    return Guess(X=X, U=U, C=cayley_vectors(X), iterations=guess.iterations, seconds=guess.seconds,
+                 prepared_on=guess.prepared_on, h=guess.h)
 
 
 def screw_path(X0: np.ndarray, Xd: np.ndarray, s: np.ndarray, mass: float, J: np.ndarray, T: float) -> np.ndarray:

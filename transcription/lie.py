@@ -333,3 +333,31 @@ def nearest_rotation(R: np.ndarray) -> np.ndarray:
     U = U.copy()
     U[..., :, 2] *= np.where(d == 0, 1.0, d)[..., None]
     return U @ Vt
+
+
+def rotation_with_first_column(a) -> np.ndarray:
+    """A rotation Q = [a, b, c] (3x3, NumPy) whose first column is the unit vector a (3,): b is a unit vector
+    perpendicular to a (from the coordinate axis least aligned with a, so the construction is well
+    conditioned), c = a x b.  The frame of a body-fixed engine: a^T u is its thrust, b^T u and c^T u the
+    off-axis force it cannot give."""
+    a = np.asarray(a, dtype=float).reshape(3)
+    a = a / np.linalg.norm(a)
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(a)))] = 1.0
+    b = e - (e @ a) * a
+    b /= np.linalg.norm(b)
+    return np.column_stack([a, b, np.cross(a, b)])
+
+
+def rotation_between(u, v) -> np.ndarray:
+    """The smallest rotations (n, 3, 3) taking the unit vectors u (n, 3) onto the unit vectors v (n, 3) (NumPy):
+    Exp(theta n) with n = u x v / |u x v|, theta = angle(u, v) (the identity where u = v; for v = -u a rotation
+    by pi about an axis perpendicular to u)."""
+    u, v = np.atleast_2d(np.asarray(u, dtype=float)), np.atleast_2d(np.asarray(v, dtype=float))
+    out = []
+    for a, b in zip(u, v):
+        w = np.cross(a, b)
+        s = float(np.linalg.norm(w))
+        axis = w / s if s > 1e-12 else rotation_with_first_column(a)[:, 1]
+        out.append(np.asarray(exp_so3(np.arctan2(s, float(a @ b)) * axis), dtype=float))
+    return np.array(out)

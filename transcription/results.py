@@ -19,7 +19,7 @@ import numpy as np
 
 from .layout import U_FORCE, U_MOMENT, split_state, unpack_states
 from .lie import orthogonality_error, rotation_angle
-from .problem import Problem, SmoothControl, TargetState, control_activity, quadrature_weights
+from .problem import Problem, SmoothControl, TargetState, control_activity, engine_figures, quadrature_weights
 from .warm import WarmStart
 
 
@@ -245,7 +245,10 @@ class Solution:
     problem: the :class:`~transcription.problem.Problem` solved (for figures and reports).
     warm: what the next solve can start from (:class:`~transcription.warm.WarmStart`; None when there is
     nothing usable): ``solve(problem, method, warm_start=solution)``.
-    Derived: N, T, h, ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3), u_m (n, 3).
+    Derived: N, T, h, ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's
+    force frame, ``force_frame``: 'inertial' or 'body'), u_m (n, 3) (body), f_inertial (n, 3): the inertial
+    force each control applies, R_j u_f,j at its node j for a body-frame force, u_f itself for an inertial one
+    (docs/mathematics.md §14).
     """
 
     method: str
@@ -275,6 +278,8 @@ class Solution:
     control_times: np.ndarray | None = field(init=False, repr=False)
     u_f: np.ndarray | None = field(init=False, repr=False)
     u_m: np.ndarray | None = field(init=False, repr=False)
+    force_frame: str = field(init=False, repr=False)
+    f_inertial: np.ndarray | None = field(init=False, repr=False)
 
     def __post_init__(self):
         t = self.trajectory.t
@@ -286,6 +291,12 @@ class Solution:
         self.control_times = None if c is None else (t[1:] if c.shape[1] == len(t) - 1 else t)
         self.u_f = None if c is None else c[U_FORCE].T
         self.u_m = None if c is None else c[U_MOMENT].T
+        disc = getattr(self.problem, "disc", None)
+        self.force_frame = getattr(disc, "force_frame", "inertial")
+        self.f_inertial = self.u_f
+        if c is not None and self.force_frame != "inertial" and len(t):
+            nodes = np.searchsorted(t, self.control_times)     # the node each control belongs to
+            self.f_inertial = np.asarray(disc.applied_force(self.trajectory.R[nodes], self.u_f), dtype=float)
 
     @property
     def converged(self) -> bool:
@@ -335,6 +346,8 @@ class Solution:
             "solver": self.solver,
         }
         out.update(self.trajectory.orthogonality())
+        if self.controls is not None:
+            out["force_frame"] = self.force_frame
         # scalars, and lists of words
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None))) or
                     (isinstance(v, list) and all(isinstance(x, str) for x in v))})
@@ -344,12 +357,14 @@ class Solution:
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Arrays for the .npz file: t, x, v, gamma, R, Omega, Pi (nodes); u_f, u_m, t_u (controls);
-        lam (costates); impulses."""
+        """Arrays for the .npz file: t, x, v, gamma, R, Omega, Pi (nodes); u_f (in the problem's force frame),
+        u_m (body), t_u, f_inertial (the applied inertial force R_j u_f,j, or u_f) (controls); lam (costates);
+        impulses."""
         tr = self.trajectory
         out = {"t": tr.t, "x": tr.x, "v": tr.v, "gamma": tr.gamma, "R": tr.R, "Omega": tr.Omega, "Pi": tr.Pi}
         if self.controls is not None:
             out["u_f"], out["u_m"], out["t_u"] = self.u_f, self.u_m, self.control_times
+            out["f_inertial"] = self.f_inertial
         if self.impulses is not None:
             out.update({k: np.asarray(v) for k, v in self.impulses.items()})
         if self.costates is not None:
@@ -388,7 +403,8 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m);
     angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
     weights of the scheme (transcription.problem.quadrature_weights) at h = T/N;
-    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; with a bound, force_time_at_bound /
+    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; engine_on_time (and, for a body-fixed
+    engine, engine_off_axis_relative) of transcription.problem.engine_figures; with a bound, force_time_at_bound /
     moment_time_at_bound = the time_at_bound of transcription.problem.control_activity (sum of
     omega_j over the controls at the bound; not for a control a norm bound of 0 removes, which is
     never "at its bound" but absent); with a state target that fixes the attitude,
@@ -413,6 +429,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         if isinstance(ctrl, SmoothControl):
             for name, act in control_activity(ctrl, sol.controls, om, sol.control_times).items():
                 out[f"{name}_time_at_bound"] = act["time_at_bound"]
+        out.update(engine_figures(uf, om, getattr(ctrl, "force_bound", None)))
     elif sol.impulses is not None:
         imp = sol.impulses
         out.update(delta_v=float((np.linalg.norm(imp["dgamma0"]) + np.linalg.norm(imp["dgammaN"])) / mass),

@@ -37,7 +37,7 @@ import numpy as np
 
 from .layout import NU, NX, NZ, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS, X_ROT, Z_ANG, Z_MOM, Z_POS, Z_ROT
 from .lie import exp_so3, log_so3
-from .problem import BoxBound, NormBound, SmoothControl, actuator_bounds
+from .problem import BoxBound, NormBound, SmoothControl, ThrusterBound, actuator_bounds
 
 #: the default closed-loop bandwidth: omega_c = min(BANDWIDTH_PER_HORIZON / T, BANDWIDTH_PER_STEP / h)
 #: (rad per time unit): the time constant 1/omega_c is T/60 (errors are corrected well within the
@@ -80,7 +80,8 @@ def retract(Xref, z) -> np.ndarray:
 # ------------------------------------------------------------------------------- saturation
 def saturate(u, force_bound=None, moment_bound=None) -> tuple[np.ndarray, np.ndarray]:
     """Clip controls u (..., 6) to the bounds: a box component by component, a norm by scaling the
-    block into its ball (the rule of docs/mathematics.md §10; a norm bound of 0 gives 0).
+    block into its ball (the rule of docs/mathematics.md §10; a norm bound of 0 gives 0), a body-fixed engine
+    (body-frame force) by projecting onto its axis and clipping the thrust to [min, max] (§14).
     Returns (clipped controls, clipped (...) bool: some component was changed)."""
     u = np.array(u, dtype=float)
     v = u.copy()
@@ -88,6 +89,8 @@ def saturate(u, force_bound=None, moment_bound=None) -> tuple[np.ndarray, np.nda
         blk = v[..., sl]
         if isinstance(bound, BoxBound):
             v[..., sl] = np.clip(blk, -bound.b, bound.b)
+        elif isinstance(bound, ThrusterBound):     # a body-fixed engine: onto its axis, the thrust into [min, max]
+            v[..., sl] = np.clip(blk @ bound.axis, bound.min, bound.max)[..., None] * bound.axis
         elif isinstance(bound, NormBound):
             n = np.linalg.norm(blk, axis=-1, keepdims=True)
             v[..., sl] = blk * np.minimum(1.0, bound.b / np.maximum(n, 1e-300))
@@ -130,6 +133,8 @@ def characteristic_controls(control: SmoothControl, U: np.ndarray, mass: float, 
             out.append(bound.b.copy())
         elif isinstance(bound, NormBound):
             out.append(np.full(3, bound.b))
+        elif isinstance(bound, ThrusterBound):
+            out.append(np.full(3, bound.max))
         else:
             out.append(np.full(3, peak if peak > 0 else fb))
     return out[0], out[1]
@@ -284,7 +289,7 @@ class Gains:
     scheme: str
     h: float
     weights: TrackingWeights
-    force_bound: BoxBound | NormBound | None = None
+    force_bound: BoxBound | NormBound | ThrusterBound | None = None
     moment_bound: BoxBound | NormBound | None = None
     removed: tuple = (False, False)
 
@@ -336,7 +341,8 @@ class Tracker:
         self.box = box_limits(gains.force_bound, gains.moment_bound)
         self.norms = [(sl, b.b) for sl, b in ((U_FORCE, gains.force_bound), (U_MOMENT, gains.moment_bound))
                       if isinstance(b, NormBound)]
-        self.bounded = bool(self.norms) or bool(np.isfinite(self.box).any())
+        self.engine = gains.force_bound if isinstance(gains.force_bound, ThrusterBound) else None
+        self.bounded = bool(self.norms) or bool(np.isfinite(self.box).any()) or self.engine is not None
         self.k = -1
         self.z = self.dw = None
         self.saturated_steps = 0
@@ -382,6 +388,13 @@ class Tracker:
             if n > hn:
                 du[sl] *= hn / n
                 limited = True
+        if self.engine is not None:   # the engine corrects along its axis only, within its thrust headroom
+            a, T = self.engine.axis, plan[:, U_FORCE] @ self.engine.axis
+            hn = max(min(self.engine.max - T.max(), T.min() - self.engine.min), 0.0)
+            dT = float(du[U_FORCE] @ a)
+            kept = float(np.clip(dT, -hn, hn)) * a
+            limited = limited or bool(np.linalg.norm(du[U_FORCE] - kept) > 1e-9 * self.engine.max)
+            du[U_FORCE] = kept
         return du, limited
 
     @property

@@ -103,9 +103,10 @@ def run_seeds(spec: FlightSpec) -> list[np.random.SeedSequence]:
 
 
 def sample_errors(spec: FlightSpec, index: int, seed: np.random.SeedSequence, X0: np.ndarray, mass: float,
-                  inertia: np.ndarray) -> RunErrors:
+                  inertia: np.ndarray, force_frame: str = "inertial") -> RunErrors:
     """Run ``index``'s errors from its SeedSequence (module docstring): the plan's initial state X0 (18)
-    of a body of ``mass`` and ``inertia`` -> the truth's."""
+    of a body of ``mass`` and ``inertia`` -> the truth's; the actuators take force commands in the plan's
+    ``force_frame``."""
     rng = np.random.default_rng(seed)
     n = {name: rng.standard_normal(k) for name, k in DRAWS}
     e, ini = spec.errors, spec.errors["initial"]
@@ -124,7 +125,8 @@ def sample_errors(spec: FlightSpec, index: int, seed: np.random.SeedSequence, X0
     act = Actuators(force_scale=1.0 + e["force_scale"] * float(n["force_scale"][0]),
                     moment_scale=1.0 + e["moment_scale"] * float(n["moment_scale"][0]),
                     force_misalignment=exp_so3(np.radians(e["force_misalignment_deg"]) * n["force_misalignment"]),
-                    moment_misalignment=exp_so3(np.radians(e["moment_misalignment_deg"]) * n["moment_misalignment"]))
+                    moment_misalignment=exp_so3(np.radians(e["moment_misalignment_deg"]) * n["moment_misalignment"]),
+                    force_frame=force_frame)
     return RunErrors(index=index, z0=z0, X0=Xt.reshape(NX), actuators=act, inertia=Jt,
                      seed=(seed.entropy, tuple(seed.spawn_key)))
 

@@ -150,7 +150,8 @@ def fly_runs(task: dict) -> dict:
     usage = plan_usage(gains, spec.samples)
     rows, tracks, saved = [], {}, {}
     for i in task["runs"]:
-        err = sample_errors(spec, i, seeds[i], plan.trajectory.X[0], man.problem.model.mass, man.problem.model.inertia)
+        err = sample_errors(spec, i, seeds[i], plan.trajectory.X[0], man.problem.model.mass, man.problem.model.inertia,
+                            man.problem.disc.force_frame)
         cols = error_columns(err, man.problem.model.inertia)
         if i < task.get("save", 0):
             saved[i] = err.arrays()

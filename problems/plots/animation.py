@@ -231,7 +231,7 @@ class Animation:
             d["dot"].set_data_3d([x[0]], [x[1]], [x[2]])
             if s.controls is not None and self.thrust:
                 j = int(np.clip(np.searchsorted(s.control_times, time_), 0, len(s.control_times) - 1))
-                tip = x + 0.45 * lim * s.u_f[j] / fmax
+                tip = x + 0.45 * lim * s.f_inertial[j] / fmax
                 d["thrust"].set_data_3d([x[0], tip[0]], [x[1], tip[1]], [x[2], tip[2]])
                 d["head"].set_data_3d([tip[0]], [tip[1]], [tip[2]])
         self.cursor.set_xdata([time_, time_])

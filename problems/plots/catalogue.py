@@ -14,6 +14,7 @@ from ...transcription.solve import Comparison
 from ..io import save_figure
 from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence,
                         fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity)
+from .engine import fig_thrust_direction
 from .runs import Run, _runs
 from .targets import removed
 from .views3d import fig_attitude, fig_maneuver
@@ -27,6 +28,7 @@ FIGURES = {
     "force": fig_force,
     "moment": fig_moment,
     "thrust_rtn": fig_thrust_rtn,
+    "thrust_direction": fig_thrust_direction,
     "orbital_elements": fig_orbital_elements,
     "constraints": fig_constraints,
     "velocity": fig_velocity,
@@ -41,9 +43,10 @@ CAPTIONS = {
     "attitude": "the body axes' paths on the unit sphere (inertial), the final frame of each method against the target frame",
     "attitude_error": "angle of the attitude error R_dᵀR(t) (or the rotation from the start) and its quaternion",
     "control_norms": "|u_f| and |u_m| with their bounds; shaded where a bound is active (the switching structure)",
-    "force": "control force, inertial components, with box limits ±b_i",
+    "force": "control force u_f in its frame (inertial, or body with force_frame: body), with box limits ±b_i",
     "moment": "control moment, body components, with box limits ±b_i",
-    "thrust_rtn": "control force in the osculating orbit frame: radial, along-track, normal",
+    "thrust_rtn": "applied force in the osculating orbit frame: radial, along-track, normal",
+    "thrust_direction": "angle between the applied force and each body axis (and the engine's), |u_f| against its bound",
     "orbital_elements": "osculating radius, inclination and eccentricity against the target's",
     "constraints": "margin of each path constraint (≥ 0 where it holds), violations shaded",
     "velocity": "inertial velocity components (impulses as jumps)",
@@ -68,7 +71,9 @@ def applicable(runs: list[Run], problem: Problem) -> list[str]:
     gone = removed(problem)
     skip = set(gone)  # a removed control: no component figure ("force", "moment")
     if not ctrl or gone == {"force", "moment"}:
-        skip |= {"control_norms", "force", "moment", "thrust_rtn"}
+        skip |= {"control_norms", "force", "moment", "thrust_rtn", "thrust_direction"}
+    if "force" in gone or problem.disc.force_frame != "body":   # the direction in the body: a body-frame force's
+        skip.add("thrust_direction")
     if "force" in gone:
         skip.add("thrust_rtn")
         if not central:  # no force and no gravity: the velocity is constant, a figure of flat lines

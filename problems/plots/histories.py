@@ -7,7 +7,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from ...transcription.lie import quaternions, rotation_angle
-from ...transcription.problem import BoxBound, MaxAngularRate, MinRadius, NormBound, Problem
+from ...transcription.problem import BoxBound, MaxAngularRate, MinRadius, NormBound, Problem, ThrusterBound
 from ...transcription.results import figures_of_merit
 from ..units import units
 from .orbits import osculating_elements, rtn
@@ -134,7 +134,7 @@ def fig_angular_velocity(runs, problem: Problem):
 
 
 #: per control: its Solution attribute, component symbol and title
-_CONTROL_FIGURES = {"force": ("u_f", "f", "control force u_f, inertial components"),
+_CONTROL_FIGURES = {"force": ("u_f", "f", "control force u_f, {frame} components"),
                     "moment": ("u_m", "m", "control moment u_m, body components")}
 
 
@@ -142,7 +142,8 @@ def _control_components(runs, problem: Problem, which: str):
     """The components of one control ('force' or 'moment') against time, with its bound."""
     attr, sym, title = _CONTROL_FIGURES[which]
     return _components([r for r in runs if r.sol.controls is not None], problem, lambda r: (r.tu, getattr(r.sol, attr)),
-                       [f"$u_{{{sym},{i}}}$" for i in (1, 2, 3)], units(problem).label(title, which),
+                       [f"$u_{{{sym},{i}}}$" for i in (1, 2, 3)],
+                       units(problem).label(title.format(frame=problem.disc.force_frame), which),
                        bound=_bound_of(problem, which), controls=True, quantity=which)
 
 
@@ -177,10 +178,13 @@ def fig_control_norms(runs, problem: Problem):
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
                 _shade(ax, run.control_edges, act, run.color,
-                       label=f"{run.label} at bound ({un.duration(tab)})" if isinstance(bound, NormBound) else
+                       label=f"{run.label} at bound ({un.duration(tab)})" if isinstance(bound, (NormBound, ThrusterBound)) else
                        f"{run.label}: a component at its bound ({un.duration(tab)})")
         if isinstance(bound, NormBound):
             ax.axhline(f * bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {f * bound.b:.3g}")
+        elif isinstance(bound, ThrusterBound):
+            ax.axhline(f * bound.max, color=BOUND, ls="-.", lw=1.2, gid="bound-line",
+                       label=f"engine: {f * bound.min:.3g} ≤ T ≤ {f * bound.max:.3g}")
         elif isinstance(bound, BoxBound):  # |u| reaches |b| only with every component at its bound
             nb = f * float(np.linalg.norm(bound.b))
             ax.axhline(nb, color=BOUND, ls=":", lw=1.2, label=f"|b| = {nb:.3g}: every component at its bound")
@@ -198,7 +202,7 @@ def fig_thrust_rtn(runs, problem: Problem):
     def comp(run):
         s = run.sol
         k = run.node_of_control
-        return run.tu, rtn(s.trajectory.x[k], s.trajectory.v[k], s.u_f)
+        return run.tu, rtn(s.trajectory.x[k], s.trajectory.v[k], s.f_inertial)   # the applied (inertial) force
 
     return _components([r for r in runs if r.sol.controls is not None], problem, comp,
                        ["radial $u_R$", "along-track $u_T$", "normal $u_N$"],

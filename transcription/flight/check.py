@@ -18,7 +18,7 @@ from ..layout import X_ANG, X_MOM, X_ROT
 from ..lie import nearest_rotation, orthogonality_error, rotation_angle
 from ..problem import terminal_error
 from ..results import Result, Trajectory
-from .engine import DEFAULT_SAMPLES, FlightError, OpenLoop, fly
+from .engine import DEFAULT_SAMPLES, Actuators, FlightError, OpenLoop, fly
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..results import Solution
@@ -103,7 +103,7 @@ def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> Continu
     N = traj.X.shape[0] - 1
     law = OpenLoop.free(N) if sol.controls is None else OpenLoop.of_controls(prob.scheme, sol.controls)
     try:
-        flight = fly(prob.model, traj.X[0], traj.t, law, samples=samples)
+        flight = fly(prob.model, traj.X[0], traj.t, law, Actuators(force_frame=prob.disc.force_frame), samples=samples)
     except FlightError as e:
         nan, nodes = float("nan"), np.full(N + 1, np.nan)
         return ContinuousCheck(nan, nan, nan, nan, nan, nan, nan, nan, {k: nan for k in margin_keys(prob.constraints)},

@@ -51,9 +51,9 @@ MIN_STEP = 1e-12
 #: samples of the state per node interval (s = 1/M, ..., 1): path deviations and constraint margins
 #: between the nodes
 DEFAULT_SAMPLES = 4
-#: actuator parameters: force scale, moment scale, vec(A_f), vec(A_m)
-N_ACTUATOR = 20
-#: interval parameters w = [a (6); b (6); h] and flight parameters p = [vec(J^-1) (9); actuators (20)]
+#: actuator parameters: force scale, moment scale, vec(A_f), vec(A_m), the force command's frame (0 inertial, 1 body)
+N_ACTUATOR = 21
+#: interval parameters w = [a (6); b (6); h] and flight parameters p = [vec(J^-1) (9); actuators (21)]
 N_W, N_P = 2 * NU + 1, 9 + N_ACTUATOR
 
 
@@ -82,13 +82,16 @@ class Actuators:
     """How commands become the controls acting on the body (the nominal actuators: identity).
 
     force_scale s_f, moment_scale s_m: scale factors; force_misalignment A_f, moment_misalignment A_m:
-    rotations (3x3) fixed in the body.  A commanded force u_f (inertial) is produced by body-fixed
-    thrusters: applied s_f R A_f R^T u_f; a commanded moment u_m (body): applied s_m A_m u_m."""
+    rotations (3x3) fixed in the body.  A commanded force u_f is produced by body-fixed thrusters: applied
+    s_f R A_f R^T u_f for a command in the inertial frame (``force_frame`` 'inertial'), s_f R A_f u_f for one in
+    the body frame ('body': the plan's body-frame force, docs/mathematics.md §14); a commanded moment u_m
+    (body): applied s_m A_m u_m."""
 
     force_scale: float = 1.0
     moment_scale: float = 1.0
     force_misalignment: np.ndarray = field(default_factory=lambda: np.eye(3))
     moment_misalignment: np.ndarray = field(default_factory=lambda: np.eye(3))
+    force_frame: str = "inertial"
 
     def __post_init__(self):
         for name in ("force_scale", "moment_scale"):
@@ -101,18 +104,21 @@ class Actuators:
             object.__setattr__(self, name, A)
 
     def vector(self) -> np.ndarray:
-        """q (20,) = [s_f; s_m; vec(A_f); vec(A_m)] (column-major), the parameters of :func:`actuator_output`."""
+        """q (21,) = [s_f; s_m; vec(A_f); vec(A_m); 1 for a body-frame force command, else 0] (column-major),
+        the parameters of :func:`actuator_output`."""
         return np.concatenate([[self.force_scale, self.moment_scale], self.force_misalignment.ravel(order="F"),
-                               self.moment_misalignment.ravel(order="F")])
+                               self.moment_misalignment.ravel(order="F"), [float(self.force_frame == "body")]])
 
 
 def actuator_output() -> ca.Function:
-    """``flight_actuators(X[18], u_cmd[6], q[20]) -> u[6]``: u_f = s_f R A_f R^T u_f,cmd (inertial),
-    u_m = s_m A_m u_m,cmd (body), with q = :meth:`Actuators.vector` and R the attitude in X."""
+    """``flight_actuators(X[18], u_cmd[6], q[21]) -> u[6]``: u_f = s_f R A_f u_b with u_b = R^T u_f,cmd for an
+    inertial command, u_b = u_f,cmd for a body-frame one (q[20] = 1); u_m = s_m A_m u_m,cmd (body), with
+    q = :meth:`Actuators.vector` and R the attitude in X (the flown attitude: a body-frame command turns with it)."""
     X, uc, q = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", N_ACTUATOR)
     _, _, R, _ = split_state(X)
     Af, Am = ca.reshape(q[2:11], 3, 3), ca.reshape(q[11:20], 3, 3)
-    u = ca.vertcat(q[0] * ca.mtimes([R, Af, R.T, uc[U_FORCE]]), q[1] * ca.mtimes(Am, uc[U_MOMENT]))
+    body = q[20] * uc[U_FORCE] + (1 - q[20]) * ca.mtimes(R.T, uc[U_FORCE])
+    u = ca.vertcat(q[0] * ca.mtimes([R, Af, body]), q[1] * ca.mtimes(Am, uc[U_MOMENT]))
     return ca.Function("flight_actuators", [X, uc, q], [u], ["X", "u_cmd", "q"], ["u"])
 
 
@@ -185,7 +191,7 @@ def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: 
     interval of length h flown from X0, in normalized time s = (t - t_k)/h in [0, 1],
 
         dX/ds = h eom(X, actuators(X, a + s (b - a), q), Jinv),   w = [a (6); b (6); h],
-        p = [vec(Jinv) (9, column-major); q (20, Actuators.vector())],
+        p = [vec(Jinv) (9, column-major); q (21, Actuators.vector())],
 
     by CVODES (Adams, functional iteration, ``rtol``/``atol``), restarted at every call, so the
     command's kinks and jumps at the nodes are never integrated across.  Xs holds the states at

@@ -14,10 +14,12 @@ problem of the same structure: the builders with only structural arguments retur
              s_obj; W_f (9); W_m (9) (effort)]
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
         cost = the step's share of sum_j omega_j (1/2) u_j^T W u_j, / s_obj (effort; else 0)
-    control_node(disc, free_h, norm_f, norm_m, fuel)   one control node j (docs/mathematics.md §10)
+    control_node(disc, free_h, norm_f, norm_m, fuel, thruster)   one control node j (docs/mathematics.md §10, §14)
         v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (fuel: magnitudes and directions); h / h_scale (1, free_h)]
-        p = [sU (6); sS (2); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj]
+        p = [sU (6); sS (2); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj;
+             vec(Q) (9, thruster: the engine frame [a, b, c], column-major; b_f its max)]
         rows = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f, <= 0); (|u_m|^2 - b_m^2) / b_m^2 (norm_m, <= 0);
+                Q^T u_f / b_f (thruster: the thrust a^T u_f / max in [min/max, 1], the off-axis b^T u_f, c^T u_f = 0);
                 |d_f|^2 - 1, |d_m|^2 - 1 (fuel, <= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (fuel, = 0)]
         cost = omega_j (w_f s_f + w_m s_m) / s_obj (fuel; else 0)
     time_cost(disc)                               the time objective
@@ -94,8 +96,11 @@ FUEL_SLACKS = 8
 
 
 @per_discretization
-def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> BlockFunction:
-    """The block of one control node: norm bounds and the fuel epigraph (module docstring).
+def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thruster: bool = False) -> BlockFunction:
+    """The block of one control node: norm bounds, a body-fixed engine and the fuel epigraph (module docstring).
+
+    The engine's rows are linear in u_f: IPOPT's steps satisfy a linear equality exactly (to the linear
+    solver's round-off), so the off-axis force of the solution is zero to round-off, not merely to the tolerance.
 
     The fuel epigraph is the magnitude-direction split u_f = s_f d_f, |d_f| <= 1, s_f >= 0 (the same
     for u_m), with the cost omega_j (w_f s_f + w_m s_m): at the optimum s = |u|.  Unlike
@@ -105,7 +110,7 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> 
     """
     ns = FUEL_SLACKS if fuel else 0
     v = ca.SX.sym("v", NU + ns + (1 if free_h else 0))
-    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3)
+    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3 + (9 if thruster else 0))
     sU, sS = p[:NU], p[NU:NU + 2]
     i = NU + 2
     omega_per_h, hp, bf, bm, wf, wm, s_obj = (p[i + k] for k in range(7))
@@ -116,6 +121,8 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> 
         rows.append((ca.dot(u[U_FORCE], u[U_FORCE]) - bf**2) / bf**2)
     if norm_m:
         rows.append((ca.dot(u[U_MOMENT], u[U_MOMENT]) - bm**2) / bm**2)
+    if thruster:
+        rows.append(ca.mtimes(ca.reshape(p[i + 7:i + 16], 3, 3).T, u[U_FORCE]) / bf)
     cost = ca.SX(0)
     if fuel:
         sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
@@ -124,8 +131,8 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool) -> 
         rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
         cost = omega_per_h * h * (wf * sf + wm * sm) / s_obj
     # the name from its non-empty parts: CasADi refuses empty parts ("control_node__fuel": fuel without norm bounds)
-    parts = ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}", "fuel" if fuel else "",
-             "freeh" if free_h else "")
+    parts = ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}", "thruster" if thruster else "",
+             "fuel" if fuel else "", "freeh" if free_h else "")
     return BlockFunction(ca.Function("_".join(w for w in parts if w), [v, p],
                                      [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)], ["v", "p"], ["cost", "rows"]))
 

@@ -26,12 +26,12 @@ from .conditions import (orbit_conditions, orbit_residual, state_residual, termi
 from .constraints import MARGIN_DIMENSION, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius
 from .controls import (AT_BOUND_RTOL, OBJECTIVES, Bound, BoxBound, Control, ImpulsiveControl, NormBound,
                        SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
-from .costs import control_activity, effort_cost, fuel_cost, impulse_cost, objective_value, quadrature_weights
+from .costs import ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, fuel_cost, impulse_cost, objective_value, quadrature_weights
 from .definition import Problem, state_from_velocities
 from .errors import ProblemError
 from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetState
 
-__all__ = ["AT_BOUND_RTOL", "Bound", "BoxBound", "Control", "ImpulsiveControl", "KeepIn", "KeepOut", "MARGIN_DIMENSION",
+__all__ = ["AT_BOUND_RTOL", "ENGINE_ON_RTOL", "engine_figures", "Bound", "BoxBound", "Control", "ImpulsiveControl", "KeepIn", "KeepOut", "MARGIN_DIMENSION",
            "MaxAngularRate", "MinRadius", "NormBound", "OBJECTIVES", "PATH_CONSTRAINTS", "Problem", "ProblemError",
            "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit", "TargetState", "ThrusterBound", "actuator_bounds",
            "control_activity",

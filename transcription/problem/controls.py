@@ -7,6 +7,7 @@ from typing import Union
 import numpy as np
 
 from ..layout import NU, U_FORCE, U_MOMENT
+from ..lie import rotation_with_first_column
 from .errors import ProblemError
 
 
@@ -116,6 +117,11 @@ class ThrusterBound:
 
     def scale(self) -> float:
         return self.max
+
+    def basis(self) -> np.ndarray:
+        """Q = [a, b, c] (3x3 rotation, body frame): the engine axis and two perpendicular directions; Q^T u_f
+        = [T, off-axis force (2)] (:func:`~transcription.lie.rotation_with_first_column`)."""
+        return rotation_with_first_column(self.axis)
 
     def active(self, u: np.ndarray) -> np.ndarray:
         """(n,) bool: the thrust within AT_BOUND_RTOL (of max) of max or of min."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..layout import U_FORCE, U_MOMENT
-from .controls import BoxBound, NormBound, SmoothControl
+from .controls import AT_BOUND_RTOL, BoxBound, NormBound, SmoothControl, ThrusterBound
 from .definition import Problem
 
 
@@ -49,7 +49,8 @@ def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray,
     AT_BOUND_RTOL), time_at_bound = sum_j omega_j over them (``weights`` the quadrature weights, so that
     it is the time the controls at the bound act), and switch_times: for a box bound every sign change
     of a component (the switches of a bang-bang control; linear interpolation between the node
-    ``times``), for a norm bound the times where the control enters or leaves the bound (midpoints).
+    ``times``), for a norm bound the times where the control enters or leaves the bound (midpoints), for a
+    body-fixed engine (ThrusterBound) those where the thrust reaches or leaves max or min (midpoints).
     Removed and unbounded controls are left out."""
     U = np.asarray(U, dtype=float)
     t = np.asarray(times, dtype=float)
@@ -59,7 +60,11 @@ def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray,
             continue
         u = U[sl].T
         at = bound.active(u)
-        if isinstance(bound, BoxBound):
+        if isinstance(bound, ThrusterBound):    # switches: the thrust reaches or leaves max or min
+            T, tol = bound.thrust(u), AT_BOUND_RTOL * bound.max
+            level = np.where(T >= bound.max - tol, 1, np.where(T <= bound.min + tol, -1, 0))
+            switches = [float(0.5 * (t[j] + t[j + 1])) for j in np.flatnonzero(level[:-1] != level[1:])]
+        elif isinstance(bound, BoxBound):
             switches = []
             for i in range(3):
                 ui = u[:, i]
@@ -68,9 +73,30 @@ def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray,
         else:
             k = np.flatnonzero(at[:-1] != at[1:])
             switches = [float(0.5 * (t[j] + t[j + 1])) for j in k]
-        out[name] = {"bound": "box" if isinstance(bound, BoxBound) else "norm",
+        out[name] = {"bound": "box" if isinstance(bound, BoxBound) else "thruster" if isinstance(bound, ThrusterBound)
+                     else "norm",
                      "at_bound_fraction": float(at.mean()) if len(at) else 0.0,
                      "time_at_bound": float(np.asarray(weights, float) @ at), "switch_times": switches}
+    return out
+
+
+#: the engine counts as on where |u_f| exceeds this fraction of its reference: the force bound's largest
+#: |u_f| (an engine's max, a norm bound, |b| of a box) or, unbounded, the peak |u_f| of the controls
+ENGINE_ON_RTOL = 1e-3
+
+
+def engine_figures(u_f: np.ndarray, weights: np.ndarray, bound) -> dict:
+    """The engine's figures of merit (docs/mathematics.md §14) for force controls u_f (n, 3) with quadrature
+    ``weights`` (n,): engine_on_time = sum_j omega_j over the controls with |u_f,j| > ENGINE_ON_RTOL F_ref
+    (F_ref: a thruster's max, a norm bound b, |b|_2 of a box bound, else max_j |u_f,j|; 0 without force);
+    for a thruster also engine_off_axis_relative = max_j |u_f,j - T_j a| / max (0 for a feasible control)."""
+    u_f = np.asarray(u_f, dtype=float)
+    n = np.linalg.norm(u_f, axis=1)
+    ref = bound.max if isinstance(bound, ThrusterBound) else bound.b if isinstance(bound, NormBound) else \
+        float(np.linalg.norm(bound.b)) if isinstance(bound, BoxBound) else float(n.max(initial=0.0))
+    out = {"engine_on_time": float(np.asarray(weights, float) @ (n > ENGINE_ON_RTOL * ref)) if ref > 0 else 0.0}
+    if isinstance(bound, ThrusterBound):
+        out["engine_off_axis_relative"] = float(bound.off_axis(u_f).max(initial=0.0) / bound.max)
     return out
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from ..layout import NX, pack_state
 from ..lgvi import Discretization
 from .constraints import PATH_CONSTRAINTS
-from .controls import Control, ImpulsiveControl, SmoothControl
+from .controls import Control, ImpulsiveControl, SmoothControl, ThrusterBound
 from .errors import ProblemError
 from .targets import Target, TargetOrbit, TargetState
 
@@ -60,6 +60,10 @@ class Problem:
             object.__setattr__(self, "time_bounds", (lo, hi))
         elif isinstance(self.control, SmoothControl) and self.control.objective == "time":
             raise ProblemError("time_bounds", "the time objective needs a free final time (time_bounds)")
+        if isinstance(self.control, SmoothControl) and isinstance(self.control.force_bound, ThrusterBound) \
+                and self.disc.force_frame != "body":
+            raise ProblemError("control.force_bound", "a thruster is fixed in the body: it needs the force in the body "
+                                                      f"frame (disc.force_frame 'body', got {self.disc.force_frame!r})")
         object.__setattr__(self, "constraints", tuple(self.constraints))
         for c in self.constraints:
             if not isinstance(c, PATH_CONSTRAINTS):

@@ -14,10 +14,10 @@ from typing import Callable
 
 import numpy as np
 
-from ...guess import Guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
+from ...guess import Guess, aimed_guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
 from ...layout import U_FORCE, U_MOMENT
 from ...options import DirectOptions
-from ...problem import BoxBound, NormBound, Problem
+from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
 from .scaling import scaled_terminal_miss
@@ -84,9 +84,9 @@ NOT_TRIED = ("not tried (the phase 1 from the relaxed optimum ended at a least v
 def plan_ipopt_options(problem: Problem, phase1: bool = False) -> dict:
     """IPOPT options the plan adds for ``problem`` (:data:`INFEASIBILITY_DETECTION`; ``phase1``, the start from
     the relaxation's solution: :data:`PHASE1` too)."""
-    if relaxation(problem) is None:
-        return {}
     c = problem.control
+    if relaxation(problem) is None or isinstance(c.force_bound, ThrusterBound):
+        return {}     # a body-fixed engine (issue 24) starts from the aimed relaxed solution: not measured with these
     bounded = any(b is not None and not r for b, r in zip((c.force_bound, c.moment_bound), c.removed))
     return {**INFEASIBILITY_DETECTION, **(PHASE1 if phase1 and bounded else {})}
 
@@ -128,7 +128,9 @@ def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
     disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
     size = np.zeros(6)
     for sl, bound in ((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound)):
-        size[sl] = bound.b if isinstance(bound, BoxBound) else bound.b / np.sqrt(3.0)
+        size[sl] = bound.b if isinstance(bound, BoxBound) else bound.max if isinstance(bound, ThrusterBound) else \
+            bound.b / np.sqrt(3.0)      # an engine's random force is projected onto its axis (initial_point)
+
     def start(Ts: float, k: int):
         return lambda: replace(perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, Ts, size, seed=k),
                                h=Ts / N)
@@ -181,12 +183,17 @@ def relaxation(problem: Problem) -> Problem | None:
 
 
 def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, subsolve: SubSolve) -> Guess | None:
-    """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time."""
+    """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time;
+    for a body-fixed engine the body turned to aim the relaxed solution's force (:func:`aimed_guess`)."""
     sol = subsolve(relaxed, options)
     if not sol.converged or sol.warm is None:
         return None
-    return replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
-                   prepared_on=RELAXED, h=None)
+    guess = replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
+                    prepared_on=RELAXED, h=None)
+    engine = problem.control.force_bound
+    if isinstance(engine, ThrusterBound):
+        guess = aimed_guess(problem.disc, guess, engine.axis, (engine.min, engine.max), problem.h)
+    return guess
 
 
 def warm_guess(warm: WarmStart) -> Guess:
@@ -247,7 +254,7 @@ def binding_bound(sol: Solution) -> str:
     sym = "u_f" if name == "force" else "u_m"
     what = (f"|{sym}| <= {bound.b:.6g}" if isinstance(bound, NormBound) else
             f"|{sym},i| <= [{', '.join(f'{b:.6g}' for b in bound.b)}]" if isinstance(bound, BoxBound) else
-            f"the {name} bound")
+            f"(engine thrust <= {bound.max:.6g})" if isinstance(bound, ThrusterBound) else "")
     return (f"the {name} bound {what} binds ({at:.0%} of the control nodes of the last iterate are at it): a larger "
             f"control.bounds.{name} or a longer horizon.T")
 

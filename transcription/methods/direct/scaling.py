@@ -17,7 +17,7 @@ import numpy as np
 
 from ...guess import target_estimate
 from ...layout import U_FORCE, U_MOMENT, X_ANG, X_MOM, unpack_states
-from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, terminal_rows
+from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, ThrusterBound, terminal_rows
 from ...nlp import blocks
 
 #: smallest allowed ratio of scaled control cost curvatures (characteristic_scales, module docstring)
@@ -60,6 +60,8 @@ def characteristic_scales(problem: Problem) -> Scales:
             sU[sl] = bound.b
         elif isinstance(bound, NormBound) and bound.b > 0:
             sU[sl] = bound.b
+        elif isinstance(bound, ThrusterBound):
+            sU[sl] = bound.max
     sC = np.full(3, 0.5 * h * sP / ev[0])
     if control.objective == "effort":
         Wdiag = np.diag(control.W)

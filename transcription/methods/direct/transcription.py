@@ -31,7 +31,8 @@ from ...nlp import blocks
 from ...nlp.layouts import NLPLayout, StageLayout, control_nodes
 from ...nlp.structured import Block, StructuredNLP
 from ...options import DirectOptions
-from ...problem import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, orbit_residual, quadrature_weights
+from ...problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, ThrusterBound, orbit_residual,
+                        quadrature_weights)
 from .scaling import characteristic_scales, terminal_row_scales
 
 NC = blocks.NC
@@ -122,25 +123,32 @@ class SmoothTranscription:
         return Block("dynamics", dyn, iV, data, compile=True), np.concatenate([sc.X] + ([sG] if with_c else []))
 
     def _control_block(self):
-        """The control nodes' norm bounds and fuel epigraph (None without either)."""
+        """The control nodes' norm bounds, body-fixed engine and fuel epigraph (None without any)."""
         problem, lay, sc, fuel = self.problem, self.layout, self.scales, self.fuel
         control: SmoothControl = problem.control
         norm_f = isinstance(control.force_bound, NormBound) and control.force_bound.b > 0
         norm_m = isinstance(control.moment_bound, NormBound) and control.moment_bound.b > 0
-        if not (norm_f or norm_m or fuel):
+        engine = control.force_bound if isinstance(control.force_bound, ThrusterBound) else None
+        if not (norm_f or norm_m or fuel or engine):
             return None, None
         nU, sS = len(lay.control_nodes), self.slack_scales
         omega_per_h = quadrature_weights(problem.scheme, problem.N, 1.0)
-        bf = control.force_bound.b if norm_f else 1.0
+        bf = control.force_bound.b if norm_f else engine.max if engine else 1.0
         bm = control.moment_bound.b if norm_m else 1.0
+        Q = engine.basis().ravel(order="F") if engine else np.zeros(0)
         cdata = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), omega_per_h[None, :],
-                           np.repeat(np.array([[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0],
-                                                sc.objective]]).T, nU, axis=1)])
+                           np.repeat(np.r_[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
+                                           Q][:, None], nU, axis=1)])
         iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
-        n_ineq = int(norm_f) + int(norm_m) + (2 if fuel else 0)
-        lbg = np.r_[np.full(n_ineq, -np.inf), np.zeros(6 if fuel else 0)]
-        blk = Block("controls", blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel), iN, cdata, lbg=lbg, ubg=0.0)
-        return blk, np.r_[np.ones(n_ineq), np.repeat(sS, 3) if fuel else []]
+        n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel else 0)
+        # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0
+        n_eng = 3 if engine else 0
+        lbg = np.r_[np.full(n_norm, -np.inf), [engine.min / engine.max, 0.0, 0.0] if engine else [],
+                    np.full(n_fuel, -np.inf), np.zeros(6 if fuel else 0)]
+        ubg = np.r_[np.zeros(n_norm), [1.0, 0.0, 0.0] if engine else [], np.zeros(n_fuel + (6 if fuel else 0))]
+        fn = blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel, engine is not None)
+        blk = Block("controls", fn, iN, cdata, lbg=lbg, ubg=ubg)
+        return blk, np.r_[np.ones(n_norm + n_eng + n_fuel), np.repeat(sS, 3) if fuel else []]
 
     def _time_block(self):
         if self.problem.control.objective != "time":
@@ -206,8 +214,13 @@ class SmoothTranscription:
         return lbx, ubx
 
     def initial_point(self, guess: Guess, h: float | None = None) -> np.ndarray:
-        """Scaled decision vector of a :class:`~transcription.guess.Guess` (and step size h)."""
-        w = self.layout.pack(guess.X.T, guess.U, guess.C.T if self.layout.with_c else None,
+        """Scaled decision vector of a :class:`~transcription.guess.Guess` (and step size h); a body-fixed
+        engine's force is projected onto its axis and its thrust range (the engine's rows then hold)."""
+        U, engine = guess.U, self.problem.control.force_bound
+        if isinstance(engine, ThrusterBound):
+            U = U.copy()
+            U[U_FORCE] = np.outer(engine.axis, np.clip(engine.thrust(U[U_FORCE].T), engine.min, engine.max))
+        w = self.layout.pack(guess.X.T, U, guess.C.T if self.layout.with_c else None,
                              h=self.problem.h if h is None else h) / self.w_scale
         return np.clip(w, self.lbx, self.ubx)
 
