@@ -32,6 +32,7 @@ _EXPORTS = {
     "Problem": "transcription.problem", "ProblemError": "transcription.problem",
     "SmoothControl": "transcription.problem", "ImpulsiveControl": "transcription.problem",
     "TargetState": "transcription.problem", "TargetOrbit": "transcription.problem",
+    "TargetRendezvous": "transcription.problem",
     "state_from_velocities": "transcription.problem",
     "Solution": "transcription.results", "Trajectory": "transcription.results", "Result": "transcription.results",
     "Iterate": "transcription.results", "SolveError": "transcription.results", "Attempt": "transcription.results",
@@ -61,7 +62,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .problems.schema import ConfigError  # noqa: F401
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401
     from .transcription.problem import (ImpulsiveControl, Problem, ProblemError, SmoothControl,  # noqa: F401
-                                        TargetOrbit, TargetState, state_from_velocities)
+                                        TargetOrbit, TargetRendezvous, TargetState, state_from_velocities)
     from .transcription.results import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
     from .transcription.warm import WarmStart  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401

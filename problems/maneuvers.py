@@ -12,6 +12,8 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
     initial: {position: [3], velocity: [3], attitude: ATT, angular_velocity: [3]}
     terminal: {position, velocity, attitude, angular_velocity}   # smooth control: any left out is free
             | {orbit: {radius: r, normal: [3], body_axis: [3], angular_velocity: [3]}}
+            | {rendezvous: {radius: r, normal: [3] (or inclination_deg, raan_deg), phase_deg: u0, attitude: ATT,
+                            angular_velocity: [3]}}          # problems/moving.py
     control:
       kind: smooth | impulsive
       objective: effort | time | fuel    # smooth; default effort
@@ -23,8 +25,8 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
                                          # above), so that a tracker keeps authority; default 0
     constraints:                         # path constraints at every node (smooth control)
       - {kind: min_radius, radius: r}
-      - {kind: keep_out, body_axis: [3], direction: [3], min_angle_deg: deg}
-      - {kind: keep_in, body_axis: [3], direction: [3], max_angle_deg: deg}
+      - {kind: keep_out, body_axis: [3], direction: [3] | nadir | velocity, min_angle_deg: deg}
+      - {kind: keep_in, body_axis: [3], direction: [3] | nadir | velocity, max_angle_deg: deg}
       - {kind: max_angular_rate, value: w}
     solver: {direct: {...}, indirect: {...}}
     flight: {...}                        # how `se3ocp fly` flies the plan (problems/flight/schema.py)
@@ -66,10 +68,11 @@ from ..transcription.lgvi import SCHEMES, discretization
 from ..transcription.options import DirectOptions, IndirectOptions, OptionError
 from ..transcription.lgvi import FORCE_FRAMES
 from ..transcription.problem import (BoxBound, ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
-                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, ThrusterBound,
-                                     spd_weight)
+                                     Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState,
+                                     ThrusterBound, spd_weight)
 from ..transcription.results import Trajectory
 
+from . import moving as _moving
 from . import physical as _physical
 from .models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody, parse_gravity
 from .schema import Validator, describe, join_field, load_with_overrides
@@ -152,7 +155,7 @@ class Maneuver:
     body: Dumbbell | RigidBody
     central_body_radius: float
     initial: StateSpec
-    terminal: StateSpec | TargetOrbit | None
+    terminal: StateSpec | TargetOrbit | TargetRendezvous | None
     resolved: dict[str, Any] = field(repr=False)
     #: epoch, frame, units and preset central body (problems.physical)
     physical: _physical.Physical | None = field(default=None, repr=False)
@@ -218,6 +221,8 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
         t = doc["terminal"]
         if isinstance(t, dict) and "orbit" in t:
             terminal = _orbit(v, t, body, extent)
+        elif _moving.is_rendezvous(t):
+            terminal = _moving.rendezvous(v, t, body, extent)
         else:
             terminal = _state(v, t, "terminal", body, extent, all_required=control_kind != "smooth")
     if control_kind is not None and terminal is None:
@@ -417,6 +422,9 @@ def _bound(v: Validator, d, where, thruster: bool = False):
     """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min}}) -> (BoxBound |
     NormBound | ThrusterBound, resolved)."""
     forms = ("box", "norm") + (("thruster",) if thruster else ())
+    if not thruster and isinstance(d, dict) and "thruster" in d:
+        v.fail(where, "a thruster is an engine: it bounds the force (control.bounds.force); the moment takes "
+                      "{box: [b1, b2, b3]} or {norm: b}")
     if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in forms:
         engine = " or {thruster: {axis: [3], max: F, min: 0}}" if thruster else ""
         v.fail(where, f"expected {{box: [b1, b2, b3]}}, {{norm: b}}{engine}, got {describe(d)}")
@@ -494,18 +502,20 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
             _magnitude(v, rate, f"{w}.value", "a rate limit")
             con = MaxAngularRate(rate)
         else:
-            vecs = {k: v.unit_vector(c[k], f"{w}.{k}") for k in ("body_axis", "direction")}
+            vecs = {"body_axis": v.unit_vector(c["body_axis"], f"{w}.body_axis"),
+                    "direction": _moving.cone_direction(v, c["direction"], f"{w}.direction")}
             ak = CONSTRAINT_KEYS[kind][2]
             angle = v.number(c[ak], f"{w}.{ak}", lo=0.0, hi=180.0)
             con = (KeepOut if kind == "keep_out" else KeepIn)(vecs["body_axis"], vecs["direction"], angle)
         for label, st in (("initial", initial), ("terminal", terminal)):
             if not isinstance(st, StateSpec):
                 continue
-            needs = {"keep_out": st.R, "keep_in": st.R, "min_radius": st.position, "max_angular_rate": st.omega}[kind]
-            if needs is None:
+            if set(con.needs) & st.free:  # a component the constraint is a function of is not given
                 continue
             X = st.vector(body, initial)
             margin = float(con.margin(Trajectory(np.zeros(1), X[None, :], body.mass, body.inertia))[0])
+            if not np.isfinite(margin):  # a moving cone's direction at a zero position or velocity
+                v.fail(w, f"the {label} state leaves the direction {con.direction!r} undefined (it is zero)", also=(label,))
             if margin < 0:
                 unit = units_for(body.central_mu).unit(con.dimension)
                 v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g}"

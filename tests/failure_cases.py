@@ -265,6 +265,30 @@ CASES: list[Case] = [
          "constraints[0]", "constraints=[{kind: keep_out, body_axis: [1, 0, 0], direction: [1, 0, 0], min_angle_deg: 20}]"),
     _bad("constraint_kind_unknown", "unknown path-constraint kind", "validate", E3, "constraints[0].kind",
          "constraints=[{kind: no_fly_zone}]"),
+    # ------------------------------------------------ bad input: moving cones, rendezvous (problems/moving.py)
+    _bad("cone_direction_unknown", "cone direction neither nadir, velocity nor a vector", "validate", E3,
+         "constraints[0].direction", "constraints=[{kind: keep_in, body_axis: [0, 0, 1], direction: zenith, "
+         "max_angle_deg: 10}]"),
+    _bad("nadir_cone_violated_at_start", "nadir keep-in cone the initial attitude already violates", "validate", E3,
+         "constraints[0]", "constraints=[{kind: keep_in, body_axis: [1, 0, 0], direction: nadir, max_angle_deg: 10}]"),
+    _bad("velocity_cone_at_rest", "velocity cone on a body at rest (the direction is undefined)", "validate", SLEW,
+         "constraints[0]", "constraints=[{kind: keep_out, body_axis: [1, 0, 0], direction: velocity, "
+         "min_angle_deg: 10}]"),
+    _bad("rendezvous_no_plane", "rendezvous target without its orbit plane", "validate", E3, "terminal.rendezvous",
+         "terminal={rendezvous: {radius: 1.05, phase_deg: 10}}"),
+    _bad("rendezvous_two_planes", "rendezvous plane by normal and by inclination", "validate", E3,
+         "terminal.rendezvous.inclination_deg", "terminal={rendezvous: {radius: 1.05, normal: [0, 0, 1], "
+         "inclination_deg: 10, raan_deg: 0, phase_deg: 10}}"),
+    _bad("rendezvous_inside", "rendezvous orbit inside the central body", "validate", E3, "terminal.rendezvous.radius",
+         "model.central_body_radius=0.5", "terminal={rendezvous: {radius: 0.4, normal: [0, 0, 1], phase_deg: 10}}"),
+    _bad("rendezvous_phase_radians", "rendezvous phase that looks like radians (pi/2)", "validate", E3,
+         "terminal.rendezvous.phase_deg", "terminal={rendezvous: {radius: 1.05, normal: [0, 0, 1], "
+         "phase_deg: 1.5707963267948966}}"),
+    _bad("rendezvous_without_gravity", "rendezvous target without a central body", "validate", E3,
+         "terminal.rendezvous", "gravity={kind: none}", "terminal={rendezvous: {radius: 1.05, normal: [0, 0, 1], "
+         "phase_deg: 10}}"),
+    _bad("rendezvous_impulsive", "rendezvous target under impulsive control", "validate", E1, "terminal",
+         "terminal={rendezvous: {radius: 2.0, normal: [0, 0, 1], phase_deg: 10}}"),
     _bad("gravity_j2_incomplete", "j2 gravity without its radius", "validate", E3, "gravity.radius",
          "gravity={kind: j2, J2: 0.001}"),
     _bad("inertia_not_spd", "rigid-body inertia not positive definite", "validate", E3, "model.inertia",

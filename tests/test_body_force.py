@@ -238,10 +238,12 @@ def _along_track_angle(sol) -> np.ndarray:
 def test_the_leo_engine_raise_converges_and_aims_its_burns():
     """configs/leo_body_engine.yaml with its default settings (N = 400): converged, the re-simulated terminal
     error <= 1e-6 (km, km/s, rad), the force along the engine axis to 1e-10 of max, 0 <= T <= max to the solver's
-    tolerance (1e-8 of max), and the attitude aims the burns: wherever the engine gives more than half its
-    largest thrust, the force lies within 20 deg of the along-track direction (the raise's efficient direction),
-    while the initial attitude points the engine 108 deg away from it."""
+    tolerance (1e-8 of max), and the attitude aims the burns: from 1000 s to 4500 s the force lies within 15 deg
+    of the along-track direction (the raise's efficient direction; measured 10.2), and at least 93 % of the
+    thrust's impulse sum_j omega_j T_j is along-track (measured 95.9 %), while the initial attitude points the
+    engine 108 deg away from it."""
     import se3ocp
+    from se3ocp.transcription.problem import quadrature_weights
 
     man = maneuver("leo_body_engine")
     sol = se3ocp.solve(man)
@@ -251,7 +253,10 @@ def test_the_leo_engine_raise_converges_and_aims_its_burns():
     assert np.max(b.off_axis(sol.u_f)) <= 1e-10 * b.max
     assert T.min() >= -1e-8 * b.max and T.max() <= b.max * (1 + 1e-8)
     ang = _along_track_angle(sol)
-    assert np.max(ang[T > 0.5 * T.max()]) <= 20.0
+    mid = (sol.control_times > 1000.0) & (sol.control_times < 4500.0)
+    assert np.max(ang[mid]) <= 15.0
+    om = quadrature_weights(sol.scheme, sol.N, sol.h)
+    assert float(om @ (T * np.cos(np.radians(ang)))) >= 0.93 * float(om @ T)
     tr = sol.trajectory
     x0, v0 = tr.x[0], tr.v[0]
     t0 = np.cross(np.cross(x0, v0), x0)

@@ -33,7 +33,7 @@ import numpy as np
 
 from .layout import NU, U_FORCE, X_ANG, X_ROT, pack_state, unpack_states
 from .lie import exp_so3, log_so3_any, rotation_between, step_cayley_vectors
-from .problem import Problem, TargetOrbit, TargetState, orbit_conditions
+from .problem import Problem, TargetOrbit, TargetRendezvous, TargetState, orbit_conditions, rendezvous_state
 
 
 @dataclass(frozen=True)
@@ -230,9 +230,12 @@ def relaxed_start_target(problem: Problem) -> np.ndarray:
 def target_estimate(problem: Problem) -> np.ndarray:
     """A terminal state (18) standing for the target: a state target's X (its free components
     hold placeholders), or for an orbit target a point of the orbit reached by a Hohmann-like
-    transfer (:func:`relaxed_start_target`).  For scales and guesses."""
+    transfer (:func:`relaxed_start_target`), for a rendezvous target the target's state at the problem's T
+    (with a free final time its guess; free attitude components those of X0).  For scales and guesses."""
     if isinstance(problem.terminal, TargetState):
         return problem.terminal.X
+    if isinstance(problem.terminal, TargetRendezvous):
+        return rendezvous_state(problem.terminal, problem.T, problem.model.mass, problem.model.mu, problem.X0)
     return relaxed_start_target(problem)
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...transcription.problem import KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, TargetOrbit, TargetState
+from ...transcription.problem import (KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, TargetOrbit, TargetRendezvous,
+                                     TargetState)
 from .orbits import _circle, _orbit_ellipse, osculating_elements
 
 
@@ -13,6 +14,8 @@ def _target_R(problem: Problem) -> np.ndarray | None:
     term = problem.terminal
     if isinstance(term, TargetState) and "attitude" in term.fixed:
         return term.X[6:15].reshape(3, 3, order="F")
+    if isinstance(term, TargetRendezvous):
+        return term.R
     return None
 
 
@@ -20,7 +23,7 @@ def _target_orbit(problem: Problem) -> np.ndarray | None:
     """Points of the desired orbit (a TargetOrbit's circle, or the osculating orbit of a state
     target that fixes position and velocity), or None."""
     term, model = problem.terminal, problem.model
-    if isinstance(term, TargetOrbit):
+    if isinstance(term, (TargetOrbit, TargetRendezvous)):
         return _circle(term.radius, term.normal)
     if isinstance(term, TargetState) and {"position", "velocity"} <= set(term.fixed) and model.mu:
         return _orbit_ellipse(term.X[0:3], term.X[3:6] / model.mass, model.mu)
@@ -29,7 +32,7 @@ def _target_orbit(problem: Problem) -> np.ndarray | None:
 
 def _target_elements(problem: Problem) -> dict[str, float] | None:
     term, model = problem.terminal, problem.model
-    if isinstance(term, TargetOrbit):
+    if isinstance(term, (TargetOrbit, TargetRendezvous)):
         return {"radius": term.radius, "inclination": float(np.degrees(np.arccos(np.clip(term.normal[2], -1, 1)))),
                 "eccentricity": 0.0}
     if isinstance(term, TargetState) and {"position", "velocity"} <= set(term.fixed) and model.mu:
@@ -52,13 +55,18 @@ def _vec(v) -> str:
     return "(" + ", ".join(f"{x:.3g}" for x in np.asarray(v, float) + 0.0) + ")"
 
 
+def cone_direction_label(c) -> str:
+    """A cone's direction in words: the fixed vector, or 'nadir −x/|x|', 'velocity v/|v|' (moving)."""
+    return {"nadir": "nadir −x/|x|", "velocity": "velocity v/|v|"}.get(c.direction, None) if c.moving else _vec(c.direction)
+
+
 def _describe(c) -> str:
     if isinstance(c, MinRadius):
         return f"min radius: |x| ≥ {c.radius:g}"
-    if isinstance(c, KeepOut):
-        return f"keep-out: angle(R b, s) ≥ {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, direction s = {_vec(c.direction)}"
-    if isinstance(c, KeepIn):
-        return f"keep-in: angle(R b, s) ≤ {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, direction s = {_vec(c.direction)}"
+    if isinstance(c, (KeepOut, KeepIn)):
+        rel = "≥" if isinstance(c, KeepOut) else "≤"
+        return (f"{c.kind.replace('_', '-')}: angle(R b, s) {rel} {c.angle_deg:g}°, body axis b = {_vec(c.body_axis)}, "
+                f"direction s = {cone_direction_label(c)}")
     if isinstance(c, MaxAngularRate):
         return f"max angular rate: |Ω| ≤ {c.value:g}"
     return c.kind

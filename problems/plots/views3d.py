@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from ...transcription.problem import KeepIn, KeepOut, Problem, TargetOrbit, TargetState
+from ...transcription.problem import KeepIn, KeepOut, Problem, TargetOrbit, TargetRendezvous, TargetState
 from ...transcription.results import Solution
 from ..units import units
 from .orbits import _circle, _orbit_ellipse
@@ -98,6 +98,7 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
         ax.plot(*target.T, color="k", lw=1, ls="--", label="desired orbit", zorder=1)
     if _has_target_position(problem):
         ax.scatter(*problem.terminal.X[0:3], marker="x", s=70, color="k", label="desired position", zorder=6)
+    _rendezvous_marks(ax, problem, first)
     L = 0.14 * lim  # the body frame at a seventh of the view, so that its rotation shows at orbit scale
     if not zoom:
         _bodies(ax, problem, first, L, n_bodies)
@@ -121,6 +122,15 @@ def fig_maneuver(runs: list[Run], problem: Problem, *, n_bodies: int = 7):
     fig.legend(handles, labels, loc="outside lower center", ncols=5 if zoom else 3, fontsize=10 if zoom else 8.5,
                frameon=False)  # the wide figure is shown wider: the same size on the page
     return _finish(fig, runs, problem, what)
+
+
+def _rendezvous_marks(ax, problem: Problem, sol: Solution) -> None:
+    """A rendezvous target where it is at t = 0 (triangle) and at the solution's final time (x)."""
+    if isinstance(problem.terminal, TargetRendezvous) and np.isfinite(sol.trajectory.t[-1]):
+        tgt, mu = problem.terminal, problem.model.mu
+        ax.scatter(*tgt.point(0.0, mu)[0], marker="^", s=50, color="k", label="target at t = 0", zorder=6)
+        ax.scatter(*tgt.point(float(sol.trajectory.t[-1]), mu)[0], marker="x", s=70, color="k",
+                   label="target at arrival", zorder=6)
 
 
 def _has_target_position(problem: Problem) -> bool:
@@ -194,7 +204,7 @@ def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
         labels.append("start (o), end (■)")
     else:  # a slew: the attitude at a few times, side by side
         ks = np.unique(np.linspace(0, first.N, n_bodies).round().astype(int))
-        cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+        cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn)) and not c.moving]
         for j, k in enumerate(ks):
             a = ax if j == 0 else fig.add_subplot(1, len(ks), j + 1, projection="3d")
             if j == 0:
@@ -228,12 +238,21 @@ def _maneuver_free(runs: list[Run], problem: Problem, n_bodies: int):
     return _finish(fig, runs, problem, what)
 
 
-def _cones(ax, problem: Problem) -> list:
+def _cones(ax, problem: Problem, runs: list[Run] | None = None) -> list:
     """Draw each cone constraint (keep-out, keep-in) on the unit sphere of a 3-D axes: its boundary
-    about its direction s (dotted); returns the cones."""
-    cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn))]
+    about its direction s (dotted); a moving direction (nadir, velocity) as its path s(t) along the first
+    run (dotted) with the cone's boundary at its start and end (not drawn without ``runs``); returns the
+    cones drawn."""
+    cones = [c for c in problem.constraints if isinstance(c, (KeepOut, KeepIn)) and (runs or not c.moving)]
     for c in cones:
         th = np.radians(c.angle_deg)
+        if c.moving:
+            d = c.directions(runs[0].sol.trajectory)
+            ax.plot(*d.T, color=CONE[c.kind], ls=":", lw=1.8, zorder=2)
+            for s in (d[0], d[-1]):
+                if np.all(np.isfinite(s)):
+                    ax.plot(*(np.cos(th) * s + _circle(np.sin(th), s, 120)).T, color=CONE[c.kind], lw=1.2, zorder=2)
+            continue
         ring = np.cos(th) * c.direction + _circle(np.sin(th), c.direction, 120)
         ax.plot(*ring.T, color=CONE[c.kind], lw=1.6, zorder=2)
         ax.plot(*np.vstack([np.zeros(3), 1.15 * c.direction]).T, color=CONE[c.kind], ls=":", lw=1.4, zorder=2)
@@ -279,7 +298,7 @@ def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
         n = problem.terminal.normal
         ax.plot(*np.vstack([-1.15 * n, 1.15 * n]).T, color="k", ls="--", lw=1.2, zorder=6)
         handles.append(Line2D([], [], color="k", ls="--", lw=1.2, label="target: body axis along ± orbit normal"))
-    for c in _cones(ax, problem):
+    for c in _cones(ax, problem, runs):
         col = CONE[c.kind]
         i = next((i for i in range(3) if np.allclose(np.abs(c.body_axis), np.eye(3)[i])), None)
         axis = f"e{i + 1}" if i is not None else f"b = {_vec(c.body_axis)}"
@@ -288,7 +307,8 @@ def fig_attitude(runs: list[Run], problem: Problem, *, n_marks: int = 9):
                 Rb = np.einsum("kij,j->ki", run.sol.trajectory.R, c.body_axis)
                 ax.plot(*Rb.T, color=col, ls=run.ls, lw=1.2, zorder=3)
         handles.append(Line2D([], [], color=col, lw=1.6,
-                              label=f"{c.kind.replace('_', '-')} cone of {axis}: {c.angle_deg:g}° about s"))
+                              label=f"{c.kind.replace('_', '-')} cone of {axis}: {c.angle_deg:g}° about "
+                                    + (f"{c.direction} (dotted: its path)" if c.moving else "s")))
     ax.set_xlabel("inertial x₁")
     ax.set_ylabel("inertial x₂")
     ax.set_zlabel("inertial x₃")

@@ -128,8 +128,8 @@ def _target_error(sol: "Solution", XN: np.ndarray) -> float:
     prob = sol.problem
     if prob.terminal is None:
         return float("nan")
-    if sol.impulses is None:
-        return terminal_error(XN, prob)
+    if sol.impulses is None:  # at the plan's final time (a rendezvous target moves with it)
+        return terminal_error(XN, prob, T=float(sol.trajectory.t[-1]))
     plus = XN.copy()
     plus[X_MOM] += np.asarray(sol.impulses["dgammaN"], float)
     plus[X_ANG] += np.asarray(sol.impulses["dPiN"], float)

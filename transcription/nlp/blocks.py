@@ -27,6 +27,8 @@ problem of the same structure: the builders with only structural arguments retur
     state_target(disc, fixed)                  the terminal conditions of a state target
         v = X_N (18); p = [sX (18); Xd (18); row scales (3 per fixed component)]
         rows = terminal_residual(X_N, Xd) / scales (docs/mathematics.md §6); cost 0
+    node_rows(name, rows_of, scales)              rows g(X) / scales of one node (path constraints, orbit target)
+    terminal_time_rows(name, rows_of, scales, free_h)   rows g(X_N, T) / scales (rendezvous target)
 """
 from __future__ import annotations
 
@@ -153,6 +155,17 @@ def node_rows(name: str, rows_of, scales: np.ndarray) -> ca.Function:
     return ca.Function(name, [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"])
 
 
+def terminal_time_rows(name: str, rows_of, scales: np.ndarray, free_h: bool) -> ca.Function:
+    """A block of rows g(X_N, T) / scales of the final state and the final time T (a rendezvous target, whose
+    point moves with T): v = [X_N scaled (18); h / h_scale (1, free_h)], p = [sX (18); N h_scale (free_h) or T],
+    T = p[18] v[18] (free_h) or p[18].  Built per problem; with a free final time IPOPT gets the exact first
+    and second derivatives in h through the block."""
+    v, p = ca.SX.sym("v", NX + (1 if free_h else 0)), ca.SX.sym("p", NX + 1)
+    T = p[NX] * v[NX] if free_h else p[NX]
+    rows = rows_of(v[:NX] * p[:NX], T) / ca.DM(np.asarray(scales, dtype=float))
+    return ca.Function(name, [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"])
+
+
 def dynamics_data(disc, h: float, sX, sC, sW, sG, s_obj=None, W_f=None, W_m=None) -> np.ndarray:
     """The data vector p of :func:`dynamics` (None entries are omitted: match the flags)."""
     parts = [[h], sX]
@@ -183,4 +196,4 @@ def state_target_scales(sX: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
 
 
 __all__ = ["FUEL_SLACKS", "NC", "STATE_COMPONENTS", "control_node", "dynamics", "dynamics_data", "dynamics_sizes", "node_rows",
-           "state_target", "state_target_scales", "time_cost"]
+           "state_target", "terminal_time_rows", "state_target_scales", "time_cost"]

@@ -10,7 +10,7 @@ from ..lgvi import Discretization
 from .constraints import PATH_CONSTRAINTS
 from .controls import Control, ImpulsiveControl, SmoothControl, ThrusterBound
 from .errors import ProblemError
-from .targets import Target, TargetOrbit, TargetState
+from .targets import Target, TargetOrbit, TargetRendezvous, TargetState
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -46,8 +46,10 @@ class Problem:
         if (self.terminal is None) != (self.control is None):
             raise ProblemError("terminal" if self.terminal is None else "control",
                                "a terminal target and a control go together (both, or neither for a simulation)")
-        if isinstance(self.terminal, TargetOrbit) and self.disc.model.mu is None:
-            raise ProblemError("terminal", "an orbit target needs a model with a central body (mu)")
+        if isinstance(self.terminal, (TargetOrbit, TargetRendezvous)) and self.disc.model.mu is None:
+            raise ProblemError("terminal", "an orbit or rendezvous target needs a model with a central body (mu)")
+        if isinstance(self.terminal, TargetRendezvous) and not isinstance(self.control, SmoothControl):
+            raise ProblemError("terminal", "a rendezvous target needs smooth control")
         if isinstance(self.control, ImpulsiveControl) and isinstance(self.terminal, TargetState) and self.terminal.free:
             raise ProblemError("terminal.free", "an impulsive state target must give every component")
         if self.time_bounds is not None:

@@ -80,11 +80,12 @@ def terminal_row_scales(problem: Problem, sc: Scales) -> np.ndarray:
     """Scales of the terminal rows of the NLP (the row divided by its scale is what the solver sees):
     a state target's fixed components (:func:`~transcription.nlp.blocks.state_target_scales`); an orbit
     target's :func:`~transcription.problem.orbit_residual` rows (radius, out-of-plane position, the body
-    axis (2), linear and angular momentum)."""
+    axis (2), linear and angular momentum); a rendezvous target's rows as a state target's with its given
+    components."""
     target = problem.terminal
     if isinstance(target, TargetOrbit):
         return np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[X_MOM], sc.X[X_ANG]])
-    return blocks.state_target_scales(sc.X, target.fixed)
+    return blocks.state_target_scales(sc.X, target.fixed)    # a state or a rendezvous target
 
 
 def scaled_terminal_miss(problem: Problem, XN: np.ndarray) -> float:

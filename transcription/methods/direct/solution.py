@@ -47,7 +47,7 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
     lam_g = np.array(out["lam_g"]).ravel()
     g_phys = np.array(out["g"]).ravel() * tr.g_scale
     Xsim, res = problem.disc.simulate(problem.X0, U, h, problem.N)
-    err = terminal_error(Xsim[-1], problem)
+    err = terminal_error(Xsim[-1], problem, T=problem.N * h)
     traj = trajectory(problem, Xsim, h)
     worst_cayley = float(np.max(res)) if res.size else 0.0
     result, message = _verdict(problem, status, solver, Xsim, res, h, err, options)
@@ -59,7 +59,7 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
         "n_variables": int(tr.layout.n),
         "n_constraints": int(tr.nlp.ng),
         "max_defect": float(np.abs(g_phys[tr.defect_rows.ravel()]).max()),
-        "nlp_terminal_error": terminal_error(Xn[:, -1], problem),
+        "nlp_terminal_error": terminal_error(Xn[:, -1], problem, T=problem.N * h),
         "max_cayley_residual": worst_cayley,
         "jit": bool(tr.nlp.compiled),
         **solve_time_split(stats, solve_s),

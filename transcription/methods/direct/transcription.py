@@ -31,8 +31,8 @@ from ...nlp import blocks
 from ...nlp.layouts import NLPLayout, StageLayout, control_nodes
 from ...nlp.structured import Block, StructuredNLP
 from ...options import DirectOptions
-from ...problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, ThrusterBound, orbit_residual,
-                        quadrature_weights)
+from ...problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, ThrusterBound,
+                        orbit_residual, quadrature_weights, rendezvous_residual)
 from .scaling import characteristic_scales, terminal_row_scales
 
 NC = blocks.NC
@@ -44,8 +44,9 @@ class SmoothTranscription:
     Blocks (transcription.nlp.blocks), in this order: the dynamics of every step (with the effort cost), the
     control nodes' norm bounds and fuel epigraph (with the fuel cost), the time cost, one block per path
     constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
-    target's fixed components, or an orbit target).  Box bounds on the controls, removed controls (a norm
-    bound of 0), the slacks' signs and the free step size's range are variable bounds.
+    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  Box
+    bounds on the controls, removed controls (a norm bound of 0), the slacks' signs and the free step size's
+    range are variable bounds.
 
     ``stage_order``: fatrop's stage-ordered layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0
     as constraint rows (fatrop takes no fixed variables) and, for the LGVI, the lifting rows (fixed-time
@@ -187,6 +188,12 @@ class SmoothTranscription:
             m, mu = problem.model.mass, problem.model.mu
             fn = blocks.node_rows("orbit_target", lambda X: orbit_residual(X, target, m, mu), tsc)
             return Block("terminal", fn, lay.iX[:, -1], sc.X), tsc
+        if isinstance(target, TargetRendezvous):  # the target point moves with T = N h
+            m, mu = problem.model.mass, problem.model.mu
+            fn = blocks.terminal_time_rows("rendezvous_target", lambda X, T: rendezvous_residual(X, T, target, m, mu),
+                                           tsc, self.free_h)
+            iV = np.r_[lay.iX[:, -1], [lay.ih]] if self.free_h else lay.iX[:, -1]
+            return Block("terminal", fn, iV, np.r_[sc.X, problem.N * self.h_scale if self.free_h else problem.T]), tsc
         return (Block("terminal", blocks.state_target(problem.disc, target.fixed), lay.iX[:, -1],
                       np.concatenate([sc.X, target.X, tsc])), tsc)
 

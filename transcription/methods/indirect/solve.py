@@ -10,7 +10,7 @@ import numpy as np
 from ...layout import NU, NZ
 from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...problem import STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetState, terminal_error
+from ...problem import STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, terminal_error
 from ...results import Attempt, Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
@@ -31,8 +31,12 @@ def not_covered(problem: Problem) -> str:
     if c.objective != "effort":
         reasons.append(f"the {c.objective} objective")
     if problem.constraints:
-        reasons.append("path constraints")
-    if not isinstance(problem.terminal, TargetState):
+        moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
+                  if getattr(c, "moving", False)]
+        reasons.append("path constraints" + (f" (a {', a '.join(moving)})" if moving else ""))
+    if isinstance(problem.terminal, TargetRendezvous):
+        reasons.append("a rendezvous target (its point moves with the final time)")
+    elif not isinstance(problem.terminal, TargetState):
         reasons.append("an orbit target")
     if problem.disc.force_frame != "inertial":
         reasons.append("a force in the body frame")
