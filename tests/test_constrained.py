@@ -64,7 +64,8 @@ def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
     assert coarse.stats["initial_guess"] == coarse.attempts[0].label
     monkeypatch.setattr(plan, "TIME_COARSE_MIN", 10 ** 6)     # no coarser grid: the starts on N = 100
     fine = se3ocp.solve(maneuver(name, 100), "direct")
-    assert [a.prepared_on for a in fine.attempts] == [""] * plan.TIME_STARTS
+    starts = plan.TIME_STARTS + len(plan.bracketing_times(maneuver(name, 100).problem))   # seeds, T bracketing
+    assert [a.prepared_on for a in fine.attempts] == [""] * starts
     assert "resampled" not in fine.stats["initial_guess"]
     assert fine.converged and coarse.converged
     # the minimum time to solver tolerance (the controls may be a mirror image of each other: the slews

@@ -27,7 +27,7 @@ All return a :class:`Guess`; Cayley vectors are c_k = cay^-1(R_k^T R_{k+1})
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -49,6 +49,8 @@ class Guess:
     seconds: float = 0.0
     prepared_on: str = ""
     h: float | None = None
+    #: what the solve that made it reports on to the Solution of this one (the multistart's spread)
+    stats: dict = field(default_factory=dict)
 
 
 def cayley_vectors(X: np.ndarray) -> np.ndarray:

@@ -308,6 +308,8 @@ class IndirectOptions(Options):
     max_iter: int = _opt(50, "int", lo=1, doc="Newton iterations")
     max_halvings: int = _opt(30, "int", lo=0, hi=200, doc="line-search halvings per iteration")
     initial_costate: Any = _opt("zero", "costate", doc="zero, from_direct (the direct solution's multipliers) or 12 numbers")
+    fallback: bool = _opt(True, "bool", doc="when the start of initial_costate (zero or 12 numbers) fails, start again "
+                                            "from the direct solution (from_direct, with its T for a free final time)")
     floor_factor: float = _opt(10.0, "float", lo=1.0, doc="round-off floor: |z_N| within this factor of the measured noise")
     floor_accept: float = _opt(1e-8, "float", lo=0.0, doc="a round-off floor above this is not accepted as convergence")
     cayley_tol: float = _opt(1e-10, "float", lo=0.0, doc="trials whose rollout leaves a larger Cayley residual are rejected")

@@ -25,9 +25,10 @@ from .methods.base import Method, Progress, failed_solution
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
+from .methods.indirect.solve import needs_fallback, with_fallback
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, terminal_error
-from .results import Result, SolveError, Solution, html_table, trajectory
+from .results import Attempt, Result, SolveError, Solution, html_table, trajectory
 from .warm import WarmStart, as_warm_start
 
 #: the registry: each method name and its implementations (one per kind of control)
@@ -36,6 +37,10 @@ METHODS: dict[str, tuple[Method, ...]] = {"direct": (DIRECT, IMPULSIVE), "indire
 METHOD_NAMES = ("direct", "indirect", "both")
 #: relative cost difference above which compare reports different extremals
 MISMATCH_COST_RTOL = 1e-6
+#: IPOPT's tol of the direct method's re-solve (from its own solution, primal and dual) before 'both' declares
+#: a mismatch: a solution at a looser tol can sit inside an active bound by ~sqrt(tol) and cost more
+#: (:func:`reconcile`)
+RETIGHTEN_TOL = 1e-12
 
 
 @dataclass
@@ -84,19 +89,62 @@ def compare(a: Solution, b: Solution) -> Comparison:
     both = a.converged and b.converged
     same = bool(both and rel <= MISMATCH_COST_RTOL)
     na = next((s for s in (a, b) if s.result is Result.not_applicable), None)
+    d, i = (a, b) if a.method == "direct" else (b, a)
     if na is not None:
         verdict = f"not comparable: {na.message.split(';')[0]}"
     elif not both:
         verdict = "not comparable: at least one method did not converge"
     elif same:
-        verdict = "agree: same extremal"
+        verdict = "agree: same extremal" + (f" ({_tolerances(d, i)})" if "retightened_from_tol" in d.stats else "")
     else:
         lo, hi = sorted([a, b], key=lambda s: s.cost)
+        tip = ("Try solver.indirect.initial_costate=from_direct." if i.stats.get("initial_costate") != "from_direct"
+               else "Try another solver.direct.initial_guess (the indirect method started from the direct solution).")
         verdict = (f"MISMATCH: the methods reached different extremals ({lo.method} cost {lo.cost:.6g} vs "
-                   f"{hi.method} cost {hi.cost:.6g}, ratio {hi.cost / lo.cost:.3g}); the higher one is not the "
-                   f"optimum. Try solver.indirect.initial_costate=from_direct.")
-    d, i = (a, b) if a.method == "direct" else (b, a)
+                   f"{hi.method} cost {hi.cost:.6g}, ratio {hi.cost / lo.cost:.3g}, relative difference {rel:.1e} > "
+                   f"{MISMATCH_COST_RTOL:.0e}; {_tolerances(d, i)}); the higher one is not the optimum. {tip}")
     return Comparison(d, i, float(rel), du, same, verdict)
+
+
+def _tolerances(d: Solution, i: Solution) -> str:
+    """The tolerances the two solutions were solved to, for a verdict: the direct method's KKT tol (and the
+    looser one it was re-solved from, :func:`reconcile`), the indirect method's final |z_N|."""
+    parts = []
+    if "kkt_tol" in d.stats:
+        parts.append(f"direct at tol {d.stats['kkt_tol']:.0e}")
+        if "retightened_from_tol" in d.stats:
+            parts[-1] += (f", re-solved from its solution at tol {d.stats['retightened_from_tol']:.0e}, where the "
+                          f"costs were {d.stats['cost_difference_before_retightening']:.1e} apart")
+    if "residual_norm" in i.stats:
+        parts.append(f"indirect at |z_N| = {i.stats['residual_norm']:.1e}")
+    return "; ".join(parts) or "tolerances unknown"
+
+
+def reconcile(cmp: Comparison, direct: DirectOptions, progress: Progress | None = None) -> Comparison:
+    """``cmp`` again after the direct method was re-solved at tol RETIGHTEN_TOL from its own solution (primal and
+    dual), when both converged but their costs differ by more than MISMATCH_COST_RTOL and the direct tol was
+    looser: a difference that the direct method's tolerance explains is not a mismatch.  The re-solve's
+    iterations and time are added to the direct Solution; its stats say what it was re-solved from
+    (``retightened_from_tol``, ``cost_difference_before_retightening``) and the verdict names the tolerances.
+    Unchanged when there is nothing to re-solve or the re-solve does not converge (then ``stats['retighten']``
+    of the direct Solution says so)."""
+    d = cmp.direct
+    if cmp.same_extremal or not cmp.converged or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL or d.warm is None:
+        return cmp
+    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
+    if not tight.converged:
+        d.stats["retighten"] = f"the re-solve at tol {RETIGHTEN_TOL:.0e} ended {tight.result}"
+        d.message += f"; {d.stats['retighten']}"
+        return compare(d, cmp.indirect)
+    tight.stats.update(retightened_from_tol=float(direct.tol), cost_difference_before_retightening=cmp.cost_relative_difference)
+    tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it before comparing "
+                     f"(the costs were {cmp.cost_relative_difference:.1e} apart): {tight.message.split(';')[0]}")
+    tight.iterations += d.iterations
+    tight.build_s += d.build_s
+    tight.solve_s += d.solve_s
+    tight.attempts = (*d.attempts, Attempt(f"its solution at tol {RETIGHTEN_TOL:.0e}", tight.result, tight.iterations
+                                           - d.iterations, tight.cost))
+    return compare(tight, cmp.indirect)
 
 
 # ---------------------------------------------------------------------------- the registry
@@ -139,6 +187,22 @@ def _indirect_after_direct(problem: Problem, indirect: IndirectOptions, progress
     if direct_s is not None:
         isol.stats.update(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
     return isol
+
+
+def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect: IndirectOptions,
+              progress: Progress | None, warm: WarmStart | None, dsol: Solution | None) -> Solution:
+    """``isol`` if it succeeded or needs no fallback (:func:`~.methods.indirect.solve.needs_fallback`), else the
+    indirect method started again from the direct solution ``dsol`` (solved here when None) -- the cold start's
+    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`)."""
+    if not needs_fallback(isol, indirect, warm):
+        return isol
+    direct_s = None
+    if dsol is None:
+        t0 = time.perf_counter()
+        dsol = _run(problem, "direct", direct, progress, None)
+        direct_s = time.perf_counter() - t0
+    retry = _run(problem, "indirect", indirect, progress, dsol.warm) if dsol.converged and dsol.warm else None
+    return with_fallback(isol, retry, dsol, direct_s)
 
 
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
@@ -192,7 +256,8 @@ def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: In
     if method == "direct":
         out = _run(problem, "direct", direct, progress, warm)
     elif method == "indirect" and (warm is not None or indirect.initial_costate != "from_direct"):
-        out = _run(problem, "indirect", indirect, progress, warm)
+        out = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
+                        warm, None)
     elif method == "indirect":                       # from_direct: the direct solution first
         t0 = time.perf_counter()
         dsol = _run(problem, "direct", direct, progress, None)
@@ -202,8 +267,9 @@ def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: In
         if indirect.initial_costate == "from_direct":
             isol = _indirect_after_direct(problem, indirect, progress, dsol, None)
         else:
-            isol = _run(problem, "indirect", indirect, progress, warm)
-        out = compare(dsol, isol)
+            isol = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
+                             warm, dsol)
+        out = reconcile(compare(dsol, isol), direct, progress)
     return out
 
 

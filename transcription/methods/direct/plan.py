@@ -17,7 +17,7 @@ import numpy as np
 from ...guess import Guess, aimed_guess, cayley_vectors, make_guess, perturbed_interpolation_guess, target_estimate
 from ...layout import U_FORCE, U_MOMENT
 from ...options import DirectOptions
-from ...problem import BoxBound, Problem, ThrusterBound
+from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
 from .scaling import scaled_terminal_miss
@@ -56,6 +56,39 @@ TIME_STARTS = 3
 #: maneuver is resampled to N steps and finished there; the fine-grid starts remain the fallback.
 #: Each start costs a quarter (or less) of a fine one and the finish takes few iterations.
 TIME_COARSE_MIN = 25
+
+
+#: IPOPT options of an effort problem with bounds or path constraints (those with a :func:`relaxation`), unless
+#: the raw options set them: IPOPT's heuristics for a problem expected to be infeasible (the restoration phase
+#: called sooner, more reduction of the violation before leaving it; off once the violation is below 1e-3) ...
+INFEASIBILITY_DETECTION = {"expect_infeasible_problem": "yes"}
+#: ... and for the start from the relaxation's solution a phase 1: IPOPT starts in its restoration phase, which
+#: minimizes the violation of the bounds and constraints the relaxed optimum breaks.  If that ends at a least
+#: violation > 0 (Infeasible_Problem_Detected) the problem is reported infeasible and the other starts are not
+#: tried (NOT_TRIED).  E3 with the thrust norm bounded by 10 instead of 12 (configs/e3_bounded.yaml, no solution),
+#: N = 500: infeasible in 54 iterations from the relaxed optimum, where without the phase 1 IPOPT spent its 200
+#: there, then 69 (rollout) and 79 (interpolation) more to Infeasible_Problem_Detected, and without either
+#: option 200 + 3000 + 3000 iterations (> 900 s on the loaded machine).  The price on feasible problems: the
+#: bounded E3 (N = 500) 57 iterations instead of 43 to the same solution.  Only with a control bound: with path
+#: constraints alone it cost the keep-out slew 42 iterations instead of 14 and E3 with a minimum radius 34
+#: instead of 26.  Not for the time and fuel objectives (no relaxation):
+#: expect_infeasible_problem took the fuel raise (N = 100) to another local minimum (0.819710 against 0.819595).
+PHASE1 = {"start_with_resto": "yes"}
+#: Guess.prepared_on of the relaxation's solution
+RELAXED = "the relaxed problem"
+#: the note of the starts not tried after the phase 1 found the problem infeasible
+NOT_TRIED = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally infeasible; "
+             "solver.direct.initial_guess=rollout or interpolate tries this start)")
+
+
+def plan_ipopt_options(problem: Problem, phase1: bool = False) -> dict:
+    """IPOPT options the plan adds for ``problem`` (:data:`INFEASIBILITY_DETECTION`; ``phase1``, the start from
+    the relaxation's solution: :data:`PHASE1` too)."""
+    c = problem.control
+    if relaxation(problem) is None or isinstance(c.force_bound, ThrusterBound):
+        return {}     # a body-fixed engine (issue 24) starts from the aimed relaxed solution: not measured with these
+    bounded = any(b is not None and not r for b, r in zip((c.force_bound, c.moment_bound), c.removed))
+    return {**INFEASIBILITY_DETECTION, **(PHASE1 if phase1 and bounded else {})}
 
 
 def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> tuple[list[PlanEntry], str]:
@@ -97,14 +130,28 @@ def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
     for sl, bound in ((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound)):
         size[sl] = bound.b if isinstance(bound, BoxBound) else bound.max if isinstance(bound, ThrusterBound) else \
             bound.b / np.sqrt(3.0)      # an engine's random force is projected onto its axis (initial_point)
-    starts = [(f"interpolate with symmetry-breaking controls (seed {k})",
-               lambda k=k: perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, T, size, seed=k),
-               options.max_iter) for k in range(TIME_STARTS)]
+
+    def start(Ts: float, k: int):
+        return lambda: replace(perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, Ts, size, seed=k),
+                               h=Ts / N)
+
+    starts = [(f"interpolate with symmetry-breaking controls (seed {k})", start(T, k), options.max_iter)
+              for k in range(TIME_STARTS)]
     Nc = max(TIME_COARSE_MIN, N // 4)
     if Nc < N:
         return [(f"the best start on {Nc} steps, resampled",
                  lambda: coarse_guess(problem, options, Nc, subsolve), options.max_iter)] + starts, "coarse"
-    return starts, "best"
+    return starts + [(f"interpolate over T = {Ts:.6g} with symmetry-breaking controls (seed 0)", start(Ts, 0),
+                      options.max_iter) for Ts in bracketing_times(problem)], "best"
+
+
+def bracketing_times(problem: Problem) -> list[float]:
+    """The final times of the starts that bracket the guess T on the coarsest grid: the geometric means of T and
+    each of the time bounds (those not equal to T).  Why: a time-optimal maneuver's local minima differ in
+    their time, and the starts at the guess alone may all fall into the one nearest to it."""
+    lo, hi = problem.time_bounds
+    T = problem.T
+    return [float(np.sqrt(T * b)) for b in (lo, hi) if not np.isclose(b, T, rtol=1e-9, atol=0.0)]
 
 
 def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: SubSolve) -> Guess | None:
@@ -116,7 +163,8 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
         return None
     fitted, _ = sol.warm.fit(problem.N, problem.scheme)
     return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
-                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h)
+                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h,
+                 stats={k: v for k, v in sol.stats.items() if k.startswith("multistart")})
 
 
 def relaxation(problem: Problem) -> Problem | None:
@@ -141,7 +189,7 @@ def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, su
     if not sol.converged or sol.warm is None:
         return None
     guess = replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,
-                    prepared_on="the relaxed problem", h=None)
+                    prepared_on=RELAXED, h=None)
     engine = problem.control.force_bound
     if isinstance(engine, ThrusterBound):
         guess = aimed_guess(problem.disc, guess, engine.axis, (engine.min, engine.max), problem.h)
@@ -164,6 +212,10 @@ def failure_hint(sol: Solution, options: DirectOptions) -> str:
     if sol.converged or r in (Result.interrupted, Result.cayley_failed, Result.invalid_option, Result.non_finite):
         return ""
     tips = []
+    binding = binding_bound(sol)
+    if binding and r in (Result.infeasible, Result.max_iterations, Result.acceptable, Result.time_limit,
+                                          Result.solver_failed):
+        tips.append(binding)
     if r is Result.acceptable:
         tips.append("a looser solver.direct.tol (IPOPT stalled at its 'acceptable' level above it) or "
                     "solver.direct.options.acceptable_iter=0 (keep iterating)")
@@ -174,3 +226,59 @@ def failure_hint(sol: Solution, options: DirectOptions) -> str:
     tips.append("an easier neighbouring maneuver (longer horizon.T, smaller change) reached by continuation: a sweep "
                 "along the changed key with continuation (configs/sweeps/)")
     return "try " + "; or ".join(tips)
+
+
+#: a bound binds a failed solve when at least this fraction of the control nodes of its last iterate is at it
+BINDING_FRACTION = 0.1
+
+
+def binding_bound(sol: Solution) -> str:
+    """The control bound that binds the last iterate of a failed solve, in words ('' if none does): the one with
+    the largest fraction of control nodes at it (within AT_BOUND_RTOL, :meth:`NormBound.active`), at least
+    BINDING_FRACTION, with its value and the key to change.  Why: a solve that ends infeasible or at its
+    iteration limit with the controls pinned to a bound is usually asking more than that bound gives in the
+    horizon, and naming the bound says what to change."""
+    if sol.controls is None or sol.problem is None or sol.problem.kind != "smooth":
+        return ""
+    c, U = sol.problem.control, np.asarray(sol.controls, float)
+    best = None
+    for name, sl, bound in (("force", U_FORCE, c.force_bound), ("moment", U_MOMENT, c.moment_bound)):
+        if not hasattr(bound, "active") or (isinstance(bound, NormBound) and bound.b == 0):
+            continue
+        at = float(np.mean(bound.active(U[sl].T)))
+        if at >= BINDING_FRACTION and (best is None or at > best[0]):
+            best = (at, name, bound)
+    if best is None:
+        return ""
+    at, name, bound = best
+    sym = "u_f" if name == "force" else "u_m"
+    what = (f"|{sym}| <= {bound.b:.6g}" if isinstance(bound, NormBound) else
+            f"|{sym},i| <= [{', '.join(f'{b:.6g}' for b in bound.b)}]" if isinstance(bound, BoxBound) else
+            f"(engine thrust <= {bound.max:.6g})" if isinstance(bound, ThrusterBound) else "")
+    return (f"the {name} bound {what} binds ({at:.0%} of the control nodes of the last iterate are at it): a larger "
+            f"control.bounds.{name} or a longer horizon.T")
+
+
+#: converged starts whose costs differ by at most this (relative) count as one optimum
+SAME_OPTIMUM_RTOL = 1e-6
+
+
+def multistart(attempts, N: int) -> dict:
+    """The spread of the starts of a multistart ('best' pick: every start solved on this grid of N steps), as
+    Solution stats: ``multistart_starts`` (converged starts), ``multistart_optima`` (distinct optima, costs
+    within SAME_OPTIMUM_RTOL of one another counted once), ``multistart_spread`` = (max - min) / min of their
+    costs, ``multistart_grid`` = N, and ``multistart`` (the sentence of the message); {} with fewer than two."""
+    costs = sorted(a.cost for a in attempts if a.result is not None and a.result.successful and np.isfinite(a.cost))
+    if len(costs) < 2:
+        return {}
+    optima = [costs[0]]
+    for c in costs[1:]:
+        if c - optima[-1] > SAME_OPTIMUM_RTOL * abs(optima[-1]):
+            optima.append(c)
+    spread = (costs[-1] - costs[0]) / max(abs(costs[0]), 1e-300)
+    said = (f"the {len(costs)} starts on {N} steps ended at the same optimum (spread {spread:.1e})" if len(optima) == 1
+            else f"the {len(costs)} starts on {N} steps ended at {len(optima)} different optima (costs "
+                 f"{', '.join(f'{c:.6g}' for c in optima)}; spread {spread:.1%}): the lowest is kept, and a lower one "
+                 f"may exist (more starts: a sweep over horizon.T.guess or the seeds)")
+    return {"multistart_starts": len(costs), "multistart_optima": len(optima), "multistart_spread": float(spread),
+            "multistart_grid": N, "multistart": said}

@@ -15,7 +15,8 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
-from .plan import PlanEntry, failure_hint, guess_plan, warm_guess
+from .plan import (NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
+                   warm_guess)
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
@@ -31,22 +32,26 @@ class _PlanRun:
         self.build_s = time.perf_counter() - t0
         # a warm start's multipliers start IPOPT's duals only on an NLP of the same structure
         self.nu0 = warm.multipliers if warm is not None and warm.nlp_key == self.tr.nlp.key else None
-        self.solvers: dict[int, ca.Function] = {}
+        self.solvers: dict[tuple[int, bool], ca.Function] = {}
         self.attempts: list[Attempt] = []
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
-    def solver(self, budget: int) -> ca.Function:
-        if budget not in self.solvers:
+    def solver(self, budget: int, phase1: bool = False) -> ca.Function:
+        """IPOPT within ``budget`` iterations (``phase1``: from a relaxation's solution, :func:`plan_ipopt_options`)."""
+        if (budget, phase1) not in self.solvers:
             t0 = time.perf_counter()
             ipopt = ipopt_options(self.options.replace(max_iter=budget), warm_duals=self.nu0 is not None)
-            self.solvers[budget] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress, self.tr.scales.objective)
+            for key, value in plan_ipopt_options(self.problem, phase1).items():
+                ipopt.setdefault(key, value)
+            self.solvers[budget, phase1] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress,
+                                                      self.tr.scales.objective)
             self.extra_build_s += time.perf_counter() - t0
-        return self.solvers[budget]
+        return self.solvers[budget, phase1]
 
     def attempt(self, label: str, guess: Guess, budget: int) -> Solution:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
-        tr, solver = self.tr, self.solver(budget)
+        tr, solver = self.tr, self.solver(budget, guess.prepared_on == RELAXED)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
         if self.nu0 is not None:
             args["lam_g0"] = tr.scaled_multipliers(self.nu0)
@@ -65,13 +70,14 @@ class _PlanRun:
         self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
                                      guess.iterations, guess.prepared_on))
         sol.stats["initial_guess"] = label
+        sol.stats.update(guess.stats)
         return sol
 
     def run(self, plan: list[PlanEntry], pick: str) -> Solution | None:
         """The plan's guesses in turn (:func:`~transcription.methods.direct.plan.guess_plan` says how ``pick``
         chooses); the Solution chosen, or None if no guess could be solved."""
         sol, best = None, None
-        for label, maker, budget in plan:
+        for i, (label, maker, budget) in enumerate(plan):
             guess = maker()
             if guess is None:
                 self.attempts.append(Attempt(label, None, note="not available (the "
@@ -88,6 +94,9 @@ class _PlanRun:
                 break
             if pick == "coarse" and guess.prepared_on == "the coarse grid" and sol.converged:
                 break   # finished on the fine grid: the fine-grid starts are only the fallback
+            if guess.prepared_on == RELAXED and sol.result is Result.infeasible:
+                self.attempts += [Attempt(rest, None, note=NOT_TRIED) for rest, _, _ in plan[i + 1:]]
+                break   # the phase 1 from the relaxed optimum ended at a least violation > 0 (plan_ipopt_options)
         if sol is None:
             return None
         return best if best is not None and sol.result is not Result.interrupted else sol
@@ -141,6 +150,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     sol.attempts = tuple(run.attempts)
     if len(run.attempts) > 1:
         sol.message += "; initial guesses tried: " + "; ".join(a.line() for a in run.attempts)
+    if pick == "best":
+        sol.stats.update(multistart(run.attempts, problem.N))
+    if sol.converged and "multistart" in sol.stats:
+        sol.message += f"; {sol.stats['multistart']}"
     hint = failure_hint(sol, options) if warm is None else ""
     if hint:
         sol.stats["hint"] = hint

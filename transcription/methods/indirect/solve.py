@@ -12,7 +12,7 @@ from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
 from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, ThrusterBound,
                         terminal_error)
-from ...results import Iterate, Result, Solution, trajectory
+from ...results import Attempt, Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
@@ -90,7 +90,8 @@ def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart 
             if resampled:
                 notes.append("lambda_0 from the resampled costates")
             U = fitted.U
-            return (lam0_from_costates(problem, fitted.costates[0], U[:, 0], u1=U[:, 1] if U.shape[1] > 1 else None),
+            return (lam0_from_costates(problem, fitted.costates[0], U[:, 0], initial_step(problem, warm),
+                                       u1=U[:, 1] if U.shape[1] > 1 else None),
                     "from_direct" if warm.source == "direct" else "warm_start", notes)
         notes.append("it carries no costates: lambda_0 from initial_costate")
     spec = options.initial_costate
@@ -117,9 +118,9 @@ class _Shooting:
         self.free = free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
 
-    def cayley_residual(self, lam: np.ndarray) -> float:
-        """The largest relative Cayley residual of the rollout from lam at the problem's h."""
-        return float(self.fns.residual(lam, self.X0, self.Xd, self.problem.h, self.Winv, self.bd)[2])
+    def cayley_residual(self, lam: np.ndarray, h: float) -> float:
+        """The largest relative Cayley residual of the rollout from lam at the step size h."""
+        return float(self.fns.residual(lam, self.X0, self.Xd, h, self.Winv, self.bd)[2])
 
     def newton(self, lam, bd_stage, phase: str, h: float) -> NewtonResult:
         fns, X0, Xd, Winv, free, opts = self.fns, self.X0, self.Xd, self.Winv, self.free, self.options
@@ -162,10 +163,10 @@ class _Shooting:
         return control_cost(problem, U, h) / h + float(np.sum(np.array(tg(Xk, problem.disc.stage_controls(U), lams,
                                                                           h))))
 
-    def run(self, lam) -> tuple[NewtonResult, float]:
-        """The Newton iteration from lam (with a free final time, inside the secant iteration on h); the
-        result and the final step size."""
-        problem, h = self.problem, self.problem.h
+    def run(self, lam, h: float) -> tuple[NewtonResult, float]:
+        """The Newton iteration from lam at the step size h (with a free final time, inside the secant iteration
+        on h, h the first guess); the result and the final step size."""
+        problem = self.problem
         if not problem.free_time:
             return self.solve_at(lam, h, True), h
         N = problem.N
@@ -256,7 +257,8 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
     except ValueError as exc:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
     shooting = _Shooting(problem, options, progress, source)
-    r0 = shooting.cayley_residual(lam)
+    h = initial_step(problem, warm)
+    r0 = shooting.cayley_residual(lam, h)
     if not r0 <= options.cayley_tol:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
                                f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual "
@@ -264,7 +266,7 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
                                f"use a smaller step h = T/N (increase horizon.N) or another initial costate",
                                shooting.build_s)
     t1 = time.perf_counter()
-    nr, h = shooting.run(lam)
+    nr, h = shooting.run(lam, h)
     sol = shooting.solution(nr, h, time.perf_counter() - t1)
     if notes:
         sol.stats.update(warm_start=notes[0].removeprefix("warm start from "),
@@ -272,6 +274,57 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
                          warm_start_notes="; ".join(notes[1:]))
         sol.message += "; " + "; ".join(notes)
     return sol
+
+
+def initial_step(problem: Problem, warm: WarmStart | None) -> float:
+    """The first step size of the shooting: the problem's h = T/N, except for a free final time started from a
+    solution (``warm``: the direct solution of initial_costate from_direct, or any warm start), whose T
+    (clipped to the time bounds) goes with its costates."""
+    if not problem.free_time or warm is None:
+        return problem.h
+    lo, hi = problem.time_bounds
+    return min(max(warm.T, lo), hi) / problem.N
+
+
+#: results after which a failed start is final (nothing to retry: the method does not apply, or the user stopped it)
+NO_FALLBACK = (Result.not_applicable, Result.interrupted)
+
+
+def needs_fallback(sol: Solution, options: IndirectOptions, warm: WarmStart | None) -> bool:
+    """Whether the solve ``sol``, started from ``options.initial_costate`` (no warm start), failed and is to be
+    started again from the direct solution (``options.fallback``, :func:`with_fallback`)."""
+    return (bool(options.fallback) and warm is None and options.initial_costate != "from_direct"
+            and not sol.result.successful and sol.result not in NO_FALLBACK)
+
+
+def with_fallback(cold: Solution, retry: Solution | None, dsol: Solution, direct_s: float | None) -> Solution:
+    """The Solution of a solve whose start from ``initial_costate`` (``cold``) failed and that was started again
+    from the direct solution ``dsol`` (``retry``; None when the direct method did not converge, so that there was
+    nothing to start from).  The successful one is returned (else the cold one, whose failure is the reason), its
+    ``attempts`` the two starts, its message saying which start succeeded, its iterations and solve time those of
+    both Newton iterations (plus ``direct_s``, the direct solve run for it); ``stats['fallback']``."""
+    spec = cold.stats.get("initial_costate", "zero")
+    first = Attempt(f"initial_costate {spec}", cold.result, cold.iterations)
+    what = "from_direct (the direct solution's costates" + (f", its T = {dsol.warm.T:.10g})" if
+                                                             cold.problem.free_time and dsol.warm else ")")
+    if retry is None:
+        second = Attempt(what, None, note=f"not available (the direct method ended {dsol.result}: {dsol.message})")
+        out, said = cold, f"; the fallback {second.line()}"
+    else:
+        second = Attempt(what, retry.result, retry.iterations, retry.cost if retry.converged else float("nan"))
+        out = retry if retry.converged else cold
+        said = (f"; started from the direct solution (initial_costate from_direct) after the start from initial_costate "
+                f"{spec} failed ({cold.result}: {cold.message.split(';')[0]})" if retry.converged else
+                f"; the fallback from the direct solution failed too ({retry.result}: {retry.message.split(';')[0]})")
+        out.iterations = cold.iterations + retry.iterations
+        out.solve_s = cold.solve_s + retry.solve_s
+    out.message += said
+    out.attempts = (first, second)
+    out.stats["fallback"] = "from_direct" if retry is not None and retry.converged else "failed"
+    if direct_s is not None:
+        out.solve_s += direct_s
+        out.stats.update(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
+    return out
 
 
 def outer_errors(history: list[Iterate]) -> np.ndarray:
