@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from .layout import X_ANG, split_state
-from .problem import BoxBound, MaxAngularRate, NormBound, Problem, SmoothControl, TargetState, ThrusterBound
+from .problem import MaxAngularRate, Problem, SmoothControl, TargetState
 from .lie import rotation_angle
 from .results import Result
 
@@ -41,15 +41,9 @@ MAX_STEPS = 10_000_000
 
 
 def _limit(bound) -> float:
-    """The largest |u| a bound allows (inf without one): a body-fixed engine's max (|R u_f| = |u_f| = T, so the
+    """The largest |u| a bound allows (inf without one; a body-fixed engine's max: |R u_f| = |u_f| = T, so the
     bounds of docs/mathematics.md §13 hold in either frame)."""
-    if isinstance(bound, NormBound):
-        return bound.b
-    if isinstance(bound, ThrusterBound):
-        return bound.max
-    if isinstance(bound, BoxBound):
-        return float(np.linalg.norm(bound.b))
-    return math.inf
+    return math.inf if bound is None else bound.largest_norm()
 
 
 def _free_of(model) -> tuple[bool, bool]:

@@ -4,23 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...transcription.problem import ENGINE_ON_RTOL, BoxBound, NormBound, Problem, ThrusterBound
+from ...transcription.problem import ENGINE_ON_RTOL, NormBound, Problem, ThrusterBound, engine_reference
 from ..units import units
 from .runs import Run
 from .orbits import rtn
 from .style import BOUND, COMP, THRUST, W, _finish, _shade, _subplots, _time_axes
 from .targets import _bound_of
-
-
-def _reference(bound, u_f: np.ndarray) -> float:
-    """The force the engine-on threshold is a fraction of (transcription.problem.engine_figures)."""
-    if isinstance(bound, ThrusterBound):
-        return bound.max
-    if isinstance(bound, NormBound):
-        return bound.b
-    if isinstance(bound, BoxBound):
-        return float(np.linalg.norm(bound.b))
-    return float(np.linalg.norm(u_f, axis=1).max(initial=0.0))
 
 
 def body_force(run: Run) -> np.ndarray:
@@ -62,7 +51,7 @@ def fig_thrust_direction(runs: list[Run], problem: Problem):
     for run in runs:
         fb = body_force(run)
         n = np.linalg.norm(fb, axis=1)
-        on = n > ENGINE_ON_RTOL * _reference(bound, run.sol.u_f)
+        on = n > ENGINE_ON_RTOL * engine_reference(bound, run.sol.u_f)
         d = np.where(on[:, None], fb / np.where(n > 0, n, 1.0)[:, None], np.nan)
         many = len(runs) > 1
         for i in range(3):
@@ -78,7 +67,7 @@ def fig_thrust_direction(runs: list[Run], problem: Problem):
         _shade(axs[1], run.control_edges, on, THRUST, label="engine on" if run is runs[0] else None, alpha=0.12)
         run.plot_control(axs[2], f * n, color=THRUST if run is runs[0] else run.color, lw=1.6,
                          label=f"|u_f| ({run.name})")
-    ref = _reference(bound, runs[0].sol.u_f) if runs else 0.0
+    ref = engine_reference(bound, runs[0].sol.u_f) if runs else 0.0
     if isinstance(bound, (ThrusterBound, NormBound)):
         top = f * (bound.max if isinstance(bound, ThrusterBound) else bound.b)
         axs[2].axhline(top, color=BOUND, ls="-.", lw=1.2, label=f"bound {top:.3g}")

@@ -28,7 +28,8 @@ from .constraints import (MARGIN_DIMENSION, MOVING_DIRECTIONS, PATH_CONSTRAINTS,
                           MinRadius)
 from .controls import (AT_BOUND_RTOL, OBJECTIVES, Bound, BoxBound, Control, ImpulsiveControl, NormBound,
                        SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
-from .costs import ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, fuel_cost, impulse_cost, objective_value, quadrature_weights
+from .costs import (ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, engine_reference, fuel_cost,
+                    impulse_cost, objective_value, quadrature_weights)
 from .definition import Problem, state_from_velocities
 from .errors import ProblemError
 from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetRendezvous, TargetState, ascending_node
@@ -37,6 +38,6 @@ __all__ = ["AT_BOUND_RTOL", "Bound", "BoxBound", "Control", "ENGINE_ON_RTOL", "I
            "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "NormBound", "OBJECTIVES",
            "PATH_CONSTRAINTS", "Problem", "ProblemError", "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit",
            "TargetRendezvous", "TargetState", "ThrusterBound", "actuator_bounds", "ascending_node", "control_activity",
-           "effort_cost", "engine_figures", "fuel_cost", "impulse_cost", "objective_value", "orbit_conditions",
+           "effort_cost", "engine_figures", "engine_reference", "fuel_cost", "impulse_cost", "objective_value", "orbit_conditions",
            "orbit_residual", "quadrature_weights", "rendezvous_residual", "rendezvous_state", "spd_weight",
            "state_from_velocities", "state_residual", "terminal_error", "terminal_residual", "terminal_rows"]

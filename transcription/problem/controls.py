@@ -50,6 +50,10 @@ class BoxBound:
     def scale(self) -> float:
         return float(self.b.max())
 
+    def largest_norm(self) -> float:
+        """The largest |u|_2 the bound allows: |b|_2 (a corner of the box)."""
+        return float(np.linalg.norm(self.b))
+
     def active_components(self, u: np.ndarray) -> np.ndarray:
         """(n, 3) bool: |u_i| within AT_BOUND_RTOL of b_i."""
         return np.abs(np.asarray(u, float)) >= self.b[None, :] * (1.0 - AT_BOUND_RTOL)
@@ -75,6 +79,10 @@ class NormBound:
         return self.b - np.linalg.norm(np.asarray(u, float), axis=1)
 
     def scale(self) -> float:
+        return self.b
+
+    def largest_norm(self) -> float:
+        """The largest |u|_2 the bound allows: b."""
         return self.b
 
     def active(self, u: np.ndarray) -> np.ndarray:
@@ -116,6 +124,10 @@ class ThrusterBound:
         return np.minimum(self.max - T, T - self.min) - self.off_axis(u)
 
     def scale(self) -> float:
+        return self.max
+
+    def largest_norm(self) -> float:
+        """The largest |u_f|_2 the engine gives: max (|R u_f| = |u_f| = T, in either frame)."""
         return self.max
 
     def basis(self) -> np.ndarray:

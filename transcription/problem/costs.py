@@ -85,6 +85,14 @@ def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray,
 ENGINE_ON_RTOL = 1e-3
 
 
+def engine_reference(bound, u_f: np.ndarray) -> float:
+    """F_ref, the force the engine-on threshold is a fraction of: the largest |u_f| the bound allows
+    (``largest_norm``), else the peak max_j |u_f,j| of the controls u_f (n, 3)."""
+    if bound is not None:
+        return bound.largest_norm()
+    return float(np.linalg.norm(np.asarray(u_f, dtype=float), axis=1).max(initial=0.0))
+
+
 def engine_figures(u_f: np.ndarray, weights: np.ndarray, bound) -> dict:
     """The engine's figures of merit (docs/mathematics.md §14) for force controls u_f (n, 3) with quadrature
     ``weights`` (n,): engine_on_time = sum_j omega_j over the controls with |u_f,j| > ENGINE_ON_RTOL F_ref
@@ -92,8 +100,7 @@ def engine_figures(u_f: np.ndarray, weights: np.ndarray, bound) -> dict:
     for a thruster also engine_off_axis_relative = max_j |u_f,j - T_j a| / max (0 for a feasible control)."""
     u_f = np.asarray(u_f, dtype=float)
     n = np.linalg.norm(u_f, axis=1)
-    ref = bound.max if isinstance(bound, ThrusterBound) else bound.b if isinstance(bound, NormBound) else \
-        float(np.linalg.norm(bound.b)) if isinstance(bound, BoxBound) else float(n.max(initial=0.0))
+    ref = engine_reference(bound, u_f)
     out = {"engine_on_time": float(np.asarray(weights, float) @ (n > ENGINE_ON_RTOL * ref)) if ref > 0 else 0.0}
     if isinstance(bound, ThrusterBound):
         out["engine_off_axis_relative"] = float(bound.off_axis(u_f).max(initial=0.0) / bound.max)
