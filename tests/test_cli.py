@@ -264,3 +264,20 @@ def test_out_of_memory_is_one_line_and_writes_nothing(tmp_path, monkeypatch, cap
     err = capsys.readouterr().err
     assert rc == 1 and err.count("\n") == 1 and "out of memory" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_an_in_process_run_leaves_no_compile_notifier_behind(capsys):
+    """The CLI binds codegen's compile notice to its own arguments while a command runs, and unbinds it after:
+    a later library call that compiles (a cold cache) must not print through a finished command's arguments
+    (it once raised AttributeError in the next test's solve).  And a command without --json (fly) can print it."""
+    import argparse
+
+    from se3ocp.problems.cli import main
+    from se3ocp.problems.cli.progress import say
+    from se3ocp.transcription import codegen
+
+    before = codegen.notify
+    assert main(["validate", str(ROOT / "configs" / "e3_inclination_change.yaml")]) == 0
+    assert codegen.notify is before
+    say(argparse.Namespace(quiet=False), "  [jit] compiling f to C")
+    assert capsys.readouterr().out.endswith("compiling f to C\n")

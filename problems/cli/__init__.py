@@ -44,7 +44,7 @@ def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     # a failed run's non-finite numbers are reported by its status, not by NumPy's warnings on stderr
     warnings.simplefilter("ignore", RuntimeWarning)
-    codegen.notify = lambda msg: say(args, f"  [jit] {msg}")
+    before, codegen.notify = codegen.notify, (lambda msg: say(args, f"  [jit] {msg}"))
     try:
         return args.func(args)
     except (ConfigError, ResultsDirError) as e:
@@ -68,3 +68,5 @@ def _main(argv: list[str] | None) -> int:
         from .crash import report_crash
 
         return report_crash(e)
+    finally:  # a command run in-process (tests, notebooks) leaves no notifier bound to its arguments behind
+        codegen.notify = before

@@ -15,7 +15,7 @@ from .signals import Interrupt
 def say(args, *msg):
     """Print a progress or result line (not with --quiet or --json).  If stdout's reader went away
     (``se3ocp solve ... | head``), printing stops and the run goes on to write its results."""
-    if not args.quiet and not args.json:
+    if not getattr(args, "quiet", False) and not getattr(args, "json", False):   # not every command has --json
         try:
             print(*msg, flush=True)
         except BrokenPipeError:
