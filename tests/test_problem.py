@@ -89,3 +89,17 @@ def test_targets_validate_and_normalize():
         TargetOrbit(2.0, [0, 0, 0])
     with pytest.raises(ProblemError, match="terminal.free"):
         TargetState(np.zeros(18), frozenset({"spin"}))
+
+
+def test_mesh_steps_sum_to_T_and_bad_meshes_name_the_field():
+    """Problem.mesh: relative step sizes normalized to mean 1, h_k = h r_k summing to T; uniform -> None."""
+    base = problem("e3")
+    r = np.linspace(1.0, 3.0, base.N)
+    p = base.replace(mesh=r)
+    assert not p.uniform and abs(p.mesh.mean() - 1.0) < 1e-15
+    assert abs(p.steps.sum() - p.T) <= 1e-12 * p.T and p.times[0] == 0.0 and abs(p.times[-1] - p.T) <= 1e-12 * p.T
+    np.testing.assert_allclose(p.steps / p.steps[0], r / r[0], rtol=1e-14)
+    assert base.replace(mesh=np.full(base.N, 2.0)).uniform
+    for bad in (np.ones(base.N - 1), -np.ones(base.N), np.full(base.N, np.nan)):
+        with pytest.raises(ProblemError, match="mesh"):
+            base.replace(mesh=bad)

@@ -164,6 +164,8 @@ def not_covered(problem: Problem, method: str) -> str:
         return f"method must be one of {', '.join(METHOD_NAMES)}, got {method!r}"
     if problem.kind is None:
         return "the problem has no terminal target and no control: there is nothing to solve (simulate it)"
+    if not problem.uniform:   # until the methods take per-step sizes h_k (issue 26)
+        return "a non-uniform mesh (Problem.mesh) is not supported yet: use uniform steps"
     for name in (("direct", "indirect") if method == "both" else (method,)):
         if implementation(problem, name) is None:
             return METHODS[name][0].not_covered(problem)

@@ -21,6 +21,9 @@ class Problem:
     ``terminal`` and ``control`` may both be None: a motion to simulate only.
     time_bounds: (min, max) makes the final time free in [min, max] (T is then the guess).
     constraints: path constraints enforced at every node (MinRadius, KeepOut, KeepIn, MaxAngularRate).
+    mesh: None (uniform steps h = T/N) or the relative step sizes r (N,), r_k > 0, stored normalized to mean 1:
+        step k has size h_k = h r_k (:attr:`steps`), so sum_k h_k = T, and a free final time scales every step
+        together.  Node times are :attr:`times`.
     """
 
     disc: Discretization
@@ -32,6 +35,7 @@ class Problem:
     name: str = ""
     time_bounds: tuple[float, float] | None = None
     constraints: tuple = ()
+    mesh: np.ndarray | None = None
 
     def __post_init__(self):
         if isinstance(self.N, bool) or not isinstance(self.N, (int, np.integer)) or self.N < 1:
@@ -66,6 +70,12 @@ class Problem:
                 and self.disc.force_frame != "body":
             raise ProblemError("control.force_bound", "a thruster is fixed in the body: it needs the force in the body "
                                                       f"frame (disc.force_frame 'body', got {self.disc.force_frame!r})")
+        if self.mesh is not None:
+            r = np.asarray(self.mesh, dtype=float).reshape(-1)
+            if r.shape != (self.N,) or not np.all(np.isfinite(r)) or not np.all(r > 0):
+                raise ProblemError("mesh", f"expected {self.N} positive finite relative step sizes (one per step)")
+            r = r / r.mean()
+            object.__setattr__(self, "mesh", None if np.all(r == 1.0) else r)
         object.__setattr__(self, "constraints", tuple(self.constraints))
         for c in self.constraints:
             if not isinstance(c, PATH_CONSTRAINTS):
@@ -77,6 +87,21 @@ class Problem:
     def h(self) -> float:
         """T / N (with a free final time: of the guess T)."""
         return self.T / self.N
+
+    @property
+    def uniform(self) -> bool:
+        """True when every step has the size h = T/N (no ``mesh``)."""
+        return self.mesh is None
+
+    @property
+    def steps(self) -> np.ndarray:
+        """The step sizes h_k (N,), k = 0..N-1: h r_k (h for a uniform mesh); they sum to T."""
+        return np.full(self.N, self.h) if self.mesh is None else self.h * self.mesh
+
+    @property
+    def times(self) -> np.ndarray:
+        """The node times t_k (N+1,): t_0 = 0, t_{k+1} = t_k + h_k."""
+        return np.concatenate([[0.0], np.cumsum(self.steps)])
 
     @property
     def free_time(self) -> bool:
