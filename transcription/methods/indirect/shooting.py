@@ -26,7 +26,10 @@ class ShootingFunctions:
     force the unknown and the recursion are in the body-momentum coordinates of :mod:`.coordinates`; the outputs
     lam, lamN, dlamN and Psi are in tangent coordinates z all the same (docs/mathematics.md §15).
 
-    shoot(lam0[12], X0[18], Xd[18], h, Winv[6x6], bd[NB])
+    h[1 x N] are the step sizes h_k, k = 0..N-1 (docs/mathematics.md §16; a scalar is broadcast: a uniform mesh);
+    step k of the rollout and of its linearization runs at h_k, and the first control's law at h_0.
+
+    shoot(lam0[12], X0[18], Xd[18], h[1 x N], Winv[6x6], bd[NB])
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
             U[6 x n_controls] (first_order u_1..u_N; lgvi u_0..u_N), res[1 x N] Cayley residuals,
             lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0 in first_order)
@@ -62,25 +65,27 @@ class ShootingFunctions:
         lam0 = ca.MX.sym("lam0", NZ)
         X0 = ca.MX.sym("X0", NX)
         Xd = ca.MX.sym("Xd", NX)
-        h = ca.MX.sym("h")
+        h = ca.MX.sym("h", 1, N)   # the step sizes h_k (a scalar argument is broadcast: a uniform mesh)
         Winv = ca.MX.sym("Winv", NU, NU)
         bd = ca.MX.sym("bd", NB)
         # the rollout: steps k = k0 .. N-1 by the costate map from (X_k0, lambda_k0-1)
+        n = N - 1 if sch == "first_order" else N   # the steps by the costate map (first_order: after step 0)
+        h0, hr = h[0, 0], h[0, N - n:]   # step 0's size; those of the costate map's steps
         if sch == "first_order":   # step 0 from lambda_0 itself
-            X1, u1, r1 = self.first_step(X0, lam0, h, Winv, bd)
+            X1, u1, r1 = self.first_step(X0, lam0, h0, Winv, bd)
             Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
-            n, Xstart = N - 1, X1
+            Xstart = X1
         else:
             Xs, lams, Us, res, lres = [], [], [], [], []
-            n, Xstart = N, X0
+            Xstart = X0
         # the control lam0 determines (first_order u_1 at R_1, lgvi u_0 at R_0) and its saturation Jacobian
-        u_first, D_first = node_law(disc, h, Winv, bd)(lam0, split_state(Xstart)[2])
+        u_first, D_first = node_law(disc, h0, Winv, bd)(lam0, split_state(Xstart)[2])
         if sch != "first_order":
             Us.append(u_first)
         steps = None
         if n > 0:
             acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
-            steps = acc(Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n))
+            steps = acc(Xstart, lam0, hr, ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n))
             for a, b in zip((Xs, lams, Us, res, lres), steps[:5]):
                 a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
@@ -110,14 +115,15 @@ class ShootingFunctions:
         sits at X_1), and mapped back at X_N, dlambda_{N-1} = T^T dlambda' + Q dz'_N, dz_N = T^-1 dz'_N."""
         disc, sch = self.disc, self.disc.scheme
         lam0, X0, _, h, Winv, bd = args
-        Bc = control_matrix(disc)(h)
+        h0, hr = h[0, 0], h[0, self.N - n:]   # step 0's size (the first control's law); the mapped steps'
+        Bc = control_matrix(disc)(h0)
         body = body_coordinates(disc)
         dlam = ca.MX.eye(NZ)
         if body:
             Tit, Qi = initial_costate_function()(Xstart, lam0)
             dlam = Tit
         if sch == "first_order":   # first step: dz_1 = B du_1, du_1 = -(1/h) D_1 Winv B^T dlambda'_0
-            G = -ca.mtimes(Winv, Bc.T) / h
+            G = -ca.mtimes(Winv, Bc.T) / h0
             dZ = ca.mtimes(Bc, ca.mtimes(D_first, ca.mtimes(G, dlam) if body else G))
             if body:               # lambda'_0 = T(X_1)^-T lambda_0 moves with X_1 (B^T Qi B = 0: dz_1 as above)
                 dlam = dlam + ca.mtimes(Qi, dZ)
@@ -130,11 +136,11 @@ class ShootingFunctions:
             Lprev = ca.horzcat(lam0, Lr[:, :n - 1])
             # D of the control each step's A_k is taken at (lgvi: u_k) and of the one it determines (u_{k+1})
             Dk = ca.horzcat(D_first, Dr[:, :NU * (n - 1)])
-            hs, Ws = ca.repmat(h, 1, n), ca.repmat(Winv, 1, n)
-            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [4, 5, 6], [])(Xk, Lprev, LPr, Cr, h,
-                                                                                            Winv, bd)
+            Ws = ca.repmat(Winv, 1, n)
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [5, 6], [])(Xk, Lprev, LPr, Cr, hr,
+                                                                                         Winv, bd)
             dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
-                dZ, dlam, Ar, Hk, Dk, Dr, hs, Ws)
+                dZ, dlam, Ar, Hk, Dk, Dr, hr, Ws)
             dZ, dlamN, lam_last = dZs[:, -NZ:], dlams[:, -NZ:], LPr[:, -1]
         if body:   # dlambda_{N-1} = T^T dlambda' + Q dz'_N and dz_N = T^-1 dz'_N at X_N
             XN = Xr[:, -1] if n > 0 else Xstart
@@ -151,16 +157,17 @@ def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> Shoot
 
 @per_discretization
 def time_gradient_function(disc: Discretization, N: int) -> ca.Function:
-    """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h) -> g[1 x N]: the derivative
-    of each step's constraint term of the Lagrangian by the step size at fixed states, controls and multipliers,
+    """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h[1 x N]) -> g[1 x N]: the
+    derivative of each step's constraint term of the Lagrangian by its step size h_k at fixed states, controls and
+    multipliers (h: the step sizes h_k, or one scalar for all),
 
-        g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h) / dh),
+        g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h_k) / dh_k),
 
     X_k the node states 0..N-1, w_k the stage controls, lambda_k the multiplier of step k (the free-final-
-    time condition, docs/mathematics.md §10).  Forward AD through the step (its unrolled Cayley Newton
+    time condition, docs/mathematics.md §10; on a mesh h_k = r_k h and dL/dh = J/h + sum_k r_k g_k, §16).  Forward AD through the step (its unrolled Cayley Newton
     iterations, converged to round-off)."""
     X, w, lam, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("lam", NZ), ca.SX.sym("h")
     X1 = disc.step(X, w, h)[0]
     g = ca.dot(lam, tangent_readback(X1, ca.jacobian(X1, h)))
     f = ca.Function(f"{disc.scheme}_step_time_derivative", [X, w, lam, h], [g], ["X", "w", "lam", "h"], ["g"])
-    return f.map(f"{disc.scheme}_step_time_derivative{N}", "serial", N, [3], [])
+    return f.map(f"{disc.scheme}_step_time_derivative{N}", "serial", N, [], [])
