@@ -136,6 +136,7 @@ def weight_inverse(problem: Problem) -> np.ndarray:
 
 
 def control_cost(problem: Problem, U: np.ndarray, h: float | None = None) -> float:
-    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme at step
-    size h (default: the problem's)."""
-    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.h if h is None else h))
+    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme at the steps of the
+    (mean) step size h (default: the problem's; on a non-uniform mesh the steps h r_k, docs/mathematics.md §16)."""
+    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N,
+                                                              problem.steps_of(problem.h if h is None else h)))

@@ -59,16 +59,16 @@ def free_rows(target: TargetState) -> np.ndarray:
 def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: float | None = None,
                        u1: np.ndarray | None = None) -> np.ndarray:
     """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6, §15): first_order
-    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control, at the step
-    size h (default the problem's).  With a body-fixed force A_0 depends on the next control too (the end kick
+    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control, at the size
+    of step 0 for the (mean) step size h (default the problem's): h_0 = r_0 h on a non-uniform mesh (§16).  With a body-fixed force A_0 depends on the next control too (the end kick
     R_1 u_{f,1}): lambda_{-1} = A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
     if problem.scheme == "lgvi":
         body = body_coordinates(problem.disc)
         if body and u1 is None:
             raise ValueError("lam0_from_costates: a body-fixed force with the LGVI needs the second control u_1")
-        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, u1 if body else np.zeros(NU)],
-                                             problem.h if h is None else h)[0])
+        h0 = np.ravel(problem.steps_of(problem.h if h is None else h))[0]
+        A0 = np.array(problem.disc.variation(problem.X0, np.r_[u0, u1 if body else np.zeros(NU)], h0)[0])
         lam = A0.T @ lam
     return lam
 
@@ -106,7 +106,9 @@ def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart 
 class _Shooting:
     """The shooting of one problem: its Functions and data, the Newton iteration on lambda_0 at a step size h
     (from lambda_0 = 0 with bounds, by the bound continuation), dL/dh for a free final time, and the Solution
-    of the final lambda_0.  ``stats`` collects what the Solution reports."""
+    of the final lambda_0.  ``stats`` collects what the Solution reports.  h is the mean step T/N: the Functions
+    get the problem's step sizes for it, ``problem.steps_of(h)`` (h itself on a uniform mesh, h r_k on a
+    non-uniform one, docs/mathematics.md §16)."""
 
     def __init__(self, problem: Problem, options: IndirectOptions, progress: Progress | None, source: str):
         self.problem, self.options, self.progress, self.source = problem, options, progress, source
@@ -120,10 +122,11 @@ class _Shooting:
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
         """The largest relative Cayley residual of the rollout from lam at the step size h."""
-        return float(self.fns.residual(lam, self.X0, self.Xd, h, self.Winv, self.bd)[2])
+        return float(self.fns.residual(lam, self.X0, self.Xd, self.problem.steps_of(h), self.Winv, self.bd)[2])
 
     def newton(self, lam, bd_stage, phase: str, h: float) -> NewtonResult:
         fns, X0, Xd, Winv, free, opts = self.fns, self.X0, self.Xd, self.Winv, self.free, self.options
+        h = self.problem.steps_of(h)
 
         def residual(l):
             # the given terminal components, and lambda_{N-1} = 0 on the free ones (transversality)
@@ -148,20 +151,20 @@ class _Shooting:
         """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation."""
         if first and self.source == "zero" and bounded(self.bd):
             nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, self.bd,
-                                            self.fns, (self.X0, self.Xd, h, self.Winv))
+                                            self.fns, (self.X0, self.Xd, self.problem.steps_of(h), self.Winv))
             self.stats["bound_continuation"] = stages
             return nr
         return self.newton(lam, self.bd, phase, h)
 
     def dL_dh(self, lam, h: float) -> float:
         """dJ*/dh = dL/dh at the solution (envelope theorem): J/h (the weights are proportional to h) plus the
-        steps' terms (:func:`~.shooting.time_gradient_function`)."""
-        problem, X0 = self.problem, self.X0
-        _, Xs, lams, U, _, _ = (np.array(a) for a in self.fns.shoot(lam, X0, self.Xd, h, self.Winv, self.bd))
+        steps' terms (:func:`~.shooting.time_gradient_function`), each step's by its h_k = r_k h times dh_k/dh = r_k
+        on a non-uniform mesh (docs/mathematics.md §16)."""
+        problem, X0, hk = self.problem, self.X0, self.problem.steps_of(h)
+        _, Xs, lams, U, _, _ = (np.array(a) for a in self.fns.shoot(lam, X0, self.Xd, hk, self.Winv, self.bd))
         Xk = np.column_stack([X0, Xs[:, :-1]])
-        tg = time_gradient_function(problem.disc, problem.N)
-        return control_cost(problem, U, h) / h + float(np.sum(np.array(tg(Xk, problem.disc.stage_controls(U), lams,
-                                                                          h))))
+        g = np.array(time_gradient_function(problem.disc, problem.N)(Xk, problem.disc.stage_controls(U), lams, hk))
+        return control_cost(problem, U, h) / h + float(np.sum(g if problem.uniform else problem.mesh * g.ravel()))
 
     def run(self, lam, h: float) -> tuple[NewtonResult, float]:
         """The Newton iteration from lam at the step size h (with a free final time, inside the secant iteration
@@ -178,9 +181,9 @@ class _Shooting:
     def solution(self, nr: NewtonResult, h: float, solve_s: float) -> Solution:
         """The Solution of the final lambda_0: controls and costates from it, the re-simulated trajectory."""
         problem, stats, lam = self.problem, self.stats, nr.x
-        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, h, self.Winv, self.bd)
+        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, problem.steps_of(h), self.Winv, self.bd)
         U, lams = np.array(U), np.array(lams).T
-        Xsim, res = problem.disc.simulate(self.X0, U, h, problem.N)
+        Xsim, res = problem.disc.simulate(self.X0, U, problem.steps_of(h), problem.N)
         finite = bool(np.all(np.isfinite(Xsim)))
         result, message = self._verdict(nr, finite)
         stats.update(
