@@ -259,12 +259,27 @@ class Discretization:
         Xs, res = acc(X0, W, ca.repmat(h, 1, N))
         return ca.Function(f"{self.scheme}_rollout{N}", [X0, W, h], [Xs, res], ["X0", "W", "h"], ["X", "res"])
 
-    def simulate(self, X0, U, h: float, N: int, chunk: int = 2000):
-        """Numeric rollout: X0 (18,), U (6 x n_controls(N)) or None for free motion.
+    def rollout_steps(self, N: int) -> ca.Function:
+        """(X0[18], W[nw x N], H[1 x N]) -> (X[18 x N], res[1 x N]): the rollout with step k of size H[k] (a
+        non-uniform mesh, docs/mathematics.md §16); built once per N."""
+        def build():
+            acc = self.step.mapaccum(f"{self.scheme}_acc{N}", N)
+            X0, W, H = ca.MX.sym("X0", NX), ca.MX.sym("W", self.nw, N), ca.MX.sym("H", 1, N)
+            Xs, res = acc(X0, W, H)
+            return ca.Function(f"{self.scheme}_rollout_steps{N}", [X0, W, H], [Xs, res], ["X0", "W", "H"],
+                               ["X", "res"])
+        return self.cached(("rollout_steps", int(N)), build)
+
+    def simulate(self, X0, U, h, N: int, chunk: int = 2000):
+        """Numeric rollout: X0 (18,), U (6 x n_controls(N)) or None for free motion; h one step size, or the N
+        step sizes h_k of a non-uniform mesh (step k from node k to k+1 with its own h_k).
 
         Returns (X (N+1, 18) node-major, res (N,) Cayley residuals).  Long runs are
         evaluated in chunks so that the mapped Function stays small.
         """
+        hs = np.asarray(h, dtype=float)
+        if hs.ndim and hs.size != N:
+            raise ValueError(f"step sizes must be one number or {N} numbers, got {hs.size}")
         X0 = np.asarray(X0, dtype=float).reshape(NX)
         if U is None:
             W = np.zeros((self.nw, N))
@@ -278,7 +293,10 @@ class Discretization:
         Xk = X0
         for s in range(0, N, chunk):
             n = min(chunk, N - s)
-            Xs, r = self.rollout(n)(Xk, W[:, s : s + n], h)
+            if hs.ndim:
+                Xs, r = self.rollout_steps(n)(Xk, W[:, s : s + n], hs[None, s : s + n])
+            else:
+                Xs, r = self.rollout(n)(Xk, W[:, s : s + n], h)
             Xs = Xs.full().T
             out.append(Xs)
             res.append(r.full().ravel())

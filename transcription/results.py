@@ -223,10 +223,12 @@ class Trajectory:
 
 
 def trajectory(problem: "Problem", X: np.ndarray, h: float | None = None) -> Trajectory:
-    """The Trajectory of node states X (N+1, 18) of ``problem``: times k h (h the problem's by default), the
-    problem's mass and inertia."""
-    m = problem.model
-    return Trajectory(t=(problem.h if h is None else h) * np.arange(X.shape[0]), X=X, mass=m.mass, inertia=m.inertia)
+    """The Trajectory of node states X (N+1, 18) of ``problem``: the node times of its mesh for the (mean) step h
+    (the problem's by default): k h on a uniform mesh, t_k = sum_{i<k} h r_i on a non-uniform one
+    (:meth:`~transcription.problem.Problem.times_of`); the problem's mass and inertia."""
+    m, h = problem.model, (problem.h if h is None else h)
+    t = problem.times_of(h) if X.shape[0] == problem.N + 1 else h * np.arange(X.shape[0])
+    return Trajectory(t=t, X=X, mass=m.mass, inertia=m.inertia)
 
 
 @dataclass
@@ -245,7 +247,7 @@ class Solution:
     problem: the :class:`~transcription.problem.Problem` solved (for figures and reports).
     warm: what the next solve can start from (:class:`~transcription.warm.WarmStart`; None when there is
     nothing usable): ``solve(problem, method, warm_start=solution)``.
-    Derived: N, T, h, ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's
+    Derived: N, T, h (the mean step T/N), steps (N,) (the step sizes h_k = t_{k+1} - t_k of its mesh), ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's
     force frame, ``force_frame``: 'inertial' or 'body'), u_m (n, 3) (body), f_inertial (n, 3): the inertial
     force each control applies, R_j u_f,j at its node j for a body-frame force, u_f itself for an inertial one
     (docs/mathematics.md §14).
@@ -280,6 +282,7 @@ class Solution:
     N: int = field(init=False, repr=False)
     T: float = field(init=False, repr=False)
     h: float = field(init=False, repr=False)
+    steps: np.ndarray = field(init=False, repr=False)
     scheme: str = field(init=False, repr=False)
     control_times: np.ndarray | None = field(init=False, repr=False)
     u_f: np.ndarray | None = field(init=False, repr=False)
@@ -291,6 +294,7 @@ class Solution:
         t = self.trajectory.t
         self.N, self.T = len(t) - 1, float(t[-1])
         self.h = self.T / self.N
+        self.steps = np.diff(t)
         self.scheme = self.problem.scheme if self.problem is not None else ""
         c = self.controls
         # controls u_0..u_N (lgvi) at t_0..t_N, or u_1..u_N (first_order) at t_1..t_N; u_f inertial, u_m body
@@ -355,6 +359,8 @@ class Solution:
             "solver": self.solver,
         }
         out.update(self.trajectory.orthogonality())
+        if self.problem is not None and not getattr(self.problem, "uniform", True):   # a non-uniform mesh
+            out.update(h_min=float(self.steps.min()), h_max=float(self.steps.max()))
         if self.controls is not None:
             out["force_frame"] = self.force_frame
         # scalars, and lists of words
@@ -417,7 +423,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
 
     delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m);
     angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
-    weights of the scheme (transcription.problem.quadrature_weights) at h = T/N;
+    weights of the scheme (transcription.problem.quadrature_weights) at h = T/N (at the steps h_k of a mesh);
     peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; engine_on_time (and, for a body-fixed
     engine, engine_off_axis_relative) of transcription.problem.engine_figures; with a bound, force_time_at_bound /
     moment_time_at_bound = the time_at_bound of transcription.problem.control_activity (sum of
@@ -436,7 +442,8 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     if sol.controls is not None:
         uf, um = sol.u_f, sol.u_m
         n, N = uf.shape[0], sol.N
-        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h)
+        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if prob is None or
+                                getattr(prob, "uniform", True) else sol.steps)
         nf, nm = np.linalg.norm(uf, axis=1), np.linalg.norm(um, axis=1)
         out.update(delta_v=float(om @ nf / mass), angular_impulse=float(om @ nm),
                    peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))

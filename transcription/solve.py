@@ -33,6 +33,9 @@ from .warm import WarmStart, as_warm_start
 
 #: the registry: each method name and its implementations (one per kind of control)
 METHODS: dict[str, tuple[Method, ...]] = {"direct": (DIRECT, IMPULSIVE), "indirect": (INDIRECT,)}
+#: the implementations (method name, kind of control) that take a non-uniform mesh, step k with its own h_k
+#: (issue 26, docs/mathematics.md §16); the others refuse one in :func:`not_covered`
+ON_A_MESH = {("direct", "smooth")}
 #: what ``solve`` accepts: a method name, or 'both'
 METHOD_NAMES = ("direct", "indirect", "both")
 #: relative cost difference above which compare reports different extremals
@@ -164,9 +167,9 @@ def not_covered(problem: Problem, method: str) -> str:
         return f"method must be one of {', '.join(METHOD_NAMES)}, got {method!r}"
     if problem.kind is None:
         return "the problem has no terminal target and no control: there is nothing to solve (simulate it)"
-    if not problem.uniform:   # until the methods take per-step sizes h_k (issue 26)
-        return "a non-uniform mesh (Problem.mesh) is not supported yet: use uniform steps"
     for name in (("direct", "indirect") if method == "both" else (method,)):
+        if not problem.uniform and (name, problem.kind) not in ON_A_MESH:   # issue 26
+            return f"a non-uniform mesh (Problem.mesh) is not supported yet by the {name} method: use uniform steps"
         if implementation(problem, name) is None:
             return METHODS[name][0].not_covered(problem)
     return ""
@@ -308,7 +311,7 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     disc, N, h = problem.disc, problem.N, problem.h
     t0 = time.perf_counter()
     U = None if controls is None else np.asarray(controls, dtype=float).reshape(NU, -1)
-    X, res = disc.simulate(problem.X0, U, h, N)
+    X, res = disc.simulate(problem.X0, U, problem.steps_of(h), N)
     run_s = time.perf_counter() - t0
     E = np.array(problem.model.energy().map(X.shape[0])(X.T)).ravel()
     rel = np.abs(E - E[0]) / max(abs(E[0]), 1e-300)

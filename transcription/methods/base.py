@@ -62,7 +62,7 @@ def failed_solution(problem: Problem, method: str, solver: str, result: Result, 
     """The Solution of a solve that could not run (or does not apply): the free motion from X0 as its
     trajectory (something to show; never a solution), no controls, cost nan, the free motion's terminal
     error, no iterations."""
-    X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
+    X, _ = problem.disc.simulate(problem.X0, None, problem.steps_of(problem.h), problem.N)
     return Solution(method=method, solver=solver, result=result, message=message, trajectory=trajectory(problem, X),
                     cost=float("nan"), terminal_error=terminal_error(X[-1], problem), iterations=0, build_s=build_s,
                     solve_s=0.0, problem=problem)

@@ -9,10 +9,19 @@ from .controls import AT_BOUND_RTOL, BoxBound, NormBound, SmoothControl, Thruste
 from .definition import Problem
 
 
-def quadrature_weights(scheme: str, N: int, h: float) -> np.ndarray:
+def quadrature_weights(scheme: str, N: int, h) -> np.ndarray:
     """omega_j of the controls (in the order of their nodes): first_order, controls u_1..u_N:
     h (1, ..., 1); lgvi, node controls u_0..u_N: the trapezoidal h (1/2, 1, ..., 1, 1/2), so that
-    both approximate the integral of (1/2) u^T W u."""
+    both approximate the integral of (1/2) u^T W u.  On a non-uniform mesh h is the N step sizes h_k
+    (docs/mathematics.md §16): first_order omega_j = h_{j-1} (u_j acts over step j-1); lgvi the trapezoid
+    per step, omega_j = (h_{j-1} + h_j) / 2 (h_{-1} = h_N = 0)."""
+    hs = np.asarray(h, dtype=float)
+    if hs.ndim:
+        if hs.shape != (N,):
+            raise ValueError(f"quadrature_weights: expected one step size or {N}, got shape {hs.shape}")
+        if scheme == "lgvi":
+            return 0.5 * (np.r_[hs, 0.0] + np.r_[0.0, hs])
+        return hs.copy()
     if scheme == "lgvi":
         om = np.full(N + 1, float(h))
         om[[0, -1]] = 0.5 * h
@@ -34,12 +43,12 @@ def fuel_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> float
 
 
 def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:
-    """The objective of a smooth-control problem for controls U with step size h: effort, fuel
-    (with the quadrature weights of the scheme) or the final time N h."""
+    """The objective of a smooth-control problem for controls U with (mean) step size h: effort, fuel
+    (with the quadrature weights of the scheme on the problem's steps h r_k) or the final time N h."""
     control: SmoothControl = problem.control
     if control.objective == "time":
         return float(problem.N * h)
-    omega = quadrature_weights(problem.scheme, problem.N, h)
+    omega = quadrature_weights(problem.scheme, problem.N, problem.steps_of(h))
     return fuel_cost(U, control, omega) if control.objective == "fuel" else effort_cost(U, control, omega)
 
 
