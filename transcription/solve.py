@@ -243,7 +243,10 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         raise ValueError(reason)
     warm, note = as_warm_start(warm_start)
     if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
-        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm)
+        names = ("direct", "indirect") if method == "both" else (method,)
+        adaptive = accuracy.refinement == "adaptive" and all((n, problem.kind) in ON_A_MESH for n in names)
+        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm,
+                     adaptive=adaptive)
     else:
         out = _dispatch(problem, method, direct, indirect, progress, warm)
     if accuracy.continuous_check:
