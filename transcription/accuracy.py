@@ -103,16 +103,19 @@ def observed_order(levels: list[dict], scheme: str) -> float:
     return p
 
 
-def refine(problem, run: Callable, opts: AccuracyOptions, warm=None) -> "Solution | Comparison":
-    """Solve ``problem`` on uniform meshes until the continuous check lands within ``opts.accuracy``
-    (docs/mathematics.md §11, "Refinement to a tolerance").
+def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: bool = False) -> "Solution | Comparison":
+    """Solve ``problem`` on refined meshes until the continuous check lands within ``opts.accuracy``
+    (docs/mathematics.md §11, "Refinement to a tolerance"; §16, the adaptive mesh).
 
     run(problem, warm) -> Solution | Comparison is one solve on the problem's own grid.  Level 0 solves on the given
-    N (from ``warm`` if any); each following level on :func:`next_N` steps, warm-started from the previous level's
-    solution (resampled on SE(3) by the methods, transcription.warm).  It stops when the miss and the path violation
-    are within the tolerance, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.  The last
-    level's result is returned, its Solutions carrying the mesh history (``sol.mesh``: level, N, miss,
-    path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']`` and a sentence in the message."""
+    N (from ``warm`` if any); each following level on the mesh of :func:`next_mesh` -- ``adaptive`` (the methods
+    take a non-uniform mesh and ``opts.refinement`` is 'adaptive'): steps equidistributing the estimated error
+    (transcription.mesh); else :func:`next_N` uniform steps -- warm-started from the previous level's solution
+    (resampled on SE(3) by the methods, transcription.warm).  It stops when the miss and the path violation are
+    within the tolerance, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.  The last
+    level's result is returned, its Solutions carrying the mesh history (``sol.mesh``: level, N, mesh, h_min,
+    h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']`` and a
+    sentence in the message."""
     tol, levels, prob = float(opts.accuracy), [], problem
     while True:
         t0 = time.perf_counter()
@@ -127,12 +130,34 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None) -> "Solutio
             return _finish(out, levels, True, f"refined to accuracy {tol:.3g}: continuous miss {rec['miss']:.2e} at "
                                               f"N = {prob.N} after {len(levels)} level(s)")
         p = observed_order(levels, prob.scheme)
-        N = next_N(prob.N, worst, p, opts.max_N)
+        mesh = next_mesh(prob, best, rec, tol, p) if adaptive else None
+        if mesh is not None:      # the miss this level's error estimate predicts (its calibration)
+            rec["predicted"] = float(mesh[1])
+        N = next_N(prob.N, worst, p, opts.max_N) if mesh is None else len(mesh[0])
         if N > opts.max_N or len(levels) >= opts.max_levels:
             limit = f"solver.max_N = {opts.max_N}" if N > opts.max_N else f"solver.max_levels = {opts.max_levels}"
             return _finish(out, levels, False, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit))
         T = min(max(best.T, prob.time_bounds[0]), prob.time_bounds[1]) if prob.free_time else prob.T
-        prob, warm = dataclasses.replace(prob, N=N, T=T), best.warm
+        prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=None if mesh is None else mesh[0]), best.warm
+
+
+def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> tuple[np.ndarray, float]:
+    """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
+    §16): the local error of every step by step doubling, propagated to the final node (transcription.mesh); the
+    steps equidistribute it with the sum of the shares e_k aimed at tol / SAFETY times the measured miss's share of
+    that sum (the estimate calibrated by the flight).  When the path violation between the nodes, not the terminal
+    miss, is what is over the tolerance, the mesh is subdivided in its own density by the uniform factor of
+    :func:`next_N` (the local errors do not say where a cone is cut)."""
+    from .mesh import equidistributed_steps, error_estimate, subdivided_steps
+
+    p = ORDER[problem.scheme]
+    L = _length(problem)
+    V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
+    e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, L, V)
+    if rec["path_violation"] > rec["miss"] or not (e.sum() > 0 and rec["miss"] > 0):
+        factor = next_N(problem.N, max(rec["miss"], rec["path_violation"]) / tol, order, 0) / problem.N
+        return subdivided_steps(best.steps, factor), predicted
+    return equidistributed_steps(best.steps, e, p, tol / SAFETY * e.sum() / rec["miss"]), predicted
 
 
 def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str) -> str:
@@ -155,7 +180,9 @@ def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | Non
     check_s = sum(s.continuous.elapsed_s for s in sols)
     miss = max((scaled_miss(s.continuous, problem) for s in sols), default=math.nan)
     viol = max((path_violation(s.continuous, problem) for s in sols), default=math.nan)
-    rec = {"level": level, "N": int(problem.N), "miss": float(miss), "path_violation": float(viol),
+    steps = problem.steps
+    rec = {"level": level, "N": int(problem.N), "mesh": "uniform" if problem.uniform else "adaptive",
+           "h_min": float(steps.min()), "h_max": float(steps.max()), "miss": float(miss), "path_violation": float(viol),
            "iterations": int(sum(s.iterations for s in _solutions(out))), "solve_s": float(wall - check_s),
            "check_s": float(check_s), "status": ", ".join(f"{s.method} {s.result.value}" for s in _solutions(out))}
     best = next((s for s in sols if s.method == "direct"), sols[0] if sols else None)

@@ -59,8 +59,8 @@ def cayley_vectors(X: np.ndarray) -> np.ndarray:
     return step_cayley_vectors(unpack_states(X).R)
 
 
-def rollout_guess(disc, X0: np.ndarray, N: int, h: float) -> Guess:
-    """Free motion of ``disc`` from X0 over N steps of size h (controls zero)."""
+def rollout_guess(disc, X0: np.ndarray, N: int, h) -> Guess:
+    """Free motion of ``disc`` from X0 over N steps of size h (or the N sizes h_k of a mesh; controls zero)."""
     X, _ = disc.simulate(X0, None, h, N)
     return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
 
@@ -92,7 +92,8 @@ def aimed_guess(disc, guess: Guess, axis: np.ndarray, thrust_range: tuple[float,
     partial = np.array([exp_so3(w * c) for w, c in zip(np.array([log_so3_any(Q) for Q in turn]), share)])
     R = s.R.copy()
     R[nodes] = np.einsum("nij,njk->nik", partial, s.R[nodes])
-    Omega = np.array([log_so3_any(R[k].T @ R[k + 1]) / h for k in range(len(R) - 1)])
+    hs = np.broadcast_to(np.asarray(h, dtype=float), (len(R) - 1,))     # one step size, or a mesh's h_k
+    Omega = np.array([log_so3_any(R[k].T @ R[k + 1]) / hs[k] for k in range(len(R) - 1)])
     X[:, X_ROT] = np.swapaxes(R, 1, 2).reshape(len(R), 9)
     X[:-1, X_ANG] = Omega @ np.asarray(disc.J).T
     U[U_FORCE] = np.outer(a, np.clip(nf, *thrust_range))
@@ -140,15 +141,16 @@ def screw_path(X0: np.ndarray, Xd: np.ndarray, s: np.ndarray, mass: float, J: np
     return pack_state(xs, gam, Rs, Pis)
 
 
-def interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) -> Guess:
-    """SE(3) screw interpolation from X0 to Xd at the N+1 nodes t_k = k T / N; zero controls."""
-    s = np.linspace(0.0, 1.0, N + 1)
+def interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, s: np.ndarray | None = None) -> Guess:
+    """SE(3) screw interpolation from X0 to Xd at the N+1 nodes t_k = k T / N (``s``: the normalized node times
+    t_k / T of a non-uniform mesh); zero controls."""
+    s = np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
     X = screw_path(X0, Xd, s, disc.model.mass, disc.J, T)
     return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
 
 
 def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, size: np.ndarray,
-                                  seed: int = 0) -> Guess:
+                                  seed: int = 0, s: np.ndarray | None = None) -> Guess:
     """The screw interpolation with controls drawn (seeded, normal) at the size ``size`` (6,) of
     each control component (their bounds; 0 for a removed control).
 
@@ -158,19 +160,20 @@ def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, 
     the asymmetric slew of configs/slew_time_optimal.yaml ends at the eigenaxis time 34.31 from
     the plain interpolation, at 28.625 from this guess for 8 of 8 seeds at N = 100).
     """
-    g = interpolation_guess(disc, X0, Xd, N, T)
+    g = interpolation_guess(disc, X0, Xd, N, T, s)
     rng = np.random.default_rng(seed)
     U = np.clip(np.asarray(size, float)[:, None] * rng.standard_normal(g.U.shape), -np.asarray(size)[:, None],
                 np.asarray(size)[:, None])
     return Guess(X=g.X, U=U, C=g.C)
 
 
-def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) -> Guess:
-    """Dispatch on ``kind`` in {'rollout', 'interpolate'}."""
+def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, s: np.ndarray | None = None) -> Guess:
+    """Dispatch on ``kind`` in {'rollout', 'interpolate'}; ``s``: the normalized node times of a non-uniform
+    mesh (None: uniform), the rollout then taking the steps T (s_{k+1} - s_k)."""
     if kind == "rollout":
-        return rollout_guess(disc, X0, N, T / N)
+        return rollout_guess(disc, X0, N, T / N if s is None else T * np.diff(s))
     if kind == "interpolate":
-        return interpolation_guess(disc, X0, Xd, N, T)
+        return interpolation_guess(disc, X0, Xd, N, T, s)
     raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
 
 

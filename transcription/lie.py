@@ -190,6 +190,18 @@ def _log_so3_np(R: np.ndarray) -> np.ndarray:
     return t * n
 
 
+def log_so3_batch(R: np.ndarray) -> np.ndarray:
+    """Log of rotations R (M, 3, 3) -> (M, 3), vectorized, for angles away from pi (the small differences of a
+    step's local error, transcription.mesh): t / (2 sin t) vee(R - R^T), t = atan2(sin, cos), 1/2 near 0."""
+    R = np.asarray(R, dtype=float)
+    w2 = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    s = 0.5 * np.linalg.norm(w2, axis=1)
+    t = np.arctan2(s, 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0))
+    t2 = t * t
+    coef = np.where(t2 < _SMALL_THETA2, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * np.where(s > 0, s, 1.0)))
+    return coef[:, None] * w2
+
+
 def log_so3_any(R: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
     """vee log R for every rotation (accurate up to pi), with the sign of the axis at exactly pi --
     where the skew part carries no sign -- chosen so that n^T prefer >= 0 (NumPy only)."""

@@ -331,7 +331,7 @@ class AccuracyOptions(Options):
     """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...): the continuous
     check and refinement to a tolerance (transcription/accuracy.py, issue 26)."""
 
-    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "max_N", "max_levels")
+    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "max_N", "max_levels", "refinement")
 
     continuous_check: bool = _opt(True, "bool", doc="fly every successful smooth-control Solution through the continuous "
                                                      "equations and report how it lands (Solution.continuous)")
@@ -342,6 +342,9 @@ class AccuracyOptions(Options):
     max_N: int = _opt(50000, "int", lo=1, doc="the largest N refinement may solve on; an accuracy that needs more is "
                                                "refused before solving (or the refinement stops) with the N it needs")
     max_levels: int = _opt(8, "int", lo=1, hi=50, doc="the most mesh levels (solves) of one refinement")
+    refinement: str = _opt("adaptive", "choice", choices=("adaptive", "uniform"),
+                           doc="adaptive: non-uniform steps equidistributing the estimated error (where every method "
+                               "solved takes a mesh; else uniform); uniform: N steps of one size per level")
 
     def __post_init__(self):
         for f in dataclasses.fields(self):

@@ -35,7 +35,7 @@ from .warm import WarmStart, as_warm_start
 METHODS: dict[str, tuple[Method, ...]] = {"direct": (DIRECT, IMPULSIVE), "indirect": (INDIRECT,)}
 #: the implementations (method name, kind of control) that take a non-uniform mesh, step k with its own h_k
 #: (issue 26, docs/mathematics.md §16); the others refuse one in :func:`not_covered`
-ON_A_MESH = {("indirect", "smooth")}
+ON_A_MESH = {("direct", "smooth"), ("indirect", "smooth")}
 #: what ``solve`` accepts: a method name, or 'both'
 METHOD_NAMES = ("direct", "indirect", "both")
 #: relative cost difference above which compare reports different extremals
@@ -243,7 +243,10 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
         raise ValueError(reason)
     warm, note = as_warm_start(warm_start)
     if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
-        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm)
+        names = ("direct", "indirect") if method == "both" else (method,)
+        adaptive = accuracy.refinement == "adaptive" and all((n, problem.kind) in ON_A_MESH for n in names)
+        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm,
+                     adaptive=adaptive)
     else:
         out = _dispatch(problem, method, direct, indirect, progress, warm)
     if accuracy.continuous_check:
@@ -311,7 +314,7 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     disc, N, h = problem.disc, problem.N, problem.h
     t0 = time.perf_counter()
     U = None if controls is None else np.asarray(controls, dtype=float).reshape(NU, -1)
-    X, res = disc.simulate(problem.X0, U, h, N)
+    X, res = disc.simulate(problem.X0, U, problem.steps_of(h), N)
     run_s = time.perf_counter() - t0
     E = np.array(problem.model.energy().map(X.shape[0])(X.T)).ravel()
     rel = np.abs(E - E[0]) / max(abs(E[0]), 1e-300)

@@ -71,22 +71,38 @@ class WarmStart:
         """'the direct solution (N = 100, first_order)'."""
         return f"the {self.source} solution (N = {self.N}, {self.scheme})"
 
-    def fit(self, N: int, scheme: str) -> tuple["WarmStart", tuple[str, ...]]:
+    def fit(self, N: int, scheme: str, s: np.ndarray | None = None) -> tuple["WarmStart", tuple[str, ...]]:
         """This warm start on a grid of N steps of ``scheme`` over its own T (module docstring), and notes
-        (sentences) on what was resampled and what was dropped.  Unchanged (the same object, no notes) when
-        N and the scheme agree."""
-        if N == self.N and scheme == self.scheme:
+        (sentences) on what was resampled and what was dropped.  ``s``: the normalized node times (N+1,) in
+        [0, 1] of a non-uniform mesh (Problem.times / T; None: uniform).  Unchanged (the same object, no notes)
+        when N, the scheme and the node times agree."""
+        own = self.s
+        sf = np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
+        if N == self.N and scheme == self.scheme and (s is None and self.uniform or
+                                                      s is not None and np.allclose(sf, own, rtol=0, atol=1e-12)):
             return self, ()
-        t = np.linspace(0.0, self.T, N + 1)
-        X = resample_states(self.X, N)
-        U = resample_controls(self.U, self.scheme, scheme, N)
-        lam = None if self.costates is None else resample_costates(self.costates, N)
-        notes = [f"resampled from N = {self.N} ({self.scheme}) to N = {N} ({scheme}) on SE(3)"]
+        t = sf * self.T if s is not None else np.linspace(0.0, self.T, N + 1)
+        X = resample_states(self.X, N, own, sf)
+        U = resample_controls(self.U, self.scheme, scheme, N, own, sf)
+        lam = None if self.costates is None else resample_costates(self.costates, N, own, sf)
+        mesh = "" if s is None else " (a non-uniform mesh)"
+        notes = [f"resampled from N = {self.N} ({self.scheme}) to N = {N}{mesh} ({scheme}) on SE(3)"]
         dropped = [what for what, part in (("the NLP multipliers", self.multipliers),
                                            ("the shooting unknown lambda_0", self.lam0)) if part is not None]
         if dropped:
             notes.append(f"{' and '.join(dropped)} not reused (they belong to the other grid)")
         return WarmStart(t=t, X=X, U=U, scheme=scheme, source=self.source, costates=lam), tuple(notes)
+
+    @property
+    def uniform(self) -> bool:
+        """Its node times are equally spaced (to round-off)."""
+        d = np.diff(self.t)
+        return bool(np.all(np.abs(d - d.mean()) <= 1e-9 * abs(d.mean())))
+
+    @property
+    def s(self) -> np.ndarray:
+        """Its normalized node times (N+1,) in [0, 1]: k/N when uniform (exactly), else t / T."""
+        return np.linspace(0.0, 1.0, self.N + 1) if self.uniform else self.t / self.T
 
     def tail(self, k: int) -> "WarmStart":
         """The remaining horizon from node k (0 <= k < N) as a warm start of its own, shifted to start at t = 0
@@ -159,17 +175,22 @@ def as_warm_start(given) -> tuple[WarmStart | None, str]:
 
 
 # ------------------------------------------------------------------------------- resampling
-def _grid(N: int, midpoints: bool) -> np.ndarray:
-    """Normalized times in [0, 1] of the N+1 nodes, or of the N step midpoints."""
-    s = np.linspace(0.0, 1.0, N + 1)
-    return s[1:] - 0.5 / N if midpoints else s
+def _nodes(N: int, s: np.ndarray | None) -> np.ndarray:
+    """Normalized node times (N+1,) in [0, 1]: ``s`` itself, or the uniform k/N."""
+    return np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
 
 
-def resample_states(X: np.ndarray, N: int) -> np.ndarray:
+def _midpoints(s: np.ndarray) -> np.ndarray:
+    """The step midpoints (N,) of node times s (N+1,)."""
+    return 0.5 * (s[:-1] + s[1:])
+
+
+def resample_states(X: np.ndarray, N: int, sc: np.ndarray | None = None, sf: np.ndarray | None = None) -> np.ndarray:
     """Node states X (M+1, 18) at the N+1 nodes of the same horizon (module docstring): positions and momenta
-    linear in time, attitudes by geodesic interpolation; the end nodes are copied exactly."""
+    linear in time, attitudes by geodesic interpolation; the end nodes are copied exactly.  ``sc``, ``sf``: the
+    normalized node times of the given and the new grid (None: uniform)."""
     M = X.shape[0] - 1
-    sc, sf = _grid(M, False), _grid(N, False)
+    sc, sf = _nodes(M, sc), _nodes(N, sf)
     Xf = np.empty((N + 1, NX))
     for sl in (X_POS, X_MOM, X_ANG):
         for i in range(sl.start, sl.stop):
@@ -180,16 +201,20 @@ def resample_states(X: np.ndarray, N: int) -> np.ndarray:
     return Xf
 
 
-def resample_controls(U: np.ndarray, scheme: str, new_scheme: str, N: int) -> np.ndarray:
+def resample_controls(U: np.ndarray, scheme: str, new_scheme: str, N: int, sc: np.ndarray | None = None,
+                      sf: np.ndarray | None = None) -> np.ndarray:
     """Controls U (6, n) of ``scheme`` at the control times of N steps of ``new_scheme``: linear in time
-    between the control times (LGVI: nodes; first order: step midpoints), held beyond the first and last."""
+    between the control times (LGVI: nodes; first order: step midpoints), held beyond the first and last
+    (``sc``, ``sf`` as in :func:`resample_states`)."""
     M = U.shape[1] - 1 if scheme == "lgvi" else U.shape[1]
-    uc, uf = _grid(M, scheme != "lgvi"), _grid(N, new_scheme != "lgvi")
+    sc, sf = _nodes(M, sc), _nodes(N, sf)
+    uc = sc if scheme == "lgvi" else _midpoints(sc)
+    uf = sf if new_scheme == "lgvi" else _midpoints(sf)
     return np.vstack([np.interp(uf, uc, U[i]) for i in range(NU)])
 
 
-def resample_costates(lam: np.ndarray, N: int) -> np.ndarray:
-    """Costates lambda_k (M, 12) of the steps (at their midpoints) on N steps, linear in time."""
-    sc, sf = _grid(lam.shape[0], True), _grid(N, True)
-    return np.column_stack([np.interp(sf, sc, lam[:, i]) for i in range(NZ)])
-
+def resample_costates(lam: np.ndarray, N: int, sc: np.ndarray | None = None, sf: np.ndarray | None = None) -> np.ndarray:
+    """Costates lambda_k (M, 12) of the steps (at their midpoints) on N steps, linear in time (``sc``, ``sf`` as
+    in :func:`resample_states`)."""
+    mc, mf = _midpoints(_nodes(lam.shape[0], sc)), _midpoints(_nodes(N, sf))
+    return np.column_stack([np.interp(mf, mc, lam[:, i]) for i in range(NZ)])

@@ -100,7 +100,7 @@ def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
     disc, X0, N, T = problem.disc, problem.X0, problem.N, problem.T
 
     def made(kind):
-        return lambda: make_guess(kind, disc, X0, target_estimate(problem), N, T)
+        return lambda: make_guess(kind, disc, X0, target_estimate(problem), N, T, problem.fractions)
 
     if options.initial_guess != "auto":
         return [(options.initial_guess, made(options.initial_guess), options.max_iter)], "first"
@@ -132,8 +132,8 @@ def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
             bound.b / np.sqrt(3.0)      # an engine's random force is projected onto its axis (initial_point)
 
     def start(Ts: float, k: int):
-        return lambda: replace(perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, Ts, size, seed=k),
-                               h=Ts / N)
+        return lambda: replace(perturbed_interpolation_guess(disc, X0, target_estimate(problem), N, Ts, size, seed=k,
+                                                             s=problem.fractions), h=Ts / N)
 
     starts = [(f"interpolate with symmetry-breaking controls (seed {k})", start(T, k), options.max_iter)
               for k in range(TIME_STARTS)]
@@ -158,10 +158,10 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
     """The time objective's starts solved on Nc = max(TIME_COARSE_MIN, N // 4) steps (recursively), the
     best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
     the coarse solve did not converge)."""
-    sol = subsolve(problem.replace(N=Nc), options)
+    sol = subsolve(problem.replace(N=Nc, mesh=None), options)     # a mesh's starts on a uniform coarse grid
     if not sol.converged or sol.warm is None:
         return None
-    fitted, _ = sol.warm.fit(problem.N, problem.scheme)
+    fitted, _ = sol.warm.fit(problem.N, problem.scheme, problem.fractions)
     return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
                  seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h,
                  stats={k: v for k, v in sol.stats.items() if k.startswith("multistart")})
@@ -192,7 +192,7 @@ def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, su
                     prepared_on=RELAXED, h=None)
     engine = problem.control.force_bound
     if isinstance(engine, ThrusterBound):
-        guess = aimed_guess(problem.disc, guess, engine.axis, (engine.min, engine.max), problem.h)
+        guess = aimed_guess(problem.disc, guess, engine.axis, (engine.min, engine.max), problem.steps_of(problem.h))
     return guess
 
 

@@ -46,7 +46,7 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
     h = float(w[tr.layout.ih]) if tr.layout.ih is not None else problem.h
     lam_g = np.array(out["lam_g"]).ravel()
     g_phys = np.array(out["g"]).ravel() * tr.g_scale
-    Xsim, res = problem.disc.simulate(problem.X0, U, h, problem.N)
+    Xsim, res = problem.disc.simulate(problem.X0, U, problem.steps_of(h), problem.N)
     err = terminal_error(Xsim[-1], problem, T=problem.N * h)
     traj = trajectory(problem, Xsim, h)
     worst_cayley = float(np.max(res)) if res.size else 0.0
@@ -67,7 +67,8 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
     if problem.free_time:
         stats_out["T"] = problem.N * h
     times = traj.t[1:] if U.shape[1] == problem.N else traj.t
-    activity = control_activity(problem.control, U, quadrature_weights(problem.scheme, problem.N, h), times)
+    activity = control_activity(problem.control, U, quadrature_weights(problem.scheme, problem.N, problem.steps_of(h)),
+                                times)
     if activity:
         stats_out["bounds"] = activity
     if problem.constraints:

@@ -130,7 +130,7 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     notes: tuple[str, ...] = ()
     origin = warm.describe() if warm is not None else ""
     if warm is not None:
-        warm, notes = warm.fit(problem.N, problem.scheme)
+        warm, notes = warm.fit(problem.N, problem.scheme, problem.fractions)
         plan, pick = [("warm start", lambda: warm_guess(warm), options.max_iter)], "first"
     else:
         plan, pick = guess_plan(problem, options, solve_direct)

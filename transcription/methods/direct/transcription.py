@@ -44,7 +44,9 @@ class SmoothTranscription:
     Blocks (transcription.nlp.blocks), in this order: the dynamics of every step (with the effort cost), the
     control nodes' norm bounds and fuel epigraph (with the fuel cost), the time cost, one block per path
     constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
-    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  Box
+    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  On a
+    non-uniform mesh (``problem.mesh``) step k has its own size h_k = r_k h in its dynamics block's data (h the
+    mean step, the unknown of a free final time) and the control nodes' weights are those of the steps.  Box
     bounds on the controls, removed controls (a norm bound of 0), the slacks' signs and the free step size's
     range are variable bounds.
 
@@ -119,6 +121,9 @@ class SmoothTranscription:
         dyn = blocks.dynamics(disc, with_c, True, effort, self.free_h)
         data = blocks.dynamics_data(disc, h, sc.X, sc.C if with_c else None, sW, sG if with_c else None,
                                     *((sc.objective, control.W_f, control.W_m) if effort else ()))
+        if not problem.uniform:    # step k's own size: h_k, or r_k h_scale times the free mean step (§16)
+            data = np.repeat(data[:, None], N, axis=1)
+            data[0] = problem.mesh * self.h_scale if self.free_h else problem.steps
         iV = np.vstack([lay.iX[:, :-1]] + ([lay.iC] if with_c else []) + [lay.stage_controls(disc), lay.iX[:, 1:]]
                        + ([np.full((1, N), lay.ih)] if self.free_h else []))
         return Block("dynamics", dyn, iV, data, compile=True), np.concatenate([sc.X] + ([sG] if with_c else []))
@@ -133,7 +138,8 @@ class SmoothTranscription:
         if not (norm_f or norm_m or fuel or engine):
             return None, None
         nU, sS = len(lay.control_nodes), self.slack_scales
-        omega_per_h = quadrature_weights(problem.scheme, problem.N, 1.0)
+        # omega_j / h, h the (mean) step: the relative weights of the mesh's steps r_k (1 on a uniform mesh)
+        omega_per_h = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh)
         bf = control.force_bound.b if norm_f else engine.max if engine else 1.0
         bm = control.moment_bound.b if norm_m else 1.0
         Q = engine.basis().ravel(order="F") if engine else np.zeros(0)
