@@ -82,7 +82,7 @@ def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart 
     notes: list[str] = []
     if warm is not None:
         origin = warm.describe()
-        fitted, resampled = warm.fit(problem.N, problem.scheme)
+        fitted, resampled = warm.fit(problem.N, problem.scheme, problem.fractions)
         notes += [f"warm start from {origin}", *resampled]
         if fitted.lam0 is not None:
             return np.array(fitted.lam0, dtype=float), "warm_start", notes
