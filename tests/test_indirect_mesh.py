@@ -87,10 +87,10 @@ def from_zero():
 @pytest.mark.parametrize("name", ["e3", "e4"])
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_conditions_on_a_mesh_agree_with_an_independent_nlp(name, scheme, from_zero):
-    """E3 and E4 on the mesh: from lambda_0 = 0 the indirect method converges (as on a uniform mesh; 6-9 Newton
-    iterations measured), and its optimum is the independent NLP's: cost to 1e-10 relative and controls to 1e-10
-    of the largest (measured <= 8e-15 both; issue 26 asks 1e-8).  The mesh matters: the same problem on uniform
-    steps has a cost more than 1e-4 away (4.9e-4 for E3 with the LGVI).  The Solution's node times are the mesh's and its cost the per-step
+    """E3 and E4 on the mesh: from lambda_0 = 0 the indirect method converges (as on a uniform mesh; 6-9 Newton iterations
+    measured), and its optimum is the independent NLP's: cost to 1e-10 relative and controls to 1e-10 of the largest
+    (measured <= 8e-15 both; issue 26 asks 1e-8). The mesh matters: the same problem on uniform steps has a cost more
+    than 1e-4 away (4.9e-4 for E3 with the LGVI). The Solution's node times are the mesh's and its cost the per-step
     quadrature of its controls."""
     s = from_zero[name, scheme]
     p = s.problem
@@ -126,9 +126,10 @@ def extended(case: str, scheme: str, free_solution):
 @pytest.mark.parametrize("case", ["box", "free", "body_time"])
 @pytest.mark.parametrize("scheme", [pytest.param("first_order", marks=pytest.mark.slow), "lgvi"])
 def test_extensions_on_a_mesh_agree_with_an_independent_nlp(case, scheme, from_zero):
-    """The extensions on the mesh (first order: slow, 2-4 s each), from lambda_0 = 0 (with the bound continuation for the box) to the round-off
-    floor, against the independent NLP: cost to 1e-10, controls to 1e-8 of the largest (IPOPT's accuracy at the
-    box's corners; measured <= 1.6e-13 and <= 6.8e-11), T to 1e-12 relative.  The box holds and is active."""
+    """The extensions on the mesh (first order: slow, 2-4 s each), from lambda_0 = 0 (with the bound continuation for the
+    box) to the round-off floor, against the independent NLP: cost to 1e-10, controls to 1e-8 of the largest (IPOPT's
+    accuracy at the box's corners; measured <= 1.6e-13 and <= 6.8e-11), T to 1e-12 relative. The box holds and is
+    active."""
     p = extended(case, scheme, from_zero["e3", scheme])
     s = solve_indirect(p, IndirectOptions(eps_S=0.0))
     nlp = independent_nlp(p)

@@ -26,7 +26,7 @@ class ShootingFunctions:
     force the unknown and the recursion are in the body-momentum coordinates of :mod:`.coordinates`; the outputs
     lam, lamN, dlamN and Psi are in tangent coordinates z all the same (docs/mathematics.md §15).
 
-    h[1 x N] are the step sizes h_k, k = 0..N-1 (docs/mathematics.md §16; a scalar is broadcast: a uniform mesh);
+    h[1 x N] are the step sizes h_k, k = 0..N-1 (docs/mathematics.md §17; a scalar is broadcast: a uniform mesh);
     step k of the rollout and of its linearization runs at h_k, and the first control's law at h_0.
 
     shoot(lam0[12], X0[18], Xd[18], h[1 x N], Winv[6x6], bd[NB])
@@ -164,8 +164,8 @@ def time_gradient_function(disc: Discretization, N: int) -> ca.Function:
         g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h_k) / dh_k),
 
     X_k the node states 0..N-1, w_k the stage controls, lambda_k the multiplier of step k (the free-final-
-    time condition, docs/mathematics.md §10; on a mesh h_k = r_k h and dL/dh = J/h + sum_k r_k g_k, §16).  Forward AD through the step (its unrolled Cayley Newton
-    iterations, converged to round-off)."""
+    time condition, docs/mathematics.md §10; on a mesh h_k = r_k h and dL/dh = J/h + sum_k r_k g_k, §17).  Forward
+    AD through the step (its unrolled Cayley Newton iterations, converged to round-off)."""
     X, w, lam, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("lam", NZ), ca.SX.sym("h")
     X1 = disc.step(X, w, h)[0]
     g = ca.dot(lam, tangent_readback(X1, ca.jacobian(X1, h)))

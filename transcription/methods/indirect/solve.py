@@ -60,8 +60,9 @@ def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: flo
                        u1: np.ndarray | None = None) -> np.ndarray:
     """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6, §15): first_order
     lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control, at the size
-    of step 0 for the (mean) step size h (default the problem's): h_0 = r_0 h on a non-uniform mesh (§16).  With a body-fixed force A_0 depends on the next control too (the end kick
-    R_1 u_{f,1}): lambda_{-1} = A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
+    of step 0 for the (mean) step size h (default the problem's): h_0 = r_0 h on a non-uniform mesh (§17).  With a
+    body-fixed force A_0 depends on the next control too (the end kick R_1 u_{f,1}): lambda_{-1} = A_0(X_0, [u_0;
+    u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
     if problem.scheme == "lgvi":
         body = body_coordinates(problem.disc)
@@ -159,7 +160,7 @@ class _Shooting:
     def dL_dh(self, lam, h: float) -> float:
         """dJ*/dh = dL/dh at the solution (envelope theorem): J/h (the weights are proportional to h) plus the
         steps' terms (:func:`~.shooting.time_gradient_function`), each step's by its h_k = r_k h times dh_k/dh = r_k
-        on a non-uniform mesh (docs/mathematics.md §16)."""
+        on a non-uniform mesh (docs/mathematics.md §17)."""
         problem, X0, hk = self.problem, self.X0, self.problem.steps_of(h)
         _, Xs, lams, U, _, _ = (np.array(a) for a in self.fns.shoot(lam, X0, self.Xd, hk, self.Winv, self.bd))
         Xk = np.column_stack([X0, Xs[:, :-1]])
