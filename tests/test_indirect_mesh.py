@@ -221,3 +221,23 @@ def test_from_direct_with_a_free_final_time_on_a_mesh():
     print(f"from_direct, free T on the mesh: {s.result.value} in {s.iterations} it, T {s.T:.15g} (direct {d.T:.15g})")
     assert s.converged and s.stats["initial_costate"] == "from_direct" and s.iterations <= 10
     assert abs(s.T - d.T) <= 1e-10 * d.T and abs(s.cost - d.cost) <= 1e-10 * d.cost
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_mpc_replans_on_the_remaining_steps_of_a_mesh(scheme):
+    """MPC's re-plan (transcription.mpc.Replanner) on a mesh takes the remaining horizon's own steps h_k: from the
+    direct plan's own node k (k = 0: its costates mapped at h_0), one Newton step reproduces the remaining plan,
+    controls to 1e-10 relative and states to 1e-10 (as on a uniform mesh, tests/test_mpc.py), node times the mesh's."""
+    from se3ocp.transcription.mpc import Replanner
+    p = on_mesh("e3", scheme)
+    sol = se3ocp.solve(p, "direct")
+    rp = Replanner(p, sol.h, jit=False)
+    start = rp.start(sol.warm)
+    scale = np.abs(sol.controls).max()
+    for k in (0, 13, 30):
+        new, rec = rp.replan(sol.trajectory.X[k], start.tail(k), k)
+        du = np.abs(new.U - sol.controls[:, k:]).max() / scale
+        dX = np.abs(new.X - sol.trajectory.X[k:]).max()
+        print(f"mpc {scheme} on the mesh, k = {k}: controls {du:.1e}, states {dX:.1e}")
+        assert rec.accepted and du <= 1e-10 and dX <= 1e-10
+        np.testing.assert_allclose(new.t, p.times[k:] - p.times[k], rtol=1e-13, atol=1e-16)

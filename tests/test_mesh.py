@@ -75,11 +75,13 @@ def test_quadrature_weights_per_step_sum_to_T_and_integrate_linear_functions_exa
     np.testing.assert_array_equal(quadrature_weights("lgvi", 30, np.full(30, 0.1)), quadrature_weights("lgvi", 30, 0.1))
 
 
-def test_the_indirect_method_refuses_a_mesh_the_direct_method_takes():
-    """The guard is per method (the indirect method's part goes when it takes per-step sizes)."""
+def test_both_smooth_methods_take_a_mesh_and_the_impulsive_one_refuses_it():
+    """The guard is per method and kind of control: the direct and the indirect method take a mesh for smooth
+    control (tests/test_indirect_mesh.py for the indirect one); the impulsive transcription refuses one."""
     p = problem("e3", 20).replace(mesh=random_mesh(20))
-    assert not_covered(p, "direct") == ""
-    assert "indirect method" in not_covered(p, "indirect") and not_covered(p, "both") == not_covered(p, "indirect")
+    assert not_covered(p, "direct") == not_covered(p, "indirect") == not_covered(p, "both") == ""
+    q = problem("e1", 20).replace(mesh=random_mesh(20))
+    assert "non-uniform mesh" in not_covered(q, "direct")
 
 
 def test_free_final_time_on_a_mesh_scales_every_step_together():

@@ -78,8 +78,8 @@ class Replan:
 
 class Replanner:
     """Re-plans of one Problem (a smooth-control effort problem with a state target, the indirect method's
-    coverage) at step size h: ``iterations`` Newton steps on the remaining problem's shooting unknown from
-    a warm start, ``jit``: the per-step maps compiled to C (transcription.codegen; interpreter without a
+    coverage) at the (mean) step size h (on a mesh the remaining steps h r_k, :meth:`steps`): ``iterations``
+    Newton steps on the remaining problem's shooting unknown from a warm start, ``jit``: the per-step maps compiled to C (transcription.codegen; interpreter without a
     compiler).  ValueError for a problem the indirect method does not cover."""
 
     def __init__(self, problem, h: float, iterations: int = DEFAULT_ITERATIONS, jit: bool = True,
@@ -92,6 +92,12 @@ class Replanner:
         self.problem, self.h, self.iterations, self.jit = problem, float(h), int(iterations), bool(jit)
         self.Xd, self.Winv, self.bd = problem.terminal.X, weight_inverse(problem), bound_data(problem)
         self.free, self.cayley_tol = free_rows(problem.terminal), float(cayley_tol)
+
+    def steps(self, n: int) -> float | np.ndarray:
+        """The step sizes of the last n steps (a shrinking horizon's remainder): h on a uniform mesh, else h_k =
+        h r_k of steps N-n..N-1 of the problem's mesh (docs/mathematics.md §17)."""
+        s = self.problem.steps_of(self.h)
+        return s if np.ndim(s) == 0 else s[len(s) - int(n):]
 
     def functions(self, n: int):
         """The indirect method's shooting Functions of n steps (built once per n and Discretization)."""
@@ -108,7 +114,8 @@ class Replanner:
             raise ValueError("MPC: the plan carries no costates to warm-start the re-plans from")
         lam0 = np.asarray(plan.costates[0], float)
         if plan.scheme == "lgvi":             # lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0 at the plan's own X_0 and h
-            A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], self.h)[0])
+            h0 = np.ravel(self.steps(plan.N))[0]   # step 0's size
+            A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], h0)[0])
             lam0 = A0.T @ lam0
         return WarmStart(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
                          costates=plan.costates, lam0=np.asarray(lam0, float))
@@ -119,7 +126,7 @@ class Replanner:
         flown state is known; and its wall time (s)."""
         t0 = time.perf_counter()
         _, J = self._newton_system(self.functions(tail.N), np.asarray(tail.lam0, float).reshape(NZ),
-                                   (tail.X[0], self.Xd, self.h, self.Winv, self.bd))
+                                   (tail.X[0], self.Xd, self.steps(tail.N), self.Winv, self.bd))
         return J, time.perf_counter() - t0
 
     def replan(self, X, tail: WarmStart, k: int = 0, J0: np.ndarray | None = None) -> tuple[WarmStart | None, Replan]:
@@ -130,7 +137,7 @@ class Replanner:
         prepared Jacobian (:meth:`prepare`) for the first step, whose residual is then one plain rollout from
         X (the feedback phase); without it every step takes the exact Jacobian at X."""
         X, n = np.asarray(X, float).reshape(NX), tail.N
-        fns, args = self.functions(n), (X, self.Xd, self.h, self.Winv, self.bd)
+        fns, args = self.functions(n), (X, self.Xd, self.steps(n), self.Winv, self.bd)
         lam, before, msg = np.asarray(tail.lam0, float).reshape(NZ), np.nan, ""
         t0 = time.perf_counter()
         try:
@@ -153,7 +160,9 @@ class Replanner:
                      accepted=bool(ok), message=msg)
         if not ok:
             return None, rec
-        new = WarmStart(t=np.arange(n + 1) * self.h, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
+        hs = self.steps(n)
+        t = np.arange(n + 1) * self.h if np.ndim(hs) == 0 else np.r_[0.0, np.cumsum(hs)]
+        new = WarmStart(t=t, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
                         source="mpc", costates=lams.T, lam0=lam)
         return new, rec
 
