@@ -104,17 +104,6 @@ class Problem:
         """The node times t_k (N+1,): t_0 = 0, t_{k+1} = t_k + h_k."""
         return np.concatenate([[0.0], np.cumsum(self.steps)])
 
-    def steps_of(self, h: float) -> float | np.ndarray:
-        """The step sizes for the mean step h (a free final time's solution): h itself on a uniform mesh (one
-        number, so that uniform solves stay bit-identical), else h r_k (N,)."""
-        return float(h) if self.mesh is None else float(h) * self.mesh
-
-    def times_of(self, h: float) -> np.ndarray:
-        """The node times (N+1,) for the mean step h: k h on a uniform mesh, else the cumulative sums of h r_k."""
-        if self.mesh is None:
-            return float(h) * np.arange(self.N + 1)
-        return np.concatenate([[0.0], np.cumsum(float(h) * self.mesh)])
-
     @property
     def fractions(self) -> np.ndarray | None:
         """The normalized node times t_k / T (N+1,) of a non-uniform mesh (what a warm start is resampled
