@@ -166,3 +166,13 @@ def test_the_adaptive_mesh_lands_with_fewer_steps_than_uniform_refinement():
     assert ada.N < uni.N and ada.N < 150 * (ada.mesh[0]["miss"] / 1e-3) ** 0.5
     assert ada.steps.max() / ada.steps.min() > 5 and ada.steps[-1] > 5 * ada.steps[0]
     assert abs(ada.mesh[0]["predicted"] / ada.mesh[0]["miss"] - 1) <= 0.1
+
+
+def test_fatrop_solves_the_same_mesh_problem():
+    """fatrop's stage-ordered NLP has the same per-step blocks: on a random mesh its optimum is IPOPT's (LGVI, E3)."""
+    from se3ocp.transcription.options import DirectOptions
+
+    p = problem("e3", 40, "lgvi").replace(mesh=random_mesh(40))
+    a, b = solve(p, "direct"), solve(p, "direct", direct=DirectOptions(solver="fatrop"))
+    assert b.solver == "fatrop" and b.converged, b.message
+    assert abs(a.cost - b.cost) <= 1e-10 * a.cost
