@@ -90,7 +90,8 @@ def continuous_section(sols: dict[str, Solution]) -> dict[str, Any] | None:
 
 
 #: the columns of a mesh history (transcription.accuracy: one record per refinement level)
-MESH_COLUMNS = ("level", "N", "miss", "path_violation", "iterations", "solve_s", "check_s", "status")
+MESH_COLUMNS = ("level", "N", "mesh", "h_min", "h_max", "miss", "predicted", "path_violation", "iterations", "solve_s",
+                "check_s", "status")
 
 
 def _unit(un: Units, u: str) -> str:

@@ -147,7 +147,9 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> t
     steps equidistribute it with the sum of the shares e_k aimed at tol / SAFETY times the measured miss's share of
     that sum (the estimate calibrated by the flight).  When the path violation between the nodes, not the terminal
     miss, is what is over the tolerance, the mesh is subdivided in its own density by the uniform factor of
-    :func:`next_N` (the local errors do not say where a cone is cut)."""
+    :func:`next_N`: the violation is mostly the flown path's drift from the plan accumulated up to the constraint's
+    arc, not the chord between two nodes (the keep-out slew: splitting only the steps where the cone is left moved
+    the violation from 9.7e-5 to 8.9e-5 rad in 8 levels), and the local errors do not say where it is made."""
     from .mesh import equidistributed_steps, error_estimate, subdivided_steps
 
     p = ORDER[problem.scheme]

@@ -82,9 +82,9 @@ def error_estimate(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, ord
     return tangent_norms(c, problem, L, V), float(tangent_norms(c.sum(axis=0), problem, L, V)[0])
 
 
-def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
-    """New step sizes (N',) over the same horizon whose local errors sum to about ``total`` and are
-    equidistributed in time (module docstring): steps h (N,), their local errors e (N,), the scheme's order p."""
+def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
+    """The node density 1/h(t) (N,) on the old steps h (N,) whose local errors, e (N,) now, sum to about ``total``
+    equidistributed in time (module docstring; p = ``order``), bounded to [1/MERGE, GROWTH] times the old one."""
     h = np.asarray(steps, dtype=float)
     e = np.asarray(errors, dtype=float)
     T = float(h.sum())
@@ -92,13 +92,26 @@ def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, tot
     C = np.maximum(C, 1e-12 * max(C.max(initial=0.0), 1e-300))
     C = np.max(np.stack([C, np.r_[C[:1], C[:-1]], np.r_[C[1:], C[-1:]]]), axis=0)   # a neighbour's error counts
     a = (max(total, 1e-300) / T) ** (1.0 / order)
-    density = np.clip(C ** (1.0 / order) / a, 1.0 / (MERGE * h), GROWTH / h)    # nodes per unit time
-    phi = np.r_[0.0, np.cumsum(density * h)]
-    n = max(int(np.ceil(phi[-1])), 1)
+    return np.clip(C ** (1.0 / order) / a, 1.0 / (MERGE * h), GROWTH / h)
+
+
+def density_steps(steps: np.ndarray, density: np.ndarray) -> np.ndarray:
+    """New step sizes over the horizon of the old ``steps`` (N,) with the node density ``density`` (N,) (nodes per
+    unit time, constant on each old step): the new nodes where its integral passes the integers (rescaled so
+    that the last one is the horizon's end, kept exactly)."""
+    h = np.asarray(steps, dtype=float)
+    phi = np.r_[0.0, np.cumsum(np.asarray(density, dtype=float) * h)]
+    n = max(int(np.ceil(phi[-1] - 1e-9)), 1)
     t_old = np.r_[0.0, np.cumsum(h)]
     t_new = np.interp(np.linspace(0.0, phi[-1], n + 1), phi, t_old)
     t_new[-1] = t_old[-1]
     return np.diff(t_new)
+
+
+def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
+    """New step sizes (N',) over the same horizon whose local errors sum to about ``total`` and are
+    equidistributed in time (module docstring): steps h (N,), their local errors e (N,), the scheme's order p."""
+    return density_steps(steps, equidistributed_density(steps, errors, order, total))
 
 
 def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
@@ -112,5 +125,5 @@ def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
     return np.diff(t_new)
 
 
-__all__ = ["GROWTH", "MERGE", "equidistributed_steps", "error_estimate", "local_errors", "propagated_errors",
+__all__ = ["GROWTH", "MERGE", "density_steps", "equidistributed_density", "equidistributed_steps", "error_estimate", "local_errors", "propagated_errors",
            "subdivided_steps", "tangent_norms"]

@@ -100,7 +100,9 @@ def cmd_solve(args) -> int:
             for rec in sol.mesh:    # refinement to solver.accuracy: one line per mesh level
                 say(args, f"    mesh level {rec['level']}: N = {rec['N']}, continuous miss {rec['miss']:.2e}, path "
                           f"violation {rec['path_violation']:.1e}, {rec['iterations']} iterations, solve "
-                          f"{rec['solve_s']:.2f} s, check {rec['check_s']:.2f} s ({rec['status']})")
+                          f"{rec['solve_s']:.2f} s, check {rec['check_s']:.2f} s ({rec['status']})"
+                          + (f"; {rec['mesh']} mesh, steps {rec['h_min']:.3g} to {rec['h_max']:.3g}" if "mesh" in rec
+                             else ""))
         store.write_run(tx.path, man, result)
         _figures_and_report(args, tx.path)
         Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
