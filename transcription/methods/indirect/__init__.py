@@ -61,7 +61,9 @@ and once per (Discretization, N) (see :func:`.shooting.shooting_functions`):
     shoot_jac    (lam0, X0, Xd, h, Winv) -> (zN[12], Psi[12x12])
 
 Winv = blkdiag(W_f, W_m)^-1; X0, Xd, h, Winv are inputs, so one build serves
-every problem with the same scheme, model and N.
+every problem with the same scheme, model and N.  In the per-N Functions h is the row of step sizes h_k
+(1 x N; a scalar is broadcast): on a non-uniform mesh step k runs at its own h_k, and the conditions keep
+their form (docs/mathematics.md §17: the per-step quadrature meets the steps' kicks, so u = -W^-1 E^T lambda).
 
 Newton-Armijo (transcription.newton, shared with the impulsive TPBVP) runs in :func:`.solve.solve_indirect`.
 
