@@ -241,3 +241,14 @@ def test_mpc_replans_on_the_remaining_steps_of_a_mesh(scheme):
         print(f"mpc {scheme} on the mesh, k = {k}: controls {du:.1e}, states {dX:.1e}")
         assert rec.accepted and du <= 1e-10 and dX <= 1e-10
         np.testing.assert_allclose(new.t, p.times[k:] - p.times[k], rtol=1e-13, atol=1e-16)
+
+
+def test_the_fallback_from_the_direct_solution_on_a_mesh():
+    """A cold start that fails (one Newton iteration allowed, from lambda_0 = 0) is started again from the direct
+    solution on the same mesh (its costates at the mesh's node times, lambda_{-1} at h_0), which converges within
+    that one iteration to the direct cost (1e-10)."""
+    p = on_mesh("e3", "lgvi")
+    s = se3ocp.solve(p, "indirect", indirect=IndirectOptions(max_iter=1))
+    print(f"fallback on the mesh: {s.result.value}, {s.stats['fallback']}, {s.attempts}")
+    assert s.converged and s.stats["fallback"] == "from_direct" and not s.attempts[0].result.successful
+    assert abs(s.cost - s.stats["direct_cost"]) <= 1e-10 * s.cost
