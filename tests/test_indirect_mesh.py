@@ -252,3 +252,19 @@ def test_the_fallback_from_the_direct_solution_on_a_mesh():
     print(f"fallback on the mesh: {s.result.value}, {s.stats['fallback']}, {s.attempts}")
     assert s.converged and s.stats["fallback"] == "from_direct" and not s.attempts[0].result.successful
     assert abs(s.cost - s.stats["direct_cost"]) <= 1e-10 * s.cost
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["e3", "e4"])
+def test_direct_equals_indirect_on_the_adaptive_mesh(name):
+    """Both methods refined together to accuracy 1e-4 (LGVI, from the config's N = 500): the last level is an
+    adaptive mesh (steps h_max / h_min > 2), both converge on it and agree to 1e-8 (measured E3: N 500 -> 1001,
+    h_max / h_min 6.6, cost 1.1e-14, controls 1.6e-14; E4: 500 -> 965, 4.3, 3.8e-15, 2.0e-14; ~20 s each)."""
+    b = se3ocp.solve(support.maneuver(name, None, "lgvi"), "both", accuracy=1e-4)
+    d, i = b.direct, b.indirect
+    steps = np.diff(d.trajectory.t)
+    print(f"{name} adaptive: N {[r['N'] for r in d.mesh]}, h_max/h_min {steps.max() / steps.min():.2f}, cost "
+          f"{b.cost_relative_difference:.1e}, controls {b.control_max_difference_relative:.1e}; {b.verdict}")
+    assert d.mesh[-1]["mesh"] == "adaptive" and steps.max() > 2 * steps.min()
+    assert d.converged and i.converged and b.verdict.startswith("agree")
+    assert b.cost_relative_difference <= 1e-8 and b.control_max_difference_relative <= 1e-8
