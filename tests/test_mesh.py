@@ -191,3 +191,13 @@ def test_fatrop_solves_the_same_mesh_problem():
     a, b = solve(p, "direct"), solve(p, "direct", direct=DirectOptions(solver="fatrop"))
     assert b.solver == "fatrop" and b.converged, b.message
     assert abs(a.cost - b.cost) <= 1e-10 * a.cost
+
+
+def test_the_refinement_option_is_read_and_a_bad_one_named():
+    import se3ocp
+    from support import config
+
+    assert se3ocp.load(config("e3")).accuracy.refinement == "adaptive"
+    assert se3ocp.load(config("e3"), ["solver.refinement=uniform"]).accuracy.refinement == "uniform"
+    with pytest.raises(Exception, match=r"solver.refinement: expected one of adaptive, uniform"):
+        se3ocp.load(config("e3"), ["solver.refinement=smart"])
