@@ -201,3 +201,12 @@ def test_the_refinement_option_is_read_and_a_bad_one_named():
     assert se3ocp.load(config("e3"), ["solver.refinement=uniform"]).accuracy.refinement == "uniform"
     with pytest.raises(Exception, match=r"solver.refinement: expected one of adaptive, uniform"):
         se3ocp.load(config("e3"), ["solver.refinement=smart"])
+
+
+def test_tracking_refuses_a_plan_on_a_non_uniform_mesh():
+    """The LQR's gains take one h: a plan on a mesh is refused in one sentence naming the way out."""
+    from se3ocp.transcription.tracking import tracking_gains
+
+    sol = solve(problem("e3", 20).replace(mesh=random_mesh(20)), "direct")
+    with pytest.raises(ValueError, match="non-uniform mesh.*solver.refinement: uniform"):
+        tracking_gains(sol)
