@@ -193,3 +193,22 @@ def test_fatrop_solves_the_same_mesh_problem():
     a, b = solve(p, "direct"), solve(p, "direct", direct=DirectOptions(solver="fatrop"))
     assert b.solver == "fatrop" and b.converged, b.message
     assert abs(a.cost - b.cost) <= 1e-10 * a.cost
+
+
+def test_the_refinement_option_is_read_and_a_bad_one_named():
+    import se3ocp
+    from support import config
+
+    assert se3ocp.load(config("e3")).accuracy.refinement == "adaptive"
+    assert se3ocp.load(config("e3"), ["solver.refinement=uniform"]).accuracy.refinement == "uniform"
+    with pytest.raises(Exception, match=r"solver.refinement: expected one of adaptive, uniform"):
+        se3ocp.load(config("e3"), ["solver.refinement=smart"])
+
+
+def test_tracking_refuses_a_plan_on_a_non_uniform_mesh():
+    """The LQR's gains take one h: a plan on a mesh is refused in one sentence naming the way out."""
+    from se3ocp.transcription.tracking import tracking_gains
+
+    sol = solve(problem("e3", 20).replace(mesh=random_mesh(20)), "direct")
+    with pytest.raises(ValueError, match="non-uniform mesh.*solver.refinement: uniform"):
+        tracking_gains(sol)

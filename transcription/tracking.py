@@ -438,6 +438,9 @@ def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gai
     control = getattr(prob, "control", None)
     if not isinstance(control, SmoothControl) or sol.controls is None:
         raise ValueError("tracking_gains: the plan must be a Solution with smooth controls (and its Problem)")
+    if not getattr(prob, "uniform", True):    # the gains, the Riccati weights and the discrete loop take one h
+        raise ValueError("tracking_gains: a plan on a non-uniform mesh (adaptive refinement) cannot be tracked yet: "
+                         "refine it with solver.refinement: uniform")
     disc, h = prob.disc, sol.h
     X, U = np.asarray(sol.trajectory.X, float), np.asarray(sol.controls, float)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
