@@ -147,6 +147,81 @@ def interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) 
     return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
 
 
+def orbit_axis(X0: np.ndarray) -> np.ndarray | None:
+    """The unit orbit normal x_0 x gamma_0 / |x_0 x gamma_0| of X0 (None when the initial motion is radial or at
+    rest)."""
+    a = unpack_states(X0)
+    h = np.cross(a.x[0], a.gamma[0])
+    return h / np.linalg.norm(h) if np.linalg.norm(h) > 1e-12 * max(np.linalg.norm(a.x[0]), 1e-300) else None
+
+
+def orbit_turn(X0: np.ndarray, Xd: np.ndarray, T: float, mu: float) -> float | None:
+    """The angle Phi the orbit turns in T (radians about :func:`orbit_axis`): the in-plane angle from x_0 to x_d
+    plus the whole revolutions 2 pi k that bring it nearest to the free motion's angle over T, the integral of
+    the circular mean motion sqrt(mu / r^3) along r linear from |x_0| to |x_d| (None without an orbit normal)."""
+    n = orbit_axis(X0)
+    if n is None or not mu:
+        return None
+    x0, xd = unpack_states(X0).x[0], unpack_states(Xd).x[0]
+    base = np.arctan2(n @ np.cross(x0, xd), x0 @ xd - (n @ x0) * (n @ xd)) % (2 * np.pi)
+    r = np.linspace(np.linalg.norm(x0), np.linalg.norm(xd), 65)
+    free = T * float(np.mean(np.sqrt(mu / r ** 3)))
+    return float(base + 2 * np.pi * max(0, round((free - base) / (2 * np.pi))))
+
+
+def orbit_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) -> Guess | None:
+    """The screw interpolation (:func:`screw_path`) taken in the frame Q(phi) turning about the orbit normal n
+    with the orbit, then turned back: x = Q x', R = Q R', gamma = Q (gamma' + m phi' n x x'), Pi = Pi' + J R'^T n
+    phi', where the primed path runs from X0 to Q(Phi)^T X_d (momenta relative to the turning frame) and phi
+    advances at the circular mean motion sqrt(mu / |x'|^3), scaled to the total turn Phi (:func:`orbit_turn`);
+    zero controls.  Why: over several revolutions the screw interpolation between the end configurations turns
+    once at most (the five-orbit phasing: a quarter turn in five periods, held against gravity), while this
+    path follows the orbits -- for a transfer between near-circular orbits a spiral.  None without a central
+    body or an orbit normal."""
+    Phi = orbit_turn(X0, Xd, T, disc.model.mu)
+    if Phi is None:
+        return None
+    n, m, J = orbit_axis(X0), disc.model.mass, np.asarray(disc.J)
+    s = np.linspace(0.0, 1.0, N + 1)
+    a, d = unpack_states(X0), unpack_states(Xd)
+    Qd = exp_so3(-Phi * n)
+    xdr, Rdr = d.x[0] @ Qd.T, Qd @ d.R[0]
+    path = screw_path(X0, pack_state(xdr, d.gamma[0], Rdr, d.Pi[0]), s, m, J, T)   # its positions only
+    speed = np.sqrt(disc.model.mu / np.maximum(np.linalg.norm(path[:, :3], axis=1), 1e-300) ** 3)
+    mid = 0.5 * (speed[1:] + speed[:-1])
+    phi = Phi * np.concatenate([[0.0], np.cumsum(mid)]) / np.sum(mid)
+    rate = speed * Phi / (T * np.mean(mid))       # d phi / dt at the nodes
+    ends = [pack_state(x, g - m * w * np.cross(n, x), R, P - J @ R.T @ n * w)     # momenta relative to the frame
+            for x, g, R, P, w in ((a.x[0], a.gamma[0], a.R[0], a.Pi[0], rate[0]),
+                                  (xdr, d.gamma[0] @ Qd.T, Rdr, d.Pi[0], rate[-1]))]
+    rel = unpack_states(screw_path(*ends, s, m, J, T))
+    Q = np.array([exp_so3(p * n) for p in phi])
+    x = np.einsum("kij,kj->ki", Q, rel.x)
+    gam = np.einsum("kij,kj->ki", Q, rel.gamma + m * rate[:, None] * np.cross(n, rel.x))
+    R = np.einsum("kij,kjl->kil", Q, rel.R)
+    Pi = rel.Pi + np.einsum("ij,kjl,l->ki", J, np.swapaxes(rel.R, 1, 2), n) * rate[:, None]
+    X = pack_state(x, gam, R, Pi)
+    return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
+
+
+def implied_effort(disc, X: np.ndarray, h: float, W: np.ndarray) -> float:
+    """The effort sum_k h (1/2) u_k^T W u_k (W: 6x6, force then moment) of the controls that fly the path of node
+    states X (N+1, 18) in the continuous equations, by finite differences: u_f = d gamma/dt + m mu x / |x|^3
+    (the point-mass attraction; no J2), u_m = d Pi/dt - Pi x Omega (no gravity-gradient torque), at the step
+    midpoints.  A cheap judge of interpolated starts that all meet the target (a rollout needs no control and
+    misses it instead): the start a solver has least to change."""
+    st = unpack_states(X)
+    mid = lambda a: 0.5 * (a[1:] + a[:-1])
+    x, Pi = mid(st.x), mid(st.Pi)
+    f = np.diff(st.gamma, axis=0) / h
+    mu = disc.model.mu or 0.0
+    if mu:
+        f = f + disc.model.mass * mu * x / np.maximum(np.linalg.norm(x, axis=1), 1e-300)[:, None] ** 3
+    Omega = Pi @ np.linalg.inv(np.asarray(disc.J)).T
+    u = np.hstack([f, np.diff(st.Pi, axis=0) / h - np.cross(Pi, Omega)])
+    return float(0.5 * h * np.einsum("ki,ij,kj->", u, np.asarray(W, float), u))
+
+
 def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, size: np.ndarray,
                                   seed: int = 0) -> Guess:
     """The screw interpolation with controls drawn (seeded, normal) at the size ``size`` (6,) of
@@ -171,6 +246,8 @@ def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float
         return rollout_guess(disc, X0, N, T / N)
     if kind == "interpolate":
         return interpolation_guess(disc, X0, Xd, N, T)
+    if kind == "orbit":
+        return orbit_interpolation_guess(disc, X0, Xd, N, T)
     raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
 
 
