@@ -26,16 +26,23 @@ def _results(args, man: Maneuver):
 
 
 def cmd_validate(args) -> int:
+    """Exit 0 for a valid file; a file that is valid but asks what solve will refuse or cannot reach says so in a
+    line beginning 'but' (a warning, still exit 0: the input is well-formed, the request is the problem)."""
+    from ...transcription.accuracy import out_of_reach
     from ...transcription.feasibility import necessary_conditions
 
     man = _load(args)
     infeasible = necessary_conditions(man.problem)  # valid, but provably without a solution: said now
+    unreachable = out_of_reach(man.problem, man.accuracy)   # solve's one-line answer to solver.accuracy, the same
     summary = {"config": man.source, "name": man.name, "valid": True, "control": man.control_kind,
-               "discretization": man.discretization, "N": man.N, "T": man.T, "provably_infeasible": infeasible}
+               "discretization": man.discretization, "N": man.N, "T": man.T, "provably_infeasible": infeasible,
+               "accuracy_out_of_reach": unreachable}
     say(args, f"{man.source}: valid ({man.name}: {man.control_kind or 'no control'}, "
                f"{man.discretization}, N = {man.N}, T = {man.T:g})")
     if infeasible:
         say(args, f"  but provably infeasible (solve will say so without iterating): {infeasible}")
+    if unreachable:
+        say(args, f"  but solver.accuracy is out of reach (solve refuses it, exit 2): {unreachable}")
     emit_summary(args, summary)
     return 0
 
