@@ -10,7 +10,7 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction, results_update
 from ..maneuvers import Maneuver, load_maneuver
-from ..schema import ConfigError
+from ..schema import ConfigError, blame_overrides
 from .progress import Progress, ProgressBar, emit_summary, say, table
 from .signals import Interrupt
 
@@ -88,8 +88,10 @@ def cmd_solve(args) -> int:
     if reason:
         raise ConfigError(man.source, "control.kind", reason)
     reason = out_of_reach(man.problem, man.accuracy)  # a tolerance out of reach: the N it needs, before solving
-    if reason:
-        raise ConfigError(man.source, "solver.accuracy", reason)
+    if reason:   # named where it was given: the file, or --set (of the accuracy, the scheme, N or the cap)
+        raise blame_overrides(ConfigError(man.source, "solver.accuracy", reason,
+                                          also=("discretization", "horizon.N", "solver.max_N")),
+                              [o.split("=", 1)[0].strip() for o in args.overrides or ()])
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
