@@ -58,7 +58,7 @@ def test_plan_order():
     (its own budget); an explicit choice: that guess only."""
     b, mx = plan.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
     assert _labels("e3") == ([("rollout", b), ("interpolate", mx)], "first")
-    assert _labels("everyday/orbit_double") == ([("orbit", b), ("rollout", mx)], "first")   # judged_interpolations
+    assert _labels("everyday/orbit_double") == ([("interpolate, attitude of orbit", b), ("rollout", mx)], "first")
     entries, _ = _labels("e3_bounded")
     assert [lb for lb, _ in entries] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
     assert _labels("orbit_raise_fuel") == ([("rollout", plan.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")

@@ -172,7 +172,8 @@ def test_multistart_counts_optima_within_a_relative_tolerance():
 def test_the_orbit_interpolation_meets_both_ends_and_follows_the_orbit():
     """The five-orbit phasing: the screw interpolation in the frame turning with the orbit starts at X0 and ends at
     the target (states to 1e-12), turns 5.25 revolutions (10.5 pi) and stays on the circle r = 1 (the two ends
-    are the same point of the turning frame); its path needs < 1e-2 of the screw interpolation's effort."""
+    are the same point of the turning frame); its path needs < 1e-2 of the screw interpolation's force and moment
+    efforts."""
     from se3ocp.transcription.guess import implied_effort, make_guess, orbit_turn, target_estimate
 
     p = maneuver("everyday/phasing_5_orbits", 200).problem
@@ -182,20 +183,24 @@ def test_the_orbit_interpolation_meets_both_ends_and_follows_the_orbit():
     assert abs(orbit_turn(p.X0, Xd, p.T, p.model.mu) - 10.5 * np.pi) <= 1e-12
     assert np.abs(np.linalg.norm(g.X[:, :3], axis=1) - 1.0).max() <= 1e-12
     screw = make_guess("interpolate", p.disc, p.X0, Xd, p.N, p.T)
-    assert implied_effort(p.disc, g.X, p.h, p.control.W) <= 1e-2 * implied_effort(p.disc, screw.X, p.h, p.control.W)
+    mine, its = implied_effort(p.disc, g.X, p.h, p.control.W), implied_effort(p.disc, screw.X, p.h, p.control.W)
+    assert mine[0] <= 1e-2 * its[0] and mine[1] <= 1e-2 * its[1]       # force and moment
 
 
 def test_the_start_needing_less_effort_goes_first():
-    """initial_guess auto orders the interpolations by the effort their paths need: the orbit's first for the
-    multi-revolution phasing and raise, the screw interpolation first where a plane turns in less than a
-    revolution (E3, the 45 deg plane change); the efforts are reported."""
-    from se3ocp.transcription.methods.direct.plan import judged_interpolations
+    """initial_guess auto takes the interpolated path and attitude that need the least effort, each on its own: the
+    orbit's for the multi-revolution phasing and raise (radially pointed bodies turning with the orbit), the
+    screw interpolation's where a plane turns in less than a revolution (E3, the 45 deg plane change), and for
+    the LEO raise and slew (held inertially, rest to rest) the orbit's path with the screw interpolation's
+    attitude; the efforts are reported."""
+    from se3ocp.transcription.methods.direct.plan import judged_interpolation
 
-    for name, first in (("everyday/phasing_5_orbits", "orbit"), ("everyday/raise_3_orbits", "orbit"),
-                        ("e3", "interpolate"), ("everyday/plane_change_45", "interpolate")):
-        kinds = judged_interpolations(maneuver(name, 100).problem)
-        assert [k for k, _ in kinds][0] == first and len(kinds) == 2, name
-        assert kinds[0][1]().stats["interpolation_efforts"].startswith(first)
+    for name, label in (("everyday/phasing_5_orbits", "orbit"), ("everyday/raise_3_orbits", "orbit"),
+                        ("e3", "interpolate"), ("everyday/plane_change_45", "interpolate"),
+                        ("leo_raise_slew", "orbit, attitude of interpolate")):
+        got, guess = judged_interpolation(maneuver(name, 100).problem)
+        assert got == label, name
+        assert guess.stats["interpolation_efforts"].startswith("interpolate: force ")
 
 
 def test_the_phasing_reaches_the_near_circular_optimum_by_default():

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .layout import NU, U_FORCE, X_ANG, X_ROT, pack_state, unpack_states
+from .layout import NU, U_FORCE, U_MOMENT, X_ANG, X_ROT, pack_state, unpack_states
 from .lie import exp_so3, log_so3_any, rotation_between, step_cayley_vectors
 from .problem import Problem, TargetOrbit, TargetRendezvous, TargetState, orbit_conditions, rendezvous_state
 
@@ -204,22 +204,29 @@ def orbit_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: f
     return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
 
 
-def implied_effort(disc, X: np.ndarray, h: float, W: np.ndarray) -> float:
-    """The effort sum_k h (1/2) u_k^T W u_k (W: 6x6, force then moment) of the controls that fly the path of node
-    states X (N+1, 18) in the continuous equations, by finite differences: u_f = d gamma/dt + m mu x / |x|^3
-    (the point-mass attraction; no J2), u_m = d Pi/dt - Pi x Omega (no gravity-gradient torque), at the step
-    midpoints.  A cheap judge of interpolated starts that all meet the target (a rollout needs no control and
-    misses it instead): the start a solver has least to change."""
+def implied_effort(disc, X: np.ndarray, h: float, W: np.ndarray) -> tuple[float, float]:
+    """The efforts sum_k h (1/2) u^T W u of the force and of the moment (W: 6x6, force then moment; each part
+    with its own block) that fly the path of node states X (N+1, 18) in the continuous equations, by finite
+    differences of the path's own motion: node velocities v_k = (x_{k+1} - x_{k-1}) / 2h and body rates
+    Omega_k = (Log(R_{k-1}^T R_k) + Log(R_k^T R_{k+1})) / 2h, the given ones gamma / m and J^-1 Pi at the two
+    ends; at the step midpoints u_f = m dv/dt + m mu x / |x|^3 (the point-mass attraction; no J2) and
+    u_m = J dOmega/dt - J Omega x Omega (no gravity-gradient torque).  A cheap judge of interpolated starts that
+    all meet the target (a rollout needs no control and misses it instead): the start a solver has least to
+    change; the ends count, so a path that does not move as the body moves at its ends pays for the jump."""
     st = unpack_states(X)
-    mid = lambda a: 0.5 * (a[1:] + a[:-1])
-    x, Pi = mid(st.x), mid(st.Pi)
-    f = np.diff(st.gamma, axis=0) / h
-    mu = disc.model.mu or 0.0
+    m, J, mu = disc.model.mass, np.asarray(disc.J, float), disc.model.mu or 0.0
+    v = np.vstack([st.gamma[:1] / m, (st.x[2:] - st.x[:-2]) / (2 * h), st.gamma[-1:] / m])
+    step = np.array([log_so3_any(a.T @ b) for a, b in zip(st.R[:-1], st.R[1:])]) / h     # (N, 3) body rates
+    Jinv = np.linalg.inv(J)
+    Om = np.vstack([st.Pi[:1] @ Jinv.T, 0.5 * (step[1:] + step[:-1]), st.Pi[-1:] @ Jinv.T])
+    x, Om_mid = 0.5 * (st.x[1:] + st.x[:-1]), 0.5 * (Om[1:] + Om[:-1])
+    f = m * np.diff(v, axis=0) / h
     if mu:
-        f = f + disc.model.mass * mu * x / np.maximum(np.linalg.norm(x, axis=1), 1e-300)[:, None] ** 3
-    Omega = Pi @ np.linalg.inv(np.asarray(disc.J)).T
-    u = np.hstack([f, np.diff(st.Pi, axis=0) / h - np.cross(Pi, Omega)])
-    return float(0.5 * h * np.einsum("ki,ij,kj->", u, np.asarray(W, float), u))
+        f = f + m * mu * x / np.maximum(np.linalg.norm(x, axis=1), 1e-300)[:, None] ** 3
+    u = np.diff(Om, axis=0) @ J.T / h - np.cross(Om_mid @ J.T, Om_mid)
+    W = np.asarray(W, float)
+    return (float(0.5 * h * np.einsum("ki,ij,kj->", f, W[U_FORCE, U_FORCE], f)),
+            float(0.5 * h * np.einsum("ki,ij,kj->", u, W[U_MOMENT, U_MOMENT], u)))
 
 
 def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, size: np.ndarray,
