@@ -148,6 +148,8 @@ def judged_interpolation(problem: Problem) -> tuple[str, Guess]:
         if guess is not None and all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
             efforts = implied_effort(disc, guess.X, problem.h, problem.control.W)
             judged[kind] = (guess, tuple(e if np.isfinite(e) else np.inf for e in efforts))
+    if not judged:       # not finite (a singular potential along the path): the plan's run says so
+        return "interpolate", make_guess("interpolate", disc, X0, Xd, N, T)
     path = min(judged, key=lambda k: judged[k][1][0])         # dict order: the screw interpolation on a tie
     turn = min(judged, key=lambda k: judged[k][1][1])
     X = judged[path][0].X.copy()
