@@ -248,13 +248,14 @@ def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, 
 
 
 def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float) -> Guess:
-    """Dispatch on ``kind`` in {'rollout', 'interpolate'}."""
+    """Dispatch on ``kind`` in {'rollout', 'interpolate', 'orbit'} ('orbit' without a central body: the screw
+    interpolation)."""
     if kind == "rollout":
         return rollout_guess(disc, X0, N, T / N)
     if kind == "interpolate":
         return interpolation_guess(disc, X0, Xd, N, T)
-    if kind == "orbit":
-        return orbit_interpolation_guess(disc, X0, Xd, N, T)
+    if kind == "orbit":   # without a central body (or an orbit normal) the turning frame stands still
+        return orbit_interpolation_guess(disc, X0, Xd, N, T) or interpolation_guess(disc, X0, Xd, N, T)
     raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
 
 
