@@ -187,6 +187,15 @@ def test_the_orbit_interpolation_meets_both_ends_and_follows_the_orbit():
     assert mine[0] <= 1e-2 * its[0] and mine[1] <= 1e-2 * its[1]       # force and moment
 
 
+def test_the_orbit_interpolation_without_a_central_body_is_the_screw_interpolation():
+    """No central body (the keep-out slew): the turning frame stands still, 'orbit' is the screw interpolation."""
+    from se3ocp.transcription.guess import make_guess, target_estimate
+
+    p = maneuver("slew_keep_out", 20).problem
+    a, b = (make_guess(k, p.disc, p.X0, target_estimate(p), p.N, p.T) for k in ("orbit", "interpolate"))
+    assert np.array_equal(a.X, b.X) and np.array_equal(a.C, b.C)
+
+
 def test_the_start_needing_less_effort_goes_first():
     """initial_guess auto takes the interpolated path and attitude that need the least effort, each on its own: the
     orbit's for the multi-revolution phasing and raise (radially pointed bodies turning with the orbit), the
