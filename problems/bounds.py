@@ -20,13 +20,10 @@ def bounds_margin(v: Validator, c, bounds: dict) -> float:
     if not bounds:
         v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
     for k, b in bounds.items():
-        if isinstance(b, ThrusterBound):
-            if not b.min < b.max * (1.0 - m):
-                v.fail("control.bounds_margin", f"leaves the thruster no range: min {b.min:g} >= (1 - margin) max "
-                                                f"{b.max * (1.0 - m):g}", also=(f"control.bounds.{k}",))
-            bounds[k] = ThrusterBound(b.axis, b.max * (1.0 - m), b.min)
-        else:
-            bounds[k] = BoxBound(b.b * (1.0 - m)) if isinstance(b, BoxBound) else NormBound(b.b * (1.0 - m))
+        if isinstance(b, ThrusterBound) and not b.min < b.max * (1.0 - m):
+            v.fail("control.bounds_margin", f"leaves the thruster no range: min {b.min:g} >= (1 - margin) max "
+                                            f"{b.max * (1.0 - m):g}", also=(f"control.bounds.{k}",))
+        bounds[k] = b.scaled(1.0 - m)
     return m
 
 

@@ -220,6 +220,12 @@ CASES: list[Case] = [
          "control.weights.moment=[1, -1, 1]"),
     _bad("max_iter_zero", "non-positive solver max_iter", "validate", E3, "solver.direct.max_iter", "solver.direct.max_iter=0"),
     _bad("alpha_range", "Armijo alpha outside (0, 1)", "validate", E3, "solver.indirect.alpha", "solver.indirect.alpha=1.5"),
+    _bad("continuous_check_bad", "solver.continuous_check that is not a boolean", "validate", E3,
+         "solver.continuous_check", "solver.continuous_check=maybe"),
+    # valid, but the first-order scheme would need ~1e7 steps: solve answers before solving (validate: a 'but' line)
+    _bad("accuracy_out_of_reach", "solver.accuracy out of the scheme's reach (first order at 1e-6)", "solve", E3,
+         "solver.accuracy", "solver.accuracy=1e-6", args=("--method", "direct", "--no-figures"),
+         message_re=r"out of reach of the first_order scheme.*would need N .*lgvi"),
     _bad("costate_length", "initial costate of 11 numbers", "validate", E3, "solver.indirect.initial_costate",
          "solver.indirect.initial_costate=[0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]"),
     _bad("not_rotation", "attitude matrix not orthogonal", "validate", E3, "initial.attitude.matrix",

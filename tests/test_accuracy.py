@@ -224,6 +224,27 @@ def test_refusal_in_the_cli_is_one_line_and_writes_nothing(tmp_path):
     assert len(lines) == 1 and "solver.accuracy: accuracy 1e-06 is out of reach" in lines[0] and "lgvi" in lines[0]
 
 
+def test_validate_names_an_accuracy_out_of_reach(capsys):
+    """``se3ocp validate`` gives solve's one-line answer (the same sentence) as a 'but' line, exit 0 (the file is
+    well-formed; solve refuses it with exit 2), and in --json as ``accuracy_out_of_reach``; nothing for 1e-3."""
+    from se3ocp.problems.cli import main
+    from se3ocp.transcription.accuracy import out_of_reach
+
+    def validate(accuracy, *flags):
+        rc = main(["validate", str(config("e3")), "--set", "horizon.N=100", "--set", f"solver.accuracy={accuracy}", *flags])
+        return rc, capsys.readouterr().out
+
+    man = se3ocp.load(config("e3"), ["horizon.N=100", "solver.accuracy=1e-6"])
+    said = out_of_reach(man.problem, man.accuracy)
+    assert said.startswith("accuracy 1e-06 is out of reach of the first_order scheme")
+    rc, out = validate("1e-6")
+    assert rc == 0 and f"  but solver.accuracy is out of reach (solve refuses it, exit 2): {said}" in out.splitlines()
+    rc, out = validate("1e-6", "--json")
+    assert rc == 0 and json.loads(out)["accuracy_out_of_reach"] == said
+    rc, out = validate("1e-3")
+    assert rc == 0 and "out of reach" not in out
+
+
 def test_the_cap_stops_refinement_and_says_what_it_needs():
     sol = se3ocp.solve(maneuver("e3", 40, "lgvi"), accuracy=1e-4, max_levels=1)
     assert sol.converged and sol.stats["accuracy_met"] is False and len(sol.mesh) == 1

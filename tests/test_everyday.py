@@ -53,12 +53,12 @@ def _labels(name, *sets):
 
 def test_plan_order():
     """Effort: the rollout first when it ends within ROLLOUT_FIRST_MISS characteristic scales of the target
-    (E3: 0.52), else the interpolation (orbit doubling: 3.05), the first with the budget AUTO_FIRST_BUDGET,
+    (E3: 0.52), else the interpolation whose path needs less effort (orbit doubling: 3.05; the orbit's), the first with the budget AUTO_FIRST_BUDGET,
     the other with the rest; bounded effort: the relaxed problem's solution first; fuel: the rollout first
     (its own budget); an explicit choice: that guess only."""
     b, mx = plan.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
     assert _labels("e3") == ([("rollout", b), ("interpolate", mx)], "first")
-    assert _labels("everyday/orbit_double") == ([("interpolate", b), ("rollout", mx)], "first")
+    assert _labels("everyday/orbit_double") == ([("interpolate, attitude of orbit", b), ("rollout", mx)], "first")
     entries, _ = _labels("e3_bounded")
     assert [lb for lb, _ in entries] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
     assert _labels("orbit_raise_fuel") == ([("rollout", plan.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")

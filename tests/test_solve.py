@@ -158,7 +158,8 @@ def test_which_methods_solve_which_problems():
     assert implementation(e3, "direct") is DIRECT and implementation(e1, "direct") is IMPULSIVE
     assert implementation(e3, "indirect") is INDIRECT and implementation(e1, "indirect") is None
     # what a method does not cover inside a problem it solves is its own: a Solution saying so
-    assert INDIRECT.not_covered(maneuver("e3_min_radius", 10).problem) == "path constraints"
+    r = maneuver("e3_min_radius", 10).problem.constraints[0].radius
+    assert INDIRECT.not_covered(maneuver("e3_min_radius", 10).problem) == f"path constraints (min_radius {r:.6g})"
 
 
 def test_progress_is_one_signature_naming_the_method():

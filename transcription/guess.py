@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .layout import NU, U_FORCE, X_ANG, X_ROT, pack_state, unpack_states
+from .layout import NU, U_FORCE, U_MOMENT, X_ANG, X_ROT, pack_state, unpack_states
 from .lie import exp_so3, log_so3_any, rotation_between, step_cayley_vectors
 from .problem import Problem, TargetOrbit, TargetRendezvous, TargetState, orbit_conditions, rendezvous_state
 
@@ -149,6 +149,91 @@ def interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, 
     return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
 
 
+def orbit_axis(X0: np.ndarray) -> np.ndarray | None:
+    """The unit orbit normal x_0 x gamma_0 / |x_0 x gamma_0| of X0 (None when the initial motion is radial or at
+    rest)."""
+    a = unpack_states(X0)
+    h = np.cross(a.x[0], a.gamma[0])
+    return h / np.linalg.norm(h) if np.linalg.norm(h) > 1e-12 * max(np.linalg.norm(a.x[0]), 1e-300) else None
+
+
+def orbit_turn(X0: np.ndarray, Xd: np.ndarray, T: float, mu: float) -> float | None:
+    """The angle Phi the orbit turns in T (radians about :func:`orbit_axis`): the in-plane angle from x_0 to x_d
+    plus the whole revolutions 2 pi k that bring it nearest to the free motion's angle over T, the integral of
+    the circular mean motion sqrt(mu / r^3) along r linear from |x_0| to |x_d| (None without an orbit normal)."""
+    n = orbit_axis(X0)
+    if n is None or not mu:
+        return None
+    x0, xd = unpack_states(X0).x[0], unpack_states(Xd).x[0]
+    base = np.arctan2(n @ np.cross(x0, xd), x0 @ xd - (n @ x0) * (n @ xd)) % (2 * np.pi)
+    r = np.linspace(np.linalg.norm(x0), np.linalg.norm(xd), 65)
+    free = T * float(np.mean(np.sqrt(mu / r ** 3)))
+    return float(base + 2 * np.pi * max(0, round((free - base) / (2 * np.pi))))
+
+
+def orbit_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float,
+                              s: np.ndarray | None = None) -> Guess | None:
+    """The screw interpolation (:func:`screw_path`) taken in the frame Q(phi) turning about the orbit normal n
+    with the orbit, then turned back: x = Q x', R = Q R', gamma = Q (gamma' + m phi' n x x'), Pi = Pi' + J R'^T n
+    phi', where the primed path runs from X0 to Q(Phi)^T X_d (momenta relative to the turning frame) and phi
+    advances at the circular mean motion sqrt(mu / |x'|^3), scaled to the total turn Phi (:func:`orbit_turn`);
+    zero controls.  Why: over several revolutions the screw interpolation between the end configurations turns
+    once at most (the five-orbit phasing: a quarter turn in five periods, held against gravity), while this
+    path follows the orbits -- for a transfer between near-circular orbits a spiral.  ``s``: the normalized node
+    times of a non-uniform mesh (None: uniform).  None without a central body or an orbit normal."""
+    Phi = orbit_turn(X0, Xd, T, disc.model.mu)
+    if Phi is None:
+        return None
+    n, m, J = orbit_axis(X0), disc.model.mass, np.asarray(disc.J)
+    s = np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, float)
+    a, d = unpack_states(X0), unpack_states(Xd)
+    Qd = exp_so3(-Phi * n)
+    xdr, Rdr = d.x[0] @ Qd.T, Qd @ d.R[0]
+    path = screw_path(X0, pack_state(xdr, d.gamma[0], Rdr, d.Pi[0]), s, m, J, T)   # its positions only
+    speed = np.sqrt(disc.model.mu / np.maximum(np.linalg.norm(path[:, :3], axis=1), 1e-300) ** 3)
+    mid = 0.5 * (speed[1:] + speed[:-1]) * np.diff(s)          # the mean motion integrated over each step / T
+    phi = Phi * np.concatenate([[0.0], np.cumsum(mid)]) / np.sum(mid)
+    rate = speed * Phi / (T * np.sum(mid))        # d phi / dt at the nodes
+    ends = [pack_state(x, g - m * w * np.cross(n, x), R, P - J @ R.T @ n * w)     # momenta relative to the frame
+            for x, g, R, P, w in ((a.x[0], a.gamma[0], a.R[0], a.Pi[0], rate[0]),
+                                  (xdr, d.gamma[0] @ Qd.T, Rdr, d.Pi[0], rate[-1]))]
+    rel = unpack_states(screw_path(*ends, s, m, J, T))
+    Q = np.array([exp_so3(p * n) for p in phi])
+    x = np.einsum("kij,kj->ki", Q, rel.x)
+    gam = np.einsum("kij,kj->ki", Q, rel.gamma + m * rate[:, None] * np.cross(n, rel.x))
+    R = np.einsum("kij,kjl->kil", Q, rel.R)
+    Pi = rel.Pi + np.einsum("ij,kjl,l->ki", J, np.swapaxes(rel.R, 1, 2), n) * rate[:, None]
+    X = pack_state(x, gam, R, Pi)
+    return Guess(X=X, U=np.zeros((NU, disc.n_controls(N))), C=cayley_vectors(X))
+
+
+def implied_effort(disc, X: np.ndarray, h, W: np.ndarray) -> tuple[float, float]:
+    """The efforts sum_k h_k (1/2) u^T W u of the force and of the moment (W: 6x6, force then moment; each part
+    with its own block) that fly the path of node states X (N+1, 18) in the continuous equations, by finite
+    differences of the path's own motion (h: the step size, or the N step sizes h_k of a mesh): node velocities
+    v_k = (x_{k+1} - x_{k-1}) / (h_{k-1} + h_k) and body rates Omega_k = (Log(R_{k-1}^T R_k) / h_{k-1} +
+    Log(R_k^T R_{k+1}) / h_k) / 2, the given ones gamma / m and J^-1 Pi at the two ends; at the step midpoints
+    u_f = m dv/dt + m mu x / |x|^3 (the point-mass attraction; no J2) and u_m = J dOmega/dt - J Omega x Omega
+    (no gravity-gradient torque).  A cheap judge of interpolated starts that all meet the target (a rollout
+    needs no control and misses it instead): the start a solver has least to change; the ends count, so a path
+    that does not move as the body moves at its ends pays for the jump."""
+    st = unpack_states(X)
+    m, J, mu = disc.model.mass, np.asarray(disc.J, float), disc.model.mu or 0.0
+    hk = np.broadcast_to(np.asarray(h, float), (X.shape[0] - 1,))
+    v = np.vstack([st.gamma[:1] / m, (st.x[2:] - st.x[:-2]) / (hk[1:] + hk[:-1])[:, None], st.gamma[-1:] / m])
+    step = np.array([log_so3_any(a.T @ b) for a, b in zip(st.R[:-1], st.R[1:])]) / hk[:, None]   # (N, 3) rates
+    Jinv = np.linalg.inv(J)
+    Om = np.vstack([st.Pi[:1] @ Jinv.T, 0.5 * (step[1:] + step[:-1]), st.Pi[-1:] @ Jinv.T])
+    x, Om_mid = 0.5 * (st.x[1:] + st.x[:-1]), 0.5 * (Om[1:] + Om[:-1])
+    f = m * np.diff(v, axis=0) / hk[:, None]
+    if mu:
+        f = f + m * mu * x / np.maximum(np.linalg.norm(x, axis=1), 1e-300)[:, None] ** 3
+    u = np.diff(Om, axis=0) @ J.T / hk[:, None] - np.cross(Om_mid @ J.T, Om_mid)
+    W = np.asarray(W, float)
+    return (float(0.5 * np.einsum("k,ki,ij,kj->", hk, f, W[U_FORCE, U_FORCE], f)),
+            float(0.5 * np.einsum("k,ki,ij,kj->", hk, u, W[U_MOMENT, U_MOMENT], u)))
+
+
 def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, size: np.ndarray,
                                   seed: int = 0, s: np.ndarray | None = None) -> Guess:
     """The screw interpolation with controls drawn (seeded, normal) at the size ``size`` (6,) of
@@ -168,13 +253,16 @@ def perturbed_interpolation_guess(disc, X0: np.ndarray, Xd: np.ndarray, N: int, 
 
 
 def make_guess(kind: str, disc, X0: np.ndarray, Xd: np.ndarray, N: int, T: float, s: np.ndarray | None = None) -> Guess:
-    """Dispatch on ``kind`` in {'rollout', 'interpolate'}; ``s``: the normalized node times of a non-uniform
-    mesh (None: uniform), the rollout then taking the steps T (s_{k+1} - s_k)."""
+    """Dispatch on ``kind`` in {'rollout', 'interpolate', 'orbit'} ('orbit' without a central body: the screw
+    interpolation); ``s``: the normalized node times of a non-uniform mesh (None: uniform), the rollout then
+    taking the steps T (s_{k+1} - s_k)."""
     if kind == "rollout":
         return rollout_guess(disc, X0, N, T / N if s is None else T * np.diff(s))
     if kind == "interpolate":
         return interpolation_guess(disc, X0, Xd, N, T, s)
-    raise ValueError(f"initial_guess must be 'rollout' or 'interpolate', got {kind!r}")
+    if kind == "orbit":   # without a central body (or an orbit normal) the turning frame stands still
+        return orbit_interpolation_guess(disc, X0, Xd, N, T, s) or interpolation_guess(disc, X0, Xd, N, T, s)
+    raise ValueError(f"initial_guess must be 'rollout', 'interpolate' or 'orbit', got {kind!r}")
 
 
 # ------------------------------------------------------------------ orbit targets

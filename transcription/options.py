@@ -272,10 +272,12 @@ class DirectOptions(Options):
     solver: str = _opt("ipopt", "choice", choices=("ipopt", "fatrop"), doc="NLP solver (fatrop: fixed-time effort problems; IPOPT is its fallback)")
     tol: float = _opt(1e-10, "float", lo=0.0, doc="the NLP solver's KKT tolerance")
     max_iter: int = _opt(3000, "int", lo=1, doc="iteration limit of the NLP solver (and of the impulsive TPBVP's Newton, at most 50)")
-    initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate"),
+    initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate", "orbit"),
                               doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target; "
+                                  "orbit: that screw motion in the frame turning with the orbit (a central body); "
                                   "auto: the rollout if it ends within one characteristic scale of the target, else the "
-                                  "interpolation (at most 200 iterations), then the other; the fuel objective rollout (at most "
+                                  "interpolation whose path needs less effort to fly (at most 200 iterations), then the "
+                                  "other starts; the fuel objective rollout (at most "
                                   "600), then interpolate; a bounded "
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction, results_update
 from ..maneuvers import Maneuver, load_maneuver
-from ..schema import ConfigError
+from ..schema import ConfigError, blame_overrides
 from .progress import Progress, ProgressBar, emit_summary, say, table
 from .signals import Interrupt
 
@@ -26,16 +26,23 @@ def _results(args, man: Maneuver):
 
 
 def cmd_validate(args) -> int:
+    """Exit 0 for a valid file; a file that is valid but asks what solve will refuse or cannot reach says so in a
+    line beginning 'but' (a warning, still exit 0: the input is well-formed, the request is the problem)."""
+    from ...transcription.accuracy import out_of_reach
     from ...transcription.feasibility import necessary_conditions
 
     man = _load(args)
     infeasible = necessary_conditions(man.problem)  # valid, but provably without a solution: said now
+    unreachable = out_of_reach(man.problem, man.accuracy)   # solve's one-line answer to solver.accuracy, the same
     summary = {"config": man.source, "name": man.name, "valid": True, "control": man.control_kind,
-               "discretization": man.discretization, "N": man.N, "T": man.T, "provably_infeasible": infeasible}
+               "discretization": man.discretization, "N": man.N, "T": man.T, "provably_infeasible": infeasible,
+               "accuracy_out_of_reach": unreachable}
     say(args, f"{man.source}: valid ({man.name}: {man.control_kind or 'no control'}, "
                f"{man.discretization}, N = {man.N}, T = {man.T:g})")
     if infeasible:
         say(args, f"  but provably infeasible (solve will say so without iterating): {infeasible}")
+    if unreachable:
+        say(args, f"  but solver.accuracy is out of reach (solve refuses it, exit 2): {unreachable}")
     emit_summary(args, summary)
     return 0
 
@@ -81,8 +88,10 @@ def cmd_solve(args) -> int:
     if reason:
         raise ConfigError(man.source, "control.kind", reason)
     reason = out_of_reach(man.problem, man.accuracy)  # a tolerance out of reach: the N it needs, before solving
-    if reason:
-        raise ConfigError(man.source, "solver.accuracy", reason)
+    if reason:   # named where it was given: the file, or --set (of the accuracy, the scheme, N or the cap)
+        raise blame_overrides(ConfigError(man.source, "solver.accuracy", reason,
+                                          also=("discretization", "horizon.N", "solver.max_N")),
+                              [o.split("=", 1)[0].strip() for o in args.overrides or ()])
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")

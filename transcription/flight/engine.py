@@ -181,8 +181,25 @@ class ClosedLoop:
 
 
 # ------------------------------------------------------------------------------- integrator
-_INTEGRATORS: dict = {}
-_MAX_INTEGRATORS = 32
+class BoundedCache:
+    """Functions built once per key and kept, at most ``size`` of them (the oldest evicted first): the flight's
+    integrators and their accumulations, sized by what a process flies, not unbounded.  ``keep``: objects
+    whose ``id`` is part of the key, kept alive with the entry so that the id stays unique."""
+
+    def __init__(self, size: int = 32):
+        self.size, self.entries = size, {}
+
+    def get(self, key, make: Callable[[], ca.Function], keep=None) -> ca.Function:
+        """The Function of ``key``, made by ``make()`` when it is not kept yet."""
+        hit = self.entries.get(key)
+        if hit is None:
+            if len(self.entries) >= self.size:
+                self.entries.pop(next(iter(self.entries)))
+            hit = self.entries[key] = (keep, make())
+        return hit[1]
+
+
+_INTEGRATORS = BoundedCache()
 
 
 def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
@@ -197,9 +214,11 @@ def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: 
     command's kinks and jumps at the nodes are never integrated across.  Xs holds the states at
     s = 1/M, ..., 1 (Xs[:, -1] = X1).  Built once per (model's potential, mass, M, tolerances)."""
     key = (id(model.forces), float(model.mass), int(samples), float(rtol), float(atol))
-    hit = _INTEGRATORS.get(key)
-    if hit is not None:
-        return hit[1]
+    return _INTEGRATORS.get(key, lambda: _interval_integrator(model, samples, rtol, atol), keep=model.forces)
+
+
+def _interval_integrator(model: BodyModel, samples: int, rtol: float, atol: float) -> ca.Function:
+    """The Function of :func:`interval_integrator`, built."""
     eom, act = equations_of_motion(model), actuator_output()
     X, w, p, s = ca.SX.sym("X", NX), ca.SX.sym("w", N_W), ca.SX.sym("p", N_P), ca.SX.sym("s")
     a, b, h = w[0:NU], w[NU:2 * NU], w[2 * NU]
@@ -211,25 +230,16 @@ def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: 
     cv = ca.integrator("flight_cvodes", "cvodes", {"x": X, "p": ca.vertcat(w, p), "t": s, "ode": ode}, 0.0, grid, opts)
     X0, wm, pm = ca.MX.sym("X0", NX), ca.MX.sym("w", N_W), ca.MX.sym("p", N_P)
     Xs = cv(x0=X0, p=ca.vertcat(wm, pm))["xf"]
-    fn = ca.Function("flight_interval", [X0, wm, pm], [Xs[:, -1], Xs], ["X0", "w", "p"], ["X1", "Xs"])
-    if len(_INTEGRATORS) >= _MAX_INTEGRATORS:
-        _INTEGRATORS.pop(next(iter(_INTEGRATORS)))
-    _INTEGRATORS[key] = (model.forces, fn)   # the forces Function is kept alive: its id stays unique
-    return fn
+    return ca.Function("flight_interval", [X0, wm, pm], [Xs[:, -1], Xs], ["X0", "w", "p"], ["X1", "Xs"])
 
 
-_RUNS: dict = {}
+_RUNS = BoundedCache()
 
 
 def _open_loop_run(fn: ca.Function, N: int) -> ca.Function:
     """``flight_interval`` accumulated over N intervals (casadi mapaccum: one call, a C loop that restarts
     CVODES at every node), built once per (integrator, N)."""
-    key = (id(fn), N)
-    if key not in _RUNS:
-        if len(_RUNS) >= _MAX_INTEGRATORS:
-            _RUNS.pop(next(iter(_RUNS)))
-        _RUNS[key] = (fn, fn.mapaccum(f"flight_run{N}", N))
-    return _RUNS[key][1]
+    return _RUNS.get((id(fn), N), lambda: fn.mapaccum(f"flight_run{N}", N), keep=fn)
 
 
 # ------------------------------------------------------------------------------------ flight
@@ -326,12 +336,9 @@ def _applied(X: np.ndarray, A: np.ndarray, B: np.ndarray, M: int, q: np.ndarray)
     idx = np.arange(N)[:, None] * M + np.arange(M + 1)[None, :]            # sample index of (k, j)
     cmd = A.T[:, None, :] + s[None, :, None] * (B - A).T[:, None, :]        # (N, M+1, 6)
     n = N * (M + 1)
-    if n not in _APPLIED:                  # built once per size: building it cost as much as evaluating it
-        if len(_APPLIED) >= _MAX_INTEGRATORS:
-            _APPLIED.pop(next(iter(_APPLIED)))
-        _APPLIED[n] = actuator_output().map(n)
-    u = _APPLIED[n](X[idx.ravel()].T, cmd.reshape(n, NU).T, q)
+    # built once per size: building it cost as much as evaluating it
+    u = _APPLIED.get(n, lambda: actuator_output().map(n))(X[idx.ravel()].T, cmd.reshape(n, NU).T, q)
     return np.asarray(u.full()).T.reshape(N, M + 1, NU)
 
 
-_APPLIED: dict = {}
+_APPLIED = BoundedCache()

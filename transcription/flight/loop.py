@@ -21,7 +21,7 @@ import numpy as np
 
 from ..layout import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT
 from ..lie import log_so3_small
-from .engine import N_P, N_W, OpenLoop
+from .engine import N_P, N_W, BoundedCache, OpenLoop
 
 #: per-interval data of the law: X_k (18), K_k (6 x 12), L_k (6 x 12), A_{k-1} (12 x 12), Bu_{k-1} (12 x 6),
 #: the weight of the disturbance term (0 at k = 0 or without it, else 1)
@@ -91,14 +91,9 @@ def tracking_interval(fn: ca.Function) -> ca.Function:
                        ["S", "w", "g", "p"], ["S1", "Xs", "cmd"])
 
 
-_RUNS: dict = {}
+_RUNS = BoundedCache()
 
 
 def _loop_run(fn: ca.Function, N: int) -> ca.Function:
     """:func:`tracking_interval` accumulated over N intervals (one call), built once per (integrator, N)."""
-    key = (id(fn), N)
-    if key not in _RUNS:
-        if len(_RUNS) >= 32:
-            _RUNS.pop(next(iter(_RUNS)))
-        _RUNS[key] = (fn, tracking_interval(fn).mapaccum(f"flight_tracking_run{N}", N))
-    return _RUNS[key][1]
+    return _RUNS.get((id(fn), N), lambda: tracking_interval(fn).mapaccum(f"flight_tracking_run{N}", N), keep=fn)

@@ -50,6 +50,10 @@ class BoxBound:
     def scale(self) -> float:
         return float(self.b.max())
 
+    def scaled(self, s: float) -> "BoxBound":
+        """The box with every limit times s > 0 (a bounds margin: s = 1 - m for the plan, 1 / (1 - m) back)."""
+        return BoxBound(self.b * s)
+
     def largest_norm(self) -> float:
         """The largest |u|_2 the bound allows: |b|_2 (a corner of the box)."""
         return float(np.linalg.norm(self.b))
@@ -80,6 +84,10 @@ class NormBound:
 
     def scale(self) -> float:
         return self.b
+
+    def scaled(self, s: float) -> "NormBound":
+        """The norm bound times s > 0 (a removed control, b = 0, stays removed)."""
+        return NormBound(self.b * s)
 
     def largest_norm(self) -> float:
         """The largest |u|_2 the bound allows: b."""
@@ -125,6 +133,10 @@ class ThrusterBound:
 
     def scale(self) -> float:
         return self.max
+
+    def scaled(self, s: float) -> "ThrusterBound":
+        """The engine with its largest thrust times s > 0 (the least thrust, an engine's minimum, kept)."""
+        return ThrusterBound(self.axis, self.max * s, self.min)
 
     def largest_norm(self) -> float:
         """The largest |u_f|_2 the engine gives: max (|R u_f| = |u_f| = T, in either frame)."""
@@ -214,15 +226,8 @@ def actuator_bounds(control: SmoothControl) -> tuple[Bound | None, Bound | None]
     """(force, moment): the actuators' bounds, the plan's bounds divided by 1 - bounds_margin
     (the plan's own without a margin; a removed control stays removed)."""
     s = 1.0 / (1.0 - control.bounds_margin)
-    out = []
-    for b in (control.force_bound, control.moment_bound):
-        if b is None or s == 1.0:
-            out.append(b)
-        elif isinstance(b, ThrusterBound):
-            out.append(ThrusterBound(b.axis, b.max * s, b.min))
-        else:
-            out.append(BoxBound(b.b * s) if isinstance(b, BoxBound) else NormBound(b.b * s))
-    return out[0], out[1]
+    force, moment = (b if b is None or s == 1.0 else b.scaled(s) for b in (control.force_bound, control.moment_bound))
+    return force, moment
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,11 @@ def not_covered(problem: Problem) -> str:
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
                   if getattr(c, "moving", False)]
-        reasons.append("path constraints" + (f" (a {', a '.join(moving)})" if moving else ""))
+        # a min_radius is named with its radius: a central body's clearance (model.central_body_radius, a preset's
+        # radius) is one, active or not -- the indirect method does not know that it is inactive
+        radii = [f"min_radius {c.radius:.6g}" for c in problem.constraints if c.kind == "min_radius"]
+        reasons.append("path constraints" + (f" (a {', a '.join(moving)})" if moving else
+                                             f" ({', '.join(radii)})" if radii else ""))
     if isinstance(problem.terminal, TargetRendezvous):
         reasons.append("a rendezvous target (its point moves with the final time)")
     elif not isinstance(problem.terminal, TargetState):
