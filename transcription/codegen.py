@@ -20,8 +20,21 @@ multiply-adds on targets that have them), so compiled and interpreted Functions 
 
 Compiled Functions evaluate values only; request derivatives from the original Function.
 
+Compile little, once.  The cache key is the serialized Function, so what must not change with a problem's
+numbers must not be a constant of the graph: the direct method's dynamics block takes the model's numbers
+(theta = mass, inertia, (2J)^-1, the potential's GM, J2, radius, sizes: ``BodyModel.parameters``) as data
+like its step size, scales, weights and bounds (transcription.nlp.blocks), so a model of a known structure
+(kind of body and gravity, scheme, controls, objective, free time) loads its library from the cache and
+compiles nothing.  A structure never seen before is compiled with ``quick`` flags (:func:`compiled_libraries`:
+``-O0``, seconds, usable at once) while a detached background process (:func:`_spawn`, at low priority, with a
+``.building`` lock beside the library) compiles the library at its own flags and moves it into the cache
+atomically; the next build loads it (the NLP's block derivatives check :func:`ready` between solves).  The
+indirect method's per-step maps are compiled at ``-O0`` only and still contain the model's numbers (one
+compile per model; a few seconds).
+
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
-``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable).
+``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
+at the library's own flags at once instead of ``quick`` now and the rest in the background).
 """
 from __future__ import annotations
 
