@@ -28,6 +28,9 @@ Functions built (all SX, inputs/outputs named):
     variation_seeded(X, w, h, c0[3])        -> (A, B) the same from c0; with c0 = the root of
                                                step X's Cayley equation, equal to variation
     rollout(N)      (X0[18], W[nw x N], h)  -> (X[18 x N], res[1 x N])  mapaccum
+
+``parametric()`` gives cayley_residual .. step again with the model's numbers theta = ``model.parameters`` as their
+last input instead of constants (what the NLP's compiled dynamics block is built from: one compile per structure).
 """
 from __future__ import annotations
 
