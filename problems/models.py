@@ -67,20 +67,29 @@ class Gravity:
     J2: float = 0.0
     radius: float = 0.0
 
-    def per_unit_mass(self, y):
-        """V(y) of a point of unit mass at y (CasADi): -mu/|y| (with the J2 term for 'j2')."""
+    def data(self) -> np.ndarray:
+        """[mu, J2, R_e]: the numbers of :meth:`per_unit_mass` (a model's parametric potential takes them as data)."""
+        return np.array([self.mu, self.J2, self.radius])
+
+    def per_unit_mass(self, y, d=None):
+        """V(y) of a point of unit mass at y (CasADi): -mu/|y| (with the J2 term for 'j2'); ``d``: symbolic
+        [mu, J2, R_e] in place of this field's numbers (the same expression with the numbers as data)."""
+        mu, J2, Re = (self.mu, self.J2, self.radius) if d is None else (d[0], d[1], d[2])
         r = ca.norm_2(y)
-        V = -self.mu / r
+        V = -mu / r
         if self.kind == "j2":
-            V = V * (1.0 - self.J2 * (self.radius / r) ** 2 * (3.0 * (y[2] / r) ** 2 - 1.0) / 2.0)
+            V = V * (1.0 - J2 * (Re / r) ** 2 * (3.0 * (y[2] / r) ** 2 - 1.0) / 2.0)
         return V
 
-    def maccullagh(self, x, R, J: np.ndarray):
-        """The second-order term -mu/(2 r^3) (tr J - 3 rhat^T R J R^T rhat) (CasADi)."""
+    def maccullagh(self, x, R, J, mu=None, trJ=None):
+        """The second-order term -mu/(2 r^3) (tr J - 3 rhat^T R J R^T rhat) (CasADi); J (3x3) numbers or symbols,
+        ``mu``, ``trJ``: symbols in place of the numbers."""
+        mu = self.mu if mu is None else mu
+        trJ = float(np.trace(J)) if trJ is None else trJ
         r = ca.norm_2(x)
         rhat = x / r
-        Ir = ca.mtimes([rhat.T, R, ca.DM(J), R.T, rhat])
-        return -self.mu / (2.0 * r**3) * (float(np.trace(J)) - 3.0 * Ir)
+        Ir = ca.mtimes([rhat.T, R, ca.DM(J) if isinstance(J, np.ndarray) else J, R.T, rhat])
+        return -mu / (2.0 * r**3) * (trJ - 3.0 * Ir)
 
     @property
     def key(self) -> tuple:
@@ -106,6 +115,20 @@ def _potential_function(name: str, U_of) -> ca.Function:
     x = ca.SX.sym("x", 3)
     R = ca.SX.sym("R", 3, 3)
     return ca.Function(name, [x, R], [U_of(x, R)], ["x", "R"], ["U"])
+
+
+def _parametric_potential(name: str, U_of, nq: int) -> ca.Function:
+    """U(x, R, q) from U_of(x, R, q) (the model's potential with its numbers q as data)."""
+    x, R, q = ca.SX.sym("x", 3), ca.SX.sym("R", 3, 3), ca.SX.sym("q", nq)
+    return ca.Function(name, [x, R, q], [U_of(x, R, q)], ["x", "R", "q"], ["U"])
+
+
+#: the data q of the parametric potentials: [m, mu, J2, R_e, tr J, vec J (9), l/2 (dumbbell)]
+_NQ_RIGID = 14
+
+
+def _maccullagh_q(g: Gravity, x, R, q):
+    return g.maccullagh(x, R, ca.reshape(q[5:14], 3, 3), mu=q[1], trJ=q[4])
 
 
 @dataclass(frozen=True)
@@ -159,6 +182,22 @@ class Dumbbell:
         return _potential_function("dumbbell_potential", lambda x, R: sum(
             0.5 * self.mass * g.per_unit_mass(x + ca.mtimes(R, ca.DM(q))) for q in self.rho))
 
+    def potential_data(self) -> np.ndarray:
+        """q of :meth:`parametric_potential`: [m, mu, J2, R_e, tr J, vec J (9), l/2]."""
+        J = self.inertia
+        return np.concatenate([[self.mass], self.field.data(), [np.trace(J)], J.ravel(order="F"), [0.5 * self.length]])
+
+    def parametric_potential(self) -> ca.Function:
+        """:meth:`potential` with its numbers as data q (:meth:`potential_data`); the same expression."""
+        g = self.field
+        if g.kind == "none":
+            return _parametric_potential("dumbbell_potential_q", lambda x, R, q: ca.SX(0), _NQ_RIGID + 1)
+        if g.kind == "gravity_gradient":
+            return _parametric_potential("dumbbell_potential_q", lambda x, R, q: -q[1] * q[0] / ca.norm_2(x)
+                                         + _maccullagh_q(g, x, R, q), _NQ_RIGID + 1)
+        return _parametric_potential("dumbbell_potential_q", lambda x, R, q: sum(
+            0.5 * q[0] * g.per_unit_mass(x + R[:, 0] * (s * q[14]), q[1:4]) for s in (1.0, -1.0)), _NQ_RIGID + 1)
+
     def moment_point_masses(self) -> ca.Function:
         """The alternative moment formula M = sum_q rho_q x (R^T f_q) (point-mass gravity), for checks."""
         x = ca.SX.sym("x", 3)
@@ -176,7 +215,9 @@ class Dumbbell:
         g = self.field
         key = ("dumbbell", self.mass, self.length, self.sphere_radius, g.key)
         return _cached_model(key, lambda: BodyModel(mass=self.mass, inertia=self.inertia, potential=self.potential(),
-                                                    mu=self.central_mu, markers=self.rho, key=key, name="dumbbell"))
+                                                    mu=self.central_mu, markers=self.rho, key=key, name="dumbbell",
+                                                    parametric_potential=self.parametric_potential(),
+                                                    potential_data=self.potential_data()))
 
 
 @dataclass(frozen=True)
@@ -204,9 +245,24 @@ class RigidBody:
         return _potential_function("rigid_body_potential",
                                    lambda x, R: m * g.per_unit_mass(x) + g.maccullagh(x, R, J))
 
+    def potential_data(self) -> np.ndarray:
+        """q of :meth:`parametric_potential`: [m, mu, J2, R_e, tr J, vec J (9)]."""
+        J = np.asarray(self.inertia, float)
+        return np.concatenate([[self.mass], self.gravity.data(), [np.trace(J)], J.ravel(order="F")])
+
+    def parametric_potential(self) -> ca.Function:
+        """:meth:`potential` with its numbers as data q (:meth:`potential_data`); the same expression."""
+        g = self.gravity
+        if g.kind == "none":
+            return _parametric_potential("rigid_body_potential_q", lambda x, R, q: ca.SX(0), _NQ_RIGID)
+        return _parametric_potential("rigid_body_potential_q", lambda x, R, q: q[0] * g.per_unit_mass(x, q[1:4])
+                                     + _maccullagh_q(g, x, R, q), _NQ_RIGID)
+
     def body_model(self) -> BodyModel:
         g = self.gravity
         J = np.asarray(self.inertia, float)
         key = ("rigid_body", self.mass, tuple(J.ravel()), g.key)
         return _cached_model(key, lambda: BodyModel(mass=self.mass, inertia=J, potential=self.potential(),
-                                                    mu=self.central_mu, key=key, name="rigid body"))
+                                                    mu=self.central_mu, key=key, name="rigid body",
+                                                    parametric_potential=self.parametric_potential(),
+                                                    potential_data=self.potential_data()))

@@ -1,15 +1,19 @@
 """Compilation of hot Functions to C (transcription/codegen.py): fallback, cache, equality."""
 from __future__ import annotations
 
+import time
+
 import casadi as ca
 import numpy as np
 import pytest
 
 import se3ocp
+from se3ocp.problems.models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody
 from se3ocp.transcription import codegen
 from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.lie import exp_so3
 from se3ocp.transcription.options import DirectOptions, IndirectOptions
-from support import maneuver
+from support import maneuver, problem
 
 SCHEMES = ("first_order", "lgvi")
 
@@ -116,3 +120,76 @@ def test_compiled_runs_equal_interpreted(scheme):
     c, d = se3ocp.solve(man, "indirect", jit=False), se3ocp.solve(man, "indirect")   # jit: the indirect default
     assert d.stats["jit"] and not c.stats["jit"] and c.converged and d.converged
     assert c.cost == d.cost and c.iterations == d.iterations
+
+
+@pytest.mark.parametrize("model", ["dumbbell", "rigid_body"])
+@pytest.mark.parametrize("gravity", ["none", "point_mass", "gravity_gradient", "j2"])
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_parametric_step_equals_the_numeric_step(model, gravity, scheme):
+    """The step Functions with the model's numbers as data (Discretization.parametric, what the NLP's dynamics block
+    is built from), given theta = model.parameters, equal the Functions with the numbers as constants: the states
+    bit for bit (the same expression: the numbers enter as data instead of constants), the Cayley equation's
+    relative residual after the Newton iterations (~1e-17, round-off) to 1e-15; and the two potentials agree."""
+    body = (Dumbbell(mass=1.3, length=0.12, sphere_radius=0.03, gravity=gravity, J2=1.1e-3, J2_radius=0.9)
+            if model == "dumbbell" else RigidBody(1.3, np.array([[0.02, 0.001, 0.0], [0.001, 0.03, 0.002], [0.0, 0.002, 0.04]]),
+                                                   Gravity(gravity, 39.0, 1.1e-3 if gravity == "j2" else 0.0,
+                                                           0.9 if gravity == "j2" else 0.0))).body_model()
+    disc, rng = Discretization(body, scheme), np.random.default_rng(3)
+    P, th = disc.parametric(), body.parameters
+    for _ in range(5):
+        R = np.asarray(exp_so3(rng.normal(size=3)), dtype=float)
+        X = np.r_[rng.normal(size=3) + [1.0, 0.0, 0.0], rng.normal(size=3), R.ravel(order="F"), 0.01 * rng.normal(size=3)]
+        w, c, h = rng.normal(size=disc.nw), 0.01 * rng.normal(size=3), 1e-2
+        got = [np.array(a) for a in (*P.step_given_c(X, c, w, h, th), *P.step(X, w, h, th))]
+        want = [np.array(a) for a in (*disc.step_given_c(X, c, w, h), *disc.step(X, w, h))]
+        assert all(np.array_equal(a, b) for a, b in zip(got[:3], want[:3]))
+        assert abs(got[3] - want[3]).max() <= 1e-15
+        assert float(body.parametric_potential(X[:3], R, body.potential_data)) == float(body.potential(X[:3], R))
+
+
+def test_new_numbers_in_a_known_structure_compile_nothing(monkeypatch, tmp_path):
+    """Mass, inertia, mu, J2 and its radius (the model's numbers) and the bounds are data of the compiled Functions:
+    a second problem that differs from a first only in those numbers compiles nothing (codegen's notice is the
+    count), and its compiled solve equals the interpreted one to round-off."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    monkeypatch.setattr(codegen, "_spawn", lambda *args: None)    # the -O0 build only: no background process
+    said: list[str] = []
+    monkeypatch.setattr(codegen, "notify", said.append)
+    j2 = ("gravity.kind=j2", "gravity.J2=1.0e-3", "gravity.radius=0.9")
+    a = problem("e3_bounded", 20, "first_order", *j2, "control.bounds.force.norm=15.5")
+    sa = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)))
+    assert sa.converged and sa.stats["jit"] and len(said) == 1
+    body = Dumbbell(mass=1.02, length=0.11, sphere_radius=0.025, mu=1.01 * GM_NORMALIZED, gravity="j2", J2=2e-3,
+                    J2_radius=0.85).body_model()
+    b = problem("e3_bounded", 20, "first_order", *j2, "control.bounds.force.norm=16")
+    b = b.replace(disc=Discretization(body, b.scheme))
+    sb, ref = se3ocp.solve(b), se3ocp.solve(b, jit=False)
+    assert len(said) == 1 and sb.stats["jit"] and not ref.stats["jit"]
+    assert sb.converged and sb.iterations == ref.iterations and abs(sb.cost - sa.cost) > 1e-3 * sa.cost
+    assert abs(sb.cost - ref.cost) <= 1e-12 * ref.cost
+    assert np.max(np.abs(sb.controls - ref.controls)) <= 1e-12 * np.max(np.abs(ref.controls))
+
+
+def test_a_first_use_compiles_quickly_and_the_full_build_follows_in_the_background(monkeypatch, tmp_path):
+    """With ``quick`` flags a cache miss is compiled now at -O0 (usable at once) while a detached process compiles
+    the library at its own flags into the cache; the next build loads that one.  Same values either way."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    monkeypatch.delenv("SE3OCP_JIT_BACKGROUND", raising=False)
+    x = ca.SX.sym("x", 3)
+    f = ca.Function("background_probe", [x], [ca.sin(x) * x[0] + ca.exp(x[1])])
+    lib = codegen.Library(f.name(), (f,), cse=True)
+    (g,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)
+    assert g.class_name() == "External" and codegen.last_provisional
+    deadline = time.monotonic() + 120.0
+    while (not codegen.ready([lib]) or list(tmp_path.glob("*.building"))) and time.monotonic() < deadline:
+        time.sleep(0.2)                                              # the lock goes last, after the job's files
+    assert codegen.ready([lib]) and not list(tmp_path.glob("*.building"))
+    (k,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)
+    assert k.class_name() == "External" and not codegen.last_provisional
+    assert not [p for p in tmp_path.iterdir() if p.is_dir()]      # the job's files are gone
+    v = [0.3, -1.2, 2.0]
+    assert np.array_equal(np.array(g(v)), np.array(f(v))) and np.allclose(np.array(k(v)), np.array(f(v)), rtol=1e-15)

@@ -20,16 +20,31 @@ multiply-adds on targets that have them), so compiled and interpreted Functions 
 
 Compiled Functions evaluate values only; request derivatives from the original Function.
 
+Compile little, once.  The cache key is the serialized Function, so what must not change with a problem's
+numbers must not be a constant of the graph: the direct method's dynamics block takes the model's numbers
+(theta = mass, inertia, (2J)^-1, the potential's GM, J2, radius, sizes: ``BodyModel.parameters``) as data
+like its step size, scales, weights and bounds (transcription.nlp.blocks), so a model of a known structure
+(kind of body and gravity, scheme, controls, objective, free time) loads its library from the cache and
+compiles nothing.  A structure never seen before is compiled with ``quick`` flags (:func:`compiled_libraries`:
+``-O0``, seconds, usable at once) while a detached background process (:func:`_spawn`, at low priority, with a
+``.building`` lock beside the library) compiles the library at its own flags and moves it into the cache
+atomically; the next build loads it (the NLP's block derivatives check :func:`ready` between solves).  The
+indirect method's per-step maps are compiled at ``-O0`` only and still contain the model's numbers (one
+compile per model; a few seconds).
+
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
-``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable).
+``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
+at the library's own flags at once instead of ``quick`` now and the rest in the background).
 """
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -170,54 +185,84 @@ def lean_io(source: str) -> str:
     return _BODY.sub(body, source)
 
 
-def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0,
-                       cflags: Sequence[str] = CFLAGS) -> list[list[ca.Function]]:
+def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: Sequence[str] = CFLAGS,
+                       quick: Sequence[str] | None = None) -> list[list[ca.Function]]:
     """Compiled equivalents of every library's Functions, or all of them unchanged as fallback.
 
     Each library is its own C file and compiler process; the cache misses are compiled concurrently
     (the C of the next library is generated while the compiler works on the previous ones), so the
     first build takes about the longest single compile on a machine with free cores.  All or nothing
     over all libraries: callers see either every Function compiled or none.
+
+    ``quick``: flags for a first use (e.g. :data:`QUICK_CFLAGS`).  A library not in the cache at its own flags is
+    then loaded from (or compiled now with) the quick flags, and compiled with its own flags by a background
+    process (:func:`_spawn`) that puts it into the cache for later builds; :data:`last_provisional` says whether
+    any library came from a quick build (:func:`ready` tells when its own build has arrived).
+    ``SE3OCP_JIT_BACKGROUND=0`` compiles at the library's own flags now instead.
     """
-    global last_error
+    global last_error, last_provisional
     originals = [list(lib.fns) for lib in libs]
+    last_provisional = False
     if not available():
         last_error = "no C compiler found (or SE3OCP_NO_JIT set)"
         return originals
     flags = [list(lib.cflags) if lib.cflags is not None else list(cflags) for lib in libs]
-    procs: list[subprocess.Popen] = []
-    tmps: list[tempfile.TemporaryDirectory] = []
     try:
-        paths = [cache_dir() / f"{lib.name}_{_key(lib, fl)}.so" for lib, fl in zip(libs, flags)]
-        missing = [(lib, path, fl) for lib, path, fl in zip(libs, paths, flags) if not path.exists()]
-        if missing:
-            cache_dir().mkdir(parents=True, exist_ok=True)
-            if notify is not None:
-                what = ", ".join(lib.name for lib, _, _ in missing)
-                notify(f"compiling {what} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
-            outs = []
-            for lib, path, fl in missing:
-                tmp = tempfile.TemporaryDirectory(dir=cache_dir())
-                tmps.append(tmp)
-                c = _generate(lib, tmp.name)
-                out = Path(tmp.name) / path.name
-                with open(Path(tmp.name) / "cc.log", "wb") as log:  # a file, not a pipe: nothing can block
-                    procs.append(subprocess.Popen([compiler(), *fl, str(c), "-o", str(out), "-lm"],
-                                                  stdout=log, stderr=subprocess.STDOUT))
-                outs.append(out)
-            deadline = time.monotonic() + timeout
-            for proc, (lib, path, _), out in zip(procs, missing, outs):
-                proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
-                if proc.returncode != 0:
-                    raise subprocess.CalledProcessError(proc.returncode, proc.args,
-                                                        output=(out.parent / "cc.log").read_text(errors="replace"))
-                os.replace(out, path)  # atomic: concurrent builders never see half a library
+        paths = [_path(lib, fl) for lib, fl in zip(libs, flags)]
+        if quick is not None and os.environ.get("SE3OCP_JIT_BACKGROUND", "1") not in ("0", "false", "no"):
+            for i, (lib, fl) in enumerate(zip(libs, flags)):
+                if not paths[i].exists() and list(quick) != fl:
+                    _spawn(lib, paths[i], fl)
+                    paths[i], flags[i], last_provisional = _path(lib, list(quick)), list(quick), True
+        _build([(lib, path, fl) for lib, path, fl in zip(libs, paths, flags) if not path.exists()], timeout)
         exts = [[ca.external(f.name(), str(path)) for f in lib.fns] for lib, path in zip(libs, paths)]
         last_error = None
         return exts
     except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
         last_error = f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
+        last_provisional = False
         return originals
+
+
+def _path(lib: Library, flags: list[str]) -> Path:
+    """The cached library of ``lib`` compiled with ``flags``."""
+    return cache_dir() / f"{lib.name}_{_key(lib, flags)}.so"
+
+
+def ready(libs: Sequence[Library], cflags: Sequence[str] = CFLAGS) -> bool:
+    """Whether every library is in the cache at its own flags (a background build has arrived)."""
+    return available() and all(_path(lib, list(lib.cflags) if lib.cflags is not None else list(cflags)).exists()
+                               for lib in libs)
+
+
+def _build(missing: list[tuple[Library, Path, list[str]]], timeout: float) -> None:
+    """Compile the libraries ``missing`` (library, cache path, flags) concurrently; each arrives atomically."""
+    if not missing:
+        return
+    procs: list[subprocess.Popen] = []
+    tmps: list[tempfile.TemporaryDirectory] = []
+    cache_dir().mkdir(parents=True, exist_ok=True)
+    if notify is not None:
+        what = ", ".join(lib.name for lib, _, _ in missing)
+        notify(f"compiling {what} to C (once per machine; cached in {cache_dir()}; SE3OCP_NO_JIT=1 skips this)")
+    try:
+        outs = []
+        for lib, path, fl in missing:
+            tmp = tempfile.TemporaryDirectory(dir=cache_dir())
+            tmps.append(tmp)
+            c = _generate(lib, tmp.name)
+            out = Path(tmp.name) / path.name
+            with open(Path(tmp.name) / "cc.log", "wb") as log:  # a file, not a pipe: nothing can block
+                procs.append(subprocess.Popen([compiler(), *fl, str(c), "-o", str(out), "-lm"],
+                                              stdout=log, stderr=subprocess.STDOUT))
+            outs.append(out)
+        deadline = time.monotonic() + timeout
+        for proc, (lib, path, _), out in zip(procs, missing, outs):
+            proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+            if proc.returncode != 0:
+                raise subprocess.CalledProcessError(proc.returncode, proc.args,
+                                                    output=(out.parent / "cc.log").read_text(errors="replace"))
+            os.replace(out, path)  # atomic: concurrent builders never see half a library
     finally:
         for proc in procs:  # only after a failure can one still run
             if proc.poll() is None:
@@ -225,3 +270,51 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0,
                 proc.wait()
         for tmp in tmps:
             tmp.cleanup()
+
+
+#: whether the last :func:`compiled_libraries` loaded any library from a quick build (its own build pending)
+last_provisional: bool = False
+
+#: a background build older than this (s) is taken for dead and started again
+BACKGROUND_TIMEOUT = 1800.0
+
+
+def _spawn(lib: Library, path: Path, flags: list[str]) -> None:
+    """Start a detached process (:func:`_background`) that compiles ``lib`` with ``flags`` into ``path``, unless
+    one is under way (a lock file ``path.building`` younger than :data:`BACKGROUND_TIMEOUT`)."""
+    cache_dir().mkdir(parents=True, exist_ok=True)
+    lock = path.with_name(path.name + ".building")
+    try:
+        if lock.exists() and time.time() - lock.stat().st_mtime < BACKGROUND_TIMEOUT:
+            return
+        lock.unlink(missing_ok=True)
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except OSError:              # another process took the lock first
+        return
+    job = Path(tempfile.mkdtemp(dir=cache_dir(), prefix="background_"))
+    (job / "job.json").write_text(json.dumps({"name": lib.name, "cse": lib.cse, "flags": flags, "path": str(path),
+                                              "fns": [f.serialize() for f in lib.fns]}))
+    subprocess.Popen([sys.executable, "-m", __name__, str(job)], stdin=subprocess.DEVNULL,
+                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def _background(job: Path) -> None:
+    """The background build of :func:`_spawn` (``python -m <this module> JOB``), at low priority; the library
+    arrives in the cache atomically, or not at all."""
+    spec = json.loads((job / "job.json").read_text())
+    path = Path(spec["path"])
+    try:
+        os.nice(10)
+        lib = Library(spec["name"], tuple(ca.Function.deserialize(f) for f in spec["fns"]), spec["cse"])
+        c = _generate(lib, str(job))
+        out = job / path.name
+        subprocess.run([compiler(), *spec["flags"], str(c), "-o", str(out), "-lm"], check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=BACKGROUND_TIMEOUT)
+        os.replace(out, path)
+    finally:
+        shutil.rmtree(job, ignore_errors=True)
+        path.with_name(path.name + ".building").unlink(missing_ok=True)
+
+
+if __name__ == "__main__":
+    _background(Path(sys.argv[1]))

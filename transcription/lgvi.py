@@ -28,6 +28,9 @@ Functions built (all SX, inputs/outputs named):
     variation_seeded(X, w, h, c0[3])        -> (A, B) the same from c0; with c0 = the root of
                                                step X's Cayley equation, equal to variation
     rollout(N)      (X0[18], W[nw x N], h)  -> (X[18 x N], res[1 x N])  mapaccum
+
+``parametric()`` gives cayley_residual .. step again with the model's numbers theta = ``model.parameters`` as their
+last input instead of constants (what the NLP's compiled dynamics block is built from: one compile per structure).
 """
 from __future__ import annotations
 
@@ -90,6 +93,57 @@ def per_discretization(build: Callable) -> Callable:
     return get
 
 
+class _StepFunctions:
+    """The Cayley solve and the step of one Discretization (docs/mathematics.md §2-§3), built from the model's
+    numbers as constants, or (``parametric``) from a symbol theta = ``model.parameters`` that is then the last input
+    of every Function (names suffixed ``_p``):
+
+        cayley_residual (c[3], g[3])            -> (G[3])   G = g + g x c + (g^T c) c - 2 J c
+        newton_map      (c[3], g[3])            -> c - (dG/dc)^-1 G
+        cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])  K Newton iterations from (2J)^-1 g
+        step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])
+        cayley_rhs      (X[18], w[nw], h)       -> (g[3])
+        step            (X[18], w[nw], h)       -> (X1[18], res)
+    """
+
+    def __init__(self, disc: "Discretization", parametric: bool = False):
+        model, scheme, sfx = disc.model, disc.scheme, "_p" if parametric else ""
+        if parametric:
+            th = ca.SX.sym("theta", model.parameters.size)
+            m, J, inv2J, q = th[0], ca.reshape(th[1:10], 3, 3), ca.reshape(th[10:19], 3, 3), th[19:]
+            pforces = model.parametric_forces()
+            forces, extra = (lambda x, R: pforces(x, R, q)), [th]
+        else:
+            m, J, inv2J = model.mass, ca.DM(model.inertia), ca.DM(np.linalg.inv(2 * model.inertia))
+            forces, extra = model.forces, []
+        names = ["theta"] if parametric else []
+
+        def fn(name, ins, outs, names_in, names_out):
+            return ca.Function(name + sfx, ins + extra, outs, names_in + names, names_out)
+
+        c, g = ca.SX.sym("c", 3), ca.SX.sym("g", 3)
+        G = g + ca.cross(g, c) + ca.dot(g, c) * c - 2 * ca.mtimes(J, c)
+        self.cayley_residual = fn("cayley_residual", [c, g], [G], ["c", "g"], ["G"])
+        dG = hat(g) + ca.dot(g, c) * ca.DM.eye(3) + ca.mtimes(c, g.T) - 2 * J
+        self.newton_map = fn("cayley_newton_map", [c, g], [c - _solve3(dG, G)], ["c", "g"], ["c1"])
+        gnorm = ca.fmax(ca.norm_2(g), 1e-300)
+        ck = ca.mtimes(inv2J, g)
+        hist = [ca.norm_2(self.cayley_residual(ck, g, *extra)) / gnorm]
+        for _ in range(disc.newton_iters):
+            ck = self.newton_map(ck, g, *extra)
+            hist.append(ca.norm_2(self.cayley_residual(ck, g, *extra)) / gnorm)
+        self.cayley_solve = fn("cayley_solve", [g], [ck, ca.vertcat(*hist)], ["g"], ["c", "res_hist"])
+
+        X, w, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("h")
+        X1, gvec = disc._step_expr(X, c, w, h, m, forces)
+        self.step_given_c = fn(f"{scheme}_step_given_c", [X, c, w, h], [X1, self.cayley_residual(c, gvec, *extra)],
+                               ["X", "c", "w", "h"], ["X1", "G"])
+        self.cayley_rhs = fn(f"{scheme}_cayley_rhs", [X, w, h], [gvec], ["X", "w", "h"], ["g"])
+        csol, hist = self.cayley_solve(gvec, *extra)
+        X1s, _ = self.step_given_c(X, csol, w, h, *extra)
+        self.step = fn(f"{scheme}_step", [X, w, h], [X1s, hist[-1]], ["X", "w", "h"], ["X1", "res"])
+
+
 def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
                    force_frame: str = "inertial") -> "Discretization":
     """The :class:`Discretization` of ``model``, ``scheme`` and ``force_frame``, built once per model and kept
@@ -133,33 +187,16 @@ class Discretization:
         self.J = J
         self.Jd = 0.5 * np.trace(J) * np.eye(3) - J
 
-        c = ca.SX.sym("c", 3)
-        g = ca.SX.sym("g", 3)
-        G = g + ca.cross(g, c) + ca.dot(g, c) * c - 2 * ca.mtimes(ca.DM(J), c)
-        self.cayley_residual = ca.Function("cayley_residual", [c, g], [G], ["c", "g"], ["G"])
-        dG = hat(g) + ca.dot(g, c) * ca.DM.eye(3) + ca.mtimes(c, g.T) - 2 * ca.DM(J)
-        newton_map = ca.Function("cayley_newton_map", [c, g], [c - _solve3(dG, G)])
-
-        gnorm = ca.fmax(ca.norm_2(g), 1e-300)
-        ck = ca.mtimes(ca.DM(np.linalg.inv(2 * J)), g)
-        hist = [ca.norm_2(self.cayley_residual(ck, g)) / gnorm]
-        for _ in range(self.newton_iters):
-            ck = newton_map(ck, g)
-            hist.append(ca.norm_2(self.cayley_residual(ck, g)) / gnorm)
-        self.cayley_solve = ca.Function("cayley_solve", [g], [ck, ca.vertcat(*hist)], ["g"], ["c", "res_hist"])
+        core = _StepFunctions(self)
+        self.cayley_residual, self.cayley_solve = core.cayley_residual, core.cayley_solve
+        self.step_given_c, self.cayley_rhs, self.step = core.step_given_c, core.cayley_rhs, core.step
+        newton_map = core.newton_map
 
         X = ca.SX.sym("X", NX)
         w = ca.SX.sym("w", self.nw)
         h = ca.SX.sym("h")
-        X1, gvec = self._step_expr(X, c, w, h)
-        self.step_given_c = ca.Function(
-            f"{scheme}_step_given_c", [X, c, w, h], [X1, self.cayley_residual(c, gvec)], ["X", "c", "w", "h"], ["X1", "G"]
-        )
-        self.cayley_rhs = ca.Function(f"{scheme}_cayley_rhs", [X, w, h], [gvec], ["X", "w", "h"], ["g"])
-        csol, hist = self.cayley_solve(gvec)
-        X1s, _ = self.step_given_c(X, csol, w, h)
-        self.step = ca.Function(f"{scheme}_step", [X, w, h], [X1s, hist[-1]], ["X", "w", "h"], ["X1", "res"])
-
+        gvec = self.cayley_rhs(X, w, h)
+        X1s = self.step(X, w, h)[0]
         z = ca.SX.sym("z", NZ)
         X1z, _ = self.step(chart(X, z), w, h)
         dX1 = ca.substitute(ca.jacobian(X1z, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
@@ -186,20 +223,19 @@ class Discretization:
         )
 
     # ------------------------------------------------------------------ steps
-    def _step_expr(self, X, c, w, h):
-        """Symbolic step given the Cayley vector c; returns (X_{k+1}, g_k)."""
-        m = self.model.mass
+    def _step_expr(self, X, c, w, h, m, forces):
+        """Symbolic step given the Cayley vector c, the mass m and forces(x, R) -> (f, M); returns (X_{k+1}, g_k)."""
         x, gamma, R, Pi = split_state(X)
         F = cayley(c)
         if self.scheme == "lgvi":
             uk, uk1 = w[0:NU], w[NU:]
-            f0, M0 = self.model.forces(x, R)
+            f0, M0 = forces(x, R)
             Fk0 = f0 + self.applied_force(R, uk[U_FORCE])
             Mk0 = M0 + uk[U_MOMENT]
             g = h * (Pi + (h / 2) * Mk0)                                       # (9)
             x1 = x + (h / m) * gamma + (h**2 / (2 * m)) * Fk0                  # (7)
             R1 = ca.mtimes(R, F)                                               # (10)
-            f1, M1 = self.model.forces(x1, R1)
+            f1, M1 = forces(x1, R1)
             gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]))  # (8)
             Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[U_MOMENT])  # (11)
         else:
@@ -207,7 +243,7 @@ class Discretization:
             g = h * Pi                                                         # (23)
             x1 = x + (h / m) * gamma                                           # (21)
             R1 = ca.mtimes(R, F)                                               # (24)
-            f1, M1 = self.model.forces(x1, R1)
+            f1, M1 = forces(x1, R1)
             gamma1 = gamma + h * f1 + h * self.applied_force(R1, u1[U_FORCE])      # (22)
             Pi1 = ca.mtimes(F.T, Pi) + h * M1 + h * u1[U_MOMENT]                    # (25)
         return join_state(x1, gamma1, R1, Pi1), g
@@ -237,6 +273,13 @@ class Discretization:
             return ca.vertcat(U[:, :-1], U[:, 1:])
         U = np.asarray(U, dtype=float)
         return np.vstack([U[:, :-1], U[:, 1:]])
+
+    def parametric(self) -> "_StepFunctions":
+        """The step Functions with the model's numbers as data: every Function of :class:`_StepFunctions` takes
+        theta = ``model.parameters`` as its last input (equal to this Discretization's Function of the same name
+        given theta, to round-off), so that what is built and compiled from them serves every model of the same
+        structure (transcription.nlp.blocks.dynamics).  Built on first use."""
+        return self.cached("parametric", lambda: _StepFunctions(self, parametric=True))
 
     # ------------------------------------------------------------------ cache
     def cached(self, key: Hashable, build: Callable[[], Any]) -> Any:

@@ -11,8 +11,10 @@ problem of the same structure: the builders with only structural arguments retur
     dynamics(disc, with_c, controls, effort, free_h)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
         v = [X_k (18); c_k (3, with_c); w_k (nw, controls); X_{k+1} (18); h / h_scale (1, free_h)]
         p = [h (or h_scale, free_h); sX (18); sC (3, with_c); sW (nw, controls); sG (3, with_c);
-             s_obj; W_f (9); W_m (9) (effort)]
+             s_obj; W_f (9); W_m (9) (effort); theta (the model's numbers, ``disc.model.parameters``)]
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
+        (the step of ``disc.parametric()``: mass, inertia and the potential's numbers are data, so the block and
+        its compiled derivatives serve every model of the same structure -- compiled once)
         cost = the step's share of sum_j omega_j (1/2) u_j^T W u_j, / s_obj (effort; else 0)
     control_node(disc, free_h, norm_f, norm_m, fuel, thruster)   one control node j (docs/mathematics.md §10, §14)
         v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (fuel: magnitudes and directions); h / h_scale (1, free_h)]
@@ -47,7 +49,8 @@ def dynamics_sizes(disc, with_c: bool, controls: bool, effort: bool, free_h: boo
     """(nv, np) of :func:`dynamics`."""
     nc = NC if with_c else 0
     nw = disc.nw if controls else 0
-    return NX + nc + nw + NX + (1 if free_h else 0), 1 + NX + nc + nw + nc + (1 + 18 if effort else 0)
+    return NX + nc + nw + NX + (1 if free_h else 0), 1 + NX + nc + nw + nc + (1 + 18 if effort else 0) + \
+        disc.model.parameters.size
 
 
 @per_discretization
@@ -67,14 +70,16 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = Fa
     i += nw
     sG = p[i:i + nc]
     i += nc
+    theta = p[npar - disc.model.parameters.size:]
     X = v[:NX] * sX
     w = v[NX + nc:NX + nc + nw] * sW if controls else ca.DM.zeros(disc.nw)
     X1 = v[NX + nc + nw:NX + nc + nw + NX] * sX
+    core = disc.parametric()
     if with_c:
-        Xn, G = disc.step_given_c(X, v[NX:NX + nc] * sC, w, h)
+        Xn, G = core.step_given_c(X, v[NX:NX + nc] * sC, w, h, theta)
         rows = ca.vertcat((Xn - X1) / sX, G / sG)
     else:
-        Xn, _ = disc.step(X, w, h)
+        Xn, _ = core.step(X, w, h, theta)
         rows = (Xn - X1) / sX
     cost = ca.SX(0)
     if effort:
@@ -167,13 +172,14 @@ def terminal_time_rows(name: str, rows_of, scales: np.ndarray, free_h: bool) -> 
 
 
 def dynamics_data(disc, h: float, sX, sC, sW, sG, s_obj=None, W_f=None, W_m=None) -> np.ndarray:
-    """The data vector p of :func:`dynamics` (None entries are omitted: match the flags)."""
+    """The data vector p of :func:`dynamics` (None entries are omitted: match the flags); the model's numbers last."""
     parts = [[h], sX]
     parts += [sC] if sC is not None else []
     parts += [sW] if sW is not None else []
     parts += [sG] if sG is not None else []
     if s_obj is not None:
         parts += [[s_obj], np.asarray(W_f, float).ravel(order="F"), np.asarray(W_m, float).ravel(order="F")]
+    parts += [disc.model.parameters]
     return np.concatenate([np.asarray(a, dtype=float).ravel() for a in parts])
 
 

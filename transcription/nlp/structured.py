@@ -53,10 +53,24 @@ class _Derivatives:
         self.hess = ca.Function(f"{name}_hess", [v, p, sigma, lam],
                                 [ca.vertcat(*Hv.nonzeros()) if Hv.nnz() else ca.SX(0, 1)], ["v", "p", "sigma", "lam"],
                                 ["hnz"])
-        self.compiled = False
+        self.compiled = self.provisional = False
         if jit:
-            self.jac, self.hess = codegen.compiled(self.jac), codegen.compiled(self.hess)
-            self.compiled = self.jac.class_name() == "External" and self.hess.class_name() == "External"
+            self._libraries = (codegen.Library(self.jac.name(), (self.jac,), cse=True),
+                               codegen.Library(self.hess.name(), (self.hess,), cse=True))
+            self._compile()
+
+    def _compile(self):
+        """jac and hess compiled to C (one library each, compiled concurrently): at -O1 when cached, else at -O0 now
+        and at -O1 in the background (codegen's ``quick``), ``provisional`` until that build has arrived."""
+        (self.jac,), (self.hess,) = codegen.compiled_libraries(self._libraries, quick=codegen.QUICK_CFLAGS)
+        self.provisional = codegen.last_provisional
+        self.compiled = self.jac.class_name() == "External" and self.hess.class_name() == "External"
+
+    def refresh(self) -> "_Derivatives":
+        """Load the -O1 build once it has arrived in the cache (between solves: an NLP keeps the Functions it got)."""
+        if self.provisional and codegen.ready(self._libraries):
+            self._compile()
+        return self
 
 
 class BlockFunction:
@@ -72,7 +86,7 @@ class BlockFunction:
     def derivatives(self, jit: bool) -> _Derivatives:
         if bool(jit) not in self._derivatives:
             self._derivatives[bool(jit)] = _Derivatives(self.function, bool(jit))
-        return self._derivatives[bool(jit)]
+        return self._derivatives[bool(jit)].refresh()
 
 
 @dataclass

@@ -36,8 +36,8 @@ def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, c
     All differentiate ``disc.step_seeded`` seeded with the step's Cayley root c0, whose first to
     third derivatives equal those of the solved step (lgvi.py).  The rollout X_N(p) = F o ... o F
     (X_0(p)) is a composition of maps R^18 -> R^18 with X_0 affine in p, so the chain rule in
-    ambient coordinates is exact and needs no chart.  jit: compiled to C (codegen.compiled, which
-    falls back to the interpreter).
+    ambient coordinates is exact and needs no chart.  jit: compiled to C (codegen.compiled_libraries, which
+    falls back to the interpreter; a first use at -O0, the -O1 build in the background).
     """
     X, c0, h = ca.SX.sym("X", NX), ca.SX.sym("c0", 3), ca.SX.sym("h")
     mu, S, q = ca.SX.sym("mu", NX), ca.SX.sym("S", NX, 6), ca.SX.sym("q", 6)
@@ -49,8 +49,9 @@ def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, c
     Hq = ca.hessian(ca.dot(mu, disc.step_seeded(X + ca.mtimes(S, q), w0, h, c0)), q)[0]
     hess = ca.Function(f"{disc.scheme}_free_hess", [X, c0, h, mu, S], [ca.substitute(Hq, q, ca.DM.zeros(6))],
                        ["X", "c0", "h", "mu", "S"], ["T"])
-    if jit:
-        fwd, adj, hess = (codegen.compiled(f) for f in (fwd, adj, hess))
+    if jit:   # one library each, compiled concurrently: -O1 when cached, else -O0 now and -O1 in the background
+        (fwd,), (adj,), (hess,) = codegen.compiled_libraries([codegen.Library(f.name(), (f,), cse=True)
+                                                               for f in (fwd, adj, hess)], quick=codegen.QUICK_CFLAGS)
     return fwd, adj, hess
 
 
