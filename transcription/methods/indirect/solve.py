@@ -11,13 +11,14 @@ from ...layout import NU, NZ
 from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
 from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, ThrusterBound,
-                        terminal_error)
+                        objective_value, terminal_error)
 from ...results import Attempt, Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
+from .objectives import solve_time
 from .shooting import shooting_functions, time_gradient_function
 
 
@@ -30,8 +31,10 @@ def not_covered(problem: Problem) -> str:
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
     reasons = []
-    if c.objective != "effort":
+    if c.objective not in ("effort", "time"):
         reasons.append(f"the {c.objective} objective")
+    if c.objective == "time" and problem.disc.force_frame != "inertial":
+        reasons.append("the time objective with a body-fixed force")
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
                   if getattr(c, "moving", False)]
@@ -117,6 +120,8 @@ class _Shooting:
         self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
         self.free = free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
+        self.law = (self.Winv, self.bd)   # the (Winv, bd) of the final rollout (the time objective: its eps-law's)
+        self.primal = None                # (X, U) of the warm start on this grid (the time objective's first stage)
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
         """The largest relative Cayley residual of the rollout from lam at the step size h."""
@@ -167,6 +172,9 @@ class _Shooting:
         """The Newton iteration from lam at the step size h (with a free final time, inside the secant iteration
         on h, h the first guess); the result and the final step size."""
         problem = self.problem
+        if problem.control.objective == "time":   # the homotopy in eps, with the free final time (objectives.py)
+            nr, h, self.stats["time_homotopy"], self.law = solve_time(self, lam, h, self.primal)
+            return nr, h
         if not problem.free_time:
             return self.solve_at(lam, h, True), h
         N = problem.N
@@ -178,7 +186,7 @@ class _Shooting:
     def solution(self, nr: NewtonResult, h: float, solve_s: float) -> Solution:
         """The Solution of the final lambda_0: controls and costates from it, the re-simulated trajectory."""
         problem, stats, lam = self.problem, self.stats, nr.x
-        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, h, self.Winv, self.bd)
+        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, h, *self.law)
         U, lams = np.array(U), np.array(lams).T
         Xsim, res = problem.disc.simulate(self.X0, U, h, problem.N)
         finite = bool(np.all(np.isfinite(Xsim)))
@@ -193,7 +201,7 @@ class _Shooting:
         )
         traj = trajectory(problem, Xsim, h)
         return Solution(method="indirect", solver="newton-armijo", result=result, message=message, trajectory=traj,
-                        cost=control_cost(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
+                        cost=objective_value(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
                         terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
                         iterations=nr.iterations, build_s=self.build_s, solve_s=solve_s, problem=problem,
                         controls=U, costates=lams, history=nr.history, stats=stats,
@@ -204,6 +212,8 @@ class _Shooting:
         result, message = nr.result, nr.message.replace("|F|", "|z_N|").replace(" x ", " lambda_0 ")
         if "bound_continuation" in stats:
             message += f" (bound continuation from lambda_0 = 0: {'; '.join(stats['bound_continuation'])})"
+        if "time_homotopy" in stats:
+            message += f"; {stats['time_homotopy']['message']}"
         if "free_time" in stats:
             message += f"; {stats['free_time']['message']}"
             if result.successful and not stats["free_time"]["converged"]:
@@ -258,6 +268,9 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
     shooting = _Shooting(problem, options, progress, source)
     h = initial_step(problem, warm)
+    if warm is not None and np.isclose(warm.T, h * problem.N, rtol=1e-14):
+        fitted = warm.fit(problem.N, problem.scheme)[0]
+        shooting.primal = (fitted.X, fitted.U)
     r0 = shooting.cayley_residual(lam, h)
     if not r0 <= options.cayley_tol:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
