@@ -22,16 +22,18 @@ from .objectives import solve_time
 from .shooting import shooting_functions, time_gradient_function
 
 
-def not_covered(problem: Problem) -> str:
+def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time")) -> str:
     """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
     smooth control what its necessary conditions do not cover -- they are those of the effort objective to a state target (free components by
     transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
-    on a block with a diagonal weight, a norm bound on one with an isotropic weight."""
+    on a block with a diagonal weight, a norm bound on one with an isotropic weight -- and those of the time
+    objective (:mod:`.objectives`).  ``objectives``: the objectives to count as covered (MPC's re-plan, the fixed-h
+    Newton step of the effort conditions, passes ('effort',))."""
     if problem.kind != "smooth":
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
     reasons = []
-    if c.objective not in ("effort", "time"):
+    if c.objective not in objectives:
         reasons.append(f"the {c.objective} objective")
     if c.objective == "time" and problem.disc.force_frame != "inertial":
         reasons.append("the time objective with a body-fixed force")
