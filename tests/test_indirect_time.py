@@ -8,6 +8,8 @@ method runs at tol 1e-12 so that its T is good to ~1e-11: the indirect T is asse
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -149,3 +151,7 @@ def test_coverage_names_what_is_left():
     p = support.problem("slew_time_optimal", 20)
     assert not_covered(p) == ""
     assert not_covered(p, ("effort",)) == "the time objective"     # MPC's re-plan (the effort Newton step)
+    body = support.problem("slew_time_optimal", 20, None, "control.force_frame=body")
+    assert not_covered(body) == "the time objective with a body-fixed force"
+    mesh = dataclasses.replace(p, mesh=np.linspace(0.5, 1.5, 20))
+    assert not_covered(mesh) == "the time objective on a non-uniform mesh"

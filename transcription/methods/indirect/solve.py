@@ -37,6 +37,8 @@ def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time
         reasons.append(f"the {c.objective} objective")
     if c.objective == "time" and problem.disc.force_frame != "inertial":
         reasons.append("the time objective with a body-fixed force")
+    if c.objective == "time" and not problem.uniform:    # objectives.py takes one step size h
+        reasons.append("the time objective on a non-uniform mesh")
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
                   if getattr(c, "moving", False)]
