@@ -15,6 +15,9 @@ cost linear in u_j (time: none; fuel: w |u_j|) has u_j minimizing w |u_j| + sigm
 
 whose law is the effort law with W scaled by e = 2 eps / u_max^2 (u = sat(-W^-1 sigma / e): the existing
 saturated law with Winv / e), and the free final time dL/dh = N + e J_effort / h + sum_k g_k = 0.
+
+With the effort law's unconstrained control v = -W^-1 sigma and a fuel weight W = w I, the fuel objective's switching
+function |v| - 1 is |sigma| / w - 1: the threshold w of :func:`hamiltonian_minimizer`.
 """
 from __future__ import annotations
 
@@ -32,19 +35,20 @@ from .control import NB, NO_NORM, control_matrix, control_scale
 from .conditions import costate_functions, node_law, terminal_residual_function
 from .shooting import MAPACCUM_OPTS, time_gradient_function
 
-#: the homotopy of the time objective: the first eps, the factor per stage (its square root after a failed stage,
-#: down to TIME_EPS_FACTOR_MAX), Newton iterations per stage, and the last eps (T(eps) - T(0) = O(eps^2): at
-#: TIME_EPS_END T is that of eps = 0 to round-off, measured in docs/mathematics.md)
+#: the homotopy of the time objective (:func:`solve_time`) when the structure start is not available or fails: its
+#: first eps; when that first stage fails (too few nodes inside the switching bands for a regular Jacobian: a coarse
+#: grid) it is tried again from the start at eps times TIME_START_RAISE, up to TIME_START_TRIES times
 TIME_EPS_START = 1e-2
-#: when the first stage fails (too few nodes inside the switching bands for a regular Jacobian: a coarse grid),
-#: it is tried again from the start at eps times this, up to TIME_START_TRIES times
 TIME_START_RAISE = 4.0
 TIME_START_TRIES = 3
+#: the factor on eps per stage (its square root after a failed stage, given up above TIME_EPS_FACTOR_MAX), Newton
+#: iterations per stage after the first, and the smallest eps
 TIME_EPS_FACTOR = 0.5
 TIME_EPS_FACTOR_MAX = 0.9
 TIME_STAGE_ITERATIONS = 20
 TIME_EPS_END = 1e-8
-#: two consecutive stages whose T agree to this (relative) end the homotopy (T has settled at its eps = 0 value)
+#: two consecutive stages whose T agree to this (relative) end the homotopy: every switch has its one interior
+#: node, and T and the controls are exactly those of eps = 0 (docs/mathematics.md §17)
 TIME_T_RTOL = 1e-12
 
 
