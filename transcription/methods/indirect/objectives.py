@@ -47,6 +47,8 @@ TIME_EPS_FACTOR = 0.5
 TIME_EPS_FACTOR_MAX = 0.9
 TIME_STAGE_ITERATIONS = 20
 TIME_EPS_END = 1e-8
+#: the most stages of one solve (a bound on its time; the structure start settles in 2)
+TIME_MAX_STAGES = 12
 #: two consecutive stages whose T agree to this (relative) end the homotopy: every switch has its one interior
 #: node, and T and the controls are exactly those of eps = 0 (docs/mathematics.md §17)
 TIME_T_RTOL = 1e-12
@@ -348,12 +350,12 @@ def solve_time(shooting, lam, h: float, primal: tuple | None = None) -> tuple[Ne
         stages.append({"eps": float(eps), "result": nr.result.value, "iterations": nr.iterations, "T": T})
         return nr, T
 
-    for x, eps in starts:
-        nr, T = stage(x, eps, shooting.options.max_iter)
+    for j, (x, eps) in enumerate(starts):
+        nr, T = stage(x, eps, shooting.options.max_iter if j == 0 else TIME_STAGE_ITERATIONS)
         if nr.result.successful:
             good = (nr, eps, T)
             break
-    while good is not None and good[1] > TIME_EPS_END * (1 + 1e-9):
+    while good is not None and good[1] > TIME_EPS_END * (1 + 1e-9) and len(stages) < TIME_MAX_STAGES:
         eps1 = max(good[1] * factor, TIME_EPS_END)
         nr, T = stage(ts.predictor(good[0].x, good[1], eps1), eps1, TIME_STAGE_ITERATIONS)
         if nr.result.successful:
@@ -366,9 +368,10 @@ def solve_time(shooting, lam, h: float, primal: tuple | None = None) -> tuple[Ne
         else:
             factor = np.sqrt(factor)
     out = nr if good is None else good[0]
-    if good is not None and not nr.result.successful:
-        out.result, out.message = nr.result, (f"the homotopy in eps stopped at eps = {good[1]:.1e}, T = "
-                                              f"{good[2]:.12g} (the next stage failed: {nr.message})")
+    if good is not None and not settled:       # T is eps = 0's only once it has settled
+        why = f"the next stage failed: {nr.message}" if not nr.result.successful else f"{len(stages)} stages"
+        out.result = nr.result if not nr.result.successful else Result.max_iterations
+        out.message = f"the homotopy in eps stopped at eps = {good[1]:.1e}, T = {good[2]:.12g} before T settled ({why})"
     out.history, out.iterations = history, iters
     final = good[1] if good is not None else stages[-1]["eps"]
     summary = {"eps": float(final), "e": ts.law(final)[0], "stages": stages, "settled": settled,

@@ -270,6 +270,11 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
         lam, source, notes = initial_costate(problem, options, warm)
     except ValueError as exc:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
+    if problem.control.objective == "time" and warm is None:   # objectives.py starts from a solution's structure
+        return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
+                               f"the time objective starts from a solution (initial_costate from_direct: the direct "
+                               f"solution's switching structure and T); a cold start from initial_costate {source} "
+                               "is not implemented")
     shooting = _Shooting(problem, options, progress, source)
     h = initial_step(problem, warm)
     if warm is not None and np.isclose(warm.T, h * problem.N, rtol=1e-14):
