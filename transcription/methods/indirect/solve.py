@@ -243,7 +243,9 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
     method -- and from lambda_0 = 0 it first solves the unbounded problem,
     :func:`~.continuation.bound_continuation`); free terminal components (lambda_{N-1} = 0 on them,
     :func:`free_rows`); a free final time (the condition dL/dh = 0 by a secant iteration over fixed-T
-    shootings, :func:`~.continuation.free_final_time`).
+    shootings, :func:`~.continuation.free_final_time`).  The time objective (docs/mathematics.md §17): min T + eps
+    (effort) with the saturated law, Newton on (lambda_0, h) with dL/dh = 0, from a solution's switching structure
+    (:func:`~.objectives.solve_time`; without a warm start it returns Result.invalid_option and the fallback runs).
 
     The initial costate comes from ``warm`` (:func:`initial_costate`: an indirect solution's lambda_0, or
     the costates of a direct solution, mapped from its multipliers; resampled from another N or scheme) or
