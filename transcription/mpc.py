@@ -84,7 +84,7 @@ class Replanner:
 
     def __init__(self, problem, h: float, iterations: int = DEFAULT_ITERATIONS, jit: bool = True,
                  cayley_tol: float = IndirectOptions.cayley_tol):
-        reason = not_covered(problem)
+        reason = not_covered(problem, ("effort",))
         if reason:
             raise ValueError(f"MPC re-plans by the indirect method's Newton step, which does not cover {reason}")
         if int(iterations) < 1:

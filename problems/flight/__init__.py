@@ -86,7 +86,7 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
     from ...transcription.methods.indirect.solve import not_covered
     from ..schema import ConfigError
 
-    reason = not_covered(maneuver.problem) if "mpc" in spec.modes else ""
+    reason = not_covered(maneuver.problem, ("effort",)) if "mpc" in spec.modes else ""
     if reason:
         raise ConfigError(source, "flight.feedback", f"mpc re-plans by the indirect method's Newton step, which "
                           f"does not cover {reason}; fly this plan with none or lqr")

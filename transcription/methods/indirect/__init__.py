@@ -98,6 +98,9 @@ the bounds as data, the effort cost), :mod:`.conditions` (the forward map of the
 :mod:`.linearization` (its exact linearization), :mod:`.shooting` (the shooting Functions per N),
 :mod:`.continuation` (bound continuation, free final time), :mod:`.coordinates` (the body-fixed force),
 :mod:`.solve` (the solve; :data:`INDIRECT`, the method).
+
+The time objective (docs/mathematics.md §18): :mod:`.objectives` -- the switching function, the Hamiltonian's
+minimizer over the bounds, and min T + eps (effort) with the saturated law above, Newton on (lambda_0, h).
 """
 from __future__ import annotations
 

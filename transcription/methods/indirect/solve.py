@@ -11,27 +11,34 @@ from ...layout import NU, NZ
 from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
 from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, ThrusterBound,
-                        terminal_error)
+                        objective_value, terminal_error)
 from ...results import Attempt, Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
+from .objectives import solve_time
 from .shooting import shooting_functions, time_gradient_function
 
 
-def not_covered(problem: Problem) -> str:
+def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time")) -> str:
     """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
     smooth control what its necessary conditions do not cover -- they are those of the effort objective to a state target (free components by
     transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
-    on a block with a diagonal weight, a norm bound on one with an isotropic weight."""
+    on a block with a diagonal weight, a norm bound on one with an isotropic weight -- and those of the time
+    objective (:mod:`.objectives`).  ``objectives``: the objectives to count as covered (MPC's re-plan, the fixed-h
+    Newton step of the effort conditions, passes ('effort',))."""
     if problem.kind != "smooth":
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
     reasons = []
-    if c.objective != "effort":
+    if c.objective not in objectives:
         reasons.append(f"the {c.objective} objective")
+    if c.objective == "time" and problem.disc.force_frame != "inertial":
+        reasons.append("the time objective with a body-fixed force")
+    if c.objective == "time" and not problem.uniform:    # objectives.py takes one step size h
+        reasons.append("the time objective on a non-uniform mesh")
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
                   if getattr(c, "moving", False)]
@@ -124,6 +131,8 @@ class _Shooting:
         self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
         self.free = free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
+        self.law = (self.Winv, self.bd)   # the (Winv, bd) of the final rollout (the time objective: its eps-law's)
+        self.primal = None                # (X, U) of the warm start on this grid (the time objective's first stage)
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
         """The largest relative Cayley residual of the rollout from lam at the step size h."""
@@ -175,6 +184,9 @@ class _Shooting:
         """The Newton iteration from lam at the step size h (with a free final time, inside the secant iteration
         on h, h the first guess); the result and the final step size."""
         problem = self.problem
+        if problem.control.objective == "time":   # the homotopy in eps, with the free final time (objectives.py)
+            nr, h, self.stats["time_homotopy"], self.law = solve_time(self, lam, h, self.primal)
+            return nr, h
         if not problem.free_time:
             return self.solve_at(lam, h, True), h
         N = problem.N
@@ -186,7 +198,7 @@ class _Shooting:
     def solution(self, nr: NewtonResult, h: float, solve_s: float) -> Solution:
         """The Solution of the final lambda_0: controls and costates from it, the re-simulated trajectory."""
         problem, stats, lam = self.problem, self.stats, nr.x
-        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, problem.steps_of(h), self.Winv, self.bd)
+        _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, problem.steps_of(h), *self.law)
         U, lams = np.array(U), np.array(lams).T
         Xsim, res = problem.disc.simulate(self.X0, U, problem.steps_of(h), problem.N)
         finite = bool(np.all(np.isfinite(Xsim)))
@@ -201,7 +213,7 @@ class _Shooting:
         )
         traj = trajectory(problem, Xsim, h)
         return Solution(method="indirect", solver="newton-armijo", result=result, message=message, trajectory=traj,
-                        cost=control_cost(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
+                        cost=objective_value(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
                         terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
                         iterations=nr.iterations, build_s=self.build_s, solve_s=solve_s, problem=problem,
                         controls=U, costates=lams, history=nr.history, stats=stats,
@@ -212,6 +224,8 @@ class _Shooting:
         result, message = nr.result, nr.message.replace("|F|", "|z_N|").replace(" x ", " lambda_0 ")
         if "bound_continuation" in stats:
             message += f" (bound continuation from lambda_0 = 0: {'; '.join(stats['bound_continuation'])})"
+        if "time_homotopy" in stats:
+            message += f"; {stats['time_homotopy']['message']}"
         if "free_time" in stats:
             message += f"; {stats['free_time']['message']}"
             if result.successful and not stats["free_time"]["converged"]:
@@ -237,7 +251,9 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
     method -- and from lambda_0 = 0 it first solves the unbounded problem,
     :func:`~.continuation.bound_continuation`); free terminal components (lambda_{N-1} = 0 on them,
     :func:`free_rows`); a free final time (the condition dL/dh = 0 by a secant iteration over fixed-T
-    shootings, :func:`~.continuation.free_final_time`).
+    shootings, :func:`~.continuation.free_final_time`).  The time objective (docs/mathematics.md §18): min T + eps
+    (effort) with the saturated law, Newton on (lambda_0, h) with dL/dh = 0, from a solution's switching structure
+    (:func:`~.objectives.solve_time`; without a warm start it returns Result.invalid_option and the fallback runs).
 
     The initial costate comes from ``warm`` (:func:`initial_costate`: an indirect solution's lambda_0, or
     the costates of a direct solution, mapped from its multipliers; resampled from another N or scheme) or
@@ -264,8 +280,16 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
         lam, source, notes = initial_costate(problem, options, warm)
     except ValueError as exc:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
+    if problem.control.objective == "time" and warm is None:   # objectives.py starts from a solution's structure
+        return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
+                               f"the time objective starts from a solution (initial_costate from_direct: the direct "
+                               f"solution's switching structure and T); a cold start from initial_costate {source} "
+                               "is not implemented")
     shooting = _Shooting(problem, options, progress, source)
     h = initial_step(problem, warm)
+    if warm is not None and np.isclose(warm.T, h * problem.N, rtol=1e-14):
+        fitted = warm.fit(problem.N, problem.scheme)[0]
+        shooting.primal = (fitted.X, fitted.U)
     r0 = shooting.cayley_residual(lam, h)
     if not r0 <= options.cayley_tol:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
