@@ -292,7 +292,9 @@ def test_both_methods_refine_together_and_agree_on_the_refined_mesh():
     b = se3ocp.solve(maneuver("e3", 40, "lgvi"), "both", accuracy=1e-3)
     assert b.converged and b.direct.N == b.indirect.N == b.direct.mesh[-1]["N"] and b.direct.mesh == b.indirect.mesh
     assert b.cost_relative_difference <= 1e-8 and b.direct.mesh[-1]["miss"] <= 1e-3
-    assert "indirect converged" in b.direct.mesh[-1]["status"]
+    # the last level's status names both methods' results; the indirect one may end at its measured round-off
+    # floor (a success, Result.converged), which depends on the last bits of the direct start
+    assert any(f"indirect {r}" in b.direct.mesh[-1]["status"] for r in ("converged", "round_off_floor"))
     ind = se3ocp.solve(maneuver("e3", 40, "lgvi"), "indirect", accuracy=1e-3)
     assert ind.converged and ind.N == b.direct.N and ind.stats["accuracy_met"] is True
 
