@@ -212,3 +212,17 @@ def test_tracking_refuses_a_plan_on_a_non_uniform_mesh():
     sol = solve(problem("e3", 20).replace(mesh=random_mesh(20)), "direct")
     with pytest.raises(ValueError, match="non-uniform mesh.*solver.refinement: uniform"):
         tracking_gains(sol)
+
+
+def test_an_adaptive_plan_is_read_back_with_its_node_times(eccentric_adaptive, tmp_path):
+    """The results directory of an adaptive plan: the npz's node times are the mesh's, and the summary read back
+    (h_min, h_max, delta_v with the per-step weights) is the one written."""
+    from se3ocp.problems.store import read_run, write_run
+    from support import maneuver
+
+    sol = eccentric_adaptive
+    write_run(tmp_path, maneuver("eccentric_transfer"), sol)
+    back = read_run(tmp_path).solutions["direct"]
+    np.testing.assert_array_equal(back.trajectory.t, sol.trajectory.t)
+    assert not back.uniform and back.summary()["h_max"] == sol.summary()["h_max"] > 5 * sol.summary()["h_min"]
+    assert back.summary()["delta_v"] == pytest.approx(sol.summary()["delta_v"], rel=1e-12)

@@ -312,6 +312,13 @@ class Solution:
     def converged(self) -> bool:
         return self.result.successful
 
+    @property
+    def uniform(self) -> bool:
+        """Its node times are equally spaced (to round-off): a uniform mesh (also when read back from a results
+        directory, whose Problem is the file's)."""
+        d = self.steps
+        return bool(d.size == 0 or np.all(np.abs(d - self.h) <= 1e-9 * abs(self.h)))
+
     # ------------------------------------------------------------------ display
     def display(self) -> dict[str, str]:
         """What a notebook shows of this Solution, as text (scalars only, never an array): method, status,
@@ -359,7 +366,7 @@ class Solution:
             "solver": self.solver,
         }
         out.update(self.trajectory.orthogonality())
-        if self.problem is not None and not getattr(self.problem, "uniform", True):   # a non-uniform mesh
+        if not self.uniform:                # a non-uniform mesh (docs/mathematics.md §16)
             out.update(h_min=float(self.steps.min()), h_max=float(self.steps.max()))
         if self.controls is not None:
             out["force_frame"] = self.force_frame
@@ -442,8 +449,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     if sol.controls is not None:
         uf, um = sol.u_f, sol.u_m
         n, N = uf.shape[0], sol.N
-        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if prob is None or
-                                getattr(prob, "uniform", True) else sol.steps)
+        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if sol.uniform else sol.steps)
         nf, nm = np.linalg.norm(uf, axis=1), np.linalg.norm(um, axis=1)
         out.update(delta_v=float(om @ nf / mass), angular_impulse=float(om @ nm),
                    peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))
