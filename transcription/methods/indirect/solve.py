@@ -10,21 +10,22 @@ import numpy as np
 from ...layout import NU, NZ
 from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, ThrusterBound,
-                        terminal_error)
+from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState,
+                        ThrusterBound, terminal_error)
 from ...results import Attempt, Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
+from .orbit import orbit_shooting
 from .shooting import shooting_functions, time_gradient_function
 
 
 def not_covered(problem: Problem) -> str:
     """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
     smooth control what its necessary conditions do not cover -- they are those of the effort objective to a state target (free components by
-    transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
+    transversality) or to an orbit target (its transversality conditions, :mod:`.orbit`), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
     on a block with a diagonal weight, a norm bound on one with an isotropic weight."""
     if problem.kind != "smooth":
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
@@ -38,8 +39,8 @@ def not_covered(problem: Problem) -> str:
         reasons.append("path constraints" + (f" (a {', a '.join(moving)})" if moving else ""))
     if isinstance(problem.terminal, TargetRendezvous):
         reasons.append("a rendezvous target (its point moves with the final time)")
-    elif not isinstance(problem.terminal, TargetState):
-        reasons.append("an orbit target")
+    elif not isinstance(problem.terminal, (TargetState, TargetOrbit)):
+        reasons.append("this kind of target")
     if isinstance(c.force_bound, ThrusterBound) and problem.disc.force_frame != "body":
         reasons.append("a thruster on a force in the inertial frame")
     for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
@@ -113,9 +114,11 @@ class _Shooting:
         t0 = time.perf_counter()
         self.fns = shooting_functions(problem.disc, problem.N, bool(options.jit))
         self.build_s = time.perf_counter() - t0
-        self.X0, self.Xd = problem.X0, problem.terminal.X
+        # an orbit target: its conditions and transversality (.orbit); Xd is then a placeholder nothing reads
+        self.orbit = orbit_shooting(problem)
+        self.X0, self.Xd = problem.X0, problem.X0 if self.orbit else problem.terminal.X
         self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
-        self.free = free_rows(problem.terminal)
+        self.free = np.zeros(NZ, bool) if self.orbit else free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
@@ -135,9 +138,11 @@ class _Shooting:
             _, Psi, dlamN = fns.shoot_jac(l, X0, Xd, h, Winv, bd_stage)
             return np.where(free[:, None], np.array(dlamN), np.array(Psi))
 
+        # an orbit target: its conditions and transversality instead (.orbit)
+        closures = self.orbit.closures(fns, (X0, Xd, h, Winv, bd_stage)) if self.orbit else (residual, jacobian)
         progress = self.progress
         tagged = (lambda it: progress(dataclasses.replace(it, phase=phase))) if progress and phase else progress
-        nr = newton_armijo(lam, residual, jacobian, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
+        nr = newton_armijo(lam, *closures, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
                            max_halvings=opts.max_halvings, aux_tol=opts.cayley_tol, floor_factor=opts.floor_factor,
                            floor_accept=opts.floor_accept, progress=tagged)
         if phase:
