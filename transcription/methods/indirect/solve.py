@@ -18,6 +18,7 @@ from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
+from .fuel import fuel_homotopy, fuel_not_covered, with_eps
 from .orbit import orbit_shooting
 from .shooting import shooting_functions, time_gradient_function
 
@@ -31,7 +32,9 @@ def not_covered(problem: Problem) -> str:
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
     reasons = []
-    if c.objective != "effort":
+    if c.objective == "fuel":
+        reasons += fuel_not_covered(problem)
+    elif c.objective != "effort":
         reasons.append(f"the {c.objective} objective")
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
@@ -150,13 +153,27 @@ class _Shooting:
         return nr
 
     def solve_at(self, lam, h: float, first: bool, phase: str = "") -> NewtonResult:
-        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation."""
-        if first and self.source == "zero" and bounded(self.bd):
-            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, self.bd,
+        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation; the
+        fuel objective by the homotopy in eps (:func:`~.fuel.fuel_homotopy`; the final eps kept in bd)."""
+        if self.problem.control.objective == "fuel":
+            nr, eps, self.stats["fuel_homotopy"] = fuel_homotopy(
+                lambda l, e, fst: self.fixed(l, h, fst and first, f"{phase}eps = {e:.1e}: ", with_eps(self.bd, e)),
+                lambda l, e: control_cost(self.problem, np.array(self.fns.shoot(l, self.X0, self.Xd, h, self.Winv,
+                                                                                with_eps(self.bd, e))[3]), h),
+                lam, first and self.source == "zero")
+            self.bd = with_eps(self.bd, eps)
+            return nr
+        return self.fixed(lam, h, first, phase, self.bd)
+
+    def fixed(self, lam, h: float, first: bool, phase: str, bd: np.ndarray) -> NewtonResult:
+        """The fixed-step problem at h with the bound data bd from lam; from lambda_0 = 0 with bounds, by the bound
+        continuation."""
+        if first and self.source == "zero" and bounded(bd):
+            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, bd,
                                             self.fns, (self.X0, self.Xd, h, self.Winv))
             self.stats["bound_continuation"] = stages
             return nr
-        return self.newton(lam, self.bd, phase, h)
+        return self.newton(lam, bd, phase, h)
 
     def dL_dh(self, lam, h: float) -> float:
         """dJ*/dh = dL/dh at the solution (envelope theorem): J/h (the weights are proportional to h) plus the
