@@ -74,3 +74,16 @@ def test_transversality_at_the_solution(effort_raise):
     nu = np.linalg.lstsq(G.T, lamN, rcond=None)[0]
     assert np.linalg.norm(G.T @ nu - lamN) <= 1e-12 * np.linalg.norm(lamN)
     assert np.linalg.norm(lamN) > 1e-2
+
+
+def test_mpc_refuses_what_only_the_solve_covers():
+    """The re-planner's shooting is the state target's with the effort law: an orbit target and the fuel objective,
+    which the indirect solve now covers, are refused with their names (before: the solve's coverage was the
+    re-planner's)."""
+    from se3ocp.transcription.mpc import Replanner, replan_not_covered
+
+    p = maneuver("orbit_raise_fuel", 20).problem
+    assert replan_not_covered(p) == "an orbit target in a re-plan, the fuel objective in a re-plan"
+    with pytest.raises(ValueError, match="does not cover an orbit target in a re-plan"):
+        Replanner(p, p.h, jit=False)
+    assert replan_not_covered(maneuver("e3", 20).problem) == ""
