@@ -99,3 +99,67 @@ def remaining(costs: list[tuple[float, float]]) -> float:
         return float("inf")
     (e0, J0), (e1, J1) = costs[-2:]
     return e1 * abs(J1 - J0) / abs(e0 - e1)
+
+
+def warm_controls(problem: Problem, warm) -> np.ndarray | None:
+    """The controls of a warm start on the problem's grid (None without one): the switching structure to start from."""
+    return None if warm is None else np.asarray(warm.fit(problem.N, problem.scheme)[0].U, float)
+
+
+def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float) -> tuple[NewtonResult | None, dict]:
+    """The conditions at eps = 0 with the switching structure of the controls U fixed (:mod:`.structured`) from
+    lambda_0 = lam: (the NewtonResult with x = lambda_0 when it converged and its solution is consistent with the
+    structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded)."""
+    from .structured import StructuredShooting, node_modes
+
+    st = StructuredShooting(problem, node_modes(problem, U))
+    nr = st.solve(lam, U, tol)
+    out = {"partial_nodes": len(st.partial), "result": nr.result.value, "iterations": nr.iterations}
+    if not nr.result.successful:
+        return None, out
+    why = st.check(nr.x)
+    out["consistent"] = not why
+    if why:
+        out["inconsistent"] = why
+        return None, out
+    _, _, Us, _, lams = st.fun(nr.x)
+    out.update(magnitudes=[float(m) for m in nr.x[12:]], U=np.array(Us), costates=np.array(lams).T)
+    nr.x = nr.x[:12]
+    return nr, out
+
+
+def solve_fuel(shooting, lam, h: float, first: bool, phase: str) -> NewtonResult:
+    """The fuel objective at the step size h (``shooting`` the method's :class:`~.solve._Shooting`): from a solution
+    (``shooting.warm_U``), first the structured conditions at eps = 0 with its switching structure; otherwise, or when
+    that fails or is inconsistent, the homotopy in eps (:func:`fuel_homotopy`) and then the structured finish from
+    its last converged stage's controls (also when a later stage failed: a consistent exact solution is the answer).  The exact (eps = 0) solution, when found, is ``shooting.structured`` (U, costates),
+    the Solution's controls and costates; the stats ``fuel_homotopy`` and ``fuel_structured``."""
+    opts, stats = shooting.options, shooting.stats
+    U0 = getattr(shooting, "warm_U", None)
+    if first and U0 is not None:
+        nr, stats["fuel_structured"] = structured_finish(shooting.problem, lam, U0, opts.eps_S)
+        if nr is not None:
+            return _structured(shooting, nr, "from the warm start's switching structure")
+    nr, eps, stats["fuel_homotopy"] = fuel_homotopy(
+        lambda l, e, fst: shooting.fixed(l, h, fst and first, f"{phase}eps = {e:.1e}: ", with_eps(shooting.bd, e)),
+        lambda l, e: shooting.cost(l, h, with_eps(shooting.bd, e)), lam, first and shooting.source == "zero")
+    shooting.bd = with_eps(shooting.bd, eps)
+    if not stats["fuel_homotopy"]["costs"]:   # no stage converged: nothing to finish from
+        return nr
+    U = np.array(shooting.fns.shoot(nr.x, shooting.X0, shooting.Xd, h, shooting.Winv, shooting.bd)[3])
+    fin, stats["fuel_structured"] = structured_finish(shooting.problem, nr.x, U, opts.eps_S)
+    if fin is None:
+        return nr
+    fin.history, fin.iterations = nr.history + fin.history, nr.iterations + fin.iterations
+    fin.message = (nr.message if nr.result.successful else
+                   f"|z_N| = {np.linalg.norm(fin.F):.3e} after {fin.iterations} iterations ({nr.message})")
+    return _structured(shooting, fin, f"from the switching structure at eps = {eps:.1e}")
+
+
+def _structured(shooting, nr: NewtonResult, how: str) -> NewtonResult:
+    """Keep the structured solution (controls, costates) for the Solution and say so in the message."""
+    st = shooting.stats["fuel_structured"]
+    shooting.structured = (st.pop("U"), st.pop("costates"))
+    nr.message += (f"; exact switching structure (eps = 0) {how}: {st['partial_nodes']} partial nodes, "
+                   "consistent (S > 0 on, S < 0 off)")
+    return nr

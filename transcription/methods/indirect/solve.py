@@ -18,7 +18,7 @@ from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
-from .fuel import fuel_homotopy, fuel_not_covered, with_eps
+from .fuel import fuel_not_covered, solve_fuel, warm_controls
 from .orbit import orbit_shooting
 from .shooting import shooting_functions, time_gradient_function
 
@@ -123,6 +123,7 @@ class _Shooting:
         self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
         self.free = np.zeros(NZ, bool) if self.orbit else free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
+        self.structured, self.warm_U = None, None   # the fuel objective's (.fuel)
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
         """The largest relative Cayley residual of the rollout from lam at the step size h."""
@@ -155,15 +156,13 @@ class _Shooting:
     def solve_at(self, lam, h: float, first: bool, phase: str = "") -> NewtonResult:
         """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation; the
         fuel objective by the homotopy in eps (:func:`~.fuel.fuel_homotopy`; the final eps kept in bd)."""
-        if self.problem.control.objective == "fuel":
-            nr, eps, self.stats["fuel_homotopy"] = fuel_homotopy(
-                lambda l, e, fst: self.fixed(l, h, fst and first, f"{phase}eps = {e:.1e}: ", with_eps(self.bd, e)),
-                lambda l, e: control_cost(self.problem, np.array(self.fns.shoot(l, self.X0, self.Xd, h, self.Winv,
-                                                                                with_eps(self.bd, e))[3]), h),
-                lam, first and self.source == "zero")
-            self.bd = with_eps(self.bd, eps)
-            return nr
+        if self.problem.control.objective == "fuel":   # the structured conditions and the homotopy in eps (.fuel)
+            return solve_fuel(self, lam, h, first, phase)
         return self.fixed(lam, h, first, phase, self.bd)
+
+    def cost(self, lam, h: float, bd: np.ndarray) -> float:
+        """The cost of the controls of the rollout from lam at h with the bound data bd."""
+        return control_cost(self.problem, np.array(self.fns.shoot(lam, self.X0, self.Xd, h, self.Winv, bd)[3]), h)
 
     def fixed(self, lam, h: float, first: bool, phase: str, bd: np.ndarray) -> NewtonResult:
         """The fixed-step problem at h with the bound data bd from lam; from lambda_0 = 0 with bounds, by the bound
@@ -202,6 +201,8 @@ class _Shooting:
         problem, stats, lam = self.problem, self.stats, nr.x
         _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, h, self.Winv, self.bd)
         U, lams = np.array(U), np.array(lams).T
+        if self.structured is not None:   # the fuel objective's exact (eps = 0) solution (.fuel)
+            U, lams = self.structured
         Xsim, res = problem.disc.simulate(self.X0, U, h, problem.N)
         finite = bool(np.all(np.isfinite(Xsim)))
         result, message = self._verdict(nr, finite)
@@ -279,6 +280,8 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
     except ValueError as exc:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
     shooting = _Shooting(problem, options, progress, source)
+    if problem.control.objective == "fuel":
+        shooting.warm_U = warm_controls(problem, warm)
     h = initial_step(problem, warm)
     r0 = shooting.cayley_residual(lam, h)
     if not r0 <= options.cayley_tol:
