@@ -132,7 +132,8 @@ def solve_fuel(shooting, lam, h: float, first: bool, phase: str) -> NewtonResult
     """The fuel objective at the step size h (``shooting`` the method's :class:`~.solve._Shooting`): from a solution
     (``shooting.warm_U``), first the structured conditions at eps = 0 with its switching structure; otherwise, or when
     that fails or is inconsistent, the homotopy in eps (:func:`fuel_homotopy`) and then the structured finish from
-    its last converged stage's controls (also when a later stage failed: a consistent exact solution is the answer).  The exact (eps = 0) solution, when found, is ``shooting.structured`` (U, costates),
+    its last converged stage's controls (also when a later stage failed: a consistent exact solution is the answer).
+    The exact (eps = 0) solution, when found, is ``shooting.structured`` (U, costates),
     the Solution's controls and costates; the stats ``fuel_homotopy`` and ``fuel_structured``."""
     opts, stats = shooting.options, shooting.stats
     U0 = getattr(shooting, "warm_U", None)

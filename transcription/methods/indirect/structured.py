@@ -20,6 +20,10 @@ from .orbit import orbit_shooting_function
 #: a control node counts as partial when its magnitude is within this fraction of b from neither 0 nor b (an
 #: interior-point solution sits inside its bounds: the fuel raise's burns at 1 - 4e-5 of b)
 PARTIAL_RTOL = 1e-3
+#: Newton iterations of the structured conditions: from a consistent structure they converge in 1-3 (the bundled raise
+#: from the tight direct solution: 1); from a wrong one (the raise's default-tol direct solution) they wander, 11
+#: iterations at N = 100 to magnitudes outside (0, b), at ~8 s per Jacobian
+STRUCTURED_MAX_ITER = 8
 
 
 def node_modes(problem: Problem, U: np.ndarray) -> np.ndarray:
@@ -136,7 +140,7 @@ class StructuredShooting:
         c = self.problem.control
         return (c.force_bound if blk == 0 else c.moment_bound).b
 
-    def solve(self, lam0, U, tol: float, max_iter: int = 30) -> NewtonResult:
+    def solve(self, lam0, U, tol: float, max_iter: int = STRUCTURED_MAX_ITER) -> NewtonResult:
         """Newton-Armijo from lambda_0 and the magnitudes of the partial nodes of U."""
         m0 = np.array([np.linalg.norm(U[U_FORCE if blk == 0 else U_MOMENT, j]) for blk, j in self.partial])
         x0 = np.r_[np.asarray(lam0, float), m0]
