@@ -10,6 +10,7 @@ import numpy as np
 from ...newton import NewtonResult
 from ...problem import NormBound, Problem, ThrusterBound
 from .control import FUEL_EPS
+from .structured import StructuredShooting, node_modes
 
 #: the homotopy: the first eps from lambda_0 = 0 (the bounded problem with the effort-like cost |u|^2 / (2 b)) and
 #: from a solution's costates (a fuel optimum's, e.g. the direct method's: the switching nodes sit at S ~ 0), the
@@ -110,8 +111,8 @@ def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: flo
     """The conditions at eps = 0 with the switching structure of the controls U fixed (:mod:`.structured`) from
     lambda_0 = lam: (the NewtonResult with x = lambda_0 when it converged and its solution is consistent with the
     structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded)."""
-    from .structured import StructuredShooting, node_modes
-
+    if problem.disc.force_frame != "inertial":
+        return None, {"skipped": "a body-fixed force (the structured conditions are written for an inertial one)"}
     st = StructuredShooting(problem, node_modes(problem, U))
     nr = st.solve(lam, U, tol)
     out = {"partial_nodes": len(st.partial), "result": nr.result.value, "iterations": nr.iterations}

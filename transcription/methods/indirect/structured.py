@@ -11,7 +11,7 @@ import numpy as np
 
 from ...layout import NU, NX, NZ, U_FORCE, U_MOMENT
 from ...newton import NewtonResult, newton_armijo
-from ...problem import Problem
+from ...problem import STATE_COMPONENTS, Problem, TargetOrbit
 from .conditions import orthonormalized, terminal_residual_function
 from .control import control_matrix, control_scale
 from .elimination import solve_unpivoted
@@ -116,11 +116,14 @@ class StructuredShooting:
         return u, v
 
     def _terminal(self, XN, lamN):
-        """The terminal rows: an orbit target's [g; K^T lambda_{N-1}] (:mod:`.orbit`), else a state target's z_N."""
+        """The terminal rows: an orbit target's [g; K^T lambda_{N-1}] (:mod:`.orbit`), else a state target's z_N with
+        lambda_{N-1} on its free components."""
         p = self.problem
-        if hasattr(p.terminal, "X"):
-            return terminal_residual_function()(XN, p.terminal.X)
-        return orbit_shooting_function(p.terminal, p.model.mass, p.model.mu)(XN, lamN)[0]
+        if isinstance(p.terminal, TargetOrbit):
+            return orbit_shooting_function(p.terminal, p.model.mass, p.model.mu)(XN, lamN)[0]
+        z = terminal_residual_function()(XN, p.terminal.X)
+        free = np.repeat([c in p.terminal.free for c in STATE_COMPONENTS], 3)   # lambda_{N-1} = 0 there (§10 b)
+        return ca.vertcat(*[lamN[i] if free[i] else z[i] for i in range(NZ)])
 
     def check(self, x) -> str:
         """'' when the solution x is consistent with its structure (S > 0 on, S < 0 off, 0 < m < b), else why not."""
