@@ -124,3 +124,22 @@ def test_fuel_raise_indirect_equals_direct_from_the_tight_direct_solution():
     assert i.stats["fuel_structured"]["consistent"]
     assert abs(i.cost - d.cost) <= 1e-6 * d.cost
     assert i.terminal_error <= 1e-11
+
+
+def test_verdict_names_a_retightening_for_the_switching_structure():
+    """A direct solution re-solved for the indirect method's switching structure (``fuel_retighten``: no cost
+    difference before it, the indirect method had failed) is named so in the verdict's tolerances."""
+    import dataclasses
+
+    from se3ocp.transcription.solve import compare
+
+    p = maneuver("e3_bounded", 20, None, *E3_FUEL).problem
+    sim = dataclasses.replace(se3ocp.simulate(p, np.zeros((6, p.disc.n_controls(p.N)))), cost=1.0)
+    d = dataclasses.replace(sim, method="direct", solver="ipopt", result=se3ocp.Result.converged,
+                            stats={"kkt_tol": 1e-12, "retightened_from_tol": 1e-10,
+                                   "retightened_for": "where the indirect method failed from its switching structure"})
+    i = dataclasses.replace(sim, method="indirect", solver="newton-armijo", result=se3ocp.Result.converged,
+                            stats={"residual_norm": 1e-13})
+    v = compare(d, i).verdict
+    assert v.startswith("agree") and ("direct at tol 1e-12, re-solved from its solution at tol 1e-10, where the "
+                                      "indirect method failed from its switching structure") in v, v

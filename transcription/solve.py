@@ -113,8 +113,9 @@ def _tolerances(d: Solution, i: Solution) -> str:
     if "kkt_tol" in d.stats:
         parts.append(f"direct at tol {d.stats['kkt_tol']:.0e}")
         if "retightened_from_tol" in d.stats:
-            parts[-1] += (f", re-solved from its solution at tol {d.stats['retightened_from_tol']:.0e}, where the "
-                          f"costs were {d.stats['cost_difference_before_retightening']:.1e} apart")
+            why = (f"where the costs were {d.stats['cost_difference_before_retightening']:.1e} apart"
+                   if "cost_difference_before_retightening" in d.stats else d.stats.get("retightened_for", ""))
+            parts[-1] += f", re-solved from its solution at tol {d.stats['retightened_from_tol']:.0e}, {why}"
     if "residual_norm" in i.stats:
         parts.append(f"indirect at |z_N| = {i.stats['residual_norm']:.1e}")
     return "; ".join(parts) or "tolerances unknown"
@@ -291,7 +292,8 @@ def fuel_retighten(cmp: Comparison, direct: DirectOptions, indirect: IndirectOpt
     tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
     if not tight.converged:
         return cmp
-    tight.stats.update(retightened_from_tol=float(direct.tol))
+    tight.stats.update(retightened_from_tol=float(direct.tol),
+                       retightened_for="where the indirect method failed from its switching structure")
     tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it for the indirect "
                      f"method's switching structure: {tight.message.split(';')[0]}")
     tight.iterations += d.iterations
