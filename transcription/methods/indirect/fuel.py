@@ -102,6 +102,10 @@ def remaining(costs: list[tuple[float, float]]) -> float:
     return e1 * abs(J1 - J0) / abs(e0 - e1)
 
 
+#: active-set repairs of an inconsistent switching structure (:meth:`.structured.StructuredShooting.repaired`)
+STRUCTURE_REPAIRS = 3
+
+
 def warm_controls(problem: Problem, warm) -> np.ndarray | None:
     """The controls of a warm start on the problem's grid (None without one): the switching structure to start from."""
     return None if warm is None else np.asarray(warm.fit(problem.N, problem.scheme)[0].U, float)
@@ -110,19 +114,28 @@ def warm_controls(problem: Problem, warm) -> np.ndarray | None:
 def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float) -> tuple[NewtonResult | None, dict]:
     """The conditions at eps = 0 with the switching structure of the controls U fixed (:mod:`.structured`) from
     lambda_0 = lam: (the NewtonResult with x = lambda_0 when it converged and its solution is consistent with the
-    structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded)."""
+    structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded).  An
+    inconsistent solution is repaired up to STRUCTURE_REPAIRS times (the offending nodes partial, an active-set
+    step) and solved again from it."""
     if problem.disc.force_frame != "inertial":
         return None, {"skipped": "a body-fixed force (the structured conditions are written for an inertial one)"}
-    st = StructuredShooting(problem, node_modes(problem, U))
-    nr = st.solve(lam, U, tol)
-    out = {"partial_nodes": len(st.partial), "result": nr.result.value, "iterations": nr.iterations}
-    if not nr.result.successful:
-        return None, out
-    why = st.check(nr.x)
-    out["consistent"] = not why
-    if why:
+    modes, x, out = node_modes(problem, U), np.asarray(lam, float), {"repairs": 0, "iterations": 0}
+    for _ in range(STRUCTURE_REPAIRS + 1):
+        st = StructuredShooting(problem, modes)
+        nr = st.solve(x[:12], U, tol)
+        out.update(partial_nodes=len(st.partial), result=nr.result.value, iterations=out["iterations"] + nr.iterations)
+        if not nr.result.successful:
+            return None, out
+        why = st.check(nr.x)
+        out["consistent"] = not why
+        if not why:
+            break
         out["inconsistent"] = why
-        return None, out
+        new, U = st.repaired(nr.x)
+        if np.array_equal(new, modes) or out["repairs"] == STRUCTURE_REPAIRS:
+            return None, out
+        modes, x, out["repairs"] = new, nr.x, out["repairs"] + 1
+    out.pop("inconsistent", None)
     _, _, Us, _, lams = st.fun(nr.x)
     out.update(magnitudes=[float(m) for m in nr.x[12:]], U=np.array(Us), costates=np.array(lams).T)
     nr.x = nr.x[:12]

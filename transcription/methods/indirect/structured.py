@@ -139,6 +139,23 @@ class StructuredShooting:
             bad.append("a partial node's magnitude outside (0, b)")
         return "; ".join(bad)
 
+    def repaired(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(modes, U) for another try after an inconsistent solution x: on nodes with S < 0 and off nodes with S > 0
+        become partial, partial nodes with m <= 0 off and with m >= b on (an active-set step); U the rollout's."""
+        _, _, U, V, _ = self.fun(x)
+        U, V, modes = np.array(U), np.array(V), self.modes.copy()
+        for i, sl in enumerate((U_FORCE, U_MOMENT)):
+            if self._bound(i) == 0:
+                continue
+            S = np.linalg.norm(V[sl], axis=0) - 1.0
+            modes[i][((modes[i] == 1) & (S < 0)) | ((modes[i] == 0) & (S > 0))] = -1
+        for (blk, j), m in zip(self.partial, np.asarray(x[NZ:])):
+            b = self._bound(blk)
+            modes[blk, j] = 0 if m <= 0 else 1 if m >= b else -1
+            sl = U_FORCE if blk == 0 else U_MOMENT
+            U[sl, j] *= (0.0 if m <= 0 else b / m if m >= b else 1.0)
+        return modes, U
+
     def _bound(self, blk: int) -> float:
         c = self.problem.control
         return (c.force_bound if blk == 0 else c.moment_bound).b
