@@ -74,6 +74,16 @@ def test_switching_function_structure_matches_the_thrust(e3_fuel):
     |u| = b where S > 0, off (u = 0 exactly) where S < 0, S = 0 to round-off on the partial nodes (0 < |u| < b), and
     the thrust along v (the primer vector -B^T lambda); two burns, one partial node each."""
     sol = e3_fuel
+    assert_switching_structure(sol)
+    U, c = sol.controls, sol.problem.control
+    force_on = np.linalg.norm(U[U_FORCE], axis=0) > 0
+    assert np.count_nonzero(np.diff(force_on.astype(int))) == 2
+    m = np.linalg.norm(U[U_FORCE], axis=0)
+    assert np.count_nonzero((m > 0) & (m < c.force_bound.b * (1 - 1e-12))) == 2
+
+
+def assert_switching_structure(sol):
+    """Full thrust where S > 0, off where S < 0, S = 0 to round-off on the partial nodes, the thrust along v."""
     V, U = control_v(sol), sol.controls
     c = sol.problem.control
     for sl, b in ((U_FORCE, c.force_bound.b), (U_MOMENT, c.moment_bound.b)):
@@ -86,10 +96,18 @@ def test_switching_function_structure_matches_the_thrust(e3_fuel):
         on = m > 0
         cos = np.sum(U[sl][:, on] * V[sl][:, on], axis=0) / (m[on] * np.linalg.norm(V[sl][:, on], axis=0))
         assert np.all(cos >= 1 - 1e-12)
-    force_on = np.linalg.norm(U[U_FORCE], axis=0) > 0
-    assert np.count_nonzero(np.diff(force_on.astype(int))) == 2
-    m = np.linalg.norm(U[U_FORCE], axis=0)
-    assert np.count_nonzero((m > 0) & (m < c.force_bound.b * (1 - 1e-12))) == 2
+
+
+@pytest.mark.slow
+def test_an_inconsistent_structure_is_repaired():
+    """E3 with fuel at N = 40: the eps homotopy stops at 8.7e-3 (its next stage fails) with an inconsistent structure
+    (a node off at S > 0); the active-set repairs make it an exact solution of the conditions (eps = 0)."""
+    sol = solve_indirect(maneuver("e3_bounded", 40, None, *E3_FUEL).problem)
+    assert sol.converged, sol.message
+    st = sol.stats["fuel_structured"]
+    assert st["consistent"] and st["repairs"] >= 1 and not sol.stats["fuel_homotopy"]["converged"]
+    assert sol.terminal_error <= 1e-11
+    assert_switching_structure(sol)
 
 
 def test_what_the_fuel_law_does_not_cover():
