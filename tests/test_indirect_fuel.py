@@ -161,3 +161,15 @@ def test_verdict_names_a_retightening_for_the_switching_structure():
     v = compare(d, i).verdict
     assert v.startswith("agree") and ("direct at tol 1e-12, re-solved from its solution at tol 1e-10, where the "
                                       "indirect method failed from its switching structure") in v, v
+
+
+@pytest.mark.slow
+def test_compare_agrees_on_the_fuel_raise():
+    """`se3ocp compare configs/orbit_raise_fuel.yaml --set horizon.N=100`'s solve: the indirect method fails from
+    lambda_0 = 0 and from the default-tol direct solution (a scattered, costlier point), the direct method is
+    re-solved at tol 1e-12 (fuel_retighten) and the indirect one from it agrees (measured 7.5e-11)."""
+    c = se3ocp.solve(maneuver("orbit_raise_fuel", 100), "both")
+    assert c.verdict.startswith("agree"), c.verdict
+    assert c.direct.stats["retightened_from_tol"] == 1e-10
+    assert abs(c.indirect.cost - c.direct.cost) <= 1e-6 * c.direct.cost
+    assert c.indirect.stats["fuel_structured"]["consistent"]
