@@ -45,6 +45,7 @@ from .methods.indirect.control import bound_data, weight_inverse
 from .methods.indirect.shooting import shooting_functions
 from .methods.indirect.solve import free_rows, not_covered
 from .options import IndirectOptions
+from .problem import TargetOrbit
 from .tracking import saturate
 from .warm import WarmStart
 
@@ -76,6 +77,17 @@ class Replan:
     prepare_s: float = 0.0
 
 
+def replan_not_covered(problem) -> str:
+    """What of ``problem`` the re-planner does not cover ('' if nothing): what the indirect method does not cover
+    (:func:`~.methods.indirect.solve.not_covered` with the effort objective only: the time and fuel objectives are
+    named there), and of what it does an orbit target (docs/mathematics.md §19): the re-plan's shooting is the
+    state target's with the effort law."""
+    reasons = [r for r in (not_covered(problem, ("effort",)),) if r]
+    if isinstance(problem.terminal, TargetOrbit):
+        reasons.append("an orbit target in a re-plan")
+    return ", ".join(reasons)
+
+
 class Replanner:
     """Re-plans of one Problem (a smooth-control effort problem with a state target, the indirect method's
     coverage) at the (mean) step size h (on a mesh the remaining steps h r_k, :meth:`steps`): ``iterations``
@@ -84,7 +96,7 @@ class Replanner:
 
     def __init__(self, problem, h: float, iterations: int = DEFAULT_ITERATIONS, jit: bool = True,
                  cayley_tol: float = IndirectOptions.cayley_tol):
-        reason = not_covered(problem, ("effort",))
+        reason = replan_not_covered(problem)
         if reason:
             raise ValueError(f"MPC re-plans by the indirect method's Newton step, which does not cover {reason}")
         if int(iterations) < 1:

@@ -116,8 +116,9 @@ def _tolerances(d: Solution, i: Solution) -> str:
     if "kkt_tol" in d.stats:
         parts.append(f"direct at tol {d.stats['kkt_tol']:.0e}")
         if "retightened_from_tol" in d.stats:
-            parts[-1] += (f", re-solved from its solution at tol {d.stats['retightened_from_tol']:.0e}, where the "
-                          f"costs were {d.stats['cost_difference_before_retightening']:.1e} apart")
+            why = (f"where the costs were {d.stats['cost_difference_before_retightening']:.1e} apart"
+                   if "cost_difference_before_retightening" in d.stats else d.stats.get("retightened_for", ""))
+            parts[-1] += f", re-solved from its solution at tol {d.stats['retightened_from_tol']:.0e}, {why}"
     if "residual_norm" in i.stats:
         parts.append(f"indirect at |z_N| = {i.stats['residual_norm']:.1e}")
     return "; ".join(parts) or "tolerances unknown"
@@ -277,8 +278,38 @@ def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: In
         else:
             isol = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
                              warm, dsol)
-        out = reconcile(compare(dsol, isol), direct, progress)
+        out = reconcile(fuel_retighten(compare(dsol, isol), direct, indirect, progress), direct, progress)
     return out
+
+
+def fuel_retighten(cmp: Comparison, direct: DirectOptions, indirect: IndirectOptions,
+                   progress: Progress | None) -> Comparison:
+    """For the fuel objective, when the direct method converged and the indirect one did not (from its own start
+    and from the direct solution): the direct method re-solved at tol RETIGHTEN_TOL from its solution and the
+    indirect one started again from that (docs/mathematics.md §19: the indirect method takes the switching structure
+    of the direct solution, and at IPOPT's default tol the fuel raise's is scattered, its costates contradicting it).
+    ``cmp`` unchanged otherwise, or when the re-solve does not converge; the re-solve's iterations and time are the
+    direct Solution's (``stats['retightened_from_tol']``), the indirect Solution's message says it was restarted."""
+    d, i = cmp.direct, cmp.indirect
+    if (d.problem.kind != "smooth" or d.problem.control.objective != "fuel" or not d.converged or i.converged
+            or i.result is Result.not_applicable or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL
+            or d.warm is None):
+        return cmp
+    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
+    if not tight.converged:
+        return cmp
+    tight.stats.update(retightened_from_tol=float(direct.tol),
+                       retightened_for="where the indirect method failed from its switching structure")
+    tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it for the indirect "
+                     f"method's switching structure: {tight.message.split(';')[0]}")
+    tight.iterations += d.iterations
+    tight.solve_s += d.solve_s
+    retry = _run(d.problem, "indirect", indirect, progress, tight.warm)
+    retry.message += (f"; started from the direct solution re-solved at tol {RETIGHTEN_TOL:.0e} after the indirect "
+                      f"method failed ({i.result}: {i.message.split(';')[0]})")
+    retry.iterations += i.iterations
+    retry.solve_s += i.solve_s
+    return compare(tight, retry if retry.converged else i)
 
 
 def _infeasible(problem: Problem, method: str, reason: str) -> Solution | Comparison:

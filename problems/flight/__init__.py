@@ -83,10 +83,10 @@ def check_plan(sol) -> None:
 def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
     """ConfigError (``flight.feedback``) when MPC is asked for a plan whose re-plans the indirect method's
     Newton step does not cover (transcription.mpc)."""
-    from ...transcription.methods.indirect.solve import not_covered
+    from ...transcription.mpc import replan_not_covered
     from ..schema import ConfigError
 
-    reason = not_covered(maneuver.problem, ("effort",)) if "mpc" in spec.modes else ""
+    reason = replan_not_covered(maneuver.problem) if "mpc" in spec.modes else ""
     if reason:
         raise ConfigError(source, "flight.feedback", f"mpc re-plans by the indirect method's Newton step, which "
                           f"does not cover {reason}; fly this plan with none or lqr")

@@ -97,6 +97,8 @@ Modules: :mod:`.elimination` (unpivoted Gaussian elimination), :mod:`.control` (
 the bounds as data, the effort cost), :mod:`.conditions` (the forward map of the necessary conditions),
 :mod:`.linearization` (its exact linearization), :mod:`.shooting` (the shooting Functions per N),
 :mod:`.continuation` (bound continuation, free final time), :mod:`.coordinates` (the body-fixed force),
+:mod:`.orbit` (an orbit target's transversality conditions, docs/mathematics.md §19), :mod:`.switching` and :mod:`.fuel`
+(the fuel objective's on/off law and its homotopy in eps, §19),
 :mod:`.solve` (the solve; :data:`INDIRECT`, the method).
 
 The time objective (docs/mathematics.md §18): :mod:`.objectives` -- the switching function, the Hamiltonian's

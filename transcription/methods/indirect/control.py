@@ -9,16 +9,21 @@ import numpy as np
 
 from ...layout import NU, NX, U_FORCE, U_MOMENT
 from ...lgvi import Discretization, discretization, per_discretization
-from ...problem import BoxBound, NormBound, Problem, ThrusterBound, effort_cost, quadrature_weights
+from ...problem import BoxBound, NormBound, Problem, ThrusterBound, effort_cost, objective_value, quadrature_weights
+from .switching import on_off
 
 #: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
 #: component has no box, 0 where a norm bound of 0 removes the control), the squared norm bounds
-#: (2: force, moment; NO_NORM where a block has no norm bound), and a body-fixed engine (:data:`THRUSTER`, 9)
-NB = 17
+#: (2: force, moment; NO_NORM where a block has no norm bound), a body-fixed engine (:data:`THRUSTER`, 9), and the
+#: fuel objective's homotopy parameter eps (:data:`FUEL_EPS`)
+NB = 18
 NO_NORM = 1e300
 #: the engine's part of ``bd`` (:class:`~transcription.problem.ThrusterBound`, docs/mathematics.md §15): the unit
 #: axis a (3), q = W_f a / (a^T W_f a) (3), T_min, T_max, and 1 (0 without an engine: all 0)
 THRUSTER = slice(8, 17)
+#: the index in ``bd`` of eps of the fuel objective's switching law (:func:`.switching.on_off`, docs/mathematics.md
+#: §19): 0 (effort: the saturation) or in (0, 1] (the norm-bounded blocks follow the on/off law of eps)
+FUEL_EPS = 17
 
 
 def saturate(v, bd):
@@ -27,7 +32,9 @@ def saturate(v, bd):
 
         u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2)),
 
-    or, for a force with one body-fixed engine (axis a, min <= T <= max), the W_f-projection onto that segment,
+    or, for the fuel objective (``bd[FUEL_EPS]`` = eps > 0), the on/off law of :func:`.switching.on_off` on each
+    norm-bounded block (the fuel objective's bounds are norms, docs/mathematics.md §19), or, for a force with one
+    body-fixed engine (axis a, min <= T <= max), the W_f-projection onto that segment,
 
         u_f = T a,   T = min(max(q^T v_f, T_min), T_max),   q = W_f a / (a^T W_f a).
 
@@ -38,9 +45,12 @@ def saturate(v, bd):
     """
     u = ca.fmin(ca.fmax(v, -bd[:NU]), bd[:NU])
     blocks = []
+    eps = bd[FUEL_EPS]
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         ub, n2 = u[sl], bd[NU + i]
-        blocks.append(ub * ca.sqrt(n2 / ca.fmax(ca.dot(ub, ub), n2)))
+        effort = ub * ca.sqrt(n2 / ca.fmax(ca.dot(ub, ub), n2))
+        # the fuel objective (eps > 0): on/off along v (a removed control, clipped to 0 above, stays 0)
+        blocks.append(ca.if_else(eps > 0, on_off(ub, ca.sqrt(n2), ca.if_else(eps > 0, eps, 1.0)), effort))
     e = bd[THRUSTER]
     thrust = ca.fmin(ca.fmax(ca.dot(e[3:6], v[U_FORCE]), e[6]), e[7])
     blocks[0] = ca.if_else(e[8], thrust * e[0:3], blocks[0])
@@ -57,7 +67,8 @@ def saturation() -> ca.Function:
 
 
 def bound_data(problem: Problem) -> np.ndarray:
-    """The bound data ``bd`` (NB) of a smooth-control problem (see :data:`NB`)."""
+    """The bound data ``bd`` (NB) of a smooth-control problem (see :data:`NB`; for the fuel objective eps = 1, the
+    start of its homotopy, :mod:`.fuel`)."""
     bd = np.r_[np.full(NU, np.inf), NO_NORM, NO_NORM, np.zeros(NB - NU - 2)]
     for i, (sl, bound) in enumerate(((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound))):
         if isinstance(bound, ThrusterBound):
@@ -69,6 +80,8 @@ def bound_data(problem: Problem) -> np.ndarray:
             bd[sl] = 0.0
         elif isinstance(bound, NormBound):
             bd[NU + i] = bound.b ** 2
+    if problem.control.objective == "fuel":
+        bd[FUEL_EPS] = 1.0
     return bd
 
 
@@ -136,7 +149,10 @@ def weight_inverse(problem: Problem) -> np.ndarray:
 
 
 def control_cost(problem: Problem, U: np.ndarray, h: float | None = None) -> float:
-    """The effort cost of controls U (6 x n_controls) with the quadrature weights of the scheme at the steps of the
-    (mean) step size h (default: the problem's; on a non-uniform mesh the steps h r_k, docs/mathematics.md §16)."""
-    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N,
-                                                              problem.steps_of(problem.h if h is None else h)))
+    """The effort cost (the fuel cost for the fuel objective) of controls U (6 x n_controls) with the quadrature
+    weights of the scheme at the steps of the (mean) step size h (default: the problem's; on a non-uniform mesh
+    the steps h r_k, docs/mathematics.md §16)."""
+    h = problem.h if h is None else h
+    if problem.control.objective == "fuel":
+        return objective_value(problem, U, h)
+    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.steps_of(h)))

@@ -41,6 +41,9 @@ class ShootingFunctions:
         dlamN = dlambda_{N-1}/dlam0 by the linearized recursion (:func:`~.linearization.linearization_functions`) along the
         mapaccum'ed rollout; equal to forward-mode AD through it (with bounds: the generalized derivative
         of the saturation, for the semismooth Newton method).
+    terminal(lam0, X0, Xd, h, Winv, bd) -> (XN[18], lamN[12], res_max) and
+    terminal_jac(lam0, X0, Xd, h, Winv, bd) -> (XN, lamN, dZ[12 x 12], dlamN[12 x 12]), dZ = dz_N/dlam0 (tangent
+        coordinates at X_N): for terminal conditions other than a state's (:mod:`.orbit`); Xd is not read.
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
@@ -106,6 +109,12 @@ class ShootingFunctions:
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
         self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
                                      ["zN", "Psi", "dlamN"])
+        # the terminal state and lambda_{N-1}, with their derivatives by lam0, for terminal conditions other than a
+        # state's (an orbit target, :mod:`.orbit`)
+        self.terminal = ca.Function(f"{sch}_shoot_terminal{N}", args, [Xs[:, -1], lamN, res_max], names_in,
+                                    ["XN", "lamN", "res_max"])
+        self.terminal_jac = ca.Function(f"{sch}_shoot_terminal_jac{N}", args, [Xs[:, -1], lamN, dZ, dlamN], names_in,
+                                        ["XN", "lamN", "dZ", "dlamN"])
 
     def _linearization(self, hess_map, lin_map, args, Xstart, D_first, steps, n):
         """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates): Psi = dzN/dlam0 by the linearized

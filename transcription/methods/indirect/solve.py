@@ -10,30 +10,37 @@ import numpy as np
 from ...layout import NU, NZ
 from ...newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetRendezvous, TargetState, ThrusterBound,
-                        objective_value, terminal_error)
+from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState,
+                        ThrusterBound, objective_value, terminal_error)
 from ...results import Attempt, Iterate, Result, Solution, trajectory
 from ...warm import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
+from .fuel import fuel_not_covered, solve_fuel, warm_controls
 from .objectives import solve_time
+from .orbit import orbit_shooting
 from .shooting import shooting_functions, time_gradient_function
 
 
-def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time")) -> str:
+def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time", "fuel")) -> str:
     """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
     smooth control what its necessary conditions do not cover -- they are those of the effort objective to a state target (free components by
-    transversality), with box or norm bounds whose saturation is the Hamiltonian's minimizer -- a box
-    on a block with a diagonal weight, a norm bound on one with an isotropic weight -- and those of the time
-    objective (:mod:`.objectives`).  ``objectives``: the objectives to count as covered (MPC's re-plan, the fixed-h
-    Newton step of the effort conditions, passes ('effort',))."""
+    transversality) or to an orbit target (its transversality conditions, :mod:`.orbit`), with box or norm bounds
+    whose saturation is the Hamiltonian's minimizer -- a box on a block with a diagonal weight, a norm bound on one
+    with an isotropic weight -- and those of the time objective (:mod:`.objectives`) and of the fuel objective
+    (:mod:`.fuel`).  ``objectives``: the objectives to count as covered (MPC's re-plan, the fixed-h Newton step of
+    the effort conditions, passes ('effort',))."""
     if problem.kind != "smooth":
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
     reasons = []
-    if c.objective not in objectives:
+    if c.objective == "fuel" and "fuel" in objectives:
+        reasons += fuel_not_covered(problem)
+        if not problem.uniform:   # fuel.py and structured.py take one step size h
+            reasons.append("the fuel objective on a non-uniform mesh")
+    elif c.objective not in objectives:
         reasons.append(f"the {c.objective} objective")
     if c.objective == "time" and problem.disc.force_frame != "inertial":
         reasons.append("the time objective with a body-fixed force")
@@ -49,8 +56,8 @@ def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time
                                              f" ({', '.join(radii)})" if radii else ""))
     if isinstance(problem.terminal, TargetRendezvous):
         reasons.append("a rendezvous target (its point moves with the final time)")
-    elif not isinstance(problem.terminal, TargetState):
-        reasons.append("an orbit target")
+    elif not isinstance(problem.terminal, (TargetState, TargetOrbit)):
+        reasons.append("this kind of target")
     if isinstance(c.force_bound, ThrusterBound) and problem.disc.force_frame != "body":
         reasons.append("a thruster on a force in the inertial frame")
     for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
@@ -127,12 +134,15 @@ class _Shooting:
         t0 = time.perf_counter()
         self.fns = shooting_functions(problem.disc, problem.N, bool(options.jit))
         self.build_s = time.perf_counter() - t0
-        self.X0, self.Xd = problem.X0, problem.terminal.X
+        # an orbit target: its conditions and transversality (.orbit); Xd is then a placeholder nothing reads
+        self.orbit = orbit_shooting(problem)
+        self.X0, self.Xd = problem.X0, problem.X0 if self.orbit else problem.terminal.X
         self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
-        self.free = free_rows(problem.terminal)
+        self.free = np.zeros(NZ, bool) if self.orbit else free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
         self.law = (self.Winv, self.bd)   # the (Winv, bd) of the final rollout (the time objective: its eps-law's)
         self.primal = None                # (X, U) of the warm start on this grid (the time objective's first stage)
+        self.structured, self.warm_U = None, None   # the fuel objective's (.fuel)
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
         """The largest relative Cayley residual of the rollout from lam at the step size h."""
@@ -152,9 +162,11 @@ class _Shooting:
             _, Psi, dlamN = fns.shoot_jac(l, X0, Xd, h, Winv, bd_stage)
             return np.where(free[:, None], np.array(dlamN), np.array(Psi))
 
+        # an orbit target: its conditions and transversality instead (.orbit)
+        closures = self.orbit.closures(fns, (X0, Xd, h, Winv, bd_stage)) if self.orbit else (residual, jacobian)
         progress = self.progress
         tagged = (lambda it: progress(dataclasses.replace(it, phase=phase))) if progress and phase else progress
-        nr = newton_armijo(lam, residual, jacobian, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
+        nr = newton_armijo(lam, *closures, tol=opts.eps_S, alpha=opts.alpha, max_iter=opts.max_iter,
                            max_halvings=opts.max_halvings, aux_tol=opts.cayley_tol, floor_factor=opts.floor_factor,
                            floor_accept=opts.floor_accept, progress=tagged)
         if phase:
@@ -162,13 +174,26 @@ class _Shooting:
         return nr
 
     def solve_at(self, lam, h: float, first: bool, phase: str = "") -> NewtonResult:
-        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation."""
-        if first and self.source == "zero" and bounded(self.bd):
-            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, self.bd,
+        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation; the
+        fuel objective by the homotopy in eps (:func:`~.fuel.fuel_homotopy`; the final eps kept in bd)."""
+        if self.problem.control.objective == "fuel":   # the structured conditions and the homotopy in eps (.fuel)
+            return solve_fuel(self, lam, h, first, phase)
+        return self.fixed(lam, h, first, phase, self.bd)
+
+    def cost(self, lam, h: float, bd: np.ndarray) -> float:
+        """The cost of the controls of the rollout from lam at h with the bound data bd."""
+        U = np.array(self.fns.shoot(lam, self.X0, self.Xd, self.problem.steps_of(h), self.Winv, bd)[3])
+        return control_cost(self.problem, U, h)
+
+    def fixed(self, lam, h: float, first: bool, phase: str, bd: np.ndarray) -> NewtonResult:
+        """The fixed-step problem at h with the bound data bd from lam; from lambda_0 = 0 with bounds, by the bound
+        continuation."""
+        if first and self.source == "zero" and bounded(bd):
+            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, bd,
                                             self.fns, (self.X0, self.Xd, self.problem.steps_of(h), self.Winv))
             self.stats["bound_continuation"] = stages
             return nr
-        return self.newton(lam, self.bd, phase, h)
+        return self.newton(lam, bd, phase, h)
 
     def dL_dh(self, lam, h: float) -> float:
         """dJ*/dh = dL/dh at the solution (envelope theorem): J/h (the weights are proportional to h) plus the
@@ -200,6 +225,8 @@ class _Shooting:
         problem, stats, lam = self.problem, self.stats, nr.x
         _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, problem.steps_of(h), *self.law)
         U, lams = np.array(U), np.array(lams).T
+        if self.structured is not None:   # the fuel objective's exact (eps = 0) solution (.fuel)
+            U, lams = self.structured
         Xsim, res = problem.disc.simulate(self.X0, U, problem.steps_of(h), problem.N)
         finite = bool(np.all(np.isfinite(Xsim)))
         result, message = self._verdict(nr, finite)
@@ -286,6 +313,8 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
                                f"solution's switching structure and T); a cold start from initial_costate {source} "
                                "is not implemented")
     shooting = _Shooting(problem, options, progress, source)
+    if problem.control.objective == "fuel":
+        shooting.warm_U = warm_controls(problem, warm)
     h = initial_step(problem, warm)
     if warm is not None and np.isclose(warm.T, h * problem.N, rtol=1e-14):
         fitted = warm.fit(problem.N, problem.scheme)[0]
