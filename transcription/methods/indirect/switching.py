@@ -13,7 +13,8 @@ minimizer points along v (the primer vector -B^T lambda), with the magnitude
 
     m(|v|) = clip((|v| - 1 + eps) / eps, 0, b),
 
-the switching function S = |v| - 1: full thrust where S > eps (b - 1), off where S < -eps, a ramp between (eps = 0:
+the switching function S = |v| - 1 (= |sigma| / w - 1 with sigma of :func:`~.objectives.switching_function`,
+whose :func:`~.objectives.hamiltonian_minimizer` is this law at eps = 0): full thrust where S > eps (b - 1), off where S < -eps, a ramp between (eps = 0:
 bang-off-bang, set-valued at S = 0).  Pure CasADi (SX or MX), no state of the project."""
 from __future__ import annotations
 
@@ -30,8 +31,3 @@ def on_off(v, b, eps):
     m = b * ca.fmin(ca.fmax((n - 1.0 + eps) / eps, 0.0), 1.0)
     return v * (m / n)
 
-
-def switching_function(v):
-    """S = |v| - 1 of the unconstrained effort control v of one block (numbers or CasADi): the thrust is on where
-    S > 0 and off where S < 0 (eps -> 0)."""
-    return ca.norm_2(v) - 1.0 if isinstance(v, (ca.SX, ca.MX, ca.DM)) else float((v @ v) ** 0.5 - 1.0)
