@@ -275,8 +275,10 @@ class DirectOptions(Options):
     initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate"),
                               doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target; "
                                   "auto: the rollout if it ends within one characteristic scale of the target, else the "
-                                  "interpolation (at most 200 iterations), then the other; the fuel objective rollout (at most "
-                                  "600), then interpolate; a bounded "
+                                  "interpolation (at most 200 iterations), then the other; the fuel objective from the homotopy "
+                                  "(effort, then a smoothed fuel objective) beside the rollout and the interpolation (at most "
+                                  "600 each) on a coarse grid (N // 4 recursively, down to 25 steps), the best finished on N "
+                                  "steps; a bounded "
                                   "or path-constrained effort problem first from the solution without its bounds and "
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
                                   "controls, the fastest kept, solved on a coarser grid (N // 4, at least 25 steps) and finished "

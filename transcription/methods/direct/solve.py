@@ -86,9 +86,9 @@ class _PlanRun:
         for i, (label, maker, budget) in enumerate(plan):
             guess = maker()
             if guess is None:
-                self.attempts.append(Attempt(label, None, note="not available (the "
-                                             f"{'coarse-grid' if pick == 'coarse' else 'relaxed'} problem did not "
-                                             "converge)"))
+                what = "coarse-grid" if pick == "coarse" and i == 0 else "effort problem or a smoothed" \
+                    if "homotopy" in label else "relaxed"
+                self.attempts.append(Attempt(label, None, note=f"not available (the {what} problem did not converge)"))
                 continue
             if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
                 self.attempts.append(Attempt(label, None, note="not finite"))
