@@ -54,14 +54,19 @@ def _labels(name, *sets):
 def test_plan_order():
     """Effort: the rollout first when it ends within ROLLOUT_FIRST_MISS characteristic scales of the target
     (E3: 0.52), else the interpolation whose path needs less effort (orbit doubling: 3.05; the orbit's), the first with the budget AUTO_FIRST_BUDGET,
-    the other with the rest; bounded effort: the relaxed problem's solution first; fuel: the rollout first
-    (its own budget); an explicit choice: that guess only."""
+    the other with the rest; bounded effort: the relaxed problem's solution first; fuel: the best start on a
+    coarser grid, then the rollout (its own budget) and the interpolation, and on the coarsest grid the
+    multistart of the homotopy, the rollout and the interpolation; an explicit choice: that guess only."""
     b, mx = plan.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
     assert _labels("e3") == ([("rollout", b), ("interpolate", mx)], "first")
     assert _labels("everyday/orbit_double") == ([("interpolate, attitude of orbit", b), ("rollout", mx)], "first")
     entries, _ = _labels("e3_bounded")
     assert [lb for lb, _ in entries] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
-    assert _labels("orbit_raise_fuel") == ([("rollout", plan.AUTO_FIRST_BUDGET_FUEL), ("interpolate", mx)], "first")
+    bf = plan.AUTO_FIRST_BUDGET_FUEL
+    assert _labels("orbit_raise_fuel") == ([("the best start on 50 steps, resampled", mx), ("rollout", bf),
+                                            ("interpolate", mx)], "coarse")
+    assert _labels("orbit_raise_fuel", "horizon.N=25") == ([("the fuel homotopy from the effort optimum", mx),
+                                                            ("rollout", bf), ("interpolate", bf)], "best")
     assert _labels("e3", "solver.direct.initial_guess=rollout")[0] == [("rollout", mx)]
 
 

@@ -51,6 +51,9 @@ class Guess:
     h: float | None = None
     #: what the solve that made it reports on to the Solution of this one (the multistart's spread)
     stats: dict = field(default_factory=dict)
+    #: the primal-dual point of the NLP that made it, (nlp_key, x, lam_g, lam_x) scaled as that NLP's: it starts
+    #: IPOPT on an NLP of the same key (the fuel homotopy's last smoothed level: same scales and structure)
+    duals: tuple | None = None
 
 
 def cayley_vectors(X: np.ndarray) -> np.ndarray:

@@ -21,6 +21,7 @@ from ...options import DirectOptions
 from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
+from .homotopy import FUEL_COARSE_MIN, homotopy_guess
 from .scaling import scaled_terminal_miss
 
 #: one entry of a plan: (label, maker of the guess (None: not available), NLP iteration budget)
@@ -43,9 +44,9 @@ AUTO_FIRST_BUDGET = 200
 #: interpolation; the 45 deg plane change (0.79) 9 against 12, the detumble (0.93) 6 against 8; E4 (0.78)
 #: is the exception, 7-8 against 6.  Misses of the everyday cases: 0.30 ... 3.1 (docs/everyday.md).
 ROLLOUT_FIRST_MISS = 1.0
-#: ... except for the fuel objective, which starts from the rollout, and whose bang-off-bang solutions take
-#: IPOPT longer from any start (configs/orbit_raise_fuel.yaml: 245 iterations from the rollout to a cost of
-#: 0.818839; the interpolation, tried after 200, needed 743 more and stopped at a worse local minimum, 0.819259)
+#: ... and for the fuel objective's free-motion and interpolation starts (beside the homotopy of :mod:`.homotopy`),
+#: whose bang-off-bang solutions take IPOPT long from those starts (configs/orbit_raise_fuel.yaml, N = 100: the
+#: rollout reached max_iterations in 600 iterations, the interpolation converged in 420 more to 0.8195953)
 AUTO_FIRST_BUDGET_FUEL = 600
 #: with initial_guess 'auto' and the time objective, this many symmetry-breaking starts are solved and
 #: the fastest converged maneuver kept: time-optimal slews have several local minima (the asymmetric
@@ -108,8 +109,7 @@ def guess_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
     if problem.control.objective == "time":
         return _time_plan(problem, options, subsolve)
     if problem.control.objective == "fuel":
-        return [("rollout", made("rollout"), min(options.max_iter, AUTO_FIRST_BUDGET_FUEL)),
-                ("interpolate", made("interpolate"), options.max_iter)], "first"
+        return _fuel_plan(problem, options, subsolve, made)
     rollout = made("rollout")()           # its final state decides the order (ROLLOUT_FIRST_MISS)
     label, interpolated = judged_interpolation(problem)
     order = [(label, lambda: interpolated), ("rollout", lambda: rollout)]
@@ -182,6 +182,22 @@ def _time_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve) -> 
                       options.max_iter) for Ts in bracketing_times(problem)], "best"
 
 
+def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, made) -> tuple[list[PlanEntry], str]:
+    """The fuel objective (:mod:`.homotopy`): on a grid of more than FUEL_COARSE_MIN steps the best start on
+    max(FUEL_COARSE_MIN, N // 4) steps, resampled and finished here ('coarse': the free motion and the
+    screw interpolation on this grid are the fallback); on the coarsest grid the multistart: the homotopy from the
+    effort optimum, the free motion and the screw interpolation, the lowest converged cost kept ('best')."""
+    N, budget = problem.N, min(options.max_iter, AUTO_FIRST_BUDGET_FUEL)
+    Nc = max(FUEL_COARSE_MIN, N // 4)
+    if Nc < N:
+        return [(f"the best start on {Nc} steps, resampled", lambda: coarse_guess(problem, options, Nc, subsolve),
+                 options.max_iter), ("rollout", made("rollout"), budget),
+                ("interpolate", made("interpolate"), options.max_iter)], "coarse"
+    return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve),
+             options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
+        "best"
+
+
 def bracketing_times(problem: Problem) -> list[float]:
     """The final times of the starts that bracket the guess T on the coarsest grid: the geometric means of T and
     each of the time bounds (those not equal to T).  Why: a time-optimal maneuver's local minima differ in
@@ -192,8 +208,8 @@ def bracketing_times(problem: Problem) -> list[float]:
 
 
 def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: SubSolve) -> Guess | None:
-    """The time objective's starts solved on Nc = max(TIME_COARSE_MIN, N // 4) steps (recursively), the
-    best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
+    """The time (or fuel) objective's starts solved on Nc = max(TIME_COARSE_MIN (FUEL_COARSE_MIN), N // 4) steps
+    (recursively), the best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
     the coarse solve did not converge)."""
     sol = subsolve(problem.replace(N=Nc, mesh=None), options)     # a mesh's starts on a uniform coarse grid
     if not sol.converged or sol.warm is None:
@@ -201,7 +217,7 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
     fitted, _ = sol.warm.fit(problem.N, problem.scheme, problem.fractions)
     return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
                  seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h,
-                 stats={k: v for k, v in sol.stats.items() if k.startswith("multistart")})
+                 stats={k: v for k, v in sol.stats.items() if k.startswith(("multistart", "homotopy"))})
 
 
 def relaxation(problem: Problem) -> Problem | None:

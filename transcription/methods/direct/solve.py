@@ -15,6 +15,7 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
+from .homotopy import WARM_LEVEL
 from .plan import (NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
 from .solution import nlp_solution
@@ -36,24 +37,29 @@ class _PlanRun:
         self.attempts: list[Attempt] = []
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
-    def solver(self, budget: int, phase1: bool = False) -> ca.Function:
-        """IPOPT within ``budget`` iterations (``phase1``: from a relaxation's solution, :func:`plan_ipopt_options`)."""
-        if (budget, phase1) not in self.solvers:
+    def solver(self, budget: int, phase1: bool = False, level: bool = False) -> ca.Function:
+        """IPOPT within ``budget`` iterations (``phase1``: from a relaxation's solution, :func:`plan_ipopt_options`;
+        ``level``: from the fuel homotopy's last level and its multipliers, :data:`~.homotopy.WARM_LEVEL`)."""
+        if (budget, phase1, level) not in self.solvers:
             t0 = time.perf_counter()
-            ipopt = ipopt_options(self.options.replace(max_iter=budget), warm_duals=self.nu0 is not None)
-            for key, value in plan_ipopt_options(self.problem, phase1).items():
+            ipopt = ipopt_options(self.options.replace(max_iter=budget), warm_duals=self.nu0 is not None or level)
+            for key, value in {**plan_ipopt_options(self.problem, phase1), **(WARM_LEVEL if level else {})}.items():
                 ipopt.setdefault(key, value)
-            self.solvers[budget, phase1] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress,
-                                                      self.tr.scales.objective)
+            self.solvers[budget, phase1, level] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress,
+                                                             self.tr.scales.objective)
             self.extra_build_s += time.perf_counter() - t0
-        return self.solvers[budget, phase1]
+        return self.solvers[budget, phase1, level]
 
     def attempt(self, label: str, guess: Guess, budget: int) -> Solution:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
-        tr, solver = self.tr, self.solver(budget, guess.prepared_on == RELAXED)
+        tr = self.tr
+        level = guess.duals is not None and guess.duals[0] == tr.nlp.key
+        solver = self.solver(budget, guess.prepared_on == RELAXED, level)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
-        if self.nu0 is not None:
+        if level:   # the very point of the homotopy's last level (its slacks too), with its multipliers
+            args.update(x0=guess.duals[1], lam_g0=guess.duals[2], lam_x0=guess.duals[3])
+        elif self.nu0 is not None:
             args["lam_g0"] = tr.scaled_multipliers(self.nu0)
         t0 = time.perf_counter()
         out = solver(**args)
@@ -80,9 +86,9 @@ class _PlanRun:
         for i, (label, maker, budget) in enumerate(plan):
             guess = maker()
             if guess is None:
-                self.attempts.append(Attempt(label, None, note="not available (the "
-                                             f"{'coarse-grid' if pick == 'coarse' else 'relaxed'} problem did not "
-                                             "converge)"))
+                what = "coarse-grid" if pick == "coarse" and i == 0 else "effort problem or a smoothed" \
+                    if "homotopy" in label else "relaxed"
+                self.attempts.append(Attempt(label, None, note=f"not available (the {what} problem did not converge)"))
                 continue
             if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
                 self.attempts.append(Attempt(label, None, note="not finite"))

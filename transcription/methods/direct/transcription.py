@@ -57,11 +57,15 @@ class SmoothTranscription:
     w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N) rows of
     the step defects "step - X_{k+1}" in g, ``constraint_rows`` (one row array per path constraint),
     ``h_scale``.
+
+    ``smoothing``: the fuel objective's smoothing eps in [0, 1] (the fuel homotopy, :mod:`.homotopy`; 0 is the
+    fuel objective itself): data of the control-node block, so every eps gives an NLP of the same structure.
     """
 
-    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False):
+    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0):
         N = problem.N
         self.problem, self.options, self.stage_order = problem, options, stage_order
+        self.smoothing = float(smoothing)
         control: SmoothControl = problem.control
         self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
         self.with_c = True if stage_order else bool(options.cayley_variables)
@@ -145,7 +149,8 @@ class SmoothTranscription:
         Q = engine.basis().ravel(order="F") if engine else np.zeros(0)
         cdata = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), omega_per_h[None, :],
                            np.repeat(np.r_[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
-                                           Q][:, None], nU, axis=1)])
+                                           Q][:, None], nU, axis=1)]
+                          + ([np.full((1, nU), self.smoothing)] if fuel else []))
         iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
         n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel else 0)
         # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0

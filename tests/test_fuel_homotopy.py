@@ -1,0 +1,93 @@
+"""The fuel objective by homotopy and its multistart (transcription/methods/direct/homotopy.py, issue 27).
+
+On the coarsest grid the default plan of a fuel problem solves three starts: the homotopy (effort, then the
+smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) down to eps = 1e-4, then the fuel NLP itself),
+the free motion and the screw interpolation.  The fuel raise (configs/orbit_raise_fuel.yaml) on 25 steps: the
+homotopy and the free motion end at the same optimum, the interpolation at another one.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import se3ocp
+from se3ocp.transcription.methods.direct import homotopy
+from se3ocp.transcription.methods.direct.solve import solve_direct
+from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.problem import fuel_cost, quadrature_weights
+from support import problem
+
+N = 25
+
+
+@pytest.fixture(scope="module")
+def raise25():
+    p = problem("orbit_raise_fuel", N)
+    return p, solve_direct(p, se3ocp.DirectOptions())
+
+
+def test_smoothing_levels_decrease_geometrically_to_the_last():
+    eps = homotopy.smoothing_levels()
+    assert eps[0] == homotopy.SMOOTHING_FIRST and eps[-1] == pytest.approx(homotopy.SMOOTHING_LAST, rel=1e-12)
+    assert np.allclose(np.array(eps[:-1]) / np.array(eps[1:]), homotopy.SMOOTHING_FACTOR, rtol=1e-12)
+
+
+def test_the_smoothed_cost_is_the_fuel_cost_at_eps_0_and_the_l2_form_at_eps():
+    """The control-node block's cost at a point of the fuel raise: at eps = 0 the fuel objective (sum_j omega_j
+    (w_f |u_f| + w_m |u_m|)) to round-off; at eps = 0.3 (1 - eps) s + eps s^2 / (2 s_ref) with the slack
+    scales as s_ref, summed by the same weights."""
+    p = problem("orbit_raise_fuel", 10)
+    rng = np.random.default_rng(0)
+    U = rng.normal(size=(6, 11)) * np.r_[np.full(3, 20.0), np.full(3, 0.5)][:, None]
+    om = quadrature_weights(p.scheme, p.N, p.h)
+    s = np.linalg.norm(U[:3], axis=0), np.linalg.norm(U[3:], axis=0)
+    for eps in (0.0, 0.3):
+        tr = SmoothTranscription(p, se3ocp.DirectOptions(jit=False), smoothing=eps)
+        X = np.repeat(p.X0[None, :], p.N + 1, axis=0)
+        w = tr.layout.pack(X.T, U, np.zeros((3, p.N))) / tr.w_scale
+        blk = next(b for b in tr.nlp.blocks if b.name == "controls")
+        V = w[blk.idx]
+        cost = float(np.sum(np.array(blk.fn.map(blk.M)(V, blk.data)[0]))) * tr.scales.objective
+        ref = tr.slack_scales
+        phi = [(1 - eps) * si + eps * si**2 / (2 * r) for si, r in zip(s, ref)]
+        want = float(om @ (p.control.W_f[0, 0] * phi[0] + p.control.W_m[0, 0] * phi[1]))
+        assert cost == pytest.approx(want, rel=1e-13)
+        if eps == 0.0:
+            assert cost == pytest.approx(fuel_cost(U, p.control, om), rel=1e-13)
+
+
+def test_the_homotopy_reaches_the_optimum_of_the_fuel_nlp(raise25):
+    """The homotopy's start and the free motion's (today's formulation from today's start) converge to the same
+    optimum: costs equal to 1e-8 relative; the lowest start is kept."""
+    p, sol = raise25
+    hom, roll = sol.attempts[0], sol.attempts[1]
+    assert hom.label == "the fuel homotopy from the effort optimum" and roll.label == "rollout"
+    assert hom.result.successful and roll.result.successful
+    assert hom.cost == pytest.approx(roll.cost, rel=1e-8)
+    assert sol.cost == pytest.approx(min(a.cost for a in sol.attempts), rel=1e-14)
+    assert "eps = 1e-04" in sol.stats.get("homotopy_levels", "") or sol.stats["initial_guess"] != hom.label
+
+
+@pytest.mark.slow
+def test_bang_off_bang_at_the_end():
+    """On 100 steps (the 25-step multistart resampled and finished): the thrust is near 0 or near its bound
+    (within 1e-3 of the bound) at >= 95 % of the nodes (on 25 steps 3 of the 26 nodes are switching nodes)."""
+    p = problem("orbit_raise_fuel", 100)
+    sol = solve_direct(p, se3ocp.DirectOptions())
+    assert sol.stats["multistart_grid"] == N and sol.attempts[0].label == f"the best start on {N} steps, resampled"
+    b = p.control.force_bound.b
+    thrust = np.linalg.norm(sol.u_f, axis=1)
+    assert sol.converged and thrust.max() <= b * (1 + 1e-7)
+    assert np.mean((thrust >= b * (1 - 1e-3)) | (thrust <= b * 1e-3)) >= 0.95
+
+
+def test_the_multistart_spread_is_reported(raise25):
+    """Three starts on 25 steps, two optima (the interpolation's is higher): the spread in the stats and the
+    message, and the lowest kept."""
+    p, sol = raise25
+    st = sol.stats
+    costs = sorted(a.cost for a in sol.attempts if a.result is not None and a.result.successful)
+    assert st["multistart_starts"] == len(costs) == 3 and st["multistart_grid"] == N
+    assert st["multistart_optima"] == 2
+    assert st["multistart_spread"] == pytest.approx((costs[-1] - costs[0]) / costs[0], rel=1e-12)
+    assert "different optima" in sol.message and sol.cost == costs[0]

@@ -1,0 +1,116 @@
+"""The fuel objective by homotopy (docs/mathematics.md, "The fuel homotopy"): the start of a fuel problem's solve.
+
+The L1 objective sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) has bang-off-bang minimizers that IPOPT reaches slowly
+from the free motion or the screw interpolation (configs/orbit_raise_fuel.yaml, N = 100: 1020 iterations, 54 s;
+N = 400: stopped at 'acceptable' after ~1300).  With ``initial_guess: auto`` the fuel problem is reached through
+smooth problems and coarse grids instead (:func:`~transcription.methods.direct.plan.guess_plan`):
+
+1. on the coarsest grid (N <= FUEL_COARSE_MIN steps), :func:`homotopy_guess`: the effort problem (the same
+   maneuver with objective effort, solved by its own plan), then the fuel NLP with the smoothed magnitude
+   phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for eps = 1, 1/FACTOR, ... down to SMOOTHING_LAST
+   (:func:`smoothing_levels`), each level started from the last one's primal and dual point (the NLPs have the
+   same structure: eps is data of the control-node block), and the fuel NLP itself (eps = 0) from the last level
+   and its multipliers -- one of the multistart's starts, beside the free motion and the screw interpolation;
+2. on a finer grid of N steps: the fuel problem solved on max(FUEL_COARSE_MIN, N // 4) steps (recursively),
+   resampled to N steps on SE(3) and finished there (:func:`~transcription.methods.direct.plan.coarse_guess`,
+   as for the time objective).  A smoothed level on the fine grid from the resampled point did not help: the
+   fuel raise at N = 100 from its 25-step optimum took 138 iterations to 0.81857033 directly, 62 + 83 + 44
+   through eps = 1e-2, 1e-3, and 128 + 14 through 1e-4 (cold multipliers on the new grid either way).
+
+Every solve ends with the fuel NLP itself (eps = 0, the NLP of a fuel solve from any other start), so the optimum
+is a KKT point of that NLP whatever the path to it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...guess import Guess, cayley_vectors
+from ...nlp.solvers import ipopt_options, make_ipopt
+from ...options import DirectOptions
+from ...problem import Problem
+from .transcription import SmoothTranscription
+
+#: the smoothing levels: eps = SMOOTHING_FIRST, divided by SMOOTHING_FACTOR per level, down to SMOOTHING_LAST
+SMOOTHING_FIRST = 1.0
+SMOOTHING_FACTOR = 10.0
+SMOOTHING_LAST = 1e-4
+#: the fuel objective's coarse grid: max(FUEL_COARSE_MIN, N // 4) steps (recursively)
+FUEL_COARSE_MIN = 25
+#: IPOPT options of a level started from the previous level's primal-dual point: the barrier starts small and
+#: the given point and multipliers are pushed off the bounds as little as possible
+WARM_LEVEL = {"warm_start_init_point": "yes", "mu_init": 1e-9, "warm_start_bound_push": 1e-9,
+              "warm_start_slack_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9}
+#: Guess.prepared_on of the homotopy's point
+PREPARED_ON = "the fuel homotopy"
+
+
+def smoothing_levels() -> list[float]:
+    """eps of the smoothed levels, decreasing geometrically: SMOOTHING_FIRST, ... >= SMOOTHING_LAST."""
+    n = int(round(np.log(SMOOTHING_FIRST / SMOOTHING_LAST) / np.log(SMOOTHING_FACTOR)))
+    return [SMOOTHING_FIRST / SMOOTHING_FACTOR**k for k in range(n + 1)]
+
+
+@dataclass
+class Point:
+    """A primal-dual point of the fuel NLP of one grid: x, lam_g, lam_x (scaled, of :class:`SmoothTranscription`)
+    and the solve that made it: ``status`` (IPOPT's), ``iterations``."""
+
+    x: np.ndarray
+    lam_g: np.ndarray | None = None
+    lam_x: np.ndarray | None = None
+    status: str = ""
+    iterations: int = 0
+
+    @property
+    def success(self) -> bool:
+        return self.status == "Solve_Succeeded"
+
+
+def solve_level(problem: Problem, options: DirectOptions, eps: float, start: Point) -> tuple[Point, SmoothTranscription]:
+    """The fuel NLP smoothed by ``eps`` on ``problem``'s grid, from ``start`` (warm when it has multipliers)."""
+    tr = SmoothTranscription(problem, options, smoothing=eps)
+    warm = start.lam_g is not None
+    ipopt = ipopt_options(options, warm_duals=warm)
+    if warm:
+        for k, v in WARM_LEVEL.items():
+            ipopt.setdefault(k, v)
+    solver = make_ipopt("fuel_homotopy", tr.nlp, ipopt, None, tr.scales.objective)
+    args = dict(x0=np.clip(start.x, tr.lbx, tr.ubx), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
+    if warm:
+        args.update(lam_g0=start.lam_g, lam_x0=start.lam_x)
+    out = solver(**args)
+    stats = solver.stats()
+    return Point(np.asarray(out["x"]).ravel(), np.asarray(out["lam_g"]).ravel(), np.asarray(out["lam_x"]).ravel(),
+                 str(stats.get("return_status", "")), int(stats.get("iter_count", 0))), tr
+
+
+def point_guess(tr: SmoothTranscription, point: Point) -> Guess:
+    """The node states, controls and Cayley vectors of a point (physical units) and its multipliers."""
+    w = point.x * tr.w_scale
+    X = w[tr.layout.iX].T
+    duals = None if point.lam_g is None else (tr.nlp.key, point.x, point.lam_g, point.lam_x)
+    return Guess(X=X, U=w[tr.layout.iU], C=cayley_vectors(X), duals=duals)
+
+
+def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess | None:
+    """Steps 1-2 of the module docstring on ``problem``'s own grid: the effort optimum, then the smoothed levels;
+    the last level's point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the
+    effort problem or a level did not converge)."""
+    t0 = time.perf_counter()
+    effort = subsolve(problem.replace(control=replace(problem.control, objective="effort")), options)
+    if not effort.converged or effort.warm is None:
+        return None
+    iterations, levels = effort.iterations, [f"effort: {effort.iterations}"]
+    tr = SmoothTranscription(problem, options, smoothing=SMOOTHING_FIRST)
+    point = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
+    for eps in smoothing_levels():
+        point, tr = solve_level(problem, options, eps, point)
+        iterations += point.iterations
+        levels.append(f"eps = {eps:.0e}: {point.iterations}")
+        if not point.success:
+            return None
+    return replace(point_guess(tr, point), iterations=iterations, seconds=time.perf_counter() - t0,
+                   prepared_on=PREPARED_ON, stats={"homotopy_levels": "; ".join(levels)})
