@@ -3,7 +3,7 @@
 On the coarsest grid the default plan of a fuel problem solves three starts: the homotopy (effort, then the
 smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) down to eps = 1e-4, then the fuel NLP itself),
 the free motion and the screw interpolation.  The fuel raise (configs/orbit_raise_fuel.yaml) on 25 steps: the
-homotopy and the free motion end at the same optimum, the interpolation at another one.
+homotopy ends at the free motion's optimum or a lower one, the interpolation at a higher one.
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.methods.direct import homotopy
+from se3ocp.transcription.methods.direct.plan import SAME_OPTIMUM_RTOL
 from se3ocp.transcription.methods.direct.solve import solve_direct
 from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
 from se3ocp.transcription.problem import fuel_cost, quadrature_weights
@@ -57,15 +58,21 @@ def test_the_smoothed_cost_is_the_fuel_cost_at_eps_0_and_the_l2_form_at_eps():
 
 
 def test_the_homotopy_reaches_the_optimum_of_the_fuel_nlp(raise25):
-    """The homotopy's start and the free motion's (today's formulation from today's start) converge to the same
-    optimum: costs equal to 1e-8 relative; the lowest start is kept."""
+    """The homotopy's last stage is the fuel NLP itself: its cost is the fuel cost of its controls (recomputed here
+    with the quadrature weights, to 1e-12), not the smoothed one; it is no worse than today's start (the free
+    motion, today's formulation) to 1e-8 -- on 25 steps the two ended at the same optimum or the homotopy's was
+    lower (0.812941 against 0.813134), which of the two depends on the last bits of the coarse solves; the lowest
+    start is kept."""
     p, sol = raise25
     hom, roll = sol.attempts[0], sol.attempts[1]
     assert hom.label == "the fuel homotopy from the effort optimum" and roll.label == "rollout"
     assert hom.result.successful and roll.result.successful
-    assert hom.cost == pytest.approx(roll.cost, rel=1e-8)
+    assert hom.cost <= roll.cost * (1 + 1e-8)
     assert sol.cost == pytest.approx(min(a.cost for a in sol.attempts), rel=1e-14)
-    assert "eps = 1e-04" in sol.stats.get("homotopy_levels", "") or sol.stats["initial_guess"] != hom.label
+    if sol.stats["initial_guess"] == hom.label:
+        om = quadrature_weights(p.scheme, p.N, p.h)
+        assert sol.cost == pytest.approx(fuel_cost(sol.controls, p.control, om), rel=1e-12)
+        assert "eps = 1e-04" in sol.stats.get("homotopy_levels", "")
 
 
 @pytest.mark.slow
@@ -82,12 +89,14 @@ def test_bang_off_bang_at_the_end():
 
 
 def test_the_multistart_spread_is_reported(raise25):
-    """Three starts on 25 steps, two optima (the interpolation's is higher): the spread in the stats and the
+    """Three starts on 25 steps, at least two optima (the interpolation's is higher): the count of distinct ones
+    (costs more than SAME_OPTIMUM_RTOL apart), the spread in the stats and the
     message, and the lowest kept."""
     p, sol = raise25
     st = sol.stats
     costs = sorted(a.cost for a in sol.attempts if a.result is not None and a.result.successful)
     assert st["multistart_starts"] == len(costs) == 3 and st["multistart_grid"] == N
-    assert st["multistart_optima"] == 2
+    distinct = 1 + sum(b - a > SAME_OPTIMUM_RTOL * abs(a) for a, b in zip(costs[:-1], costs[1:]))
+    assert st["multistart_optima"] == distinct >= 2
     assert st["multistart_spread"] == pytest.approx((costs[-1] - costs[0]) / costs[0], rel=1e-12)
     assert "different optima" in sol.message and sol.cost == costs[0]
