@@ -124,6 +124,25 @@ def _tolerances(d: Solution, i: Solution) -> str:
     return "; ".join(parts) or "tolerances unknown"
 
 
+def _retightened(d: Solution, direct: DirectOptions, progress: Progress | None, why: str, **stats) -> Solution:
+    """The direct Solution ``d`` re-solved at tol RETIGHTEN_TOL from its own solution (primal and dual), for
+    :func:`reconcile` and :func:`fuel_retighten`; when it converges, it carries ``d``'s iterations and times too,
+    ``d``'s attempts and itself as the last, ``stats['retightened_from_tol']`` and ``stats``, and a message that
+    says ``why``."""
+    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
+    if not tight.converged:
+        return tight
+    tight.stats.update(retightened_from_tol=float(direct.tol), **stats)
+    tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it {why}: "
+                     f"{tight.message.split(';')[0]}")
+    tight.attempts = (*d.attempts, Attempt(f"its solution at tol {RETIGHTEN_TOL:.0e}", tight.result, tight.iterations,
+                                           tight.cost))
+    tight.iterations += d.iterations
+    tight.build_s += d.build_s
+    tight.solve_s += d.solve_s
+    return tight
+
+
 def reconcile(cmp: Comparison, direct: DirectOptions, progress: Progress | None = None) -> Comparison:
     """``cmp`` again after the direct method was re-solved at tol RETIGHTEN_TOL from its own solution (primal and
     dual), when both converged but their costs differ by more than MISMATCH_COST_RTOL and the direct tol was
@@ -135,19 +154,12 @@ def reconcile(cmp: Comparison, direct: DirectOptions, progress: Progress | None 
     d = cmp.direct
     if cmp.same_extremal or not cmp.converged or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL or d.warm is None:
         return cmp
-    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
+    tight = _retightened(d, direct, progress, f"before comparing (the costs were {cmp.cost_relative_difference:.1e} "
+                                              f"apart)", cost_difference_before_retightening=cmp.cost_relative_difference)
     if not tight.converged:
         d.stats["retighten"] = f"the re-solve at tol {RETIGHTEN_TOL:.0e} ended {tight.result}"
         d.message += f"; {d.stats['retighten']}"
         return compare(d, cmp.indirect)
-    tight.stats.update(retightened_from_tol=float(direct.tol), cost_difference_before_retightening=cmp.cost_relative_difference)
-    tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it before comparing "
-                     f"(the costs were {cmp.cost_relative_difference:.1e} apart): {tight.message.split(';')[0]}")
-    tight.iterations += d.iterations
-    tight.build_s += d.build_s
-    tight.solve_s += d.solve_s
-    tight.attempts = (*d.attempts, Attempt(f"its solution at tol {RETIGHTEN_TOL:.0e}", tight.result, tight.iterations
-                                           - d.iterations, tight.cost))
     return compare(tight, cmp.indirect)
 
 
@@ -295,15 +307,10 @@ def fuel_retighten(cmp: Comparison, direct: DirectOptions, indirect: IndirectOpt
             or i.result is Result.not_applicable or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL
             or d.warm is None):
         return cmp
-    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
+    tight = _retightened(d, direct, progress, "for the indirect method's switching structure",
+                         retightened_for="where the indirect method failed from its switching structure")
     if not tight.converged:
         return cmp
-    tight.stats.update(retightened_from_tol=float(direct.tol),
-                       retightened_for="where the indirect method failed from its switching structure")
-    tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it for the indirect "
-                     f"method's switching structure: {tight.message.split(';')[0]}")
-    tight.iterations += d.iterations
-    tight.solve_s += d.solve_s
     retry = _run(d.problem, "indirect", indirect, progress, tight.warm)
     retry.message += (f"; started from the direct solution re-solved at tol {RETIGHTEN_TOL:.0e} after the indirect "
                       f"method failed ({i.result}: {i.message.split(';')[0]})")
