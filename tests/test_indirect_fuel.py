@@ -165,11 +165,13 @@ def test_verdict_names_a_retightening_for_the_switching_structure():
 
 @pytest.mark.slow
 def test_compare_agrees_on_the_fuel_raise():
-    """`se3ocp compare configs/orbit_raise_fuel.yaml --set horizon.N=100`'s solve: the indirect method fails from
-    lambda_0 = 0 and from the default-tol direct solution (a scattered, costlier point), the direct method is
-    re-solved at tol 1e-12 (fuel_retighten) and the indirect one from it agrees (measured 7.5e-11)."""
+    """`se3ocp compare configs/orbit_raise_fuel.yaml --set horizon.N=100`'s solve: the direct method's fuel plan
+    (the homotopy and multistart, §20) reaches the optimum 0.81857 at its default tol itself, so no re-solve for the
+    switching structure is needed (before the homotopy it stopped at a scattered point 1.25e-3 costlier, and
+    fuel_retighten re-solved it: that path is tested by test_verdict_names_a_retightening_for_the_switching_structure);
+    the indirect method from the direct solution agrees (measured 5.4e-9 relative, 7.5e-11 before)."""
     c = se3ocp.solve(maneuver("orbit_raise_fuel", 100), "both")
     assert c.verdict.startswith("agree"), c.verdict
-    assert c.direct.stats["retightened_from_tol"] == 1e-10
+    assert "retightened_from_tol" not in c.direct.stats and c.indirect.stats["fallback"] == "from_direct"
     assert abs(c.indirect.cost - c.direct.cost) <= 1e-6 * c.direct.cost
     assert c.indirect.stats["fuel_structured"]["consistent"]
