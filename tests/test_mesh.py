@@ -205,15 +205,6 @@ def test_the_refinement_option_is_read_and_a_bad_one_named():
         se3ocp.load(config("e3"), ["solver.refinement=smart"])
 
 
-def test_tracking_refuses_a_plan_on_a_non_uniform_mesh():
-    """The LQR's gains take one h: a plan on a mesh is refused in one sentence naming the way out."""
-    from se3ocp.transcription.tracking import tracking_gains
-
-    sol = solve(problem("e3", 20).replace(mesh=random_mesh(20)), "direct")
-    with pytest.raises(ValueError, match="non-uniform mesh.*solver.refinement: uniform"):
-        tracking_gains(sol)
-
-
 def test_an_adaptive_plan_is_read_back_with_its_node_times(eccentric_adaptive, tmp_path):
     """The results directory of an adaptive plan: the npz's node times are the mesh's, and the summary read back
     (h_min, h_max, delta_v with the per-step weights) is the one written."""

@@ -262,6 +262,8 @@ class Replanning:
 def around(gains, k: int, plan: WarmStart):
     """The tracker ``gains`` (transcription.tracking.Gains of the original plan) from node k on, around the
     re-planned ``plan`` (its nodes X and controls U over the remaining N - k steps): the original gains and
-    linearization, which the re-plan, a nearby trajectory, changes only to first order in its distance."""
+    linearization, which the re-plan, a nearby trajectory, changes only to first order in its distance; on a
+    non-uniform mesh the steps k..N-1 (the re-plan runs on the same steps, :meth:`Replanner.steps`)."""
     return dataclasses.replace(gains, K=gains.K[k:], L=gains.L[k:], P=gains.P[k:], S=gains.S[k:], A=gains.A[k:],
-                               B=gains.B[k:], t=gains.t[k:], X=plan.X, U=plan.U)
+                               B=gains.B[k:], t=gains.t[k:], X=plan.X, U=plan.U,
+                               steps=None if gains.steps is None else gains.steps[k:])

@@ -1,6 +1,7 @@
 """Tracking a plan: a discrete-time, time-varying LQR on the plan's own linearized LGVI maps.
 
-docs/mathematics.md §12.  A plan is a Solution's trajectory X_0..X_N (nodes t_k = k h) and its controls.
+docs/mathematics.md §12.  A plan is a Solution's trajectory X_0..X_N (nodes t_k: k h on a uniform mesh) and its
+controls.
 The tracker measures the error of a state X from the plan's node X_k in the tangent coordinates of the
 variations A_k, B_k (docs/mathematics.md §4, ``Discretization.variation``):
 
@@ -15,10 +16,13 @@ control of step k becomes
 
 (``Bu_k``: B_k [I; I] or B_k, 12 x 6, :func:`held`).  du_k = -K_k z_k - L_k r_k minimizes
 
-    sum_{k<N} h (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N
+    sum_{k<N} h_k (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N
 
 over the linearization with a persisting state disturbance r (:func:`riccati`), r_k estimated as what
-the last step did that the linearization does not explain (:class:`Tracker`).  The default weights
+the last step did that the linearization does not explain (:class:`Tracker`).  On a uniform mesh h_k = h; on a
+non-uniform one (adaptive refinement; docs/mathematics.md §12, *Tracking and re-planning on a non-uniform mesh*)
+step k is linearized at its own h_k, weighted by it, and takes the share h_k / h of a disturbance that acts in
+proportion to time.  The default weights
 (:func:`bryson_weights`) are Bryson's rule with the acceptable errors that the characteristic controls
 correct within one closed-loop time constant 1/omega_c.  A control removed by a norm bound of 0 gets no
 feedback.  The correction may use the headroom the plan leaves below the actuators' bounds in every
@@ -100,7 +104,7 @@ def saturate(u, force_bound=None, moment_bound=None) -> tuple[np.ndarray, np.nda
 # ------------------------------------------------------------------------------- weights
 @dataclass(frozen=True)
 class TrackingWeights:
-    """The tracking cost sum_{k<N} h (z^T Q z + du^T R du) + z_N^T Q_N z_N: Q, Q_N (12, 12) in the
+    """The tracking cost sum_{k<N} h_k (z^T Q z + du^T R du) + z_N^T Q_N z_N: Q, Q_N (12, 12) in the
     order of z, R (6, 6) in the order of u; ``scales``: the Bryson scales they came from (acceptable
     errors per block and characteristic controls, 3 each; bandwidth, T), empty if given directly."""
 
@@ -197,14 +201,18 @@ def _inv2(e: np.ndarray, removed: bool) -> np.ndarray:
 
 # ------------------------------------------------------------------------------- gains
 def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np.ndarray,
-            active: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            active: np.ndarray | None = None,
+            rho: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The finite-horizon discrete LQR with a constant state disturbance r (docs/mathematics.md §12):
-    z_{k+1} = A_k z_k + Bu_k du_k + r, A (N, n, n), Bu (N, n, m), stage weights Q (n, n), R (m, m)
-    (already multiplied by h), terminal Q_N.  Backward from P_N = Q_N, M_N = 0:
+    z_{k+1} = A_k z_k + Bu_k du_k + rho_k r, A (N, n, n), Bu (N, n, m), stage weights Q (n, n), R (m, m)
+    (already multiplied by the mean step h), terminal Q_N; ``rho`` (N,): the relative step sizes h_k / h of a
+    non-uniform mesh (None: all 1, a uniform mesh), which weight step k's stage cost rho_k (z^T Q z + du^T R du)
+    and its share rho_k r of a disturbance that acts in proportion to time.  Backward from P_N = Q_N, M_N = 0:
 
-        S_k = R + Bu_k^T P_{k+1} Bu_k,   K_k = S_k^-1 Bu_k^T P_{k+1} A_k,   L_k = S_k^-1 Bu_k^T (P_{k+1} + M_{k+1}),
-        P_k = Q + K_k^T R K_k + (A_k - Bu_k K_k)^T P_{k+1} (A_k - Bu_k K_k)   (Joseph form: symmetric PSD),
-        M_k = (A_k - Bu_k K_k)^T (M_{k+1} + P_{k+1}),
+        S_k = rho_k R + Bu_k^T P_{k+1} Bu_k,   K_k = S_k^-1 Bu_k^T P_{k+1} A_k,
+        L_k = S_k^-1 Bu_k^T (rho_k P_{k+1} + M_{k+1}),
+        P_k = rho_k Q + K_k^T rho_k R K_k + (A_k - Bu_k K_k)^T P_{k+1} (A_k - Bu_k K_k)   (Joseph form: symmetric PSD),
+        M_k = (A_k - Bu_k K_k)^T (M_{k+1} + rho_k P_{k+1}),
 
     so that du_k = -K_k z_k - L_k r minimizes the cost-to-go z^T P_k z + 2 z^T M_k r + const, which is
     (du - du_k)^T S_k (du - du_k) + const in du.  ``active`` (m,) bool: the inputs that exist (the others
@@ -218,16 +226,17 @@ def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np
     M = np.zeros((n, n))
     Ra = R[np.ix_(act, act)]
     for k in range(N - 1, -1, -1):
+        Qk, Rk, Pr = (Q, Ra, P[k + 1]) if rho is None else (rho[k] * Q, rho[k] * Ra, rho[k] * P[k + 1])
         B = Bu[k][:, act]
         BtP = B.T @ P[k + 1]
-        S = Ra + BtP @ B
+        S = Rk + BtP @ B
         SS[k][np.ix_(act, act)] = S
         Ka = np.linalg.solve(S, BtP @ A[k])
         K[k][act] = Ka
-        L[k][act] = np.linalg.solve(S, B.T @ (P[k + 1] + M))
+        L[k][act] = np.linalg.solve(S, B.T @ (Pr + M))
         Acl = A[k] - B @ Ka
-        M = Acl.T @ (M + P[k + 1])
-        Pk = Q + Ka.T @ Ra @ Ka + Acl.T @ P[k + 1] @ Acl
+        M = Acl.T @ (M + Pr)
+        Pk = Qk + Ka.T @ Rk @ Ka + Acl.T @ P[k + 1] @ Acl
         P[k] = 0.5 * (Pk + Pk.T)
     return K, L, P, SS
 
@@ -272,7 +281,8 @@ class Gains:
     under saturation, :class:`Tracker`).  A (N, 12, 12), B (N, 12, nw): the plan's variations
     (§4) the gains were computed on; :attr:`Bu` (N, 12, 6) the input matrix of a correction held over a
     step.  t (N+1,), X (N+1, 18): the plan's nodes; U (6, n_controls): its controls (lgvi u_0..u_N,
-    first_order u_1..u_N); scheme, h.  weights: the :class:`TrackingWeights`.  force_bound,
+    first_order u_1..u_N); scheme, h (the mean step T/N); steps (N,): the step sizes h_k of a non-uniform
+    mesh (None: every step h; docs/mathematics.md §16).  weights: the :class:`TrackingWeights`.  force_bound,
     moment_bound: the actuators' bounds the commands are clipped to (the plan's widened by its
     bounds_margin); removed: (force, moment) removed by a norm bound of 0 (no feedback).
     """
@@ -292,10 +302,26 @@ class Gains:
     force_bound: BoxBound | NormBound | ThrusterBound | None = None
     moment_bound: BoxBound | NormBound | None = None
     removed: tuple = (False, False)
+    steps: np.ndarray | None = None
 
     @property
     def N(self) -> int:
         return self.K.shape[0]
+
+    @property
+    def rho(self) -> np.ndarray | None:
+        """(N,) the relative step sizes h_k / h of a non-uniform mesh (the weights of :func:`riccati`), None on a
+        uniform one."""
+        return None if self.steps is None else self.steps / self.h
+
+    def step(self, k: int) -> float:
+        """The size h_k of step k."""
+        return self.h if self.steps is None else float(self.steps[k])
+
+    def per_mean_step(self, k: int, r: np.ndarray) -> np.ndarray:
+        """A disturbance r (12,) that step k explained as the disturbance of a step of the mean size h
+        (:func:`riccati`'s r: r / rho_k; r itself on a uniform mesh)."""
+        return r if self.steps is None else r / (self.steps[k] / self.h)
 
     @property
     def Bu(self) -> np.ndarray:
@@ -320,7 +346,8 @@ class Tracker:
 
         z_k = tangent_error(X, X_k),
         r_k = z_k - A_{k-1} z_{k-1} - B_{k-1} (w_{k-1} - w_{k-1}^plan)   (r_0 = 0),
-        du_k = -K_k z_k - L_k r_k,   commands = the plan's rows of step k + du_k.
+        du_k = -K_k z_k - L_k r_k,   commands = the plan's rows of step k + du_k
+    (on a non-uniform mesh r_k / rho_{k-1}: the disturbance of a step of the mean size, :meth:`Gains.per_mean_step`).
 
     r_k is what the last step did that the linearization does not explain (unmodelled forces, actuator
     errors, the linearization's own error), taken as persisting (certainty equivalence: the LQR of
@@ -360,7 +387,7 @@ class Tracker:
             z = g.error(k, X)
             du = -g.K[k] @ z
             if self.disturbance and k > 0:
-                du -= g.L[k] @ (z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
+                du -= g.L[k] @ g.per_mean_step(k - 1, z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
             elif self.disturbance and self.r0 is not None:          # k = 0: an estimate handed over
                 du -= g.L[0] @ self.r0
             self.z = z
@@ -373,12 +400,13 @@ class Tracker:
 
     def unexplained(self, k: int, X) -> np.ndarray | None:
         """r_k (12,) for the state X at t_k, the next step, without taking it: what the last step did that the
-        linearization does not explain (None before the first step or without the disturbance estimate) --
-        handed to the tracker of a re-planned trajectory (transcription.mpc)."""
+        linearization does not explain (None before the first step or without the disturbance estimate), per
+        step of the mean size h (:meth:`Gains.per_mean_step`) -- handed to the tracker of a re-planned trajectory
+        (transcription.mpc)."""
         g = self.gains
         if not (self.feedback and self.disturbance) or self.k < 0 or k != self.k + 1 or k >= g.N:
             return None
-        return g.error(k, X) - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw
+        return g.per_mean_step(k - 1, g.error(k, X) - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
 
     def command(self, k: int, X) -> np.ndarray:
         """The node commands (rows, 6) of step k from the state X at t_k (rows: 2 lgvi, 1 first_order): the
@@ -433,35 +461,38 @@ def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gai
 
     weights: None (the defaults of :func:`bryson_weights`), a mapping of Bryson scales overriding some
     of them (:data:`SCALE_KEYS`), or :class:`TrackingWeights`.  The linearization is the plan's own:
-    ``Discretization.variation`` at the plan's nodes and stage controls (docs/mathematics.md §4)."""
+    ``Discretization.variation`` at the plan's nodes and stage controls (docs/mathematics.md §4).  On a
+    non-uniform mesh (the plan's node times unequally spaced, e.g. adaptive refinement) step k is linearized
+    at its own h_k and weighted by it in the Riccati recursion (:func:`riccati` with rho_k = h_k / h)."""
     prob = sol.problem
     control = getattr(prob, "control", None)
     if not isinstance(control, SmoothControl) or sol.controls is None:
         raise ValueError("tracking_gains: the plan must be a Solution with smooth controls (and its Problem)")
-    if not getattr(prob, "uniform", True):    # the gains, the Riccati weights and the discrete loop take one h
-        raise ValueError("tracking_gains: a plan on a non-uniform mesh (adaptive refinement) cannot be tracked yet: "
-                         "refine it with solver.refinement: uniform")
     disc, h = prob.disc, sol.h
+    steps = None if sol.uniform else np.asarray(sol.steps, float)     # the plan's own node times, not its Problem's
     X, U = np.asarray(sol.trajectory.X, float), np.asarray(sol.controls, float)
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
         raise ValueError("tracking_gains: the plan's trajectory or controls are not finite")
     model = prob.model
-    if weights is None or isinstance(weights, Mapping):
+    if weights is None or isinstance(weights, Mapping):     # on a mesh the bandwidth's step is the mean step h
         weights = bryson_weights(control, U, model.mass, model.inertia, sol.T, h, **dict(weights or {}))
-    A, B = linearization(disc, X, U, h)
+    A, B = linearization(disc, X, U, h if steps is None else steps)
     active = np.repeat(~np.asarray(control.removed), 3)
-    K, L, P, S = riccati(A, held(B, disc.scheme), h * weights.Q, h * weights.R, weights.Q_N, active)
+    K, L, P, S = riccati(A, held(B, disc.scheme), h * weights.Q, h * weights.R, weights.Q_N, active,
+                         None if steps is None else steps / h)
     fb, mb = actuator_bounds(control)
     return Gains(K=K, L=L, P=P, S=S, A=A, B=B, t=np.asarray(sol.trajectory.t, float), X=X, U=U, scheme=disc.scheme, h=h,
-                 weights=weights, force_bound=fb, moment_bound=mb, removed=tuple(bool(r) for r in control.removed))
+                 weights=weights, force_bound=fb, moment_bound=mb, removed=tuple(bool(r) for r in control.removed),
+                 steps=steps)
 
 
-def linearization(disc, X: np.ndarray, U: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+def linearization(disc, X: np.ndarray, U: np.ndarray, h: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A_k (N, 12, 12) and B_k (N, 12, nw) of the plan X (N+1, 18), U (6, n_controls): the variations of
-    docs/mathematics.md §4 (``Discretization.variation``) at the plan's nodes and stage controls w_k."""
+    docs/mathematics.md §4 (``Discretization.variation``) at the plan's nodes, stage controls w_k and step
+    sizes h (one, or the N step sizes h_k of a non-uniform mesh)."""
     N = X.shape[0] - 1
     W = disc.stage_controls(U)
-    A, B = disc.variation.map(N)(X[:-1].T, W, h)
+    A, B = disc.variation.map(N)(X[:-1].T, W, h if np.ndim(h) == 0 else np.reshape(h, (1, N)))
     A = np.asarray(A).reshape(NZ, NZ, N, order="F").transpose(2, 0, 1)         # 12 x 12N: [A_0 A_1 ...]
     B = np.asarray(B).reshape(NZ, disc.nw, N, order="F").transpose(2, 0, 1)
     return A, B
@@ -503,5 +534,5 @@ def fly_discrete(gains: Gains, disc, X0, *, feedback: bool = True, disturbance: 
     for k in range(N):
         cmds[k] = law.command(k, X[k])
         w = cmds[k] if actuator is None else actuator(cmds[k])
-        X[k + 1] = np.asarray(disc.step(X[k], np.ravel(w), gains.h)[0]).ravel()
+        X[k + 1] = np.asarray(disc.step(X[k], np.ravel(w), gains.step(k))[0]).ravel()
     return DiscreteFlight(X=X, commands=cmds, z=tangent_errors(X, gains.X), saturated_fraction=law.saturated_fraction)

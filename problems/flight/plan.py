@@ -61,15 +61,27 @@ def load_plan(payload: dict) -> tuple[Maneuver, Solution]:
         if len(_PLANS) >= 4:
             _PLANS.clear()
         man = parse_maneuver(copy.deepcopy(payload["doc"]), payload["source"])
-        model = man.problem.model
+        problem = plan_problem(man.problem, payload["t"])
+        model = problem.model
         warm = warm_start_of(payload["t"], payload["X"], payload["U"], man.problem.scheme, payload["method"],
                              costates=payload.get("costates"), lam0=payload.get("lam0"))
         sol = Solution(method=payload["method"], solver="", result=Result.converged, message="the plan",
                        trajectory=Trajectory(t=payload["t"], X=payload["X"], mass=model.mass, inertia=model.inertia),
                        cost=float("nan"), terminal_error=float("nan"), iterations=0, build_s=0.0, solve_s=0.0,
-                       problem=man.problem, controls=payload["U"], warm=warm)
+                       problem=problem, controls=payload["U"], warm=warm)
         _PLANS[key] = (man, sol)
     return _PLANS[key]
+
+
+def plan_problem(problem, t: np.ndarray):
+    """The maneuver's Problem on the plan's own steps (node times t, (N+1,)): a plan refined on an adaptive mesh
+    (docs/mathematics.md §16) has more and unequal steps than the file's N, which the re-plans of MPC run on
+    (transcription.mpc.Replanner.steps); the Problem itself for a plan of equal steps (a re-plan takes its h)."""
+    d = np.diff(np.asarray(t, float))
+    h = (t[-1] - t[0]) / d.size
+    if np.all(np.abs(d - h) <= 1e-9 * abs(h)):          # uniform, as Solution.uniform
+        return problem
+    return problem.replace(N=int(d.size), mesh=d)
 
 
 def truth_body(man: Maneuver, spec: FlightSpec) -> BodyModel:

@@ -114,10 +114,11 @@ def describe(a: np.ndarray) -> dict:
 
 def plan_figures(sol, gains, spec: FlightSpec) -> dict:
     """The plan's own numbers in summary.json: method, scheme, N, T and its delta-v and angular impulse
-    (the quadrature the flights use)."""
+    (the quadrature the flights use); on a non-uniform mesh its shortest and longest steps (h_min, h_max)."""
     dv, ang = plan_usage(gains, spec.samples)
+    mesh = {} if gains.steps is None else {"h_min": float(gains.steps.min()), "h_max": float(gains.steps.max())}
     return {"method": sol.method, "discretization": gains.scheme, "N": int(gains.N), "T": float(gains.t[-1]),
-            "delta_v": dv / sol.trajectory.mass, "angular_impulse": ang,
+            **mesh, "delta_v": dv / sol.trajectory.mass, "angular_impulse": ang,
             "bounds_margin": float(sol.problem.control.bounds_margin),
             "miss_frame": miss_frame(sol.trajectory.X[-1], sol.trajectory.mass)}
 

@@ -6,9 +6,11 @@ The law is the one of :class:`transcription.tracking.Tracker` without saturation
 correction is never limited): at node k, from the flown state X_k,
 
     z_k = [x - x_k; gamma - gamma_k; vee log(R_k^T R); Pi - Pi_k]          (tangent_error, log by atan2),
-    r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1}   (r_0 = 0),     du_k = -K_k z_k - L_k r_k,
+    r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1}   (r_0 = 0),     du_k = -K_k z_k - L_k r_k / rho_{k-1},
 
-and the interval's command is the plan's (a_k + du_k, b_k + du_k).  The accumulated state of the loop is
+with rho_{k-1} = h_{k-1} / h the relative size of the step that explained r_k (1 on a uniform mesh; the
+disturbance per mean step of transcription.tracking.riccati), and the interval's command is the plan's
+(a_k + du_k, b_k + du_k).  The accumulated state of the loop is
 S = [X (18); z_{k-1} (12); du_{k-1} (6)].  Same numbers as the per-interval path to round-off (tested to
 1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.lie.log_so3_small`).
 """
@@ -24,7 +26,7 @@ from ..lie import log_so3_small
 from .engine import N_P, N_W, BoundedCache, OpenLoop
 
 #: per-interval data of the law: X_k (18), K_k (6 x 12), L_k (6 x 12), A_{k-1} (12 x 12), Bu_{k-1} (12 x 6),
-#: the weight of the disturbance term (0 at k = 0 or without it, else 1)
+#: the weight of the disturbance term (0 at k = 0 or without it, else 1 / rho_{k-1}: 1 on a uniform mesh)
 N_G = NX + 2 * NU * NZ + NZ * NZ + NZ * NU + 1
 N_S = NX + NZ + NU
 
@@ -33,7 +35,8 @@ N_S = NX + NZ + NU
 class TrackingLoop:
     """The tracker's law as data (module docstring): ``plan`` the plan's commands, ``Xref`` (N+1, 18) its nodes,
     K, L (N, 6, 12), A (N, 12, 12), Bu (N, 12, 6) (transcription.tracking.Gains), ``disturbance``: with the
-    disturbance estimate r_k.  The flight engine flies it in one call (:meth:`flown`)."""
+    disturbance estimate r_k; ``rho`` (N,): the relative step sizes h_k / h of a non-uniform mesh (None: uniform).
+    The flight engine flies it in one call (:meth:`flown`)."""
 
     plan: OpenLoop
     Xref: np.ndarray
@@ -42,12 +45,13 @@ class TrackingLoop:
     A: np.ndarray
     Bu: np.ndarray
     disturbance: bool = True
+    rho: np.ndarray | None = None
 
     @classmethod
     def of_gains(cls, gains, disturbance: bool = True) -> "TrackingLoop":
         """The loop of a tracker's gains (transcription.tracking.Gains) around its plan."""
         return cls(OpenLoop.of_controls(gains.scheme, gains.U), gains.X, gains.K, gains.L, gains.A, gains.Bu,
-                   disturbance)
+                   disturbance, gains.rho)
 
     def data(self) -> np.ndarray:
         """(N_G, N): the per-interval data, column k for interval k (matrices column-major)."""
@@ -56,6 +60,8 @@ class TrackingLoop:
         Ap[1:], Bp[1:] = self.A[:-1], self.Bu[:-1]
         flat = [np.asarray(M, float).transpose(0, 2, 1).reshape(N, -1) for M in (self.K, self.L, Ap, Bp)]
         weight = np.where(np.arange(N) > 0, 1.0 if self.disturbance else 0.0, 0.0)[:, None]
+        if self.rho is not None:          # r_k came from step k-1: per mean step, r_k / rho_{k-1}
+            weight[1:, 0] /= np.asarray(self.rho, float)[:-1]
         return np.hstack([np.asarray(self.Xref, float)[:N], *flat, weight]).T
 
     def flown(self, fn: ca.Function, X0: np.ndarray, h: np.ndarray, p: np.ndarray):
