@@ -55,14 +55,33 @@ TIME_T_RTOL = 1e-12
 
 
 def switching_function(problem: Problem, lams: np.ndarray, h: float) -> np.ndarray:
-    """sigma (6 x n_controls): sigma_j = (s/h) B_c^T lambda_{j-1} for every control node j, from ``lams`` (12 x
+    """sigma (6 x n_controls): sigma_j = (s/h_j) B_c(h_j)^T lambda_{j-1} for every control node j, from ``lams`` (12 x
     n_controls) the costates the controls are read from, in order (first_order: lambda_0..lambda_{N-1} for u_1..u_N;
-    lgvi: the shooting unknown lambda_{-1}, then lambda_0..lambda_{N-1} for u_0..u_N).  Inertial force only (a
+    lgvi: the shooting unknown lambda_{-1}, then lambda_0..lambda_{N-1} for u_0..u_N), h the (mean) step size and h_j
+    the size of the step whose law gives u_j (:func:`node_steps`: h on a uniform mesh).  Inertial force only (a
     body-fixed force reads R_j^T lambda_gamma, docs/mathematics.md §15)."""
     if problem.disc.force_frame != "inertial":
         raise ValueError("switching_function: a body-fixed force is not covered")
-    Bc = np.array(control_matrix(problem.disc)(h))
-    return control_scale(problem.disc) / h * (Bc.T @ np.asarray(lams, dtype=float))
+    lams, hn = np.asarray(lams, dtype=float), node_steps(problem, h)
+    if np.ndim(hn) == 0:
+        Bc = np.array(control_matrix(problem.disc)(h))
+        return control_scale(problem.disc) / h * (Bc.T @ lams)
+    return np.column_stack([node_matrix(problem.disc, hj).T @ lams[:, j] for j, hj in enumerate(hn)])
+
+
+def node_steps(problem: Problem, h: float) -> float | np.ndarray:
+    """The step size at which each control node's law is taken, for the (mean) step size h: h on a uniform mesh; on
+    a non-uniform one (n_controls,) as the shooting takes them (docs/mathematics.md §17): first_order u_{k+1} at
+    h_k; lgvi u_0 at h_0 and u_{k+1} at h_k."""
+    hk = problem.steps_of(h)
+    if np.ndim(hk) == 0:
+        return hk
+    return hk if problem.scheme == "first_order" else np.r_[hk[0], hk]
+
+
+def node_matrix(disc: Discretization, h: float) -> np.ndarray:
+    """(s/h) B_c(h) (12 x 6): sigma_j = this^T lambda (:func:`switching_function`) for a node whose step has size h."""
+    return np.array(control_matrix(disc)(h)) * control_scale(disc) / h
 
 
 def hamiltonian_minimizer(sigma: np.ndarray, control, w: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
@@ -104,21 +123,23 @@ def saturated_effort_rate(problem: Problem) -> float:
 
 def lean_rollout(disc: Discretization, N: int, lam0, X0, h, Winv, bd) -> tuple:
     """(X (18 x N) nodes 1..N, lams (12 x N) lambda_0..lambda_{N-1}, U) of the shooting's rollout
-    (:class:`~.shooting.ShootingFunctions`) as MX expressions, by per-step Functions that keep only these outputs:
+    (:class:`~.shooting.ShootingFunctions`; h: the step sizes h_k, 1 x N) as MX expressions, by per-step Functions
+    that keep only these outputs:
     the costate map's Cayley residual (a norm, whose derivative at 0 is infinite) is left out, so that reverse-mode
     AD through the rollout stays finite (0 x inf = nan otherwise)."""
     cm, fs = costate_functions(disc)
     X, lp, hs, Ws, bs = (ca.SX.sym(n, *sp) for n, sp in (("X", (NX, 1)), ("lam_prev", (NZ, 1)), ("h", (1, 1)),
                                                          ("Winv", (NU, NU)), ("bd", (NB, 1))))
     lean = ca.Function(f"{disc.scheme}_costate_map_lean", [X, lp, hs, Ws, bs], cm(X, lp, hs, Ws, bs)[:3])
+    h0 = h[0, 0]                       # step 0's size (the first control's law)
     if disc.scheme == "first_order":
-        X1, u1 = fs(X0, lam0, h, Winv, bd)[:2]
+        X1, u1 = fs(X0, lam0, h0, Winv, bd)[:2]
         Xs, lams, Us, n, Xstart = [X1], [lam0], [u1], N - 1, X1
     else:
-        Xs, lams, Us, n, Xstart = [], [], [node_law(disc, h, Winv, bd)(lam0, split_state(X0)[2])[0]], N, X0
+        Xs, lams, Us, n, Xstart = [], [], [node_law(disc, h0, Winv, bd)(lam0, split_state(X0)[2])[0]], N, X0
     if n > 0:
         steps = lean.mapaccum(f"{disc.scheme}_costate_lean_acc{n}", n, 2, MAPACCUM_OPTS)(
-            Xstart, lam0, ca.repmat(h, 1, n), ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n))
+            Xstart, lam0, h[0, N - n:], ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n))
         for acc, out in zip((Xs, lams, Us), steps):
             acc.append(out)
     return tuple(ca.horzcat(*a) for a in (Xs, lams, Us))
@@ -126,10 +147,11 @@ def lean_rollout(disc: Discretization, N: int, lam0, X0, h, Winv, bd) -> tuple:
 
 @per_discretization
 def time_condition_function(disc: Discretization, N: int) -> ca.Function:
-    """``{scheme}_time_condition{N}`` (lam0[12], X0, Xd, h, Winv[6x6], bd[NB], e, W[6x6], q[1 x n_controls])
-    -> (g, dg_dlam0[1x12], dg_dh, dzN_dh[12], dlamN_dh[12]): the free-final-time condition of the eps-problem
+    """``{scheme}_time_condition{N}`` (lam0[12], X0, Xd, h, Winv[6x6], bd[NB], e, W[6x6], q[1 x n_controls],
+    r[1 x N]) -> (g, dg_dlam0[1x12], dg_dh, dzN_dh[12], dlamN_dh[12]): the free-final-time condition of the
+    eps-problem in the mean step h, step k of size h_k = r_k h (r = 1: a uniform mesh; docs/mathematics.md §17),
 
-        g = dL/dh = N + e sum_j q_j (1/2) u_j^T W u_j + sum_k lambda_k^T readback(d step_k / dh)
+        g = dL/dh = N + e sum_j q_j (1/2) u_j^T W u_j + sum_k r_k lambda_k^T readback(d step_k / dh_k)
 
     (q the quadrature weights per unit h; Winv the scaled law's W^-1 / e) and the derivatives the joint Newton
     iteration on (lambda_0, h) needs beside Psi, by AD (one reverse sweep for dg/dlambda_0, one forward for
@@ -137,15 +159,17 @@ def time_condition_function(disc: Discretization, N: int) -> ca.Function:
     lam0, X0, Xd = ca.MX.sym("lam0", NZ), ca.MX.sym("X0", NX), ca.MX.sym("Xd", NX)
     h, e, Winv = ca.MX.sym("h"), ca.MX.sym("e"), ca.MX.sym("Winv", NU, NU)
     bd, W, q = ca.MX.sym("bd", NB), ca.MX.sym("W", NU, NU), ca.MX.sym("q", 1, disc.n_controls(N))
-    Xs, lams, U = lean_rollout(disc, N, lam0, X0, h, Winv, bd)
+    r = ca.MX.sym("r", 1, N)
+    hk = h * r
+    Xs, lams, U = lean_rollout(disc, N, lam0, X0, hk, Winv, bd)
     zN = terminal_residual_function()(Xs[:, -1], Xd)
     Xk = ca.horzcat(X0, Xs[:, :-1])
-    steps = time_gradient_function(disc, N)(Xk, disc.stage_controls(U), lams, h)
-    g = N + e * 0.5 * ca.sum2(q * ca.sum1(U * ca.mtimes(W, U))) + ca.sum2(steps)
+    steps = time_gradient_function(disc, N)(Xk, disc.stage_controls(U), lams, hk)
+    g = N + e * 0.5 * ca.sum2(q * ca.sum1(U * ca.mtimes(W, U))) + ca.sum2(r * steps)
     lamN = lams[:, -1]
-    return ca.Function(f"{disc.scheme}_time_condition{N}", [lam0, X0, Xd, h, Winv, bd, e, W, q],
+    return ca.Function(f"{disc.scheme}_time_condition{N}", [lam0, X0, Xd, h, Winv, bd, e, W, q, r],
                        [g, ca.gradient(g, lam0).T, ca.jacobian(g, h), ca.jacobian(zN, h), ca.jacobian(lamN, h)],
-                       ["lam0", "X0", "Xd", "h", "Winv", "bd", "e", "W", "q"],
+                       ["lam0", "X0", "Xd", "h", "Winv", "bd", "e", "W", "q", "r"],
                        ["g", "dg_dlam0", "dg_dh", "dzN_dh", "dlamN_dh"])
 
 
@@ -183,7 +207,8 @@ class TimeShooting:
         self.sh, self.p, self.h0 = shooting, p, float(h0)
         self.rows = residual_rows(p, shooting.free)
         self.W, self.umax2 = p.control.W, saturated_effort_rate(p)
-        self.q = quadrature_weights(p.scheme, p.N, 1.0)
+        self.q = quadrature_weights(p.scheme, p.N, p.steps_of(1.0))      # per unit (mean) h
+        self.r = np.ones(p.N) if p.mesh is None else p.mesh              # h_k = r_k h (docs/mathematics.md §17)
         self.cond = time_condition_function(p.disc, p.N)
         self.tg = time_gradient_function(p.disc, p.N)
         self.bd = differentiable_bounds(p, shooting.bd)
@@ -197,15 +222,17 @@ class TimeShooting:
     def rollout(self, x: np.ndarray, eps: float) -> tuple:
         """(X (18 x N) nodes 1..N, lams (12 x N) lambda_0..lambda_{N-1}, U, h) of x at eps."""
         sh, h = self.sh, float(x[NZ] * self.h0)
-        _, Xs, lams, U, _, _ = (np.array(a) for a in sh.fns.shoot(x[:NZ], sh.X0, sh.Xd, h, self.law(eps)[1], self.bd))
+        _, Xs, lams, U, _, _ = (np.array(a) for a in sh.fns.shoot(x[:NZ], sh.X0, sh.Xd, self.p.steps_of(h),
+                                                                   self.law(eps)[1], self.bd))
         return Xs, lams, U, h
 
     def g(self, x: np.ndarray, eps: float) -> float:
-        """dL/dh of the eps-problem at x (module docstring)."""
+        """dL/dh of the eps-problem at x (module docstring; on a mesh the steps' terms weighted by r_k, §17)."""
         Xs, lams, U, h = self.rollout(x, eps)
         Xk = np.column_stack([self.sh.X0, Xs[:, :-1]])
-        steps = np.array(self.tg(Xk, self.p.disc.stage_controls(U), lams, h))
+        steps = np.array(self.tg(Xk, self.p.disc.stage_controls(U), lams, self.p.steps_of(h)))
         e = self.law(eps)[0]
+        steps = steps if self.p.mesh is None else self.r * steps.ravel()
         return self.p.N + e * 0.5 * float(np.einsum("k,ik,ij,jk->", self.q, U, self.W, U)) + float(np.sum(steps))
 
     def residual(self, x: np.ndarray, eps: float) -> tuple[np.ndarray, float]:
@@ -213,7 +240,7 @@ class TimeShooting:
         sh, h = self.sh, float(x[NZ] * self.h0)
         if not h > 0:
             return np.full(NZ + 1, np.nan), np.inf
-        z, lamN, r = sh.fns.residual(x[:NZ], sh.X0, sh.Xd, h, self.law(eps)[1], self.bd)
+        z, lamN, r = sh.fns.residual(x[:NZ], sh.X0, sh.Xd, self.p.steps_of(h), self.law(eps)[1], self.bd)
         F = np.where(self.rows, np.array(lamN).ravel(), np.array(z).ravel())
         return np.r_[F, self.g(x, eps) / self.p.N], float(r)
 
@@ -223,9 +250,9 @@ class TimeShooting:
             return self.last[2]
         sh, rows, N, h0 = self.sh, self.rows, self.p.N, self.h0
         lam, h, (e, Winv) = x[:NZ], float(x[NZ] * h0), self.law(eps)
-        _, Psi, dlamN = sh.fns.shoot_jac(lam, sh.X0, sh.Xd, h, Winv, self.bd)
+        _, Psi, dlamN = sh.fns.shoot_jac(lam, sh.X0, sh.Xd, self.p.steps_of(h), Winv, self.bd)
         _, dg_dlam, dg_dh, dz_dh, dlamN_dh = (np.array(a) for a in self.cond(lam, sh.X0, sh.Xd, h, Winv, self.bd,
-                                                                               e, self.W, self.q))
+                                                                               e, self.W, self.q, self.r))
         top = np.column_stack([np.where(rows[:, None], np.array(dlamN), np.array(Psi)),
                                h0 * np.where(rows, dlamN_dh.ravel(), dz_dh.ravel())])
         J = np.vstack([top, np.r_[dg_dlam.ravel(), h0 * dg_dh.item()][None, :] / N])
@@ -258,15 +285,17 @@ def costate_transfer(problem: Problem, X: np.ndarray, U: np.ndarray, h: float) -
     """[M_0, ..., M_{N-1}] (12 x 12 each): lambda_k = M_k y along the fixed trajectory (X (N+1, 18), U) of a
     solution, y the shooting unknown (first_order lambda_0; lgvi lambda_{-1}), by the costate recursion
     lambda_k = A_k^-T lambda_{k-1} with A_k as the shooting takes it (first_order at (X_k, 0), lgvi at
-    (X_k, [u_k; 0])): the costates are linear in y once the primal is fixed."""
+    (X_k, [u_k; 0]), at its step size h_k, docs/mathematics.md §17): the costates are linear in y once the primal is
+    fixed."""
     disc, N, Ms = problem.disc, problem.N, []
+    hk = np.broadcast_to(problem.steps_of(h), (N,))
     M = np.eye(NZ)
     for k in range(N):
         if disc.scheme == "first_order" and k == 0:
             Ms.append(M)
             continue
         wA = np.zeros(NU) if disc.scheme == "first_order" else np.r_[U[:, k], np.zeros(NU)]
-        A = np.array(disc.variation(X[k], wA, h)[0])
+        A = np.array(disc.variation(X[k], wA, hk[k])[0])
         M = np.linalg.solve(A.T, M)
         Ms.append(M)
     return Ms
@@ -277,14 +306,15 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
     18), U, h = T/N) for an eps small enough that its bang nodes stay saturated, or None.  With the primal fixed
     the conditions are linear in y (:func:`costate_transfer`, sigma_j = S_j y): at each node where the control is
     inside its bound sigma_j = -e W u_j (the eps-law's interior; e = 2 eps / u_max^2), the free-final-time
-    condition g = N + e J_effort / h + sum_k t_k^T lambda_k = 0 (t_k = readback(d step_k / dh)), lambda_{N-1} = 0
+    condition g = N + e J_effort / h + sum_k t_k^T lambda_k = 0 (t_k = readback(d step_k / dh); on a mesh
+    r_k readback(d step_k / dh_k), docs/mathematics.md §17), lambda_{N-1} = 0
     on :func:`residual_rows`; solved (least squares) as y = y0 + e y1.  e = a quarter of the largest e at which
     every bang node keeps |sigma_i| >= e W_ii b_i (box) or |sigma| >= e w b (norm)."""
     p, disc, N, c = ts.p, ts.p.disc, ts.p.N, ts.p.control
     Ms = costate_transfer(p, X, U, h)
     Ls = ([np.eye(NZ)] if disc.scheme == "lgvi" else []) + Ms           # the costate each control is read from
-    Bc = np.array(control_matrix(disc)(h)) * control_scale(disc) / h
-    S = [Bc.T @ L for L in Ls]                                          # sigma_j = S_j y
+    hn = np.broadcast_to(node_steps(p, h), (len(Ls),))                  # each node's step size (h: uniform)
+    S = [node_matrix(disc, hj).T @ L for hj, L in zip(hn, Ls)]          # sigma_j = S_j y
     rows, rhs0, rhs1, bang, bang_u = [], [], [], [], []
     for sl, bound in ((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound)):
         W = c.W[sl, sl]
@@ -305,7 +335,10 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
             elif not (isinstance(bound, NormBound) and bound.b == 0):
                 return None
     Xk, Wst = X[:-1].T, disc.stage_controls(U)
-    t = np.vstack([np.array(ts.tg(Xk, Wst, np.repeat(np.eye(NZ)[:, [i]], N, axis=1), h)) for i in range(NZ)])
+    t = np.vstack([np.array(ts.tg(Xk, Wst, np.repeat(np.eye(NZ)[:, [i]], N, axis=1), p.steps_of(h)))
+                   for i in range(NZ)])
+    if p.mesh is not None:                                              # dL/dh = ... + sum_k r_k g_k (§17)
+        t = t * p.mesh[None, :]
     effort = 0.5 * float(np.einsum("k,ik,ij,jk->", ts.q, U, ts.W, U))
     rows.append(sum(t[:, k] @ Ms[k] for k in range(N))); rhs0.append(-float(N)); rhs1.append(-effort)
     for r in np.flatnonzero(ts.rows):
@@ -403,7 +436,7 @@ def _check_uncontrolled(ts: TimeShooting, nr: NewtonResult, eps: float) -> None:
     if not rows.any():
         return
     sh, h = ts.sh, float(nr.x[NZ] * ts.h0)
-    z = np.array(sh.fns.residual(nr.x[:NZ], sh.X0, sh.Xd, h, ts.law(eps)[1], ts.bd)[0]).ravel()[rows]
+    z = np.array(sh.fns.residual(nr.x[:NZ], sh.X0, sh.Xd, ts.p.steps_of(h), ts.law(eps)[1], ts.bd)[0]).ravel()[rows]
     scale = max(1.0, float(np.abs(sh.Xd).max()))
     if np.abs(z).max() > 1e-9 * scale:
         nr.result = Result.infeasible

@@ -44,8 +44,6 @@ def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time
         reasons.append(f"the {c.objective} objective")
     if c.objective == "time" and problem.disc.force_frame != "inertial":
         reasons.append("the time objective with a body-fixed force")
-    if c.objective == "time" and not problem.uniform:    # objectives.py takes one step size h
-        reasons.append("the time objective on a non-uniform mesh")
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
                   if getattr(c, "moving", False)]
@@ -317,7 +315,7 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
         shooting.warm_U = warm_controls(problem, warm)
     h = initial_step(problem, warm)
     if warm is not None and np.isclose(warm.T, h * problem.N, rtol=1e-14):
-        fitted = warm.fit(problem.N, problem.scheme)[0]
+        fitted = warm.fit(problem.N, problem.scheme, problem.fractions)[0]   # on a mesh: its node times
         shooting.primal = (fitted.X, fitted.U)
     r0 = shooting.cayley_residual(lam, h)
     if not r0 <= options.cayley_tol:
