@@ -15,7 +15,8 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.layout import NU, U_FORCE, U_MOMENT, tangent_readback
-from se3ocp.transcription.methods.indirect.objectives import hamiltonian_minimizer, switching_function
+from se3ocp.transcription.methods.indirect.control import FUEL_EPS, bound_data, saturation, weight_inverse
+from se3ocp.transcription.methods.indirect.objectives import switching_function
 from se3ocp.transcription.methods.indirect.solve import not_covered
 from se3ocp.transcription.options import DirectOptions
 from se3ocp.transcription.problem import BoxBound, NormBound, SmoothControl, quadrature_weights
@@ -73,17 +74,29 @@ def sigma_of(sol, h: float | None = None) -> np.ndarray:
     return switching_function(p, lams, sol.trajectory.t[1] if h is None else h)
 
 
+def law(sigma: np.ndarray, problem, e: float, eps_fuel: float = 0.0) -> np.ndarray:
+    """The method's one control law (indirect/control.py ``saturate``) of the switching function sigma (6 x n): the
+    time objective's eps-law sat(-W^-1 sigma / e) (e = 1: the effort law; ``eps_fuel`` > 0: the fuel objective's on/off
+    law of switching.on_off on its norm-bounded blocks)."""
+    bd = bound_data(problem)
+    bd[FUEL_EPS] = eps_fuel
+    Winv, sat = weight_inverse(problem), saturation()
+    return np.column_stack([np.array(sat(-Winv @ s / e, bd)[0]).ravel() for s in np.asarray(sigma, float).T])
+
+
 def test_the_switching_function_decides_the_control(compared):
-    """u_i = -b_i sign(sigma_i) wherever the control is at its bound; inside the bound (the switching nodes) sigma is
-    within the eps-law's band |sigma_i| <= e W_ii b_i, and there is at most one such node per switch: the discrete
-    eps = 0 structure."""
+    """The controls are the method's eps-law of sigma at the final e (to 1e-9 of the bound, measured 1.4e-16; sigma
+    from the Solution's costates); u_i = -b_i sign(sigma_i) wherever the control is at its bound (the Hamiltonian's
+    minimizer); inside the bound (the switching nodes) sigma is within the eps-law's band |sigma_i| <= e W_ii b_i, and
+    there is at most one such node per switch: the discrete eps = 0 structure."""
     _, cmp = compared
     i = cmp.indirect
     full = sigma_of(i)
     U, sigma, b = i.controls[U_MOMENT], full[U_MOMENT], i.problem.control.moment_bound.b[:, None]
     e, Wm = i.stats["time_homotopy"]["e"], np.diag(i.problem.control.W_m)[:, None]
+    assert np.abs(law(full, i.problem, e) - i.controls).max() <= 1e-9 * b.max()
     at = np.abs(U) >= b * (1 - 1e-12)
-    assert np.all(U[at] == hamiltonian_minimizer(full, i.problem.control)[U_MOMENT][at])
+    assert np.all(U[at] == -np.broadcast_to(b, U.shape)[at] * np.sign(sigma[at]))
     band = np.broadcast_to(e * Wm * b, sigma.shape)
     assert np.all(np.abs(sigma[~at]) <= band[~at] * (1 + 1e-9))
     for k in range(3):       # between two interior nodes of a component the sign changes: one node per switch
@@ -134,18 +147,24 @@ def test_the_free_final_time_condition_holds(compared):
 
 
 # --------------------------------------------------------------------------------------------- the law itself
-def test_the_hamiltonians_minimizer_over_the_bounds():
-    """Box: bang-bang per component; norm: along -sigma; norm with a threshold w (fuel): off below w; removed: 0."""
+def test_the_laws_at_their_limits_are_the_hamiltonians_minimizer():
+    """The method's one law (``saturate``) at its limits minimizes the discrete Hamiltonian's control part over the
+    bounds: the time objective's eps-law at e -> 0 (1e-12) is bang-bang per component of a box and along -sigma in a
+    norm ball, 0 where sigma = 0 (a switching node, not decided by the minimizer); the fuel objective's on/off law
+    (switching.on_off) at eps -> 0 is full thrust along -sigma where |sigma| > w and off below (the threshold w = 1 of
+    W_f = w I); a removed control (norm bound 0) is 0."""
     sigma = np.array([[3.0, -0.1], [4.0, 0.2], [0.0, 0.0], [1.0, -2.0], [-1.0, 0.0], [2.0, 3.0]])
     box = SmoothControl(objective="time", force_bound=NormBound(2.0), moment_bound=BoxBound([1.0, 2.0, 3.0]))
-    u = hamiltonian_minimizer(sigma, box)
-    assert np.allclose(u[U_FORCE, 0], [-1.2, -1.6, 0.0]) and np.allclose(u[U_MOMENT, 0], [-1.0, 2.0, -3.0])
-    assert u[U_MOMENT][1, 1] == 0.0                      # sigma = 0: a switching node, not decided
-    fuel = hamiltonian_minimizer(sigma, box, w=(1.0, 0.0))
-    assert np.allclose(fuel[U_FORCE, 0], [-1.2, -1.6, 0.0]) and np.all(fuel[U_FORCE, 1] == 0.0)
-    removed = SmoothControl(objective="time", force_bound=NormBound(0.0), moment_bound=BoxBound([1.0, 1.0, 1.0]))
-    assert np.all(hamiltonian_minimizer(sigma, removed)[U_FORCE] == 0.0)
+    u = law(sigma, dataclasses.replace(support.problem("slew_time_optimal", 20), control=box), 1e-12)
     assert u.shape == (NU, 2)
+    assert np.allclose(u[U_FORCE, 0], [-1.2, -1.6, 0.0], rtol=1e-14) and np.all(u[U_MOMENT, 0] == [-1.0, 2.0, -3.0])
+    assert np.all(u[U_MOMENT, 1] == [1.0, 0.0, -3.0])                  # sigma = 0: a switching node, 0
+    fuel = dataclasses.replace(box, objective="fuel")
+    on_off = law(sigma, dataclasses.replace(support.problem("slew_time_optimal", 20), control=fuel), 1.0, 1e-12)
+    assert np.allclose(on_off[U_FORCE, 0], [-1.2, -1.6, 0.0], rtol=1e-14) and np.all(on_off[U_FORCE, 1] == 0.0)
+    removed = SmoothControl(objective="time", force_bound=NormBound(0.0), moment_bound=BoxBound([1.0, 1.0, 1.0]))
+    p = dataclasses.replace(support.problem("slew_time_optimal", 20), control=removed)
+    assert np.all(law(sigma, p, 1e-12)[U_FORCE] == 0.0)
 
 
 def test_coverage_names_what_is_left():

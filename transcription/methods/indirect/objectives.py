@@ -8,8 +8,9 @@ The switching function of control node j (per unit quadrature weight omega_j) is
     sigma_j = (s/h) B_c^T lambda_{j-1}        (6; s, B_c of :func:`~.control.control_law`),
 
 the coefficient of u_j in the Lagrangian: stationarity of the effort objective reads W u_j + sigma_j = 0, and a
-cost linear in u_j (time: none; fuel: w |u_j|) has u_j minimizing w |u_j| + sigma_j^T u_j over the bounds
-(:func:`hamiltonian_minimizer`).  For the time objective the shooting solves the eps-problem
+cost linear in u_j (time: none; fuel: w |u_j|) has u_j minimizing w |u_j| + sigma_j^T u_j over the bounds (bang-bang;
+bang-off-bang): the limits of the one law of the shooting, control.saturate (the eps-law below as e -> 0; the fuel
+objective's switching.on_off as eps -> 0).  For the time objective the shooting solves the eps-problem
 
     min  N h + eps * sum_j omega_j u_j^T W u_j / u_max^2        (u_max^2 = :func:`saturated_effort_rate`),
 
@@ -17,7 +18,7 @@ whose law is the effort law with W scaled by e = 2 eps / u_max^2 (u = sat(-W^-1 
 saturated law with Winv / e), and the free final time dL/dh = N + e J_effort / h + sum_k g_k = 0.
 
 With the effort law's unconstrained control v = -W^-1 sigma and a fuel weight W = w I, the fuel objective's switching
-function |v| - 1 is |sigma| / w - 1: the threshold w of :func:`hamiltonian_minimizer`.
+function |v| - 1 is |sigma| / w - 1: thrust where |sigma| > w.
 """
 from __future__ import annotations
 
@@ -82,29 +83,6 @@ def node_steps(problem: Problem, h: float) -> float | np.ndarray:
 def node_matrix(disc: Discretization, h: float) -> np.ndarray:
     """(s/h) B_c(h) (12 x 6): sigma_j = this^T lambda (:func:`switching_function`) for a node whose step has size h."""
     return np.array(control_matrix(disc)(h)) * control_scale(disc) / h
-
-
-def hamiltonian_minimizer(sigma: np.ndarray, control, w: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
-    """u (6 x n) minimizing w_blk |u_blk| + sigma^T u over the bounds of ``control`` (a SmoothControl), per node:
-    a box: u_i = -b_i sign(sigma_i) (bang-bang per component; w must be 0); a norm bound b: u = -b sigma/|sigma|
-    where |sigma| > w, else 0 (w = 0: bang-bang along -sigma, the time objective; w > 0: bang-off-bang, the fuel
-    objective's magnitude on/off); a removed control (norm 0): 0.  Where sigma (or |sigma| - w) is 0 the minimizer
-    is not unique (a switching node): the value returned there is 0."""
-    sigma = np.asarray(sigma, dtype=float)
-    u = np.zeros_like(sigma)
-    for sl, bound, wb in ((U_FORCE, control.force_bound, w[0]), (U_MOMENT, control.moment_bound, w[1])):
-        s = sigma[sl]
-        if isinstance(bound, BoxBound):
-            if wb:
-                raise ValueError("hamiltonian_minimizer: a box bound with a norm weight is not covered")
-            u[sl] = -bound.b[:, None] * np.sign(s)
-        elif isinstance(bound, NormBound) and bound.b > 0:
-            n = np.linalg.norm(s, axis=0)
-            on = n > wb
-            u[sl] = np.where(on, -bound.b * s / np.where(on, n, 1.0), 0.0)
-        elif bound is not None and not isinstance(bound, NormBound):
-            raise ValueError(f"hamiltonian_minimizer: a {type(bound).__name__} is not covered")
-    return u
 
 
 def saturated_effort_rate(problem: Problem) -> float:

@@ -13,9 +13,9 @@ minimizer points along v (the primer vector -B^T lambda), with the magnitude
 
     m(|v|) = clip((|v| - 1 + eps) / eps, 0, b),
 
-the switching function S = |v| - 1 (= |sigma| / w - 1 with sigma of :func:`~.objectives.switching_function`,
-whose :func:`~.objectives.hamiltonian_minimizer` is this law at eps = 0): full thrust where S > eps (b - 1), off where S < -eps, a ramp between (eps = 0:
-bang-off-bang, set-valued at S = 0).  Pure CasADi (SX or MX), no state of the project."""
+the switching function S = |v| - 1 (= |sigma| / w - 1 with sigma of :func:`~.objectives.switching_function`; this
+law at eps = 0 is the discrete Hamiltonian's minimizer): full thrust where S > eps (b - 1), off where S < -eps, a ramp
+between (eps = 0: bang-off-bang, set-valued at S = 0).  Pure CasADi (SX or MX), no state of the project."""
 from __future__ import annotations
 
 import casadi as ca
