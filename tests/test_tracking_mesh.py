@@ -32,14 +32,11 @@ from se3ocp.transcription.flight.loop import TrackingLoop
 from se3ocp.transcription.mpc import Replanner, Replanning
 
 from support import config, maneuver, problem
+from test_mesh import random_mesh
 
 #: the flight of the adaptive plan: 2 % thrust scale, initial position and velocity 1e-4 (1-sigma), 3 runs
 FLIGHT = {"errors": {"force_scale": 0.02, "initial": {"position": 1e-4, "velocity": 1e-4}}, "runs": 3, "seed": 2}
 MISSES = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss")
-
-
-def random_mesh(n: int, seed: int = 1) -> np.ndarray:
-    return np.random.default_rng(seed).uniform(0.5, 2.0, n)
 
 
 @pytest.fixture(scope="module")
