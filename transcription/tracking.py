@@ -486,6 +486,42 @@ def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gai
                  steps=steps)
 
 
+def sub_stepped(sol, h_max: float | None = None):
+    """The plan of ``sol`` with the long steps of a non-uniform mesh split, for a tracker that corrects inside them
+    (docs/mathematics.md §12): each step k longer than h_max (default the mean step h) becomes m_k = ceil(h_k / h_max)
+    sub-steps of the scheme from X_k under the plan's controls as the scheme applies them between nodes (lgvi:
+    linear from u_k to u_{k+1}, first order: u_{k+1} held), its last sub-node X_{k+1} itself (so every node of the plan
+    is a node of the result, at the same time).  A Solution (node times, states, controls; the plan's Problem);
+    ``sol`` itself when no step is longer (a uniform plan)."""
+    from .results import Solution, Trajectory
+
+    t, X, U, disc = np.asarray(sol.trajectory.t, float), np.asarray(sol.trajectory.X, float), sol.controls, sol.problem.disc
+    hk = np.diff(t)
+    m = np.maximum(1, np.ceil(hk / (sol.h if h_max is None else h_max) * (1 - 1e-12)).astype(int))
+    if np.all(m == 1):
+        return sol
+    s = [np.arange(1, mk + 1) / mk for mk in m]                       # sub-node fractions of each step, ending at 1
+    tt = np.concatenate([[t[0]]] + [np.r_[t[k] + hk[k] * s[k][:-1], t[k + 1]] for k in range(len(hk))])
+    if disc.scheme == "lgvi":
+        Ut = np.column_stack([U[:, 0]] + [np.c_[U[:, [k]] + s[k][None, :-1] * (U[:, [k + 1]] - U[:, [k]]), U[:, k + 1]]
+                                          for k in range(len(hk))])
+    else:
+        Ut = np.column_stack([np.repeat(U[:, [k]], m[k], axis=1) for k in range(len(hk))])
+    W, Xt, j = disc.stage_controls(Ut), [X[0]], 0
+    for k, mk in enumerate(m):
+        Xj = X[k]
+        for i in range(mk - 1):
+            Xj = np.asarray(disc.step(Xj, W[:, j + i], hk[k] / mk)[0]).ravel()
+            Xt.append(Xj)
+        Xt.append(X[k + 1])
+        j += mk
+    tr = sol.trajectory
+    return Solution(method=sol.method, solver=sol.solver, result=sol.result, message=sol.message,
+                    trajectory=Trajectory(t=tt, X=np.array(Xt), mass=tr.mass, inertia=tr.inertia), cost=sol.cost,
+                    terminal_error=sol.terminal_error, iterations=0, build_s=0.0, solve_s=0.0, problem=sol.problem,
+                    controls=Ut)
+
+
 def linearization(disc, X: np.ndarray, U: np.ndarray, h: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A_k (N, 12, 12) and B_k (N, 12, nw) of the plan X (N+1, 18), U (6, n_controls): the variations of
     docs/mathematics.md §4 (``Discretization.variation``) at the plan's nodes, stage controls w_k and step

@@ -1,5 +1,6 @@
 """What a Monte Carlo flight writes, each file atomically: flights.csv, summary.json, flight.resolved.yaml,
-config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker), runs/NNNN.npz, the figures and
+config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker; lqr_* the LQR flights' on the sub-stepped plan of a
+non-uniform mesh, transcription.tracking.sub_stepped), runs/NNNN.npz, the figures and
 report.html (problems/flight/report.py)."""
 from __future__ import annotations
 
@@ -28,9 +29,10 @@ def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: b
     write_yaml(out / "flight.resolved.yaml", {"flight": result.spec.resolved})
     write_yaml(out / "config.resolved.yaml", result.maneuver.resolved)
     write_npz(out / "plan.npz", plan_arrays)
-    g = result.gains
+    g, lqr = result.gains, result.lqr_gains
+    sub = {} if lqr is None else {f"lqr_{k}": getattr(lqr, k) for k in ("K", "L", "t", "X", "U")}   # sub-stepped
     write_npz(out / "gains.npz", {"K": g.K, "L": g.L, "t": g.t, "X": g.X, "U": g.U, "Q": g.weights.Q,
-                                  "R": g.weights.R, "Q_N": g.weights.Q_N})
+                                  "R": g.weights.R, "Q_N": g.weights.Q_N, **sub})
     written = [out / n for n in ("flights.csv", "flight.resolved.yaml", "config.resolved.yaml", "plan.npz", "gains.npz")]
     for i, arrays in sorted(result.saved.items()):
         p = out / "runs" / f"{i:04d}.npz"

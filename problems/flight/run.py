@@ -38,6 +38,7 @@ class FlightResult:
     replan_s: dict = field(default_factory=dict)
     executor: str = "serial"
     workers: int | None = 1
+    lqr_gains: object = None      # the LQR flights' tracker when it is not ``gains`` (a non-uniform plan's sub-steps)
     wall_s: float = 0.0
     interrupted: bool = False
 
@@ -136,6 +137,8 @@ def run_flights(man: Maneuver, sol, spec: FlightSpec, *, workers: int | None = N
     payload = plan_payload(man, sol)
     gains = gains_of(payload, spec.weights)
     res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [])
+    if "lqr" in spec.modes and gains.steps is not None:
+        res.lqr_gains = gains_of(payload, spec.weights, sub_steps=True)
     ex = executor or make_executor(workers, scheduler)
     res.executor, res.workers = ex.kind, ex.workers
     per = max(1, min(MAX_CHUNK, math.ceil(spec.runs / (4 * (ex.workers or 8)))))

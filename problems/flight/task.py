@@ -13,7 +13,7 @@ from ...transcription.layout import X_POS, X_ROT
 from ...transcription.lie import log_so3, nearest_rotation
 from ...transcription.mpc import Replanner, Replanning
 from ...transcription.results import Trajectory, rotation_angle
-from ...transcription.tracking import saturate, tracking_gains
+from ...transcription.tracking import saturate, sub_stepped, tracking_gains
 from ..plots.orbits import rtn
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
@@ -32,14 +32,16 @@ ERROR_COLUMNS = ("force_scale", "moment_scale", "force_misalignment_deg", "momen
 _GAINS: dict = {}
 
 
-def gains_of(payload: dict, weights: dict):
-    """The plan's tracker (transcription.tracking), built once per process and plan."""
-    key = (payload["key"], json.dumps(weights, sort_keys=True))
+def gains_of(payload: dict, weights: dict, sub_steps: bool = False):
+    """The plan's tracker (transcription.tracking), built once per process and plan; ``sub_steps``: the LQR flight's,
+    on the plan with the long steps of a non-uniform mesh split (transcription.tracking.sub_stepped: the tracker
+    corrects inside them; the plan's own on a uniform mesh)."""
+    key = (payload["key"], json.dumps(weights, sort_keys=True), bool(sub_steps))
     if key not in _GAINS:
-        if len(_GAINS) >= 4:
+        if len(_GAINS) >= 8:
             _GAINS.clear()
         _, sol = load_plan(payload)
-        _GAINS[key] = tracking_gains(sol, weights)
+        _GAINS[key] = tracking_gains(sub_stepped(sol) if sub_steps else sol, weights)
     return _GAINS[key]
 
 
@@ -89,7 +91,7 @@ def flight_metrics(flight, plan, tracker, usage: tuple, constraints) -> tuple[di
     X[:, X_ROT] = np.swapaxes(R, -1, -2).reshape(-1, 9)
     flown = Trajectory(t=flight.t, X=X, mass=flight.mass, inertia=flight.inertia)
     tr = plan.trajectory
-    k = np.arange(tr.X.shape[0]) * flight.samples
+    k = np.searchsorted(flight.t, tr.t)      # the plan's nodes among the samples (an LQR flight may have more nodes)
     dx = flown.x[k] - tr.x
     dR = np.degrees(rotation_angle(np.einsum("kji,kjl->kil", tr.R, flown.R[k])))
     att = np.degrees(log_so3(tr.R[-1].T @ flown.R[-1]))
@@ -126,9 +128,12 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
-    (the tracker, the re-planning law) or None, the re-planning law or None)."""
+    (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
+    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times."""
+    if mode == "lqr" and lqr is not None:
+        gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
     tracker = None
     if mode == "mpc":
@@ -168,6 +173,7 @@ def fly_runs(task: dict) -> dict:
     man, plan = load_plan(task["plan"])
     spec = parse_flight(task["flight"], task["source"])
     gains = gains_of(task["plan"], spec.weights)
+    lqr = gains_of(task["plan"], spec.weights, sub_steps=True) if "lqr" in spec.modes else None
     base = truth_body(man, spec)
     seeds = run_seeds(spec)
     usage = plan_usage(gains, spec.samples)
@@ -181,7 +187,7 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode)
+                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:
