@@ -15,7 +15,8 @@ objective's switching.on_off as eps -> 0).  For the time objective the shooting 
     min  N h + eps * sum_j omega_j u_j^T W u_j / u_max^2        (u_max^2 = :func:`saturated_effort_rate`),
 
 whose law is the effort law with W scaled by e = 2 eps / u_max^2 (u = sat(-W^-1 sigma / e): the existing
-saturated law with Winv / e), and the free final time dL/dh = N + e J_effort / h + sum_k g_k = 0.
+saturated law with Winv / e), and the free final time dL/dh = N + e J_effort / h + sum_k g_k = 0 (on a non-uniform
+mesh h is the mean step, h_k = r_k h, and the steps' terms are sum_k r_k g_k: docs/mathematics.md §18).
 
 With the effort law's unconstrained control v = -W^-1 sigma and a fuel weight W = w I, the fuel objective's switching
 function |v| - 1 is |sigma| / w - 1: thrust where |sigma| > w.
