@@ -208,8 +208,9 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     split where the two rules need the fewest steps together (:func:`chord_share`).
     Every step whose chord -- near a contact at least its sagitta (:func:`contact_sagitta`), the chord it has when
     the re-solved plan's contact falls inside it -- is over its share gets h_k sqrt(tol_c / c_k); before each
-    violated interval with a drift (the MAX_TARGETS worst), the steps equidistribute their drift shares with their
-    sum aimed at tol_d (the sum of the shares' sizes bounds |drift|).  The largest density of the rules is kept, on
+    violated interval whose drift is over tol_d (the MAX_TARGETS worst), the steps equidistribute their drift shares
+    with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the LGVI
+    D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest density of the rules is kept, on
     each step and its two neighbours."""
     h, N = np.asarray(steps, float), len(steps)
     gi = interval_margins(problem, X, U, h, scales, samples, restart=False).min(axis=2)
@@ -229,8 +230,9 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     tol_d = tol - tol_c
     dens = np.where(chord > tol_c, np.sqrt(chord / tol_c) / h, 0.0)
     for i, k in enumerate(targets):
-        if v[k] - c[k] > 0 and S[i, :k + 1].sum() > 0:
-            dens[:k + 1] = np.maximum(dens[:k + 1], equidistributed_density(h[:k + 1], S[i, :k + 1], order, tol_d))
+        d, D = v[k] - c[k], S[i, :k + 1]
+        if d > tol_d and D.sum() > 0:     # the shares' sum aimed at tol_d D / d: calibrated by the flight's drift
+            dens[:k + 1] = np.maximum(dens[:k + 1], equidistributed_density(h[:k + 1], D, order, tol_d * D.sum() / d))
     return _with_neighbours(dens)
 
 
