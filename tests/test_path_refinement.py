@@ -139,7 +139,7 @@ def test_keep_out_refined_on_its_violation_lands_within_it_with_the_steps_before
 def test_rate_limit_refined_on_its_violation_lands_within_it(monkeypatch):
     """The rate-limited slew (RATE_SLEW) leaves |Omega| <= 0.25 by 8.2e-6 rad/s at the end of its active arc (t = 7.6
     s) at N = 100; refined on the violation alone (scaled_miss patched to 0) to 1e-6: one refinement, the dense
-    DOP853 flight within 1e-6 rad/s, the steps after the violation (nothing to drift there) coarser than those before."""
+    DOP853 flight within 1e-6 rad/s, the steps after the violation (nothing drifts there) coarser than those before."""
     monkeypatch.setattr(accuracy, "scaled_miss", lambda check, problem: 0.0)
     sol = se3ocp.solve(maneuver("slew_keep_out", None, None, *RATE_SLEW), accuracy=1e-6)
     assert sol.converged and sol.stats["accuracy_met"] is True, sol.message

@@ -209,9 +209,9 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     Every step whose chord -- near a contact at least its sagitta (:func:`contact_sagitta`), the chord it has when
     the re-solved plan's contact falls inside it -- is over its share gets h_k sqrt(tol_c / c_k); before each
     violated interval whose drift is over tol_d (the MAX_TARGETS worst), the steps equidistribute their drift shares
-    with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the LGVI
-    D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest density of the rules is kept, on
-    each step and its two neighbours."""
+    with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the
+    LGVI D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest
+    density of the rules is kept, on each step and its two neighbours, at most GROWTH times the old one."""
     h, N = np.asarray(steps, float), len(steps)
     gi = interval_margins(problem, X, U, h, scales, samples, restart=False).min(axis=2)
     v, worst = np.maximum(-gi.min(axis=0), 0.0), np.argmin(gi, axis=0)
@@ -221,7 +221,8 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     targets = np.argsort(-v)[:MAX_TARGETS]
     targets = targets[v[targets] > tol]
     if not targets.size:
-        return _with_neighbours(np.where(chord > tol, np.sqrt(chord / tol) / h, 0.0)) if np.any(chord > tol) else None
+        over = chord > tol
+        return _with_neighbours(np.where(over, np.sqrt(chord / tol) / h, 0.0), h) if np.any(over) else None
     z, A = local_errors(problem, X, U, h, order), variations(problem, X, U, h)
     w = np.vstack([margin_gradients(problem.constraints[worst[k]], X[k + 1], scales[worst[k]], problem.model.mass,
                                     problem.model.inertia) for k in targets])
@@ -233,7 +234,7 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
         d, D = v[k] - c[k], S[i, :k + 1]
         if d > tol_d and D.sum() > 0:     # the shares' sum aimed at tol_d D / d: calibrated by the flight's drift
             dens[:k + 1] = np.maximum(dens[:k + 1], equidistributed_density(h[:k + 1], D, order, tol_d * D.sum() / d))
-    return _with_neighbours(dens)
+    return _with_neighbours(dens, h)
 
 
 def chord_share(steps: np.ndarray, chord: np.ndarray, shares: np.ndarray, order: int, tol: float) -> float:
@@ -273,12 +274,14 @@ def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarra
     return np.max(np.minimum(sag, side), axis=0)
 
 
-def _with_neighbours(dens: np.ndarray) -> np.ndarray:
+def _with_neighbours(dens: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Each step's density the largest of its own and its two neighbours' (the re-solved plan's contact moves by
-    about a step: an arc's end must not land in a step left coarse)."""
-    return np.max(np.stack([dens, np.r_[dens[:1], dens[:-1]], np.r_[dens[1:], dens[-1:]]]), axis=0)
+    about a step: an arc's end must not land in a step left coarse), at most GROWTH / h_k."""
+    return np.minimum(np.max(np.stack([dens, np.r_[dens[:1], dens[:-1]], np.r_[dens[1:], dens[-1:]]]), axis=0),
+                      GROWTH / h)
 
 
-__all__ = ["GROWTH", "MIN_SHARE", "MAX_TARGETS", "MERGE", "chord_share", "contact_sagitta", "density_steps", "drift_shares", "equidistributed_density",
-           "equidistributed_steps", "error_estimate", "interval_margins", "local_errors", "margin_gradients",
-           "path_density", "propagated_errors", "subdivided_steps", "tangent_norms", "variations"]
+__all__ = ["GROWTH", "MAX_TARGETS", "MERGE", "MIN_SHARE", "chord_share", "contact_sagitta", "density_steps",
+           "drift_shares", "equidistributed_density", "equidistributed_steps", "error_estimate", "interval_margins",
+           "local_errors", "margin_gradients", "path_density", "propagated_errors", "subdivided_steps", "tangent_norms",
+           "variations"]
