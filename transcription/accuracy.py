@@ -175,9 +175,10 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> t
 def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float) -> np.ndarray | None:
     """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
     (docs/mathematics.md §16, "Path constraints between the nodes"): the node density of the terminal miss's rule
-    (:func:`next_mesh`) and that of transcription.mesh.path_density (each violated interval's own step and the steps
-    whose local errors drift the path there, aimed at tol / SAFETY), the larger of the two on every step.  None when
-    the path rule finds nothing over the tolerance (the caller subdivides)."""
+    (:func:`next_mesh`; 1 / h_k, the mesh kept, when there is no miss to aim at) and that of
+    transcription.mesh.path_density (the steps about a contact and the steps whose local errors drift the path to a
+    violation, aimed at tol / SAFETY), the larger of the two on every step.  None when the path rule finds nothing
+    over the tolerance (the caller subdivides)."""
     from .flight.engine import DEFAULT_SAMPLES
     from .mesh import density_steps, equidistributed_density, path_density
 
