@@ -179,12 +179,15 @@ def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float) -> 
     transcription.mesh.path_density (the steps about a contact and the steps whose local errors drift the path to a
     violation, aimed at tol / SAFETY), the larger of the two on every step.  None when the path rule finds nothing
     over the tolerance (the caller subdivides)."""
-    from .flight.engine import DEFAULT_SAMPLES
+    from .flight.engine import DEFAULT_SAMPLES, FlightError
     from .mesh import density_steps, equidistributed_density, path_density
 
     p, h = ORDER[problem.scheme], best.steps
-    dens = path_density(problem, best.trajectory.X, best.controls, h, p, tol / SAFETY, margin_scales(problem),
-                        DEFAULT_SAMPLES)
+    try:
+        dens = path_density(problem, best.trajectory.X, best.controls, h, p, tol / SAFETY, margin_scales(problem),
+                            DEFAULT_SAMPLES)
+    except FlightError:       # an interval flown from its own node failed: subdivide as before
+        dens = None
     if dens is None:
         return None
     if e.sum() > 0 and rec["miss"] > 0:
