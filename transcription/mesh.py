@@ -146,8 +146,8 @@ def interval_margins(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, s
     (``scales``: the units of transcription.accuracy.path_violation), on the plan's controls flown in continuous
     time (transcription.flight.engine, ``samples`` per interval, as the continuous check): ``restart`` False --
     one flight from X_0 (what the check measures); True -- each interval flown from the plan's own node X_k (the
-    chord between two nodes alone, without the drift accumulated before t_k)."""
-    from .flight.engine import Actuators, OpenLoop, fly, interval_integrator
+    chord between two nodes alone, without the drift accumulated before t_k).  Raises FlightError if a flight fails."""
+    from .flight.engine import Actuators, FlightError, OpenLoop, fly, interval_integrator
     from .results import Trajectory
 
     N, M, model = len(steps), int(samples), problem.model
@@ -155,8 +155,11 @@ def interval_margins(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, s
     if restart:
         fn = interval_integrator(model, M)
         p = np.concatenate([np.linalg.inv(model.inertia).ravel(order="F"), act.vector()])
-        _, Xs = fn.map(N)(X[:-1].T, np.vstack([law.start, law.end, np.asarray(steps, float)[None, :]]),
-                          np.repeat(p[:, None], N, axis=1))
+        try:
+            _, Xs = fn.map(N)(X[:-1].T, np.vstack([law.start, law.end, np.asarray(steps, float)[None, :]]),
+                              np.repeat(p[:, None], N, axis=1))
+        except RuntimeError as e:
+            raise FlightError(f"an interval flown from its node failed (CVODES): {str(e).strip()[-200:]}") from None
         Xs = np.asarray(Xs.full()).T                                        # (N M, 18), interval-major
     else:
         Xs = fly(model, X[0], np.r_[0.0, np.cumsum(steps)], law, act, samples=M).X[1:]
