@@ -118,6 +118,27 @@ def test_margin_gradients_are_the_margins_derivatives_in_tangent_coordinates():
     assert np.allclose(g[6:9], want, atol=1e-8) and np.allclose(g[:6], 0) and np.allclose(g[9:], 0)
 
 
+def test_the_chord_share_is_where_the_two_rules_need_the_fewest_steps():
+    """chord_share's tol_c minimizes a / sqrt(tol_c) + b / sqrt(tol - tol_c) (p = 2; a, b as its docstring defines
+    them, formed here): a grid of 10^5 splits finds no smaller total (to 1e-6 relative)."""
+    from se3ocp.transcription.mesh import chord_share
+
+    rng = np.random.default_rng(7)
+    h = rng.uniform(0.05, 0.15, 40)
+    chord = np.where(rng.uniform(size=40) < 0.2, rng.uniform(1e-6, 1e-4, 40), 0.0)
+    shares = rng.uniform(1e-8, 1e-6, 25)
+    tol = 1e-5
+    tc = chord_share(h, chord, shares, 2, tol)
+    a = np.sqrt(chord).sum()
+    b = np.sqrt(h[:25].sum()) * (h[:25] * np.sqrt(shares / h[:25] ** 3)).sum()
+
+    def total(x):
+        return a / np.sqrt(x) + b / np.sqrt(tol - x)
+
+    grid = np.linspace(0.05, 0.95, 100001) * tol
+    assert 0.05 * tol < tc < 0.95 * tol and total(tc) <= total(grid).min() * (1 + 1e-6)
+
+
 # ------------------------------------------------------------------------------- refinement on the violation
 def test_keep_out_refined_on_its_violation_lands_within_it_with_the_steps_before_the_contact(monkeypatch):
     """The keep-out slew with the terminal miss taken as met (scaled_miss patched to 0), accuracy 1e-5: one refinement
