@@ -215,7 +215,7 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the
     LGVI D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest
     density of the rules is kept, on each step and its two neighbours, at most GROWTH times the old one."""
-    h, N = np.asarray(steps, float), len(steps)
+    h = np.asarray(steps, float)
     gi = interval_margins(problem, X, U, h, scales, samples, restart=False).min(axis=2)
     v, worst = np.maximum(-gi.min(axis=0), 0.0), np.argmin(gi, axis=0)
     gs = interval_margins(problem, X, U, h, scales, samples, restart=True)
