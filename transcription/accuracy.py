@@ -65,15 +65,20 @@ def path_violation(check, problem) -> float:
     max(0, -smallest margin) over the constraints, a cone's margin (deg) in rad, a radius relative to L, a rate in
     rad per time unit; 0 without constraints."""
     from .flight.check import margin_keys
+
+    worst = 0.0
+    for key, s in zip(margin_keys(problem.constraints), margin_scales(problem)):
+        worst = max(worst, -check.min_margins.get(key, 0.0) * s)
+    return float(worst)
+
+
+def margin_scales(problem) -> list[float]:
+    """The factor that takes each path constraint's margin into the units of :func:`scaled_miss`: a cone's (deg)
+    pi / 180, a radius's 1 / L, a rate's 1."""
     from .problem import MARGIN_DIMENSION
 
-    L = _length(problem)
-    scale = {"angle": np.pi / 180.0, "length": 1.0 / L}
-    worst = 0.0
-    for key, c in zip(margin_keys(problem.constraints), problem.constraints):
-        m = check.min_margins.get(key, 0.0) * scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0)
-        worst = max(worst, -m)
-    return float(worst)
+    scale = {"angle": np.pi / 180.0, "length": 1.0 / _length(problem)}
+    return [scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
 
 
 def _length(problem) -> float:
@@ -145,21 +150,51 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> t
     """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
     §16): the local error of every step by step doubling, propagated to the final node (transcription.mesh); the
     steps equidistribute it with the sum of the shares e_k aimed at tol / SAFETY times the measured miss's share of
-    that sum (the estimate calibrated by the flight).  When the path violation between the nodes, not the terminal
-    miss, is what is over the tolerance, the mesh is subdivided in its own density by the uniform factor of
-    :func:`next_N`: the violation is mostly the flown path's drift from the plan accumulated up to the constraint's
-    arc, not the chord between two nodes (the keep-out slew: splitting only the steps where the cone is left moved
-    the violation from 9.7e-5 to 8.9e-5 rad in 8 levels), and the local errors do not say where it is made."""
+    that sum (the estimate calibrated by the flight).  When the flown path leaves a path constraint between the
+    nodes by more than tol, :func:`path_mesh` refines also where that violation is made: the steps before it, whose
+    local errors drift the flown path off the plan there (the keep-out slew's contact at t = 5 s: 98 % of its
+    9.9e-5 rad at N = 100 is that drift, 1.7e-6 the chord between the nodes -- why splitting only the steps where the
+    cone is left moved it from 9.7e-5 to 8.9e-5 rad in 8 levels), and the steps about a contact.  If that rule
+    finds nothing, the mesh is subdivided in its own density by the uniform factor of :func:`next_N`."""
     from .mesh import equidistributed_steps, error_estimate, subdivided_steps
 
     p = ORDER[problem.scheme]
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
     e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, L, V)
+    if rec["path_violation"] > tol:
+        mesh = path_mesh(problem, best, e, rec, tol)
+        if mesh is not None:
+            return mesh, predicted
     if rec["path_violation"] > rec["miss"] or not (e.sum() > 0 and rec["miss"] > 0):
         factor = next_N(problem.N, max(rec["miss"], rec["path_violation"]) / tol, order, 0) / problem.N
         return subdivided_steps(best.steps, factor), predicted
     return equidistributed_steps(best.steps, e, p, tol / SAFETY * e.sum() / rec["miss"]), predicted
+
+
+def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float) -> np.ndarray | None:
+    """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
+    (docs/mathematics.md §16, "Path constraints between the nodes"): the node density of the terminal miss's rule
+    (:func:`next_mesh`; 1 / h_k, the mesh kept, when there is no miss to aim at) and that of
+    transcription.mesh.path_density (the steps about a contact and the steps whose local errors drift the path to a
+    violation, aimed at tol / SAFETY), the larger of the two on every step.  None when the path rule finds nothing
+    over the tolerance (the caller subdivides)."""
+    from .flight.engine import DEFAULT_SAMPLES, FlightError
+    from .mesh import density_steps, equidistributed_density, path_density
+
+    p, h = ORDER[problem.scheme], best.steps
+    try:
+        dens = path_density(problem, best.trajectory.X, best.controls, h, p, tol / SAFETY, margin_scales(problem),
+                            DEFAULT_SAMPLES)
+    except FlightError:       # an interval flown from its own node failed: subdivide as before
+        dens = None
+    if dens is None:
+        return None
+    if e.sum() > 0 and rec["miss"] > 0:
+        dens = np.maximum(dens, equidistributed_density(h, e, p, tol / SAFETY * e.sum() / rec["miss"]))
+    else:
+        dens = np.maximum(dens, 1.0 / h)
+    return density_steps(h, dens)
 
 
 def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str) -> str:
