@@ -37,8 +37,16 @@ from .transcription import SmoothTranscription
 SMOOTHING_FIRST = 1.0
 SMOOTHING_FACTOR = 10.0
 SMOOTHING_LAST = 1e-4
-#: the fuel objective's coarse grid: max(FUEL_COARSE_MIN, N // 4) steps (recursively)
+#: the fuel objective's coarse grid: max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR) steps (recursively)
 FUEL_COARSE_MIN = 25
+FUEL_COARSE_FACTOR = 4
+#: IPOPT options of the finish on a finer grid from the coarser grid's optimum resampled (a primal point only: its
+#: multipliers belong to the other grid): the barrier starts small and the point is pushed off its bounds (the
+#: coast arcs' magnitudes s = 0) as little as possible, so IPOPT does not first wander away from a point that is
+#: already near an optimum (IPOPT's default mu_init = 0.1 and bound_push = 1e-2 tripled the raise's cost in its
+#: first 10 iterations)
+WARM_PRIMAL = {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9, "slack_bound_push": 1e-9,
+               "slack_bound_frac": 1e-9}
 #: IPOPT options of a level started from the previous level's primal-dual point: the barrier starts small and
 #: the given point and multipliers are pushed off the bounds as little as possible
 WARM_LEVEL = {"warm_start_init_point": "yes", "mu_init": 1e-9, "warm_start_bound_push": 1e-9,

@@ -21,7 +21,7 @@ from ...options import DirectOptions
 from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
-from .homotopy import FUEL_COARSE_MIN, homotopy_guess
+from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN, homotopy_guess
 from .scaling import scaled_terminal_miss
 
 #: one entry of a plan: (label, maker of the guess (None: not available), NLP iteration budget)
@@ -78,6 +78,8 @@ INFEASIBILITY_DETECTION = {"expect_infeasible_problem": "yes"}
 PHASE1 = {"start_with_resto": "yes"}
 #: Guess.prepared_on of the relaxation's solution
 RELAXED = "the relaxed problem"
+#: Guess.prepared_on of a start solved on a coarser grid (:func:`coarse_guess`)
+COARSE = "the coarse grid"
 #: the note of the starts not tried after the phase 1 found the problem infeasible
 NOT_TRIED = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally infeasible; "
              "solver.direct.initial_guess=rollout or interpolate tries this start)")
@@ -188,7 +190,7 @@ def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, mad
     screw interpolation on this grid are the fallback); on the coarsest grid the multistart: the homotopy from the
     effort optimum, the free motion and the screw interpolation, the lowest converged cost kept ('best')."""
     N, budget = problem.N, min(options.max_iter, AUTO_FIRST_BUDGET_FUEL)
-    Nc = max(FUEL_COARSE_MIN, N // 4)
+    Nc = max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR)
     if Nc < N:
         return [(f"the best start on {Nc} steps, resampled", lambda: coarse_guess(problem, options, Nc, subsolve),
                  options.max_iter), ("rollout", made("rollout"), budget),
@@ -216,7 +218,7 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
         return None
     fitted, _ = sol.warm.fit(problem.N, problem.scheme, problem.fractions)
     return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
-                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h,
+                 seconds=sol.build_s + sol.solve_s, prepared_on=COARSE, h=fitted.h,
                  stats={k: v for k, v in sol.stats.items() if k.startswith(("multistart", "homotopy"))})
 
 
