@@ -16,12 +16,12 @@ import numpy as np
 
 from ...guess import (Guess, aimed_guess, cayley_vectors, implied_effort, make_guess, perturbed_interpolation_guess,
                       target_estimate)
-from ...layout import U_FORCE, U_MOMENT, X_ANG, X_ROT
+from ...layout import U_FORCE, U_MOMENT, X_ANG, X_POS, X_ROT
 from ...options import DirectOptions
 from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
-from .homotopy import FUEL_COARSE_MIN, homotopy_guess
+from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN, homotopy_guess
 from .scaling import scaled_terminal_miss
 
 #: one entry of a plan: (label, maker of the guess (None: not available), NLP iteration budget)
@@ -78,6 +78,8 @@ INFEASIBILITY_DETECTION = {"expect_infeasible_problem": "yes"}
 PHASE1 = {"start_with_resto": "yes"}
 #: Guess.prepared_on of the relaxation's solution
 RELAXED = "the relaxed problem"
+#: Guess.prepared_on of a start solved on a coarser grid (:func:`coarse_guess`)
+COARSE = "the coarse grid"
 #: the note of the starts not tried after the phase 1 found the problem infeasible
 NOT_TRIED = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally infeasible; "
              "solver.direct.initial_guess=rollout or interpolate tries this start)")
@@ -188,7 +190,11 @@ def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, mad
     screw interpolation on this grid are the fallback); on the coarsest grid the multistart: the homotopy from the
     effort optimum, the free motion and the screw interpolation, the lowest converged cost kept ('best')."""
     N, budget = problem.N, min(options.max_iter, AUTO_FIRST_BUDGET_FUEL)
-    Nc = max(FUEL_COARSE_MIN, N // 4)
+    Nc = max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR)
+    if Nc < N and not coarse_resolves(problem, Nc):
+        return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve),
+                 options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
+            "first"
     if Nc < N:
         return [(f"the best start on {Nc} steps, resampled", lambda: coarse_guess(problem, options, Nc, subsolve),
                  options.max_iter), ("rollout", made("rollout"), budget),
@@ -196,6 +202,31 @@ def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, mad
     return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve),
              options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
         "best"
+
+
+#: a coarser grid starts the fuel plan only when its free motion ends within this fraction of the force's reach
+#: (:func:`coarse_resolves`) of the free motion on the problem's own grid
+COARSE_REACH_FRACTION = 0.5
+
+
+def coarse_resolves(problem: Problem, Nc: int) -> bool:
+    """Whether the maneuver on Nc uniform steps is near enough the one on ``problem``'s grid for its optimum to
+    start the fuel solve: the two grids' free motions (:func:`~transcription.guess.make_guess` 'rollout') end at
+    positions at most COARSE_REACH_FRACTION * F T^2 / (2 m) apart, F the largest force the bound allows (always
+    true without a force bound).  Why: around the Earth a one-revolution LEO raise with a 1 N engine on 500 kg
+    (configs/leo_body_engine.yaml, N = 400) can move the body by F T^2 / (2 m) = 31 km in T, while the discrete
+    orbit of 100 steps ends 53 km from that of 400 steps: the coarse problems are infeasible
+    (their effort version at N = 100 ended cayley_failed after 3467 iterations) and each cost minutes before the
+    fine grid was tried.  For the fuel raise the gap is 0.0044 against a reach of 9.8."""
+    bound = problem.control.force_bound
+    F = bound.max if isinstance(bound, ThrusterBound) else bound.largest_norm() if bound is not None else np.inf
+    if not np.isfinite(F):
+        return True
+    Xd, T = target_estimate(problem), problem.T
+    fine = make_guess("rollout", problem.disc, problem.X0, Xd, problem.N, T, problem.fractions).X[-1]
+    coarse = make_guess("rollout", problem.disc, problem.X0, Xd, Nc, T).X[-1]
+    gap = float(np.linalg.norm(fine[X_POS] - coarse[X_POS]))
+    return gap <= COARSE_REACH_FRACTION * F * T**2 / (2.0 * problem.model.mass)
 
 
 def bracketing_times(problem: Problem) -> list[float]:
@@ -216,7 +247,7 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
         return None
     fitted, _ = sol.warm.fit(problem.N, problem.scheme, problem.fractions)
     return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
-                 seconds=sol.build_s + sol.solve_s, prepared_on="the coarse grid", h=fitted.h,
+                 seconds=sol.build_s + sol.solve_s, prepared_on=COARSE, h=fitted.h,
                  stats={k: v for k, v in sol.stats.items() if k.startswith(("multistart", "homotopy"))})
 
 

@@ -15,8 +15,8 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
-from .homotopy import WARM_LEVEL
-from .plan import (NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
+from .homotopy import WARM_LEVEL, WARM_PRIMAL
+from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
@@ -37,25 +37,27 @@ class _PlanRun:
         self.attempts: list[Attempt] = []
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
-    def solver(self, budget: int, phase1: bool = False, level: bool = False) -> ca.Function:
+    def solver(self, budget: int, phase1: bool = False, level: bool = False, fine: bool = False) -> ca.Function:
         """IPOPT within ``budget`` iterations (``phase1``: from a relaxation's solution, :func:`plan_ipopt_options`;
-        ``level``: from the fuel homotopy's last level and its multipliers, :data:`~.homotopy.WARM_LEVEL`)."""
-        if (budget, phase1, level) not in self.solvers:
+        ``level``: from the fuel homotopy's last level and its multipliers, :data:`~.homotopy.WARM_LEVEL`;
+        ``fine``: a fuel problem from its coarser grid's optimum, :data:`~.homotopy.WARM_PRIMAL`)."""
+        key = (budget, phase1, level, fine)
+        if key not in self.solvers:
             t0 = time.perf_counter()
             ipopt = ipopt_options(self.options.replace(max_iter=budget), warm_duals=self.nu0 is not None or level)
-            for key, value in {**plan_ipopt_options(self.problem, phase1), **(WARM_LEVEL if level else {})}.items():
-                ipopt.setdefault(key, value)
-            self.solvers[budget, phase1, level] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress,
-                                                             self.tr.scales.objective)
+            for k, value in {**plan_ipopt_options(self.problem, phase1), **(WARM_LEVEL if level else {}),
+                             **(WARM_PRIMAL if fine else {})}.items():
+                ipopt.setdefault(k, value)
+            self.solvers[key] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress, self.tr.scales.objective)
             self.extra_build_s += time.perf_counter() - t0
-        return self.solvers[budget, phase1, level]
+        return self.solvers[key]
 
     def attempt(self, label: str, guess: Guess, budget: int) -> Solution:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
         tr = self.tr
         level = guess.duals is not None and guess.duals[0] == tr.nlp.key
-        solver = self.solver(budget, guess.prepared_on == RELAXED, level)
+        solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and guess.prepared_on == COARSE)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
         if level:   # the very point of the homotopy's last level (its slacks too), with its multipliers
             args.update(x0=guess.duals[1], lam_g0=guess.duals[2], lam_x0=guess.duals[3])
@@ -98,7 +100,7 @@ class _PlanRun:
                 best = sol
             if sol.result is Result.interrupted or (sol.converged and pick == "first"):
                 break
-            if pick == "coarse" and guess.prepared_on == "the coarse grid" and sol.converged:
+            if pick == "coarse" and guess.prepared_on == COARSE and sol.converged:
                 break   # finished on the fine grid: the fine-grid starts are only the fallback
             if guess.prepared_on == RELAXED and sol.result is Result.infeasible:
                 self.attempts += [Attempt(rest, None, note=NOT_TRIED) for rest, _, _ in plan[i + 1:]]
