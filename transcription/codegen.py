@@ -10,31 +10,35 @@ milliseconds).  Whenever compilation is not possible (no compiler, compiler erro
 compiler: results are the same, only slower.
 
 Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS`
-(``-O0``, the indirect method's straight-line per-step maps) and :data:`LOOP_CFLAGS` (``-O1``, small
-MX Functions whose C is loops).  On long straight-line functions gcc's time at ``-O1`` goes into
-register allocation of one huge basic block; ``-O0`` compiles ~5x faster (measured 1.0 s against
+(``-O0``, the indirect method's straight-line per-step maps, and every first background stage) and
+:data:`LOOP_CFLAGS` (``-O1``, small MX Functions whose C is loops).  On long straight-line functions gcc's
+time at ``-O1`` goes into register allocation of one huge basic block; ``-O0`` compiles ~5x faster (measured 1.0 s against
 5.5 s for a 25k-instruction map; ~30 us per line of C on this machine, linear in the length) and
 runs ~1.4x slower, which is what makes a compile on the first use affordable.
-``-ffp-contract=off`` keeps the compiled arithmetic that of CasADi's interpreter (no fused
+``-ffp-contract=off`` (every flag set) keeps the compiled arithmetic that of CasADi's interpreter (no fused
 multiply-adds on targets that have them), so compiled and interpreted Functions agree bit for bit.
 
 Compiled Functions evaluate values only; request derivatives from the original Function.
 
 Compile little, once.  The cache key is the serialized Function, so what must not change with a problem's
-numbers must not be a constant of the graph: the direct method's dynamics block takes the model's numbers
-(theta = mass, inertia, (2J)^-1, the potential's GM, J2, radius, sizes: ``BodyModel.parameters``) as data
-like its step size, scales, weights and bounds (transcription.nlp.blocks), so a model of a known structure
-(kind of body and gravity, scheme, controls, objective, free time) loads its library from the cache and
-compiles nothing.  A structure never seen before is compiled with ``quick`` flags (:func:`compiled_libraries`:
-``-O0``, seconds, usable at once) while a detached background process (:func:`_spawn`, at low priority, with a
-``.building`` lock beside the library) compiles the library at its own flags and moves it into the cache
-atomically; the next build loads it (the NLP's block derivatives check :func:`ready` between solves).  The
-indirect method's per-step maps are compiled at ``-O0`` only and still contain the model's numbers (one
-compile per model; a few seconds).
+numbers must not be a constant of the graph: the direct method's dynamics block and the indirect method's
+per-step maps take the model's numbers (theta = mass, inertia, (2J)^-1, the potential's GM, J2, radius, sizes:
+``BodyModel.parameters``; lgvi.Discretization.parametric / with_theta) as data like the step size, scales,
+weights and bounds, so a model of a known structure (kind of body and gravity, scheme, controls, objective, free
+time) loads its libraries from the cache and compiles nothing.
+
+Interpreted first.  A structure never seen before is not waited for (:func:`compiled_libraries` with ``quick``):
+its Functions come back interpreted while a detached background process (:func:`_spawn`, niced, with a
+``.building`` lock beside the library that holds its process id, one of :data:`SLOTS` compilers at a time)
+compiles the library at the ``quick`` flags (-O0, seconds) and then at its own into the cache, each atomically.
+:class:`Switch` (a copy-free Callback) wraps what is built from those Functions -- the NLP's mapped block
+derivatives, the indirect method's shooting Functions -- and moves to the compiled code when it lands, between
+two evaluations of the same solve; the next build loads it directly (:func:`ready`).  :func:`settle` waits for
+the builds under way, :func:`stop` ends them.
 
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
 ``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
-at the library's own flags at once instead of ``quick`` now and the rest in the background).
+at the library's own flags at once instead of interpreting first and compiling in the background).
 """
 from __future__ import annotations
 
@@ -213,7 +217,8 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
     Each library is its own C file and compiler process; the cache misses are compiled concurrently
     (the C of the next library is generated while the compiler works on the previous ones), so the
     first build takes about the longest single compile on a machine with free cores.  All or nothing
-    over all libraries: callers see either every Function compiled or none.
+    over all libraries: callers see either every Function compiled or none (without ``quick``; with it, each
+    library is compiled or interpreted on its own).
 
     ``quick``: the interpreted-first policy.  A library not in the cache at its own flags is not waited for: it is
     loaded from its quick build (e.g. :data:`QUICK_CFLAGS`) if that is in the cache, else given back as the

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 
 import casadi as ca
+import numpy as np
 
 from ... import codegen
 from ...layout import NU, NX, NZ, split_state, tangent_readback
@@ -45,6 +46,10 @@ class ShootingFunctions:
     terminal(lam0, X0, Xd, h, Winv, bd) -> (XN[18], lamN[12], res_max) and
     terminal_jac(lam0, X0, Xd, h, Winv, bd) -> (XN, lamN, dZ[12 x 12], dlamN[12 x 12]), dZ = dz_N/dlam0 (tangent
         coordinates at X_N): for terminal conditions other than a state's (:mod:`.orbit`); Xd is not read.
+    rollout(lam0, X0, Xd, h, Winv, bd) -> (zN, lamN, res_max, S...) and jac_given(lam0, X0, Xd, h, Winv, bd, S...)
+        -> (zN, Psi, dlamN): residual and shoot_jac, the same values bit for bit, sharing the rollout's outputs S
+        that the linearization reads (:meth:`RolloutCache`): the Jacobian at an accepted point without a second
+        rollout.
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
@@ -83,6 +88,7 @@ class ShootingFunctions:
                                         codegen.QUICK_CFLAGS) for name, f in fns.items()}
         self.shoot, self.residual, self.shoot_jac = fns["shoot"], fns["residual"], fns["shoot_jac"]
         self.terminal, self.terminal_jac = fns["terminal"], fns["terminal_jac"]
+        self.rollout, self.jac_given = fns["rollout"], fns["jac_given"]
 
     def _functions(self, step_map, hess_map, lin_map) -> dict:
         """shoot, residual, shoot_jac, terminal and terminal_jac (class docstring) from the per-step maps, with the
@@ -133,6 +139,17 @@ class ShootingFunctions:
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
         shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
                                 ["zN", "Psi", "dlamN"])
+        # the same residual and Jacobian in two calls that share one rollout (the Newton iteration asks for the
+        # Jacobian where its line search accepted a residual): the rollout's outputs the linearization reads
+        kept = (0, 1, 5, 6, 7, 8) if n > 0 else ()
+        rollout = ca.Function(f"{sch}_shoot_rollout{N}", args, [zN, lamN, res_max, *(steps[i] for i in kept)])
+        given = [ca.MX.sym(f"s{i}", steps[i].sparsity()) for i in kept]
+        sym = [None] * 9
+        for i, g in zip(kept, given):
+            sym[i] = g
+        dZg, dlamNg = self._linearization(hess_map, lin_map, args, Xstart, D_first, sym if n > 0 else None, n)
+        zLg, JTg = terminal_residual_jacobian()(sym[0][:, -1] if n > 0 else Xstart, Xd)
+        jac_given = ca.Function(f"{sch}_shoot_jac_given{N}", args + given, [zLg, ca.mtimes(JTg, dZg), dlamNg])
         # the terminal state and lambda_{N-1}, with their derivatives by lam0, for terminal conditions other than a
         # state's (an orbit target, :mod:`.orbit`)
         terminal = ca.Function(f"{sch}_shoot_terminal{N}", args, [Xs[:, -1], lamN, res_max], names_in,
@@ -140,7 +157,7 @@ class ShootingFunctions:
         terminal_jac = ca.Function(f"{sch}_shoot_terminal_jac{N}", args, [Xs[:, -1], lamN, dZ, dlamN], names_in,
                                    ["XN", "lamN", "dZ", "dlamN"])
         return {"shoot": shoot, "residual": residual, "shoot_jac": shoot_jac, "terminal": terminal,
-                "terminal_jac": terminal_jac}
+                "terminal_jac": terminal_jac, "rollout": rollout, "jac_given": jac_given}
 
     def _linearization(self, hess_map, lin_map, args, Xstart, D_first, steps, n):
         """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates): Psi = dzN/dlam0 by the linearized
@@ -182,6 +199,26 @@ class ShootingFunctions:
             _, Tt, Q, Tinv = terminal_costate_function()(XN, lam_last)
             dlamN, dZ = ca.mtimes(Tt, dlamN) + ca.mtimes(Q, dZ), ca.mtimes(Tinv, dZ)
         return dZ, dlamN
+
+
+class RolloutCache:
+    """residual(lam0) and jacobian(lam0) of the Newton iteration on one ShootingFunctions' rollout and linearization
+    (args: X0, Xd, h, Winv, bd): the Jacobian at the point of the last residual reuses its rollout (``jac_given``),
+    which the Newton-Armijo iteration asks for at every accepted step -- one rollout per iteration instead of two,
+    with the same values."""
+
+    def __init__(self, fns: ShootingFunctions, args: tuple):
+        self.fns, self.args, self.last = fns, args, None
+
+    def residual(self, lam0):
+        out = self.fns.rollout(lam0, *self.args)
+        self.last = (np.array(lam0, dtype=float), out[3:])
+        return out[:3]
+
+    def jacobian(self, lam0):
+        if self.last is not None and np.array_equal(self.last[0], lam0):
+            return self.fns.jac_given(lam0, *self.args, *self.last[1])
+        return self.fns.shoot_jac(lam0, *self.args)
 
 
 @per_discretization
