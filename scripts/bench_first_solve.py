@@ -115,7 +115,8 @@ def measure(case: str, method: str, runs: int, timeout: float, log) -> dict:
     for k in ("first", "warm"):   # this process's CPU time: what the solve itself did, whatever the load
         ok = [x["cpu_s"] for x in got[k] if "cpu_s" in x]
         out[f"{k}_cpu_s"] = statistics.median(ok) if ok else None
-    out["first_cpu_ratio"] = out["first_cpu_s"] / out["warm_cpu_s"] if out["first_cpu_s"] and out["warm_cpu_s"] else None
+    fc, wc = out["first_cpu_s"], out["warm_cpu_s"]
+    out["first_cpu_ratio"] = fc / wc if fc and wc else None
     out["load_median"] = statistics.median(x.get("load", float("nan")) for recs in got.values() for x in recs)
     return out
 

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 def pytest_sessionfinish(session, exitstatus):
     """Leave no compiler running: the solves of the suite start background builds into the compile cache
-    (transcription.codegen's interpreted-first policy); wait for those still under way, so that the suite ends with
-    the cache complete and no ``.building`` lock behind (bounded: a build older than codegen.BACKGROUND_TIMEOUT is
-    taken for dead anyway)."""
+    (transcription.codegen's interpreted-first policy).  Wait a little for those still under way (the cache is then
+    complete for the next run), then end the rest (a cold cache's last -O1 builds can take minutes at low priority;
+    they start again on the next use), so that no builder and no ``.building`` lock is left behind."""
     from se3ocp.transcription import codegen
 
-    waited = codegen.settle(600.0)
-    if waited > 1.0:
-        session.config.get_terminal_writer().line(f"waited {waited:.0f} s for background compiles to finish")
+    waited = codegen.settle(120.0)
+    stopped = codegen.stop()
+    if waited > 1.0 or stopped:
+        session.config.get_terminal_writer().line(
+            f"waited {waited:.0f} s for background compiles to finish; stopped {stopped}")

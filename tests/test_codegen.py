@@ -175,8 +175,11 @@ def test_new_numbers_in_a_known_structure_compile_nothing(monkeypatch, tmp_path)
     said = _policy(monkeypatch, tmp_path)
     j2 = ("gravity.kind=j2", "gravity.J2=1.0e-3", "gravity.radius=0.9")
     a = problem("e3_bounded", 20, "first_order", *j2, "control.bounds.force.norm=15.5")
-    sa = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)))
+    sa = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)))   # interpreted first
+    ra = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)), jit=False)
     assert sa.converged and sa.stats["jit"] and len(said) == 2          # the dynamics block's jac and hess
+    assert sa.iterations == ra.iterations and abs(sa.cost - ra.cost) <= 1e-12 * ra.cost
+    assert np.max(np.abs(sa.controls - ra.controls)) <= 1e-12 * np.max(np.abs(ra.controls))
     libs = dynamics(a.disc, True, True, True).derivatives(True)._libraries
     deadline = time.monotonic() + 300.0                                 # their -O0 builds (the -O1 ones follow)
     while codegen.arrived(codegen.candidates(libs, quick=codegen.QUICK_CFLAGS)) is None and \

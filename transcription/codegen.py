@@ -11,10 +11,10 @@ compiler: results are the same, only slower.
 
 Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS`
 (``-O0``, the indirect method's straight-line per-step maps, and every first background stage) and
-:data:`LOOP_CFLAGS` (``-O1``, small MX Functions whose C is loops).  On long straight-line functions gcc's
-time at ``-O1`` goes into register allocation of one huge basic block; ``-O0`` compiles ~5x faster (measured 1.0 s against
-5.5 s for a 25k-instruction map; ~30 us per line of C on this machine, linear in the length) and
-runs ~1.4x slower, which is what makes a compile on the first use affordable.
+:data:`LOOP_CFLAGS` (``-O1``, small MX Functions whose C is loops).  On long straight-line functions
+gcc's time at ``-O1`` goes into register allocation of one huge basic block; ``-O0`` compiles ~5x faster
+(measured 1.0 s against 5.5 s for a 25k-instruction map; ~30 us per line of C on this machine, linear in the
+length) and runs ~1.4x slower, which is what makes a compile on the first use affordable.
 ``-ffp-contract=off`` (every flag set) keeps the compiled arithmetic that of CasADi's interpreter (no fused
 multiply-adds on targets that have them), so compiled and interpreted Functions agree bit for bit.
 
