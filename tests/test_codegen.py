@@ -83,11 +83,12 @@ def test_indirect_compiled_equals_interpreted_bit_for_bit(scheme):
     man = maneuver("e4", 40, scheme)
     a = se3ocp.solve(man, "indirect", jit=False, eps_S=0.0)
     b = se3ocp.solve(man, "indirect", eps_S=0.0)      # on a cold cache: interpreted first, then compiled
-    codegen.settle(300.0)
+    libs, deadline = shooting_functions(man.problem.disc, 40, True).libraries, time.monotonic() + 600.0
+    while not codegen.ready(libs, codegen.QUICK_CFLAGS) and time.monotonic() < deadline:
+        time.sleep(0.2)                                # its maps' builds (a cold suite's queue: other builds too)
     c = se3ocp.solve(man.problem.replace(disc=Discretization(man.problem.model, scheme)), "indirect", eps_S=0.0)
     assert not a.stats["jit"] and b.stats["jit"] and c.stats["jit"] and a.converged
-    fns = shooting_functions(man.problem.disc, 40, True)
-    assert fns.compiled and not isinstance(shooting_functions(c.problem.disc, 40, True).shoot, codegen.Switch)
+    assert not isinstance(shooting_functions(c.problem.disc, 40, True).shoot, codegen.Switch)
     for s in (b, c):
         assert [r.residual for r in a.history] == [r.residual for r in s.history]
         assert np.array_equal(a.controls, s.controls) and np.array_equal(a.warm.lam0, s.warm.lam0)

@@ -484,13 +484,15 @@ def stop(cache: Path | None = None, timeout: float = 10.0) -> int:
 SLOTS = max(1, os.cpu_count() or 1)
 
 
-def _slot() -> int | None:
+def _slot(first: bool) -> int | None:
     """Hold one of :data:`SLOTS` slots (an exclusive lock on ``.slotK`` in the cache, released when the descriptor
-    is closed or the process ends); the descriptor (None without POSIX file locks)."""
+    is closed or the process ends); the descriptor (None without POSIX file locks).  A first stage (what a running
+    solve waits for) may take any slot, a later one (-O1) only slot 0: the -O1 builds go one at a time and never
+    hold up a quick one."""
     if fcntl is None:
         return None
     while True:
-        for k in range(SLOTS):
+        for k in range(SLOTS if first else 1):
             fd = os.open(cache_dir() / f".slot{k}", os.O_CREAT | os.O_RDWR)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -523,9 +525,9 @@ def _background(job: Path) -> None:
         _lower_priority()
         lib = Library(spec["name"], tuple(ca.Function.deserialize(f) for f in spec["fns"]), spec["cse"])
         c = _generate(lib, str(job))
-        for flags, path in spec["stages"]:
+        for i, (flags, path) in enumerate(spec["stages"]):
             out = job / Path(path).name
-            fd = _slot()
+            fd = _slot(i == 0)
             try:
                 subprocess.run([compiler(), *flags, str(c), "-o", str(out), "-lm"], check=True,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=BACKGROUND_TIMEOUT)

@@ -66,13 +66,14 @@ class ShootingFunctions:
         # a set not yet in the cache is interpreted while a background process compiles it (codegen's
         # interpreted-first policy), and the Functions move to the compiled code as it arrives (codegen.Switch)
         maps = (self.costate_map, self.costate_hessian, self.linearized_map)
-        provisional = False
+        provisional, self.libraries = False, []
         if self.jit:
             libs = [codegen.Library(maps[0].name(), (maps[0],), cse=True),   # evaluated most often
                     codegen.Library(maps[1].name(), (maps[1],)),             # the largest
                     codegen.Library(maps[2].name(), (maps[2],), cflags=tuple(codegen.LOOP_CFLAGS), quick=False)]
             maps = tuple(f for (f,) in codegen.compiled_libraries(libs, cflags=codegen.QUICK_CFLAGS,
                                                                   quick=codegen.QUICK_CFLAGS))
+            self.libraries = libs   # (codegen.ready(libraries, QUICK_CFLAGS): all compiled at their own flags)
             provisional = codegen.last_provisional
         self.compiled = self.jit and (provisional or all(f.class_name() == "External" for f in maps))
         fns = self._functions(*maps)
