@@ -507,6 +507,8 @@ def _lower_priority() -> None:
     autogroups: a process nices only against its own session, and :func:`_spawn` starts a new one), for its
     session's group too -- without it a niced build took a full share from the solve that started it."""
     os.nice(10)
+    if os.getsid(0) != os.getpid():   # not the leader of a session of its own: the group is the caller's too
+        return
     try:
         Path("/proc/self/autogroup").write_text("10")
     except OSError:
