@@ -9,7 +9,7 @@ def pytest_sessionfinish(session, exitstatus):
     they start again on the next use), so that no builder and no ``.building`` lock is left behind."""
     from se3ocp.transcription import codegen
 
-    waited = codegen.settle(120.0)
+    waited = codegen.settle(20.0)
     stopped = codegen.stop()
     if waited > 1.0 or stopped:
         session.config.get_terminal_writer().line(
