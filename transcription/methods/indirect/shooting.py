@@ -71,8 +71,10 @@ class ShootingFunctions:
             libs = [codegen.Library(maps[0].name(), (maps[0],), cse=True),   # evaluated most often
                     codegen.Library(maps[1].name(), (maps[1],)),             # the largest
                     codegen.Library(maps[2].name(), (maps[2],), cflags=tuple(codegen.LOOP_CFLAGS), quick=False)]
-            maps = tuple(f for (f,) in codegen.compiled_libraries(libs, cflags=codegen.QUICK_CFLAGS,
-                                                                  quick=codegen.QUICK_CFLAGS))
+            libs = [libs[1], libs[0], libs[2]]   # the largest gets the first compile slot (codegen.SLOTS)
+            hess, step, lin = (f for (f,) in codegen.compiled_libraries(libs, cflags=codegen.QUICK_CFLAGS,
+                                                                        quick=codegen.QUICK_CFLAGS))
+            maps = (step, hess, lin)
             self.libraries = libs   # (codegen.ready(libraries, QUICK_CFLAGS): all compiled at their own flags)
             provisional = codegen.last_provisional
         self.compiled = self.jit and (provisional or all(f.class_name() == "External" for f in maps))
@@ -82,7 +84,8 @@ class ShootingFunctions:
 
             def make(loaded, final, name):
                 if final not in built:
-                    built[final] = self._functions(*(f for (f,) in loaded))
+                    (hess_c,), (step_c,), (lin_c,) = loaded
+                    built[final] = self._functions(step_c, hess_c, lin_c)
                 return built[final][name]
 
             fns = {name: codegen.Switch(f, libs, functools.partial(make, name=name), codegen.QUICK_CFLAGS,
