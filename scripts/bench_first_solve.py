@@ -16,8 +16,12 @@ together: what a user waits for):
                  ``NEW_NUMBERS``), which must compile nothing (``compiles`` = codegen's notices, 0);
     interpreted  ``SE3OCP_NO_JIT=1``: nothing compiled, CasADi's interpreter.
 
-Printed: the medians over the repetitions and the ratios first / warm, new numbers / warm, interpreted / warm,
-with the load average before and after (the machine may be shared: the ratios within one run are what count).
+Printed: the medians over the repetitions and the medians of the back-to-back ratios first / warm, new numbers /
+warm, interpreted / warm (each repetition's solves run one after the other), with the load average before and
+after and the median of the loads the solves saw (the machine may be shared: the ratios within one run are what
+count), and first / warm in the solving process's CPU time (what the solve itself did: the background compilers
+are other processes: a view of the foreground's work that the load changes little).  ``compiles`` counts codegen's notices, one per background build started: the first solve of a structure
+starts them and runs interpreted (the interpreted-first policy, transcription/codegen.py); new numbers start none.
 """
 from __future__ import annotations
 
@@ -60,20 +64,19 @@ def one(cfg: str, method: str, sets: list[str]) -> None:
 
     said: list[str] = []
     codegen.notify = said.append
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     sol = se3ocp.solve(se3ocp.load(ROOT / cfg, sets), method)
-    sec = time.perf_counter() - t
-    print(json.dumps({"s": sec, "compiles": len(said), "status": str(sol.result), "converged": bool(sol.converged),
+    sec, cpu = time.perf_counter() - t, time.process_time() - c
+    print(json.dumps({"s": sec, "cpu_s": cpu, "compiles": len(said), "status": str(sol.result), "converged": bool(sol.converged),
                       "cost": float(sol.cost) if sol.cost is not None else None, "iterations": sol.iterations,
                       "load": os.getloadavg()[0]}))
 
 
 def settle(cache: Path, timeout: float = 1800.0) -> float:
     """Wait until no background build is under way in ``cache``; the seconds waited."""
-    t = time.monotonic()
-    while list(cache.glob("*.building")) and time.monotonic() - t < timeout:
-        time.sleep(1.0)
-    return time.monotonic() - t
+    from se3ocp.transcription import codegen
+
+    return codegen.settle(timeout, cache)
 
 
 def measure(case: str, method: str, runs: int, timeout: float, log) -> dict:
@@ -104,6 +107,17 @@ def measure(case: str, method: str, runs: int, timeout: float, log) -> dict:
         out[f"{k}_loads"] = [round(x.get("load", float("nan")), 2) for x in recs]
     for k in ("first", "new_numbers", "interpreted"):
         out[f"{k}_ratio"] = out[f"{k}_s"] / out["warm_s"] if out[f"{k}_s"] and out["warm_s"] else None
+        # back to back: each repetition's ratio to the warm solve right after it (what a shared machine's load
+        # changes least), and their median
+        pairs = [a["s"] / w["s"] for a, w in zip(got[k], got["warm"]) if "s" in a and "s" in w]
+        out[f"{k}_ratios"] = [round(r, 3) for r in pairs]
+        out[f"{k}_ratio_median"] = statistics.median(pairs) if pairs else None
+    for k in ("first", "warm"):   # this process's CPU time: what the solve itself did, whatever the load
+        ok = [x["cpu_s"] for x in got[k] if "cpu_s" in x]
+        out[f"{k}_cpu_s"] = statistics.median(ok) if ok else None
+    fc, wc = out["first_cpu_s"], out["warm_cpu_s"]
+    out["first_cpu_ratio"] = fc / wc if fc and wc else None
+    out["load_median"] = statistics.median(x.get("load", float("nan")) for recs in got.values() for x in recs)
     return out
 
 
@@ -124,16 +138,18 @@ def main() -> None:
     recs = [measure(c, m, a.runs, a.timeout, log) for c in a.cases.split(",") for m in a.methods.split(",")
             if m in CASES[c][2]]
     log(f"load average after: {benchkit.load()}")
+    log(f"medians of {a.runs} run(s); ratios: medians of the back-to-back ratios of each run")
     log(f"{'case':10s} {'method':8s} {'first':>7s} {'warm':>7s} {'new':>7s} {'interp':>7s}   first/warm  new/warm  "
-        f"interp/warm  new compiles")
+        f"interp/warm  new compiles  load  first/warm CPU")
 
     def f(x, fmt):
         return format(x, fmt) if x is not None else "-"
 
     for r in recs:
         log(f"{r['case']:10s} {r['method']:8s} {f(r['first_s'], '7.2f')} {f(r['warm_s'], '7.2f')} "
-            f"{f(r['new_numbers_s'], '7.2f')} {f(r['interpreted_s'], '7.2f')}   {f(r['first_ratio'], '10.2f')} "
-            f"{f(r['new_numbers_ratio'], '9.2f')} {f(r['interpreted_ratio'], '12.2f')}  {r['new_numbers_compiles']}")
+            f"{f(r['new_numbers_s'], '7.2f')} {f(r['interpreted_s'], '7.2f')}   {f(r['first_ratio_median'], '10.2f')} "
+            f"{f(r['new_numbers_ratio_median'], '9.2f')} {f(r['interpreted_ratio_median'], '12.2f')}  "
+            f"{str(r['new_numbers_compiles']):12s} {r['load_median']:.1f}  {f(r['first_cpu_ratio'], '.2f')}")
     if a.json:
         print(json.dumps(recs, indent=1))
 

@@ -11,6 +11,9 @@ import se3ocp
 from se3ocp.problems.models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody
 from se3ocp.transcription import codegen
 from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.methods.indirect.conditions import costate_functions
+from se3ocp.transcription.methods.indirect.shooting import shooting_functions
+from se3ocp.transcription.nlp.blocks import dynamics
 from se3ocp.transcription.lie import exp_so3
 from se3ocp.transcription.options import DirectOptions, IndirectOptions
 from support import maneuver, problem
@@ -79,10 +82,16 @@ def test_indirect_compiled_equals_interpreted_bit_for_bit(scheme):
         pytest.skip("no C compiler")
     man = maneuver("e4", 40, scheme)
     a = se3ocp.solve(man, "indirect", jit=False, eps_S=0.0)
-    b = se3ocp.solve(man, "indirect", eps_S=0.0)
-    assert not a.stats["jit"] and b.stats["jit"] and a.converged
-    assert [r.residual for r in a.history] == [r.residual for r in b.history]
-    assert np.array_equal(a.controls, b.controls) and np.array_equal(a.warm.lam0, b.warm.lam0)
+    b = se3ocp.solve(man, "indirect", eps_S=0.0)      # on a cold cache: interpreted first, then compiled
+    libs, deadline = shooting_functions(man.problem.disc, 40, True).libraries, time.monotonic() + 600.0
+    while not codegen.ready(libs, codegen.QUICK_CFLAGS) and time.monotonic() < deadline:
+        time.sleep(0.2)                                # its maps' builds (a cold suite's queue: other builds too)
+    c = se3ocp.solve(man.problem.replace(disc=Discretization(man.problem.model, scheme)), "indirect", eps_S=0.0)
+    assert not a.stats["jit"] and b.stats["jit"] and c.stats["jit"] and a.converged
+    assert not isinstance(shooting_functions(c.problem.disc, 40, True).shoot, codegen.Switch)
+    for s in (b, c):
+        assert [r.residual for r in a.history] == [r.residual for r in s.history]
+        assert np.array_equal(a.controls, s.controls) and np.array_equal(a.warm.lam0, s.warm.lam0)
 
 
 def test_direct_default_compiles_when_it_can():
@@ -147,49 +156,134 @@ def test_parametric_step_equals_the_numeric_step(model, gravity, scheme):
         assert float(body.parametric_potential(X[:3], R, body.potential_data)) == float(body.potential(X[:3], R))
 
 
+def _policy(monkeypatch, tmp_path) -> list[str]:
+    """An empty compile cache of its own, the interpreted-first policy on, codegen's notices (one per build started)
+    collected."""
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    monkeypatch.delenv("SE3OCP_JIT_BACKGROUND", raising=False)
+    said: list[str] = []
+    monkeypatch.setattr(codegen, "notify", said.append)
+    return said
+
+
 def test_new_numbers_in_a_known_structure_compile_nothing(monkeypatch, tmp_path):
     """Mass, inertia, mu, J2 and its radius (the model's numbers) and the bounds are data of the compiled Functions:
     a second problem that differs from a first only in those numbers compiles nothing (codegen's notice is the
-    count), and its compiled solve equals the interpreted one to round-off."""
+    count: one per background build started) and runs on the first one's compiled code, equal to the interpreted
+    solve to round-off."""
     if not codegen.available():
         pytest.skip("no C compiler")
-    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
-    monkeypatch.setattr(codegen, "_spawn", lambda *args: None)    # the -O0 build only: no background process
-    said: list[str] = []
-    monkeypatch.setattr(codegen, "notify", said.append)
+    said = _policy(monkeypatch, tmp_path)
     j2 = ("gravity.kind=j2", "gravity.J2=1.0e-3", "gravity.radius=0.9")
     a = problem("e3_bounded", 20, "first_order", *j2, "control.bounds.force.norm=15.5")
-    sa = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)))
-    assert sa.converged and sa.stats["jit"] and len(said) == 1
+    sa = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)))   # interpreted first
+    ra = se3ocp.solve(a.replace(disc=Discretization(a.model, a.scheme)), jit=False)
+    assert sa.converged and sa.stats["jit"] and len(said) == 2          # the dynamics block's jac and hess
+    assert sa.iterations == ra.iterations and abs(sa.cost - ra.cost) <= 1e-12 * ra.cost
+    assert np.max(np.abs(sa.controls - ra.controls)) <= 1e-12 * np.max(np.abs(ra.controls))
+    libs = dynamics(a.disc, True, True, True).derivatives(True)._libraries
+    deadline = time.monotonic() + 300.0                                 # their -O0 builds (the -O1 ones follow)
+    while codegen.arrived(codegen.candidates(libs, quick=codegen.QUICK_CFLAGS)) is None and \
+            time.monotonic() < deadline:
+        time.sleep(0.2)
     body = Dumbbell(mass=1.02, length=0.11, sphere_radius=0.025, mu=1.01 * GM_NORMALIZED, gravity="j2", J2=2e-3,
                     J2_radius=0.85).body_model()
     b = problem("e3_bounded", 20, "first_order", *j2, "control.bounds.force.norm=16")
     b = b.replace(disc=Discretization(body, b.scheme))
     sb, ref = se3ocp.solve(b), se3ocp.solve(b, jit=False)
-    assert len(said) == 1 and sb.stats["jit"] and not ref.stats["jit"]
+    d = dynamics(b.disc, True, True, True).derivatives(True)
+    stopped = codegen.stop(tmp_path)                                    # the -O1 builds: not waited for here
+    assert len(said) == 2 and d.compiled and d.hess.class_name() == "External"
+    assert sb.stats["jit"] and not ref.stats["jit"]
     assert sb.converged and sb.iterations == ref.iterations and abs(sb.cost - sa.cost) > 1e-3 * sa.cost
     assert abs(sb.cost - ref.cost) <= 1e-12 * ref.cost
     assert np.max(np.abs(sb.controls - ref.controls)) <= 1e-12 * np.max(np.abs(ref.controls))
+    assert not codegen.building(tmp_path) and not list(tmp_path.glob("*.building")) and stopped <= 2
+    assert not [p for p in tmp_path.iterdir() if p.is_dir()]      # the stopped jobs' files are gone
 
 
-def test_a_first_use_compiles_quickly_and_the_full_build_follows_in_the_background(monkeypatch, tmp_path):
-    """With ``quick`` flags a cache miss is compiled now at -O0 (usable at once) while a detached process compiles
-    the library at its own flags into the cache; the next build loads that one.  Same values either way."""
+def test_new_numbers_compile_nothing_in_the_indirect_method(monkeypatch, tmp_path):
+    """The indirect method's per-step maps take the model's numbers theta as data too: a model that differs in mass,
+    size and mu starts no build once the first model's maps are compiled, runs on them (no Switch left), and equals
+    its interpreted solve (the maps with the numbers as constants) to round-off."""
     if not codegen.available():
         pytest.skip("no C compiler")
-    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
-    monkeypatch.delenv("SE3OCP_JIT_BACKGROUND", raising=False)
+    said = _policy(monkeypatch, tmp_path)
+    a = fresh("e3", 30)
+    sa = se3ocp.solve(a, "indirect")
+    assert sa.converged and sa.stats["jit"] and len(said) == 3          # costate map, its Hessian, linearized map
+    codegen.settle(300.0)
+    body = Dumbbell(mass=1.05, length=0.11, sphere_radius=0.025, mu=1.02 * GM_NORMALIZED).body_model()
+    b = a.replace(disc=Discretization(body, a.scheme))
+    sb, ref = se3ocp.solve(b, "indirect"), se3ocp.solve(b, "indirect", jit=False)
+    fns = shooting_functions(b.disc, b.N, True)
+    assert len(said) == 3 and fns.compiled and not isinstance(fns.shoot_jac, codegen.Switch)
+    assert sb.converged and ref.converged and abs(sb.cost - sa.cost) > 1e-3 * sa.cost
+    assert abs(sb.cost - ref.cost) <= 1e-12 * ref.cost
+    assert np.max(np.abs(sb.controls - ref.controls)) <= 1e-10 * np.max(np.abs(ref.controls))
+
+
+def test_a_first_use_runs_interpreted_and_the_build_follows_in_the_background(monkeypatch, tmp_path):
+    """Interpreted first: a cache miss is not waited for -- the Function comes back interpreted while a detached
+    process compiles it at -O0 and then at its own flags into the cache (no lock, no job files left); the next
+    build loads the library.  Same values either way, bit for bit."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    said = _policy(monkeypatch, tmp_path)
     x = ca.SX.sym("x", 3)
     f = ca.Function("background_probe", [x], [ca.sin(x) * x[0] + ca.exp(x[1])])
     lib = codegen.Library(f.name(), (f,), cse=True)
     (g,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)
-    assert g.class_name() == "External" and codegen.last_provisional
-    deadline = time.monotonic() + 120.0
-    while (not codegen.ready([lib]) or list(tmp_path.glob("*.building"))) and time.monotonic() < deadline:
-        time.sleep(0.2)                                              # the lock goes last, after the job's files
+    assert g is f and codegen.last_provisional and len(said) == 1
+    (g2,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)   # under way: no second build
+    assert len(said) == 1
+    codegen.settle(120.0)
     assert codegen.ready([lib]) and not list(tmp_path.glob("*.building"))
+    assert all(p.exists() for p in codegen.candidates([lib], quick=codegen.QUICK_CFLAGS)[0])   # -O1 and -O0
     (k,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)
     assert k.class_name() == "External" and not codegen.last_provisional
     assert not [p for p in tmp_path.iterdir() if p.is_dir()]      # the job's files are gone
     v = [0.3, -1.2, 2.0]
-    assert np.array_equal(np.array(g(v)), np.array(f(v))) and np.allclose(np.array(k(v)), np.array(f(v)), rtol=1e-15)
+    assert np.array_equal(np.array(k(v)), np.array(f(v)))
+
+
+def test_a_switch_moves_to_the_compiled_code_as_it_arrives(monkeypatch, tmp_path):
+    """codegen.Switch evaluates its interpreted Function until the library arrives in the cache, then the compiled
+    one (within the same NLP or Newton iteration: it checks at every evaluation), with the same values; it does not
+    look again once at the library's own flags."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("SE3OCP_CACHE", str(tmp_path))
+    x, y = ca.SX.sym("x", 3), ca.SX.sym("y", 2)
+    f = ca.Function("switch_probe", [x, y], [ca.sin(x) * y[0] + ca.cos(y[1]), ca.dot(x, x)])
+    lib = codegen.Library(f.name(), (f,), cse=True)
+    sw = codegen.Switch(f.map(4), [lib], lambda loaded, final: loaded[0][0].map(4))
+    X, Y = ca.MX.sym("X", 3, 4), ca.MX.sym("Y", 2, 4)
+    F = ca.Function("F", [X, Y], sw(X, Y))            # inside an MX graph, as in the NLP's derivatives
+    v = (np.arange(12.0).reshape(3, 4) / 7, np.arange(8.0).reshape(2, 4) / 5)
+    before = [np.array(o) for o in F(*v)]
+    assert not sw.final and sw.fn.class_name() != "External"
+    monkeypatch.setenv("SE3OCP_JIT_BACKGROUND", "0")
+    codegen.compiled_libraries([lib])                # the library arrives (here: compiled now)
+    after = [np.array(o) for o in F(*v)]
+    assert sw.final and sw.paths == (codegen.candidates([lib])[0][0],)     # the library at its own flags
+    want = [np.array(o) for o in f.map(4)(*v)]
+    assert all(np.array_equal(a, b) and np.array_equal(a, c) for a, b, c in zip(before, after, want))
+
+
+@pytest.mark.parametrize("name,scheme", [("e3", "first_order"), ("e4", "lgvi"), ("e3_bounded", "lgvi")])
+def test_the_parametric_costate_map_equals_the_numeric_one(name, scheme):
+    """costate_functions(disc, parametric=True) -- the model's numbers theta the last input, what the shooting compiles
+    once per structure -- given theta = model.parameters, equals the map with the numbers as constants: the states
+    bit for bit, the costates and the variation A to round-off (1e-13 relative; (2J)^-1 and J enter as data instead
+    of folded constants)."""
+    p = problem(name, 10, scheme)
+    num, par = costate_functions(p.disc)[0], costate_functions(p.disc, True)[0]
+    rng = np.random.default_rng(5)
+    X = np.array(p.X0, dtype=float)
+    args = [X, 1e-2 * rng.normal(size=12), p.h, np.linalg.inv(p.control.W), np.r_[np.full(6, np.inf), 1e300, 1e300,
+                                                                                  np.zeros(10)]]
+    a, b = ([np.array(o) for o in f(*args, *extra)] for f, extra in ((num, ()), (par, (p.model.parameters,))))
+    assert np.array_equal(a[0], b[0])
+    for x, y in zip(a[1:], b[1:]):
+        assert np.max(np.abs(x - y)) <= 1e-13 * max(1.0, np.max(np.abs(x)))

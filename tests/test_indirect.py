@@ -349,3 +349,23 @@ def test_psi_equals_forward_ad_through_the_rollout(scheme):
     P_ad = np.array(ca.Function("ad", [l], [ca.jacobian(fns.residual(l, *args)[0], l)])(lam))
     P = np.array(fns.shoot_jac(lam, *args)[1])
     assert np.abs(P - P_ad).max() <= 1e-10 * np.abs(P_ad).max()
+
+
+@pytest.mark.parametrize("name,scheme,sets", [("e3", "first_order", ()), ("e4", "lgvi", ()),
+                                              ("e3_bounded", "lgvi", ()), ("e3", "lgvi", ("control.force_frame=body",))])
+def test_the_jacobian_from_the_residuals_rollout_is_shoot_jac(name, scheme, sets):
+    """RolloutCache: the residual and, at the same point, the Jacobian from that residual's rollout (rollout +
+    jac_given) equal residual and shoot_jac bit for bit -- both schemes, bounds, a body-fixed force; at another point
+    it falls back to shoot_jac."""
+    from se3ocp.transcription.methods.indirect.shooting import RolloutCache
+
+    p = support.problem(name, 20, scheme, *sets)
+    fns = shooting_functions(p.disc, p.N)
+    args = (np.array(p.X0), np.array(p.terminal.X), p.h, weight_inverse(p), bound_data(p))
+    rc = RolloutCache(fns, args)
+    for lam in 1e-2 * np.random.default_rng(1).normal(size=(2, 12)):
+        got = [np.array(x) for x in (*rc.residual(lam), *rc.jacobian(lam))]
+        want = [np.array(x) for x in (*fns.residual(lam, *args), *fns.shoot_jac(lam, *args))]
+        assert all(np.array_equal(a, b) for a, b in zip(got, want))
+    other = [np.array(x) for x in rc.jacobian(lam + 1e-3)]
+    assert all(np.array_equal(a, np.array(b)) for a, b in zip(other, fns.shoot_jac(lam + 1e-3, *args)))

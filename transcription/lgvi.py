@@ -85,6 +85,7 @@ def per_discretization(build: Callable) -> Callable:
 
     @functools.wraps(build)
     def get(disc: "Discretization", *args, **kwargs):
+        disc = getattr(disc, "base", disc)   # a WithTheta: what is kept is the Discretization's (numbers constant)
         bound = signature.bind(disc, *args, **kwargs)
         bound.apply_defaults()
         key = (build.__module__, build.__qualname__, *list(bound.arguments.values())[1:])
@@ -104,6 +105,7 @@ class _StepFunctions:
         step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])
         cayley_rhs      (X[18], w[nw], h)       -> (g[3])
         step            (X[18], w[nw], h)       -> (X1[18], res)
+        variation, step_seeded, variation_seeded   (:class:`Discretization`; :meth:`variations`)
     """
 
     def __init__(self, disc: "Discretization", parametric: bool = False):
@@ -142,6 +144,68 @@ class _StepFunctions:
         csol, hist = self.cayley_solve(gvec, *extra)
         X1s, _ = self.step_given_c(X, csol, w, h, *extra)
         self.step = fn(f"{scheme}_step", [X, w, h], [X1s, hist[-1]], ["X", "w", "h"], ["X1", "res"])
+        self._later = (disc, fn, extra)
+        if not parametric:
+            self.variations()
+
+    def variations(self) -> "_StepFunctions":
+        """variation, step_seeded and variation_seeded (:class:`Discretization`) from the step, built on the first call
+        (the direct method's block needs only the step)."""
+        if hasattr(self, "variation"):
+            return self
+        disc, fn, extra = self._later
+        scheme = disc.scheme
+        X, w, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("h")
+        X1s = self.step(X, w, h, *extra)[0]
+        z = ca.SX.sym("z", NZ)
+        X1z, _ = self.step(chart(X, z), w, h, *extra)
+        dX1 = ca.substitute(ca.jacobian(X1z, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
+        AB = tangent_readback(X1s, dX1)
+        self.variation = fn(f"{scheme}_variation", [X, w, h], [AB[:, :NZ], AB[:, NZ:]], ["X", "w", "h"], ["A", "B"])
+
+        # Seeded versions for derivatives (speed): the Cayley root c0 of the *unperturbed* step is an
+        # input and the step uses two Newton iterations from it.  With c0 = the root, N^2(c0, g) agrees
+        # with the implicit function c(g) to O(|dg|^4) (quadratic convergence), so values and first
+        # to third derivatives in X, w are exact, while the graph is ~5x smaller than through the
+        # 8 unrolled iterations of cayley_solve (whose derivatives vanish at the root anyway).
+        c0 = ca.SX.sym("c0", 3)
+        gvec = self.cayley_rhs(X, w, h, *extra)
+        c2 = self.newton_map(self.newton_map(c0, gvec, *extra), gvec, *extra)
+        X1c, _ = self.step_given_c(X, c2, w, h, *extra)
+        self.step_seeded = fn(f"{scheme}_step_seeded", [X, w, h, c0], [X1c], ["X", "w", "h", "c0"], ["X1"])
+        X1zc = self.step_seeded(chart(X, z), w, h, c0, *extra)
+        dX1c = ca.substitute(ca.jacobian(X1zc, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
+        ABc = tangent_readback(X1c, dX1c)
+        self.variation_seeded = fn(f"{scheme}_variation_seeded", [X, w, h, c0], [ABc[:, :NZ], ABc[:, NZ:]],
+                                   ["X", "w", "h", "c0"], ["A", "B"])
+        return self
+
+
+#: the step Functions a :class:`WithTheta` gives with theta bound
+STEP_FUNCTIONS = ("cayley_residual", "cayley_solve", "cayley_rhs", "step_given_c", "step", "variation", "step_seeded",
+                  "variation_seeded")
+
+
+class WithTheta:
+    """A Discretization whose step Functions (:data:`STEP_FUNCTIONS`, called as on the Discretization) are those of
+    ``disc.parametric()`` with the SX symbol ``theta`` as their last input: what a builder of per-step Functions
+    (the indirect method's maps, :mod:`transcription.methods.indirect.conditions`) calls so that the Function it
+    builds takes the model's numbers theta = ``model.parameters`` as data (its last input) and its compiled code
+    serves every model of the same structure -- the mechanism of the direct method's dynamics block.  Everything
+    else (scheme, nw, force_frame, applied_force, model, what :func:`per_discretization` keeps) is the
+    Discretization's own: ``base``."""
+
+    def __init__(self, disc: "Discretization", theta):
+        self.base, self.theta = disc, theta
+        P = disc.parametric().variations()
+        for name in STEP_FUNCTIONS:
+            setattr(self, name, functools.partial(self._call, getattr(P, name)))
+
+    def _call(self, f: ca.Function, *args):
+        return f(*args, self.theta)
+
+    def __getattr__(self, name: str):
+        return getattr(self.base, name)
 
 
 def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
@@ -190,37 +254,7 @@ class Discretization:
         core = _StepFunctions(self)
         self.cayley_residual, self.cayley_solve = core.cayley_residual, core.cayley_solve
         self.step_given_c, self.cayley_rhs, self.step = core.step_given_c, core.cayley_rhs, core.step
-        newton_map = core.newton_map
-
-        X = ca.SX.sym("X", NX)
-        w = ca.SX.sym("w", self.nw)
-        h = ca.SX.sym("h")
-        gvec = self.cayley_rhs(X, w, h)
-        X1s = self.step(X, w, h)[0]
-        z = ca.SX.sym("z", NZ)
-        X1z, _ = self.step(chart(X, z), w, h)
-        dX1 = ca.substitute(ca.jacobian(X1z, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
-        AB = tangent_readback(X1s, dX1)
-        self.variation = ca.Function(
-            f"{scheme}_variation", [X, w, h], [AB[:, :NZ], AB[:, NZ:]], ["X", "w", "h"], ["A", "B"]
-        )
-
-        # Seeded versions for derivatives (speed): the Cayley root c0 of the *unperturbed* step is an
-        # input and the step uses two Newton iterations from it.  With c0 = the root, N^2(c0, g) agrees
-        # with the implicit function c(g) to O(|dg|^4) (quadratic convergence), so values and first
-        # to third derivatives in X, w are exact, while the graph is ~5x smaller than through the
-        # 8 unrolled iterations of cayley_solve (whose derivatives vanish at the root anyway).
-        c0 = ca.SX.sym("c0", 3)
-        X1c, _ = self.step_given_c(X, newton_map(newton_map(c0, gvec), gvec), w, h)
-        self.step_seeded = ca.Function(
-            f"{scheme}_step_seeded", [X, w, h, c0], [X1c], ["X", "w", "h", "c0"], ["X1"]
-        )
-        X1zc = self.step_seeded(chart(X, z), w, h, c0)
-        dX1c = ca.substitute(ca.jacobian(X1zc, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
-        ABc = tangent_readback(X1c, dX1c)
-        self.variation_seeded = ca.Function(
-            f"{scheme}_variation_seeded", [X, w, h, c0], [ABc[:, :NZ], ABc[:, NZ:]], ["X", "w", "h", "c0"], ["A", "B"]
-        )
+        self.variation, self.step_seeded, self.variation_seeded = core.variation, core.step_seeded, core.variation_seeded
 
     # ------------------------------------------------------------------ steps
     def _step_expr(self, X, c, w, h, m, forces):
@@ -273,6 +307,11 @@ class Discretization:
             return ca.vertcat(U[:, :-1], U[:, 1:])
         U = np.asarray(U, dtype=float)
         return np.vstack([U[:, :-1], U[:, 1:]])
+
+    def with_theta(self, theta) -> "WithTheta":
+        """This Discretization as builders of per-step Functions see it, with the model's numbers the SX symbol
+        ``theta`` (:class:`WithTheta`)."""
+        return WithTheta(self, theta)
 
     def parametric(self) -> "_StepFunctions":
         """The step Functions with the model's numbers as data: every Function of :class:`_StepFunctions` takes

@@ -54,23 +54,37 @@ class _Derivatives:
                                 [ca.vertcat(*Hv.nonzeros()) if Hv.nnz() else ca.SX(0, 1)], ["v", "p", "sigma", "lam"],
                                 ["hnz"])
         self.compiled = self.provisional = False
+        self.switches: list[codegen.Switch] = []
         if jit:
             self._libraries = (codegen.Library(self.jac.name(), (self.jac,), cse=True),
                                codegen.Library(self.hess.name(), (self.hess,), cse=True))
             self._compile()
 
     def _compile(self):
-        """jac and hess compiled to C (one library each, compiled concurrently): at -O1 when cached, else at -O0 now
-        and at -O1 in the background (codegen's ``quick``), ``provisional`` until that build has arrived."""
+        """jac and hess compiled to C (one library each): at -O1 when cached, else interpreted (or at -O0 if that has
+        arrived) while a background process compiles them (codegen's interpreted-first policy), ``provisional``
+        until the -O1 build has arrived; ``compiled``: compiled code is in use or on its way."""
         (self.jac,), (self.hess,) = codegen.compiled_libraries(self._libraries, quick=codegen.QUICK_CFLAGS)
         self.provisional = codegen.last_provisional
-        self.compiled = self.jac.class_name() == "External" and self.hess.class_name() == "External"
+        self.compiled = self.provisional or (self.jac.class_name() == "External"
+                                             and self.hess.class_name() == "External")
 
     def refresh(self) -> "_Derivatives":
         """Load the -O1 build once it has arrived in the cache (between solves: an NLP keeps the Functions it got)."""
         if self.provisional and codegen.ready(self._libraries):
             self._compile()
         return self
+
+    def mapped(self, which: str, M: int) -> ca.Function:
+        """``which`` ('grad', 'jac' or 'hess') mapped over M instances; while provisional a :class:`codegen.Switch`
+        that moves to the compiled library as it arrives, within a solve."""
+        fn = getattr(self, which)
+        if not self.provisional or which == "grad":
+            return fn.map(M)
+        lib = self._libraries[0 if which == "jac" else 1]
+        switch = codegen.Switch(fn.map(M), [lib], lambda loaded, final: loaded[0][0].map(M))
+        self.switches.append(switch)   # a Callback must outlive the Functions that call it
+        return switch
 
 
 class BlockFunction:
@@ -223,12 +237,12 @@ class StructuredNLP:
             if d.spg.nnz():
                 _, gc = d.spg.get_triplet()                     # gradient: 1 x nv, columns are the variables
                 gr.append(b.idx[np.asarray(gc), :].ravel(order="F"))
-                gv.append(ca.vec(d.grad.map(M)(V, P)))
+                gv.append(ca.vec(d.mapped("grad", M)(V, P)))
             if b.nr and d.spJ.nnz():
                 r, c = (np.asarray(a) for a in d.spJ.get_triplet())
                 jr.append((self._offsets[b.name] + ks[None, :] * b.nr + r[:, None]).ravel(order="F"))
                 jc.append(b.idx[c, :].ravel(order="F"))
-                jv.append(ca.vec(d.jac.map(M)(V, P)))
+                jv.append(ca.vec(d.mapped("jac", M)(V, P)))
             if d.spH.nnz():
                 r, c = (np.asarray(a) for a in d.spH.get_triplet())
                 gi, gj = b.idx[r, :], b.idx[c, :]
@@ -236,7 +250,7 @@ class StructuredNLP:
                 hc.append(np.maximum(gi, gj).ravel(order="F"))
                 lam = ca.reshape(lam_g[self.rows(b.name).ravel(order="F").tolist()], b.nr, M) if b.nr \
                     else ca.MX(0, M)
-                hv.append(ca.vec(d.hess.map(M)(V, P, ca.repmat(lam_f, 1, M), lam)))
+                hv.append(ca.vec(d.mapped("hess", M)(V, P, ca.repmat(lam_f, 1, M), lam)))
 
         def cat(parts, empty):
             return np.concatenate(parts) if parts else empty

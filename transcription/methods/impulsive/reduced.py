@@ -4,6 +4,7 @@ constraint manifold (see :func:`relaxed_reduced`)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ MAX_STEP = 1.0
 
 
 @per_discretization
-def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, ca.Function]:
+def _free_step_derivatives(disc, jit: bool) -> tuple:
     """Per-step derivative Functions of the free step F (u = 0) in ambient coordinates (R as 9 numbers).
 
     ``free_fwd``  (S[18x6], X[18], c0[3], h) -> dF/dX S           (forward sensitivity, 6 directions)
@@ -37,7 +38,8 @@ def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, c
     third derivatives equal those of the solved step (lgvi.py).  The rollout X_N(p) = F o ... o F
     (X_0(p)) is a composition of maps R^18 -> R^18 with X_0 affine in p, so the chain rule in
     ambient coordinates is exact and needs no chart.  jit: compiled to C (codegen.compiled_libraries, which
-    falls back to the interpreter; a first use at -O0, the -O1 build in the background).
+    falls back to the interpreter; a first use runs interpreted while the background builds them).  Returns
+    (fwd, adj, hess, the libraries still being built or None).
     """
     X, c0, h = ca.SX.sym("X", NX), ca.SX.sym("c0", 3), ca.SX.sym("h")
     mu, S, q = ca.SX.sym("mu", NX), ca.SX.sym("S", NX, 6), ca.SX.sym("q", 6)
@@ -49,10 +51,10 @@ def _free_step_derivatives(disc, jit: bool) -> tuple[ca.Function, ca.Function, c
     Hq = ca.hessian(ca.dot(mu, disc.step_seeded(X + ca.mtimes(S, q), w0, h, c0)), q)[0]
     hess = ca.Function(f"{disc.scheme}_free_hess", [X, c0, h, mu, S], [ca.substitute(Hq, q, ca.DM.zeros(6))],
                        ["X", "c0", "h", "mu", "S"], ["T"])
-    if jit:   # one library each, compiled concurrently: -O1 when cached, else -O0 now and -O1 in the background
-        (fwd,), (adj,), (hess,) = codegen.compiled_libraries([codegen.Library(f.name(), (f,), cse=True)
-                                                               for f in (fwd, adj, hess)], quick=codegen.QUICK_CFLAGS)
-    return fwd, adj, hess
+    libs = [codegen.Library(f.name(), (f,), cse=True) for f in (fwd, adj, hess)]
+    if jit:   # one library each: -O1 when cached, else interpreted while the background builds them (codegen)
+        (fwd,), (adj,), (hess,) = codegen.compiled_libraries(libs, quick=codegen.QUICK_CFLAGS)
+    return fwd, adj, hess, (libs if jit and codegen.last_provisional else None)
 
 
 @per_discretization
@@ -64,7 +66,22 @@ def _rollout_derivatives(disc, N: int, jit: bool) -> tuple[ca.Function, ca.Funct
              and mu_k = A_k^T mu_{k+1} (A_k = dF/dX at node k), mu_N = muN.
     Only small arrays cross into Python (the per-step matrices stay inside CasADi).
     """
-    fwd, adj, hess = _free_step_derivatives(disc, jit)
+    fwd, adj, hess, pending = _free_step_derivatives(disc, jit)
+    sens, hfn = _sweeps(disc, N, fwd, adj, hess)
+    if pending is None:
+        return sens, hfn
+    built: dict = {}    # the interpreted-first policy: both move to the compiled steps as they arrive
+
+    def make(loaded, final, i):
+        if final not in built:
+            built[final] = _sweeps(disc, N, *(f for (f,) in loaded))
+        return built[final][i]
+
+    return tuple(codegen.Switch(f, pending, functools.partial(make, i=i)) for i, f in enumerate((sens, hfn)))
+
+
+def _sweeps(disc, N: int, fwd, adj, hess) -> tuple[ca.Function, ca.Function]:
+    """``sens`` and ``hess`` of :func:`_rollout_derivatives` from the per-step Functions."""
     X, roots, h = ca.MX.sym("X", NX, N), ca.MX.sym("roots", 3, N), ca.MX.sym("h")
     S0, muN = ca.MX.sym("S0", NX, 6), ca.MX.sym("muN", NX)
     H = ca.repmat(h, 1, N)

@@ -39,10 +39,21 @@ def orthonormalized(X):
 
 
 def _costate_map_function(scheme: str, ins: list, outs: list) -> ca.Function:
-    """``{scheme}_costate_map`` (X, lam_prev, h, Winv, bd) -> (X1, lam, u, res, lam_res, A, c, D, lamp), one
-    signature for both schemes and force frames."""
-    return ca.Function(f"{scheme}_costate_map", ins, outs, ["X", "lam_prev", "h", "Winv", "bd"],
+    """``{scheme}_costate_map`` (X, lam_prev, h, Winv, bd[, theta]) -> (X1, lam, u, res, lam_res, A, c, D, lamp), one
+    signature for both schemes and force frames (``_p``: the model's numbers theta the last input)."""
+    theta = len(ins) > 5
+    return ca.Function(f"{scheme}_costate_map{'_p' if theta else ''}", ins, outs,
+                       ["X", "lam_prev", "h", "Winv", "bd"] + (["theta"] if theta else []),
                        ["X1", "lam", "u", "res", "lam_res", "A", "c", "D", "lamp"])
+
+
+def theta_symbol(disc: Discretization, parametric: bool) -> tuple:
+    """(the Discretization the per-step Functions are built from, their extra inputs): ``disc`` and none, or
+    (``parametric``) ``disc.with_theta(theta)`` and [theta], the model's numbers as data (lgvi.WithTheta)."""
+    if not parametric:
+        return disc, []
+    theta = ca.SX.sym("theta", disc.model.parameters.size)
+    return disc.with_theta(theta), [theta]
 
 
 def node_law(disc: Discretization, h, Winv, bd) -> Callable:
@@ -100,8 +111,10 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
 
 
 @per_discretization
-def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | None]:
-    """The forward map of the necessary conditions for ``disc``.
+def costate_functions(disc: Discretization, parametric: bool = False) -> tuple[ca.Function, ca.Function | None]:
+    """The forward map of the necessary conditions for ``disc``; ``parametric``: with the model's numbers theta =
+    ``model.parameters`` as the last input of both Functions (:func:`theta_symbol`; the shooting's maps, compiled once
+    per structure), else as constants.
 
     Returns (costate_map, first_step); both built from the step and its variation A_k
     (:func:`_forward_step`; B_k from :func:`control_matrix`).
@@ -128,20 +141,21 @@ def costate_functions(disc: Discretization) -> tuple[ca.Function, ca.Function | 
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
     bd = ca.SX.sym("bd", NB)
-    s = _forward_step(disc, X, lam_prev, h, Winv, bd)
+    d, theta = theta_symbol(disc, parametric)
+    s = _forward_step(d, X, lam_prev, h, Winv, bd)
     lam_res = ca.norm_inf(ca.mtimes(s["Abar"].T, s["mu"]) - lam_prev) / ca.fmax(ca.norm_inf(lam_prev), 1e-300)
-    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv, bd],
+    costate_map = _costate_map_function(disc.scheme, [X, lam_prev, h, Winv, bd, *theta],
                                         [s["X1"], s["lam"], s["u"], s["res"], lam_res, s["A"], s["c"], s["D"],
                                          s["lamp"]])
     if disc.scheme != "first_order":
         return costate_map, None
     lam0 = ca.SX.sym("lam0", NZ)
-    R1 = ca.mtimes(split_state(X)[2], cayley(disc.cayley_solve(disc.cayley_rhs(X, ca.DM.zeros(NU), h))[0]))
+    R1 = ca.mtimes(split_state(X)[2], cayley(d.cayley_solve(d.cayley_rhs(X, ca.DM.zeros(NU), h))[0]))
     u0 = s["law"](lam0, R1)[0]
-    X1, res = disc.step(X, u0, h)
+    X1, res = d.step(X, u0, h)
     first_step = ca.Function(
-        "first_order_costate_first_step", [X, lam0, h, Winv, bd], [X1, u0, res], ["X0", "lam0", "h", "Winv", "bd"],
-        ["X1", "u", "res"]
+        f"first_order_costate_first_step{'_p' if theta else ''}", [X, lam0, h, Winv, bd, *theta], [X1, u0, res],
+        ["X0", "lam0", "h", "Winv", "bd"] + (["theta"] if theta else []), ["X1", "u", "res"]
     )
     return costate_map, first_step
 

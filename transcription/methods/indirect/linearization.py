@@ -7,15 +7,16 @@ import casadi as ca
 
 from ...layout import NU, NX, NZ, chart, split_state
 from ...lgvi import Discretization, per_discretization
-from .conditions import costate_functions, node_law, orthonormalized, terminal_residual_function
+from .conditions import costate_functions, node_law, orthonormalized, terminal_residual_function, theta_symbol
 from .control import NB, control_matrix, control_scale
 from .coordinates import costate_chart
 from .elimination import unpivoted_elimination, unpivoted_substitution
 
 
 @per_discretization
-def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
-    """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam] at z = 0.
+def adjoint_variation_jacobian(disc: Discretization, parametric: bool = False) -> ca.Function:
+    """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0[, theta]) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam]
+    at z = 0 (``parametric``: the model's numbers theta the last input, :func:`.conditions.theta_symbol`).
 
     The derivative of the costate back-solve's matrix along a state variation, contracted with the
     costate first: A^T lam is the gradient in z of lam^T readback(step(chart(X, z))) (one reverse
@@ -32,23 +33,25 @@ def adjoint_variation_jacobian(disc: Discretization) -> ca.Function:
     c0 = ca.SX.sym("c0", 3)
     z, zp = ca.SX.sym("z", NZ), ca.SX.sym("zp", NZ)
     chart_c, readback_c = costate_chart(disc)  # z (inertial force) or the body-momentum z' (§15)
-    X1z = disc.step_seeded(chart_c(chart_c(X, zp), z), w, h, c0)
+    d, theta = theta_symbol(disc, parametric)
+    X1z = d.step_seeded(chart_c(chart_c(X, zp), z), w, h, c0)
     base = ca.SX.sym("base", NX)  # the readback point X_{k+1}(zp), not differentiated in z
     g = ca.gradient(ca.dot(lam, readback_c(base, X1z)), z)
     # one substitution for both, so that the step at z = 0 is one graph (not two copies, each differentiated)
     v, X1p = ca.substitute([g, X1z], [z], [ca.DM.zeros(NZ)])
     v = ca.substitute(v, base, X1p)
     H = ca.substitute(ca.jacobian(v, zp), zp, ca.DM.zeros(NZ))
-    return ca.Function(f"{disc.scheme}_adjoint_variation_jacobian", [X, w, lam, h, c0], [H],
-                       ["X", "w", "lam", "h", "c0"], ["H"])
+    return ca.Function(f"{disc.scheme}_adjoint_variation_jacobian{'_p' if theta else ''}", [X, w, lam, h, c0, *theta],
+                       [H], ["X", "w", "lam", "h", "c0"] + (["theta"] if theta else []), ["H"])
 
 
 def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
     """The linearization of the costate forward map (docs/mathematics.md §6 (29)-(31)) along a rollout of the costate map.
 
-    Returns (costate_hessian, linearized_map):
+    Returns (costate_hessian, linearized_map), the maps of ``costate_functions(disc, parametric=True)``'s rollout:
 
-    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB]) -> H[12x12]
+    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB], theta) -> H[12x12]  (theta the model's
+        numbers, ``model.parameters``: data, so the Function serves every model of the structure)
         H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
         orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
         seeded with the step's Cayley root c (an output of the costate map).  With a body-fixed force lam is
@@ -93,18 +96,19 @@ def _costate_hessian_function(disc: Discretization) -> ca.Function:
     h = ca.SX.sym("h")
     Winv = ca.SX.sym("Winv", NU, NU)
     bd = ca.SX.sym("bd", NB)
+    theta = ca.SX.sym("theta", disc.model.parameters.size)
     zero = ca.DM.zeros(NU)
     R = split_state(X)[2]
     wA = zero if disc.scheme == "first_order" else ca.vertcat(node_law(disc, h, Winv, bd)(lam_prev, R)[0], zero)
-    H = adjoint_variation_jacobian(disc)(orthonormalized(X), wA, lam, h, c)
-    return ca.Function(f"{disc.scheme}_costate_hessian", [X, lam_prev, lam, c, h, Winv, bd], [H],
-                       ["X", "lam_prev", "lam", "c", "h", "Winv", "bd"], ["H"])
+    H = adjoint_variation_jacobian(disc, True)(orthonormalized(X), wA, lam, h, c, theta)
+    return ca.Function(f"{disc.scheme}_costate_hessian_p", [X, lam_prev, lam, c, h, Winv, bd, theta], [H],
+                       ["X", "lam_prev", "lam", "c", "h", "Winv", "bd", "theta"], ["H"])
 
 
 def _linearized_map_function(disc: Discretization, spH: ca.Sparsity) -> ca.Function:
     """``{scheme}_linearized_map`` of :func:`linearization_functions`, at the MX level (matrix products, a map
     of the column solve): compact C, cheap to compile."""
-    spA = costate_functions(disc)[0].sparsity_out("A")               # its structural zeros save operations
+    spA = costate_functions(disc, True)[0].sparsity_out("A")         # its structural zeros save operations
     As = ca.SX.sym("A", spA)
     LUs = unpivoted_elimination(As.T)
     factor = ca.Function(f"{disc.scheme}_costate_factor", [As], [LUs], ["A"], ["LU"])

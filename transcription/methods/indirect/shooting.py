@@ -2,8 +2,10 @@
 exact Jacobian, the rollout of states, costates and controls, and the free-final-time gradient."""
 from __future__ import annotations
 
+import functools
 
 import casadi as ca
+import numpy as np
 
 from ... import codegen
 from ...layout import NU, NX, NZ, split_state, tangent_readback
@@ -44,27 +46,59 @@ class ShootingFunctions:
     terminal(lam0, X0, Xd, h, Winv, bd) -> (XN[18], lamN[12], res_max) and
     terminal_jac(lam0, X0, Xd, h, Winv, bd) -> (XN, lamN, dZ[12 x 12], dlamN[12 x 12]), dZ = dz_N/dlam0 (tangent
         coordinates at X_N): for terminal conditions other than a state's (:mod:`.orbit`); Xd is not read.
+    rollout(lam0, X0, Xd, h, Winv, bd) -> (zN, lamN, res_max, S...) and jac_given(lam0, X0, Xd, h, Winv, bd, S...)
+        -> (zN, Psi, dlamN): residual and shoot_jac, the same values bit for bit, sharing the rollout's outputs S
+        that the linearization reads (:meth:`RolloutCache`): the Jacobian at an accepted point without a second
+        rollout.
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
         if N < 1:
             raise ValueError("N must be >= 1")
         self.disc, self.N, self.jit = disc, int(N), bool(jit)
-        sch = disc.scheme
-        self.costate_map, self.first_step = costate_functions(disc)
+        # the per-step maps take the model's numbers theta as data (their last input; here the constant
+        # model.parameters, :meth:`_functions`): compiled once per structure, not per model
+        self.costate_map, self.first_step = costate_functions(disc, True)
         self.costate_hessian, self.linearized_map = linearization_functions(disc)
-        # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
-        # libraries compiled concurrently, one set per scheme (and model), independent of N and of the data
-        step_map, hess_map, lin_map = self.costate_map, self.costate_hessian, self.linearized_map
-        if self.jit:
-            (hess_map,), (step_map,), (lin_map,) = codegen.compiled_libraries(
-                [codegen.Library(hess_map.name(), (hess_map,)),            # the largest first
-                 codegen.Library(step_map.name(), (step_map,), cse=True),  # evaluated most often
-                 codegen.Library(lin_map.name(), (lin_map,), cflags=tuple(codegen.LOOP_CFLAGS))],  # MX: loops
-                cflags=codegen.QUICK_CFLAGS)
-        self.compiled = self.jit and all(f.class_name() == "External" for f in (step_map, hess_map, lin_map))
         self.terminal_residual = terminal_residual_function()
+        # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
+        # libraries, one set per scheme and structure, independent of N, of the data and of the model's numbers;
+        # a set not yet in the cache is interpreted while a background process compiles it (codegen's
+        # interpreted-first policy), and the Functions move to the compiled code as it arrives (codegen.Switch)
+        maps = (self.costate_map, self.costate_hessian, self.linearized_map)
+        provisional, self.libraries = False, []
+        if self.jit:
+            libs = [codegen.Library(maps[0].name(), (maps[0],), cse=True),   # evaluated most often
+                    codegen.Library(maps[1].name(), (maps[1],)),             # the largest
+                    codegen.Library(maps[2].name(), (maps[2],), cflags=tuple(codegen.LOOP_CFLAGS), quick=False)]
+            libs = [libs[1], libs[0], libs[2]]   # the largest gets the first compile slot (codegen.SLOTS)
+            hess, step, lin = (f for (f,) in codegen.compiled_libraries(libs, cflags=codegen.QUICK_CFLAGS,
+                                                                        quick=codegen.QUICK_CFLAGS))
+            maps = (step, hess, lin)
+            self.libraries = libs   # (codegen.ready(libraries, QUICK_CFLAGS): all compiled at their own flags)
+            provisional = codegen.last_provisional
+        self.compiled = self.jit and (provisional or all(f.class_name() == "External" for f in maps))
+        fns = self._functions(*maps)
+        if provisional:
+            built: dict = {}
 
+            def make(loaded, final, name):
+                if final not in built:
+                    (hess_c,), (step_c,), (lin_c,) = loaded
+                    built[final] = self._functions(step_c, hess_c, lin_c)
+                return built[final][name]
+
+            fns = {name: codegen.Switch(f, libs, functools.partial(make, name=name), codegen.QUICK_CFLAGS,
+                                        codegen.QUICK_CFLAGS) for name, f in fns.items()}
+        self.shoot, self.residual, self.shoot_jac = fns["shoot"], fns["residual"], fns["shoot_jac"]
+        self.terminal, self.terminal_jac = fns["terminal"], fns["terminal_jac"]
+        self.rollout, self.jac_given = fns["rollout"], fns["jac_given"]
+
+    def _functions(self, step_map, hess_map, lin_map) -> dict:
+        """shoot, residual, shoot_jac, terminal and terminal_jac (class docstring) from the per-step maps, with the
+        model's numbers theta = ``model.parameters`` as the maps' data."""
+        disc, N, sch = self.disc, self.N, self.disc.scheme
+        theta = ca.DM(disc.model.parameters)
         lam0 = ca.MX.sym("lam0", NZ)
         X0 = ca.MX.sym("X0", NX)
         Xd = ca.MX.sym("Xd", NX)
@@ -75,7 +109,7 @@ class ShootingFunctions:
         n = N - 1 if sch == "first_order" else N   # the steps by the costate map (first_order: after step 0)
         h0, hr = h[0, 0], h[0, N - n:]   # step 0's size; those of the costate map's steps
         if sch == "first_order":   # step 0 from lambda_0 itself
-            X1, u1, r1 = self.first_step(X0, lam0, h0, Winv, bd)
+            X1, u1, r1 = self.first_step(X0, lam0, h0, Winv, bd, theta)
             Xs, lams, Us, res, lres = [X1], [lam0], [u1], [r1], [ca.MX(0)]
             Xstart = X1
         else:
@@ -88,14 +122,14 @@ class ShootingFunctions:
         steps = None
         if n > 0:
             acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
-            steps = acc(Xstart, lam0, hr, ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n))
+            steps = acc(Xstart, lam0, hr, ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n), ca.repmat(theta, 1, n))
             for a, b in zip((Xs, lams, Us, res, lres), steps[:5]):
                 a.append(b)
         Xs, lams, Us, res, lres = (ca.horzcat(*a) for a in (Xs, lams, Us, res, lres))
         zN, lamN = self.terminal_residual(Xs[:, -1], Xd), lams[:, -1]
         names_in = ["lam0", "X0", "Xd", "h", "Winv", "bd"]
         args = [lam0, X0, Xd, h, Winv, bd]
-        self.shoot = ca.Function(
+        shoot = ca.Function(
             f"{sch}_shoot{N}",
             args,
             [zN, Xs, lams, Us, res, lres],
@@ -103,18 +137,31 @@ class ShootingFunctions:
             ["zN", "X", "lam", "U", "res", "lam_res"],
         )
         res_max = ca.mmax(res)
-        self.residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, lamN, res_max], names_in,
-                                    ["zN", "lamN", "res_max"])
+        residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, lamN, res_max], names_in,
+                               ["zN", "lamN", "res_max"])
         dZ, dlamN = self._linearization(hess_map, lin_map, args, Xstart, D_first, steps, n)
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
-        self.shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
-                                     ["zN", "Psi", "dlamN"])
+        shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
+                                ["zN", "Psi", "dlamN"])
+        # the same residual and Jacobian in two calls that share one rollout (the Newton iteration asks for the
+        # Jacobian where its line search accepted a residual): the rollout's outputs the linearization reads
+        kept = (0, 1, 5, 6, 7, 8) if n > 0 else ()
+        rollout = ca.Function(f"{sch}_shoot_rollout{N}", args, [zN, lamN, res_max, *(steps[i] for i in kept)])
+        given = [ca.MX.sym(f"s{i}", steps[i].sparsity()) for i in kept]
+        sym = [None] * 9
+        for i, g in zip(kept, given):
+            sym[i] = g
+        dZg, dlamNg = self._linearization(hess_map, lin_map, args, Xstart, D_first, sym if n > 0 else None, n)
+        zLg, JTg = terminal_residual_jacobian()(sym[0][:, -1] if n > 0 else Xstart, Xd)
+        jac_given = ca.Function(f"{sch}_shoot_jac_given{N}", args + given, [zLg, ca.mtimes(JTg, dZg), dlamNg])
         # the terminal state and lambda_{N-1}, with their derivatives by lam0, for terminal conditions other than a
         # state's (an orbit target, :mod:`.orbit`)
-        self.terminal = ca.Function(f"{sch}_shoot_terminal{N}", args, [Xs[:, -1], lamN, res_max], names_in,
-                                    ["XN", "lamN", "res_max"])
-        self.terminal_jac = ca.Function(f"{sch}_shoot_terminal_jac{N}", args, [Xs[:, -1], lamN, dZ, dlamN], names_in,
-                                        ["XN", "lamN", "dZ", "dlamN"])
+        terminal = ca.Function(f"{sch}_shoot_terminal{N}", args, [Xs[:, -1], lamN, res_max], names_in,
+                               ["XN", "lamN", "res_max"])
+        terminal_jac = ca.Function(f"{sch}_shoot_terminal_jac{N}", args, [Xs[:, -1], lamN, dZ, dlamN], names_in,
+                                   ["XN", "lamN", "dZ", "dlamN"])
+        return {"shoot": shoot, "residual": residual, "shoot_jac": shoot_jac, "terminal": terminal,
+                "terminal_jac": terminal_jac, "rollout": rollout, "jac_given": jac_given}
 
     def _linearization(self, hess_map, lin_map, args, Xstart, D_first, steps, n):
         """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates): Psi = dzN/dlam0 by the linearized
@@ -146,8 +193,8 @@ class ShootingFunctions:
             # D of the control each step's A_k is taken at (lgvi: u_k) and of the one it determines (u_{k+1})
             Dk = ca.horzcat(D_first, Dr[:, :NU * (n - 1)])
             Ws = ca.repmat(Winv, 1, n)
-            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [5, 6], [])(Xk, Lprev, LPr, Cr, hr,
-                                                                                         Winv, bd)
+            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [5, 6, 7], [])(
+                Xk, Lprev, LPr, Cr, hr, Winv, bd, ca.DM(self.disc.model.parameters))
             dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
                 dZ, dlam, Ar, Hk, Dk, Dr, hr, Ws)
             dZ, dlamN, lam_last = dZs[:, -NZ:], dlams[:, -NZ:], LPr[:, -1]
@@ -156,6 +203,26 @@ class ShootingFunctions:
             _, Tt, Q, Tinv = terminal_costate_function()(XN, lam_last)
             dlamN, dZ = ca.mtimes(Tt, dlamN) + ca.mtimes(Q, dZ), ca.mtimes(Tinv, dZ)
         return dZ, dlamN
+
+
+class RolloutCache:
+    """residual(lam0) and jacobian(lam0) of the Newton iteration on one ShootingFunctions' rollout and linearization
+    (args: X0, Xd, h, Winv, bd): the Jacobian at the point of the last residual reuses its rollout (``jac_given``),
+    which the Newton-Armijo iteration asks for at every accepted step -- one rollout per iteration instead of two,
+    with the same values."""
+
+    def __init__(self, fns: ShootingFunctions, args: tuple):
+        self.fns, self.args, self.last = fns, args, None
+
+    def residual(self, lam0):
+        out = self.fns.rollout(lam0, *self.args)
+        self.last = (np.array(lam0, dtype=float), out[3:])
+        return out[:3]
+
+    def jacobian(self, lam0):
+        if self.last is not None and np.array_equal(self.last[0], lam0):
+            return self.fns.jac_given(lam0, *self.args, *self.last[1])
+        return self.fns.shoot_jac(lam0, *self.args)
 
 
 @per_discretization

@@ -21,7 +21,7 @@ from .coordinates import body_coordinates
 from .fuel import fuel_not_covered, solve_fuel, warm_controls
 from .objectives import solve_time
 from .orbit import orbit_shooting
-from .shooting import shooting_functions, time_gradient_function
+from .shooting import RolloutCache, shooting_functions, time_gradient_function
 
 
 def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time", "fuel")) -> str:
@@ -150,14 +150,16 @@ class _Shooting:
         fns, X0, Xd, Winv, free, opts = self.fns, self.X0, self.Xd, self.Winv, self.free, self.options
         h = self.problem.steps_of(h)
 
+        shared = RolloutCache(fns, (X0, Xd, h, Winv, bd_stage))   # the Jacobian reuses the accepted residual's rollout
+
         def residual(l):
             # the given terminal components, and lambda_{N-1} = 0 on the free ones (transversality)
-            z, lamN, r = fns.residual(l, X0, Xd, h, Winv, bd_stage)
+            z, lamN, r = shared.residual(l)
             return np.where(free, np.array(lamN).ravel(), np.array(z).ravel()), float(r)
 
         def jacobian(l):
             # Psi only: z always comes from ``residual`` (one rounding for all comparisons)
-            _, Psi, dlamN = fns.shoot_jac(l, X0, Xd, h, Winv, bd_stage)
+            _, Psi, dlamN = shared.jacobian(l)
             return np.where(free[:, None], np.array(dlamN), np.array(Psi))
 
         # an orbit target: its conditions and transversality instead (.orbit)
