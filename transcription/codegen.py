@@ -241,17 +241,17 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
             out = []
             for lib, path, fl in zip(libs, paths, flags):
                 if path.exists():
-                    out.append([ca.external(f.name(), str(path)) for f in lib.fns])
+                    out.append(_external(lib, path))
                     continue
                 last_provisional = True
                 stages = [(list(quick), _path(lib, list(quick)))] if lib.quick and list(quick) != fl else []
                 _spawn(lib, [(f, p) for f, p in stages + [(fl, path)] if not p.exists()])
                 have = [p for _, p in stages if p.exists()]
-                out.append([ca.external(f.name(), str(have[0])) for f in lib.fns] if have else list(lib.fns))
+                out.append(_external(lib, have[0]) if have else list(lib.fns))
             last_error = None
             return out
         _build([(lib, path, fl) for lib, path, fl in zip(libs, paths, flags) if not path.exists()], timeout)
-        exts = [[ca.external(f.name(), str(path)) for f in lib.fns] for lib, path in zip(libs, paths)]
+        exts = load(libs, paths)
         last_error = None
         return exts
     except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
@@ -292,7 +292,12 @@ def arrived(paths: Sequence[Sequence[Path]]) -> tuple[tuple[Path, ...], bool] | 
 
 def load(libs: Sequence[Library], paths: Sequence[Path]) -> list[list[ca.Function]]:
     """Every library's Functions from its shared library ``paths`` (:func:`arrived`)."""
-    return [[ca.external(f.name(), str(path)) for f in lib.fns] for lib, path in zip(libs, paths)]
+    return [_external(lib, path) for lib, path in zip(libs, paths)]
+
+
+def _external(lib: Library, path: Path) -> list[ca.Function]:
+    """``lib``'s Functions loaded from its shared library ``path``."""
+    return [ca.external(f.name(), str(path)) for f in lib.fns]
 
 
 class Switch(ca.Callback):
