@@ -183,7 +183,7 @@ def test_new_numbers_in_a_known_structure_compile_nothing(monkeypatch, tmp_path)
     assert np.max(np.abs(sa.controls - ra.controls)) <= 1e-12 * np.max(np.abs(ra.controls))
     libs = dynamics(a.disc, True, True, True).derivatives(True)._libraries
     deadline = time.monotonic() + 300.0                                 # their -O0 builds (the -O1 ones follow)
-    while codegen.arrived(codegen.candidates(libs, quick=codegen.QUICK_CFLAGS)) is None and \
+    while None in codegen.arrived(codegen.candidates(libs, quick=codegen.QUICK_CFLAGS))[0] and \
             time.monotonic() < deadline:
         time.sleep(0.2)
     body = Dumbbell(mass=1.02, length=0.11, sphere_radius=0.025, mu=1.01 * GM_NORMALIZED, gravity="j2", J2=2e-3,

@@ -28,13 +28,15 @@ weights and bounds, so a model of a known structure (kind of body and gravity, s
 time) loads its libraries from the cache and compiles nothing.
 
 Interpreted first.  A structure never seen before is not waited for (:func:`compiled_libraries` with ``quick``):
-its Functions come back interpreted while a detached background process (:func:`_spawn`, niced, with a
-``.building`` lock beside the library that holds its process id, one of :data:`SLOTS` compilers at a time)
-compiles the library at the ``quick`` flags (-O0, seconds) and then at its own into the cache, each atomically.
-:class:`Switch` (a copy-free Callback) wraps what is built from those Functions -- the NLP's mapped block
-derivatives, the indirect method's shooting Functions -- and moves to the compiled code when it lands, between
-two evaluations of the same solve; the next build loads it directly (:func:`ready`).  :func:`settle` waits for
-the builds under way, :func:`stop` ends them.
+its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, niced, with a
+``.building`` lock beside each library that holds its process id; one interpreter start for all the libraries of
+the call) compiles the libraries in the order given, one compiler at a time on two cores (:data:`.codegen_build.PARALLEL`: the
+solve keeps a core), each at the ``quick`` flags (-O0, about a second) and then at its own into the cache, each
+atomically; a compile also waits for one of :data:`.codegen_build.SLOTS` slots shared by all builders.  :class:`Switch` (a
+copy-free Callback) wraps what is built from those Functions -- the NLP's mapped block derivatives, the indirect
+method's N-step maps -- and moves each to the compiled code as its library lands, between two evaluations of the
+same solve; the next build loads it directly (:func:`ready`).  :func:`settle` waits for the builds under way,
+:func:`stop` ends them.
 
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
 ``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
@@ -44,13 +46,8 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import json
 import os
-import re
-import shutil
-import signal
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -59,10 +56,11 @@ from typing import Callable, Sequence
 
 import casadi as ca
 
-try:
-    import fcntl
-except ImportError:          # not POSIX: no slots (every build compiles at once)
-    fcntl = None
+from .codegen_build import building, cache_dir, compiler, generate, lean_io, spawn, stop
+
+__all__ = ["CFLAGS", "QUICK_CFLAGS", "LOOP_CFLAGS", "last_error", "notify", "available", "compiled", "compiled_many",
+           "Library", "compiled_libraries", "background", "candidates", "arrived", "load", "Switch", "ready", "settle",
+           "last_provisional", "cache_dir", "compiler", "building", "stop", "lean_io"]
 
 #: optimization level: -O1 compiles ~7x faster than -O2 on these straight-line functions
 #: (5.6 s against 38 s for the linearized costate map) and runs within 25 % of it; -ffp-contract=off: the
@@ -83,22 +81,6 @@ last_error: str | None = None
 #: optional callable told (one line) before a cache miss is compiled, so that a front end can say why
 #: the first run pauses; the CLI sets it, the library itself prints nothing
 notify: Callable[[str], None] | None = None
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("SE3OCP_CACHE", Path.home() / ".cache" / "se3ocp" / "codegen"))
-
-
-def compiler() -> str | None:
-    """The C compiler to use, or None."""
-    cc = os.environ.get("CC")
-    if cc and shutil.which(cc):
-        return shutil.which(cc)
-    for name in ("gcc", "cc", "clang"):
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
 
 
 def available() -> bool:
@@ -146,68 +128,26 @@ class Library:
         large map)."""
         return tuple(f.serialize() for f in self.fns)
 
-
-def _key(lib: Library, flags: list[str]) -> str:
-    memo = lib.__dict__.setdefault("_keys", {})   # (a frozen dataclass: its keys kept beside its cached_property)
-    if tuple(flags) not in memo:
+    @functools.cached_property
+    def _digest(self) -> "hashlib._Hash":
+        """SHA-256 of the serialized Functions, before the flags (:meth:`key` copies it per flag set)."""
         digest = hashlib.sha256()
-        for text in lib.serialized:
+        for text in self.serialized:
             digest.update(text.encode())
+        return digest
+
+    def key(self, flags: Sequence[str]) -> str:
+        """The cache key of this library compiled with ``flags``: the serialized Functions, the flags, the CasADi
+        version and whether common subexpressions are eliminated."""
+        digest = self._digest.copy()
         # (for one Function with cse, the same key as before compiled_many existed: caches stay valid)
-        digest.update(" ".join(flags).encode() + ca.__version__.encode() + (b"" if lib.cse else b"nocse"))
-        memo[tuple(flags)] = digest.hexdigest()[:20]
-    return memo[tuple(flags)]
+        digest.update(" ".join(flags).encode() + ca.__version__.encode() + (b"" if self.cse else b"nocse"))
+        return digest.hexdigest()[:20]
 
 
 def _generate(lib: Library, tmp: str) -> Path:
-    cg = ca.CodeGenerator(f"{lib.name}.c", {"with_header": False})
-    for f in lib.fns:
-        if lib.cse and f.is_a("SXFunction"):
-            ins = f.sx_in()
-            f = ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out(), {"cse": True})
-        cg.add(f)
-    cg.generate(tmp + os.sep)
-    path = Path(tmp) / f"{lib.name}.c"
-    path.write_text(lean_io(path.read_text()))
-    return path
-
-
-_BODY = re.compile(r"^(static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, casadi_int\* iw, "
-                   r"casadi_real\* w, int mem\) \{\n)(.*?)(^\}\n)", re.M | re.S)
-_READ = re.compile(r"arg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")
-_WRITE = re.compile(r"if \(res\[(\d+)\]!=0\) res\[\1\]\[(\d+)\]=")
-
-
-def lean_io(source: str) -> str:
-    """The generated C with every input and output pointer tested once per call instead of once per element.
-
-    CasADi's straight-line code reads each input element as ``arg[i]? arg[i][k] : 0`` and writes each output
-    element under ``if (res[i]!=0)``: hundreds of branches in one huge function, which cost gcc a third of
-    its time on the linearized map.  Here a null input reads from a zero array and a null output writes to
-    a scratch array on the stack, with the same values: ``ci0 = arg[0] ? arg[0] : zeros`` then ``ci0[k]``.
-    Function bodies in which anything else refers to arg or res are left unchanged.
-    """
-    def body(m: re.Match) -> str:
-        head, text, tail = m.groups()
-        reads = [(int(i), int(k)) for i, k in _READ.findall(text)]
-        writes = [(int(i), int(k)) for i, k in _WRITE.findall(text)]
-        rest = _WRITE.sub("", _READ.sub("", text))
-        if not (reads or writes) or re.search(r"\b(arg|res)\b", rest):
-            return m.group(0)
-        decl = []
-        if reads:
-            ins = sorted({i for i, _ in reads})
-            decl.append(f"  static const casadi_real casadi_zeros_in[{max(k for _, k in reads) + 1}] = {{0}};\n")
-            decl += [f"  const casadi_real* ci{i} = arg[{i}] ? arg[{i}] : casadi_zeros_in;\n" for i in ins]
-        if writes:
-            outs = sorted({i for i, _ in writes})
-            decl.append(f"  casadi_real casadi_scratch_out[{max(k for _, k in writes) + 1}];\n")
-            decl += [f"  casadi_real* co{i} = res[{i}] ? res[{i}] : casadi_scratch_out;\n" for i in outs]
-        text = _READ.sub(lambda r: f"ci{r.group(1)}[{r.group(2)}]", text)
-        text = _WRITE.sub(lambda w: f"co{w.group(1)}[{w.group(2)}]=", text)
-        return head + "".join(decl) + text + tail
-
-    return _BODY.sub(body, source)
+    """The C file of ``lib`` in the directory ``tmp`` (:func:`.codegen_build.generate`)."""
+    return generate(lib.name, lib.fns, lib.cse, tmp)
 
 
 def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: Sequence[str] = CFLAGS,
@@ -222,7 +162,7 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
 
     ``quick``: the interpreted-first policy.  A library not in the cache at its own flags is not waited for: it is
     loaded from its quick build (e.g. :data:`QUICK_CFLAGS`) if that is in the cache, else given back as the
-    interpreted Function, while a background process (:func:`_spawn`) compiles it -- with the quick flags first
+    interpreted Function, while a background process (:func:`.codegen_build.spawn`) compiles it -- with the quick flags first
     (seconds), then with its own -- into the cache.  :data:`last_provisional` says whether any library is not yet
     at its own flags; :class:`Switch` evaluates a Function built from them and moves to the compiled code as it
     arrives, even within a solve (:func:`arrived`; same values: ``-ffp-contract=off`` keeps the compiled arithmetic
@@ -238,16 +178,17 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
     try:
         paths = [_path(lib, fl) for lib, fl in zip(libs, flags)]
         if quick is not None and background():
-            out = []
+            out, builds = [], []
             for lib, path, fl in zip(libs, paths, flags):
                 if path.exists():
                     out.append(_external(lib, path))
                     continue
                 last_provisional = True
                 stages = [(list(quick), _path(lib, list(quick)))] if lib.quick and list(quick) != fl else []
-                _spawn(lib, [(f, p) for f, p in stages + [(fl, path)] if not p.exists()])
+                builds.append((lib, [(f, p) for f, p in stages + [(fl, path)] if not p.exists()]))
                 have = [p for _, p in stages if p.exists()]
                 out.append(_external(lib, have[0]) if have else list(lib.fns))
+            spawn(builds, notify)
             last_error = None
             return out
         _build([(lib, path, fl) for lib, path, fl in zip(libs, paths, flags) if not path.exists()], timeout)
@@ -277,22 +218,21 @@ def candidates(libs: Sequence[Library], cflags: Sequence[str] = CFLAGS,
             for lib in libs]
 
 
-def arrived(paths: Sequence[Sequence[Path]]) -> tuple[tuple[Path, ...], bool] | None:
-    """The best cached file of each library (``paths``: :func:`candidates`) and whether all are the best; None while
-    some library has none in the cache (:func:`load` loads them)."""
+def arrived(paths: Sequence[Sequence[Path]]) -> tuple[tuple[Path | None, ...], bool]:
+    """The best cached file of each library (``paths``: :func:`candidates`; None for a library with none in the cache
+    yet, which stays interpreted) and whether all are the best (:func:`load` loads them)."""
     out, final = [], True
     for cands in paths:
         have = [p for p in cands if p.exists()]
-        if not have:
-            return None
-        final = final and have[0] == cands[0]
-        out.append(have[0])
+        final = final and bool(have) and have[0] == cands[0]
+        out.append(have[0] if have else None)
     return tuple(out), final
 
 
-def load(libs: Sequence[Library], paths: Sequence[Path]) -> list[list[ca.Function]]:
-    """Every library's Functions from its shared library ``paths`` (:func:`arrived`)."""
-    return [_external(lib, path) for lib, path in zip(libs, paths)]
+def load(libs: Sequence[Library], paths: Sequence[Path | None]) -> list[list[ca.Function]]:
+    """Every library's Functions from its shared library ``paths`` (:func:`arrived`); a library without one (None)
+    as its interpreted Functions."""
+    return [_external(lib, path) if path is not None else list(lib.fns) for lib, path in zip(libs, paths)]
 
 
 def _external(lib: Library, path: Path) -> list[ca.Function]:
@@ -301,12 +241,14 @@ def _external(lib: Library, path: Path) -> list[ca.Function]:
 
 
 class Switch(ca.Callback):
-    """A Function that evaluates ``fn`` (built from interpreted or quick-compiled Functions) until the compiled
-    libraries ``libs`` arrive in the cache (:func:`arrived`, checked at every evaluation until they are all at their
-    own flags), then ``make(loaded, final)``: the same Function built from the compiled ones (final: all at their own
-    flags).  The interpreted-first
+    """A Function that evaluates ``fn`` (built from interpreted or quick-compiled Functions) and moves to compiled
+    code library by library as it arrives in the cache (:func:`arrived`, checked at every evaluation until all are at
+    their own flags): on every arrival ``make(loaded, paths)`` builds the same Function from ``loaded`` (per library,
+    its compiled Functions, or the interpreted ones while it has none) -- ``paths``, the files they come from (None:
+    interpreted), identifies the build, so that the Switches of one build can share it.  The interpreted-first
     policy's way to use compiled code as soon as it exists, within a solve (an NLP's derivative Functions, the
-    indirect method's shooting Functions).  Values only, like the compiled Functions; the same values bit for bit
+    indirect method's shooting Functions: their rollout moves to the compiled costate map before the Jacobian's
+    libraries have arrived).  Values only, like the compiled Functions; the same values bit for bit
     (-ffp-contract=off), so where the switch happens does not show in the results."""
 
     def __init__(self, fn: ca.Function, libs: Sequence[Library], make: Callable[[list, bool], ca.Function],
@@ -314,7 +256,9 @@ class Switch(ca.Callback):
         ca.Callback.__init__(self)
         self.fn, self.libs, self.make = fn, tuple(libs), make
         self.candidates = candidates(libs, cflags, quick)
-        self.final, self.paths, self._buffer = False, None, None
+        # fn is taken to be the interpreted one (a caller whose fn already uses a quick build sees it rebuilt from that
+        # build at the first evaluation: the same Function)
+        self.final, self.paths, self._buffer, self._spares = False, (None,) * len(self.libs), None, {}
         self.construct(f"{fn.name()}_switch", {})
 
     def get_n_in(self):
@@ -341,24 +285,32 @@ class Switch(ca.Callback):
     def eval_buffer(self, arg, res):
         """Evaluate on the caller's buffers, without copies (a FunctionBuffer of the current Function)."""
         if not self.final:
-            got = arrived(self.candidates)
-            if got is not None and got[0] != self.paths:
-                self.fn, self.final, self.paths = self.make(load(self.libs, got[0]), got[1]), got[1], got[0]
+            paths, final = arrived(self.candidates)
+            if paths != self.paths:
+                self.fn, self.final, self.paths = self.make(load(self.libs, paths), paths), final, paths
                 self._buffer = None
         if self._buffer is None:
             self._buffer = self.fn.buffer()
         buf, run = self._buffer
         for i, a in enumerate(arg):
-            buf.set_arg(i, a)
-        for i, r in enumerate(res):
-            buf.set_res(i, r)
+            buf.set_arg(i, a if a is not None else self._spare("in", i))
+        for i, r in enumerate(res):   # (an output the calling graph does not read comes as None)
+            buf.set_res(i, r if r is not None else self._spare("out", i))
         run()
         return 0
+
+    def _spare(self, kind: str, i: int) -> memoryview:
+        """Zeros for an absent input ``i`` (kind 'in'), a scratch array for an output ``i`` nobody reads ('out')."""
+        key = (kind, i)
+        if key not in self._spares:
+            sp = self.fn.sparsity_in(i) if kind == "in" else self.fn.sparsity_out(i)
+            self._spares[key] = memoryview(bytearray(8 * max(sp.nnz(), 1))).cast("d")
+        return self._spares[key]
 
 
 def _path(lib: Library, flags: list[str]) -> Path:
     """The cached library of ``lib`` compiled with ``flags``."""
-    return cache_dir() / f"{lib.name}_{_key(lib, flags)}.so"
+    return cache_dir() / f"{lib.name}_{lib.key(flags)}.so"
 
 
 def ready(libs: Sequence[Library], cflags: Sequence[str] = CFLAGS) -> bool:
@@ -415,145 +367,3 @@ def _build(missing: list[tuple[Library, Path, list[str]]], timeout: float) -> No
 #: whether the last :func:`compiled_libraries` loaded any library from a quick build (its own build pending)
 last_provisional: bool = False
 
-#: a background build older than this (s) is taken for dead and started again
-BACKGROUND_TIMEOUT = 1800.0
-
-
-def _spawn(lib: Library, stages: list[tuple[list[str], Path]]) -> None:
-    """Start a detached process (:func:`_background`) that compiles ``lib`` with each stage's flags into its path in
-    turn (the quick flags first, then the library's own), unless one is under way (a lock file beside the last
-    path, ``.building``, holding the builder's process id, :func:`_alive`).  Tells :data:`notify` when it starts
-    one."""
-    if not stages:
-        return
-    cache_dir().mkdir(parents=True, exist_ok=True)
-    lock = stages[-1][1].with_name(stages[-1][1].name + ".building")
-    try:
-        if _alive(lock):
-            return
-        lock.unlink(missing_ok=True)
-        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
-    except OSError:              # another process took the lock first
-        return
-    if notify is not None:
-        notify(f"compiling {lib.name} to C in the background (once per machine; cached in {cache_dir()}; "
-               "interpreted until it arrives; SE3OCP_NO_JIT=1 skips this)")
-    job = Path(tempfile.mkdtemp(dir=cache_dir(), prefix="background_"))
-    (job / "job.json").write_text(json.dumps({"name": lib.name, "cse": lib.cse, "lock": str(lock),
-                                              "stages": [[f, str(p)] for f, p in stages],
-                                              "fns": list(lib.serialized)}))
-    proc = subprocess.Popen([sys.executable, "-m", __name__, str(job)], stdin=subprocess.DEVNULL,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    lock.write_text(str(proc.pid))
-
-
-def _alive(lock: Path) -> bool:
-    """Whether the build behind ``lock`` is under way: its process (the id in the lock; a lock still empty is being
-    written, for a minute at most) exists, and the lock is younger than :data:`BACKGROUND_TIMEOUT`."""
-    try:
-        age, text = time.time() - lock.stat().st_mtime, lock.read_text().strip()
-    except OSError:
-        return False
-    if age >= BACKGROUND_TIMEOUT or not text:
-        return age < 60.0
-    try:
-        os.kill(int(text), 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, ValueError):
-        return True
-    return True
-
-
-def building(cache: Path | None = None) -> list[Path]:
-    """The locks of the background builds under way in the cache."""
-    return [lock for lock in (cache_dir() if cache is None else cache).glob("*.building") if _alive(lock)]
-
-
-def stop(cache: Path | None = None, timeout: float = 10.0) -> int:
-    """End the background builds under way in the cache (their process groups: the builder and its compiler); each
-    removes its job and its lock as it ends.  The number stopped.  For a caller that must not wait for them."""
-    locks = building(cache)
-    for lock in locks:
-        try:
-            os.killpg(int(lock.read_text().strip()), signal.SIGTERM)
-        except (OSError, ValueError):
-            pass
-    t = time.monotonic()
-    while any(lock.exists() for lock in locks) and time.monotonic() - t < timeout:
-        time.sleep(0.1)
-    return len(locks)
-
-
-#: how many background builds compile at once (the others wait for a slot): cores, not one per library
-SLOTS = max(1, os.cpu_count() or 1)
-
-
-def _slot(first: bool) -> int | None:
-    """Hold one of :data:`SLOTS` slots (an exclusive lock on ``.slotK`` in the cache, released when the descriptor
-    is closed or the process ends); the descriptor (None without POSIX file locks).  A first stage (what a running
-    solve waits for) may take any slot, a later one (-O1) only slot 0: the -O1 builds go one at a time and never
-    hold up a quick one."""
-    if fcntl is None:
-        return None
-    while True:
-        for k in range(SLOTS if first else 1):
-            fd = os.open(cache_dir() / f".slot{k}", os.O_CREAT | os.O_RDWR)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                return fd
-            except OSError:
-                os.close(fd)
-        time.sleep(0.2)
-
-
-#: the niceness of a background build's first stage (what a running solve waits for) and of its later ones
-FIRST_NICE, LATER_NICE = 5, 10
-
-
-def _lower_priority(level: int) -> None:
-    """Niceness ``level`` for this process and, where the kernel groups the processes of a session for scheduling
-    (Linux autogroups: a process nices only against its own session, and :func:`_spawn` starts a new one), for its
-    session's group too -- without it a niced build took a full share from the solve that started it."""
-    os.nice(max(level - os.nice(0), 0))
-    if os.getsid(0) != os.getpid():   # not the leader of a session of its own: the group is the caller's too
-        return
-    try:
-        Path("/proc/self/autogroup").write_text(str(level))
-    except OSError:
-        pass
-
-
-def _background(job: Path) -> None:
-    """The background build of :func:`_spawn` (``python -m <this module> JOB``); each stage's library arrives in the
-    cache atomically, or not at all; the lock goes last (also when ended by SIGTERM, :func:`stop`).  At lower
-    priority, the solve that started it running on, interpreted, at its own: the first stage at :data:`FIRST_NICE`
-    (measured: three builds at the caller's priority slowed a short first solve 1.6x at load 7; at nice 10 under
-    load 4 the -O0 build of a 15k-line map took longer than the 7 s solve it was for), later ones at
-    :data:`LATER_NICE`.
-    Each stage waits for a slot (:func:`_slot`): a cold test suite starts dozens of builds."""
-    spec = json.loads((job / "job.json").read_text())
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
-    try:
-        _lower_priority(FIRST_NICE)
-        lib = Library(spec["name"], tuple(ca.Function.deserialize(f) for f in spec["fns"]), spec["cse"])
-        c = _generate(lib, str(job))
-        for i, (flags, path) in enumerate(spec["stages"]):
-            out = job / Path(path).name
-            if i > 0:
-                _lower_priority(LATER_NICE)
-            fd = _slot(i == 0)
-            try:
-                subprocess.run([compiler(), *flags, str(c), "-o", str(out), "-lm"], check=True,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=BACKGROUND_TIMEOUT)
-            finally:
-                if fd is not None:
-                    os.close(fd)
-            os.replace(out, path)
-    finally:
-        shutil.rmtree(job, ignore_errors=True)
-        Path(spec["lock"]).unlink(missing_ok=True)
-
-
-if __name__ == "__main__":
-    _background(Path(sys.argv[1]))

@@ -72,10 +72,10 @@ def _rollout_derivatives(disc, N: int, jit: bool) -> tuple[ca.Function, ca.Funct
         return sens, hfn
     built: dict = {}    # the interpreted-first policy: both move to the compiled steps as they arrive
 
-    def make(loaded, final, i):
-        if final not in built:
-            built[final] = _sweeps(disc, N, *(f for (f,) in loaded))
-        return built[final][i]
+    def make(loaded, paths, i):   # one build per set of arrived libraries (codegen.Switch), shared by both
+        if paths not in built:
+            built[paths] = _sweeps(disc, N, *(f for (f,) in loaded))
+        return built[paths][i]
 
     return tuple(codegen.Switch(f, pending, functools.partial(make, i=i)) for i, f in enumerate((sens, hfn)))
 

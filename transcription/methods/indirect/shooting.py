@@ -64,39 +64,50 @@ class ShootingFunctions:
         # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
         # libraries, one set per scheme and structure, independent of N, of the data and of the model's numbers;
         # a set not yet in the cache is interpreted while a background process compiles it (codegen's
-        # interpreted-first policy), and the Functions move to the compiled code as it arrives (codegen.Switch)
+        # interpreted-first policy), and each of the N-step Functions built from them moves to the compiled code as
+        # its library arrives (a codegen.Switch inside the shooting Functions, which are built once)
         maps = (self.costate_map, self.costate_hessian, self.linearized_map)
-        provisional, self.libraries = False, []
+        provisional, self.libraries, self.switches = False, [], []
         if self.jit:
-            libs = [codegen.Library(maps[0].name(), (maps[0],), cse=True),   # evaluated most often
-                    codegen.Library(maps[1].name(), (maps[1],)),             # the largest
+            # in the order the background build compiles them: the costate map first (every rollout and every
+            # line-search trial evaluates it), then the two of the Jacobian
+            libs = [codegen.Library(maps[0].name(), (maps[0],), cse=True),
+                    codegen.Library(maps[1].name(), (maps[1],)),
                     codegen.Library(maps[2].name(), (maps[2],), cflags=tuple(codegen.LOOP_CFLAGS), quick=False)]
-            libs = [libs[1], libs[0], libs[2]]   # the largest gets the first compile slot (codegen.SLOTS)
-            hess, step, lin = (f for (f,) in codegen.compiled_libraries(libs, cflags=codegen.QUICK_CFLAGS,
-                                                                        quick=codegen.QUICK_CFLAGS))
-            maps = (step, hess, lin)
+            maps = tuple(f for (f,) in codegen.compiled_libraries(libs, cflags=codegen.QUICK_CFLAGS,
+                                                                   quick=codegen.QUICK_CFLAGS))
             self.libraries = libs   # (codegen.ready(libraries, QUICK_CFLAGS): all compiled at their own flags)
             provisional = codegen.last_provisional
         self.compiled = self.jit and (provisional or all(f.class_name() == "External" for f in maps))
-        fns = self._functions(*maps)
-        if provisional:
-            built: dict = {}
-
-            def make(loaded, final, name):
-                if final not in built:
-                    (hess_c,), (step_c,), (lin_c,) = loaded
-                    built[final] = self._functions(step_c, hess_c, lin_c)
-                return built[final][name]
-
-            fns = {name: codegen.Switch(f, libs, functools.partial(make, name=name), codegen.QUICK_CFLAGS,
-                                        codegen.QUICK_CFLAGS) for name, f in fns.items()}
+        n = self.N - 1 if disc.scheme == "first_order" else self.N   # the steps by the costate map
+        steps = [self._n_steps(i, f, n) for i, f in enumerate(maps)] if n > 0 else [None] * 3
+        if provisional and n > 0:
+            self.switches = [codegen.Switch(f, [lib], functools.partial(self._switched, i=i, n=n),
+                                            codegen.QUICK_CFLAGS, codegen.QUICK_CFLAGS)
+                             for i, (f, lib) in enumerate(zip(steps, libs))]
+            steps = self.switches   # (a Callback must outlive the Functions that call it: kept here)
+        fns = self._functions(*steps)
         self.shoot, self.residual, self.shoot_jac = fns["shoot"], fns["residual"], fns["shoot_jac"]
         self.terminal, self.terminal_jac = fns["terminal"], fns["terminal_jac"]
         self.rollout, self.jac_given = fns["rollout"], fns["jac_given"]
 
-    def _functions(self, step_map, hess_map, lin_map) -> dict:
-        """shoot, residual, shoot_jac, terminal and terminal_jac (class docstring) from the per-step maps, with the
-        model's numbers theta = ``model.parameters`` as the maps' data."""
+    def _n_steps(self, i: int, fn: ca.Function, n: int) -> ca.Function:
+        """The N-step Function of per-step map ``i`` (0 costate map, 1 its Hessian, 2 linearized map) ``fn`` over the
+        n steps of the costate map: the accumulated rollout, the Hessians of all steps, the accumulated linearized
+        recursion."""
+        sch = self.disc.scheme
+        if i == 1:
+            return fn.map(f"{sch}_costate_hessian_map{n}", "serial", n, [5, 6, 7], [])
+        return fn.mapaccum(f"{sch}_{'costate' if i == 0 else 'linearized'}_acc{n}", n, 2, MAPACCUM_OPTS)
+
+    def _switched(self, loaded, paths, i: int, n: int) -> ca.Function:
+        """The N-step Function ``i`` from its library's compiled map (:class:`codegen.Switch`)."""
+        return self._n_steps(i, loaded[0][0], n)
+
+    def _functions(self, acc, hess_n, lin_acc) -> dict:
+        """shoot, residual, shoot_jac, terminal and terminal_jac (class docstring) from the N-step Functions
+        (:meth:`_n_steps`; None for N = 1 in first_order), with the model's numbers theta = ``model.parameters`` as
+        the maps' data."""
         disc, N, sch = self.disc, self.N, self.disc.scheme
         theta = ca.DM(disc.model.parameters)
         lam0 = ca.MX.sym("lam0", NZ)
@@ -121,7 +132,6 @@ class ShootingFunctions:
             Us.append(u_first)
         steps = None
         if n > 0:
-            acc = step_map.mapaccum(f"{sch}_costate_acc{n}", n, 2, MAPACCUM_OPTS)
             steps = acc(Xstart, lam0, hr, ca.repmat(Winv, 1, n), ca.repmat(bd, 1, n), ca.repmat(theta, 1, n))
             for a, b in zip((Xs, lams, Us, res, lres), steps[:5]):
                 a.append(b)
@@ -139,7 +149,7 @@ class ShootingFunctions:
         res_max = ca.mmax(res)
         residual = ca.Function(f"{sch}_shoot_residual{N}", args, [zN, lamN, res_max], names_in,
                                ["zN", "lamN", "res_max"])
-        dZ, dlamN = self._linearization(hess_map, lin_map, args, Xstart, D_first, steps, n)
+        dZ, dlamN = self._linearization(hess_n, lin_acc, args, Xstart, D_first, steps, n)
         zL, JT = terminal_residual_jacobian()(Xs[:, -1], Xd)
         shoot_jac = ca.Function(f"{sch}_shoot_jac{N}", args, [zL, ca.mtimes(JT, dZ), dlamN], names_in,
                                 ["zN", "Psi", "dlamN"])
@@ -151,7 +161,7 @@ class ShootingFunctions:
         sym = [None] * 9
         for i, g in zip(kept, given):
             sym[i] = g
-        dZg, dlamNg = self._linearization(hess_map, lin_map, args, Xstart, D_first, sym if n > 0 else None, n)
+        dZg, dlamNg = self._linearization(hess_n, lin_acc, args, Xstart, D_first, sym if n > 0 else None, n)
         zLg, JTg = terminal_residual_jacobian()(sym[0][:, -1] if n > 0 else Xstart, Xd)
         jac_given = ca.Function(f"{sch}_shoot_jac_given{N}", args + given, [zLg, ca.mtimes(JTg, dZg), dlamNg])
         # the terminal state and lambda_{N-1}, with their derivatives by lam0, for terminal conditions other than a
@@ -163,7 +173,7 @@ class ShootingFunctions:
         return {"shoot": shoot, "residual": residual, "shoot_jac": shoot_jac, "terminal": terminal,
                 "terminal_jac": terminal_jac, "rollout": rollout, "jac_given": jac_given}
 
-    def _linearization(self, hess_map, lin_map, args, Xstart, D_first, steps, n):
+    def _linearization(self, hess_n, lin_acc, args, Xstart, D_first, steps, n):
         """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates): Psi = dzN/dlam0 by the linearized
         coupled recursion along the rollout (see linearization_functions), the same derivative as forward AD
         through it, cheaper.  With a body-fixed force the recursion runs in body-momentum coordinates
@@ -193,10 +203,8 @@ class ShootingFunctions:
             # D of the control each step's A_k is taken at (lgvi: u_k) and of the one it determines (u_{k+1})
             Dk = ca.horzcat(D_first, Dr[:, :NU * (n - 1)])
             Ws = ca.repmat(Winv, 1, n)
-            Hk = hess_map.map(f"{sch}_costate_hessian_map{n}", "serial", n, [5, 6, 7], [])(
-                Xk, Lprev, LPr, Cr, hr, Winv, bd, ca.DM(self.disc.model.parameters))
-            dZs, dlams = lin_map.mapaccum(f"{sch}_linearized_acc{n}", n, 2, MAPACCUM_OPTS)(
-                dZ, dlam, Ar, Hk, Dk, Dr, hr, Ws)
+            Hk = hess_n(Xk, Lprev, LPr, Cr, hr, Winv, bd, ca.DM(self.disc.model.parameters))
+            dZs, dlams = lin_acc(dZ, dlam, Ar, Hk, Dk, Dr, hr, Ws)
             dZ, dlamN, lam_last = dZs[:, -NZ:], dlams[:, -NZ:], LPr[:, -1]
         if body:   # dlambda_{N-1} = T^T dlambda' + Q dz'_N and dz_N = T^-1 dz'_N at X_N
             XN = Xr[:, -1] if n > 0 else Xstart
