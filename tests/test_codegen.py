@@ -12,7 +12,9 @@ from se3ocp.problems.models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody
 from se3ocp.transcription import codegen
 from se3ocp.transcription.lgvi import Discretization
 from se3ocp.transcription.methods.indirect.conditions import costate_functions
+from se3ocp.transcription.methods.indirect.control import bound_data
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
+from se3ocp.transcription.methods.indirect.solve import weight_inverse
 from se3ocp.transcription.nlp.blocks import dynamics
 from se3ocp.transcription.lie import exp_so3
 from se3ocp.transcription.options import DirectOptions, IndirectOptions
@@ -88,7 +90,7 @@ def test_indirect_compiled_equals_interpreted_bit_for_bit(scheme):
         time.sleep(0.2)                                # its maps' builds (a cold suite's queue: other builds too)
     c = se3ocp.solve(man.problem.replace(disc=Discretization(man.problem.model, scheme)), "indirect", eps_S=0.0)
     assert not a.stats["jit"] and b.stats["jit"] and c.stats["jit"] and a.converged
-    assert not isinstance(shooting_functions(c.problem.disc, 40, True).shoot, codegen.Switch)
+    assert not shooting_functions(c.problem.disc, 40, True).switches
     for s in (b, c):
         assert [r.residual for r in a.history] == [r.residual for r in s.history]
         assert np.array_equal(a.controls, s.controls) and np.array_equal(a.warm.lam0, s.warm.lam0)
@@ -217,7 +219,7 @@ def test_new_numbers_compile_nothing_in_the_indirect_method(monkeypatch, tmp_pat
     b = a.replace(disc=Discretization(body, a.scheme))
     sb, ref = se3ocp.solve(b, "indirect"), se3ocp.solve(b, "indirect", jit=False)
     fns = shooting_functions(b.disc, b.N, True)
-    assert len(said) == 3 and fns.compiled and not isinstance(fns.shoot_jac, codegen.Switch)
+    assert len(said) == 3 and fns.compiled and not fns.switches
     assert sb.converged and ref.converged and abs(sb.cost - sa.cost) > 1e-3 * sa.cost
     assert abs(sb.cost - ref.cost) <= 1e-12 * ref.cost
     assert np.max(np.abs(sb.controls - ref.controls)) <= 1e-10 * np.max(np.abs(ref.controls))
@@ -269,6 +271,41 @@ def test_a_switch_moves_to_the_compiled_code_as_it_arrives(monkeypatch, tmp_path
     assert sw.final and sw.paths == (codegen.candidates([lib])[0][0],)     # the library at its own flags
     want = [np.array(o) for o in f.map(4)(*v)]
     assert all(np.array_equal(a, b) and np.array_equal(a, c) for a, b, c in zip(before, after, want))
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_the_shooting_moves_to_each_library_as_it_lands(monkeypatch, tmp_path, scheme):
+    """The indirect method's shooting Functions, built once on a cold cache, hold a codegen.Switch per N-step map
+    (costate rollout, Hessians, linearized recursion): each moves to its own library as that lands -- the costate
+    map first, before the Jacobian's two -- and the rollout, the Jacobian at it and the Jacobian from scratch equal
+    the interpreted ones bit for bit at every stage.  (No background build here: the libraries are compiled in
+    the test, one after the other, in the order the builder takes them.)"""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    said = _policy(monkeypatch, tmp_path)
+    spawned = []
+    monkeypatch.setattr(codegen, "spawn", lambda builds, notify=None: spawned.append([b[0].name for b in builds]))
+    p = problem("e3_bounded", 12, scheme)
+    fns = shooting_functions(Discretization(p.model, scheme), 12, True)
+    ref = shooting_functions(Discretization(p.model, scheme), 12, False)
+    assert len(fns.switches) == 3 and spawned == [[lib.name for lib in fns.libraries]] and not said
+    assert "costate_map" in fns.libraries[0].name
+    args = (p.X0, p.terminal.X, p.h, weight_inverse(p), bound_data(p))
+    lam = np.linspace(-3.0, 4.0, 12)                     # the controls saturate on some steps
+
+    def values(f):
+        out = f.rollout(lam, *args)
+        return [np.array(o) for o in (*out, *f.jac_given(lam, *args, *out[3:]), *f.shoot_jac(lam, *args))]
+
+    want = values(ref)
+    monkeypatch.setenv("SE3OCP_JIT_BACKGROUND", "0")
+    for k, lib in enumerate([None, *fns.libraries]):
+        if lib is not None:
+            codegen.compiled_libraries([lib], cflags=codegen.QUICK_CFLAGS)      # it lands
+        got = values(fns)
+        assert [sw.paths[0] is not None for sw in fns.switches] == [i < k for i in range(3)]
+        assert all(np.array_equal(a, b) for a, b in zip(got, want))
+    assert all(sw.final for sw in fns.switches)
 
 
 @pytest.mark.parametrize("name,scheme", [("e3", "first_order"), ("e4", "lgvi"), ("e3_bounded", "lgvi")])
