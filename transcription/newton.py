@@ -22,6 +22,7 @@ Refinements, each optional and reported in the result:
   floor_factor^2 of the level.  And when the line search has halved the step until x + c D == x (the full
   step having failed): no representable change of x along D decreases |F|, the floor of x's resolution.
 * ``stagnation_steps``: stop (stagnated) after that many consecutive steps with c < 1e-2.
+* the Jacobian at x is computed when a direction needs it: not at the point where the iteration stops.
 
 Every rollout is recorded as an :class:`~transcription.results.Iterate` (the initial point, then
 every line-search trial), ``progress`` receives one per accepted iteration.
@@ -90,9 +91,17 @@ class _Run:
         self.e = float(np.linalg.norm(self.F))
         self.history = [Iterate(iteration=0, residual=self.e, residual_inf=float(np.abs(self.F).max()), aux=aux0,
                                 elapsed_s=0.0)]
-        self.J = jacobian(self.x)
+        self._J = None           # J(x), computed when a direction needs it (:attr:`J`)
         self.it, self.floor, self.noise = 0, None, None
         self.rejected: list[float] = []
+
+    @property
+    def J(self) -> np.ndarray:
+        """The Jacobian at x, computed on first use: not at the point where the iteration converges (a rollout and its
+        linearization saved per Newton solve)."""
+        if self._J is None:
+            self._J = self.jacobian(self.x)
+        return self._J
 
     def conv(self, F) -> float:
         return float(np.linalg.norm(F, ord=self.norm))
@@ -182,12 +191,14 @@ def newton_armijo(x0: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndar
                floor_factor=floor_factor, check_interrupt=check_interrupt)
     small = 0
     while True:
-        if not (np.all(np.isfinite(run.F)) and np.all(np.isfinite(run.J))):
-            return run.done(Result.non_finite, f"non-finite residual or Jacobian at iteration {run.it}")
+        if not np.all(np.isfinite(run.F)):
+            return run.done(Result.non_finite, f"non-finite residual at iteration {run.it}")
         if run.conv(run.F) <= tol:
             return run.done(Result.converged, f"|F| = {run.conv(run.F):.3e} <= {tol:.1e} after {run.it} iterations")
         if run.it >= max_iter:
             return run.done(Result.max_iterations, f"no convergence in {max_iter} iterations (|F| = {run.e:.3e})")
+        if not np.all(np.isfinite(run.J)):
+            return run.done(Result.non_finite, f"non-finite Jacobian at iteration {run.it}")
         D, stop = run.direction(step_scale)
         if stop is not None:
             return run.done(*stop)
@@ -201,7 +212,7 @@ def newton_armijo(x0: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndar
                 message += f"; the floor is above floor_accept = {floor_accept:.0e}: not accepted"
             return run.done(result, message)
         run.x, run.F, run.e, at, c = trial
-        run.J = jacobian(run.x)
+        run._J = None
         small = small + 1 if c < 1e-2 else 0
         if progress is not None:
             progress(Iterate(iteration=run.it, residual=run.e, residual_inf=float(np.abs(run.F).max()), step=c, aux=at,
