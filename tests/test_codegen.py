@@ -259,7 +259,7 @@ def test_a_switch_moves_to_the_compiled_code_as_it_arrives(monkeypatch, tmp_path
     x, y = ca.SX.sym("x", 3), ca.SX.sym("y", 2)
     f = ca.Function("switch_probe", [x, y], [ca.sin(x) * y[0] + ca.cos(y[1]), ca.dot(x, x)])
     lib = codegen.Library(f.name(), (f,), cse=True)
-    sw = codegen.Switch(f.map(4), [lib], lambda loaded, final: loaded[0][0].map(4))
+    sw = codegen.Switch(f.map(4), [lib], lambda loaded, paths: loaded[0][0].map(4))
     X, Y = ca.MX.sym("X", 3, 4), ca.MX.sym("Y", 2, 4)
     F = ca.Function("F", [X, Y], sw(X, Y))            # inside an MX graph, as in the NLP's derivatives
     v = (np.arange(12.0).reshape(3, 4) / 7, np.arange(8.0).reshape(2, 4) / 5)

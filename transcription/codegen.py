@@ -28,15 +28,15 @@ weights and bounds, so a model of a known structure (kind of body and gravity, s
 time) loads its libraries from the cache and compiles nothing.
 
 Interpreted first.  A structure never seen before is not waited for (:func:`compiled_libraries` with ``quick``):
-its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, niced, with a
-``.building`` lock beside each library that holds its process id; one interpreter start for all the libraries of
-the call) compiles the libraries in the order given, one compiler at a time on two cores (:data:`.codegen_build.PARALLEL`: the
-solve keeps a core), each at the ``quick`` flags (-O0, about a second) and then at its own into the cache, each
-atomically; a compile also waits for one of :data:`.codegen_build.SLOTS` slots shared by all builders.  :class:`Switch` (a
-copy-free Callback) wraps what is built from those Functions -- the NLP's mapped block derivatives, the indirect
-method's N-step maps -- and moves each to the compiled code as its library lands, between two evaluations of the
-same solve; the next build loads it directly (:func:`ready`).  :func:`settle` waits for the builds under way,
-:func:`stop` ends them.
+its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, niced,
+with a ``.building`` lock beside each library that holds its process id; one interpreter start for all the
+libraries of the call) compiles the libraries in the order given, one compiler at a time on two cores
+(:data:`.codegen_build.PARALLEL`: the solve keeps a core), each at the ``quick`` flags (-O0, about a second) and
+then at its own into the cache, each atomically; a compile also waits for one of :data:`.codegen_build.SLOTS` slots
+shared by all builders.  :class:`Switch` (a copy-free Callback) wraps what is built from those Functions -- the
+NLP's mapped block derivatives, the indirect method's N-step maps -- and moves each to the compiled code as its
+library lands, between two evaluations of the same solve; the next build loads it directly (:func:`ready`).
+:func:`settle` waits for the builds under way, :func:`stop` ends them.
 
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
 ``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
@@ -162,8 +162,9 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
 
     ``quick``: the interpreted-first policy.  A library not in the cache at its own flags is not waited for: it is
     loaded from its quick build (e.g. :data:`QUICK_CFLAGS`) if that is in the cache, else given back as the
-    interpreted Function, while a background process (:func:`.codegen_build.spawn`) compiles it -- with the quick flags first
-    (seconds), then with its own -- into the cache.  :data:`last_provisional` says whether any library is not yet
+    interpreted Function, while one background process for all of them (:func:`.codegen_build.spawn`) compiles
+    it -- with the quick flags first (seconds), then with its own -- into the cache, in the order of ``libs`` (the
+    one evaluated most often first).  :data:`last_provisional` says whether any library is not yet
     at its own flags; :class:`Switch` evaluates a Function built from them and moves to the compiled code as it
     arrives, even within a solve (:func:`arrived`; same values: ``-ffp-contract=off`` keeps the compiled arithmetic
     the interpreter's).  ``SE3OCP_JIT_BACKGROUND=0`` compiles at the library's own flags now instead.

@@ -82,7 +82,7 @@ class _Derivatives:
         if not self.provisional or which == "grad":
             return fn.map(M)
         lib = self._libraries[0 if which == "jac" else 1]
-        switch = codegen.Switch(fn.map(M), [lib], lambda loaded, final: loaded[0][0].map(M))
+        switch = codegen.Switch(fn.map(M), [lib], lambda loaded, paths: loaded[0][0].map(M))
         self.switches.append(switch)   # a Callback must outlive the Functions that call it
         return switch
 
