@@ -197,8 +197,11 @@ def _slot(first: bool) -> int | None:
         time.sleep(0.2)
 
 
-#: the niceness of a background build's first stage (what a running solve waits for) and of its later ones
-FIRST_NICE, LATER_NICE = 5, 10
+#: the niceness of a background build's first stages (what a running solve waits for: the caller's priority) and of
+#: its later ones.  Measured with one builder (one compiler at a time), alternating, load 4-5: the bounded E3's
+#: indirect first solve 4.8, 3.4, 5.9, 5.0 s with the first stages at nice 0 against 6.2, 6.8, 8.6, 8.8 s at nice 5
+#: (its costate map landed 5 s into the solve at nice 5), E3's 1.76, 1.57, 1.53 against 1.66, 1.55, 1.50 s
+FIRST_NICE, LATER_NICE = 0, 10
 
 
 def _lower_priority(level: int) -> None:
@@ -217,10 +220,11 @@ def _lower_priority(level: int) -> None:
 def _background(job: Path) -> None:
     """The background build of :func:`spawn` (``python -m <this module> JOB``); each stage's library arrives in the
     cache atomically, or not at all; each library's lock goes when its last stage has arrived, every lock at the end
-    (also when ended by SIGTERM, :func:`stop`).  At lower priority, the solve that started it running on,
-    interpreted, at its own: the first stages at :data:`FIRST_NICE` (measured: three builds at the caller's priority
-    slowed a short first solve 1.6x at load 7; at nice 10 under load 4 the -O0 build of a 15k-line map took longer
-    than the 7 s solve it was for), later ones at :data:`LATER_NICE`.  The libraries' first stages in the order
+    (also when ended by SIGTERM, :func:`stop`).  The first stages at :data:`FIRST_NICE` (the caller's priority: one
+    compiler at a time beside the solve, which runs on, interpreted; when each builder ran two compilers of its own
+    beside two others, at the caller's priority they slowed a short first solve 1.6x at load 7, and at nice 10 under
+    load 4 the -O0 build of a 15k-line map took longer than the 7 s solve it was for), later ones at
+    :data:`LATER_NICE`.  The libraries' first stages in the order
     given, one compiler at a time (:data:`PARALLEL` on a machine with more cores), the next library's C generated
     while the compiler works (:func:`_first_stages`); then the later stages, one at a time.  Each compile waits for a
     slot (:func:`_slot`): a cold test suite starts dozens of builds."""
