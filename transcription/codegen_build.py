@@ -200,7 +200,8 @@ def _slot(first: bool) -> int | None:
 #: the niceness of a background build's first stages (what a running solve waits for: the caller's priority) and of
 #: its later ones.  Measured with one builder (one compiler at a time), alternating, load 4-5: the bounded E3's
 #: indirect first solve 4.8, 3.4, 5.9, 5.0 s with the first stages at nice 0 against 6.2, 6.8, 8.6, 8.8 s at nice 5
-#: (its costate map landed 5 s into the solve at nice 5), E3's 1.76, 1.57, 1.53 against 1.66, 1.55, 1.50 s
+#: (its costate map landed 5 s into the solve at nice 5); E3's, which ends before its libraries land, 1.99 against
+#: 1.79 s (medians of 8): a short solve pays the builder's share under load, a long one gains its compiled code
 FIRST_NICE, LATER_NICE = 0, 10
 
 
