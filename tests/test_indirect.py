@@ -369,3 +369,9 @@ def test_the_jacobian_from_the_residuals_rollout_is_shoot_jac(name, scheme, sets
         assert all(np.array_equal(a, b) for a, b in zip(got, want))
     other = [np.array(x) for x in rc.jacobian(lam + 1e-3)]
     assert all(np.array_equal(a, np.array(b)) for a, b in zip(other, fns.shoot_jac(lam + 1e-3, *args)))
+    # seeded with the start's rollout (the Cayley check's): its outputs at that point, the same Jacobian from them
+    seeded = RolloutCache(fns, args, (lam, [ca.DM(np.array(o)) * 0 + 7.0 for o in fns.rollout(lam, *args)]))
+    assert float(seeded.residual(lam)[2]) == 7.0                      # the seed's values, no rollout
+    rs = RolloutCache(fns, args, (lam, fns.rollout(lam, *args)))
+    rs.residual(lam)
+    assert all(np.array_equal(np.array(a), np.array(b)) for a, b in zip(rs.jacobian(lam), fns.shoot_jac(lam, *args)))

@@ -217,13 +217,15 @@ class RolloutCache:
     """residual(lam0) and jacobian(lam0) of the Newton iteration on one ShootingFunctions' rollout and linearization
     (args: X0, Xd, h, Winv, bd): the Jacobian at the point of the last residual reuses its rollout (``jac_given``),
     which the Newton-Armijo iteration asks for at every accepted step -- one rollout per iteration instead of two,
-    with the same values."""
+    with the same values.  ``seed``: (lam0, outputs) of a rollout already done with these args (the start's check),
+    not done again."""
 
-    def __init__(self, fns: ShootingFunctions, args: tuple):
-        self.fns, self.args, self.last = fns, args, None
+    def __init__(self, fns: ShootingFunctions, args: tuple, seed: tuple | None = None):
+        self.fns, self.args, self.last, self.seed = fns, args, None, seed
 
     def residual(self, lam0):
-        out = self.fns.rollout(lam0, *self.args)
+        seeded = self.seed is not None and np.array_equal(self.seed[0], lam0)
+        out = self.seed[1] if seeded else self.fns.rollout(lam0, *self.args)
         self.last = (np.array(lam0, dtype=float), out[3:])
         return out[:3]
 

@@ -141,16 +141,23 @@ class _Shooting:
         self.law = (self.Winv, self.bd)   # the (Winv, bd) of the final rollout (the time objective: its eps-law's)
         self.primal = None                # (X, U) of the warm start on this grid (the time objective's first stage)
         self.structured, self.warm_U = None, None   # the fuel objective's (.fuel)
+        self.start = None                 # (lam, h, rollout outputs) of the start's check (:meth:`cayley_residual`)
 
     def cayley_residual(self, lam: np.ndarray, h: float) -> float:
-        """The largest relative Cayley residual of the rollout from lam at the step size h."""
-        return float(self.fns.residual(lam, self.X0, self.Xd, self.problem.steps_of(h), self.Winv, self.bd)[2])
+        """The largest relative Cayley residual of the rollout from lam at the step size h (the rollout kept: the
+        Newton iteration from lam at h with the problem's bounds starts from it, :meth:`newton`)."""
+        out = self.fns.rollout(lam, self.X0, self.Xd, self.problem.steps_of(h), self.Winv, self.bd)
+        self.start = (np.array(lam, dtype=float), float(h), out)
+        return float(out[2])
 
     def newton(self, lam, bd_stage, phase: str, h: float) -> NewtonResult:
         fns, X0, Xd, Winv, free, opts = self.fns, self.X0, self.Xd, self.Winv, self.free, self.options
-        h = self.problem.steps_of(h)
+        h_mean, h = float(h), self.problem.steps_of(h)
 
-        shared = RolloutCache(fns, (X0, Xd, h, Winv, bd_stage))   # the Jacobian reuses the accepted residual's rollout
+        start = self.start   # the rollout the start's check did, if this iteration starts there
+        seed = (start[0], start[2]) if start is not None and start[1] == h_mean and np.array_equal(bd_stage, self.bd) \
+            else None
+        shared = RolloutCache(fns, (X0, Xd, h, Winv, bd_stage), seed)   # the Jacobian reuses the accepted rollout
 
         def residual(l):
             # the given terminal components, and lambda_{N-1} = 0 on the free ones (transversality)
