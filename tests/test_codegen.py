@@ -249,6 +249,31 @@ def test_a_first_use_runs_interpreted_and_the_build_follows_in_the_background(mo
     assert np.array_equal(np.array(k(v)), np.array(f(v)))
 
 
+def test_a_library_with_a_quick_build_gets_only_its_later_stage_in_the_background(monkeypatch, tmp_path):
+    """A library whose -O0 build is cached (its -O1 one not: a build stopped in between) is loaded from it at once,
+    and the background build that follows compiles only the -O1 stage, as a later stage (niced): no solve waits."""
+    if not codegen.available():
+        pytest.skip("no C compiler")
+    said = _policy(monkeypatch, tmp_path)
+    x = ca.SX.sym("x", 3)
+    f = ca.Function("later_probe", [x], [ca.cos(x) * x[2] + ca.exp(x[0])])
+    lib = codegen.Library(f.name(), (f,), cse=True)
+    monkeypatch.setenv("SE3OCP_JIT_BACKGROUND", "0")
+    codegen.compiled_libraries([lib], cflags=codegen.QUICK_CFLAGS)          # the -O0 build only
+    monkeypatch.delenv("SE3OCP_JIT_BACKGROUND")
+    builds = []
+    spawn = codegen.spawn
+    monkeypatch.setattr(codegen, "spawn", lambda b, notify=None: (builds.extend(b), spawn(b, notify)))
+    (g,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)
+    assert g.class_name() == "External" and codegen.last_provisional and len(said) == 2
+    assert [(len(stages), waited) for _, stages, waited in builds] == [(1, False)]
+    codegen.settle(120.0)
+    assert codegen.ready([lib]) and not list(tmp_path.glob("*.building"))
+    v = [0.3, -1.2, 2.0]
+    assert np.array_equal(np.array(codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)[0][0](v)),
+                          np.array(f(v)))
+
+
 def test_a_switch_moves_to_the_compiled_code_as_it_arrives(monkeypatch, tmp_path):
     """codegen.Switch evaluates its interpreted Function until the library arrives in the cache, then the compiled
     one (within the same NLP or Newton iteration: it checks at every evaluation), with the same values; it does not

@@ -186,8 +186,8 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
                     continue
                 last_provisional = True
                 stages = [(list(quick), _path(lib, list(quick)))] if lib.quick and list(quick) != fl else []
-                builds.append((lib, [(f, p) for f, p in stages + [(fl, path)] if not p.exists()]))
                 have = [p for _, p in stages if p.exists()]
+                builds.append((lib, [(f, p) for f, p in stages + [(fl, path)] if not p.exists()], not have))
                 out.append(_external(lib, have[0]) if have else list(lib.fns))
             spawn(builds, notify)
             last_error = None

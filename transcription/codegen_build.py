@@ -102,17 +102,18 @@ BACKGROUND_TIMEOUT = 1800.0
 
 
 def spawn(builds: list, notify: Callable[[str], None] | None = None) -> None:
-    """Start one detached process (:func:`_background`) that compiles each library of ``builds`` (library, stages)
-    with each stage's flags into its path in turn (the quick flags first, then the library's own), the libraries in
-    the order given, except those under way elsewhere (a lock file beside the last path, ``.building``, holding the
-    builder's process id, :func:`_alive`).  One process for all: one interpreter start, not one per library, beside
-    the solve it is for.  Tells ``notify`` of each library it builds."""
-    builds = [(lib, stages) for lib, stages in builds if stages]   # (lib: a codegen.Library)
+    """Start one detached process (:func:`_background`) that compiles each library of ``builds`` (library, stages,
+    waited: whether a solve runs interpreted until its first stage lands, or already has a build of it) with each
+    stage's flags into its path in turn (the quick flags first, then the library's own), the libraries in the order
+    given, except those under way elsewhere (a lock file beside the last path, ``.building``, holding the builder's
+    process id, :func:`_alive`).  One process for all: one interpreter start, not one per library, beside the solve
+    it is for.  Tells ``notify`` of each library it builds."""
+    builds = [b for b in builds if b[1]]   # (library: a codegen.Library)
     if not builds:
         return
     cache_dir().mkdir(parents=True, exist_ok=True)
     taken = []
-    for lib, stages in builds:
+    for lib, stages, waited in builds:
         lock = stages[-1][1].with_name(stages[-1][1].name + ".building")
         try:
             if _alive(lock):
@@ -121,7 +122,7 @@ def spawn(builds: list, notify: Callable[[str], None] | None = None) -> None:
             os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
         except OSError:          # another process took the lock first
             continue
-        taken.append((lib, stages, lock))
+        taken.append((lib, stages, lock, waited))
         if notify is not None:
             notify(f"compiling {lib.name} to C in the background (once per machine; cached in {cache_dir()}; "
                    "interpreted until it arrives; SE3OCP_NO_JIT=1 skips this)")
@@ -129,11 +130,11 @@ def spawn(builds: list, notify: Callable[[str], None] | None = None) -> None:
         return
     job = Path(tempfile.mkdtemp(dir=cache_dir(), prefix="background_"))
     (job / "job.json").write_text(json.dumps([{"name": lib.name, "cse": lib.cse, "lock": str(lock),
-                                               "stages": [[f, str(p)] for f, p in stages],
-                                               "fns": list(lib.serialized)} for lib, stages, lock in taken]))
+                                               "stages": [[f, str(p)] for f, p in stages], "first": int(waited),
+                                               "fns": list(lib.serialized)} for lib, stages, lock, waited in taken]))
     proc = subprocess.Popen([sys.executable, "-m", __name__, str(job)], stdin=subprocess.DEVNULL,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    for _, _, lock in taken:
+    for _, _, lock, _ in taken:
         lock.write_text(str(proc.pid))
 
 
@@ -236,7 +237,7 @@ def _background(job: Path) -> None:
         sources = _first_stages(spec, job)
         _lower_priority(LATER_NICE)
         for entry, c in zip(spec, sources):
-            for flags, path in entry["stages"][1:]:
+            for flags, path in entry["stages"][entry["first"]:]:
                 _compile(c, flags, Path(path), job, first=False).wait_arrived()
             Path(entry["lock"]).unlink(missing_ok=True)
     finally:
@@ -251,14 +252,16 @@ PARALLEL = max(1, (os.cpu_count() or 1) - 1)
 
 
 def _first_stages(spec: list[dict], job: Path) -> list[Path]:
-    """Generate each library's C and compile it with its first stage's flags (at most :data:`PARALLEL` compilers at
-    once, in the order of ``spec``); each library whose only stage that is loses its lock as it arrives.  The C
-    files, for the later stages."""
+    """Generate each library's C and compile it with its first stage's flags if a solve waits for it (``first``; at
+    most :data:`PARALLEL` compilers at once, in the order of ``spec``); each library whose only stage that is loses
+    its lock as it arrives.  The C files, for the later stages (those of a library that has a build already: all)."""
     sources, running = [], []
     for i, entry in enumerate(spec):
         (job / str(i)).mkdir()
         fns = tuple(ca.Function.deserialize(f) for f in entry["fns"])
         sources.append(generate(entry["name"], fns, entry["cse"], str(job / str(i))))   # while the last one compiles
+        if not entry["first"]:
+            continue
         while len(running) >= PARALLEL:
             running.pop(0).wait_arrived()
         flags, path = entry["stages"][0]
