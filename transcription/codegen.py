@@ -249,8 +249,8 @@ class Switch(ca.Callback):
     interpreted), identifies the build, so that the Switches of one build can share it.  The interpreted-first
     policy's way to use compiled code as soon as it exists, within a solve (an NLP's derivative Functions, the
     indirect method's N-step maps inside its shooting Functions: the rollout moves to the compiled costate map
-    before the Jacobian's libraries have arrived).  Values only, like the compiled Functions; the same values bit for bit
-    (-ffp-contract=off), so where the switch happens does not show in the results."""
+    before the Jacobian's libraries have arrived).  Values only, like the compiled Functions; the same values bit for
+    bit (-ffp-contract=off), so where the switch happens does not show in the results."""
 
     def __init__(self, fn: ca.Function, libs: Sequence[Library], make: Callable[[list, tuple], ca.Function],
                  cflags: Sequence[str] = CFLAGS, quick: Sequence[str] = QUICK_CFLAGS):
