@@ -28,9 +28,9 @@ weights and bounds, so a model of a known structure (kind of body and gravity, s
 time) loads its libraries from the cache and compiles nothing.
 
 Interpreted first.  A structure never seen before is not waited for (:func:`compiled_libraries` with ``quick``):
-its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, its
-later stages niced, with a ``.building`` lock beside each library that holds its process id; one interpreter start
-for all the libraries of the call) compiles the libraries in the order given, one compiler at a time on two cores
+its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, a
+little niced, more for the -O1 stages, with a ``.building`` lock beside each library that holds its process id;
+one interpreter start for all the libraries of the call) compiles the libraries in the order given, one compiler at a time on two cores
 (:data:`.codegen_build.PARALLEL`: the solve keeps a core), each at the ``quick`` flags (-O0, about a second) and
 then at its own into the cache, each atomically; a compile also waits for one of :data:`.codegen_build.SLOTS` slots
 shared by all builders.  :class:`Switch` (a copy-free Callback) wraps what is built from those Functions -- the

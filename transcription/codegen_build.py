@@ -198,12 +198,15 @@ def _slot(first: bool) -> int | None:
         time.sleep(0.2)
 
 
-#: the niceness of a background build's first stages (what a running solve waits for: the caller's priority) and of
-#: its later ones.  Measured with one builder (one compiler at a time), alternating, load 4-5: the bounded E3's
-#: indirect first solve 4.8, 3.4, 5.9, 5.0 s with the first stages at nice 0 against 6.2, 6.8, 8.6, 8.8 s at nice 5
-#: (its costate map landed 5 s into the solve at nice 5); E3's, which ends before its libraries land, 1.99 against
-#: 1.79 s (medians of 8): a short solve pays the builder's share under load, a long one gains its compiled code
-FIRST_NICE, LATER_NICE = 0, 10
+#: the niceness of a background build's first stages (what a running solve waits for) and of its later ones.  A
+#: compromise between a short solve, which ends before its libraries land and only pays the builder's share of a
+#: shared core, and a long one, which runs on them.  Measured with one builder (one compiler at a time),
+#: alternating first solves, indirect: at load 4-5 the bounded E3 4.8, 3.4, 5.9, 5.0 s at nice 0 against 6.2, 6.8,
+#: 8.6, 8.8 s at nice 5, E3 1.99 against 1.79 s (medians of 8); at load 2.7 E3 2.06, 2.39, 2.29 s at nice 0 against
+#: 1.68, 1.72, 1.85 s at nice 5, the bounded E3 4.10, 3.79 against 4.74, 4.49 s; at load 2-2.7, in triples, E3
+#: 1.44, 1.64, 1.56 / 1.64, 1.52, 1.21 / 2.10, 1.75, 1.35 s and the bounded E3 2.68, 2.61 / 2.47, 2.38 / 2.59, 2.39 s
+#: at nice 5 / 2 / 0.  On an idle machine the builder has the second core whatever its niceness.
+FIRST_NICE, LATER_NICE = 2, 10
 
 
 def _lower_priority(level: int) -> None:
@@ -222,11 +225,10 @@ def _lower_priority(level: int) -> None:
 def _background(job: Path) -> None:
     """The background build of :func:`spawn` (``python -m <this module> JOB``); each stage's library arrives in the
     cache atomically, or not at all; each library's lock goes when its last stage has arrived, every lock at the end
-    (also when ended by SIGTERM, :func:`stop`).  The first stages at :data:`FIRST_NICE` (the caller's priority: one
-    compiler at a time beside the solve, which runs on, interpreted; when each builder ran two compilers of its own
-    beside two others, at the caller's priority they slowed a short first solve 1.6x at load 7, and at nice 10 under
-    load 4 the -O0 build of a 15k-line map took longer than the 7 s solve it was for), later ones at
-    :data:`LATER_NICE`.  The libraries' first stages in the order
+    (also when ended by SIGTERM, :func:`stop`).  The first stages at :data:`FIRST_NICE` (one compiler at a time beside
+    the solve, which runs on, interpreted; when each library had a builder of its own, at the caller's priority they
+    slowed a short first solve 1.6x at load 7, and at nice 10 under load 4 the -O0 build of a 15k-line map took
+    longer than the 7 s solve it was for), later ones at :data:`LATER_NICE`.  The libraries' first stages in the order
     given, one compiler at a time (:data:`PARALLEL` on a machine with more cores), the next library's C generated
     while the compiler works (:func:`_first_stages`); then the later stages, one at a time.  Each compile waits for a
     slot (:func:`_slot`): a cold test suite starts dozens of builds."""
