@@ -30,13 +30,13 @@ time) loads its libraries from the cache and compiles nothing.
 Interpreted first.  A structure never seen before is not waited for (:func:`compiled_libraries` with ``quick``):
 its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, a
 little niced, more for the -O1 stages, with a ``.building`` lock beside each library that holds its process id;
-one interpreter start for all the libraries of the call) compiles the libraries in the order given, one compiler at a time on two cores
-(:data:`.codegen_build.PARALLEL`: the solve keeps a core), each at the ``quick`` flags (-O0, about a second) and
-then at its own into the cache, each atomically; a compile also waits for one of :data:`.codegen_build.SLOTS` slots
-shared by all builders.  :class:`Switch` (a copy-free Callback) wraps what is built from those Functions -- the
-NLP's mapped block derivatives, the indirect method's N-step maps -- and moves each to the compiled code as its
-library lands, between two evaluations of the same solve; the next build loads it directly (:func:`ready`).
-:func:`settle` waits for the builds under way, :func:`stop` ends them.
+one interpreter start for all the libraries of the call) compiles the libraries in the order given, one compiler
+at a time on two cores (:data:`.codegen_build.PARALLEL`: the solve keeps a core), each at the ``quick`` flags
+(-O0, about a second) and then at its own into the cache, each atomically; a compile also waits for one of
+:data:`.codegen_build.SLOTS` slots shared by all builders.  :class:`Switch` (a copy-free Callback) wraps what is
+built from those Functions -- the NLP's mapped block derivatives, the indirect method's N-step maps -- and moves
+each to the compiled code as its library lands, between two evaluations of the same solve; the next build loads
+it directly (:func:`ready`).  :func:`settle` waits for the builds under way, :func:`stop` ends them.
 
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
 ``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
