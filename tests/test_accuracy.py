@@ -344,3 +344,19 @@ def test_the_best_order_does_not_refuse_what_the_first_order_scheme_reaches():
     from se3ocp.transcription.accuracy import least_N
 
     assert least_N(200, 3.9e-4 / 1e-6, False) <= 6400 < 200 * 3.9e-4 / 1e-6 and 200 * 3.9e-4 / 1e-6 > 50000
+
+
+def test_both_retries_the_indirect_method_from_this_grids_direct_solution():
+    """'both' with a warm start from elsewhere (as refinement passes the previous level): when the indirect method
+    fails from it -- here costates a million times too large, whose rollout does not solve the Cayley equation --
+    it is started again from the direct solution of the same grid, and the two agree (the fuel raise refined with
+    'both' needed this: its indirect start from the previous level failed on the adaptive mesh, §19)."""
+    import dataclasses
+
+    man = maneuver("e3", 20, "lgvi")
+    d = se3ocp.solve(man, "direct")
+    warm = dataclasses.replace(d.warm, costates=d.warm.costates * 1e6)
+    c = se3ocp.solve(man, "both", warm_start=warm)
+    assert c.indirect.converged and c.indirect.stats["fallback"] == "from_direct", c.indirect.message
+    assert [a.result for a in c.indirect.attempts][0] is se3ocp.Result.invalid_option
+    assert c.cost_relative_difference <= 1e-8 and c.verdict.startswith("agree"), c.verdict

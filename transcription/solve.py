@@ -25,7 +25,7 @@ from .methods.base import Method, Progress, failed_solution
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
-from .methods.indirect.solve import needs_fallback, with_fallback
+from .methods.indirect.solve import NO_FALLBACK, needs_fallback, with_fallback
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, terminal_error
 from .results import Attempt, Result, SolveError, Solution, html_table, trajectory
@@ -223,6 +223,18 @@ def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect:
     return with_fallback(isol, retry, dsol, direct_s)
 
 
+def _from_this_direct(problem: Problem, isol: Solution, indirect: IndirectOptions, progress: Progress | None,
+                      warm: WarmStart | None, dsol: Solution) -> Solution:
+    """'both' with a warm start from elsewhere (refinement's previous level, resampled onto this mesh): when the
+    indirect method failed from it, started again from the direct solution on this grid (:func:`_fallback` does not
+    retry a warm start).  The fuel raise refined to 1e-2 with 'both': from the 40-step level resampled onto the
+    adaptive 74-step mesh the indirect line search failed; from that mesh's own direct solution its switching structure
+    converges in 2 iterations (docs/mathematics.md §19)."""
+    if warm is None or isol.converged or isol.result in NO_FALLBACK or not dsol.converged or dsol.warm is None:
+        return isol
+    return with_fallback(isol, _run(problem, "indirect", indirect, progress, dsol.warm), dsol, None)
+
+
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
           indirect: IndirectOptions | None = None, progress: Progress | None = None,
           warm_start: Solution | WarmStart | None = None, throw: bool = False,
@@ -290,6 +302,7 @@ def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: In
         else:
             isol = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
                              warm, dsol)
+            isol = _from_this_direct(problem, isol, indirect, progress, warm, dsol)
         out = reconcile(fuel_retighten(compare(dsol, isol), direct, indirect, progress), direct, progress)
     return out
 
