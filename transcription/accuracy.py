@@ -165,8 +165,8 @@ def least_N(N: int, ratio: float, adaptive: bool) -> float:
 
 
 def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int) -> str:
-    """'accuracy 1e-09 not reached: the continuous miss 6.0e-04 at N = 200 would need N ≈ 1.5e+05 even at O(h^2)
-    ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
+    """'accuracy 1e-09 not reached: the continuous miss 6.01e-04 at N = 200 would need N ≈ 7.8e+04 even if it
+    fell at O(h^2), ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
     what = (f"the continuous miss {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
             f"the path violation {rec['path_violation']:.2e}")
     gain = f", with an adaptive mesh credited with {ADAPTIVE_GAIN:g} times fewer steps" if adaptive else ""

@@ -25,7 +25,7 @@ from .methods.base import Method, Progress, failed_solution
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
-from .methods.indirect.solve import NO_FALLBACK, needs_fallback, with_fallback
+from .methods.indirect.solve import needs_fallback, with_fallback
 from .options import DirectOptions, IndirectOptions
 from .problem import Problem, terminal_error
 from .results import Attempt, Result, SolveError, Solution, html_table, trajectory
@@ -211,8 +211,11 @@ def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect:
               progress: Progress | None, warm: WarmStart | None, dsol: Solution | None) -> Solution:
     """``isol`` if it succeeded or needs no fallback (:func:`~.methods.indirect.solve.needs_fallback`), else the
     indirect method started again from the direct solution ``dsol`` (solved here when None) -- the cold start's
-    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`)."""
-    if not needs_fallback(isol, indirect, warm):
+    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`).  A warm
+    start is retried too when ``dsol`` is given ('both': the warm start came from elsewhere, e.g. refinement's previous
+    level resampled onto this mesh, where the fuel raise's indirect start failed and this grid's direct solution
+    converges in 2 iterations, docs/mathematics.md §19)."""
+    if not needs_fallback(isol, indirect, None if dsol is not None else warm):
         return isol
     direct_s = None
     if dsol is None:
@@ -221,18 +224,6 @@ def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect:
         direct_s = time.perf_counter() - t0
     retry = _run(problem, "indirect", indirect, progress, dsol.warm) if dsol.converged and dsol.warm else None
     return with_fallback(isol, retry, dsol, direct_s)
-
-
-def _from_this_direct(problem: Problem, isol: Solution, indirect: IndirectOptions, progress: Progress | None,
-                      warm: WarmStart | None, dsol: Solution) -> Solution:
-    """'both' with a warm start from elsewhere (refinement's previous level, resampled onto this mesh): when the
-    indirect method failed from it, started again from the direct solution on this grid (:func:`_fallback` does not
-    retry a warm start).  The fuel raise refined to 1e-2 with 'both': from the 40-step level resampled onto the
-    adaptive 74-step mesh the indirect line search failed; from that mesh's own direct solution its switching structure
-    converges in 2 iterations (docs/mathematics.md §19)."""
-    if warm is None or isol.converged or isol.result in NO_FALLBACK or not dsol.converged or dsol.warm is None:
-        return isol
-    return with_fallback(isol, _run(problem, "indirect", indirect, progress, dsol.warm), dsol, None)
 
 
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
@@ -302,7 +293,6 @@ def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: In
         else:
             isol = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
                              warm, dsol)
-            isol = _from_this_direct(problem, isol, indirect, progress, warm, dsol)
         out = reconcile(fuel_retighten(compare(dsol, isol), direct, indirect, progress), direct, progress)
     return out
 
