@@ -317,3 +317,46 @@ def test_the_figure_of_a_slew_has_the_attitude_panel_only():
     assert len(fig.axes) == 1 and "deg" in fig.axes[0].get_ylabel()
     assert fig.axes[0].get_lines()[0].get_ydata()[-1] == pytest.approx(np.degrees(sol.continuous.terminal_attitude),
                                                                        rel=1e-15)
+
+
+def test_a_tolerance_beyond_max_N_at_the_best_order_stops_after_the_first_level():
+    """Betts' slew (free motion at rest: no a-priori estimate) at accuracy 1e-9 from N = 40 with max_N = 2000: the
+    first level's miss (~1e-2) would need N = 40 (miss / tol)^(1/2) / 2 (the LGVI's order, the best of either scheme,
+    and an adaptive mesh credited with half the steps) -- 7.7e4 (miss 1.5e-2), far above the cap -- so refinement stops after
+    that level with one line naming that N and what to raise.  Before, the next level's N (at most 32 times 40 =
+    1280, within the cap) was solved first (the bundled slew at 1e-9: two levels, 170-330 s)."""
+    from se3ocp.transcription.accuracy import ADAPTIVE_GAIN, BEST_ORDER, next_N
+
+    sol = se3ocp.solve(maneuver("slew_time_optimal", 40), accuracy=1e-9, max_N=2000)
+    assert sol.converged and sol.stats["accuracy_met"] is False and len(sol.mesh) == 1, sol.message
+    miss = sol.mesh[0]["miss"]
+    least = 40 * (miss / 1e-9) ** (1 / BEST_ORDER) / ADAPTIVE_GAIN
+    assert least > 2000 and next_N(40, miss / 1e-9, 2, 2000) <= 2000     # the old rule would have solved a level
+    said = [m for m in sol.message.split("; ") if m.startswith("accuracy 1e-09 not reached")]
+    assert len(said) == 1 and f"would need N ≈ {least:.2g} even if it fell at O(h^2)" in said[0], sol.message
+    assert "raise solver.max_N to at least" in said[0] and "solver.max_N = 2000" in said[0]
+
+
+def test_the_best_order_does_not_refuse_what_the_first_order_scheme_reaches():
+    """The first-order slew's miss falls at second order (3.9e-4 at N = 200, 4.9e-7 at N = 6400): with those two
+    numbers the favourable estimate says 1e-6 is within N = 6400 (so it is not refused), where the nominal first
+    order would put it at 200 * 390 = 78 000, above the default cap of 50 000."""
+    from se3ocp.transcription.accuracy import least_N
+
+    assert least_N(200, 3.9e-4 / 1e-6, False) <= 6400 < 200 * 3.9e-4 / 1e-6 and 200 * 3.9e-4 / 1e-6 > 50000
+
+
+def test_both_retries_the_indirect_method_from_this_grids_direct_solution():
+    """'both' with a warm start from elsewhere (as refinement passes the previous level): when the indirect method
+    fails from it -- here costates a million times too large, whose rollout does not solve the Cayley equation --
+    it is started again from the direct solution of the same grid, and the two agree (the fuel raise refined with
+    'both' needed this: its indirect start from the previous level failed on the adaptive mesh, §19)."""
+    import dataclasses
+
+    man = maneuver("e3", 20, "lgvi")
+    d = se3ocp.solve(man, "direct")
+    warm = dataclasses.replace(d.warm, costates=d.warm.costates * 1e6)
+    c = se3ocp.solve(man, "both", warm_start=warm)
+    assert c.indirect.converged and c.indirect.stats["fallback"] == "from_direct", c.indirect.message
+    assert [a.result for a in c.indirect.attempts][0] is se3ocp.Result.invalid_option
+    assert c.cost_relative_difference <= 1e-8 and c.verdict.startswith("agree"), c.verdict

@@ -46,6 +46,13 @@ def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
 ORDER = {"lgvi": 2, "first_order": 1}
 #: N of the next level = SAFETY N (miss / tol)^(1/p), at least twice N and at most GROWTH N
 SAFETY, GROWTH = 1.2, 32
+#: the most favourable order a level's miss may fall with: the best of the schemes' (the LGVI's 2).  The first-order
+#: scheme can reach it too -- on the rest-to-rest time-optimal slew its miss falls from 3.9e-4 at N = 200 to 4.9e-7 at
+#: N = 6400, slope 1.93 -- so its nominal ORDER of 1 would wrongly refuse a tolerance it reaches
+BEST_ORDER = max(ORDER.values())
+#: the most an adaptive mesh is credited with over a uniform one of the same order: steps / ADAPTIVE_GAIN (measured
+#: savings over the ideal uniform mesh: 27 % on the slew at 1e-6, 8-11 % on E3 and E4, docs/mathematics.md §16)
+ADAPTIVE_GAIN = 2.0
 
 
 def scaled_miss(check, problem) -> float:
@@ -134,6 +141,9 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
         if not worst > 1.0:
             return _finish(out, levels, True, f"refined to accuracy {tol:.3g}: continuous miss {rec['miss']:.2e} at "
                                               f"N = {prob.N} after {len(levels)} level(s)")
+        least = least_N(prob.N, worst, adaptive)
+        if least > opts.max_N:    # even the most favourable order cannot land within max_N: no further level
+            return _finish(out, levels, False, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N))
         p = observed_order(levels, prob.scheme)
         mesh = next_mesh(prob, best, rec, tol, p) if adaptive else None
         if mesh is not None:      # the miss this level's error estimate predicts (its calibration)
@@ -144,6 +154,25 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
             return _finish(out, levels, False, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit))
         T = min(max(best.T, prob.time_bounds[0]), prob.time_bounds[1]) if prob.free_time else prob.T
         prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=None if mesh is None else mesh[0]), best.warm
+
+
+def least_N(N: int, ratio: float, adaptive: bool) -> float:
+    """The fewest steps that could bring a level's error (``ratio`` = miss / tol, > 1, at N steps) within the
+    tolerance: N ratio^(1/BEST_ORDER), divided by ADAPTIVE_GAIN on an adaptive mesh -- an optimistic estimate, so
+    that a tolerance it puts above max_N is out of reach whichever order the scheme shows (docs/mathematics.md §16,
+    "Out of reach after the first level")."""
+    return N * ratio ** (1.0 / BEST_ORDER) / (ADAPTIVE_GAIN if adaptive else 1.0)
+
+
+def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int) -> str:
+    """'accuracy 1e-09 not reached: the continuous miss 6.01e-04 at N = 200 would need N ≈ 7.8e+04 even if it
+    fell at O(h^2), ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
+    what = (f"the continuous miss {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
+            f"the path violation {rec['path_violation']:.2e}")
+    gain = f", with an adaptive mesh credited with {ADAPTIVE_GAIN:g} times fewer steps" if adaptive else ""
+    return (f"accuracy {tol:.3g} not reached: {what} at N = {N} would need N ≈ {least:.2g} even if it fell at "
+            f"O(h^{BEST_ORDER}), the best order of either scheme{gain}, above solver.max_N = {max_N}, so no further "
+            f"level was solved: raise solver.max_N to at least {least:.2g} or loosen solver.accuracy")
 
 
 def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> tuple[np.ndarray, float]:

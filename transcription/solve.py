@@ -211,8 +211,11 @@ def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect:
               progress: Progress | None, warm: WarmStart | None, dsol: Solution | None) -> Solution:
     """``isol`` if it succeeded or needs no fallback (:func:`~.methods.indirect.solve.needs_fallback`), else the
     indirect method started again from the direct solution ``dsol`` (solved here when None) -- the cold start's
-    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`)."""
-    if not needs_fallback(isol, indirect, warm):
+    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`).  A warm
+    start is retried too when ``dsol`` is given ('both': the warm start came from elsewhere, e.g. refinement's previous
+    level resampled onto this mesh, where the fuel raise's indirect start failed and this grid's direct solution
+    converges in 2 iterations, docs/mathematics.md §19)."""
+    if not needs_fallback(isol, indirect, None if dsol is not None else warm):
         return isol
     direct_s = None
     if dsol is None:

@@ -35,6 +35,7 @@ U (6, n_controls).  NumPy, except the linearization (the plan's CasADi ``variati
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Callable, Mapping
 
 import numpy as np
@@ -308,10 +309,10 @@ class Gains:
     def N(self) -> int:
         return self.K.shape[0]
 
-    @property
+    @cached_property
     def rho(self) -> np.ndarray | None:
-        """(N,) the relative step sizes h_k / h of a non-uniform mesh (the weights of :func:`riccati`), None on a
-        uniform one."""
+        """(N,) the relative step sizes h_k / h of a non-uniform mesh (the weights of :func:`riccati`, and what
+        :meth:`per_mean_step` divides by), None on a uniform one; computed once."""
         return None if self.steps is None else self.steps / self.h
 
     def step(self, k: int) -> float:
@@ -320,8 +321,8 @@ class Gains:
 
     def per_mean_step(self, k: int, r: np.ndarray) -> np.ndarray:
         """A disturbance r (12,) that step k explained as the disturbance of a step of the mean size h
-        (:func:`riccati`'s r: r / rho_k; r itself on a uniform mesh)."""
-        return r if self.steps is None else r / (self.steps[k] / self.h)
+        (:func:`riccati`'s r: r / rho_k, :attr:`rho`; r itself on a uniform mesh)."""
+        return r if self.steps is None else r / self.rho[k]
 
     @property
     def Bu(self) -> np.ndarray:

@@ -107,21 +107,24 @@ STRUCTURE_REPAIRS = 3
 
 
 def warm_controls(problem: Problem, warm) -> np.ndarray | None:
-    """The controls of a warm start on the problem's grid (None without one): the switching structure to start from."""
-    return None if warm is None else np.asarray(warm.fit(problem.N, problem.scheme)[0].U, float)
+    """The controls of a warm start on the problem's grid -- on a non-uniform mesh at its node times (None without
+    one): the switching structure to start from."""
+    return None if warm is None else np.asarray(warm.fit(problem.N, problem.scheme, problem.fractions)[0].U, float)
 
 
-def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float) -> tuple[NewtonResult | None, dict]:
+def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float,
+                      h: float | None = None) -> tuple[NewtonResult | None, dict]:
     """The conditions at eps = 0 with the switching structure of the controls U fixed (:mod:`.structured`) from
     lambda_0 = lam: (the NewtonResult with x = lambda_0 when it converged and its solution is consistent with the
     structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded).  An
     inconsistent solution is repaired up to STRUCTURE_REPAIRS times (the offending nodes partial, an active-set
-    step) and solved again from it."""
+    step) and solved again from it.  h: the (mean) step size (default the problem's; on a non-uniform mesh step k
+    runs at h_k = r_k h)."""
     if problem.disc.force_frame != "inertial":
         return None, {"skipped": "a body-fixed force (the structured conditions are written for an inertial one)"}
     modes, x, out = node_modes(problem, U), np.asarray(lam, float), {"repairs": 0, "iterations": 0}
     for _ in range(STRUCTURE_REPAIRS + 1):
-        st = StructuredShooting(problem, modes)
+        st = StructuredShooting(problem, modes, h)
         nr = st.solve(x[:12], U, tol)
         out.update(partial_nodes=len(st.partial), result=nr.result.value, iterations=out["iterations"] + nr.iterations)
         if not nr.result.successful:
@@ -152,7 +155,7 @@ def solve_fuel(shooting, lam, h: float, first: bool, phase: str) -> NewtonResult
     opts, stats = shooting.options, shooting.stats
     U0 = getattr(shooting, "warm_U", None)
     if first and U0 is not None:
-        nr, stats["fuel_structured"] = structured_finish(shooting.problem, lam, U0, opts.eps_S)
+        nr, stats["fuel_structured"] = structured_finish(shooting.problem, lam, U0, opts.eps_S, h)
         if nr is not None:
             return _structured(shooting, nr, "from the warm start's switching structure")
     nr, eps, stats["fuel_homotopy"] = fuel_homotopy(
@@ -162,8 +165,9 @@ def solve_fuel(shooting, lam, h: float, first: bool, phase: str) -> NewtonResult
     shooting.law = (shooting.Winv, shooting.bd)     # the final rollout's law: the last stage's eps
     if not stats["fuel_homotopy"]["costs"]:   # no stage converged: nothing to finish from
         return nr
-    U = np.array(shooting.fns.shoot(nr.x, shooting.X0, shooting.Xd, h, shooting.Winv, shooting.bd)[3])
-    fin, stats["fuel_structured"] = structured_finish(shooting.problem, nr.x, U, opts.eps_S)
+    hk = shooting.problem.steps_of(h)   # h itself on a uniform mesh, h r_k on a non-uniform one
+    U = np.array(shooting.fns.shoot(nr.x, shooting.X0, shooting.Xd, hk, shooting.Winv, shooting.bd)[3])
+    fin, stats["fuel_structured"] = structured_finish(shooting.problem, nr.x, U, opts.eps_S, h)
     if fin is None:
         return nr
     fin.history, fin.iterations = nr.history + fin.history, nr.iterations + fin.iterations

@@ -37,9 +37,7 @@ def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time
     c = problem.control
     reasons = []
     if c.objective == "fuel" and "fuel" in objectives:
-        reasons += fuel_not_covered(problem)
-        if not problem.uniform:   # fuel.py and structured.py take one step size h
-            reasons.append("the fuel objective on a non-uniform mesh")
+        reasons += fuel_not_covered(problem)   # on a non-uniform mesh too (docs/mathematics.md §19)
     elif c.objective not in objectives:
         reasons.append(f"the {c.objective} objective")
     if c.objective == "time" and problem.disc.force_frame != "inertial":

@@ -71,10 +71,12 @@ class StructuredShooting:
     ``fun`` (x) -> (F, J = dF/dx, U (controls), V (the unconstrained effort controls v), lam (12 x N: lambda_0 ..
     lambda_{N-1})) of x = [lambda_0 (the method's shooting unknown); m (the partial nodes' magnitudes)]."""
 
-    def __init__(self, problem: Problem, modes: np.ndarray):
+    def __init__(self, problem: Problem, modes: np.ndarray, h: float | None = None):
         if problem.scheme != "lgvi" and problem.scheme != "first_order":
             raise ValueError(problem.scheme)
         self.problem, self.modes = problem, np.asarray(modes, float)
+        # the step sizes h_k (docs/mathematics.md §19, on a non-uniform mesh): h_k = r_k h, h the mean step
+        self.hk = np.broadcast_to(problem.steps_of(problem.h if h is None else h), (problem.N,))
         self.partial = np.argwhere(self.modes == -1)          # (block, node) pairs
         p, N, npart = problem, problem.N, len(self.partial)
         x = ca.MX.sym("x", NZ + npart)
@@ -83,18 +85,19 @@ class StructuredShooting:
         for i, (blk, j) in enumerate(self.partial):
             mags[j][blk] = x[NZ + i]
         step = _step_function(p)
-        X, lam, h = ca.MX(p.X0), lam0, p.h
-        # the first control from the unknown itself (lgvi: u_0 from lambda_{-1}; first_order: u_1 from lambda_0)
+        X, lam, hk = ca.MX(p.X0), lam0, self.hk
+        # the first control from the unknown itself (lgvi: u_0 from lambda_{-1}; first_order: u_1 from lambda_0),
+        # at the size h_0 of step 0
         u, v = self._first(lam0, mags[0])
         Us, Vs = [u], [v]
         if p.scheme == "lgvi":
             u_prev, ks, shift = u, range(N), 1
         else:
-            X, u_prev, ks, shift = p.disc.step(X, u, h)[0], ca.MX.zeros(NU), range(1, N), 0
+            X, u_prev, ks, shift = p.disc.step(X, u, hk[0])[0], ca.MX.zeros(NU), range(1, N), 0
         lam_prev, lams = lam0, ([] if p.scheme == "lgvi" else [lam0])
         for k in ks:
             j = k + shift                   # the control index of the control lambda_k determines
-            X, lam, u_prev, v = step(X, lam_prev, u_prev, self.modes[:, j], ca.vertcat(*mags[j]), h)
+            X, lam, u_prev, v = step(X, lam_prev, u_prev, self.modes[:, j], ca.vertcat(*mags[j]), hk[k])
             Us.append(u_prev), Vs.append(v), lams.append(lam)
             lam_prev = lam
         self.lamN, self.XN = lam_prev, X
@@ -106,10 +109,11 @@ class StructuredShooting:
                                ["x"], ["F", "J", "U", "V", "lam"])
 
     def _first(self, lam0, mag):
-        """(u_0, v_0) of the LGVI's first node from lambda_{-1} (u_0 = law(-(2/h) W^-1 B^T lambda_{-1}))."""
-        p = self.problem
-        Bc = control_matrix(p.disc)(p.h)
-        v = -control_scale(p.disc) * ca.mtimes(ca.DM(np.linalg.inv(p.control.W)), ca.mtimes(Bc.T, lam0)) / p.h
+        """(u_0, v_0) of the first control node from the unknown (lgvi: u_0 = law(-(2/h_0) W^-1 B_c(h_0)^T
+        lambda_{-1}); first_order: u_1 = law(-(1/h_0) W^-1 B_c(h_0)^T lambda_0)), h_0 the size of step 0."""
+        p, h0 = self.problem, float(self.hk[0])
+        Bc = control_matrix(p.disc)(h0)
+        v = -control_scale(p.disc) * ca.mtimes(ca.DM(np.linalg.inv(p.control.W)), ca.mtimes(Bc.T, lam0)) / h0
         c = p.control
         u = ca.vertcat(*[_law(v[sl], self.modes[i, 0], bound.b, mag[i]) for i, (sl, bound) in
                          enumerate(((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound)))])
