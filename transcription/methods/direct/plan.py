@@ -191,17 +191,15 @@ def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, mad
     effort optimum, the free motion and the screw interpolation, the lowest converged cost kept ('best')."""
     N, budget = problem.N, min(options.max_iter, AUTO_FIRST_BUDGET_FUEL)
     Nc = max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR)
-    if Nc < N and not coarse_resolves(problem, Nc):
-        return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve),
-                 options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
-            "first"
-    if Nc < N:
+    if Nc < N and coarse_resolves(problem, Nc):
         return [(f"the best start on {Nc} steps, resampled", lambda: coarse_guess(problem, options, Nc, subsolve),
                  options.max_iter), ("rollout", made("rollout"), budget),
                 ("interpolate", made("interpolate"), options.max_iter)], "coarse"
+    # the coarsest grid, or a coarser grid that is another maneuver (coarse_resolves): the same starts, the lowest
+    # converged cost kept on the coarsest grid, the first that converges otherwise
     return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve),
              options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
-        "best"
+        "first" if Nc < N else "best"
 
 
 #: a coarser grid starts the fuel plan only when its free motion ends within this fraction of the force's reach
