@@ -20,11 +20,12 @@ problem of the same structure: the builders with only structural arguments retur
         v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (fuel: magnitudes and directions); h / h_scale (1, free_h)]
         p = [sU (6); sS (2); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj;
              vec(Q) (9, thruster: the engine frame [a, b, c], column-major; b_f its max);
-             eps (1, fuel: the smoothing of the fuel homotopy, 0 = the fuel objective)]
+             r_f, r_m, eps (3, fuel: the smoothing references and the smoothing of the fuel homotopy, 0 = the fuel
+             objective)]
         rows = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f, <= 0); (|u_m|^2 - b_m^2) / b_m^2 (norm_m, <= 0);
                 Q^T u_f / b_f (thruster: the thrust a^T u_f / max in [min/max, 1], the off-axis b^T u_f, c^T u_f = 0);
                 |d_f|^2 - 1, |d_m|^2 - 1 (fuel, <= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (fuel, = 0)]
-        cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj (fuel; else 0), phi(s) = (1 - eps) s + eps s^2 / (2 sS)
+        cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj (fuel; else 0), phi(s) = (1 - eps) s + eps s^2 / (2 r)
                (docs/mathematics.md, the fuel homotopy: phi = s at eps = 0)
     time_cost(disc)                               the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
@@ -119,7 +120,7 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thr
     """
     ns = FUEL_SLACKS if fuel else 0
     v = ca.SX.sym("v", NU + ns + (1 if free_h else 0))
-    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3 + (9 if thruster else 0) + (1 if fuel else 0))
+    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3 + (9 if thruster else 0) + (3 if fuel else 0))
     sU, sS = p[:NU], p[NU:NU + 2]
     i = NU + 2
     omega_per_h, hp, bf, bm, wf, wm, s_obj = (p[i + k] for k in range(7))
@@ -138,9 +139,10 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thr
         df, dm = v[NU + 2:NU + 5], v[NU + 5:NU + 8]
         rows += [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0]
         rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
-        eps = p[-1]     # the homotopy's smoothing: phi(s) = (1 - eps) s + eps s^2 / (2 sS), phi = s at eps = 0
-        phi_f = (1.0 - eps) * sf + eps * sf**2 / (2.0 * sS[0])
-        phi_m = (1.0 - eps) * sm + eps * sm**2 / (2.0 * sS[1])
+        # the homotopy's smoothing: phi(s) = (1 - eps) s + eps s^2 / (2 r), phi = s at eps = 0
+        rf, rm, eps = p[-3], p[-2], p[-1]
+        phi_f = (1.0 - eps) * sf + eps * sf**2 / (2.0 * rf)
+        phi_m = (1.0 - eps) * sm + eps * sm**2 / (2.0 * rm)
         cost = omega_per_h * h * (wf * phi_f + wm * phi_m) / s_obj
     # the name from its non-empty parts: CasADi refuses empty parts ("control_node__fuel": fuel without norm bounds)
     parts = ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}", "thruster" if thruster else "",

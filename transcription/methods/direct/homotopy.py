@@ -31,9 +31,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...guess import Guess, cayley_vectors
+from ...layout import U_FORCE, U_MOMENT
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
-from ...problem import Problem
+from ...problem import NormBound, Problem
 from .transcription import SmoothTranscription
 
 #: the smoothing levels: eps = SMOOTHING_FIRST, divided by SMOOTHING_FACTOR per level, down to SMOOTHING_LAST
@@ -54,6 +55,11 @@ WARM_PRIMAL = {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9, "slack_b
 #: the given point and multipliers are pushed off the bounds as little as possible
 WARM_LEVEL = {"warm_start_init_point": "yes", "mu_init": 1e-9, "warm_start_bound_push": 1e-9,
               "warm_start_slack_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9}
+#: the NLP iterations a smoothed level may take before the homotopy ends (its start "not available"): the fuel
+#: raise's levels take 5-117 (25 steps); on the LEO raises' 400 steps a level that had not converged in a few
+#: hundred iterations crawled on (mu = 1e-9, steps cut to 1e-2 by the bounds) to 3000, minutes each, before the
+#: plan's other starts were tried (docs/mathematics.md, "LEO fuel raises")
+LEVEL_BUDGET = 500
 #: Guess.prepared_on of the homotopy's point
 PREPARED_ON = "the fuel homotopy"
 
@@ -62,6 +68,25 @@ def smoothing_levels() -> list[float]:
     """eps of the smoothed levels, decreasing geometrically: SMOOTHING_FIRST, ... >= SMOOTHING_LAST."""
     n = int(round(np.log(SMOOTHING_FIRST / SMOOTHING_LAST) / np.log(SMOOTHING_FACTOR)))
     return [SMOOTHING_FIRST / SMOOTHING_FACTOR**k for k in range(n + 1)]
+
+
+def smoothing_reference(tr: SmoothTranscription, U: np.ndarray) -> np.ndarray:
+    """The references (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units: a bounded part's
+    bound (its magnitude's scale, :attr:`SmoothTranscription.slack_scales`, as before); an unbounded part's largest
+    magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part).  Why:
+    an unbounded part's scale is a guess from the boundary data, and where the magnitudes are far from r the
+    levels are no homotopy.  The LEO raises (docs/mathematics.md, "LEO fuel raises"): moments of up to 8e-9 kN km
+    against a scale of 1.5e-11 made eps s^2 / (2 r) dominate the moment's cost down to eps ~ 1e-2, and the first
+    level (eps = 1, 413 iterations on 400 steps) ended with multipliers that left the next one a dual
+    infeasibility of 6.5e4 (restoration failures after > 700 iterations); with r = 8.3e-9 the first level took
+    100 iterations and left 2.2e-3.  Forces of 6e-4 kN against a scale of 0.54 kN (no bound) left the force part
+    of every level the fuel objective itself.  With these references phi_eps'(s) = 1 - eps + eps s / r is in
+    [1 - eps, 1] on the effort optimum's magnitudes at every level."""
+    c = tr.problem.control
+    mags = np.array([np.linalg.norm(U[sl], axis=0).max(initial=0.0) for sl in (U_FORCE, U_MOMENT)])
+    unbounded = np.array([b is None or (isinstance(b, NormBound) and b.b <= 0) for b in (c.force_bound,
+                                                                                        c.moment_bound)])
+    return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, tr.slack_scales)
 
 
 @dataclass
@@ -80,11 +105,14 @@ class Point:
         return self.status == "Solve_Succeeded"
 
 
-def solve_level(problem: Problem, options: DirectOptions, eps: float, start: Point) -> tuple[Point, SmoothTranscription]:
-    """The fuel NLP smoothed by ``eps`` on ``problem``'s grid, from ``start`` (warm when it has multipliers)."""
-    tr = SmoothTranscription(problem, options, smoothing=eps)
+def solve_level(problem: Problem, options: DirectOptions, eps: float, start: Point,
+                ref: np.ndarray | None = None) -> tuple[Point, SmoothTranscription]:
+    """The fuel NLP smoothed by ``eps`` (references ``ref``, :func:`smoothing_reference`) on ``problem``'s grid,
+    from ``start`` (warm when it has multipliers)."""
+    tr = SmoothTranscription(problem, options, smoothing=eps, smoothing_ref=ref)
     warm = start.lam_g is not None
     ipopt = ipopt_options(options, warm_duals=warm)
+    ipopt["max_iter"] = min(int(ipopt["max_iter"]), LEVEL_BUDGET)
     if warm:
         for k, v in WARM_LEVEL.items():
             ipopt.setdefault(k, v)
@@ -117,8 +145,9 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess 
     iterations, levels = effort.iterations, [f"effort: {effort.iterations}"]
     tr = SmoothTranscription(problem, options, smoothing=SMOOTHING_FIRST)
     point = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
+    ref = smoothing_reference(tr, effort.warm.U)
     for eps in smoothing_levels():
-        point, tr = solve_level(problem, options, eps, point)
+        point, tr = solve_level(problem, options, eps, point, ref)
         iterations += point.iterations
         levels.append(f"eps = {eps:.0e}: {point.iterations}")
         if not point.success:

@@ -210,21 +210,26 @@ COARSE_REACH_FRACTION = 0.5
 def coarse_resolves(problem: Problem, Nc: int) -> bool:
     """Whether the maneuver on Nc uniform steps is near enough the one on ``problem``'s grid for its optimum to
     start the fuel solve: the two grids' free motions (:func:`~transcription.guess.make_guess` 'rollout') end at
-    positions at most COARSE_REACH_FRACTION * F T^2 / (2 m) apart, F the largest force the bound allows (always
-    true without a force bound).  Why: around the Earth a one-revolution LEO raise with a 1 N engine on 500 kg
+    positions at most COARSE_REACH_FRACTION * F T^2 / (2 m) apart, F the largest force the bound allows (without
+    a bound: the displacement the maneuver needs, below).  Why: around the Earth a one-revolution LEO raise with a
+    1 N engine on 500 kg
     (configs/leo_body_engine.yaml, N = 400) can move the body by F T^2 / (2 m) = 31 km in T, while the discrete
     orbit of 100 steps ends 53 km from that of 400 steps: the coarse problems are infeasible
     (their effort version at N = 100 ended cayley_failed after 3467 iterations) and each cost minutes before the
-    fine grid was tried.  For the fuel raise the gap is 0.0044 against a reach of 9.8."""
+    fine grid was tried.  For the fuel raise the gap is 0.0044 against a reach of 9.8.  Without a force bound the
+    reach is the displacement the maneuver needs, the fine free motion's miss |x_d - x_N^(N)| (x_d of
+    :func:`~transcription.guess.target_estimate`): leo_raise_slew.yaml (the same orbit, no bound) has a gap of
+    53 km against a miss of 47 km on 100 steps, and its 25-step problem needed 20 kN of thrust where the 400-step
+    one needs 0.6 N (docs/mathematics.md, "LEO fuel raises"); gaps at round-off (1e-9 of the position) always
+    resolve, so a maneuver the free motion already completes keeps its coarse grids."""
     bound = problem.control.force_bound
     F = bound.max if isinstance(bound, ThrusterBound) else bound.largest_norm() if bound is not None else np.inf
-    if not np.isfinite(F):
-        return True
     Xd, T = target_estimate(problem), problem.T
     fine = make_guess("rollout", problem.disc, problem.X0, Xd, problem.N, T, problem.fractions).X[-1]
     coarse = make_guess("rollout", problem.disc, problem.X0, Xd, Nc, T).X[-1]
     gap = float(np.linalg.norm(fine[X_POS] - coarse[X_POS]))
-    return gap <= COARSE_REACH_FRACTION * F * T**2 / (2.0 * problem.model.mass)
+    reach = F * T**2 / (2.0 * problem.model.mass) if np.isfinite(F) else float(np.linalg.norm(Xd[X_POS] - fine[X_POS]))
+    return gap <= COARSE_REACH_FRACTION * reach or gap <= 1e-9 * max(float(np.linalg.norm(fine[X_POS])), 1.0)
 
 
 def bracketing_times(problem: Problem) -> list[float]:

@@ -60,12 +60,16 @@ class SmoothTranscription:
 
     ``smoothing``: the fuel objective's smoothing eps in [0, 1] (the fuel homotopy, :mod:`.homotopy`; 0 is the
     fuel objective itself): data of the control-node block, so every eps gives an NLP of the same structure.
+    ``smoothing_ref``: the references r = (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units
+    (None: the magnitudes' scales, :attr:`slack_scales`), data like eps (:func:`.homotopy.smoothing_reference`).
     """
 
-    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0):
+    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0,
+                 smoothing_ref: np.ndarray | None = None):
         N = problem.N
         self.problem, self.options, self.stage_order = problem, options, stage_order
         self.smoothing = float(smoothing)
+        self.smoothing_ref = smoothing_ref
         control: SmoothControl = problem.control
         self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
         self.with_c = True if stage_order else bool(options.cayley_variables)
@@ -89,6 +93,10 @@ class SmoothTranscription:
         """The scales of the fuel epigraph's magnitudes (s_f, s_m): the largest force and moment scales."""
         sU = self.scales.U
         return np.array([sU[U_FORCE].max(), sU[U_MOMENT].max()])
+
+    def _smoothing_ref(self) -> np.ndarray:
+        """(r_f, r_m) of the smoothed magnitude (class docstring): ``smoothing_ref`` or the slack scales."""
+        return self.slack_scales if self.smoothing_ref is None else np.asarray(self.smoothing_ref, float).reshape(2)
 
     def _variable_scales(self) -> np.ndarray:
         lay, sc = self.layout, self.scales
@@ -150,7 +158,8 @@ class SmoothTranscription:
         cdata = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), omega_per_h[None, :],
                            np.repeat(np.r_[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
                                            Q][:, None], nU, axis=1)]
-                          + ([np.full((1, nU), self.smoothing)] if fuel else []))
+                          + ([np.repeat(np.r_[self._smoothing_ref(), self.smoothing][:, None], nU, axis=1)]
+                             if fuel else []))
         iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
         n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel else 0)
         # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0
