@@ -225,6 +225,13 @@ def test_new_numbers_compile_nothing_in_the_indirect_method(monkeypatch, tmp_pat
     assert np.max(np.abs(sb.controls - ref.controls)) <= 1e-10 * np.max(np.abs(ref.controls))
 
 
+def _probe(name: str, expr) -> tuple[ca.Function, codegen.Library]:
+    """A small Function of one 3-vector, x -> expr(x), and its one-Function library (with CSE)."""
+    x = ca.SX.sym("x", 3)
+    f = ca.Function(name, [x], [expr(x)])
+    return f, codegen.Library(f.name(), (f,), cse=True)
+
+
 def test_a_first_use_runs_interpreted_and_the_build_follows_in_the_background(monkeypatch, tmp_path):
     """Interpreted first: a cache miss is not waited for -- the Function comes back interpreted while a detached
     process compiles it at -O0 and then at its own flags into the cache (no lock, no job files left); the next
@@ -232,9 +239,7 @@ def test_a_first_use_runs_interpreted_and_the_build_follows_in_the_background(mo
     if not codegen.available():
         pytest.skip("no C compiler")
     said = _policy(monkeypatch, tmp_path)
-    x = ca.SX.sym("x", 3)
-    f = ca.Function("background_probe", [x], [ca.sin(x) * x[0] + ca.exp(x[1])])
-    lib = codegen.Library(f.name(), (f,), cse=True)
+    f, lib = _probe("background_probe", lambda x: ca.sin(x) * x[0] + ca.exp(x[1]))
     (g,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)
     assert g is f and codegen.last_provisional and len(said) == 1
     (g2,), = codegen.compiled_libraries([lib], quick=codegen.QUICK_CFLAGS)   # under way: no second build
@@ -255,9 +260,7 @@ def test_a_library_with_a_quick_build_gets_only_its_later_stage_in_the_backgroun
     if not codegen.available():
         pytest.skip("no C compiler")
     said = _policy(monkeypatch, tmp_path)
-    x = ca.SX.sym("x", 3)
-    f = ca.Function("later_probe", [x], [ca.cos(x) * x[2] + ca.exp(x[0])])
-    lib = codegen.Library(f.name(), (f,), cse=True)
+    f, lib = _probe("later_probe", lambda x: ca.cos(x) * x[2] + ca.exp(x[0]))
     monkeypatch.setenv("SE3OCP_JIT_BACKGROUND", "0")
     codegen.compiled_libraries([lib], cflags=codegen.QUICK_CFLAGS)          # the -O0 build only
     monkeypatch.delenv("SE3OCP_JIT_BACKGROUND")
