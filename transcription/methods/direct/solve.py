@@ -15,7 +15,8 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
-from .homotopy import WARM_LEVEL, WARM_PRIMAL
+from .fuel_guard import ESCAPE, guarded
+from .homotopy import WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
 from .solution import nlp_solution
@@ -35,6 +36,7 @@ class _PlanRun:
         self.nu0 = warm.multipliers if warm is not None and warm.nlp_key == self.tr.nlp.key else None
         self.solvers: dict[tuple[int, bool], ca.Function] = {}
         self.attempts: list[Attempt] = []
+        self.points: dict[int, Point] = {}   # id(Solution) -> its scaled primal-dual point (the fuel guard's)
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
     def solver(self, budget: int, phase1: bool = False, level: bool = False, fine: bool = False) -> ca.Function:
@@ -67,6 +69,7 @@ class _PlanRun:
         out = solver(**args)
         solve_s = time.perf_counter() - t0
         self.solve_s += solve_s
+        point = Point(*(np.array(out[k]).ravel() for k in ("x", "lam_g", "lam_x")))
         stats = solver.stats()
         sol = nlp_solution(self.problem, self.options, tr, out, stats, str(stats.get("return_status", "unknown")),
                            "ipopt", self.build_s, solve_s)
@@ -75,6 +78,7 @@ class _PlanRun:
             sol.solve_s += guess.seconds
             self.solve_s += guess.seconds
         self.iterations += sol.iterations
+        self.points[id(sol)] = point
         self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
                                      guess.iterations, guess.prepared_on))
         sol.stats["initial_guess"] = label
@@ -153,13 +157,15 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
         return failed_solution(problem, "direct", options.solver, Result.non_finite,
                                "the initial guess is not finite (overflow or a singular potential along the free "
                                "motion): check the model and the states")
+    if run.tr.fuel and sol.converged:   # the fuel KKT guard, and the escape from a false minimum (.fuel_guard)
+        sol = guarded(run, sol)
     # every guess tried counts: iterations and times are those of the whole solve
     sol.build_s, sol.solve_s, sol.iterations = run.build_s + run.extra_build_s, run.solve_s, run.iterations
     sol.attempts = tuple(run.attempts)
     if len(run.attempts) > 1:
         sol.message += "; initial guesses tried: " + "; ".join(a.line() for a in run.attempts)
     if pick == "best":
-        sol.stats.update(multistart(run.attempts, problem.N))
+        sol.stats.update(multistart([a for a in run.attempts if not a.label.startswith(ESCAPE)], problem.N))
     if sol.converged and "multistart" in sol.stats:
         sol.message += f"; {sol.stats['multistart']}"
     hint = failure_hint(sol, options) if warm is None else ""

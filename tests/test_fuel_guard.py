@@ -1,0 +1,135 @@
+"""The fuel KKT guard and the escape from a false minimum of the direct method's fuel NLP
+(transcription/methods/direct/fuel_guard.py; docs/mathematics.md, "The fuel KKT guard")."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import se3ocp
+from se3ocp.transcription.guess import Guess, cayley_vectors
+from se3ocp.transcription.methods.direct import fuel_guard
+from se3ocp.transcription.methods.direct.homotopy import Point
+from se3ocp.transcription.methods.direct.solve import solve_direct
+from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.options import DirectOptions
+from se3ocp.transcription.problem import quadrature_weights
+
+import support
+
+
+def raise_on_mesh(N: int, scheme: str | None = None):
+    """The bundled fuel raise on the mesh r_k = 1.5 + sin(2.3 k) normalized (tests/test_indirect_fuel.py)."""
+    r = 1.5 + np.sin(2.3 * np.arange(N))
+    return support.problem("orbit_raise_fuel", N, scheme).replace(mesh=r / r.mean())
+
+
+def test_switching_values_and_the_reaimed_point_by_hand():
+    """On a hand-made point of the fuel NLP (the raise on the mesh, LGVI, N = 6: burns on nodes 0 and 5, coast
+    elsewhere) with multipliers mu_j set on the rows u - s d only: sigma_j = |mu_j| / (w omega_j) - 1 on the coast
+    nodes, omega_j the mesh's trapezoid weights from the problem's own steps (1e-12), nan on the burn nodes; the
+    verdict names the nodes above the tolerance; the re-aimed point holds d_j = mu_j / |mu_j| there, d unchanged
+    elsewhere, s's bound multipliers zeroed there, and with a kick s_j = kick times its scale and u_j = s_j d_j."""
+    p = raise_on_mesh(6, "lgvi")
+    tr = SmoothTranscription(p, DirectOptions())
+    U = np.zeros((6, 7))
+    U[0:3, 0], U[0:3, 5], U[3:6, 0] = [3.0, 4.0, 0.0], [0.0, -20.0, 0.0], [0.0, 0.0, 0.5]
+    X = p.disc.simulate(p.X0, U, p.steps, p.N)[0]
+    x = tr.initial_point(Guess(X=X, U=U, C=cayley_vectors(X)))
+    omega = quadrature_weights("lgvi", p.N, p.steps)
+    w_f, w_m = p.control.W_f[0, 0], p.control.W_m[0, 0]
+    ratio = np.array([[0.5, 1.2, 0.9, 1.0 + 3e-3, 0.1, 0.7, 1.5], [0.2, 0.99, 1.0 + 1e-3, 0.3, 0.5, 2.0, 0.1]])
+    dirs = np.random.default_rng(1).normal(size=(2, 3, 7))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    mu = dirs * (ratio * np.array([[w_f], [w_m]]) * omega)[:, None, :]
+    nu = np.zeros(tr.nlp.ng)
+    rows = tr.nlp.rows("controls")
+    nu[rows[-6:-3]], nu[rows[-3:]] = mu[0], mu[1]
+    lam_g = tr.scaled_multipliers(nu)
+    sw = fuel_guard.switching(tr, x, lam_g)
+    burn = np.array([[True, False, False, False, False, True, False], [True] + [False] * 6])
+    assert np.all(np.isnan(sw["sigma"][burn]))
+    assert np.abs(sw["sigma"][~burn] - (ratio - 1.0)[~burn]).max() <= 1e-12
+    assert np.array_equal(sw["nodes"], np.arange(7))
+    v = fuel_guard.verdict(sw)
+    assert v["fuel_guard"] == "failed" and v["fuel_switching_nodes"] == {"force": [1, 3, 6], "moment": [2, 5]}
+    assert v["fuel_switching_max"] == pytest.approx(1.0, rel=1e-12)
+    lam_x = np.linspace(-1.0, -0.1, tr.layout.n)
+    for kick in (0.0, 1e-3):
+        out = fuel_guard.reaimed(tr, Point(x, lam_g, lam_x), sw, kick)
+        w, w0 = out.x * tr.w_scale, x * tr.w_scale
+        S, S0, iS = w[tr.layout.iS], w0[tr.layout.iS], tr.layout.iS
+        for i, nodes in enumerate(([1, 3, 6], [2, 5])):
+            others = np.setdiff1d(np.arange(7), nodes)
+            d = S[2 + 3 * i:5 + 3 * i]
+            assert np.abs(d[:, nodes] - dirs[i][:, nodes]).max() <= 1e-14
+            assert np.array_equal(d[:, others], S0[2 + 3 * i:5 + 3 * i][:, others])
+            assert np.all(out.lam_x[iS[i, nodes]] == 0.0) and np.array_equal(out.lam_x[iS[i, others]],
+                                                                              lam_x[iS[i, others]])
+            s_expect = kick * tr.slack_scales[i] if kick else S0[i, nodes]
+            assert np.allclose(S[i, nodes], s_expect, rtol=1e-14, atol=0)
+            u = w[tr.layout.iU][3 * i:3 * i + 3]
+            u_expect = S[i, nodes] * d[:, nodes] if kick else 0.0
+            assert np.abs(u[:, nodes] - u_expect).max() <= 1e-14 * tr.slack_scales[i]
+
+
+def test_the_guard_flags_a_false_minimum_and_the_escape_leaves_it(monkeypatch):
+    """The raise at N = 20 (LGVI) from the screw interpolation: IPOPT stops at a KKT point of the fuel NLP
+    (0.8126981548) with |mu| > w omega on the coast nodes 1 and 20 (sigma +9.4e-3, the directions shortened,
+    |d| < 1). Without escapes the Solution says it is not a minimum of the L1 problem and names the nodes; with
+    them (a plain re-aim does not lower the cost, the kicked one does, twice) it ends 0.37 % lower (0.8096587682)
+    with the guard passed, and on its partial burn nodes sigma = 0 and d = mu / |mu| to 1e-6 (the sign and the
+    scale of the multipliers: stationarity in s there)."""
+    p = support.problem("orbit_raise_fuel", 20, "lgvi")
+    options = DirectOptions(initial_guess="interpolate")
+    monkeypatch.setattr(fuel_guard, "ESCAPES", 0)
+    flagged = solve_direct(p, options)
+    assert flagged.converged and flagged.stats["fuel_guard"] == "failed", flagged.message
+    assert flagged.stats["fuel_switching_nodes"] == {"force": [1, 20]}
+    assert 5e-3 < flagged.stats["fuel_switching_max"] < 2e-2
+    assert "not a minimum of the L1 problem: thrust would pay at nodes force 1, 20" in flagged.message
+    monkeypatch.setattr(fuel_guard, "ESCAPES", 3)
+    seen = {}
+    guarded = fuel_guard.guarded
+
+    def keep(run, sol):
+        out = guarded(run, sol)
+        seen.update(tr=run.tr, point=run.points[id(out)])
+        return out
+
+    monkeypatch.setattr(se3ocp.transcription.methods.direct.solve, "guarded", keep)
+    sol = solve_direct(p, options)
+    assert sol.converged and sol.stats["fuel_guard"] == "passed", sol.message
+    assert sol.cost < flagged.cost * (1 - 3e-3)
+    assert abs(sol.attempts[0].cost - flagged.cost) <= 1e-12 * flagged.cost     # the same first point
+    assert [a.label for a in sol.attempts][1:] == ["fuel guard escape 1", "fuel guard escape 1 (kicked)",
+                                                   "fuel guard escape 2", "fuel guard escape 2 (kicked)"]
+    assert sol.iterations == sum(a.iterations for a in sol.attempts)
+    tr, point = seen["tr"], seen["point"]
+    sw = fuel_guard.switching(tr, point.x, point.lam_g)
+    w = point.x * tr.w_scale
+    s, d, b = w[tr.layout.iS[0]], w[tr.layout.iS[2:5]], p.control.force_bound.b
+    partial = (s > 1e-3 * b) & (s < (1 - 1e-3) * b)
+    assert partial.sum() >= 2
+    mu = sw["mu"][0][:, partial]
+    omega = quadrature_weights("lgvi", p.N, p.h)[partial]
+    assert np.abs(np.linalg.norm(mu, axis=0) / (p.control.W_f[0, 0] * omega) - 1.0).max() <= 1e-6
+    assert np.abs(np.sum(mu * d[:, partial], axis=0) / np.linalg.norm(mu, axis=0) - 1.0).max() <= 1e-6
+
+
+@pytest.mark.slow
+def test_the_false_minimum_on_the_mesh_is_left_and_the_indirect_method_agrees():
+    """The known case (issue 26): the raise on the mesh r_k = 1.5 + sin 2.3k, LGVI, N = 40. The direct method's
+    first point is the false minimum 0.8153924 (coasting on nodes 3 and 4 with sigma +3.5e-4, +7.4e-4); the guard
+    fails there and one escape reaches 0.8150812452 with the guard passed; the indirect method, started from it,
+    converges with a consistent exact switching structure and agrees to 1e-8 (measured 2.1e-9), no costlier.
+    About 12 s at load 1."""
+    p = raise_on_mesh(40, "lgvi")
+    c = se3ocp.solve(p, "both")
+    d, i = c.direct, c.indirect
+    assert d.converged and i.converged, (d.message, i.message)
+    assert d.attempts[0].cost > 0.81539243 and d.stats["fuel_escape"][0].startswith("1: d re-aimed at force 3, 4")
+    assert d.stats["fuel_guard"] == "passed" and d.stats["fuel_switching_max"] < 0
+    assert d.cost < 0.8153924316 * (1 - 3e-4)
+    assert c.verdict.startswith("agree"), c.verdict
+    assert abs(i.cost - d.cost) <= 1e-8 * d.cost and i.cost <= d.cost * (1 + 1e-12)
+    assert i.stats["fuel_structured"]["consistent"]
