@@ -242,3 +242,29 @@ def test_the_phasing_at_its_default_N_reaches_cost_0_03():
     sol = se3ocp.solve(maneuver("everyday/phasing_5_orbits"))
     assert sol.converged and sol.stats["initial_guess"] == "orbit", sol.message
     assert 0.025 <= sol.cost <= 0.032 and np.linalg.norm(sol.trajectory.X[:, :3], axis=1).max() <= 1.03
+
+
+def test_the_iteration_hint_names_the_budgets_the_starts_ran_on():
+    """failure_hint after max_iterations: when the starts that reached their limit ran on the plan's caps (the fuel
+    plan's 600, below max_iter 3000), the hint says those budgets and that max_iter does not raise them, not only
+    "a larger max_iter (now 3000)"; when every start ran on max_iter, the short tip; iterations spent making a guess
+    (a coarse grid's) are not its budget."""
+    import dataclasses
+
+    from se3ocp.transcription.methods.base import failed_solution
+    from se3ocp.transcription.methods.direct.plan import failure_hint
+    from se3ocp.transcription.options import DirectOptions
+    from se3ocp.transcription.results import Attempt
+
+    import support
+    sol = failed_solution(support.problem("e3_inclination_change", 10), "direct", "ipopt", Result.max_iterations, "")
+    options = DirectOptions()
+    capped = dataclasses.replace(sol, attempts=(
+        Attempt("the best start on 25 steps, resampled", Result.max_iterations, 3000 + 961, guess_iterations=961,
+                prepared_on="the coarse grid"),
+        Attempt("rollout", Result.max_iterations, 600), Attempt("interpolate", Result.max_iterations, 600)))
+    hint = failure_hint(capped, options)
+    assert (f"a larger solver.direct.max_iter (now {options.max_iter}) for the starts it bounds: the starts that "
+            "reached their limit ran on 3000 and 600 and 600 iterations (600: the plan's cap") in hint, hint
+    full = dataclasses.replace(sol, attempts=(Attempt("interpolate", Result.max_iterations, options.max_iter),))
+    assert f"a larger solver.direct.max_iter (now {options.max_iter}); or" in failure_hint(full, options)

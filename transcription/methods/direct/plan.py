@@ -309,10 +309,26 @@ def failure_hint(sol: Solution, options: DirectOptions) -> str:
     if options.initial_guess != "auto":
         tips.append("solver.direct.initial_guess=auto (the screw interpolation and the free motion in turn)")
     elif r is Result.max_iterations:
-        tips.append(f"a larger solver.direct.max_iter (now {options.max_iter})")
+        tips.append(budget_tip(sol, options))
     tips.append("an easier neighbouring maneuver (longer horizon.T, smaller change) reached by continuation: a sweep "
                 "along the changed key with continuation (configs/sweeps/)")
     return "try " + "; or ".join(tips)
+
+
+def budget_tip(sol: Solution, options: DirectOptions) -> str:
+    """The iteration tip of a solve that ended at its iteration limit, with the budgets its attempts actually ran on
+    (an attempt that reached max_iterations spent its budget: its iterations less those spent making its guess).
+    Why: the plan caps its first starts (AUTO_FIRST_BUDGET, AUTO_FIRST_BUDGET_FUEL) below max_iter, and "a larger
+    max_iter (now 3000)" after attempts that stopped at 600 promises what raising max_iter does not give them."""
+    spent = [a.iterations - a.guess_iterations for a in sol.attempts if a.result is Result.max_iterations]
+    capped = sorted({b for b in spent if b < options.max_iter})
+    now = f"a larger solver.direct.max_iter (now {options.max_iter})"
+    if not capped:
+        return now
+    return (f"{now} for the starts it bounds: the starts that reached their limit ran on "
+            f"{' and '.join(map(str, spent))} iterations ({' and '.join(map(str, capped))}: the plan's cap on its first "
+            "starts, which max_iter does not raise; solver.direct.initial_guess=rollout or interpolate gives one start "
+            "the whole max_iter)")
 
 
 #: a bound binds a failed solve when at least this fraction of the control nodes of its last iterate is at it
