@@ -56,7 +56,7 @@ from typing import Callable, Sequence
 
 import casadi as ca
 
-from .codegen_build import building, cache_dir, compiler, generate, lean_io, spawn, stop
+from .codegen_build import building, cache_dir, compiler, generate, lean_io, spawn, start_compiler, stop
 
 __all__ = ["CFLAGS", "QUICK_CFLAGS", "LOOP_CFLAGS", "last_error", "notify", "available", "compiled", "compiled_many",
            "Library", "compiled_libraries", "background", "candidates", "arrived", "load", "Switch", "ready", "settle",
@@ -346,8 +346,7 @@ def _build(missing: list[tuple[Library, Path, list[str]]], timeout: float) -> No
             c = _generate(lib, tmp.name)
             out = Path(tmp.name) / path.name
             with open(Path(tmp.name) / "cc.log", "wb") as log:  # a file, not a pipe: nothing can block
-                procs.append(subprocess.Popen([compiler(), *fl, str(c), "-o", str(out), "-lm"],
-                                              stdout=log, stderr=subprocess.STDOUT))
+                procs.append(start_compiler(compiler(), c, fl, out, log))
             outs.append(out)
         deadline = time.monotonic() + timeout
         for proc, (lib, path, _), out in zip(procs, missing, outs):

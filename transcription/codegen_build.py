@@ -44,6 +44,13 @@ def compiler() -> str | None:
     return None
 
 
+def start_compiler(cc: str, c: Path, flags: list[str], out: Path, log=subprocess.DEVNULL) -> subprocess.Popen:
+    """Start the compiler ``cc`` (each caller's :func:`compiler`) on the C file ``c``: ``[cc, *flags, c, -o, out,
+    -lm]``, its output and errors to ``log`` (an open file, or discarded): the one command line of both builders
+    (:func:`_compile` here, the in-process ``codegen._build``)."""
+    return subprocess.Popen([cc, *flags, str(c), "-o", str(out), "-lm"], stdout=log, stderr=subprocess.STDOUT)
+
+
 def generate(name: str, fns, cse: bool, tmp: str) -> Path:
     """The C file ``{tmp}/{name}.c`` of the Functions ``fns`` (SX ones through common-subexpression elimination if
     ``cse``), with :func:`lean_io`."""
@@ -307,8 +314,7 @@ def _compile(c: Path, flags: list[str], path: Path, job: Path, first: bool, lock
     fd = _slot(first)
     out = c.parent / path.name
     try:
-        proc = subprocess.Popen([compiler(), *flags, str(c), "-o", str(out), "-lm"], stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
+        proc = start_compiler(compiler(), c, flags, out)
     except BaseException:
         if fd is not None:
             os.close(fd)
