@@ -215,7 +215,7 @@ def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect:
     start is retried too when ``dsol`` is given ('both': the warm start came from elsewhere, e.g. refinement's previous
     level resampled onto this mesh, where the fuel raise's indirect start failed and this grid's direct solution
     converges in 2 iterations, docs/mathematics.md §19)."""
-    if not needs_fallback(isol, indirect, None if dsol is not None else warm):
+    if not needs_fallback(isol, indirect, warm, retry_warm=dsol is not None):
         return isol
     direct_s = None
     if dsol is None:

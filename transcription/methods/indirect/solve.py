@@ -356,10 +356,13 @@ def initial_step(problem: Problem, warm: WarmStart | None) -> float:
 NO_FALLBACK = (Result.not_applicable, Result.interrupted)
 
 
-def needs_fallback(sol: Solution, options: IndirectOptions, warm: WarmStart | None) -> bool:
-    """Whether the solve ``sol``, started from ``options.initial_costate`` (no warm start), failed and is to be
-    started again from the direct solution (``options.fallback``, :func:`with_fallback`)."""
-    return (bool(options.fallback) and warm is None and options.initial_costate != "from_direct"
+def needs_fallback(sol: Solution, options: IndirectOptions, warm: WarmStart | None, *,
+                   retry_warm: bool = False) -> bool:
+    """Whether the solve ``sol``, started from ``options.initial_costate`` or from the warm start ``warm``, failed and
+    is to be started again from the direct solution (``options.fallback``, :func:`with_fallback`).  A failed warm
+    start is retried only with ``retry_warm``: when the direct solution of this very grid is at hand ('both': the
+    warm start came from elsewhere, e.g. refinement's previous level)."""
+    return (bool(options.fallback) and (warm is None or retry_warm) and options.initial_costate != "from_direct"
             and not sol.result.successful and sol.result not in NO_FALLBACK)
 
 
