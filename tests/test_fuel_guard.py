@@ -133,3 +133,20 @@ def test_the_false_minimum_on_the_mesh_is_left_and_the_indirect_method_agrees():
     assert c.verdict.startswith("agree"), c.verdict
     assert abs(i.cost - d.cost) <= 1e-8 * d.cost and i.cost <= d.cost * (1 + 1e-12)
     assert i.stats["fuel_structured"]["consistent"]
+
+
+@pytest.mark.slow
+def test_the_retightened_false_point_is_escaped_to_the_indirect_optimum():
+    """LGVI, N = 60 on the mesh: re-solved at tol 1e-12 from its default-tol solution (as compare re-tightens), the
+    direct method first stops at a costlier false point (measured 0.8174456681: coasting on force nodes 5 and 6
+    with sigma +4.5e-4); the guard flags it and the escape (the plain re-aim ends 'acceptable', the kicked one
+    converges) reaches the point the indirect method, started from it, confirms to 1e-9 (consistent structure)."""
+    p = raise_on_mesh(60, "lgvi")
+    first = solve_direct(p)
+    tight = solve_direct(p, DirectOptions(tol=1e-12), warm=first.warm)
+    assert tight.converged and tight.stats["fuel_guard"] == "passed", tight.message
+    print(f"re-tightened: first point {tight.attempts[0].cost!r}, escaped {tight.cost!r}; {tight.stats.get('fuel_escape')}")
+    assert tight.cost <= first.cost * (1 + 1e-9)
+    ind = se3ocp.solve(p, "indirect", warm_start=tight)
+    assert ind.converged and ind.stats["fuel_structured"]["consistent"], ind.message
+    assert abs(ind.cost - tight.cost) <= 1e-9 * tight.cost

@@ -140,8 +140,8 @@ def guarded(run, sol: Solution) -> Solution:
             new = run.attempt(f"{ESCAPE} {k}{' (kicked)' if kick else ''}", start, ESCAPE_BUDGET)
             if new.converged and new.cost < sol.cost:
                 break
-            log.append(f"{aimed}{f', s kicked to {kick:.0e}' if kick else ''}; {new.result}, cost {new.cost:.10g}, "
-                       f"not lower than {sol.cost:.10g}")
+            why = f"cost {new.cost:.10g}, not lower than {sol.cost:.10g}" if new.converged else "not kept"
+            log.append(f"{aimed}{f', s kicked to {kick:.0e}' if kick else ''}; {new.result}, {why}")
         else:
             log[-1] += ": stopped"
             break
