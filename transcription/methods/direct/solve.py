@@ -133,7 +133,9 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     Smooth control: controls (6, n_controls) [u_f inertial; u_m body]; trajectory = the re-simulation from X0
     with those controls; terminal_error on it; costates (N, 12) from the multipliers.  The result is
     converged iff the solver converged, the re-simulated terminal error is <= terminal_tol and no path
-    constraint is violated by more than terminal_tol.
+    constraint is violated by more than terminal_tol.  A converged fuel solve is checked against the L1 problem's
+    switching condition on its coast nodes and escapes a false minimum of the NLP (:func:`.fuel_guard.guarded`:
+    ``stats['fuel_guard']``, ``fuel_switching_max``, ``fuel_escape``).
     """
     options = options or DirectOptions()
     if problem.kind != "smooth":
