@@ -18,6 +18,15 @@ def config(name: str) -> Path:
     return CONFIGS / f"{EXAMPLES.get(name, name)}.yaml"
 
 
+def raise_on_mesh(N: int, scheme: str | None = None):
+    """The bundled fuel raise on the irregular mesh r_k = 1.5 + sin(2.3 k), normalized to mean 1 (steps 0.33 to 1.67
+    times the mean; tests/test_indirect_fuel.py, tests/test_fuel_guard.py)."""
+    import numpy as np
+
+    r = 1.5 + np.sin(2.3 * np.arange(N))
+    return problem("orbit_raise_fuel", N, scheme).replace(mesh=r / r.mean())
+
+
 @lru_cache(maxsize=None)
 def _maneuver(name: str, sets: tuple[str, ...]):
     return se3ocp.load(config(name), sets)

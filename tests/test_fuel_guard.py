@@ -17,10 +17,7 @@ from se3ocp.transcription.problem import quadrature_weights
 import support
 
 
-def raise_on_mesh(N: int, scheme: str | None = None):
-    """The bundled fuel raise on the mesh r_k = 1.5 + sin(2.3 k) normalized (tests/test_indirect_fuel.py)."""
-    r = 1.5 + np.sin(2.3 * np.arange(N))
-    return support.problem("orbit_raise_fuel", N, scheme).replace(mesh=r / r.mean())
+raise_on_mesh = support.raise_on_mesh
 
 
 def test_switching_values_and_the_reaimed_point_by_hand():

@@ -182,11 +182,7 @@ def test_compare_agrees_on_the_fuel_raise():
 
 
 # --------------------------------------------------------------------------------------------- on a non-uniform mesh
-def raise_on_mesh(N: int, scheme: str | None = None):
-    """The bundled fuel raise on the irregular mesh r_k = 1.5 + sin(2.3 k), normalized to mean 1 (steps 0.33 to 1.67
-    times the mean; tests/test_indirect_mesh.py)."""
-    r = 1.5 + np.sin(2.3 * np.arange(N))
-    return support.problem("orbit_raise_fuel", N, scheme).replace(mesh=r / r.mean())
+raise_on_mesh = support.raise_on_mesh
 
 
 @pytest.mark.parametrize("scheme", ["first_order", "lgvi"])
