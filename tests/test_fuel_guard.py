@@ -148,3 +148,34 @@ def test_the_retightened_false_point_is_escaped_to_the_indirect_optimum():
     ind = se3ocp.solve(p, "indirect", warm_start=tight)
     assert ind.converged and ind.stats["fuel_structured"]["consistent"], ind.message
     assert abs(ind.cost - tight.cost) <= 1e-9 * tight.cost
+
+
+def test_the_engine_value_on_a_converged_fuel_slew(monkeypatch):
+    """A body-fixed engine (tests/test_body_force.py's engine slew with the fuel objective, N = 40): the force's value
+    is (a^T mu_j + nu_a / max) / (w omega_j) - 1 (thrust only along the axis a). On the solve's own point: its two
+    partial nodes (0 < T < max, 1e-3 max from both) have value 0 to 1e-6 (stationarity in s with d = a: the sign
+    and scale of the force's multipliers), the full-thrust nodes >= 0, and the guard passes (measured: the coast
+    nodes' largest value -2.4e-2 (the moment's), the force's partial nodes 1.4e-9 and 2.8e-8)."""
+    from test_body_force import ENGINE_SLEW, OBJECTIVES
+
+    seen = {}
+    guarded = fuel_guard.guarded
+
+    def keep(run, sol):
+        seen.update(tr=run.tr, point=run.points[id(sol)])
+        return guarded(run, sol)
+
+    monkeypatch.setattr(se3ocp.transcription.methods.direct.solve, "guarded", keep)
+    sol = se3ocp.solve(support.maneuver("slew_keep_out", None, None, *ENGINE_SLEW, *OBJECTIVES["fuel"]))
+    assert sol.converged and sol.stats["fuel_guard"] == "passed" and "fuel_escape" not in sol.stats, sol.message
+    tr, point = seen["tr"], seen["point"]
+    sw = fuel_guard.switching(tr, point.x, point.lam_g)
+    engine = sol.problem.control.force_bound
+    T = (point.x * tr.w_scale)[tr.layout.iS[0]]
+    partial = (T > 1e-3 * engine.max) & (T < (1 - 1e-3) * engine.max)
+    full = T >= (1 - 1e-3) * engine.max
+    assert partial.sum() == 2 and full.sum() >= 5
+    assert np.abs(sw["value"][0, partial]).max() <= 1e-6
+    assert sw["value"][0, full].min() >= 0.0
+    assert np.all(np.isnan(sw["sigma"][0, partial | full])) and np.isfinite(sw["sigma"][0, ~(partial | full)]).all()
+    assert np.allclose(sw["primer"][0], engine.axis[:, None], rtol=0, atol=0)

@@ -18,8 +18,9 @@ mu_j / |mu_j| (the primer direction) lowers the cost at the rate (|mu_j| - w ome
 reports it and, when it exceeds GUARD_TOL, escapes: d_j re-aimed along mu_j / |mu_j| on the offending nodes and the
 same NLP re-solved warm from there (the homotopy's WARM_LEVEL options), at most ESCAPES times while the cost falls.
 
-Not checked: a force with a body-fixed engine (its coast condition is along the engine's axis only, with the
-engine rows' multipliers), a part with weight 0 or removed (a norm bound of 0).
+A force with a body-fixed engine (u_f = T a, T >= 0) can only thrust along a: its value is
+(a^T mu_j + nu_a / max) / (w omega_j) - 1 with nu_a the multiplier of the engine's axis row, and its primer a
+(:func:`switching`).  Not checked: a part with weight 0 or removed (a norm bound of 0).
 """
 from __future__ import annotations
 
@@ -56,26 +57,37 @@ def switching(tr, x: np.ndarray, lam_g: np.ndarray) -> dict:
     lam_g (ng,) the solver's scaled primal point and constraint multipliers.
 
     Returns {'sigma': (2, nU) sigma_j = |mu_j| / (w omega_j) - 1 on the coast nodes (nan elsewhere and on parts not
-    checked), 'mu': (2, 3, nU) the multipliers mu_j (physical), 'nodes': the node index of each control node
-    (first order 1..N, LGVI 0..N), 'checked': (2,) bool}.  omega_j = omega_j/h * h (the control block's data; h
-    the point's own with a free final time)."""
+    checked; 'value': the same on every node), 'mu': (2, 3, nU) the multipliers mu_j (physical), 'primer': (2, 3, nU) the unit direction thrust would
+    take (mu_j / |mu_j|), 'nodes': the node index of each control node (first order 1..N, LGVI 0..N), 'checked':
+    (2,) bool}.  omega_j = omega_j/h * h (the control block's data; h the point's own with a free final time).
+
+    A body-fixed engine (u_f = T a, T >= min >= 0): thrust can only go along +a, and the engine's axis row
+    a^T u_f / max (multiplier nu_a, physical) adds nu_a a / max to the gradient in u_f, so the force's value is
+    sigma_j = (a^T mu_j + nu_a / max) / (w omega_j) - 1, signed, and its primer is a (module docstring)."""
     problem, lay = tr.problem, tr.layout
     c = problem.control
     w = np.asarray(x, float) * tr.w_scale
     h = float(w[lay.ih]) if getattr(lay, "ih", None) is not None else problem.h
     omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
-    rows = tr.nlp.rows("controls")                          # (nr, nU): ... |d|^2 - 1 (2); u_f - s_f d_f; u_m - s_m d_m
+    rows = tr.nlp.rows("controls")      # (nr, nU): ...; engine (3); |d|^2 - 1 (2); u_f - s_f d_f (3); u_m - s_m d_m (3)
     nu = tr.multipliers(lam_g)
     mu = np.stack([nu[rows[-6:-3]], nu[rows[-3:]]])        # (2, 3, nU)
     s = w[lay.iS[:2]]                                       # (2, nU)
     weights = np.array([c.W_f[0, 0], c.W_m[0, 0]])
-    checked = np.array([not isinstance(b, ThrusterBound) and not (isinstance(b, NormBound) and b.b == 0) and wt > 0
+    checked = np.array([not (isinstance(b, NormBound) and b.b == 0) and wt > 0
                         for b, wt in zip((c.force_bound, c.moment_bound), weights)])
+    rate = np.linalg.norm(mu, axis=1)                       # (2, nU): the gain of thrust per unit of s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        primer = mu / rate[:, None, :]
+    if isinstance(c.force_bound, ThrusterBound):
+        a = c.force_bound.axis
+        rate[0] = a @ mu[0] + nu[rows[-11]] / c.force_bound.max
+        primer[0] = a[:, None]
     coast = s < COAST_RTOL * tr.slack_scales[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        sigma = np.linalg.norm(mu, axis=1) / (weights[:, None] * omega[None, :]) - 1.0
-    sigma = np.where(coast & checked[:, None], sigma, np.nan)
-    return {"sigma": sigma, "mu": mu, "nodes": np.asarray(lay.control_nodes), "checked": checked}
+        sigma = rate / (weights[:, None] * omega[None, :]) - 1.0
+    return {"sigma": np.where(coast & checked[:, None], sigma, np.nan), "value": sigma, "mu": mu, "primer": primer,
+            "nodes": np.asarray(lay.control_nodes), "checked": checked}
 
 
 def verdict(sw: dict, tol: float = GUARD_TOL) -> dict:
@@ -91,23 +103,25 @@ def verdict(sw: dict, tol: float = GUARD_TOL) -> dict:
 
 
 def reaimed(tr, point: Point, sw: dict, kick: float = 0.0, tol: float = GUARD_TOL) -> Point:
-    """``point`` with d_j = mu_j / |mu_j| (scaled d has scale 1) on the coast nodes whose sigma > tol, so that
-    mu_j^T d_j = |mu_j| > w omega_j there, and the bound multipliers of those nodes' s set to 0 (their old value,
-    w omega_j - mu_j^T d_j, belonged to the old d); lam_g kept.  ``kick`` > 0: s_j = kick times the magnitude's
+    """``point`` with d_j = mu_j / |mu_j| (the primer of :func:`switching`; scaled d has scale 1) on the coast nodes
+    whose sigma > tol, so that mu_j^T d_j = |mu_j| > w omega_j there, and the bound multipliers of those nodes' s set
+    to 0 (their old value, w omega_j - mu_j^T d_j, belonged to the old d); lam_g kept (but an engine's T >= min row
+    there: 0).  ``kick`` > 0: s_j = kick times the magnitude's
     scale and u_j = s_j d_j on those nodes (:data:`ESCAPE_KICK`)."""
-    x, lam_x = point.x.copy(), point.lam_x.copy()
+    x, lam_x, lam_g = point.x.copy(), point.lam_x.copy(), point.lam_g.copy()
     iS, iU = tr.layout.iS, tr.layout.iU
     for i in range(2):
         bad = np.flatnonzero(np.isfinite(sw["sigma"][i]) & (sw["sigma"][i] > tol))
-        mu = sw["mu"][i][:, bad]
-        d = mu / np.linalg.norm(mu, axis=0)
+        d = sw["primer"][i][:, bad]
         x[iS[2 + 3 * i:5 + 3 * i][:, bad]] = d
         if kick > 0.0:
             iu = iU[3 * i:3 * i + 3][:, bad]
             x[iS[i, bad]] = kick                                   # scaled s: its scale is tr.slack_scales[i]
             x[iu] = kick * tr.slack_scales[i] * d / tr.w_scale[iu]
         lam_x[iS[i, bad]] = 0.0
-    return Point(x, point.lam_g, lam_x)
+        if i == 0 and isinstance(tr.problem.control.force_bound, ThrusterBound):
+            lam_g[tr.nlp.rows("controls")[-11, bad]] = 0.0     # the engine's T >= min row: held for the old d
+    return Point(x, lam_g, lam_x)
 
 
 def _nodes(v: dict) -> str:
