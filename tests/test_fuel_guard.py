@@ -179,3 +179,32 @@ def test_the_engine_value_on_a_converged_fuel_slew(monkeypatch):
     assert sw["value"][0, full].min() >= 0.0
     assert np.all(np.isnan(sw["sigma"][0, partial | full])) and np.isfinite(sw["sigma"][0, ~(partial | full)]).all()
     assert np.allclose(sw["primer"][0], engine.axis[:, None], rtol=0, atol=0)
+
+
+def test_the_engine_escape_by_hand():
+    """The engine fuel slew's NLP at N = 6 on a coast point (u = 0) with a hand-set axis-row multiplier nu_a and mu on
+    the force's rows u - s d: the force's sigma_j = (a^T mu_j + nu_a,j / max) / (w omega_j) - 1 (1e-12), and the
+    re-aimed point holds d_j = a (not mu_j / |mu_j|) on the offending nodes, the axis row's multiplier 0 there and
+    unchanged elsewhere."""
+    from test_body_force import ENGINE_SLEW, OBJECTIVES
+
+    p = support.problem("slew_keep_out", None, None, *ENGINE_SLEW, *OBJECTIVES["fuel"], "horizon.N=6")
+    tr = SmoothTranscription(p, DirectOptions())
+    X = p.disc.simulate(p.X0, np.zeros((6, 7)), p.steps, p.N)[0]
+    x = tr.initial_point(Guess(X=X, U=np.zeros((6, 7)), C=cayley_vectors(X)))
+    engine, omega = p.control.force_bound, quadrature_weights(p.scheme, p.N, p.steps)
+    w_f = p.control.W_f[0, 0]
+    rng = np.random.default_rng(2)
+    mu, nu_a = rng.normal(size=(3, 7)) * w_f * omega, rng.normal(size=7) * w_f * omega * engine.max
+    nu, rows = np.zeros(tr.nlp.ng), tr.nlp.rows("controls")
+    nu[rows[-6:-3]], nu[rows[-11]] = mu, nu_a
+    lam_g = tr.scaled_multipliers(nu)
+    sw = fuel_guard.switching(tr, x, lam_g)
+    expect = (engine.axis @ mu + nu_a / engine.max) / (w_f * omega) - 1.0
+    assert np.abs(sw["sigma"][0] - expect).max() <= 1e-12 * np.abs(expect).max()
+    bad = expect > fuel_guard.GUARD_TOL
+    assert 0 < bad.sum() < 7
+    out = fuel_guard.reaimed(tr, Point(x, lam_g, np.zeros(tr.layout.n)), sw)
+    d = (out.x * tr.w_scale)[tr.layout.iS[2:5]]
+    assert np.allclose(d[:, bad], engine.axis[:, None], rtol=0, atol=1e-15)
+    assert np.all(out.lam_g[rows[-11][bad]] == 0.0) and np.array_equal(out.lam_g[rows[-11][~bad]], lam_g[rows[-11][~bad]])
