@@ -143,7 +143,8 @@ def test_the_retightened_false_point_is_escaped_to_the_indirect_optimum():
     first = solve_direct(p)
     tight = solve_direct(p, DirectOptions(tol=1e-12), warm=first.warm)
     assert tight.converged and tight.stats["fuel_guard"] == "passed", tight.message
-    print(f"re-tightened: first point {tight.attempts[0].cost!r}, escaped {tight.cost!r}; {tight.stats.get('fuel_escape')}")
+    print(f"re-tightened: first point {tight.attempts[0].cost!r}, escaped {tight.cost!r}; "
+          f"{tight.stats.get('fuel_escape')}")
     assert tight.cost <= first.cost * (1 + 1e-9)
     ind = se3ocp.solve(p, "indirect", warm_start=tight)
     assert ind.converged and ind.stats["fuel_structured"]["consistent"], ind.message
@@ -207,4 +208,6 @@ def test_the_engine_escape_by_hand():
     out = fuel_guard.reaimed(tr, Point(x, lam_g, np.zeros(tr.layout.n)), sw)
     d = (out.x * tr.w_scale)[tr.layout.iS[2:5]]
     assert np.allclose(d[:, bad], engine.axis[:, None], rtol=0, atol=1e-15)
-    assert np.all(out.lam_g[rows[-11][bad]] == 0.0) and np.array_equal(out.lam_g[rows[-11][~bad]], lam_g[rows[-11][~bad]])
+    axis_rows = rows[-11]
+    assert np.all(out.lam_g[axis_rows[bad]] == 0.0)
+    assert np.array_equal(out.lam_g[axis_rows[~bad]], lam_g[axis_rows[~bad]])
