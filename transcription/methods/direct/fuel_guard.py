@@ -59,7 +59,8 @@ def switching(tr, x: np.ndarray, lam_g: np.ndarray) -> dict:
     Returns {'sigma': (2, nU) sigma_j = |mu_j| / (w omega_j) - 1 on the coast nodes (nan elsewhere and on parts not
     checked; 'value': the same on every node), 'mu': (2, 3, nU) the multipliers mu_j (physical), 'primer':
     (2, 3, nU) the unit direction thrust would take (mu_j / |mu_j|), 'nodes': the node index of each control node
-    (first order 1..N, LGVI 0..N), 'checked': (2,) bool}.  omega_j = omega_j/h * h (the control block's data; h the point's own with a free final time).
+    (first order 1..N, LGVI 0..N), 'checked': (2,) bool}.  omega_j = omega_j/h * h (the control block's data; h
+    the point's own with a free final time).
 
     A body-fixed engine (u_f = T a, T >= min >= 0): thrust can only go along +a, and the engine's axis row
     a^T u_f / max (multiplier nu_a, physical) adds nu_a a / max to the gradient in u_f, so the force's value is
