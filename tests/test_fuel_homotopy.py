@@ -134,6 +134,24 @@ def test_the_finish_from_the_coarse_optimum_stays_in_its_basin(raise25):
                                       rel=1e-12)
 
 
+def test_fatrop_does_not_converge_on_the_fuel_nlp_even_from_its_optimum(raise25):
+    """Why fatrop does not solve the fuel objective (fatrop.FUEL_NOT_COVERED; docs/mathematics.md §20): its
+    stage-ordered fuel NLP (tests/test_fatrop_stage.py) started at IPOPT's own optimum on 25 steps, with
+    WARM_PRIMAL's barrier and pushes, does not converge in 300 iterations: the coast nodes' indefinite (s, d)
+    blocks get a Hessian regularization of 10-100 at every iteration and the dual infeasibility crawls near 1e-6
+    (measured: status 1 after 129-493 iterations, 1.2e-7 to 2.7e-7 above IPOPT's cost).  If this fails, fatrop
+    has learned to solve it: measure the 400-step finish and extend fatrop.covers."""
+    from se3ocp.transcription.guess import Guess, cayley_vectors
+    from se3ocp.transcription.methods.direct import fatrop
+
+    p, sol = raise25
+    assert sol.converged
+    opts = se3ocp.DirectOptions(fatrop_expand=True, fatrop_options={"max_iter": 300, **{
+        k: homotopy.WARM_PRIMAL[k] for k in ("mu_init", "bound_push", "bound_frac")}})
+    fsol, info = fatrop._solve_fatrop(p, opts, Guess(X=sol.warm.X, U=sol.warm.U, C=cayley_vectors(sol.warm.X)))
+    assert fsol is None and info["fatrop_status"] not in ("Solve_Succeeded", "build_failed"), info
+
+
 @pytest.mark.slow
 def test_the_raise_on_200_steps_is_an_extremal_of_the_indirect_method():
     """The fuel raise on 200 steps (25 -> 50 -> 200, each finish with WARM_PRIMAL) and the indirect method from it

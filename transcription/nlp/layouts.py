@@ -18,7 +18,7 @@ class NLPLayout:
     step size h last when ``free_h``.  :meth:`pack` and :meth:`unpack` are the only routines that
     know the order.  Shapes: X (18, N+1) (column k = node k), U (6, n_controls), S (n_slack,
     n_controls), C (3, N).  ``iX``, ``iU``, ``iS``, ``iC`` are the index arrays of those shapes,
-    ``ih`` the index of h (or None).
+    ``ih`` the index of h (or None); ``iUn`` the node controls the control-node rows use (here iU).
     """
 
     def __init__(self, N: int, control_nodes: list[int] | range, with_c: bool, n_slack: int = 0, free_h: bool = False):
@@ -48,6 +48,7 @@ class NLPLayout:
         self.ih = pos if free_h else None
         self.n = pos + (1 if free_h else 0)
         self.iX, self.iU, self.iS, self.iC = iX, iU, iS, iC
+        self.iUn = iU
 
     def stage_controls(self, disc) -> np.ndarray:
         """Indices (nw, N) of the stage controls w_k (first_order: u_{k+1}; lgvi: [u_k; u_{k+1}])."""
@@ -96,23 +97,31 @@ def fuel_slacks(U: np.ndarray) -> np.ndarray:
 class StageLayout(NLPLayout):
     """Stage-ordered decision vector for fatrop: [s_0, q_0, s_1, q_1, ..., s_N].
 
-    first_order: state s_k = X_k (18), stage control q_k = [u_{k+1} (6); c_k (3)].
+    first_order: state s_k = X_k (18), stage control q_k = [u_{k+1} (6); c_k (3); S_{k+1} (n_slack)].
     lgvi: the step couples u_k and u_{k+1}, so u_k is lifted into the state: s_k = [X_k; v_k]
-    (24, v_k = u_k) and q_k = [u'_{k+1}; c_k] with the gap v_{k+1} - u'_{k+1} = 0, i.e. u_{k+1}
-    appears twice (v_{k+1} and its copy u'_{k+1}).  iU are the node controls (lgvi: the v_j),
-    iUp (lgvi) the copies u'_{k+1}; ns, nq the state and stage-control sizes.
+    (24, v_k = u_k) and q_k = [u'_{k+1}; c_k; S_{k+1}; S_0 (k = 0 only)] with the gap v_{k+1} - u'_{k+1} = 0,
+    i.e. u_{k+1} appears twice (v_{k+1} and its copy u'_{k+1}).  S_j (n_slack, the fuel epigraph's
+    magnitudes and directions of control node j) sits in the stage control beside the copy of u_j that the
+    node's rows use (:attr:`iUn`), so each node's rows are path rows of one stage: node j >= 1 of stage j - 1,
+    node 0 (lgvi) of stage 0.  iU are the node controls (lgvi: the v_j), iUp (lgvi) the copies u'_{k+1},
+    iUn (6, n_controls) the node controls the control-node rows use, iS (n_slack, n_controls); ns, nq the
+    state and stage-control sizes (``nu`` per stage: q_0 carries S_0 too), ``stage_of`` (n,) the stage of
+    each variable.
     """
 
-    def __init__(self, N: int, scheme: str):
-        self.N, self.scheme, self.with_c, self.n_slack, self.ih = int(N), scheme, True, 0, None
+    def __init__(self, N: int, scheme: str, n_slack: int = 0):
+        self.N, self.scheme, self.with_c, self.n_slack, self.ih = int(N), scheme, True, int(n_slack), None
         lift = scheme == "lgvi"
-        self.ns, self.nq = NX + (NU if lift else 0), NU + NC
+        self.ns, self.nq = NX + (NU if lift else 0), NU + NC + self.n_slack
+        self.control_nodes = list(range(N + 1)) if lift else list(range(1, N + 1))
         iX = np.zeros((NX, N + 1), dtype=int)
         iV = np.zeros((NU, N + 1), dtype=int)
         iQ = np.zeros((NU, N), dtype=int)
         iC = np.zeros((NC, N), dtype=int)
-        pos = 0
+        iS = np.zeros((self.n_slack, len(self.control_nodes)), dtype=int)
+        stage_of, pos, j0 = [], 0, 1 if lift else 0     # column of S_{k+1} in iS
         for k in range(N + 1):
+            start = pos
             iX[:, k] = np.arange(pos, pos + NX)
             pos += NX
             if lift:
@@ -120,25 +129,34 @@ class StageLayout(NLPLayout):
                 pos += NU
             if k < N:
                 iQ[:, k] = np.arange(pos, pos + NU)
-                pos += NU
-                iC[:, k] = np.arange(pos, pos + NC)
-                pos += NC
+                iC[:, k] = np.arange(pos + NU, pos + NU + NC)
+                iS[:, k + j0] = np.arange(pos + NU + NC, pos + self.nq)
+                pos += self.nq
+                if lift and k == 0:
+                    iS[:, 0] = np.arange(pos, pos + self.n_slack)
+                    pos += self.n_slack
+            stage_of += [k] * (pos - start)
         self.n = pos
-        self.iX, self.iC, self.iS = iX, iC, np.zeros((0, len(range(N + 1) if lift else range(1, N + 1))), dtype=int)
+        self.stage_of = np.array(stage_of, dtype=int)
+        self.nu = [self.nq + (self.n_slack if lift else 0)] + [self.nq] * (N - 1) + [0]
+        self.iX, self.iC, self.iS = iX, iC, iS
         self.iU = iV if lift else iQ
         self.iUp = iQ if lift else None
-        self.control_nodes = list(range(N + 1)) if lift else list(range(1, N + 1))
+        self.iUn = np.hstack([iV[:, :1], iQ]) if lift else iQ
 
     def stage_controls(self, disc) -> np.ndarray:
         return np.vstack([self.iU[:, :-1], self.iUp]) if self.iUp is not None else self.iU
 
     def pack(self, X, U, C=None, S=None, h=None) -> np.ndarray:
         w = np.full(self.n, np.nan)
+        U = np.asarray(U, dtype=float)
         w[self.iX] = np.asarray(X, dtype=float)
-        w[self.iU] = np.asarray(U, dtype=float)
+        w[self.iU] = U
         w[self.iC] = np.asarray(C, dtype=float)
         if self.iUp is not None:
-            w[self.iUp] = np.asarray(U, dtype=float)[:, 1:]
+            w[self.iUp] = U[:, 1:]
+        if self.n_slack:
+            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)
         if np.isnan(w).any():
             raise ValueError("pack: some entries were not filled (shape mismatch?)")
         return w

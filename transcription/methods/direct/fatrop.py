@@ -1,5 +1,6 @@
-"""fatrop on the stage-ordered NLP of the direct method (fixed-time effort problems to a state target without
-bounds or path constraints); IPOPT is its fallback (transcription.methods.direct.solve)."""
+"""fatrop on the stage-ordered NLP of the direct method (fixed-time effort problems to a state or orbit target
+without bounds or path constraints: :func:`covers`; the fuel objective is not covered, :data:`FUEL_NOT_COVERED`); IPOPT is
+its fallback (transcription.methods.direct.solve)."""
 from __future__ import annotations
 
 import time
@@ -11,58 +12,105 @@ import numpy as np
 from ...guess import Guess
 from ...layout import NX
 from ...options import DirectOptions, raw_solver_value
-from ...problem import Problem, TargetState
+from ...problem import Problem, TargetOrbit, TargetState
 from ...results import Solution
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
-#: why fatrop is not used for a problem it does not cover (IPOPT solves it)
-NOT_COVERED = "fatrop is used for fixed-time effort problems to a state target without bounds or path constraints"
+#: why fatrop is not used for the fuel objective (IPOPT solves it; docs/mathematics.md §20, "fatrop and the fuel NLP")
+FUEL_NOT_COVERED = ("fatrop does not converge on the fuel NLP (the magnitude-direction epigraph's indefinite coast "
+                    "nodes): from IPOPT's own optimum of the fuel raise on 25 steps it stops after 129-3001 iterations "
+                    "1e-7 to 1e-3 above it")
+#: why fatrop is not used for another problem it does not cover (IPOPT solves it)
+NOT_COVERED = ("fatrop is used for fixed-time effort problems to a state or orbit target without bounds or path "
+               "constraints")
+
+
+def not_covered(problem: Problem) -> str:
+    """Why fatrop's stage-ordered NLP is not used for ``problem`` ("" if it is): :data:`FUEL_NOT_COVERED`,
+    :data:`NOT_COVERED`.  The stage form itself takes the control bounds' rows and the fuel epigraph too
+    (:func:`stage_rows`), but with an active bound fatrop stalls short of IPOPT's tolerance (e3_bounded.yaml,
+    N = 40: the dual infeasibility at 1.2e-10 against tol 1e-10, the Hessian regularized at every iteration),
+    so bounded effort problems stay with IPOPT."""
+    c = problem.control
+    if c.objective == "fuel":
+        return FUEL_NOT_COVERED
+    if problem.free_time or problem.constraints or c.objective != "effort" or c.bounded \
+            or not isinstance(problem.terminal, (TargetState, TargetOrbit)):
+        return NOT_COVERED
+    return ""
 
 
 def covers(problem: Problem) -> bool:
-    """Whether fatrop's stage-ordered NLP covers ``problem`` (:data:`NOT_COVERED`)."""
-    c = problem.control
-    return not (problem.free_time or problem.constraints or c.objective != "effort" or c.bounded
-                or not isinstance(problem.terminal, TargetState))
+    """Whether fatrop's stage-ordered NLP covers ``problem`` (:func:`not_covered`)."""
+    return not not_covered(problem)
 
 
 def try_fatrop(problem: Problem, options: DirectOptions, guess: Callable[[], Guess]) -> tuple[Solution | None, dict]:
     """fatrop from the first guess of the plan: (its Solution, {}) if it converged, else (None, what the IPOPT
     fallback reports: fatrop_fallback, fatrop_status, fatrop_message, fatrop_build_s, fatrop_solve_s)."""
-    if not covers(problem):
+    why = not_covered(problem)
+    if why:
         return None, {"fatrop_fallback": True, "fatrop_status": "not_applicable", "fatrop_build_s": 0.0,
-                      "fatrop_solve_s": 0.0, "fatrop_message": NOT_COVERED}
+                      "fatrop_solve_s": 0.0, "fatrop_message": why}
     return _solve_fatrop(problem, options, guess())
 
 
-def _fatrop_solver(tr: SmoothTranscription, options: DirectOptions) -> tuple[ca.Function, np.ndarray, np.ndarray]:
-    """fatrop on the stage-ordered transcription: rows in stage order [gap_0, path_0, ..., path_N]
-    with gap_k = s_{k+1} - Phi(s_k, q_k) (the dynamics rows negated, then the LGVI lifting rows),
-    path_k = the Cayley rows (stage 0: and X_0 - X0), path_N the terminal rows; every row an
-    equality.  CasADi's fatrop interface derives the Jacobian and Hessian from the graph.
-    Returns (solver, row permutation, row signs) so that g_fatrop = sign * g[perm]."""
+def stage_rows(tr: SmoothTranscription) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The rows of the stage-ordered transcription in fatrop's order, [gap_0, path_0, ..., gap_{N-1},
+    path_{N-1}, path_N]: gap_k = s_{k+1} - Phi(s_k, q_k) (the dynamics rows negated, then the LGVI lifting
+    rows), path_k every other row whose variables are all in stage k (``layout.stage_of``): the Cayley rows of
+    step k, X_0 - X0 (k = 0), the control-node rows (norm bounds, fuel epigraph) of the nodes whose copy of
+    u_j and slacks sit in q_k, the terminal rows (k = N).  Returns (perm, sign, ng): g_fatrop = sign * g[perm],
+    ng (N + 1,) the path rows per stage.  A row that spans two stages (other than a gap) raises ValueError."""
     nlp, lay, N = tr.nlp, tr.layout, tr.problem.N
-    dyn, term, init = nlp.rows("dynamics"), nlp.rows("terminal")[:, 0], nlp.rows("initial")[:, 0]
-    lift = nlp.rows("lift") if "lift" in [b.name for b in nlp.blocks] else np.zeros((0, N), dtype=int)
+    dyn = nlp.rows("dynamics")
+    names = [b.name for b in nlp.blocks]
+    lift = nlp.rows("lift") if "lift" in names else np.zeros((0, N), dtype=int)
+    path: list[list[int]] = [list(dyn[NX:, k]) for k in range(N)] + [[]]
+    for blk in nlp.blocks:
+        if blk.name in ("dynamics", "lift") or blk.nr == 0:
+            continue
+        st = lay.stage_of[blk.idx]
+        if np.any(st.min(axis=0) != st.max(axis=0)):
+            raise ValueError(f"block {blk.name} spans two stages: fatrop takes path rows of one stage")
+        rows = nlp.rows(blk.name)
+        for m, k in enumerate(st[0]):
+            path[k] += list(rows[:, m])
     perm, sign = [], []
-    for k in range(N):
-        gap = [dyn[:NX, k], lift[:, k]]
-        path = [dyn[NX:, k]] + ([init] if k == 0 else [])
-        for part, s in ((gap[0], -1.0), (gap[1], 1.0), *((p, 1.0) for p in path)):
-            perm += list(part)
-            sign += [s] * len(part)
-    perm += list(term)
-    sign += [1.0] * len(term)
-    perm, sign = np.array(perm), np.array(sign)
+    for k in range(N + 1):
+        if k < N:
+            perm += list(dyn[:NX, k]) + list(lift[:, k])
+            sign += [-1.0] * NX + [1.0] * lift.shape[0]
+        perm += path[k]
+        sign += [1.0] * len(path[k])
+    return np.array(perm), np.array(sign), [len(p) for p in path]
+
+
+def _fatrop_solver(tr: SmoothTranscription, options: DirectOptions,
+                   extra: dict | None = None) -> tuple[ca.Function, np.ndarray, np.ndarray]:
+    """fatrop on the stage-ordered transcription, rows in :func:`stage_rows`' order (gaps and equality rows
+    with lbg = ubg, the norm bounds and |d|^2 <= 1 inequality rows with their bounds; the variable bounds --
+    the fuel magnitudes s >= 0, box bounds -- stay lbx/ubx, which CasADi's interface hands to fatrop per
+    stage).  CasADi's fatrop interface derives the Jacobian and Hessian from the graph.  ``extra``: fatrop
+    options over the defaults (a warm start's).  Returns (solver, row permutation, row signs) so that
+    g_fatrop = sign * g[perm]."""
+    nlp, lay, N = tr.nlp, tr.layout, tr.problem.N
+    perm, sign, ng = stage_rows(tr)
     g = ca.DM(sign) * nlp.g[perm.tolist()]
     fat = {"tol": float(options.tol), "constr_viol_tol": 1e-2 * float(options.tol), "max_iter": int(options.max_iter),
-           "print_level": 0, **{k: raw_solver_value(v) for k, v in options.fatrop_options.items()}}
-    npath = dyn.shape[0] - NX
-    nlp_opts = {"equality": [True] * len(perm), "expand": bool(options.fatrop_expand), "print_time": False, "fatrop": fat,
-                "structure_detection": "manual", "N": N, "nx": [lay.ns] * (N + 1), "nu": [lay.nq] * N + [0],
-                "ng": [npath + NX] + [npath] * (N - 1) + [len(term)]}
+           "print_level": 0, **(extra or {}), **{k: raw_solver_value(v) for k, v in options.fatrop_options.items()}}
+    lbg, ubg = stage_bounds(tr, perm, sign)
+    nlp_opts = {"equality": (lbg == ubg).tolist(), "expand": bool(options.fatrop_expand), "print_time": False,
+                "fatrop": fat, "structure_detection": "manual", "N": N, "nx": [lay.ns] * (N + 1), "nu": lay.nu,
+                "ng": ng}
     return ca.nlpsol("direct_fatrop", "fatrop", {"x": nlp.w, "f": nlp.f, "g": g}, nlp_opts), perm, sign
+
+
+def stage_bounds(tr: SmoothTranscription, perm: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """lbg, ubg of the rows sign * g[perm] (a negated row's bounds swap and change sign)."""
+    lo, hi = tr.nlp.lbg[perm], tr.nlp.ubg[perm]
+    return np.where(sign > 0, lo, -hi), np.where(sign > 0, hi, -lo)
 
 
 def _solve_fatrop(problem: Problem, options: DirectOptions, guess: Guess) -> tuple[Solution | None, dict[str, Any]]:
@@ -79,7 +127,8 @@ def _solve_fatrop(problem: Problem, options: DirectOptions, guess: Guess) -> tup
     build_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     try:
-        out = solver(x0=tr.initial_point(guess), lbx=tr.lbx, ubx=tr.ubx, lbg=0.0, ubg=0.0)
+        lbg, ubg = stage_bounds(tr, perm, sign)
+        out = solver(x0=tr.initial_point(guess), lbx=tr.lbx, ubx=tr.ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         status = "Solve_Succeeded" if stats.get("success") else f"fatrop_{stats.get('return_status', 'failed')}"
     except RuntimeError as exc:

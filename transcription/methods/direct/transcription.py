@@ -51,8 +51,9 @@ class SmoothTranscription:
     range are variable bounds.
 
     ``stage_order``: fatrop's stage-ordered layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0
-    as constraint rows (fatrop takes no fixed variables) and, for the LGVI, the lifting rows (fixed-time
-    effort problems without bounds or path constraints only).  Attributes: ``layout``, ``scales``, ``nlp``
+    as constraint rows and, for the LGVI, the lifting rows; the fuel epigraph's slacks of node j sit in the
+    stage control beside the copy of u_j its rows use (fixed time, no path constraints; what fatrop is used
+    for: :func:`~transcription.methods.direct.fatrop.covers`).  Attributes: ``layout``, ``scales``, ``nlp``
     (:class:`~transcription.nlp.structured.StructuredNLP`), ``lbx``/``ubx``, ``w_scale`` (physical w =
     w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N) rows of
     the step defects "step - X_{k+1}" in g, ``constraint_rows`` (one row array per path constraint),
@@ -73,7 +74,7 @@ class SmoothTranscription:
         control: SmoothControl = problem.control
         self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
         self.with_c = True if stage_order else bool(options.cayley_variables)
-        self.layout = StageLayout(N, problem.scheme) if stage_order else \
+        self.layout = StageLayout(N, problem.scheme, blocks.FUEL_SLACKS if self.fuel else 0) if stage_order else \
             NLPLayout(N, control_nodes(problem.disc, N), self.with_c,
                       n_slack=blocks.FUEL_SLACKS if self.fuel else 0, free_h=self.free_h)
         self.scales = characteristic_scales(problem)
@@ -160,7 +161,7 @@ class SmoothTranscription:
                                            Q][:, None], nU, axis=1)]
                           + ([np.repeat(np.r_[self._smoothing_ref(), self.smoothing][:, None], nU, axis=1)]
                              if fuel else []))
-        iN = np.vstack([lay.iU] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
+        iN = np.vstack([lay.iUn] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
         n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel else 0)
         # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0
         n_eng = 3 if engine else 0
