@@ -176,4 +176,22 @@ def guarded(run, sol: Solution) -> Solution:
     return sol
 
 
-__all__ = ["COAST_RTOL", "ESCAPE", "ESCAPES", "GUARD_TOL", "guarded", "reaimed", "switching", "verdict"]
+def false_minima(verdicts: dict, starts: list, stats: dict) -> dict:
+    """The multistart's starts (Attempts, :func:`~.plan.multistart`) whose converged point failed the guard
+    (``verdicts``: id(Attempt) -> :func:`verdict`'s state, recorded by the plan run before any escape), as stats:
+    ``multistart_false_minima`` (how many) and the multistart's sentence (``stats['multistart']``) extended to say
+    which costs are false minima of the NLP rather than optima of the fuel problem ({} if none failed or there is no
+    multistart).  Why: "the starts ended at 3 different optima" was said of the fuel raise's 25-step starts
+    (0.812941, 0.813134, 0.816954) where the last two are false minima: both escape to 0.8129414920
+    (docs/mathematics.md, "The fuel KKT guard")."""
+    bad = [a for a in starts if verdicts.get(id(a)) == "failed"]
+    if not bad or "multistart" not in stats:
+        return {}
+    costs = ", ".join(f"{a.cost:.6g}" for a in sorted(bad, key=lambda a: a.cost))
+    return {"multistart_false_minima": len(bad),
+            "multistart": f"{stats['multistart']}; of these, {len(bad)} ({costs}) fail the fuel KKT guard: false "
+                          f"minima of the NLP, where thrust would pay on coast nodes, not optima of the fuel problem"}
+
+
+__all__ = ["COAST_RTOL", "ESCAPE", "ESCAPES", "GUARD_TOL", "false_minima", "guarded", "reaimed", "switching",
+           "verdict"]

@@ -15,7 +15,7 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
-from .fuel_guard import ESCAPE, guarded
+from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .homotopy import WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
@@ -37,6 +37,7 @@ class _PlanRun:
         self.solvers: dict[tuple[int, bool], ca.Function] = {}
         self.attempts: list[Attempt] = []
         self.points: dict[int, Point] = {}   # id(Solution) -> its scaled primal-dual point (the fuel guard's)
+        self.verdicts: dict[int, str] = {}   # id(Attempt) -> the fuel guard's verdict on its converged point
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
     def solver(self, budget: int, phase1: bool = False, level: bool = False, fine: bool = False) -> ca.Function:
@@ -81,6 +82,8 @@ class _PlanRun:
         self.points[id(sol)] = point
         self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
                                      guess.iterations, guess.prepared_on))
+        if tr.fuel and sol.converged:   # a multistart's false minima are named (.fuel_guard.false_minima)
+            self.verdicts[id(self.attempts[-1])] = verdict(switching(tr, point.x, point.lam_g))["fuel_guard"]
         sol.stats["initial_guess"] = label
         sol.stats.update(guess.stats)
         return sol
@@ -167,7 +170,9 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     if len(run.attempts) > 1:
         sol.message += "; initial guesses tried: " + "; ".join(a.line() for a in run.attempts)
     if pick == "best":
-        sol.stats.update(multistart([a for a in run.attempts if not a.label.startswith(ESCAPE)], problem.N))
+        starts = [a for a in run.attempts if not a.label.startswith(ESCAPE)]
+        sol.stats.update(multistart(starts, problem.N))
+        sol.stats.update(false_minima(run.verdicts, starts, sol.stats))
     if sol.converged and "multistart" in sol.stats:
         sol.message += f"; {sol.stats['multistart']}"
     hint = failure_hint(sol, options) if warm is None else ""
