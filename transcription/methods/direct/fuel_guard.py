@@ -68,7 +68,7 @@ def switching(tr, x: np.ndarray, lam_g: np.ndarray) -> dict:
     problem, lay = tr.problem, tr.layout
     c = problem.control
     w = np.asarray(x, float) * tr.w_scale
-    h = float(w[lay.ih]) if getattr(lay, "ih", None) is not None else problem.h
+    h = float(w[lay.ih]) if lay.ih is not None else problem.h
     omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
     rows = tr.nlp.rows("controls")      # (nr, nU): ...; engine (3); |d|^2 - 1 (2); u_f - s_f d_f (3); u_m - s_m d_m (3)
     nu = tr.multipliers(lam_g)
@@ -136,20 +136,20 @@ def _said(v: dict) -> str:
 
 def guarded(run, sol: Solution) -> Solution:
     """The guard and the escape (module docstring) on a converged fuel solve ``sol`` of the plan run ``run``
-    (:class:`~.solve._PlanRun`: its NLP ``tr``, the primal-dual ``points`` of its attempts, ``attempt``).
+    (:class:`~.solve._PlanRun`: its NLP ``tr``, the primal-dual ``points`` of its attempts and the :func:`switching`
+    values of the converged ones, ``switchings``, ``attempt``).
 
     Stats: :func:`verdict`'s of the Solution returned, and ``fuel_escape`` (one line per escape: cost before and
     after, the guard after, or why it stopped).  The Solution returned is the lowest-cost converged one of ``sol``
     and its escapes; if its guard still fails, its message says so."""
     tr = run.tr
-    point = run.points[id(sol)]
-    v = verdict(switching(tr, point.x, point.lam_g))
+    point, sw = run.points[id(sol)], run.switchings[id(sol)]
+    v = verdict(sw)
     log = []
     for k in range(1, ESCAPES + 1):
         if v["fuel_guard"] != "failed":
             break
         aimed = f"{k}: d re-aimed at {_nodes(v)} (switching function up to {v['fuel_switching_max']:+.1e})"
-        sw = switching(tr, point.x, point.lam_g)
         for kick in (0.0, ESCAPE_KICK):
             start = point_guess(tr, reaimed(tr, point, sw, kick))
             new = run.attempt(f"{ESCAPE} {k}{' (kicked)' if kick else ''}", start, ESCAPE_BUDGET)
@@ -160,8 +160,8 @@ def guarded(run, sol: Solution) -> Solution:
         else:
             log[-1] += ": stopped"
             break
-        point = run.points[id(new)]
-        v_new = verdict(switching(tr, point.x, point.lam_g))
+        point, sw = run.points[id(new)], run.switchings[id(new)]
+        v_new = verdict(sw)
         log.append(f"{aimed}{f', s kicked to {kick:.0e}' if kick else ''}; cost {sol.cost:.10g} -> {new.cost:.10g} in "
                    f"{new.iterations} iterations, guard {v_new['fuel_guard']} (max {v_new['fuel_switching_max']:+.1e})")
         # what the start's making reported (the coarse grid's multistart, the homotopy's levels) and its label

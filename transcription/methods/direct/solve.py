@@ -37,6 +37,7 @@ class _PlanRun:
         self.solvers: dict[tuple[int, bool], ca.Function] = {}
         self.attempts: list[Attempt] = []
         self.points: dict[int, Point] = {}   # id(Solution) -> its scaled primal-dual point (the fuel guard's)
+        self.switchings: dict[int, dict] = {}   # id(Solution) -> .fuel_guard.switching of its converged fuel point
         self.verdicts: dict[int, str] = {}   # id(Attempt) -> the fuel guard's verdict on its converged point
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
@@ -82,8 +83,9 @@ class _PlanRun:
         self.points[id(sol)] = point
         self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
                                      guess.iterations, guess.prepared_on))
-        if tr.fuel and sol.converged:   # a multistart's false minima are named (.fuel_guard.false_minima)
-            self.verdicts[id(self.attempts[-1])] = verdict(switching(tr, point.x, point.lam_g))["fuel_guard"]
+        if tr.fuel and sol.converged:   # the fuel guard's values: its escape, the multistart's false minima
+            self.switchings[id(sol)] = switching(tr, point.x, point.lam_g)
+            self.verdicts[id(self.attempts[-1])] = verdict(self.switchings[id(sol)])["fuel_guard"]
         sol.stats["initial_guess"] = label
         sol.stats.update(guess.stats)
         return sol
