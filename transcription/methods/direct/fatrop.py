@@ -87,19 +87,17 @@ def stage_rows(tr: SmoothTranscription) -> tuple[np.ndarray, np.ndarray, list[in
     return np.array(perm), np.array(sign), [len(p) for p in path]
 
 
-def _fatrop_solver(tr: SmoothTranscription, options: DirectOptions,
-                   extra: dict | None = None) -> tuple[ca.Function, np.ndarray, np.ndarray]:
+def _fatrop_solver(tr: SmoothTranscription, options: DirectOptions) -> tuple[ca.Function, np.ndarray, np.ndarray]:
     """fatrop on the stage-ordered transcription, rows in :func:`stage_rows`' order (gaps and equality rows
     with lbg = ubg, the norm bounds and |d|^2 <= 1 inequality rows with their bounds; the variable bounds --
     the fuel magnitudes s >= 0, box bounds -- stay lbx/ubx, which CasADi's interface hands to fatrop per
-    stage).  CasADi's fatrop interface derives the Jacobian and Hessian from the graph.  ``extra``: fatrop
-    options over the defaults (a warm start's).  Returns (solver, row permutation, row signs) so that
-    g_fatrop = sign * g[perm]."""
+    stage).  CasADi's fatrop interface derives the Jacobian and Hessian from the graph.  Returns (solver, row
+    permutation, row signs) so that g_fatrop = sign * g[perm]."""
     nlp, lay, N = tr.nlp, tr.layout, tr.problem.N
     perm, sign, ng = stage_rows(tr)
     g = ca.DM(sign) * nlp.g[perm.tolist()]
     fat = {"tol": float(options.tol), "constr_viol_tol": 1e-2 * float(options.tol), "max_iter": int(options.max_iter),
-           "print_level": 0, **(extra or {}), **{k: raw_solver_value(v) for k, v in options.fatrop_options.items()}}
+           "print_level": 0, **{k: raw_solver_value(v) for k, v in options.fatrop_options.items()}}
     lbg, ubg = stage_bounds(tr, perm, sign)
     nlp_opts = {"equality": (lbg == ubg).tolist(), "expand": bool(options.fatrop_expand), "print_time": False,
                 "fatrop": fat, "structure_detection": "manual", "N": N, "nx": [lay.ns] * (N + 1), "nu": lay.nu,
