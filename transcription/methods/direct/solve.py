@@ -3,6 +3,7 @@ asked for, the Solution that says what was tried."""
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
@@ -180,7 +181,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     origin = warm.describe() if warm is not None else ""
     if warm is not None:
         warm, notes = warm.fit(problem.N, problem.scheme, problem.fractions)
-        plan, pick = [("warm start", lambda: warm_guess(warm), options.max_iter)], "first"
+        # a fuel plan on another grid is finished like a coarser grid's optimum: on its switching structure (§23)
+        resampled = problem.control.objective == "fuel" and bool(notes)
+        guess = replace(warm_guess(warm), prepared_on=COARSE) if resampled else warm_guess(warm)
+        plan, pick = [("warm start", lambda: guess, options.max_iter)], "first"
     else:
         plan, pick = guess_plan(problem, options, solve_direct)
     fallback: dict = {}
