@@ -229,6 +229,11 @@ def test_the_jump_ends_where_the_levels_end(monkeypatch):
     assert "eps = 1e+00" in said and "eps = 1e-04" in said
     assert jump.cost == pytest.approx(levels.cost, rel=1e-10) and levels.stats["fuel_guard"] == "passed"
     assert jrun.iterations < lrun.iterations
+    monkeypatch.setattr(homotopy, "JUMP_MAX_N", N - 1)      # a grid above JUMP_MAX_N: the levels, no jump tried
+    above, arun = _homotopy_solve(p)
+    said = above.stats["homotopy_levels"]
+    assert "the fuel NLP from the effort optimum" not in said and "eps = 1e-04" in said, said
+    assert above.cost == pytest.approx(levels.cost, rel=1e-10) and arun.iterations == lrun.iterations - 3
     om = quadrature_weights(p.scheme, p.N, p.h)
     assert jump.cost == pytest.approx(fuel_cost(jump.controls, p.control, om), rel=1e-12)
     roll = solve_direct(p, se3ocp.DirectOptions(initial_guess="rollout"))

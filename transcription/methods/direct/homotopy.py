@@ -8,7 +8,8 @@ smooth problems and coarse grids instead (:func:`~transcription.methods.direct.p
 1. on the coarsest grid (N <= FUEL_COARSE_MIN steps), :func:`homotopy_guess`: the effort problem (the same
    maneuver with objective effort; :func:`effort_optimum`: from the free motion first when its plan would start
    from the relaxed problem), then the fuel NLP itself (eps = 0) from the effort optimum, cold, within JUMP_BUDGET
-   iterations (the jump); only when that does not converge the fuel NLP with the smoothed magnitude
+   iterations (the jump, on grids of at most JUMP_MAX_N steps); only when that does not converge the fuel NLP
+   with the smoothed magnitude
    phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for eps = 1, 1/FACTOR, ... down to SMOOTHING_LAST
    (:func:`smoothing_levels`), each level started from the last one's primal and dual point (the NLPs have the
    same structure: eps is data of the control-node block), and the fuel NLP from the last level and its
@@ -21,8 +22,7 @@ smooth problems and coarse grids instead (:func:`~transcription.methods.direct.p
    mesh of issue 26 on 25 and 40; the engine slew, the keep-out slew, the raise without a moment bound and
    leo_raise_slew, fuel, on 25 steps): the same final optimum to 12 digits in every case, and fewer iterations
    for the whole solve in every case (e.g. 1048 -> 649 on 20 steps; 754 -> 731 without a moment bound, where the
-   jump took 283 and the levels 365).  Not measured: the LEO raises on 400 steps, where a jump that does not
-   converge costs JUMP_BUDGET iterations before the levels;
+   jump took 283 and the levels 365).  On leo_raise_slew's 400 steps the jump did not converge (JUMP_MAX_N);
 2. on a finer grid of N steps: the fuel problem solved on max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR) steps
    (recursively), resampled to N steps on SE(3) and finished there
    (:func:`~transcription.methods.direct.plan.coarse_guess`, as for the time objective), IPOPT started with
@@ -73,9 +73,15 @@ WARM_LEVEL = {"warm_start_init_point": "yes", "mu_init": 1e-9, "warm_start_bound
 #: plan's other starts were tried (docs/mathematics.md, "LEO fuel raises")
 LEVEL_BUDGET = 500
 #: the homotopy's first step from the effort optimum is the fuel NLP itself (eps = 0, cold, within JUMP_BUDGET
-#: iterations), the smoothed levels only when that does not converge.  JUMP = False: the levels always
+#: iterations), the smoothed levels only when that does not converge (module docstring) -- on grids of at most
+#: JUMP_MAX_N steps, the largest measured (the jumps of the measured problems took 55-398 iterations).  On the
+#: 400 steps of leo_raise_slew with the fuel objective (its coarse grids do not resolve it, :func:`~.plan.
+#: coarse_resolves`) the jump reached JUMP_BUDGET without converging (114 s at load 2), and then the levels failed
+#: as before (eps = 1: 54 iterations, eps = 0.1: 500, not converged): there the jump only cost time, so grids of
+#: more steps keep the levels.  JUMP = False: the levels always
 JUMP = True
 JUMP_BUDGET = LEVEL_BUDGET
+JUMP_MAX_N = 40
 #: the homotopy's effort problem, when its plan would start from the relaxed problem (control bounds or path
 #: constraints) and the force is no body-fixed engine, is first solved from the free motion within
 #: EFFORT_ROLLOUT_BUDGET iterations (:func:`effort_optimum`).  EFFORT_ROLLOUT = False: by the effort plan always
@@ -177,7 +183,8 @@ def effort_optimum(effort: Problem, options: DirectOptions, subsolve) -> tuple[o
 
 def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess | None:
     """Step 1 of the module docstring on ``problem``'s own grid: the effort optimum, then the fuel NLP from it (the
-    jump, within LEVEL_BUDGET iterations) or, when that does not converge, the smoothed levels from it; the last
+    jump, within JUMP_BUDGET iterations, on grids of at most JUMP_MAX_N steps) or, when that does not converge (or
+    is not tried), the smoothed levels from it; the last
     point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the effort problem or a level
     did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step."""
     t0 = time.perf_counter()
@@ -190,7 +197,7 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess 
     first = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
     ref = smoothing_reference(tr, effort.warm.U)
     point, schedule = first, smoothing_levels()
-    if JUMP:
+    if JUMP and problem.N <= JUMP_MAX_N:
         jump, jtr = solve_level(problem, options, 0.0, first, ref, JUMP_BUDGET)
         iterations += jump.iterations
         if jump.success:
