@@ -266,6 +266,7 @@ def test_the_effort_optimum_from_the_free_motion_is_the_effort_plans(monkeypatch
     monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT_BUDGET", 2)
     sol, said = homotopy.effort_optimum(effort, options, recording)
     assert calls == ["rollout", "auto"] and said.endswith("by the effort plan"), said
+    assert said.startswith("2 from the free motion") and sol.iterations == planned.iterations + 2, said
     assert sol.cost == pytest.approx(planned.cost, rel=1e-10)
     from test_body_force import ENGINE_SLEW
 

@@ -162,23 +162,26 @@ def point_guess(tr: SmoothTranscription, point: Point) -> Guess:
 
 
 def effort_optimum(effort: Problem, options: DirectOptions, subsolve) -> tuple[object, str]:
-    """The effort optimum that starts the homotopy, and how it was reached (for ``homotopy_levels``): with control
-    bounds or path constraints (where the effort plan starts from the relaxed problem, :func:`~.plan.relaxation`)
-    and no body-fixed engine, first from the free motion within EFFORT_ROLLOUT_BUDGET iterations; otherwise, or when
-    that does not converge, by the effort plan (``subsolve``).  (None, '') if neither converged."""
+    """The effort optimum that starts the homotopy (a Solution whose ``iterations`` count every solve made for it),
+    and how it was reached (for ``homotopy_levels``): with control bounds or path constraints (where the effort plan
+    starts from the relaxed problem, :func:`~.plan.relaxation`) and no body-fixed engine, first from the free motion
+    within EFFORT_ROLLOUT_BUDGET iterations; otherwise, or when that does not converge, by the effort plan
+    (``subsolve``).  (None, '') if neither converged."""
     from .plan import relaxation     # plan imports this module
 
-    said = ""
+    tried, said = 0, ""
     if EFFORT_ROLLOUT and relaxation(effort) is not None and not isinstance(effort.control.force_bound, ThrusterBound):
         sol = subsolve(effort, options.replace(initial_guess="rollout",
                                                max_iter=min(options.max_iter, EFFORT_ROLLOUT_BUDGET)))
         if sol.converged and sol.warm is not None:
             return sol, f"{sol.iterations} (from the free motion)"
-        said = f"{sol.iterations} from the free motion ({sol.result}), then "
+        tried, said = sol.iterations, f"{sol.iterations} from the free motion ({sol.result}), then "
     sol = subsolve(effort, options)
     if not sol.converged or sol.warm is None:
         return None, ""
-    return sol, f"{said}{sol.iterations}" if not said else f"{said}{sol.iterations} by the effort plan"
+    plan_its = sol.iterations
+    sol.iterations += tried
+    return sol, f"{said}{plan_its} by the effort plan" if said else f"{plan_its}"
 
 
 def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess | None:
