@@ -109,22 +109,27 @@ def test_the_multistart_spread_is_reported(raise25):
 
 
 def _finish_on(p, coarse, warm_primal: bool):
-    """The fuel plan's finish on ``p``'s grid from ``coarse`` (a solution on a coarser grid, handed to the plan's
-    coarse entry as its subsolve), with or without homotopy.WARM_PRIMAL; the finish's own iterations and cost."""
+    """The epigraph NLP's finish on ``p``'s grid from ``coarse`` (a solution on a coarser grid, handed to the plan's
+    coarse entry as its subsolve), with or without homotopy.WARM_PRIMAL; the finish's own iterations and cost.  The
+    plan's fallback: the structured finish (.fuel_structure, tests/test_fuel_structure.py) switched off."""
+    from unittest import mock
+
     from se3ocp.transcription.methods.direct import plan as plan_mod
     from se3ocp.transcription.methods.direct import solve as solve_mod
 
     options = se3ocp.DirectOptions()
-    run = solve_mod._PlanRun(p, options, None, None)
-    if not warm_primal:
-        run.solvers[(options.max_iter, False, False, True)] = run.solver(options.max_iter)
-    guess = plan_mod.coarse_guess(p, options, coarse.problem.N, lambda *_: coarse)
-    sol = run.run([("coarse", lambda: guess, options.max_iter)], "first")
+    with mock.patch.object(solve_mod, "structure_applies", lambda *_: False):
+        run = solve_mod._PlanRun(p, options, None, None)
+        if not warm_primal:
+            run.solvers[(options.max_iter, False, False, True)] = run.solver(options.max_iter)
+        guess = plan_mod.coarse_guess(p, options, coarse.problem.N, lambda *_: coarse)
+        sol = run.run([("coarse", lambda: guess, options.max_iter)], "first")
     return sol, sol.iterations - coarse.iterations
 
 
 def test_the_finish_from_the_coarse_optimum_stays_in_its_basin(raise25):
-    """The finish on 50 steps from the 25-step optimum resampled (what the fuel plan does on every finer grid):
+    """The epigraph NLP's finish on 50 steps from the 25-step optimum resampled (the fuel plan's fallback on every
+    finer grid when the structured finish fails):
     with WARM_PRIMAL (a barrier of 1e-6, no push off the bounds) IPOPT converges in fewer iterations than with its
     defaults, to a cost no higher (relative 1e-8), and that cost is the fuel cost of its controls (to 1e-12).
     Measured: 48 against 82 iterations, the same optimum 0.8173648343 to 1e-15.  Why: with IPOPT's defaults the 400-step finish of the raise took ~1260 iterations and ended 0.46 % costlier

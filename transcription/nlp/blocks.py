@@ -27,6 +27,12 @@ problem of the same structure: the builders with only structural arguments retur
                 |d_f|^2 - 1, |d_m|^2 - 1 (fuel, <= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (fuel, = 0)]
         cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj (fuel; else 0), phi(s) = (1 - eps) s + eps s^2 / (2 r)
                (docs/mathematics.md, the fuel homotopy: phi = s at eps = 0)
+    control_node(..., l1=True)                    the fuel cost on a fixed switching structure (docs/mathematics.md,
+        "The structured fuel finish"): v = [u_j (6); s_f, s_m; h / h_scale (free_h)]; p = [... (as above, without
+        r_f, r_m, eps); b_f, b_m (1 on a burn node of the part, 0 on a coast node, whose u and s are fixed to 0 by
+        their bounds); delta_f, delta_m]
+        rows += [(b_f (sqrt(|u_f|^2 + delta_f^2) - delta_f - s_f) - (1 - b_f) sS_f) / sS_f (<= 0); the same of u_m]
+        cost = omega_j (w_f s_f + w_m s_m) / s_obj
     time_cost(disc)                               the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
     state_target(disc, fixed)                  the terminal conditions of a state target
@@ -103,11 +109,15 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = Fa
 
 #: the fuel epigraph's variables per control node: magnitudes s_f, s_m and unit directions d_f, d_m
 FUEL_SLACKS = 8
+#: ... and those of the fixed switching structure's (``l1``): the magnitudes s_f, s_m
+L1_SLACKS = 2
 
 
 @per_discretization
-def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thruster: bool = False) -> BlockFunction:
-    """The block of one control node: norm bounds, a body-fixed engine and the fuel epigraph (module docstring).
+def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thruster: bool = False,
+                 l1: bool = False) -> BlockFunction:
+    """The block of one control node: norm bounds, a body-fixed engine and the fuel epigraph (module docstring);
+    ``l1``: instead of the epigraph, the fuel cost of a fixed switching structure (no slacks; module docstring).
 
     The engine's rows are linear in u_f: IPOPT's steps satisfy a linear equality exactly (to the linear
     solver's round-off), so the off-axis force of the solution is zero to round-off, not merely to the tolerance.
@@ -118,9 +128,9 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thr
     is where a fuel-optimal control spends its coast arcs (with |u|^2 <= s^2 IPOPT declared the
     E3 fuel problem locally infeasible after 424 iterations).
     """
-    ns = FUEL_SLACKS if fuel else 0
+    ns = FUEL_SLACKS if fuel else L1_SLACKS if l1 else 0
     v = ca.SX.sym("v", NU + ns + (1 if free_h else 0))
-    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3 + (9 if thruster else 0) + (3 if fuel else 0))
+    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3 + (9 if thruster else 0) + (3 if fuel or l1 else 0) + (4 if l1 else 0))
     sU, sS = p[:NU], p[NU:NU + 2]
     i = NU + 2
     omega_per_h, hp, bf, bm, wf, wm, s_obj = (p[i + k] for k in range(7))
@@ -139,14 +149,22 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thr
         df, dm = v[NU + 2:NU + 5], v[NU + 5:NU + 8]
         rows += [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0]
         rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
+    if l1:   # the burn flags b_f, b_m of the node (0 or 1) and the roundings delta_f, delta_m (physical)
+        bfl, bml, df_, dm_ = p[-4], p[-3], p[-2], p[-1]
+        sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
+        mag_f = ca.sqrt(ca.dot(u[U_FORCE], u[U_FORCE]) + df_**2) - df_
+        mag_m = ca.sqrt(ca.dot(u[U_MOMENT], u[U_MOMENT]) + dm_**2) - dm_
+        # rounded |u| <= s on a burn node; -1 <= 0 on a coast node (u = s = 0 there: no row at its bound)
+        rows += [(bfl * (mag_f - sf) - (1.0 - bfl) * sS[0]) / sS[0], (bml * (mag_m - sm) - (1.0 - bml) * sS[1]) / sS[1]]
+    if fuel or l1:
         # the homotopy's smoothing: phi(s) = (1 - eps) s + eps s^2 / (2 r), phi = s at eps = 0
-        rf, rm, eps = p[-3], p[-2], p[-1]
+        rf, rm, eps = (p[-3], p[-2], p[-1]) if fuel else (p[-7], p[-6], p[-5])
         phi_f = (1.0 - eps) * sf + eps * sf**2 / (2.0 * rf)
         phi_m = (1.0 - eps) * sm + eps * sm**2 / (2.0 * rm)
         cost = omega_per_h * h * (wf * phi_f + wm * phi_m) / s_obj
     # the name from its non-empty parts: CasADi refuses empty parts ("control_node__fuel": fuel without norm bounds)
     parts = ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}", "thruster" if thruster else "",
-             "fuel" if fuel else "", "freeh" if free_h else "")
+             "fuel" if fuel else "", "l1" if l1 else "", "freeh" if free_h else "")
     return BlockFunction(ca.Function("_".join(w for w in parts if w), [v, p],
                                      [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)], ["v", "p"], ["cost", "rows"]))
 

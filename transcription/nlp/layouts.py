@@ -68,7 +68,7 @@ class NLPLayout:
         U = np.asarray(U, dtype=float)
         w[self.iU] = U
         if self.n_slack:
-            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)
+            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)[:self.n_slack]
         if self.with_c:
             if C is None:
                 raise ValueError("this layout has Cayley variables: C (3, N) is required")
@@ -156,7 +156,7 @@ class StageLayout(NLPLayout):
         if self.iUp is not None:
             w[self.iUp] = U[:, 1:]
         if self.n_slack:
-            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)
+            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)[:self.n_slack]
         if np.isnan(w).any():
             raise ValueError("pack: some entries were not filled (shape mismatch?)")
         return w

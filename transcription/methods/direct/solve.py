@@ -16,6 +16,7 @@ from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
+from .fuel_structure import applies as structure_applies, structured_finish
 from .homotopy import WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
@@ -39,6 +40,7 @@ class _PlanRun:
         self.points: dict[int, Point] = {}   # id(Solution) -> its scaled primal-dual point (the fuel guard's)
         self.switchings: dict[int, dict] = {}   # id(Solution) -> .fuel_guard.switching of its converged fuel point
         self.verdicts: dict[int, str] = {}   # id(Attempt) -> the fuel guard's verdict on its converged point
+        self.structure: list[str] = []       # what the structured fuel finish did (.fuel_structure)
         self.extra_build_s, self.solve_s, self.iterations = 0.0, 0.0, 0
 
     def solver(self, budget: int, phase1: bool = False, level: bool = False, fine: bool = False) -> ca.Function:
@@ -60,6 +62,10 @@ class _PlanRun:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
         tr = self.tr
+        if tr.fuel and guess.prepared_on == COARSE and structure_applies(self.problem, self.options):
+            sol = self.structured(label, guess)
+            if sol is not None:
+                return sol
         level = guess.duals is not None and guess.duals[0] == tr.nlp.key
         solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and guess.prepared_on == COARSE)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
@@ -86,6 +92,30 @@ class _PlanRun:
         if tr.fuel and sol.converged:   # the fuel guard's values: its escape, the multistart's false minima
             self.switchings[id(sol)] = switching(tr, point.x, point.lam_g)
             self.verdicts[id(self.attempts[-1])] = verdict(self.switchings[id(sol)])["fuel_guard"]
+        sol.stats["initial_guess"] = label
+        sol.stats.update(guess.stats)
+        return sol
+
+    def structured(self, label: str, guess: Guess) -> Solution | None:
+        """The fuel problem finished from a coarser grid's optimum on its switching structure
+        (:func:`.fuel_structure.structured_finish`): its Solution if it converged and passed the fuel KKT guard, else
+        None (the epigraph NLP then finishes from the same guess; ``structure`` says what was tried)."""
+        sol, stats = structured_finish(self.problem, self.options, guess, self.progress)
+        self.extra_build_s += sol.build_s
+        self.solve_s += sol.solve_s
+        self.iterations += sol.iterations
+        self.structure = stats["fuel_structure"]
+        if not (sol.converged and stats["fuel_guard"] == "passed"):
+            self.structure = self.structure + ["not kept: the fuel NLP finished from the same start"]
+            self.attempts.append(Attempt(f"{label}, on its switching structure", sol.result, sol.iterations,
+                                         float("nan"), 0, guess.prepared_on))
+            return None
+        sol.iterations += guess.iterations
+        sol.solve_s += guess.seconds
+        self.solve_s += guess.seconds
+        self.iterations += guess.iterations
+        self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost, guess.iterations, guess.prepared_on))
+        sol.stats.update(stats)
         sol.stats["initial_guess"] = label
         sol.stats.update(guess.stats)
         return sol
@@ -164,8 +194,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
         return failed_solution(problem, "direct", options.solver, Result.non_finite,
                                "the initial guess is not finite (overflow or a singular potential along the free "
                                "motion): check the model and the states")
-    if run.tr.fuel and sol.converged:   # the fuel KKT guard, and the escape from a false minimum (.fuel_guard)
-        sol = guarded(run, sol)
+    if run.tr.fuel and sol.converged and id(sol) in run.switchings:   # the fuel KKT guard and the escape
+        sol = guarded(run, sol)                                       # (.fuel_guard; a structured finish: its own)
+    if run.structure and "fuel_structure" not in sol.stats:
+        sol.stats["fuel_structure"] = run.structure
     # every guess tried counts: iterations and times are those of the whole solve
     sol.build_s, sol.solve_s, sol.iterations = run.build_s + run.extra_build_s, run.solve_s, run.iterations
     sol.attempts = tuple(run.attempts)

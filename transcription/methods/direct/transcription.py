@@ -36,6 +36,10 @@ from ...problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit
 from .scaling import characteristic_scales, terminal_row_scales
 
 NC = blocks.NC
+#: the rounding delta of the fixed structure's magnitude sqrt(|u|^2 + delta^2) - delta (``burn``), as a fraction of
+#: the part's magnitude scale (:attr:`SmoothTranscription.slack_scales`): smooth where a burn node's control passes
+#: near 0, and on a burn node of |u| >= 1e-4 of the scale it moves the cost's gradient by < delta^2 / (2 |u|^2) = 5e-11
+L1_ROUNDING = 1e-9
 
 
 class SmoothTranscription:
@@ -66,17 +70,22 @@ class SmoothTranscription:
     """
 
     def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0,
-                 smoothing_ref: np.ndarray | None = None):
+                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None, rounding: float = L1_ROUNDING):
         N = problem.N
         self.problem, self.options, self.stage_order = problem, options, stage_order
         self.smoothing = float(smoothing)
         self.smoothing_ref = smoothing_ref
         control: SmoothControl = problem.control
         self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
+        if burn is not None and (not self.fuel or stage_order):
+            raise ValueError("a switching structure (burn) is a fuel problem's, in IPOPT's node order")
+        self.burn = None if burn is None else np.asarray(burn, dtype=bool)
+        self.rounding = float(rounding)
+        self.epigraph = self.fuel and self.burn is None     # the fuel objective by its epigraph (else burn's l1 cost)
         self.with_c = True if stage_order else bool(options.cayley_variables)
-        self.layout = StageLayout(N, problem.scheme, blocks.FUEL_SLACKS if self.fuel else 0) if stage_order else \
-            NLPLayout(N, control_nodes(problem.disc, N), self.with_c,
-                      n_slack=blocks.FUEL_SLACKS if self.fuel else 0, free_h=self.free_h)
+        n_slack = blocks.FUEL_SLACKS if self.epigraph else blocks.L1_SLACKS if self.burn is not None else 0
+        self.layout = StageLayout(N, problem.scheme, n_slack) if stage_order else \
+            NLPLayout(N, control_nodes(problem.disc, N), self.with_c, n_slack=n_slack, free_h=self.free_h)
         self.scales = characteristic_scales(problem)
         self.h_scale = problem.h
         self.w_scale = self._variable_scales()
@@ -92,8 +101,19 @@ class SmoothTranscription:
     @property
     def slack_scales(self) -> np.ndarray:
         """The scales of the fuel epigraph's magnitudes (s_f, s_m): the largest force and moment scales."""
-        sU = self.scales.U
+        return self.magnitude_scales(self.problem, self.scales)
+
+    @staticmethod
+    def magnitude_scales(problem: Problem, scales=None) -> np.ndarray:
+        """(2,) the scales of the control magnitudes |u_f|, |u_m| of ``problem`` (:attr:`slack_scales`)."""
+        sU = (scales or characteristic_scales(problem)).U
         return np.array([sU[U_FORCE].max(), sU[U_MOMENT].max()])
+
+    @property
+    def l1_rounding(self) -> np.ndarray:
+        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` (default L1_ROUNDING) x
+        :attr:`slack_scales`."""
+        return self.rounding * self.slack_scales
 
     def _smoothing_ref(self) -> np.ndarray:
         """(r_f, r_m) of the smoothed magnitude (class docstring): ``smoothing_ref`` or the slack scales."""
@@ -104,8 +124,10 @@ class SmoothTranscription:
         ws = np.full(lay.n, np.nan)
         ws[lay.iX] = sc.X[:, None]
         ws[lay.iU] = sc.U[:, None]
-        if self.fuel:
+        if self.epigraph:
             ws[lay.iS] = np.r_[self.slack_scales, np.ones(6)][:, None]
+        elif self.burn is not None:
+            ws[lay.iS] = self.slack_scales[:, None]
         if self.with_c:
             ws[lay.iC] = sc.C[:, None]
         if getattr(lay, "iUp", None) is not None:
@@ -143,12 +165,12 @@ class SmoothTranscription:
 
     def _control_block(self):
         """The control nodes' norm bounds, body-fixed engine and fuel epigraph (None without any)."""
-        problem, lay, sc, fuel = self.problem, self.layout, self.scales, self.fuel
+        problem, lay, sc, fuel, l1 = self.problem, self.layout, self.scales, self.epigraph, self.burn is not None
         control: SmoothControl = problem.control
         norm_f = isinstance(control.force_bound, NormBound) and control.force_bound.b > 0
         norm_m = isinstance(control.moment_bound, NormBound) and control.moment_bound.b > 0
         engine = control.force_bound if isinstance(control.force_bound, ThrusterBound) else None
-        if not (norm_f or norm_m or fuel or engine):
+        if not (norm_f or norm_m or fuel or l1 or engine):
             return None, None
         nU, sS = len(lay.control_nodes), self.slack_scales
         # omega_j / h, h the (mean) step: the relative weights of the mesh's steps r_k (1 on a uniform mesh)
@@ -160,17 +182,19 @@ class SmoothTranscription:
                            np.repeat(np.r_[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
                                            Q][:, None], nU, axis=1)]
                           + ([np.repeat(np.r_[self._smoothing_ref(), self.smoothing][:, None], nU, axis=1)]
-                             if fuel else []))
-        iN = np.vstack([lay.iUn] + ([lay.iS] if fuel else []) + ([np.full((1, nU), lay.ih)] if self.free_h else []))
-        n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel else 0)
+                             if fuel or l1 else [])
+                          + ([self.burn.astype(float), np.repeat(self.l1_rounding[:, None], nU, axis=1)] if l1 else []))
+        iN = np.vstack([lay.iUn] + ([lay.iS] if fuel or l1 else []) + ([np.full((1, nU), lay.ih)] if self.free_h
+                                                                          else []))
+        n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel or l1 else 0)
         # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0
         n_eng = 3 if engine else 0
         lbg = np.r_[np.full(n_norm, -np.inf), [engine.min / engine.max, 0.0, 0.0] if engine else [],
                     np.full(n_fuel, -np.inf), np.zeros(6 if fuel else 0)]
         ubg = np.r_[np.zeros(n_norm), [1.0, 0.0, 0.0] if engine else [], np.zeros(n_fuel + (6 if fuel else 0))]
-        fn = blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel, engine is not None)
+        fn = blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel, engine is not None, l1)
         blk = Block("controls", fn, iN, cdata, lbg=lbg, ubg=ubg)
-        return blk, np.r_[np.ones(n_norm + n_eng + n_fuel), np.repeat(sS, 3) if fuel else []]
+        return blk, np.r_[np.ones(n_norm + n_eng), sS if l1 else np.ones(n_fuel), np.repeat(sS, 3) if fuel else []]
 
     def _time_block(self):
         if self.problem.control.objective != "time":
@@ -221,7 +245,7 @@ class SmoothTranscription:
     def _variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """lbx, ubx (scaled): X_0 fixed (not in stage order), box bounds and removed controls, the fuel
         epigraph's magnitudes >= 0, the free step size's range."""
-        problem, lay, sc, fuel = self.problem, self.layout, self.scales, self.fuel
+        problem, lay, sc, fuel = self.problem, self.layout, self.scales, self.epigraph
         control: SmoothControl = problem.control
         lbx, ubx = np.full(lay.n, -np.inf), np.full(lay.n, np.inf)
         if not self.stage_order:
@@ -236,6 +260,11 @@ class SmoothTranscription:
                     lbx[lay.iS[k]] = ubx[lay.iS[k]] = 0.0
         if fuel:
             lbx[lay.iS[:2]] = np.maximum(lbx[lay.iS[:2]], 0.0)
+        if self.burn is not None:    # magnitudes >= 0; a coast node's part: u = 0, s = 0
+            lbx[lay.iS] = np.maximum(lbx[lay.iS], 0.0)
+            for k, sl in enumerate((U_FORCE, U_MOMENT)):
+                coast = np.r_[lay.iU[sl][:, ~self.burn[k]].ravel(), lay.iS[k, ~self.burn[k]]]
+                lbx[coast] = ubx[coast] = 0.0
         if self.free_h:
             lo, hi = problem.time_bounds
             lbx[lay.ih], ubx[lay.ih] = lo / problem.N / self.h_scale, hi / problem.N / self.h_scale

@@ -1,0 +1,151 @@
+"""The structured fuel finish (transcription/methods/direct/fuel_structure.py, docs/mathematics.md §23, issue 27).
+
+On a grid finer than the coarsest, the fuel plan finishes from the coarser optimum resampled on that optimum's
+switching structure: coast nodes u = 0, burn nodes the rounded magnitude, a rough solve (delta 1e-5) on the widened
+structure, the burn nodes it switched off pruned, then the solve with delta 1e-6 from there.  The fuel raise
+(configs/orbit_raise_fuel.yaml) on 50 steps from its 25-step optimum.
+"""
+from __future__ import annotations
+
+from unittest import mock
+
+import numpy as np
+import pytest
+
+import se3ocp
+from se3ocp.transcription.guess import Guess, cayley_vectors
+from se3ocp.transcription.layout import U_FORCE, U_MOMENT
+from se3ocp.transcription.methods.direct import fuel_structure, plan as plan_mod, solve as solve_mod
+from se3ocp.transcription.methods.direct.fuel_guard import GUARD_TOL
+from se3ocp.transcription.methods.direct.solve import solve_direct
+from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.problem import fuel_cost, quadrature_weights
+from support import problem
+
+N = 50
+
+
+@pytest.fixture(scope="module")
+def coarse():
+    """The fuel raise's 25-step optimum (the default plan: the multistart) and the 50-step problem."""
+    sol = solve_direct(problem("orbit_raise_fuel", 25), se3ocp.DirectOptions())
+    assert sol.converged, sol.message
+    return sol, problem("orbit_raise_fuel", N)
+
+
+def _guess(p, coarse_sol):
+    return plan_mod.coarse_guess(p, se3ocp.DirectOptions(), coarse_sol.problem.N, lambda *_: coarse_sol)
+
+
+@pytest.fixture(scope="module")
+def finished(coarse):
+    """(problem, Solution, stats) of the structured finish on 50 steps from the 25-step optimum."""
+    sol25, p = coarse
+    sol, stats = fuel_structure.structured_finish(p, se3ocp.DirectOptions(), _guess(p, sol25))
+    return p, sol, stats
+
+
+def test_the_structured_finish_is_a_kkt_point_of_the_l1_problem(finished):
+    """Converged, the guard passed (sigma <= GUARD_TOL on every coast node, from the multipliers of the coast nodes'
+    fixed controls); the coast nodes' controls exactly 0; on the burn nodes that thrust (|u| > 1e-3 of the scale)
+    sigma = 0 to 1e-6, i.e. |mu_j| = w omega_j: the rounded magnitude's stationarity (delta = 1e-6 of the scale moves
+    it by < delta^2 / (2 |u|^2) = 5e-7); its cost the fuel cost of its controls to 1e-12.  Measured: 2 solves
+    (rough 1e-5, then 1e-6), sigma_max -1.5e-3 on the coast nodes, the thrusting nodes' |sigma| <= 6e-10."""
+    p, sol, stats = finished
+    assert sol.converged and stats["fuel_guard"] == "passed", (sol.message, stats)
+    assert stats["fuel_switching_max"] <= GUARD_TOL
+    assert sol.cost == pytest.approx(fuel_cost(sol.controls, p.control, quadrature_weights(p.scheme, p.N, p.h)),
+                                     rel=1e-12)
+    U = np.asarray(sol.controls)
+    scales = SmoothTranscription.magnitude_scales(p)
+    mags = np.stack([np.linalg.norm(U[sl], axis=0) for sl in (U_FORCE, U_MOMENT)])
+    on = mags > 1e-3 * scales[:, None]
+    assert on[0].sum() >= 2 and on[1].sum() >= 2                   # both parts burn somewhere
+    assert np.count_nonzero(mags[~on]) < mags[~on].size             # ... and coast, at exactly 0
+
+
+def test_its_multipliers_on_the_thrusting_nodes_and_the_coast_nodes(coarse):
+    """The same finish, its point and multipliers at hand: |mu_j| / (w omega_j) - 1 = 0 to 1e-6 on the thrusting
+    burn nodes, and on the coast nodes of the structure mu_j (the bound multipliers of the fixed controls) agrees with
+    the epigraph NLP's mu_j at its own optimum (fuel_guard.switching, the multiplier of u - s d = 0) to 2e-3 of
+    w omega_j: the two are the same primer vector, computed two independent ways (measured: 4e-5)."""
+    sol25, p = coarse
+    options = se3ocp.DirectOptions()
+    captured = {}
+    real = fuel_structure.switching_l1
+
+    def spy(tr, x, lam_g, lam_x):
+        out = real(tr, x, lam_g, lam_x)
+        captured.update(tr=tr, x=x, sw=out)
+        return out
+
+    with mock.patch.object(fuel_structure, "switching_l1", spy):
+        sol, stats = fuel_structure.structured_finish(p, options, _guess(p, sol25))
+    assert sol.converged
+    tr, x, sw = captured["tr"], captured["x"], captured["sw"]
+    w = x * tr.w_scale
+    c = p.control
+    wts = np.array([c.W_f[0, 0], c.W_m[0, 0]])
+    omega = quadrature_weights(p.scheme, p.N, p.h)
+    for i, sl in enumerate((U_FORCE, U_MOMENT)):
+        mag = np.linalg.norm(w[tr.layout.iU[sl]], axis=0)
+        thrusting = tr.burn[i] & (mag > 1e-3 * tr.slack_scales[i])
+        assert thrusting.any()
+        assert np.max(np.abs(sw["value"][i][thrusting])) < 1e-6
+    # the epigraph NLP's optimum from the same start, its own multipliers
+    with mock.patch.object(solve_mod, "structure_applies", lambda *_: False):
+        run = solve_mod._PlanRun(p, options, None, None)
+        guess = _guess(p, sol25)
+        esol = run.run([("coarse", lambda: guess, options.max_iter)], "first")
+    assert esol.converged
+    epi = run.switchings[id(esol)]
+    both = ~tr.burn & np.isfinite(epi["sigma"])                     # coast in both
+    assert both[0].sum() > 10 and both[1].sum() > 10
+    for i in range(2):
+        diff = np.linalg.norm(sw["mu"][i] - epi["mu"][i], axis=0)[both[i]] / (wts[i] * omega[both[i]])
+        assert diff.max() < 2e-3, (i, diff.max())
+    # the same optimum: the structured cost no higher than the epigraph's (whose interior point keeps ~1e-9 of the
+    # scale of thrust on every coast node), and within 1e-8 of it
+    assert sol.cost <= esol.cost * (1 + 1e-10) and sol.cost == pytest.approx(esol.cost, rel=1e-8)
+
+
+def test_a_too_narrow_structure_is_widened_where_the_switching_function_says(finished):
+    """From the 50-step optimum itself with one node of the longest force burn arc switched off and no widening
+    (dilate = 0): the structure is feasible but not optimal; the switching function on that node is > 0, the finish
+    adds it back (a second solve) and ends at the optimum again (cost to 1e-9)."""
+    p, sol, _ = finished
+    U = np.asarray(sol.controls).copy()
+    mags = np.linalg.norm(U[U_FORCE], axis=0)
+    on = np.flatnonzero(mags > 1e-3 * SmoothTranscription.magnitude_scales(p)[0])
+    runs = np.split(on, np.flatnonzero(np.diff(on) > 1) + 1)
+    arc = max(runs, key=len)
+    assert len(arc) >= 2
+    j = arc[len(arc) // 2]
+    U[U_FORCE, j] = 0.0
+    X = sol.warm.X
+    guess = Guess(X=X, U=U, C=cayley_vectors(X), h=p.h)
+    narrowed, stats = fuel_structure.structured_finish(p, se3ocp.DirectOptions(), guess, dilate=0)
+    assert narrowed.converged and stats["fuel_guard"] == "passed", stats
+    assert any("widened" in line for line in stats["fuel_structure"]), stats["fuel_structure"]
+    assert narrowed.cost == pytest.approx(sol.cost, rel=1e-9), stats["fuel_structure"]
+
+
+def test_the_plan_uses_it_and_falls_back_to_the_epigraph_nlp(coarse):
+    """The default plan on 50 steps finishes on the structure (stats['fuel_structure'], the guard passed); when
+    the structured finish fails, the epigraph NLP finishes from the same start, the attempt that was not kept is
+    listed and the stats say so."""
+    _, p = coarse
+    sol = solve_direct(p, se3ocp.DirectOptions())
+    assert sol.converged and sol.stats["fuel_guard"] == "passed" and "fuel_structure" in sol.stats
+    real = fuel_structure.structured_finish
+
+    def failing(problem, options, guess, progress=None):
+        bad, stats = real(problem, options.replace(max_iter=3), guess, progress)
+        return bad, stats
+
+    with mock.patch.object(solve_mod, "structured_finish", failing):
+        fell = solve_direct(p, se3ocp.DirectOptions())
+    assert fell.converged, fell.message
+    assert fell.stats["fuel_structure"][-1].startswith("not kept")
+    assert any(a.label.endswith("on its switching structure") for a in fell.attempts)
+    assert fell.cost == pytest.approx(sol.cost, rel=1e-8)
