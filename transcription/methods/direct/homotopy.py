@@ -6,11 +6,26 @@ N = 400: stopped at 'acceptable' after ~1300).  With ``initial_guess: auto`` the
 smooth problems and coarse grids instead (:func:`~transcription.methods.direct.plan.guess_plan`):
 
 1. on the coarsest grid (N <= FUEL_COARSE_MIN steps), :func:`homotopy_guess`: the effort problem (the same
-   maneuver with objective effort, solved by its own plan), then the fuel NLP with the smoothed magnitude
+   maneuver with objective effort; :func:`effort_optimum`: with EFFORT_ROLLOUT, from the free motion first when
+   its plan would start from the relaxed problem), then, with JUMP, the fuel NLP itself (eps = 0) from the effort
+   optimum, cold, within JUMP_BUDGET iterations (the jump, on grids of at most JUMP_MAX_N steps); without JUMP
+   (the default) or when the jump does not converge the fuel NLP with the smoothed magnitude
    phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for eps = 1, 1/FACTOR, ... down to SMOOTHING_LAST
    (:func:`smoothing_levels`), each level started from the last one's primal and dual point (the NLPs have the
-   same structure: eps is data of the control-node block), and the fuel NLP itself (eps = 0) from the last level
-   and its multipliers -- one of the multistart's starts, beside the free motion and the screw interpolation;
+   same structure: eps is data of the control-node block), and the fuel NLP from the last level and its
+   multipliers -- one of the multistart's starts, beside the free motion and the screw interpolation.  Why the
+   jump first: on the fuel raise (25 steps) the levels took 62 + 76 + 61 + 117 + 5 iterations (eps = 1 ... 1e-4,
+   then the fuel NLP) to 0.8129414920, the jump 55 to the same optimum; the effort problem 92 iterations by its
+   plan (40 on the relaxed problem, which ends at another local minimum, 1.376 against 0.980, then 52 from it
+   with the phase 1), 21 from the free motion to the same effort optimum.  The homotopy: 418 -> 77 iterations.
+   Measured on ten fuel problems of <= 40 steps (the raise on 20, 25 (LGVI and first order), 30 steps and on the
+   mesh of issue 26 on 25 and 40; the engine slew, the keep-out slew, the raise without a moment bound and
+   leo_raise_slew, fuel, on 25 steps): the same final optimum to 12 digits in every case, and fewer iterations
+   for the whole solve in every case (e.g. 1048 -> 649 on 20 steps; 754 -> 731 without a moment bound, where the
+   jump took 283 and the levels 365).  On leo_raise_slew's 400 steps the jump did not converge (JUMP_MAX_N).
+   Both are OFF by default (homotopy.JUMP, EFFORT_ROLLOUT): compare's tol-1e-12 re-tightening of the raise at
+   N = 100 and of the mesh at N = 60 ended at costlier guard-failed points from the new paths' solutions, which
+   equal the old ones to 3e-12 (see EFFORT_ROLLOUT);
 2. on a finer grid of N steps: the fuel problem solved on max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR) steps
    (recursively), resampled to N steps on SE(3) and finished there
    (:func:`~transcription.methods.direct.plan.coarse_guess`, as for the time objective), IPOPT started with
@@ -34,7 +49,7 @@ from ...guess import Guess, cayley_vectors
 from ...layout import U_FORCE, U_MOMENT
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
-from ...problem import NormBound, Problem
+from ...problem import NormBound, Problem, ThrusterBound
 from .transcription import SmoothTranscription
 
 #: the smoothing levels: eps = SMOOTHING_FIRST, divided by SMOOTHING_FACTOR per level, down to SMOOTHING_LAST
@@ -60,6 +75,30 @@ WARM_LEVEL = {"warm_start_init_point": "yes", "mu_init": 1e-9, "warm_start_bound
 #: hundred iterations crawled on (mu = 1e-9, steps cut to 1e-2 by the bounds) to 3000, minutes each, before the
 #: plan's other starts were tried (docs/mathematics.md, "LEO fuel raises")
 LEVEL_BUDGET = 500
+#: the homotopy's first step from the effort optimum is the fuel NLP itself (eps = 0, cold, within JUMP_BUDGET
+#: iterations), the smoothed levels only when that does not converge (module docstring) -- on grids of at most
+#: JUMP_MAX_N steps, the largest measured (the jumps of the measured problems took 55-398 iterations).  On the
+#: 400 steps of leo_raise_slew with the fuel objective (its coarse grids do not resolve it, :func:`~.plan.
+#: coarse_resolves`) the jump reached JUMP_BUDGET without converging (114 s at load 2), and then the levels failed
+#: as before (eps = 1: 54 iterations, eps = 0.1: 500, not converged): there the jump only cost time, so grids of
+#: more steps keep the levels.  JUMP = False: the levels always
+JUMP = False
+JUMP_BUDGET = LEVEL_BUDGET
+JUMP_MAX_N = 40
+#: the homotopy's effort problem, when its plan would start from the relaxed problem (control bounds or path
+#: constraints) and the force is no body-fixed engine, is first solved from the free motion within
+#: EFFORT_ROLLOUT_BUDGET iterations (:func:`effort_optimum`).  EFFORT_ROLLOUT = False: by the effort plan always
+#: OFF BY DEFAULT (JUMP and EFFORT_ROLLOUT False: the effort plan and the levels, as before).  Why: the paths reach
+#: the same optima at the default tol (the raise: 25 steps 0.8129414920420919 against 0.8129414920420421, 100 steps
+#: 0.8185703264478222 against 0.8185703264454622), but compare's re-tightening at tol 1e-12 from the default-tol
+#: solution is hypersensitive to such 1e-12 differences.  Measured (tests/test_indirect_fuel.py's raise at N = 100
+#: and tests/test_fuel_guard.py's mesh at N = 60, re-solved at tol 1e-12): the old path 0.8185703221 (guard passed,
+#: the indirect method agrees in 1 iteration) and 0.8172622932 (passed); JUMP and EFFORT_ROLLOUT 0.8186758353 (guard
+#: failed, the indirect method fails) and 0.8172943137 (failed after three escapes); EFFORT_ROLLOUT alone
+#: 0.8185703221 (passed) and 0.8172943137 (failed); JUMP alone 0.8200380451 (not converged) and 0.8172622932
+#: (passed).  Turn them on once the re-tightening no longer depends on the last bits of its warm start.
+EFFORT_ROLLOUT = False
+EFFORT_ROLLOUT_BUDGET = 200
 #: Guess.prepared_on of the homotopy's point
 PREPARED_ON = "the fuel homotopy"
 
@@ -106,13 +145,13 @@ class Point:
 
 
 def solve_level(problem: Problem, options: DirectOptions, eps: float, start: Point,
-                ref: np.ndarray | None = None) -> tuple[Point, SmoothTranscription]:
+                ref: np.ndarray | None = None, budget: int = LEVEL_BUDGET) -> tuple[Point, SmoothTranscription]:
     """The fuel NLP smoothed by ``eps`` (references ``ref``, :func:`smoothing_reference`) on ``problem``'s grid,
-    from ``start`` (warm when it has multipliers)."""
+    from ``start`` (warm when it has multipliers), within ``budget`` NLP iterations."""
     tr = SmoothTranscription(problem, options, smoothing=eps, smoothing_ref=ref)
     warm = start.lam_g is not None
     ipopt = ipopt_options(options, warm_duals=warm)
-    ipopt["max_iter"] = min(int(ipopt["max_iter"]), LEVEL_BUDGET)
+    ipopt["max_iter"] = min(int(ipopt["max_iter"]), budget)
     if warm:
         for k, v in WARM_LEVEL.items():
             ipopt.setdefault(k, v)
@@ -134,19 +173,55 @@ def point_guess(tr: SmoothTranscription, point: Point) -> Guess:
     return Guess(X=X, U=w[tr.layout.iU], C=cayley_vectors(X), duals=duals)
 
 
+def effort_optimum(effort: Problem, options: DirectOptions, subsolve) -> tuple[object, str]:
+    """The effort optimum that starts the homotopy (a Solution whose ``iterations`` count every solve made for it),
+    and how it was reached (for ``homotopy_levels``): with control bounds or path constraints (where the effort plan
+    starts from the relaxed problem, :func:`~.plan.relaxation`) and no body-fixed engine, first from the free motion
+    within EFFORT_ROLLOUT_BUDGET iterations; otherwise, or when that does not converge, by the effort plan
+    (``subsolve``).  (None, '') if neither converged."""
+    from .plan import relaxation     # plan imports this module
+
+    tried, said = 0, ""
+    if EFFORT_ROLLOUT and relaxation(effort) is not None and not isinstance(effort.control.force_bound, ThrusterBound):
+        sol = subsolve(effort, options.replace(initial_guess="rollout",
+                                               max_iter=min(options.max_iter, EFFORT_ROLLOUT_BUDGET)))
+        if sol.converged and sol.warm is not None:
+            return sol, f"{sol.iterations} (from the free motion)"
+        tried, said = sol.iterations, f"{sol.iterations} from the free motion ({sol.result}), then "
+    sol = subsolve(effort, options)
+    if not sol.converged or sol.warm is None:
+        return None, ""
+    plan_its = sol.iterations
+    sol.iterations += tried
+    return sol, f"{said}{plan_its} by the effort plan" if said else f"{plan_its}"
+
+
 def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess | None:
-    """Steps 1-2 of the module docstring on ``problem``'s own grid: the effort optimum, then the smoothed levels;
-    the last level's point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the
-    effort problem or a level did not converge)."""
+    """Step 1 of the module docstring on ``problem``'s own grid: the effort optimum, then the fuel NLP from it (the
+    jump, within JUMP_BUDGET iterations, on grids of at most JUMP_MAX_N steps) or, when that does not converge (or
+    is not tried), the smoothed levels from it; the last
+    point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the effort problem or a level
+    did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step."""
     t0 = time.perf_counter()
-    effort = subsolve(problem.replace(control=replace(problem.control, objective="effort")), options)
-    if not effort.converged or effort.warm is None:
+    effort, said = effort_optimum(problem.replace(control=replace(problem.control, objective="effort")), options,
+                                  subsolve)
+    if effort is None:
         return None
-    iterations, levels = effort.iterations, [f"effort: {effort.iterations}"]
+    iterations, levels = effort.iterations, [f"effort: {said}"]
     tr = SmoothTranscription(problem, options, smoothing=SMOOTHING_FIRST)
-    point = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
+    first = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
     ref = smoothing_reference(tr, effort.warm.U)
-    for eps in smoothing_levels():
+    point, schedule = first, smoothing_levels()
+    if JUMP and problem.N <= JUMP_MAX_N:
+        jump, jtr = solve_level(problem, options, 0.0, first, ref, JUMP_BUDGET)
+        iterations += jump.iterations
+        if jump.success:
+            levels.append(f"the fuel NLP from the effort optimum: {jump.iterations}")
+            point, tr, schedule = jump, jtr, []
+        else:
+            levels.append(f"the fuel NLP from the effort optimum: {jump.iterations}, {jump.status or 'failed'}, "
+                          f"so the levels")
+    for eps in schedule:
         point, tr = solve_level(problem, options, eps, point, ref)
         iterations += point.iterations
         levels.append(f"eps = {eps:.0e}: {point.iterations}")
