@@ -222,7 +222,7 @@ def test_the_jump_ends_where_the_levels_end(monkeypatch):
     motion, 21 + 3 + 321 + 5 of them), and ``homotopy_levels`` says which path was taken (costs 0.8129414920420919
     and 0.8129414920420461).  Also against the plan's other start: the free
     motion's false minimum escapes to the same cost (docs §22, 0.8129414920)."""
-    monkeypatch.setattr(homotopy, "JUMP", True)        # off by default (homotopy.EFFORT_ROLLOUT says why)
+    monkeypatch.setattr(homotopy, "JUMP", True)        # the defaults (homotopy.EFFORT_ROLLOUT says since when)
     monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT", True)
     p = problem("orbit_raise_fuel", N)
     jump, jrun = _homotopy_solve(p)
@@ -256,7 +256,7 @@ def test_the_effort_optimum_from_the_free_motion_is_the_effort_plans(monkeypatch
     directly."""
     from dataclasses import replace as dc_replace
 
-    monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT", True)    # off by default (its docstring says why)
+    monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT", True)    # the default
     p = problem("orbit_raise_fuel", N)
     effort = p.replace(control=dc_replace(p.control, objective="effort"))
     options = se3ocp.DirectOptions()
@@ -283,7 +283,7 @@ def test_the_effort_optimum_from_the_free_motion_is_the_effort_plans(monkeypatch
     calls.clear()
     homotopy.effort_optimum(engine, options, lambda prob, opts: calls.append(opts.initial_guess) or planned)
     assert calls == ["auto"]
-    monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT", False)      # the default: the effort plan
+    monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT", False)      # switched off: the effort plan
     calls.clear()
     sol, said = homotopy.effort_optimum(effort, options, recording)
     assert calls == ["auto"] and said == str(planned.iterations) and sol.cost == planned.cost

@@ -9,7 +9,7 @@ smooth problems and coarse grids instead (:func:`~transcription.methods.direct.p
    maneuver with objective effort; :func:`effort_optimum`: with EFFORT_ROLLOUT, from the free motion first when
    its plan would start from the relaxed problem), then, with JUMP, the fuel NLP itself (eps = 0) from the effort
    optimum, cold, within JUMP_BUDGET iterations (the jump, on grids of at most JUMP_MAX_N steps); without JUMP
-   (the default) or when the jump does not converge the fuel NLP with the smoothed magnitude
+   or when the jump does not converge the fuel NLP with the smoothed magnitude
    phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for eps = 1, 1/FACTOR, ... down to SMOOTHING_LAST
    (:func:`smoothing_levels`), each level started from the last one's primal and dual point (the NLPs have the
    same structure: eps is data of the control-node block), and the fuel NLP from the last level and its
@@ -23,20 +23,18 @@ smooth problems and coarse grids instead (:func:`~transcription.methods.direct.p
    leo_raise_slew, fuel, on 25 steps): the same final optimum to 12 digits in every case, and fewer iterations
    for the whole solve in every case (e.g. 1048 -> 649 on 20 steps; 754 -> 731 without a moment bound, where the
    jump took 283 and the levels 365).  On leo_raise_slew's 400 steps the jump did not converge (JUMP_MAX_N).
-   Both are OFF by default (homotopy.JUMP, EFFORT_ROLLOUT): compare's tol-1e-12 re-tightening of the raise at
-   N = 100 and of the mesh at N = 60 ended at costlier guard-failed points from the new paths' solutions, which
-   equal the old ones to 3e-12 (see EFFORT_ROLLOUT);
+   Both on by default since the finish of step 2 is on the switching structure (see EFFORT_ROLLOUT);
 2. on a finer grid of N steps: the fuel problem solved on max(FUEL_COARSE_MIN, N // FUEL_COARSE_FACTOR) steps
-   (recursively), resampled to N steps on SE(3) and finished there
-   (:func:`~transcription.methods.direct.plan.coarse_guess`, as for the time objective), IPOPT started with
-   WARM_PRIMAL so that it stays near that point (the raise at N = 400: 362 iterations on 400 steps to
-   0.8189058, where IPOPT's defaults took ~1260 to 0.8226885).  A smoothed level on the fine grid from the
-   resampled point did not help: the
-   fuel raise at N = 100 from its 25-step optimum took 138 iterations to 0.81857033 directly, 62 + 83 + 44
-   through eps = 1e-2, 1e-3, and 128 + 14 through 1e-4 (cold multipliers on the new grid either way).
+   (recursively), resampled to N steps on SE(3) and finished there on its switching structure
+   (:mod:`.fuel_structure`, docs §23: the raise at N = 400 in 56 iterations on 400 steps to 0.8189057879); when
+   that fails, the epigraph NLP from the same point with WARM_PRIMAL so that it stays near it (the raise at
+   N = 400: 362 iterations on 400 steps to 0.8189058, where IPOPT's defaults took ~1260 to 0.8226885).  A
+   smoothed level on the fine grid from the resampled point did not help: the fuel raise at N = 100 from its
+   25-step optimum took 138 iterations to 0.81857033 directly, 62 + 83 + 44 through eps = 1e-2, 1e-3, and
+   128 + 14 through 1e-4 (cold multipliers on the new grid either way).
 
-Every solve ends with the fuel NLP itself (eps = 0, the NLP of a fuel solve from any other start), so the optimum
-is a KKT point of that NLP whatever the path to it.
+Every solve ends with a KKT point of the L1 problem the fuel KKT guard has checked (:mod:`.fuel_guard`): the fuel
+NLP itself on the coarsest grid, the structured NLP on finer ones (a KKT point of the fuel NLP too, docs §23).
 """
 from __future__ import annotations
 
@@ -81,23 +79,20 @@ LEVEL_BUDGET = 500
 #: 400 steps of leo_raise_slew with the fuel objective (its coarse grids do not resolve it, :func:`~.plan.
 #: coarse_resolves`) the jump reached JUMP_BUDGET without converging (114 s at load 2), and then the levels failed
 #: as before (eps = 1: 54 iterations, eps = 0.1: 500, not converged): there the jump only cost time, so grids of
-#: more steps keep the levels.  JUMP = False: the levels always
-JUMP = False
+#: more steps keep the levels.  JUMP = False: the levels always.
+JUMP = True
 JUMP_BUDGET = LEVEL_BUDGET
 JUMP_MAX_N = 40
 #: the homotopy's effort problem, when its plan would start from the relaxed problem (control bounds or path
 #: constraints) and the force is no body-fixed engine, is first solved from the free motion within
-#: EFFORT_ROLLOUT_BUDGET iterations (:func:`effort_optimum`).  EFFORT_ROLLOUT = False: by the effort plan always
-#: OFF BY DEFAULT (JUMP and EFFORT_ROLLOUT False: the effort plan and the levels, as before).  Why: the paths reach
-#: the same optima at the default tol (the raise: 25 steps 0.8129414920420919 against 0.8129414920420421, 100 steps
-#: 0.8185703264478222 against 0.8185703264454622), but compare's re-tightening at tol 1e-12 from the default-tol
-#: solution is hypersensitive to such 1e-12 differences.  Measured (tests/test_indirect_fuel.py's raise at N = 100
-#: and tests/test_fuel_guard.py's mesh at N = 60, re-solved at tol 1e-12): the old path 0.8185703221 (guard passed,
-#: the indirect method agrees in 1 iteration) and 0.8172622932 (passed); JUMP and EFFORT_ROLLOUT 0.8186758353 (guard
-#: failed, the indirect method fails) and 0.8172943137 (failed after three escapes); EFFORT_ROLLOUT alone
-#: 0.8185703221 (passed) and 0.8172943137 (failed); JUMP alone 0.8200380451 (not converged) and 0.8172622932
-#: (passed).  Turn them on once the re-tightening no longer depends on the last bits of its warm start.
-EFFORT_ROLLOUT = False
+#: EFFORT_ROLLOUT_BUDGET iterations (:func:`effort_optimum`).  EFFORT_ROLLOUT = False: by the effort plan always.
+#: Both on by default since the structured finish (docs/mathematics.md §23): they reach the same optima at the default
+#: tol (the raise: 25 steps 0.8129414920420919 against 0.8129414920420421), but before §23 compare's re-tightening at
+#: tol 1e-12 from the 100-step solution was hypersensitive to such 1e-12 differences in its epigraph finish (the raise
+#: at N = 100 re-solved at tol 1e-12: 0.8186758353, the guard failed, against 0.8185703221; the mesh at N = 60:
+#: 0.8172943137 against 0.8172622932).  With the finish on the switching structure the slow tests of both pass with
+#: them on (the lead's run of `pytest -m slow -k fuel`, 11 passed).
+EFFORT_ROLLOUT = True
 EFFORT_ROLLOUT_BUDGET = 200
 #: Guess.prepared_on of the homotopy's point
 PREPARED_ON = "the fuel homotopy"
