@@ -12,7 +12,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.methods.direct import homotopy
-from se3ocp.transcription.methods.direct.plan import SAME_OPTIMUM_RTOL
+from se3ocp.transcription.methods.direct.plan import SAME_OPTIMUM_RTOL, relaxation
 from se3ocp.transcription.methods.direct.solve import solve_direct
 from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
 from se3ocp.transcription.problem import fuel_cost, quadrature_weights
@@ -209,7 +209,7 @@ def _homotopy_solve(p):
 
     options = se3ocp.DirectOptions()
     run = solve_mod._PlanRun(p, options, None, None)
-    sol = run.run([("hom", lambda: homotopy.homotopy_guess(p, options, solve_direct), options.max_iter)], "first")
+    sol = run.run([("hom", lambda: homotopy.homotopy_guess(p, options, solve_direct, relaxation), options.max_iter)], "first")
     assert sol.converged, sol.message
     return guarded(run, sol), run
 
@@ -262,7 +262,7 @@ def test_the_effort_optimum_from_the_free_motion_is_the_effort_plans(monkeypatch
     options = se3ocp.DirectOptions()
     planned = solve_direct(effort, options)
     assert planned.converged and planned.attempts[0].label == "the solution without bounds and path constraints"
-    sol, said = homotopy.effort_optimum(effort, options, solve_direct)
+    sol, said = homotopy.effort_optimum(effort, options, solve_direct, relaxation)
     assert said.endswith("(from the free motion)") and sol.iterations < planned.iterations
     assert sol.cost == pytest.approx(planned.cost, rel=1e-10)
     calls = []
@@ -272,7 +272,7 @@ def test_the_effort_optimum_from_the_free_motion_is_the_effort_plans(monkeypatch
         return solve_direct(prob, opts)
 
     monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT_BUDGET", 2)
-    sol, said = homotopy.effort_optimum(effort, options, recording)
+    sol, said = homotopy.effort_optimum(effort, options, recording, relaxation)
     assert calls == ["rollout", "auto"] and said.endswith("by the effort plan"), said
     assert said.startswith("2 from the free motion") and sol.iterations == planned.iterations + 2, said
     assert sol.cost == pytest.approx(planned.cost, rel=1e-10)
@@ -281,9 +281,10 @@ def test_the_effort_optimum_from_the_free_motion_is_the_effort_plans(monkeypatch
     engine = problem("slew_keep_out", None, None, *ENGINE_SLEW[:-1], "horizon.N=6")
     assert engine.control.objective == "effort"
     calls.clear()
-    homotopy.effort_optimum(engine, options, lambda prob, opts: calls.append(opts.initial_guess) or planned)
+    homotopy.effort_optimum(engine, options, lambda prob, opts: calls.append(opts.initial_guess) or planned,
+                            relaxation)
     assert calls == ["auto"]
     monkeypatch.setattr(homotopy, "EFFORT_ROLLOUT", False)      # switched off: the effort plan
     calls.clear()
-    sol, said = homotopy.effort_optimum(effort, options, recording)
+    sol, said = homotopy.effort_optimum(effort, options, recording, relaxation)
     assert calls == ["auto"] and said == str(planned.iterations) and sol.cost == planned.cost

@@ -168,14 +168,13 @@ def point_guess(tr: SmoothTranscription, point: Point) -> Guess:
     return Guess(X=X, U=w[tr.layout.iU], C=cayley_vectors(X), duals=duals)
 
 
-def effort_optimum(effort: Problem, options: DirectOptions, subsolve) -> tuple[object, str]:
+def effort_optimum(effort: Problem, options: DirectOptions, subsolve, relaxation) -> tuple[object, str]:
     """The effort optimum that starts the homotopy (a Solution whose ``iterations`` count every solve made for it),
     and how it was reached (for ``homotopy_levels``): with control bounds or path constraints (where the effort plan
     starts from the relaxed problem, :func:`~.plan.relaxation`) and no body-fixed engine, first from the free motion
     within EFFORT_ROLLOUT_BUDGET iterations; otherwise, or when that does not converge, by the effort plan
-    (``subsolve``).  (None, '') if neither converged."""
-    from .plan import relaxation     # plan imports this module
-
+    (``subsolve``).  (None, '') if neither converged.  ``relaxation``: :func:`~.plan.relaxation`, passed in (the
+    plan imports this module)."""
     tried, said = 0, ""
     if EFFORT_ROLLOUT and relaxation(effort) is not None and not isinstance(effort.control.force_bound, ThrusterBound):
         sol = subsolve(effort, options.replace(initial_guess="rollout",
@@ -191,7 +190,7 @@ def effort_optimum(effort: Problem, options: DirectOptions, subsolve) -> tuple[o
     return sol, f"{said}{plan_its} by the effort plan" if said else f"{plan_its}"
 
 
-def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess | None:
+def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxation) -> Guess | None:
     """Step 1 of the module docstring on ``problem``'s own grid: the effort optimum, then the fuel NLP from it (the
     jump, within JUMP_BUDGET iterations, on grids of at most JUMP_MAX_N steps) or, when that does not converge (or
     is not tried), the smoothed levels from it; the last
@@ -199,7 +198,7 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve) -> Guess 
     did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step."""
     t0 = time.perf_counter()
     effort, said = effort_optimum(problem.replace(control=replace(problem.control, objective="effort")), options,
-                                  subsolve)
+                                  subsolve, relaxation)
     if effort is None:
         return None
     iterations, levels = effort.iterations, [f"effort: {said}"]

@@ -197,7 +197,7 @@ def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, mad
                 ("interpolate", made("interpolate"), options.max_iter)], "coarse"
     # the coarsest grid, or a coarser grid that is another maneuver (coarse_resolves): the same starts, the lowest
     # converged cost kept on the coarsest grid, the first that converges otherwise
-    return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve),
+    return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve, relaxation),
              options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
         "first" if Nc < N else "best"
 
