@@ -28,11 +28,10 @@ problem of the same structure: the builders with only structural arguments retur
         cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj (fuel; else 0), phi(s) = (1 - eps) s + eps s^2 / (2 r)
                (docs/mathematics.md, the fuel homotopy: phi = s at eps = 0)
     control_node(..., l1=True)                    the fuel cost on a fixed switching structure (docs/mathematics.md,
-        "The structured fuel finish"): v = [u_j (6); s_f, s_m; h / h_scale (free_h)]; p = [... (as above, without
-        r_f, r_m, eps); b_f, b_m (1 on a burn node of the part, 0 on a coast node, whose u and s are fixed to 0 by
-        their bounds); delta_f, delta_m]
+        §23): v = [u_j (6); s_f, s_m; h / h_scale (free_h)]; p = [... (as above, with r_f, r_m, eps); b_f, b_m (1 on
+        a burn node of the part, 0 on a coast node, whose u and s are fixed to 0 by their bounds); delta_f, delta_m]
         rows += [(b_f (sqrt(|u_f|^2 + delta_f^2) - delta_f - s_f) - (1 - b_f) sS_f) / sS_f (<= 0); the same of u_m]
-        cost = omega_j (w_f s_f + w_m s_m) / s_obj
+        (the epigraph's rows are not there); cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj as above
     time_cost(disc)                               the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
     state_target(disc, fixed)                  the terminal conditions of a state target

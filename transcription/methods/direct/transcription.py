@@ -36,10 +36,10 @@ from ...problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit
 from .scaling import characteristic_scales, terminal_row_scales
 
 NC = blocks.NC
-#: the rounding delta of the fixed structure's magnitude sqrt(|u|^2 + delta^2) - delta (``burn``), as a fraction of
-#: the part's magnitude scale (:attr:`SmoothTranscription.slack_scales`): smooth where a burn node's control passes
-#: near 0, and on a burn node of |u| >= 1e-4 of the scale it moves the cost's gradient by < delta^2 / (2 |u|^2) = 5e-11
-L1_ROUNDING = 1e-9
+#: the rounding delta of a structured NLP's magnitudes sqrt(|u|^2 + delta^2) - delta (``burn``), as a fraction of the
+#: part's magnitude scale (:attr:`SmoothTranscription.slack_scales`), when ``rounding`` is not given: the structured
+#: finish's own (:data:`.fuel_structure.EXACT`; its rough solve uses :data:`.fuel_structure.ROUGH`)
+L1_ROUNDING = 1e-6
 
 
 class SmoothTranscription:
