@@ -140,8 +140,7 @@ def test_the_plan_uses_it_and_falls_back_to_the_epigraph_nlp(coarse):
     real = fuel_structure.structured_finish
 
     def failing(problem, options, guess, progress=None):
-        bad, stats = real(problem, options.replace(max_iter=3), guess, progress)
-        return bad, stats
+        return real(problem, options.replace(max_iter=3), guess, progress)
 
     with mock.patch.object(solve_mod, "structured_finish", failing):
         fell = solve_direct(p, se3ocp.DirectOptions())

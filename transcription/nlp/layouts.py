@@ -61,8 +61,8 @@ class NLPLayout:
 
     def pack(self, X, U, C=None, S=None, h=None) -> np.ndarray:
         """NumPy (X (18, N+1), U (6, nU), C (3, N), S (n_slack, nU), h) -> w (n,).  C required iff
-        ``with_c``; S defaults to the fuel epigraph's point of U (:func:`fuel_slacks`); h required
-        iff the layout has it."""
+        ``with_c``; S defaults to the first n_slack rows of the fuel epigraph's point of U (:func:`fuel_slacks`,
+        the magnitudes first); h required iff the layout has it."""
         w = np.full(self.n, np.nan)
         w[self.iX] = np.asarray(X, dtype=float)
         U = np.asarray(U, dtype=float)

@@ -52,6 +52,35 @@ PARTS = ("force", "moment")
 ESCAPE_KICK = 1e-3
 
 
+def checked_parts(problem) -> np.ndarray:
+    """(2,) bool: the parts (force, moment) whose fuel the guard checks: weight > 0 and not removed (a norm bound
+    of 0)."""
+    c = problem.control
+    return np.array([not (isinstance(b, NormBound) and b.b == 0) and wt > 0
+                     for b, wt in zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))])
+
+
+def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray, engine=None) -> dict:
+    """The switching values of :func:`switching` from the multipliers ``mu`` (2, 3, nU, physical) of a point ``w``
+    (physical) of the NLP ``tr`` and its ``coast`` nodes (2, nU) bool; ``engine``: (rate, primer) of the force
+    where a body-fixed engine replaces |mu_j| and mu_j / |mu_j| (:func:`switching`).  The one place sigma is
+    computed, for the epigraph NLP and the structured one (:func:`.fuel_structure.switching_l1`)."""
+    problem, lay, c = tr.problem, tr.layout, tr.problem.control
+    h = float(w[lay.ih]) if lay.ih is not None else problem.h
+    omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
+    weights = np.array([c.W_f[0, 0], c.W_m[0, 0]])
+    checked = checked_parts(problem)
+    rate = np.linalg.norm(mu, axis=1)                       # (2, nU): the gain of thrust per unit of s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        primer = mu / rate[:, None, :]
+    if engine is not None:
+        rate[0], primer[0] = engine
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sigma = rate / (weights[:, None] * omega[None, :]) - 1.0
+    return {"sigma": np.where(coast & checked[:, None], sigma, np.nan), "value": sigma, "mu": mu, "primer": primer,
+            "nodes": np.asarray(lay.control_nodes), "checked": checked}
+
+
 def switching(tr, x: np.ndarray, lam_g: np.ndarray) -> dict:
     """The switching values of a point of the fuel NLP ``tr`` (a SmoothTranscription at smoothing 0): x (n,) and
     lam_g (ng,) the solver's scaled primal point and constraint multipliers.
@@ -65,30 +94,17 @@ def switching(tr, x: np.ndarray, lam_g: np.ndarray) -> dict:
     A body-fixed engine (u_f = T a, T >= min >= 0): thrust can only go along +a, and the engine's axis row
     a^T u_f / max (multiplier nu_a, physical) adds nu_a a / max to the gradient in u_f, so the force's value is
     sigma_j = (a^T mu_j + nu_a / max) / (w omega_j) - 1, signed, and its primer is a (module docstring)."""
-    problem, lay = tr.problem, tr.layout
-    c = problem.control
+    c = tr.problem.control
     w = np.asarray(x, float) * tr.w_scale
-    h = float(w[lay.ih]) if lay.ih is not None else problem.h
-    omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
     rows = tr.nlp.rows("controls")      # (nr, nU): ...; engine (3); |d|^2 - 1 (2); u_f - s_f d_f (3); u_m - s_m d_m (3)
     nu = tr.multipliers(lam_g)
     mu = np.stack([nu[rows[-6:-3]], nu[rows[-3:]]])        # (2, 3, nU)
-    s = w[lay.iS[:2]]                                       # (2, nU)
-    weights = np.array([c.W_f[0, 0], c.W_m[0, 0]])
-    checked = np.array([not (isinstance(b, NormBound) and b.b == 0) and wt > 0
-                        for b, wt in zip((c.force_bound, c.moment_bound), weights)])
-    rate = np.linalg.norm(mu, axis=1)                       # (2, nU): the gain of thrust per unit of s
-    with np.errstate(divide="ignore", invalid="ignore"):
-        primer = mu / rate[:, None, :]
+    engine = None
     if isinstance(c.force_bound, ThrusterBound):
         a = c.force_bound.axis
-        rate[0] = a @ mu[0] + nu[rows[-11]] / c.force_bound.max
-        primer[0] = a[:, None]
-    coast = s < COAST_RTOL * tr.slack_scales[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sigma = rate / (weights[:, None] * omega[None, :]) - 1.0
-    return {"sigma": np.where(coast & checked[:, None], sigma, np.nan), "value": sigma, "mu": mu, "primer": primer,
-            "nodes": np.asarray(lay.control_nodes), "checked": checked}
+        engine = (a @ mu[0] + nu[rows[-11]] / c.force_bound.max, a[:, None])
+    coast = w[tr.layout.iS[:2]] < COAST_RTOL * tr.slack_scales[:, None]
+    return switching_values(tr, w, mu, coast, engine)
 
 
 def verdict(sw: dict, tol: float = GUARD_TOL) -> dict:
@@ -193,5 +209,5 @@ def false_minima(verdicts: dict, starts: list, stats: dict) -> dict:
                           f"minima of the NLP, where thrust would pay on coast nodes, not optima of the fuel problem"}
 
 
-__all__ = ["COAST_RTOL", "ESCAPE", "ESCAPES", "GUARD_TOL", "false_minima", "guarded", "reaimed", "switching",
-           "verdict"]
+__all__ = ["COAST_RTOL", "ESCAPE", "ESCAPES", "GUARD_TOL", "checked_parts", "false_minima", "guarded", "reaimed",
+           "switching", "switching_values", "verdict"]

@@ -39,9 +39,9 @@ from ...guess import Guess
 from ...layout import U_FORCE, U_MOMENT
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
-from ...problem import NormBound, Problem, ThrusterBound, quadrature_weights
+from ...problem import NormBound, Problem, ThrusterBound
 from ...results import Solution
-from .fuel_guard import COAST_RTOL, ESCAPE_KICK, GUARD_TOL, PARTS, verdict
+from .fuel_guard import COAST_RTOL, ESCAPE_KICK, GUARD_TOL, PARTS, checked_parts, switching_values, verdict
 from .homotopy import WARM_LEVEL
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
@@ -77,13 +77,6 @@ def applies(problem: Problem, options: DirectOptions) -> bool:
     return c.objective == "fuel" and options.solver == "ipopt" and not isinstance(c.force_bound, ThrusterBound)
 
 
-def _checked(problem: Problem) -> np.ndarray:
-    """(2,) the parts whose fuel is counted: weight > 0 and not removed (a norm bound of 0)."""
-    c = problem.control
-    return np.array([wt > 0 and not (isinstance(b, NormBound) and b.b == 0)
-                     for b, wt in zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))])
-
-
 def burn_structure(problem: Problem, U: np.ndarray, scales: np.ndarray, dilate: int = DILATE) -> np.ndarray:
     """(2, nU) bool: the burn nodes of controls U (6, nU) -- |u_j| > BURN_RTOL x the part's scale (``scales``,
     (2,), physical) -- widened by ``dilate`` nodes on each side; a part whose fuel is not counted (weight 0) burns
@@ -110,12 +103,8 @@ def switching_l1(tr: SmoothTranscription, x: np.ndarray, lam_g: np.ndarray, lam_
     (nan elsewhere and on parts not checked), 'value' on every node, 'mu' (2, 3, nU) physical, 'primer',
     'nodes', 'checked'.  mu_j = s_obj lam_x(u_j) / sU on a coast node of the structure (module docstring) and
     nu_j u_j / sqrt(|u_j|^2 + delta^2) on a burn node, nu_j the multiplier of its row |u_j| - s_j <= 0."""
-    problem, lay = tr.problem, tr.layout
-    c = problem.control
+    lay = tr.layout
     w = np.asarray(x, float) * tr.w_scale
-    h = float(w[lay.ih]) if lay.ih is not None else problem.h
-    omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
-    weights = np.array([c.W_f[0, 0], c.W_m[0, 0]])
     delta = tr.l1_rounding
     mu = np.empty((2, 3, len(lay.control_nodes)))
     mags = np.empty((2, mu.shape[2]))
@@ -128,14 +117,8 @@ def switching_l1(tr: SmoothTranscription, x: np.ndarray, lam_g: np.ndarray, lam_
         fixed = tr.scales.objective * np.asarray(lam_x, float)[iu] / tr.w_scale[iu]
         burning = nu[i] * u / np.sqrt(mags[i] ** 2 + delta[i] ** 2)
         mu[i] = np.where(tr.burn[i][None, :], burning, fixed)
-    rate = np.linalg.norm(mu, axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        primer = mu / rate[:, None, :]
-        sigma = rate / (weights[:, None] * omega[None, :]) - 1.0
-    checked = _checked(problem)
     coast = ~tr.burn | (mags < COAST_RTOL * tr.slack_scales[:, None])
-    return {"sigma": np.where(coast & checked[:, None], sigma, np.nan), "value": sigma, "mu": mu, "primer": primer,
-            "nodes": np.asarray(lay.control_nodes), "checked": checked}
+    return switching_values(tr, w, mu, coast)
 
 
 def _widened(tr: SmoothTranscription, x: np.ndarray, sw: dict, tol: float = GUARD_TOL) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +154,7 @@ def _pruned(tr: SmoothTranscription, x: np.ndarray) -> tuple[np.ndarray, np.ndar
     w = x * tr.w_scale
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         iu = tr.layout.iU[sl]
-        off = tr.burn[i] & (np.linalg.norm(w[iu], axis=0) < PRUNE_RTOL * tr.slack_scales[i]) & _checked(tr.problem)[i]
+        off = tr.burn[i] & (np.linalg.norm(w[iu], axis=0) < PRUNE_RTOL * tr.slack_scales[i]) & checked_parts(tr.problem)[i]
         burn[i, off] = False
         x[iu[:, off]] = 0.0
         x[tr.layout.iS[i, off]] = 0.0

@@ -82,20 +82,26 @@ class _PlanRun:
         stats = solver.stats()
         sol = nlp_solution(self.problem, self.options, tr, out, stats, str(stats.get("return_status", "unknown")),
                            "ipopt", self.build_s, solve_s)
-        if guess.iterations:   # the relaxed problem's (or the coarse grid's) solve counts: its iterations and time
+        self.counted(label, sol, guess)
+        self.points[id(sol)] = point
+        if tr.fuel and sol.converged:   # the fuel guard's values: its escape, the multistart's false minima
+            self.switchings[id(sol)] = switching(tr, point.x, point.lam_g)
+            self.verdicts[id(self.attempts[-1])] = verdict(self.switchings[id(sol)])["fuel_guard"]
+        return sol
+
+    def counted(self, label: str, sol: Solution, guess: Guess) -> None:
+        """``sol`` (from ``guess``) counted as an attempt: the guess's making (the relaxed problem's or the coarse
+        grid's solve: its iterations and time) added to it, its iterations to the run's, its Attempt, and
+        ``stats['initial_guess']`` with what the guess's making reported."""
+        if guess.iterations:
             sol.iterations += guess.iterations
             sol.solve_s += guess.seconds
             self.solve_s += guess.seconds
         self.iterations += sol.iterations
-        self.points[id(sol)] = point
         self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost if sol.converged else float("nan"),
                                      guess.iterations, guess.prepared_on))
-        if tr.fuel and sol.converged:   # the fuel guard's values: its escape, the multistart's false minima
-            self.switchings[id(sol)] = switching(tr, point.x, point.lam_g)
-            self.verdicts[id(self.attempts[-1])] = verdict(self.switchings[id(sol)])["fuel_guard"]
         sol.stats["initial_guess"] = label
         sol.stats.update(guess.stats)
-        return sol
 
     def structured(self, label: str, guess: Guess) -> Solution | None:
         """The fuel problem finished from a coarser grid's optimum on its switching structure
@@ -104,21 +110,15 @@ class _PlanRun:
         sol, stats = structured_finish(self.problem, self.options, guess, self.progress)
         self.extra_build_s += sol.build_s
         self.solve_s += sol.solve_s
-        self.iterations += sol.iterations
         self.structure = stats["fuel_structure"]
         if not (sol.converged and stats["fuel_guard"] == "passed"):
             self.structure = self.structure + ["not kept: the fuel NLP finished from the same start"]
+            self.iterations += sol.iterations    # the guess's making counts once, with the fallback's attempt
             self.attempts.append(Attempt(f"{label}, on its switching structure", sol.result, sol.iterations,
                                          float("nan"), 0, guess.prepared_on))
             return None
-        sol.iterations += guess.iterations
-        sol.solve_s += guess.seconds
-        self.solve_s += guess.seconds
-        self.iterations += guess.iterations
-        self.attempts.append(Attempt(label, sol.result, sol.iterations, sol.cost, guess.iterations, guess.prepared_on))
         sol.stats.update(stats)
-        sol.stats["initial_guess"] = label
-        sol.stats.update(guess.stats)
+        self.counted(label, sol, guess)
         return sol
 
     def run(self, plan: list[PlanEntry], pick: str) -> Solution | None:

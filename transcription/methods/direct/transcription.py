@@ -36,10 +36,6 @@ from ...problem import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit
 from .scaling import characteristic_scales, terminal_row_scales
 
 NC = blocks.NC
-#: the rounding delta of a structured NLP's magnitudes sqrt(|u|^2 + delta^2) - delta (``burn``), as a fraction of the
-#: part's magnitude scale (:attr:`SmoothTranscription.slack_scales`), when ``rounding`` is not given: the structured
-#: finish's own (:data:`.fuel_structure.EXACT`; its rough solve uses :data:`.fuel_structure.ROUGH`)
-L1_ROUNDING = 1e-6
 
 
 class SmoothTranscription:
@@ -70,15 +66,16 @@ class SmoothTranscription:
     """
 
     def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0,
-                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None, rounding: float = L1_ROUNDING):
+                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None, rounding: float = 0.0):
         N = problem.N
         self.problem, self.options, self.stage_order = problem, options, stage_order
         self.smoothing = float(smoothing)
         self.smoothing_ref = smoothing_ref
         control: SmoothControl = problem.control
         self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
-        if burn is not None and (not self.fuel or stage_order):
-            raise ValueError("a switching structure (burn) is a fuel problem's, in IPOPT's node order")
+        if burn is not None and (not self.fuel or stage_order or not rounding > 0):
+            raise ValueError("a switching structure (burn) is a fuel problem's, in IPOPT's node order, with its "
+                             "magnitudes' rounding > 0 (fuel_structure.ROUGH, EXACT)")
         self.burn = None if burn is None else np.asarray(burn, dtype=bool)
         self.rounding = float(rounding)
         self.epigraph = self.fuel and self.burn is None     # the fuel objective by its epigraph (else burn's l1 cost)
@@ -111,8 +108,8 @@ class SmoothTranscription:
 
     @property
     def l1_rounding(self) -> np.ndarray:
-        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` (default L1_ROUNDING) x
-        :attr:`slack_scales`."""
+        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` x :attr:`slack_scales`
+        (the structured finish's ROUGH and EXACT, :mod:`.fuel_structure`)."""
         return self.rounding * self.slack_scales
 
     def _smoothing_ref(self) -> np.ndarray:
