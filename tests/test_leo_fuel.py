@@ -39,13 +39,13 @@ def test_the_smoothing_reference_is_the_bound_or_the_effort_magnitude(name, boun
     p = problem(name, 10, None, FUEL)
     tr = SmoothTranscription(p, se3ocp.DirectOptions(jit=False))
     U = _controls(p.disc.n_controls(p.N), 7.2e-4, 8.3e-9)
-    r = homotopy.smoothing_reference(tr, U)
+    r = homotopy.smoothing_reference(tr.problem, U)
     assert r[0] == (tr.slack_scales[0] if bounded_force else pytest.approx(7.2e-4, rel=1e-15))
     assert r[1] == pytest.approx(8.3e-9, rel=1e-15) and tr.slack_scales[1] < 1e-10
     if bounded_force:
         assert r[0] == 1e-3
     U[3:] = 0.0
-    assert homotopy.smoothing_reference(tr, U)[1] == tr.slack_scales[1]
+    assert homotopy.smoothing_reference(tr.problem, U)[1] == tr.slack_scales[1]
 
 
 def test_the_references_of_bounded_parts_are_unchanged():
@@ -53,7 +53,7 @@ def test_the_references_of_bounded_parts_are_unchanged():
     bounds whatever the controls, as before the references existed."""
     p = problem("orbit_raise_fuel", 10)
     tr = SmoothTranscription(p, se3ocp.DirectOptions(jit=False))
-    r = homotopy.smoothing_reference(tr, _controls(p.disc.n_controls(p.N), 13.0, 0.2))
+    r = homotopy.smoothing_reference(tr.problem, _controls(p.disc.n_controls(p.N), 13.0, 0.2))
     assert np.array_equal(r, tr.slack_scales) and np.array_equal(r, [40.0, 1.0])
 
 

@@ -31,7 +31,9 @@ problem of the same structure: the builders with only structural arguments retur
         §23): v = [u_j (6); s_f, s_m; h / h_scale (free_h)]; p = [... (as above, with r_f, r_m, eps); b_f, b_m (1 on
         a burn node of the part, 0 on a coast node, whose u and s are fixed to 0 by their bounds); delta_f, delta_m]
         rows += [(b_f (sqrt(|u_f|^2 + delta_f^2) - delta_f - s_f) - (1 - b_f) sS_f) / sS_f (<= 0); the same of u_m]
-        (the epigraph's rows are not there); cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj as above
+        (the epigraph's rows are not there); cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj as above.  With a
+        body-fixed engine (thruster) the force's magnitude is its thrust a^T u_f, linear and exact on the engine's
+        rows (|u_f| = T >= 0 there): no rounding, and the force burns on every node (T = 0 is the engine row's bound)
     time_cost(disc)                               the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
     state_target(disc, fixed)                  the terminal conditions of a state target
@@ -151,7 +153,8 @@ def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thr
     if l1:   # the burn flags b_f, b_m of the node (0 or 1) and the roundings delta_f, delta_m (physical)
         bfl, bml, df_, dm_ = p[-4], p[-3], p[-2], p[-1]
         sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
-        mag_f = ca.sqrt(ca.dot(u[U_FORCE], u[U_FORCE]) + df_**2) - df_
+        mag_f = ca.dot(ca.reshape(p[i + 7:i + 10], 3, 1), u[U_FORCE]) if thruster else \
+            ca.sqrt(ca.dot(u[U_FORCE], u[U_FORCE]) + df_**2) - df_
         mag_m = ca.sqrt(ca.dot(u[U_MOMENT], u[U_MOMENT]) + dm_**2) - dm_
         # rounded |u| <= s on a burn node; -1 <= 0 on a coast node (u = s = 0 there: no row at its bound)
         rows += [(bfl * (mag_f - sf) - (1.0 - bfl) * sS[0]) / sS[0], (bml * (mag_m - sm) - (1.0 - bml) * sS[1]) / sS[1]]

@@ -26,8 +26,15 @@ d = mu / (w omega) on the coast ones).
 (delta = ROUGH x the scale, IPOPT's own start with ROUGH_OPTIONS); the burn nodes it switched off (below PRUNE_RTOL
 x the scale) pruned; the solve with delta = EXACT x the scale from there, warm; the guard.  Coast nodes with
 sigma_j > GUARD_TOL join B (their control started at ESCAPE_KICK x the scale along mu_j / |mu_j|) and the NLP is
-solved again, warm, and pruned again: at most ROUNDS solves.  Not for a body-fixed engine (its thrust row would be
-constant at its bound on a coast node) nor fatrop: :func:`applies`.
+solved again, warm, and pruned again: at most ROUNDS solves.  Not for fatrop: :func:`applies`.
+
+The roundings, the pruning threshold and the widening's kick are fractions of each part's reference r
+(:func:`~.homotopy.smoothing_reference`: its bound, or without one the start's largest magnitude): an unbounded
+part's scale is a guess from the boundary data (the raise without its moment bound at N = 100: with the scale the
+finish failed and the epigraph NLP took 1900 iterations, 43 s; with r 786, 7.7 s; docs §24).  A body-fixed engine's
+force (:func:`engine`) has the magnitude a^T u_f = T, linear and exact on the engine's rows: its row is
+a^T u_f - s_f <= 0 on every node (no rounding, never pruned; T = 0 is the engine row's bound, where a fixed u_f = 0
+would leave the engine's rows constant).
 """
 from __future__ import annotations
 
@@ -42,7 +49,7 @@ from ...options import DirectOptions
 from ...problem import NormBound, Problem, ThrusterBound
 from ...results import Solution
 from .fuel_guard import COAST_RTOL, ESCAPE_KICK, GUARD_TOL, PARTS, checked_parts, switching_values, verdict
-from .homotopy import WARM_LEVEL
+from .homotopy import WARM_LEVEL, smoothing_reference
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
@@ -72,9 +79,15 @@ ROUND_BUDGET = 500
 
 
 def applies(problem: Problem, options: DirectOptions) -> bool:
-    """Whether the structured finish covers ``problem``: the fuel objective, IPOPT, no body-fixed engine."""
-    c = problem.control
-    return c.objective == "fuel" and options.solver == "ipopt" and not isinstance(c.force_bound, ThrusterBound)
+    """Whether the structured finish covers ``problem``: the fuel objective, IPOPT."""
+    return problem.control.objective == "fuel" and options.solver == "ipopt"
+
+
+def engine(problem: Problem) -> ThrusterBound | None:
+    """The body-fixed engine of ``problem``'s force (None without one): its magnitude is the thrust, linear, and its
+    force burns on every node of the structure (T = 0 is the engine row's bound, :func:`burn_structure`)."""
+    b = problem.control.force_bound
+    return b if isinstance(b, ThrusterBound) else None
 
 
 def burn_structure(problem: Problem, U: np.ndarray, scales: np.ndarray, dilate: int = DILATE) -> np.ndarray:
@@ -91,7 +104,7 @@ def burn_structure(problem: Problem, U: np.ndarray, scales: np.ndarray, dilate: 
     for i, (b, wt) in enumerate(zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))):
         if isinstance(b, NormBound) and b.b == 0:
             wide[i] = False
-        elif wt <= 0:
+        elif wt <= 0 or isinstance(b, ThrusterBound):
             wide[i] = True
     return wide
 
@@ -108,29 +121,34 @@ def switching_l1(tr: SmoothTranscription, x: np.ndarray, lam_g: np.ndarray, lam_
     delta = tr.l1_rounding
     mu = np.empty((2, 3, len(lay.control_nodes)))
     mags = np.empty((2, mu.shape[2]))
-    rows = tr.nlp.rows("controls")      # (nr, nU): norms; |u_f| - s_f, |u_m| - s_m (the last two)
-    nu = tr.multipliers(lam_g)[rows[-2:]]
+    rows = tr.nlp.rows("controls")      # (nr, nU): norms; engine (3); |u_f| - s_f, |u_m| - s_m (the last two)
+    nus = tr.multipliers(lam_g)
+    nu = nus[rows[-2:]]
+    eng = engine(tr.problem)
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         iu = lay.iU[sl]
         u = w[iu]
         mags[i] = np.linalg.norm(u, axis=0)
         fixed = tr.scales.objective * np.asarray(lam_x, float)[iu] / tr.w_scale[iu]
-        burning = nu[i] * u / np.sqrt(mags[i] ** 2 + delta[i] ** 2)
+        burning = nu[i] * (eng.axis[:, None] if i == 0 and eng else u / np.sqrt(mags[i] ** 2 + delta[i] ** 2))
         mu[i] = np.where(tr.burn[i][None, :], burning, fixed)
     coast = ~tr.burn | (mags < COAST_RTOL * tr.slack_scales[:, None])
-    return switching_values(tr, w, mu, coast)
+    # an engine's rate along its axis: nu_j + nu_a / max, nu_a the multiplier of its axis row (.fuel_guard.switching)
+    rate = None if eng is None else (eng.axis @ mu[0] + nus[rows[-5]] / eng.max, eng.axis[:, None])
+    return switching_values(tr, w, mu, coast, rate)
 
 
-def _widened(tr: SmoothTranscription, x: np.ndarray, sw: dict, tol: float = GUARD_TOL) -> tuple[np.ndarray, np.ndarray]:
+def _widened(tr: SmoothTranscription, x: np.ndarray, sw: dict, ref: np.ndarray,
+             tol: float = GUARD_TOL) -> tuple[np.ndarray, np.ndarray]:
     """The structure with the coast nodes whose sigma > tol burning, and x with their controls set to ESCAPE_KICK x
-    the part's scale along the primer (scaled)."""
+    the part's reference ``ref`` along the primer (scaled)."""
     burn, x = tr.burn.copy(), x.copy()
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         bad = np.flatnonzero(~tr.burn[i] & np.isfinite(sw["sigma"][i]) & (sw["sigma"][i] > tol))
         burn[i, bad] = True
         iu = tr.layout.iU[sl][:, bad]
-        x[iu] = ESCAPE_KICK * tr.slack_scales[i] * sw["primer"][i][:, bad] / tr.w_scale[iu]
-        x[tr.layout.iS[i, bad]] = ESCAPE_KICK
+        x[iu] = ESCAPE_KICK * ref[i] * sw["primer"][i][:, bad] / tr.w_scale[iu]
+        x[tr.layout.iS[i, bad]] = ESCAPE_KICK * ref[i] / tr.slack_scales[i]
     return burn, x
 
 
@@ -147,14 +165,16 @@ def _solve(tr: SmoothTranscription, options: DirectOptions, x0: np.ndarray, dual
     return solver(**args), solver.stats()
 
 
-def _pruned(tr: SmoothTranscription, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The structure without the burn nodes whose magnitude the solve took below PRUNE_RTOL x the part's scale, and x
-    with their controls and magnitudes at 0."""
+def _pruned(tr: SmoothTranscription, x: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The structure without the burn nodes whose magnitude the solve took below PRUNE_RTOL x the part's reference
+    ``ref`` (an engine's force is never pruned: :func:`engine`), and x with their controls and magnitudes at 0."""
     burn, x = tr.burn.copy(), x.copy()
     w = x * tr.w_scale
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         iu = tr.layout.iU[sl]
-        off = tr.burn[i] & (np.linalg.norm(w[iu], axis=0) < PRUNE_RTOL * tr.slack_scales[i]) & checked_parts(tr.problem)[i]
+        if i == 0 and engine(tr.problem) is not None:
+            continue
+        off = tr.burn[i] & (np.linalg.norm(w[iu], axis=0) < PRUNE_RTOL * ref[i]) & checked_parts(tr.problem)[i]
         burn[i, off] = False
         x[iu[:, off]] = 0.0
         x[tr.layout.iS[i, off]] = 0.0
@@ -181,12 +201,14 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     ``fuel_structure`` (one line per round: the burn nodes, each solve's status and iterations, the cost, the largest
     switching value, where it widened), ``fuel_structure_rounds``."""
     t0 = time.perf_counter()
-    burn = burn_structure(problem, guess.U, SmoothTranscription.magnitude_scales(problem), dilate)
+    ref = smoothing_reference(problem, guess.U)         # the parts' bounds, an unbounded part's largest magnitude
+    burn = burn_structure(problem, guess.U, ref, dilate)
     log, total = [], {"iterations": 0, "build_s": 0.0}
 
     def solve(burn, rounding, x0, duals):
         tb = time.perf_counter()
-        tr = SmoothTranscription(problem, options, burn=burn, rounding=rounding)
+        tr = SmoothTranscription(problem, options, burn=burn,
+                                 rounding=rounding * ref / SmoothTranscription.magnitude_scales(problem))
         total["build_s"] += time.perf_counter() - tb
         out, stats = _solve(tr, options, tr.initial_point(guess, guess.h) if x0 is None else x0, duals, progress)
         its = int(stats.get("iter_count", 0))
@@ -202,7 +224,7 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
         tr, out, stats, point, what, ok = solve(burn, ROUGH if rough else EXACT, x0, duals)
         said.append(f"rough (delta {ROUGH:.0e}) {what}" if rough else what)
         if ok:
-            pruned, x0 = _pruned(tr, point[0])
+            pruned, x0 = _pruned(tr, point[0], ref)
             duals = (point[1], _released(tr, point[2], pruned))
             if rough or (pruned != tr.burn).any():
                 burn = pruned
@@ -219,7 +241,7 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
         log.append(f"{'; '.join(said)}; cost {sol.cost:.10g}, switching function up to {v['fuel_switching_max']:+.1e}")
         if v["fuel_guard"] != "failed":
             break
-        burn, x0 = _widened(tr, x0, sw)
+        burn, x0 = _widened(tr, x0, sw, ref)
         duals = (duals[0], _released(tr, duals[1], burn))
         log[-1] += "; widened at " + "; ".join(f"{part} {', '.join(map(str, sw['nodes'][burn[i] & ~tr.burn[i]]))}"
                                               for i, part in enumerate(PARTS) if (burn[i] & ~tr.burn[i]).any())

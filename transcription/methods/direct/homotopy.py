@@ -104,10 +104,11 @@ def smoothing_levels() -> list[float]:
     return [SMOOTHING_FIRST / SMOOTHING_FACTOR**k for k in range(n + 1)]
 
 
-def smoothing_reference(tr: SmoothTranscription, U: np.ndarray) -> np.ndarray:
+def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
     """The references (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units: a bounded part's
-    bound (its magnitude's scale, :attr:`SmoothTranscription.slack_scales`, as before); an unbounded part's largest
-    magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part).  Why:
+    bound (its magnitude's scale, :meth:`SmoothTranscription.magnitude_scales`, as before); an unbounded part's
+    largest magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part).
+    (The structured finish's roundings are fractions of the same references, :mod:`.fuel_structure`.)  Why:
     an unbounded part's scale is a guess from the boundary data, and where the magnitudes are far from r the
     levels are no homotopy.  The LEO raises (docs/mathematics.md, "LEO fuel raises"): moments of up to 8e-9 kN km
     against a scale of 1.5e-11 made eps s^2 / (2 r) dominate the moment's cost down to eps ~ 1e-2, and the first
@@ -116,11 +117,11 @@ def smoothing_reference(tr: SmoothTranscription, U: np.ndarray) -> np.ndarray:
     100 iterations and left 2.2e-3.  Forces of 6e-4 kN against a scale of 0.54 kN (no bound) left the force part
     of every level the fuel objective itself.  With these references phi_eps'(s) = 1 - eps + eps s / r is in
     [1 - eps, 1] on the effort optimum's magnitudes at every level."""
-    c = tr.problem.control
+    c = problem.control
     mags = np.array([np.linalg.norm(U[sl], axis=0).max(initial=0.0) for sl in (U_FORCE, U_MOMENT)])
     unbounded = np.array([b is None or (isinstance(b, NormBound) and b.b <= 0) for b in (c.force_bound,
                                                                                         c.moment_bound)])
-    return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, tr.slack_scales)
+    return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, SmoothTranscription.magnitude_scales(problem))
 
 
 @dataclass
@@ -204,7 +205,7 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
     iterations, levels = effort.iterations, [f"effort: {said}"]
     tr = SmoothTranscription(problem, options, smoothing=SMOOTHING_FIRST)
     first = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
-    ref = smoothing_reference(tr, effort.warm.U)
+    ref = smoothing_reference(problem, effort.warm.U)
     point, schedule = first, smoothing_levels()
     if JUMP and problem.N <= JUMP_MAX_N:
         jump, jtr = solve_level(problem, options, 0.0, first, ref, JUMP_BUDGET)

@@ -66,18 +66,20 @@ class SmoothTranscription:
     """
 
     def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0,
-                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None, rounding: float = 0.0):
+                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None,
+                 rounding: float | np.ndarray = 0.0):
         N = problem.N
         self.problem, self.options, self.stage_order = problem, options, stage_order
         self.smoothing = float(smoothing)
         self.smoothing_ref = smoothing_ref
         control: SmoothControl = problem.control
         self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
-        if burn is not None and (not self.fuel or stage_order or not rounding > 0):
+        rounding = np.broadcast_to(np.asarray(rounding, dtype=float), (2,)).copy()
+        if burn is not None and (not self.fuel or stage_order or not np.all(rounding > 0)):
             raise ValueError("a switching structure (burn) is a fuel problem's, in IPOPT's node order, with its "
                              "magnitudes' rounding > 0 (fuel_structure.ROUGH, EXACT)")
         self.burn = None if burn is None else np.asarray(burn, dtype=bool)
-        self.rounding = float(rounding)
+        self.rounding = rounding
         self.epigraph = self.fuel and self.burn is None     # the fuel objective by its epigraph (else burn's l1 cost)
         self.with_c = True if stage_order else bool(options.cayley_variables)
         n_slack = blocks.FUEL_SLACKS if self.epigraph else blocks.L1_SLACKS if self.burn is not None else 0
@@ -108,8 +110,9 @@ class SmoothTranscription:
 
     @property
     def l1_rounding(self) -> np.ndarray:
-        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` x :attr:`slack_scales`
-        (the structured finish's ROUGH and EXACT, :mod:`.fuel_structure`)."""
+        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` (a number, or one per
+        part) x :attr:`slack_scales` (the structured finish's ROUGH and EXACT of its references,
+        :mod:`.fuel_structure`)."""
         return self.rounding * self.slack_scales
 
     def _smoothing_ref(self) -> np.ndarray:
