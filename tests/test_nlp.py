@@ -134,32 +134,3 @@ def test_blocks_and_their_derivatives_are_built_once_per_discretization():
     assert blocks.state_target(disc, ("position",)) is blocks.state_target(disc, ("position",))
     other = Discretization(disc.model, disc.scheme)
     assert blocks.dynamics(other, True, True, True) is not fn
-
-
-def test_the_linear_solvers_blas_runs_one_thread_unless_the_environment_says_otherwise(monkeypatch):
-    """solvers.limit_blas_threads sets CasADi's bundled OpenBLAS (the BLAS of IPOPT's MUMPS) to BLAS_THREADS threads,
-    read back here from the library itself; with OMP_NUM_THREADS or OPENBLAS_NUM_THREADS in the environment it leaves
-    the library alone (None).  Why: a second thread spins in sched_yield on these small frontal matrices (the fuel
-    raise at N = 400: 29.6 s of system time in a 36.8 s solve, 3.9 s with one thread)."""
-    import ctypes
-    import os
-
-    from se3ocp.transcription.nlp import solvers
-
-    path = os.path.join(os.path.dirname(ca.__file__), "libcasadi-tp-openblas.so.0")
-    if not os.path.exists(path):
-        pytest.skip("CasADi bundles no OpenBLAS of that name on this platform")
-    lib = ctypes.CDLL(path)
-    before = lib.openblas_get_num_threads()
-    try:
-        lib.openblas_set_num_threads(2)
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-            monkeypatch.setenv(var, "2")
-            solvers.limit_blas_threads.cache_clear()
-            assert solvers.limit_blas_threads() is None and lib.openblas_get_num_threads() == 2
-            monkeypatch.delenv(var)
-        solvers.limit_blas_threads.cache_clear()
-        assert solvers.limit_blas_threads() == solvers.BLAS_THREADS == lib.openblas_get_num_threads() == 1
-    finally:
-        lib.openblas_set_num_threads(before)
-        solvers.limit_blas_threads.cache_clear()

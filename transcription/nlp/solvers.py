@@ -3,9 +3,6 @@
 split of a solve's time."""
 from __future__ import annotations
 
-import ctypes
-import functools
-import os
 from typing import Any, Callable
 
 import casadi as ca
@@ -47,34 +44,11 @@ def ipopt_options(options: DirectOptions, warm_duals: bool = False) -> dict[str,
     return ipopt
 
 
-#: threads of the OpenBLAS that CasADi bundles (the BLAS of IPOPT's MUMPS; not NumPy's), unless the environment sets
-#: OPENBLAS_NUM_THREADS or OMP_NUM_THREADS: the frontal matrices of these banded KKT systems are small, and a second
-#: thread only waits in sched_yield.  Measured on the fuel raise at N = 400 (issue 27, an idle 2-core machine, the
-#: lead's run): 36.8 s wall of which 29.6 s system time with OpenBLAS's default of 2 threads, 33.8 s and 3.9 s with
-#: one; on a loaded machine the spinning thread takes a core from the others.
-BLAS_THREADS = 1
-
-
-@functools.cache
-def limit_blas_threads() -> int | None:
-    """Set the bundled OpenBLAS to BLAS_THREADS threads (once; the library is shared by every IPOPT of the process):
-    the thread count now, or None where there is nothing to set (another platform's library name, the environment
-    says otherwise)."""
-    if "OPENBLAS_NUM_THREADS" in os.environ or "OMP_NUM_THREADS" in os.environ:
-        return None
-    try:
-        lib = ctypes.CDLL(os.path.join(os.path.dirname(ca.__file__), "libcasadi-tp-openblas.so.0"))
-        lib.openblas_set_num_threads(BLAS_THREADS)
-        return int(lib.openblas_get_num_threads())
-    except (OSError, AttributeError):
-        return None
-
-
 def make_ipopt(name: str, nlp: StructuredNLP, ipopt: dict[str, Any], progress: Callable[[Iterate], None] | None,
                obj_scale: float, phase: str = "") -> ca.Function:
-    """An IPOPT nlpsol on a StructuredNLP with its block-assembled derivatives (the BLAS of its linear solver
-    single-threaded: :func:`limit_blas_threads`)."""
-    limit_blas_threads()
+    """An IPOPT nlpsol on a StructuredNLP with its block-assembled derivatives.  (Its linear solver's BLAS, the
+    OpenBLAS CasADi bundles, keeps its own thread count: setting it to one made the bundled LEO engine raise stall,
+    docs/mathematics.md §24.)"""
     nlp_opts: dict[str, Any] = {"print_time": False, "ipopt": ipopt, "show_eval_warnings": False,
                                 **nlp.derivative_functions()}
     if progress is not None:
