@@ -190,3 +190,27 @@ def test_a_body_fixed_engine_is_finished_on_its_structure_with_its_thrust_as_mag
         epi = solve_direct(p, options)
     assert epi.converged and "fuel_structure" not in epi.stats
     assert sol.cost == pytest.approx(epi.cost, rel=1e-9)
+
+
+def test_a_failed_warm_solve_is_solved_again_from_ipopts_own_start(coarse):
+    """The raise on 50 steps from its 25-step optimum with the first warm solve (the pruned one) cut to one iteration,
+    so that it fails: the same NLP is solved again from the same primal point with IPOPT's own barrier start, the
+    finish is kept (guard passed) and ends at the optimum of the unhindered finish (cost to 1e-9).  Why: on the raise's
+    4826-step level of accuracy 1e-6 the warm pruned solve ended Infeasible_Problem_Detected and from its own start
+    converged in 36 iterations (docs/mathematics.md §16)."""
+    sol25, p = coarse
+    options = se3ocp.DirectOptions()
+    plain, _ = fuel_structure.structured_finish(p, options, _guess(p, sol25))
+    real, cut = fuel_structure._solve, []
+
+    def failing_once(tr, opts, x0, duals, progress):
+        if duals is not None and not cut:
+            cut.append(True)
+            return real(tr, opts.replace(max_iter=1), x0, duals, progress)
+        return real(tr, opts, x0, duals, progress)
+
+    with mock.patch.object(fuel_structure, "_solve", failing_once):
+        sol, stats = fuel_structure.structured_finish(p, options, _guess(p, sol25))
+    assert cut and "from IPOPT's own start: Solve_Succeeded" in stats["fuel_structure"][0], stats["fuel_structure"]
+    assert sol.converged and stats["fuel_guard"] == "passed"
+    assert sol.cost == pytest.approx(plain.cost, rel=1e-9)

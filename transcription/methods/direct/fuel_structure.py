@@ -26,7 +26,12 @@ d = mu / (w omega) on the coast ones).
 (delta = ROUGH x the scale, IPOPT's own start with ROUGH_OPTIONS); the burn nodes it switched off (below PRUNE_RTOL
 x the scale) pruned; the solve with delta = EXACT x the scale from there, warm; the guard.  Coast nodes with
 sigma_j > GUARD_TOL join B (their control started at ESCAPE_KICK x the scale along mu_j / |mu_j|) and the NLP is
-solved again, warm, and pruned again: at most ROUNDS solves.  Not for fatrop: :func:`applies`.
+solved again, warm, and pruned again: at most ROUNDS solves.  A warm solve that fails is solved once more from
+the same primal point with IPOPT's own barrier start (ROUGH_OPTIONS): on the raise's adaptive 4826-step level of
+accuracy 1e-6 (from its 200-step optimum) the pruned solve warm from the rough one's multipliers (WARM_LEVEL, the
+barrier at 1e-9) wandered (primal infeasibility up to 1.4) and ended Infeasible_Problem_Detected after 59
+iterations; from its own barrier start the same point converged in 36, the guard passed (docs/mathematics.md §16).
+Not for fatrop: :func:`applies`.
 
 The roundings, the pruning threshold and the widening's kick are fractions of each part's reference r
 (:func:`~.homotopy.smoothing_reference`: its bound, or without one the start's largest magnitude): an unbounded
@@ -210,12 +215,19 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
         tr = SmoothTranscription(problem, options, burn=burn,
                                  rounding=rounding * ref / SmoothTranscription.magnitude_scales(problem))
         total["build_s"] += time.perf_counter() - tb
-        out, stats = _solve(tr, options, tr.initial_point(guess, guess.h) if x0 is None else x0, duals, progress)
-        its = int(stats.get("iter_count", 0))
-        total["iterations"] += its
-        status = str(stats.get("return_status", "unknown"))
+        start = tr.initial_point(guess, guess.h) if x0 is None else x0
+        said = []
+        for warm in ((duals, None) if duals is not None else (None,)):   # a failed warm solve: again, cold (module doc)
+            out, stats = _solve(tr, options, start, warm, progress)
+            its = int(stats.get("iter_count", 0))
+            total["iterations"] += its
+            status = str(stats.get("return_status", "unknown"))
+            said.append(("" if warm is not None or duals is None else "from IPOPT's own start: ") +
+                        f"{status} in {its} iterations")
+            if status == "Solve_Succeeded":
+                break
         point = tuple(np.array(out[k]).ravel() for k in ("x", "lam_g", "lam_x"))
-        return tr, out, stats, point, f"{status} in {its} iterations", status == "Solve_Succeeded"
+        return tr, out, stats, point, ", then ".join(said), status == "Solve_Succeeded"
 
     x0, duals, v = None, None, {}
     for rnd in range(1, ROUNDS + 1):
