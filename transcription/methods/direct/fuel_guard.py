@@ -60,11 +60,12 @@ def checked_parts(problem) -> np.ndarray:
                      for b, wt in zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))])
 
 
-def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray, engine=None) -> dict:
+def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray, nu_axis=None) -> dict:
     """The switching values of :func:`switching` from the multipliers ``mu`` (2, 3, nU, physical) of a point ``w``
-    (physical) of the NLP ``tr`` and its ``coast`` nodes (2, nU) bool; ``engine``: (rate, primer) of the force
-    where a body-fixed engine replaces |mu_j| and mu_j / |mu_j| (:func:`switching`).  The one place sigma is
-    computed, for the epigraph NLP and the structured one (:func:`.fuel_structure.switching_l1`)."""
+    (physical) of the NLP ``tr`` and its ``coast`` nodes (2, nU) bool; ``nu_axis`` (nU,): with a body-fixed engine,
+    the multipliers of its axis row a^T u_f / max (physical), whose rate a^T mu_j + nu_a / max and primer a replace
+    |mu_j| and mu_j / |mu_j| for the force (:func:`switching`).  The one place sigma is computed, for the epigraph NLP
+    and the structured one (:func:`.fuel_structure.switching_l1`)."""
     problem, lay, c = tr.problem, tr.layout, tr.problem.control
     h = float(w[lay.ih]) if lay.ih is not None else problem.h
     omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
@@ -73,8 +74,9 @@ def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray, engin
     rate = np.linalg.norm(mu, axis=1)                       # (2, nU): the gain of thrust per unit of s
     with np.errstate(divide="ignore", invalid="ignore"):
         primer = mu / rate[:, None, :]
-    if engine is not None:
-        rate[0], primer[0] = engine
+    if isinstance(c.force_bound, ThrusterBound):
+        a = c.force_bound.axis
+        rate[0], primer[0] = a @ mu[0] + nu_axis / c.force_bound.max, a[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = rate / (weights[:, None] * omega[None, :]) - 1.0
     return {"sigma": np.where(coast & checked[:, None], sigma, np.nan), "value": sigma, "mu": mu, "primer": primer,
@@ -99,12 +101,8 @@ def switching(tr, x: np.ndarray, lam_g: np.ndarray) -> dict:
     rows = tr.nlp.rows("controls")      # (nr, nU): ...; engine (3); |d|^2 - 1 (2); u_f - s_f d_f (3); u_m - s_m d_m (3)
     nu = tr.multipliers(lam_g)
     mu = np.stack([nu[rows[-6:-3]], nu[rows[-3:]]])        # (2, 3, nU)
-    engine = None
-    if isinstance(c.force_bound, ThrusterBound):
-        a = c.force_bound.axis
-        engine = (a @ mu[0] + nu[rows[-11]] / c.force_bound.max, a[:, None])
     coast = w[tr.layout.iS[:2]] < COAST_RTOL * tr.slack_scales[:, None]
-    return switching_values(tr, w, mu, coast, engine)
+    return switching_values(tr, w, mu, coast, nu[rows[-11]] if isinstance(c.force_bound, ThrusterBound) else None)
 
 
 def verdict(sw: dict, tol: float = GUARD_TOL) -> dict:

@@ -138,9 +138,8 @@ def switching_l1(tr: SmoothTranscription, x: np.ndarray, lam_g: np.ndarray, lam_
         burning = nu[i] * (eng.axis[:, None] if i == 0 and eng else u / np.sqrt(mags[i] ** 2 + delta[i] ** 2))
         mu[i] = np.where(tr.burn[i][None, :], burning, fixed)
     coast = ~tr.burn | (mags < COAST_RTOL * tr.slack_scales[:, None])
-    # an engine's rate along its axis: nu_j + nu_a / max, nu_a the multiplier of its axis row (.fuel_guard.switching)
-    rate = None if eng is None else (eng.axis @ mu[0] + nus[rows[-5]] / eng.max, eng.axis[:, None])
-    return switching_values(tr, w, mu, coast, rate)
+    # an engine's rate along its axis is nu_j + nu_a / max, nu_a the multiplier of its axis row (rows[-5])
+    return switching_values(tr, w, mu, coast, None if eng is None else nus[rows[-5]])
 
 
 def _widened(tr: SmoothTranscription, x: np.ndarray, sw: dict, ref: np.ndarray,
@@ -207,23 +206,23 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     switching value, where it widened), ``fuel_structure_rounds``."""
     t0 = time.perf_counter()
     ref = smoothing_reference(problem, guess.U)         # the parts' bounds, an unbounded part's largest magnitude
+    per_scale = ref / SmoothTranscription.magnitude_scales(problem)     # a rounding x ref, in the NLP's terms
     burn = burn_structure(problem, guess.U, ref, dilate)
     log, total = [], {"iterations": 0, "build_s": 0.0}
 
     def solve(burn, rounding, x0, duals):
         tb = time.perf_counter()
-        tr = SmoothTranscription(problem, options, burn=burn,
-                                 rounding=rounding * ref / SmoothTranscription.magnitude_scales(problem))
+        tr = SmoothTranscription(problem, options, burn=burn, rounding=rounding * per_scale)
         total["build_s"] += time.perf_counter() - tb
         start = tr.initial_point(guess, guess.h) if x0 is None else x0
         said = []
-        for warm in ((duals, None) if duals is not None else (None,)):   # a failed warm solve: again, cold (module doc)
+        tries = [(duals, "")] + ([(None, "from IPOPT's own start: ")] if duals is not None else [])
+        for warm, prefix in tries:      # a failed warm solve: again, cold (module docstring)
             out, stats = _solve(tr, options, start, warm, progress)
             its = int(stats.get("iter_count", 0))
             total["iterations"] += its
             status = str(stats.get("return_status", "unknown"))
-            said.append(("" if warm is not None or duals is None else "from IPOPT's own start: ") +
-                        f"{status} in {its} iterations")
+            said.append(f"{prefix}{status} in {its} iterations")
             if status == "Solve_Succeeded":
                 break
         point = tuple(np.array(out[k]).ravel() for k in ("x", "lam_g", "lam_x"))
