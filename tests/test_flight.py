@@ -73,13 +73,16 @@ def gravity(mu, J2=0.0, Re=0.0):
     return a
 
 
-def reflight(model, X0, times, start, end, J, sf=1.0, sm=1.0, Af=np.eye(3), Am=np.eye(3), accel=None):
+def reflight(model, X0, times, start, end, J, sf=1.0, sm=1.0, Af=np.eye(3), Am=np.eye(3), accel=None,
+             maccullagh=False):
     """DOP853 per node interval of x' = v, m v' = f + s_f R A_f R^T u_f, q' = q (x) (0, Omega)/2,
     J Omega' = J Omega x Omega + M + s_m A_m u_m, u = start + (t - t_k)/h (end - start); gravity ``accel``
-    (default: the point mass) on the point masses m/2 at the body's markers (the dumbbell).  Returns the
+    (default: the point mass) on the point masses m/2 at the body's markers (the dumbbell); ``maccullagh``: a rigid
+    body known by its inertia, U = -mu m / r - mu (tr J - 3 rhat^T R J R^T rhat) / (2 r^3) (problems/models.py),
+    its force and gravity-gradient moment 3 mu / r^5 b x J b (b = R^T x) written out here.  Returns the
     nodes as (x, v, R, Omega) arrays."""
     m, mu = model.mass, model.mu or 0.0
-    rho = np.asarray(model.markers) if mu else np.zeros((0, 3))
+    rho = np.asarray(model.markers) if mu and not maccullagh else np.zeros((0, 3))
     Jinv = np.linalg.inv(J)
     accel = accel or gravity(mu)
 
@@ -93,6 +96,12 @@ def reflight(model, X0, times, start, end, J, sf=1.0, sm=1.0, Af=np.eye(3), Am=n
             fq = (m / 2) * accel(p)
             f += fq
             M += np.cross(r, R.T @ fq)
+        if maccullagh:      # -grad_x of -mu m / r - mu tr J / (2 r^3) + 3 mu (b^T J b) / (2 r^5)
+            r, b = np.linalg.norm(x), R.T @ x
+            s = b @ J @ b
+            f = -(mu * m * x / r**3 + 1.5 * mu * np.trace(J) * x / r**5
+                  + 1.5 * mu * (2.0 * R @ (J @ b) / r**5 - 5.0 * s * x / r**7))
+            M = 3.0 * mu / r**5 * np.cross(b, J @ b)
         qd = 0.5 * np.array([-q[1:] @ Om, *(q[0] * Om + np.cross(q[1:], Om))])
         Omd = Jinv @ (np.cross(J @ Om, Om) + M + sm * Am @ u[3:6])
         return np.concatenate([v, (f + sf * R @ Af @ R.T @ u[0:3]) / m, qd, Omd])

@@ -139,8 +139,8 @@ def test_the_plan_uses_it_and_falls_back_to_the_epigraph_nlp(coarse):
     assert sol.converged and sol.stats["fuel_guard"] == "passed" and "fuel_structure" in sol.stats
     real = fuel_structure.structured_finish
 
-    def failing(problem, options, guess, progress=None):
-        return real(problem, options.replace(max_iter=3), guess, progress)
+    def failing(problem, options, guess, progress=None, **kw):
+        return real(problem, options.replace(max_iter=3), guess, progress, **kw)
 
     with mock.patch.object(solve_mod, "structured_finish", failing):
         fell = solve_direct(p, se3ocp.DirectOptions())
@@ -203,11 +203,11 @@ def test_a_failed_warm_solve_is_solved_again_from_ipopts_own_start(coarse):
     plain, _ = fuel_structure.structured_finish(p, options, _guess(p, sol25))
     real, cut = fuel_structure._solve, []
 
-    def failing_once(tr, opts, x0, duals, progress):
+    def failing_once(tr, opts, x0, duals, progress, *rest):
         if duals is not None and not cut:
             cut.append(True)
-            return real(tr, opts.replace(max_iter=1), x0, duals, progress)
-        return real(tr, opts, x0, duals, progress)
+            return real(tr, opts.replace(max_iter=1), x0, duals, progress, *rest)
+        return real(tr, opts, x0, duals, progress, *rest)
 
     with mock.patch.object(fuel_structure, "_solve", failing_once):
         sol, stats = fuel_structure.structured_finish(p, options, _guess(p, sol25))

@@ -31,6 +31,9 @@ the same primal point with IPOPT's own barrier start (ROUGH_OPTIONS): on the rai
 accuracy 1e-6 (from its 200-step optimum) the pruned solve warm from the rough one's multipliers (WARM_LEVEL, the
 barrier at 1e-9) wandered (primal infeasibility up to 1.4) and ended Infeasible_Problem_Detected after 59
 iterations; from its own barrier start the same point converged in 36, the guard passed (docs/mathematics.md §16).
+From an adaptive level's optimum that resolves the switching times (:func:`resolves`: refinement to an accuracy
+after its first adaptive level) the finish is one exact solve on the resampled burn nodes, neither widened, rough nor
+pruned, with the objective scaled by N / RESOLVED_NODES (``resolved``; docs/mathematics.md §23).
 Not for fatrop: :func:`applies`.
 
 The roundings, the pruning threshold and the widening's kick are fractions of each part's reference r
@@ -81,11 +84,31 @@ EXACT = 1e-6
 ROUNDS = 4
 #: ... and NLP iterations per solve
 ROUND_BUDGET = 500
+#: a warm start on a non-uniform mesh (an adaptive level of refinement to an accuracy, docs/mathematics.md §16) with
+#: more than this fraction of the problem's steps resolves the switching times: :func:`structured_finish` with
+#: ``resolved`` (the first adaptive level, from the uniform N, and uniform levels, which at least double N, are
+#: finished as from a coarser grid).  The raise at accuracy 1e-6, 4826 -> 4923 adaptive steps: the exact solve
+#: converged in 91 iterations (21 without the scaled objective), guard passed, where the widened rough solve did not
+#: converge in 500
+RESOLVED_FRACTION = 0.5
+#: ... and its solves see the objective scaled by N / RESOLVED_NODES (IPOPT's obj_scaling_factor, at least 1): each
+#: node's share of the fuel falls with its step, the barrier's pull does not, so on a fine grid IPOPT's own barrier
+#: start wanders.  The raise, 4923 -> 6216 adaptive steps: unscaled the exact solve was at primal infeasibility 36
+#: after 80 iterations (at cost 3.7 after 20); scaled by 31, Solve_Succeeded in 38, guard passed
+RESOLVED_NODES = 200
 
 
 def applies(problem: Problem, options: DirectOptions) -> bool:
     """Whether the structured finish covers ``problem``: the fuel objective, IPOPT."""
     return problem.control.objective == "fuel" and options.solver == "ipopt"
+
+
+def resolves(t_from: np.ndarray, n_to: int) -> bool:
+    """Whether an optimum at the node times ``t_from`` resolves the switching times of a grid of ``n_to`` steps (a
+    warm start finished with ``resolved``, :func:`structured_finish`): its mesh is non-uniform (an adaptive level)
+    and has more than RESOLVED_FRACTION n_to steps."""
+    h = np.diff(np.asarray(t_from, float))
+    return len(h) > RESOLVED_FRACTION * n_to and not np.allclose(h, h.mean(), rtol=1e-9, atol=0.0)
 
 
 def engine(problem: Problem) -> ThrusterBound | None:
@@ -156,10 +179,12 @@ def _widened(tr: SmoothTranscription, x: np.ndarray, sw: dict, ref: np.ndarray,
     return burn, x
 
 
-def _solve(tr: SmoothTranscription, options: DirectOptions, x0: np.ndarray, duals, progress):
+def _solve(tr: SmoothTranscription, options: DirectOptions, x0: np.ndarray, duals, progress, extra: dict):
     """IPOPT on ``tr`` from x0 (scaled): warm from ``duals`` = (lam_g, lam_x) with the homotopy's WARM_LEVEL options,
-    or with ROUGH_OPTIONS when None.  Returns (out, stats)."""
+    or with ROUGH_OPTIONS when None; ``extra`` IPOPT options too.  Returns (out, stats)."""
     ipopt = ipopt_options(options.replace(max_iter=min(options.max_iter, ROUND_BUDGET)), warm_duals=duals is not None)
+    for k, val in extra.items():
+        ipopt.setdefault(k, val)
     for k, val in (ROUGH_OPTIONS if duals is None else WARM_LEVEL).items():
         ipopt.setdefault(k, val)
     solver = make_ipopt("fuel_structure", tr.nlp, ipopt, progress, tr.scales.objective)
@@ -198,16 +223,21 @@ def _nodes(burn: np.ndarray) -> str:
 
 
 def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, progress=None,
-                      dilate: int = DILATE) -> tuple[Solution, dict]:
+                      dilate: int = DILATE, resolved: bool = False) -> tuple[Solution, dict]:
     """The fuel problem on ``problem``'s grid from ``guess`` (a coarser grid's optimum resampled) on its switching
-    structure (module docstring).  Returns the last Solution (converged or not; its cost the L1 cost of its controls;
-    its iterations and times those of every solve) and stats: :func:`~.fuel_guard.verdict`'s of its switching values,
-    ``fuel_structure`` (one line per round: the burn nodes, each solve's status and iterations, the cost, the largest
+    structure (module docstring).  ``resolved``: the guess is the optimum of a grid that already resolves the
+    switching times (a previous level of refinement to an accuracy with more than RESOLVED_FRACTION of this grid's
+    steps, :func:`resolves`): its own burn nodes are the structure (not widened), the first solve is the exact
+    one (delta EXACT) from IPOPT's own barrier start, neither rough nor pruned (the guard and its widening as
+    always), and every solve sees the objective scaled by N / RESOLVED_NODES.  Returns the last Solution (converged
+    or not; its cost the L1 cost of its controls; its iterations and times those of every solve) and stats:
+    :func:`~.fuel_guard.verdict`'s of its switching values, ``fuel_structure`` (one line per round: the burn nodes, each solve's status and iterations, the cost, the largest
     switching value, where it widened), ``fuel_structure_rounds``."""
     t0 = time.perf_counter()
     ref = smoothing_reference(problem, guess.U)         # the parts' bounds, an unbounded part's largest magnitude
     per_scale = ref / SmoothTranscription.magnitude_scales(problem)     # a rounding x ref, in the NLP's terms
-    burn = burn_structure(problem, guess.U, ref, dilate)
+    burn = burn_structure(problem, guess.U, ref, 0 if resolved else dilate)
+    extra = {"obj_scaling_factor": max(1.0, problem.N / RESOLVED_NODES)} if resolved else {}
     log, total = [], {"iterations": 0, "build_s": 0.0}
 
     def solve(burn, rounding, x0, duals):
@@ -218,7 +248,7 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
         said = []
         tries = [(duals, "")] + ([(None, "from IPOPT's own start: ")] if duals is not None else [])
         for warm, prefix in tries:      # a failed warm solve: again, cold (module docstring)
-            out, stats = _solve(tr, options, start, warm, progress)
+            out, stats = _solve(tr, options, start, warm, progress, extra)
             its = int(stats.get("iter_count", 0))
             total["iterations"] += its
             status = str(stats.get("return_status", "unknown"))
@@ -230,11 +260,12 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
 
     x0, duals, v = None, None, {}
     for rnd in range(1, ROUNDS + 1):
-        rough = duals is None
+        rough = duals is None and not resolved
         said = [f"solve {rnd}: burn nodes {_nodes(burn)} of {burn.shape[1]}"]
         tr, out, stats, point, what, ok = solve(burn, ROUGH if rough else EXACT, x0, duals)
-        said.append(f"rough (delta {ROUGH:.0e}) {what}" if rough else what)
-        if ok:
+        said.append(f"rough (delta {ROUGH:.0e}) {what}" if rough else
+                    f"exact on the resolved structure, from IPOPT's own start: {what}" if duals is None else what)
+        if ok and (rough or duals is not None):     # the resolved structure's first solve is not pruned
             pruned, x0 = _pruned(tr, point[0], ref)
             duals = (point[1], _released(tr, point[2], pruned))
             if rough or (pruned != tr.burn).any():
@@ -261,5 +292,5 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     return sol, {**v, "fuel_structure": log, "fuel_structure_rounds": len(log)}
 
 
-__all__ = ["DILATE", "EXACT", "PRUNE_RTOL", "ROUGH", "ROUNDS", "applies", "burn_structure", "structured_finish",
-           "switching_l1"]
+__all__ = ["DILATE", "EXACT", "PRUNE_RTOL", "RESOLVED_FRACTION", "RESOLVED_NODES", "ROUGH", "ROUNDS", "applies",
+           "burn_structure", "resolves", "structured_finish", "switching_l1"]

@@ -80,6 +80,9 @@ PHASE1 = {"start_with_resto": "yes"}
 RELAXED = "the relaxed problem"
 #: Guess.prepared_on of a start solved on a coarser grid (:func:`coarse_guess`)
 COARSE = "the coarse grid"
+#: Guess.prepared_on of a fuel warm start from a grid that resolves the problem's switching times (a previous level
+#: of refinement to an accuracy: .fuel_structure.resolves), finished on its own burn nodes
+RESOLVED = "a grid resolving the switching times"
 #: the note of the starts not tried after the phase 1 found the problem infeasible
 NOT_TRIED = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally infeasible; "
              "solver.direct.initial_guess=rollout or interpolate tries this start)")

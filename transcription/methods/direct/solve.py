@@ -17,10 +17,10 @@ from ...warm import WarmStart
 from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
-from .fuel_structure import applies as structure_applies, structured_finish
+from .fuel_structure import applies as structure_applies, resolves, structured_finish
 from .homotopy import WARM_LEVEL, WARM_PRIMAL, Point
-from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
-                   warm_guess)
+from .plan import (COARSE, NOT_TRIED, RELAXED, RESOLVED, PlanEntry, failure_hint, guess_plan, multistart,
+                   plan_ipopt_options, warm_guess)
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
@@ -63,12 +63,13 @@ class _PlanRun:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
         tr = self.tr
-        if tr.fuel and guess.prepared_on == COARSE and structure_applies(self.problem, self.options):
+        if tr.fuel and guess.prepared_on in (COARSE, RESOLVED) and structure_applies(self.problem, self.options):
             sol = self.structured(label, guess)
             if sol is not None:
                 return sol
         level = guess.duals is not None and guess.duals[0] == tr.nlp.key
-        solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and guess.prepared_on == COARSE)
+        solver = self.solver(budget, guess.prepared_on == RELAXED, level,
+                             tr.fuel and guess.prepared_on in (COARSE, RESOLVED))
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
         if level:   # the very point of the homotopy's last level (its slacks too), with its multipliers
             args.update(x0=guess.duals[1], lam_g0=guess.duals[2], lam_x0=guess.duals[3])
@@ -105,9 +106,11 @@ class _PlanRun:
 
     def structured(self, label: str, guess: Guess) -> Solution | None:
         """The fuel problem finished from a coarser grid's optimum on its switching structure
-        (:func:`.fuel_structure.structured_finish`): its Solution if it converged and passed the fuel KKT guard, else
+        (:func:`.fuel_structure.structured_finish`; ``resolved`` from a grid that resolves the switching times,
+        :data:`~.plan.RESOLVED`): its Solution if it converged and passed the fuel KKT guard, else
         None (the epigraph NLP then finishes from the same guess; ``structure`` says what was tried)."""
-        sol, stats = structured_finish(self.problem, self.options, guess, self.progress)
+        sol, stats = structured_finish(self.problem, self.options, guess, self.progress,
+                                       resolved=guess.prepared_on == RESOLVED)
         self.extra_build_s += sol.build_s
         self.solve_s += sol.solve_s
         self.structure = stats["fuel_structure"]
@@ -180,10 +183,13 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     notes: tuple[str, ...] = ()
     origin = warm.describe() if warm is not None else ""
     if warm is not None:
+        t_from = warm.t
         warm, notes = warm.fit(problem.N, problem.scheme, problem.fractions)
-        # a fuel plan on another grid is finished like a coarser grid's optimum: on its switching structure (§23)
+        # a fuel plan on another grid is finished like a coarser grid's optimum: on its switching structure (§23);
+        # from an adaptive level's mesh that resolves the switching times, on its own burn nodes
         resampled = problem.control.objective == "fuel" and bool(notes)
-        guess = replace(warm_guess(warm), prepared_on=COARSE) if resampled else warm_guess(warm)
+        kind = RESOLVED if resolves(t_from, problem.N) else COARSE
+        guess = replace(warm_guess(warm), prepared_on=kind) if resampled else warm_guess(warm)
         plan, pick = [("warm start", lambda: guess, options.max_iter)], "first"
     else:
         plan, pick = guess_plan(problem, options, solve_direct)
