@@ -18,7 +18,7 @@ from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .fuel_structure import applies as structure_applies, structured_finish
-from .homotopy import WARM_LEVEL, WARM_PRIMAL, Point
+from .homotopy import STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
 from .solution import nlp_solution
@@ -63,12 +63,13 @@ class _PlanRun:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
         tr = self.tr
-        if tr.fuel and guess.prepared_on == COARSE and structure_applies(self.problem, self.options):
+        structure = guess.prepared_on in (COARSE, STRUCTURE_START)     # a point near the fuel optimum's structure
+        if tr.fuel and structure and structure_applies(self.problem, self.options):
             sol = self.structured(label, guess)
             if sol is not None:
                 return sol
         level = guess.duals is not None and guess.duals[0] == tr.nlp.key
-        solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and guess.prepared_on == COARSE)
+        solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and structure)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
         if level:   # the very point of the homotopy's last level (its slacks too), with its multipliers
             args.update(x0=guess.duals[1], lam_g0=guess.duals[2], lam_x0=guess.duals[3])
