@@ -18,7 +18,7 @@ from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .fuel_structure import applies as structure_applies, structured_finish
-from .homotopy import STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
+from .homotopy import LEVEL_BUDGET, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options,
                    warm_guess)
 from .solution import nlp_solution
@@ -68,6 +68,8 @@ class _PlanRun:
             sol = self.structured(label, guess)
             if sol is not None:
                 return sol
+            if guess.prepared_on == STRUCTURE_START:    # a level's point at its budget: the fallback gets a level's
+                budget = min(budget, LEVEL_BUDGET)      # budget, not max_iter (the plan's other starts follow)
         level = guess.duals is not None and guess.duals[0] == tr.nlp.key
         solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and structure)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
