@@ -154,3 +154,42 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     assert at >= 0.98
     assert M.max() <= bm * (1 + 1e-8)
     assert abs(miss - free.terminal_error) <= 0.01 * free.terminal_error
+
+
+def test_a_level_at_its_budget_starts_the_structured_finish(monkeypatch):
+    """homotopy.STRUCTURE_FROM_BUDGET: the fuel raise on 25 steps by the levels (no jump) with the level eps = 0.1 cut
+    to 5 iterations: the homotopy ends there, and its point starts the structured finish.  That point is far from
+    sparse (every node burns), and the finish's rough solve does not converge (500 iterations, as from the effort
+    optimum, docs §24); the epigraph NLP from the same point, within LEVEL_BUDGET, reaches the levels' own optimum
+    (to 1e-8; measured 0.812941492) with the guard passed.  Without STRUCTURE_FROM_BUDGET the homotopy gives no
+    start.  (configs/leo_engine_fuel.yaml, where the level's point is near bang-off-bang, takes the finish itself:
+    test_the_bundled_leo_fuel_raise_converges_bang_off_bang.)"""
+    from se3ocp.transcription.methods.direct import solve as solve_mod
+    from se3ocp.transcription.methods.direct.fuel_guard import guarded
+    from se3ocp.transcription.methods.direct.plan import relaxation
+    from se3ocp.transcription.methods.direct.solve import solve_direct
+
+    p, options = problem("orbit_raise_fuel", 25), se3ocp.DirectOptions()
+    monkeypatch.setattr(homotopy, "JUMP", False)
+
+    def run():
+        r = solve_mod._PlanRun(p, options, None, None)
+        sol = r.run([("hom", lambda: homotopy.homotopy_guess(p, options, solve_direct, relaxation), options.max_iter)],
+                     "first")
+        return (guarded(r, sol) if sol is not None and sol.converged else sol), r
+
+    full, _ = run()
+    level = homotopy.solve_level
+    monkeypatch.setattr(homotopy, "solve_level", lambda pr, o, eps, start, ref=None, budget=homotopy.LEVEL_BUDGET:
+                        level(pr, o, eps, start, ref, 5 if eps == 0.1 else budget))
+    cut, r = run()
+    said = cut.stats["homotopy_levels"]
+    assert "eps = 1e-01: 5, Maximum_Iterations_Exceeded: its point starts the structured finish" in said, said
+    assert cut.converged and cut.stats["fuel_guard"] == "passed", cut.message
+    assert r.structure[0].startswith("solve 1: burn nodes force 26, moment 26 of 26; rough"), r.structure
+    assert r.structure[-1] == "not kept: the fuel NLP finished from the same start"
+    fallback = r.attempts[-1]
+    assert fallback.iterations - fallback.guess_iterations <= homotopy.LEVEL_BUDGET
+    assert full.converged and cut.cost == pytest.approx(full.cost, rel=1e-8), (cut.cost, full.cost)
+    monkeypatch.setattr(homotopy, "STRUCTURE_FROM_BUDGET", False)
+    assert homotopy.homotopy_guess(p, options, solve_direct, relaxation) is None
