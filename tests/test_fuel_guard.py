@@ -131,7 +131,8 @@ def test_the_false_minimum_on_the_mesh_is_left_and_the_indirect_method_agrees():
 
     p = raise_on_mesh(40, "lgvi")
     with mock.patch.object(solve_mod, "structure_applies", lambda *_: False), \
-            mock.patch.object(homotopy, "JUMP", False), mock.patch.object(homotopy, "EFFORT_ROLLOUT", False):
+            mock.patch.object(homotopy, "JUMP", False), mock.patch.object(homotopy, "EFFORT_ROLLOUT", False), \
+            mock.patch.object(homotopy, "EFFORT_AS_FIRST_LEVEL", False):
         old = solve_direct(p)      # the path of issue 26's case: the levels, the epigraph finish
     assert old.converged and old.attempts[0].cost > 0.81539243, old.message
     assert old.stats["fuel_escape"][0].startswith("1: d re-aimed at force 3, 4")
