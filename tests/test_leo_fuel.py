@@ -107,10 +107,11 @@ def test_the_leo_fuel_raise_is_the_engine_raise_with_wheels():
 
 def test_the_homotopys_effort_problem_is_its_first_level():
     """homotopy.effort_problem: with every counted part bounded its weights are w_i / r_i (r_i the bounds), the
-    first level's phi_1(s) = s^2 / (2 r) -- leo_engine_fuel: 1e3 and 1e13 (the moment's weight 1e10 times the
-    force's, as in leo_body_engine's effort problem); the fuel raise: 1 / 40 and 1 -- and the file's weights
-    otherwise (leo_body_engine with the fuel objective: no moment bound)."""
-    for name, sets, want in (("leo_engine_fuel", (), (1e3, 1e13)), ("orbit_raise_fuel", (), (1 / 40, 1.0)),
+    first level's phi_1(s) = s^2 / (2 r), where the bounds differ by more than EFFORT_LEVEL_RATIO -- leo_engine_fuel:
+    1e3 and 1e13 (the moment's weight 1e10 times the force's, as in leo_body_engine's effort problem) -- and the
+    file's weights otherwise (the fuel raise, bounds 40 and 1; leo_body_engine with the fuel objective: no moment
+    bound)."""
+    for name, sets, want in (("leo_engine_fuel", (), (1e3, 1e13)), ("orbit_raise_fuel", (), (1.0, 1.0)),
                              ("leo_body_engine", (FUEL,), (1.0, 1e10))):
         e = homotopy.effort_problem(problem(name, 10, None, *sets)).control
         assert e.objective == "effort"

@@ -99,6 +99,12 @@ EFFORT_ROLLOUT_BUDGET = 200
 #: level's weights the raise on its mesh reaches another false minimum, 0.8151062, escaped to the same optimum
 #: 0.8150812453)
 EFFORT_AS_FIRST_LEVEL = True
+#: ... only where the references differ by more than this factor (r_f / r_m or r_m / r_f), so that the file's weights
+#: weigh the parts' squared magnitudes in a ratio more than this factor off the first level's: leo_engine_fuel 1e5.
+#: The fuel raise (40) keeps the file's weights: with (1/40, 1) its 100-step direct point re-tightened at tol 1e-12
+#: was one from which the indirect method did not converge (tests/test_indirect_fuel.py, |z_N| = 47 after 50
+#: iterations), and the mesh case's old path stopped at another false minimum (above)
+EFFORT_LEVEL_RATIO = 1e3
 #: Guess.prepared_on of the homotopy's point
 PREPARED_ON = "the fuel homotopy"
 #: a smoothed level after the first (eps < SMOOTHING_FIRST) that reaches LEVEL_BUDGET ends the homotopy with its
@@ -143,8 +149,9 @@ def effort_problem(problem: Problem) -> Problem:
     """The effort problem whose optimum starts the homotopy: ``problem`` with the objective effort,
     sum_j omega_j (1/2)(u_f^T W_f' u_f + u_m^T W_m' u_m), where W_i' = w_i / r_i I (w_i the fuel weights, r_i the
     references of :func:`smoothing_reference`, physical units) when every part whose fuel counts is bounded (then r_i is
-    the bound, known before the solve); otherwise W_i' = w_i I as before (an unbounded part's r is the effort optimum's
-    own magnitude).  This effort problem is the first level's, phi_1(s) = s^2 / (2 r): its optimum is the level's.
+    the bound, known before the solve) and the bounds differ by more than EFFORT_LEVEL_RATIO; otherwise W_i' = w_i I as
+    before (an unbounded part's r is the effort optimum's own magnitude).  This effort problem is the first level's,
+    phi_1(s) = s^2 / (2 r): its optimum is the level's.
     Why: the fuel weights price |u| and the effort weights |u|^2, so the same numbers weigh the parts in the ratio of
     their magnitudes differently.  configs/leo_engine_fuel.yaml (engine <= 1e-3 kN, wheels <= 1e-8 kN km) in a first
     draft with w_m = 1e4 /km: with those weights the moment's squared cost was ~1e-9 of the force's, the moment free in
@@ -154,9 +161,10 @@ def effort_problem(problem: Problem) -> Problem:
     c = problem.control
     parts = [(b, c.W_f[0, 0] if i == 0 else c.W_m[0, 0]) for i, b in enumerate((c.force_bound, c.moment_bound))]
     counted = [b for b, w in parts if w > 0 and not (isinstance(b, NormBound) and b.b <= 0)]
-    if not EFFORT_AS_FIRST_LEVEL or not counted or any(b is None for b in counted):
-        return problem.replace(control=replace(c, objective="effort"))
     r = SmoothTranscription.magnitude_scales(problem)
+    if (not EFFORT_AS_FIRST_LEVEL or not counted or any(b is None for b in counted)
+            or max(r[0] / r[1], r[1] / r[0]) <= EFFORT_LEVEL_RATIO):
+        return problem.replace(control=replace(c, objective="effort"))
     return problem.replace(control=replace(c, objective="effort", W_f=c.W_f / r[0], W_m=c.W_m / r[1]))
 
 
