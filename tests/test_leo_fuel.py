@@ -7,6 +7,8 @@ what the fuel plan does differently for maneuvers in physical units (docs/mathem
 2. The coarse grids of a fuel problem without a force bound (:func:`~transcription.methods.direct.plan.
    coarse_resolves`): used only when their free motion ends near the fine grid's compared with the displacement the
    maneuver needs (leo_raise_slew on 100 steps: a gap of 53 km against 47 km: not resolved).
+3. The bundled LEO fuel raise with reaction wheels (configs/leo_engine_fuel.yaml): the homotopy's effort problem
+   weighted as its first level (:func:`~transcription.methods.direct.homotopy.effort_problem`), and the solve.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ from se3ocp.transcription.methods.direct import homotopy
 from se3ocp.transcription.methods.direct.plan import coarse_resolves
 from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
 from se3ocp.transcription.problem import quadrature_weights
-from support import problem
+from support import maneuver, problem
 
 FUEL = "control.objective=fuel"
 
@@ -87,3 +89,108 @@ def test_a_coarse_grid_without_a_force_bound_must_be_the_same_maneuver():
     assert not coarse_resolves(problem("leo_raise_slew", 400, None, FUEL), 100)
     assert coarse_resolves(problem("orbit_raise_fuel", 400), 100)
     assert coarse_resolves(problem("orbit_raise_fuel", 400, None, "control.bounds={moment: {norm: 1.0}}"), 100)
+
+
+# ------------------------------------------------------------------- the bundled LEO fuel raise (leo_engine_fuel)
+def test_the_leo_fuel_raise_is_the_engine_raise_with_wheels():
+    """configs/leo_engine_fuel.yaml is configs/leo_body_engine.yaml's spacecraft and maneuver (every resolved key
+    but the name and the control equal), with the fuel objective, the same engine (body +x, 0 <= T <= 1e-3 kN), a
+    reaction-wheel bound |u_m| <= 1e-8 kN km (0.01 N m) and the weights w_f = 1, w_m = 1e5 /km."""
+    fuel, effort = maneuver("leo_engine_fuel"), maneuver("leo_body_engine")
+    assert {k for k in fuel.resolved if fuel.resolved[k] != effort.resolved[k]} == {"name", "control"}
+    c = fuel.problem.control
+    assert c.objective == "fuel"
+    assert fuel.resolved["control"]["bounds"]["force"] == effort.resolved["control"]["bounds"]["force"]
+    assert isinstance(c.moment_bound, homotopy.NormBound) and c.moment_bound.b == 1e-8
+    assert c.W_f[0, 0] == 1.0 and c.W_m[0, 0] == 1e5 and fuel.problem.N == 400
+
+
+def test_the_homotopys_effort_problem_is_its_first_level():
+    """homotopy.effort_problem: with every counted part bounded its weights are w_i / r_i (r_i the bounds), the
+    first level's phi_1(s) = s^2 / (2 r), where the bounds differ by more than EFFORT_LEVEL_RATIO -- leo_engine_fuel:
+    1e3 and 1e13 (the moment's weight 1e10 times the force's, as in leo_body_engine's effort problem) -- and the
+    file's weights otherwise (the fuel raise, bounds 40 and 1; leo_body_engine with the fuel objective: no moment
+    bound)."""
+    for name, sets, want in (("leo_engine_fuel", (), (1e3, 1e13)), ("orbit_raise_fuel", (), (1.0, 1.0)),
+                             ("leo_body_engine", (FUEL,), (1.0, 1e10))):
+        e = homotopy.effort_problem(problem(name, 10, None, *sets)).control
+        assert e.objective == "effort"
+        assert np.allclose(e.W_f, want[0] * np.eye(3), rtol=1e-15, atol=0.0)
+        assert np.allclose(e.W_m, want[1] * np.eye(3), rtol=1e-15, atol=0.0)
+
+
+@pytest.mark.slow
+def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
+    """configs/leo_engine_fuel.yaml with the default options (N = 400): converged, the fuel KKT guard passed, the
+    re-simulated terminal error <= 1e-6 (km, km/s, rad; measured 1.3e-10).  The thrust T = a^T u_f is at 0 or at its
+    maximum (within AT_BOUND_RTOL = 1e-3 of the maximum, where an interior point sits) on at least 98 % of the nodes
+    (measured 99.0 %: four switches, a partial node at each), and the wheels' moment within its bound
+    |u_m| <= 1e-8 kN km to the solver's tolerance (1e-8 of it; measured 1 - 3.6e-9 at most).  Flown in continuous
+    time (the project's flight engine, another integrator than the LGVI), the plan misses its own last node by what
+    the LGVI's discretization of the orbit misses the continuous orbit by on these 400 steps: the free motion's
+    continuous miss on the same grid (3.508 km: the discrete orbit's phase error, h = 13.9 s), within 1 % of it
+    (measured 3.501 km, 0.22 %) -- the controls add no miss of their own.  Measured: 1066 iterations, cost
+    3.2590120405 kN s, of which the engine's impulse 2.8587 kN s (5.72 m/s) and the wheels' 1e5 x 4.0e-6."""
+    import se3ocp
+    from se3ocp.transcription.flight import continuous_check
+    from se3ocp.transcription.problem import quadrature_weights
+    from se3ocp.transcription.problem.controls import AT_BOUND_RTOL
+
+    man = maneuver("leo_engine_fuel")
+    p = man.problem
+    sol = se3ocp.solve(man)
+    assert sol.converged and sol.stats["fuel_guard"] == "passed", sol.message
+    assert sol.terminal_error <= 1e-6
+    b, bm = p.control.force_bound, p.control.moment_bound.b
+    T = b.thrust(sol.u_f)
+    om = quadrature_weights(sol.scheme, sol.N, sol.h)
+    at = np.mean((T <= AT_BOUND_RTOL * b.max) | (T >= (1 - AT_BOUND_RTOL) * b.max))
+    M = np.linalg.norm(sol.controls[3:], axis=0)
+    free = continuous_check(se3ocp.simulate(p, np.zeros_like(sol.controls)))
+    miss = sol.continuous.terminal_error
+    print(f"leo_engine_fuel: {sol.iterations} it, cost {sol.cost!r}, impulse {float(om @ T)!r} kN s, wheels "
+          f"{float(om @ M)!r} kN km s, bang {at:.4f}, max |u_m| {M.max()!r}, continuous miss {miss!r} "
+          f"(position {sol.continuous.terminal_position!r}), free motion's {free.terminal_error!r} "
+          f"({free.terminal_position!r}); {sol.stats['homotopy_levels']}; {sol.stats['fuel_structure']}")
+    assert at >= 0.98
+    assert M.max() <= bm * (1 + 1e-8)
+    assert abs(miss - free.terminal_error) <= 0.01 * free.terminal_error
+
+
+def test_a_level_at_its_budget_starts_the_structured_finish(monkeypatch):
+    """homotopy.STRUCTURE_FROM_BUDGET: the fuel raise on 25 steps by the levels (no jump) with the level eps = 0.1 cut
+    to 5 iterations: the homotopy ends there, and its point starts the structured finish.  That point is far from
+    sparse (every node burns), and the finish's rough solve does not converge (500 iterations, as from the effort
+    optimum, docs §24); the epigraph NLP from the same point, within LEVEL_BUDGET, reaches the levels' own optimum
+    (to 1e-8; measured 0.812941492) with the guard passed.  Without STRUCTURE_FROM_BUDGET the homotopy gives no
+    start.  (configs/leo_engine_fuel.yaml, where the level's point is near bang-off-bang, takes the finish itself:
+    test_the_bundled_leo_fuel_raise_converges_bang_off_bang.)"""
+    from se3ocp.transcription.methods.direct import solve as solve_mod
+    from se3ocp.transcription.methods.direct.fuel_guard import guarded
+    from se3ocp.transcription.methods.direct.plan import relaxation
+    from se3ocp.transcription.methods.direct.solve import solve_direct
+
+    p, options = problem("orbit_raise_fuel", 25), se3ocp.DirectOptions()
+    monkeypatch.setattr(homotopy, "JUMP", False)
+
+    def run():
+        r = solve_mod._PlanRun(p, options, None, None)
+        sol = r.run([("hom", lambda: homotopy.homotopy_guess(p, options, solve_direct, relaxation), options.max_iter)],
+                     "first")
+        return (guarded(r, sol) if sol is not None and sol.converged else sol), r
+
+    full, _ = run()
+    level = homotopy.solve_level
+    monkeypatch.setattr(homotopy, "solve_level", lambda pr, o, eps, start, ref=None, budget=homotopy.LEVEL_BUDGET:
+                        level(pr, o, eps, start, ref, 5 if eps == 0.1 else budget))
+    cut, r = run()
+    said = cut.stats["homotopy_levels"]
+    assert "eps = 1e-01: 5, Maximum_Iterations_Exceeded: its point starts the structured finish" in said, said
+    assert cut.converged and cut.stats["fuel_guard"] == "passed", cut.message
+    assert r.structure[0].startswith("solve 1: burn nodes force 26, moment 26 of 26; rough"), r.structure
+    assert r.structure[-1] == "not kept: the fuel NLP finished from the same start"
+    fallback = r.attempts[-1]
+    assert fallback.iterations - fallback.guess_iterations <= homotopy.LEVEL_BUDGET
+    assert full.converged and cut.cost == pytest.approx(full.cost, rel=1e-8), (cut.cost, full.cost)
+    monkeypatch.setattr(homotopy, "STRUCTURE_FROM_BUDGET", False)
+    assert homotopy.homotopy_guess(p, options, solve_direct, relaxation) is None

@@ -94,8 +94,26 @@ JUMP_MAX_N = 40
 #: them on (the lead's run of `pytest -m slow -k fuel`, 11 passed).
 EFFORT_ROLLOUT = True
 EFFORT_ROLLOUT_BUDGET = 200
+#: the homotopy's effort problem is weighted as its first level (:func:`effort_problem`) only where the references
+#: differ by more than this factor (r_f / r_m or r_m / r_f), so that the file's weights
+#: weigh the parts' squared magnitudes in a ratio more than this factor off the first level's: leo_engine_fuel 1e5.
+#: The fuel raise (40) keeps the file's weights: with (1/40, 1) its 100-step direct point re-tightened at tol 1e-12
+#: was one from which the indirect method did not converge (tests/test_indirect_fuel.py, |z_N| = 47 after 50
+#: iterations), and on its 40-step mesh (tests/test_fuel_guard.py) the path stopped at another false minimum, 0.8151062,
+#: than the one that test reproduces (0.8153924; both escaped to 0.8150812453)
+EFFORT_LEVEL_RATIO = 1e3
 #: Guess.prepared_on of the homotopy's point
 PREPARED_ON = "the fuel homotopy"
+#: a smoothed level after the first (eps < SMOOTHING_FIRST) that reaches LEVEL_BUDGET ends the homotopy with its
+#: last point, which then starts the structured finish (:mod:`.fuel_structure`) as a coarser grid's optimum would
+#: (Guess.prepared_on STRUCTURE_START), instead of no start.  Why: on a grid the coarse grids do not resolve
+#: (:func:`~.plan.coarse_resolves`) the levels run on the problem's own steps, where a level may crawl (docs §21);
+#: its point is still near the fuel optimum's switching structure.  configs/leo_engine_fuel.yaml (N = 400): the
+#: level eps = 0.1 reached its 500 iterations with the thrust at 0 or its maximum on most nodes; the structured
+#: finish from such a point converged and passed the guard (docs/mathematics.md §21, "A reaction-wheel bound").
+#: STRUCTURE_FROM_BUDGET = False: a level at its budget ends the homotopy without a start, as before.
+STRUCTURE_FROM_BUDGET = True
+STRUCTURE_START = "the fuel homotopy's last level, at its budget"
 
 
 def smoothing_levels() -> list[float]:
@@ -122,6 +140,29 @@ def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
     unbounded = np.array([b is None or (isinstance(b, NormBound) and b.b <= 0) for b in (c.force_bound,
                                                                                         c.moment_bound)])
     return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, SmoothTranscription.magnitude_scales(problem))
+
+
+def effort_problem(problem: Problem) -> Problem:
+    """The effort problem whose optimum starts the homotopy: ``problem`` with the objective effort,
+    sum_j omega_j (1/2)(u_f^T W_f' u_f + u_m^T W_m' u_m), where W_i' = w_i / r_i I (w_i the fuel weights, r_i the
+    references of :func:`smoothing_reference`, physical units) when every part whose fuel counts is bounded (then r_i is
+    the bound, known before the solve) and the bounds differ by more than EFFORT_LEVEL_RATIO; otherwise W_i' = w_i I as
+    before (an unbounded part's r is the effort optimum's own magnitude).  This effort problem is the first level's,
+    phi_1(s) = s^2 / (2 r): its optimum is the level's.
+    Why: the fuel weights price |u| and the effort weights |u|^2, so the same numbers weigh the parts in the ratio of
+    their magnitudes differently.  configs/leo_engine_fuel.yaml (engine <= 1e-3 kN, wheels <= 1e-8 kN km) in a first
+    draft with w_m = 1e4 /km: with those weights the moment's squared cost was ~1e-9 of the force's, the moment free in
+    the effort problem, and its effort plan did not converge (3 + 200 + 200 + > 400 iterations, restoration).  With
+    w_m = 1e5 and w_i / r_i the moment's weight is w_m r_f / (w_f r_m) = 1e10 times the force's, as in
+    leo_body_engine.yaml: its effort optimum times 1e3 (235 iterations, 0.934848928)."""
+    c = problem.control
+    parts = [(b, c.W_f[0, 0] if i == 0 else c.W_m[0, 0]) for i, b in enumerate((c.force_bound, c.moment_bound))]
+    counted = [b for b, w in parts if w > 0 and not (isinstance(b, NormBound) and b.b <= 0)]
+    r = SmoothTranscription.magnitude_scales(problem)
+    if (not counted or any(b is None for b in counted)
+            or max(r[0] / r[1], r[1] / r[0]) <= EFFORT_LEVEL_RATIO):
+        return problem.replace(control=replace(c, objective="effort"))
+    return problem.replace(control=replace(c, objective="effort", W_f=c.W_f / r[0], W_m=c.W_m / r[1]))
 
 
 @dataclass
@@ -198,8 +239,7 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
     point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the effort problem or a level
     did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step."""
     t0 = time.perf_counter()
-    effort, said = effort_optimum(problem.replace(control=replace(problem.control, objective="effort")), options,
-                                  subsolve, relaxation)
+    effort, said = effort_optimum(effort_problem(problem), options, subsolve, relaxation)
     if effort is None:
         return None
     iterations, levels = effort.iterations, [f"effort: {said}"]
@@ -216,11 +256,16 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
         else:
             levels.append(f"the fuel NLP from the effort optimum: {jump.iterations}, {jump.status or 'failed'}, "
                           f"so the levels")
+    prepared = PREPARED_ON
     for eps in schedule:
         point, tr = solve_level(problem, options, eps, point, ref)
         iterations += point.iterations
         levels.append(f"eps = {eps:.0e}: {point.iterations}")
         if not point.success:
-            return None
+            if not (STRUCTURE_FROM_BUDGET and eps < SMOOTHING_FIRST and point.status == "Maximum_Iterations_Exceeded"):
+                return None
+            levels[-1] += f", {point.status}: its point starts the structured finish"
+            point, prepared = Point(point.x), STRUCTURE_START      # its primal point alone: the finish is cold
+            break
     return replace(point_guess(tr, point), iterations=iterations, seconds=time.perf_counter() - t0,
-                   prepared_on=PREPARED_ON, stats={"homotopy_levels": "; ".join(levels)})
+                   prepared_on=prepared, stats={"homotopy_levels": "; ".join(levels)})

@@ -18,7 +18,7 @@ from ..base import Progress, failed_solution
 from .fatrop import try_fatrop
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .fuel_structure import applies as structure_applies, resolves, structured_finish
-from .homotopy import WARM_LEVEL, WARM_PRIMAL, Point
+from .homotopy import LEVEL_BUDGET, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, RESOLVED, PlanEntry, failure_hint, guess_plan, multistart,
                    plan_ipopt_options, warm_guess)
 from .solution import nlp_solution
@@ -63,13 +63,15 @@ class _PlanRun:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
         tr = self.tr
-        if tr.fuel and guess.prepared_on in (COARSE, RESOLVED) and structure_applies(self.problem, self.options):
+        structure = guess.prepared_on in (COARSE, RESOLVED, STRUCTURE_START)    # near the fuel optimum's structure
+        if tr.fuel and structure and structure_applies(self.problem, self.options):
             sol = self.structured(label, guess)
             if sol is not None:
                 return sol
+            if guess.prepared_on == STRUCTURE_START:    # a level's point at its budget: the fallback gets a level's
+                budget = min(budget, LEVEL_BUDGET)      # budget, not max_iter (the plan's other starts follow)
         level = guess.duals is not None and guess.duals[0] == tr.nlp.key
-        solver = self.solver(budget, guess.prepared_on == RELAXED, level,
-                             tr.fuel and guess.prepared_on in (COARSE, RESOLVED))
+        solver = self.solver(budget, guess.prepared_on == RELAXED, level, tr.fuel and structure)
         args = dict(x0=tr.initial_point(guess, guess.h), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
         if level:   # the very point of the homotopy's last level (its slacks too), with its multipliers
             args.update(x0=guess.duals[1], lam_g0=guess.duals[2], lam_x0=guess.duals[3])
