@@ -312,6 +312,7 @@ def test_fuel_raise_refined_to_1e_6_lands_within_it():
     print("  ", "; ".join(sol.stats.get("fuel_structure", [])))
     assert max(miss.values()) <= 1e-6
     assert sol.mesh[-1]["mesh"] == "adaptive" and sol.N < uniform
+    assert sol.N < first["N"] * (first["miss"] / 1e-6) ** 0.5      # the ideal uniform mesh's 6540 too
     assert sol.cost == pytest.approx(0.8189309, abs=2e-7)
 
 

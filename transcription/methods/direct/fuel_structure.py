@@ -56,6 +56,7 @@ from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
 from ...problem import NormBound, Problem, ThrusterBound
 from ...results import Solution
+from ...warm import WarmStart
 from .fuel_guard import COAST_RTOL, ESCAPE_KICK, GUARD_TOL, PARTS, checked_parts, switching_values, verdict
 from .homotopy import WARM_LEVEL, smoothing_reference
 from .solution import nlp_solution
@@ -103,12 +104,11 @@ def applies(problem: Problem, options: DirectOptions) -> bool:
     return problem.control.objective == "fuel" and options.solver == "ipopt"
 
 
-def resolves(t_from: np.ndarray, n_to: int) -> bool:
-    """Whether an optimum at the node times ``t_from`` resolves the switching times of a grid of ``n_to`` steps (a
-    warm start finished with ``resolved``, :func:`structured_finish`): its mesh is non-uniform (an adaptive level)
-    and has more than RESOLVED_FRACTION n_to steps."""
-    h = np.diff(np.asarray(t_from, float))
-    return len(h) > RESOLVED_FRACTION * n_to and not np.allclose(h, h.mean(), rtol=1e-9, atol=0.0)
+def resolves(warm: WarmStart, n_to: int) -> bool:
+    """Whether the optimum ``warm`` (before it is fitted to the new grid) resolves the switching times of a grid of
+    ``n_to`` steps (a warm start finished with ``resolved``, :func:`structured_finish`): its mesh is non-uniform (an
+    adaptive level) and has more than RESOLVED_FRACTION n_to steps."""
+    return warm.N > RESOLVED_FRACTION * n_to and not warm.uniform
 
 
 def engine(problem: Problem) -> ThrusterBound | None:
@@ -231,8 +231,9 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     one (delta EXACT) from IPOPT's own barrier start, neither rough nor pruned (the guard and its widening as
     always), and every solve sees the objective scaled by N / RESOLVED_NODES.  Returns the last Solution (converged
     or not; its cost the L1 cost of its controls; its iterations and times those of every solve) and stats:
-    :func:`~.fuel_guard.verdict`'s of its switching values, ``fuel_structure`` (one line per round: the burn nodes, each solve's status and iterations, the cost, the largest
-    switching value, where it widened), ``fuel_structure_rounds``."""
+    :func:`~.fuel_guard.verdict`'s of its switching values, ``fuel_structure`` (one line per round: the burn nodes,
+    each solve's status and iterations, the cost, the largest switching value, where it widened),
+    ``fuel_structure_rounds``."""
     t0 = time.perf_counter()
     ref = smoothing_reference(problem, guess.U)         # the parts' bounds, an unbounded part's largest magnitude
     per_scale = ref / SmoothTranscription.magnitude_scales(problem)     # a rounding x ref, in the NLP's terms

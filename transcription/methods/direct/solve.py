@@ -185,12 +185,11 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     notes: tuple[str, ...] = ()
     origin = warm.describe() if warm is not None else ""
     if warm is not None:
-        t_from = warm.t
+        kind = RESOLVED if resolves(warm, problem.N) else COARSE
         warm, notes = warm.fit(problem.N, problem.scheme, problem.fractions)
         # a fuel plan on another grid is finished like a coarser grid's optimum: on its switching structure (§23);
         # from an adaptive level's mesh that resolves the switching times, on its own burn nodes
         resampled = problem.control.objective == "fuel" and bool(notes)
-        kind = RESOLVED if resolves(t_from, problem.N) else COARSE
         guess = replace(warm_guess(warm), prepared_on=kind) if resampled else warm_guess(warm)
         plan, pick = [("warm start", lambda: guess, options.max_iter)], "first"
     else:
