@@ -123,8 +123,7 @@ def independent_miss(sol) -> dict[str, float]:
 
     prob, tr, U = sol.problem, sol.trajectory, sol.controls
     start, end = (U[:, :-1], U[:, 1:]) if sol.scheme == "lgvi" else (U, U)
-    rigid = bool(prob.model.mu) and not len(prob.model.markers)     # gravity's MacCullagh expansion, not a dumbbell
-    x, v, R, Om = reflight(prob.model, tr.X[0], tr.t, start, end, prob.model.inertia, maccullagh=rigid)
+    x, v, R, Om = reflight(prob.model, tr.X[0], tr.t, start, end, prob.model.inertia)   # gravity: by the model
     L = np.linalg.norm(tr.x[0]) if prob.model.mu else 1.0            # no central body: the file's units
     V = np.sqrt(prob.model.mu / L) if prob.model.mu else 1.0
     return {"position": np.linalg.norm(x[-1] - tr.x[-1]) / L, "velocity": np.linalg.norm(v[-1] - tr.v[-1]) / V,
