@@ -128,7 +128,7 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     |u_m| <= 1e-8 kN km to the solver's tolerance (1e-8 of it; measured 1 - 3.6e-9 at most).  Flown in continuous
     time (the project's flight engine, another integrator than the LGVI), the plan misses its own last node by what
     the LGVI's discretization of the orbit misses the continuous orbit by on these 400 steps: the free motion's
-    continuous miss on the same grid (3.508 km: the discrete orbit's phase error, h = 13.9 s), within 1 % of it
+    continuous terminal error (raw, km) on the same grid (3.508 km: the discrete orbit's phase error, h = 13.9 s), within 1 % of it
     (measured 3.501 km, 0.22 %) -- the controls add no miss of their own.  Measured: 1066 iterations, cost
     3.2590120405 kN s, of which the engine's impulse 2.8587 kN s (5.72 m/s) and the wheels' 1e5 x 4.0e-6."""
     import se3ocp
@@ -149,7 +149,7 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     free = continuous_check(se3ocp.simulate(p, np.zeros_like(sol.controls)))
     miss = sol.continuous.terminal_error
     print(f"leo_engine_fuel: {sol.iterations} it, cost {sol.cost!r}, impulse {float(om @ T)!r} kN s, wheels "
-          f"{float(om @ M)!r} kN km s, bang {at:.4f}, max |u_m| {M.max()!r}, continuous miss {miss!r} "
+          f"{float(om @ M)!r} kN km s, bang {at:.4f}, max |u_m| {M.max()!r}, continuous terminal error {miss!r} "
           f"(position {sol.continuous.terminal_position!r}), free motion's {free.terminal_error!r} "
           f"({free.terminal_position!r}); {sol.stats['homotopy_levels']}; {sol.stats['fuel_structure']}")
     assert at >= 0.98

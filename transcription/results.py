@@ -319,11 +319,27 @@ class Solution:
         d = self.steps
         return bool(d.size == 0 or np.all(np.abs(d - self.h) <= 1e-9 * abs(self.h)))
 
+    @property
+    def continuous_miss(self) -> float | None:
+        """The continuous check's terminal miss as ``solver.accuracy`` judges it, shown as "continuous miss"
+        (:func:`transcription.accuracy.scaled_miss`, the one formula): the largest of the position miss relative to
+        the characteristic length L, the velocity miss relative to V (with a central body the orbit radius |x_0|
+        and the circular speed: dimensionless; without one L = V = 1, the file's units), the attitude miss (rad)
+        and the rate miss (rad per time unit).  None when not flown (or without a Problem), nan when the flight
+        failed.  The raw components are ``continuous.terminal_*``; ``continuous.terminal_error`` is their
+        unscaled largest, in mixed units."""
+        if self.continuous is None or self.problem is None:
+            return None
+        from .accuracy import scaled_miss   # here, not at the top: transcription.accuracy imports this module
+
+        return scaled_miss(self.continuous, self.problem)
+
     # ------------------------------------------------------------------ display
     def display(self) -> dict[str, str]:
         """What a notebook shows of this Solution, as text (scalars only, never an array): method, status,
-        cost, terminal error, continuous miss (the continuous check's terminal error; '-' when not flown), max
-        |R^T R - I|, iterations, build and solve seconds, N, T, scheme."""
+        cost, terminal error, continuous miss (:attr:`continuous_miss`: the continuous check's scaled terminal
+        miss, the number ``solver.accuracy`` bounds; '-' when not flown), max |R^T R - I|, iterations, build and
+        solve seconds, N, T, scheme."""
         def num(x, fmt):
             return "-" if x is None or not np.isfinite(x) else format(float(x), fmt)
 
@@ -331,7 +347,7 @@ class Solution:
         orth = self.trajectory.orthogonality()["max_orthogonality_error"] if len(self.trajectory.t) else math.nan
         return {"method": self.method, "status": self.result.value, "cost": num(math.nan if na else self.cost, ".10g"),
                 "terminal error": num(math.nan if na else self.terminal_error, ".1e"),
-                "continuous miss": num(getattr(self.continuous, "terminal_error", None), ".1e"),
+                "continuous miss": num(self.continuous_miss, ".1e"),
                 "max |R^T R - I|": num(math.nan if na else orth, ".1e"), "iterations": str(self.iterations),
                 "build s": num(self.build_s, ".2f"), "solve s": num(self.solve_s, ".2f"), "N": str(self.N),
                 "T": num(self.T, ".6g"), "scheme": self.scheme or "-"}
@@ -378,6 +394,7 @@ class Solution:
         out.update(figures_of_merit(self))
         if self.continuous is not None:     # the continuous check (issue 26): continuous_* keys
             out.update(self.continuous.summary())
+            out["continuous_miss"] = self.continuous_miss     # the scaled miss shown and bounded by accuracy
         if self.mesh:                       # refinement to solver.accuracy: the mesh history
             out["mesh_history"] = [dict(m) for m in self.mesh]
         return out

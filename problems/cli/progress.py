@@ -58,7 +58,8 @@ class Progress:
 
 def table(sols) -> list[str]:
     """The side-by-side table; the text columns are as wide as their widest entry (a status is
-    never cut, however long)."""
+    never cut, however long).  ``cont. miss``: Solution.continuous_miss, the continuous check's scaled terminal
+    miss (position / L, velocity / V, rad, rad per time unit; the number solver.accuracy bounds)."""
     from ...transcription.results import Result
 
     sols = list(sols)
@@ -73,8 +74,8 @@ def table(sols) -> list[str]:
                         f"{'-':>8} {'-':>8}")
             continue
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
-        check = getattr(s, "continuous", None)      # the continuous check's terminal miss (issue 26); '-' if not flown
-        miss = f"{check.terminal_error:>10.2e}" if check is not None else f"{'-':>10}"
+        miss = getattr(s, "continuous_miss", None)   # the scaled miss solver.accuracy judges; "-" if not flown
+        miss = f"{miss:>10.2e}" if miss is not None else f"{'-':>10}"
         rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {miss} {o:>10.2e} "
                     f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
     return rows
