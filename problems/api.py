@@ -45,7 +45,7 @@ def _merge(base: Options, given: Options | Mapping[str, Any] | None) -> Options:
 
 
 def _printer(rec: Iterate) -> None:
-    print(f"  [{rec.method}] {rec.line()}", file=sys.stderr, flush=True)
+    print(f"  {rec.progress_line()}", file=sys.stderr, flush=True)
 
 
 def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, indirect=None,
@@ -128,7 +128,8 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
     initial_costate="from_direct")``), except the solver block's own keys (``continuous_check=False``,
     ``accuracy=1e-6``, ``max_N``, ...: :class:`~se3ocp.transcription.accuracy.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
-    or a callable(Iterate) (``Iterate.method`` names the method).  ``warm_start``: a previous Solution (or
+    or a callable(Iterate) (``Iterate.method`` names the method, ``phase`` the solve within it, ``elapsed_s``
+    the seconds since the call).  ``warm_start``: a previous Solution (or
     its ``warm``, a WarmStart) of either method and any N or scheme: it is resampled onto this problem's grid
     and the Solution's message and ``stats['warm_start*']`` say what was reused.
 

@@ -132,6 +132,7 @@ COMPARISON_FIELDS: dict[str, Any] = {"cost_relative_difference": "number", "cont
                                      "same_extremal": bool, "verdict": str}
 #: the progress records of ``history`` (transcription.results.Iterate)
 HISTORY_FIELDS: dict[str, Any] = {"iteration": "count", "trial": "count", "accepted": bool, "phase": str,
+                                  "budget": "count",
                                   **{k: "number" for k in ("residual", "residual_inf", "cost", "dual", "step", "aux",
                                                            "elapsed_s")}}
 _KINDS = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a list", "number": "a number (or null)",

@@ -181,8 +181,8 @@ def test_a_level_at_its_budget_starts_the_structured_finish(monkeypatch):
 
     full, _ = run()
     level = homotopy.solve_level
-    monkeypatch.setattr(homotopy, "solve_level", lambda pr, o, eps, start, ref=None, budget=homotopy.LEVEL_BUDGET:
-                        level(pr, o, eps, start, ref, 5 if eps == 0.1 else budget))
+    monkeypatch.setattr(homotopy, "solve_level", lambda pr, o, eps, start, ref=None, budget=homotopy.LEVEL_BUDGET,
+                        **kw: level(pr, o, eps, start, ref, 5 if eps == 0.1 else budget, **kw))
     cut, r = run()
     said = cut.stats["homotopy_levels"]
     assert "eps = 1e-01: 5, Maximum_Iterations_Exceeded: its point starts the structured finish" in said, said

@@ -121,9 +121,14 @@ class Iterate:
     cost: the objective (NLP; nan for Newton); dual: the dual infeasibility (NLP); step: the
     line-search step (Newton: c; IPOPT: alpha_pr); accepted: whether the trial became the next
     iterate; aux: the largest relative Cayley residual of the trial's rollout (Newton);
-    phase: a label for multi-phase solves (e.g. 'start', 'nlp'); elapsed_s: seconds since the
-    solve started; method: the method that produced it (set by ``solve`` on the records it passes to
-    ``progress``; '' in a Solution's history, which knows its method).  Absent values are nan.
+    phase: which solve of a multi-phase solve the record belongs to (e.g. 'nlp'; the direct method's
+    progress records: the start or step, nested solves under their own, 'coarse N=25 / effort / rollout');
+    elapsed_s: seconds since the solve started (the records ``solve`` passes to ``progress``: since that
+    top-level call); budget: the most iterations this phase may take (an NLP's max_iter; 0: not known;
+    the records of an NLP number its solver's calls back, and IPOPT's restoration phase calls back a few
+    times more than it counts iterations, so iteration may pass budget by those);
+    method: the method that produced it (set by ``solve`` on the records it passes to ``progress``; '' in
+    a Solution's history, which knows its method).  Absent values are nan.
     """
 
     iteration: int
@@ -137,6 +142,7 @@ class Iterate:
     aux: float = math.nan
     phase: str = ""
     elapsed_s: float = math.nan
+    budget: int = 0
     method: str = ""
 
     def as_dict(self) -> dict[str, Any]:
@@ -153,9 +159,20 @@ class Iterate:
             parts.append(f"dual {self.dual:.2e}")
         if math.isfinite(self.step):
             parts.append(f"step {self.step:.3g}")
-        if self.phase:
-            parts.append(f"({self.phase})")
+        within = [self.phase] if self.phase else []
+        if self.budget > 0:
+            within.append(f"<= {self.budget} it")
+        if within:
+            parts.append(f"({'; '.join(within)})")
         return "  ".join(parts)
+
+    def progress_line(self) -> str:
+        """The line progress printers show: :meth:`line` after the method and the seconds since the solve
+        started, where known: '[direct 123 s] iter   45  cost ...  (eps 1e-01; <= 500 it)' (the phase, and the
+        most iterations it may take)."""
+        head = " ".join(p for p in (self.method, f"{self.elapsed_s:.0f} s" if math.isfinite(self.elapsed_s) else "")
+                        if p)
+        return f"[{head}] {self.line()}" if head else self.line()
 
 
 @dataclass(frozen=True)

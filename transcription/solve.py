@@ -11,6 +11,7 @@ the indirect method when ``initial_costate: from_direct`` (as it does for 'indir
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -21,7 +22,7 @@ from .feasibility import necessary_conditions, step_failure
 from .layout import NU, unpack_states
 from .lgvi import CAYLEY_TOL
 from .lie import orthogonality_error
-from .methods.base import Method, Progress, failed_solution
+from .methods.base import Method, Progress, clocked, failed_solution, phased
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
@@ -129,7 +130,7 @@ def _retightened(d: Solution, direct: DirectOptions, progress: Progress | None, 
     :func:`reconcile` and :func:`fuel_retighten`; when it converges, it carries ``d``'s iterations and times too,
     ``d``'s attempts and itself as the last, ``stats['retightened_from_tol']`` and ``stats``, and a message that
     says ``why``."""
-    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), progress, d.warm)
+    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), phased(progress, "retightened"), d.warm)
     if not tight.converged:
         return tight
     tight.stats.update(retightened_from_tol=float(direct.tol), **stats)
@@ -233,7 +234,9 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     """Solve ``problem`` by ``method`` ('direct', 'indirect' or 'both').
 
     direct, indirect: the options of each method (defaults if None).  progress: called as progress(Iterate)
-    during the solve, the Iterate naming its method (``Iterate.method``).  warm_start: a previous Solution
+    during the solve, the Iterate naming its method (``Iterate.method``), its solve (``phase``: e.g. the direct
+    method's starts, coarse grids and homotopy levels, a refinement level 'level 1 N=200', 'retightened') and the
+    seconds since this call (``elapsed_s``).  warm_start: a previous Solution
     (its ``warm``) or a :class:`~transcription.warm.WarmStart`, of either method and of any N and scheme (it
     is resampled; the Solution's message and ``stats['warm_start*']`` say what was reused): continuation,
     refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
@@ -258,11 +261,16 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     if reason:
         raise ValueError(reason)
     warm, note = as_warm_start(warm_start)
+    progress = clocked(progress)
     if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
         names = ("direct", "indirect") if method == "both" else (method,)
         adaptive = accuracy.refinement == "adaptive" and all((n, problem.kind) in ON_A_MESH for n in names)
-        out = refine(problem, lambda p, w: _dispatch(p, method, direct, indirect, progress, w), accuracy, warm,
-                     adaptive=adaptive)
+        levels = itertools.count()      # one call a level: numbered as refine's mesh history numbers them
+
+        def level(p, w):
+            return _dispatch(p, method, direct, indirect, phased(progress, f"level {next(levels)} N={p.N}"), w)
+
+        out = refine(problem, level, accuracy, warm, adaptive=adaptive)
     else:
         out = _dispatch(problem, method, direct, indirect, progress, warm)
     if accuracy.continuous_check:

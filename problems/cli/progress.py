@@ -39,21 +39,25 @@ def emit_summary(args, summary: dict):
 
 class Progress:
     """One line per iteration of any method (at most one a second after the first ten, and every
-    Newton step), so long solves show life without flooding; Ctrl-C is honoured here."""
+    Newton step and the first record of every new phase), so long solves show life without flooding;
+    each line names the method, the seconds since the solve started and the phase
+    (:meth:`~transcription.results.Iterate.progress_line`).  Ctrl-C is honoured here."""
 
     def __init__(self, args):
         self.args = args
         self.last = 0.0
         self.count = 0
+        self.phase = ""
 
     def __call__(self, rec):
         Interrupt.check()
         self.count += 1
         now = time.perf_counter()
-        if self.count > 10 and now - self.last < 1.0 and rec.trial == 0 and math.isnan(rec.step):
+        if (self.count > 10 and now - self.last < 1.0 and rec.trial == 0 and math.isnan(rec.step)
+                and rec.phase == self.phase):
             return
-        self.last = now
-        say(self.args, f"  [{rec.method}] {rec.line()}")
+        self.last, self.phase = now, rec.phase
+        say(self.args, f"  {rec.progress_line()}")
 
 
 def table(sols) -> list[str]:

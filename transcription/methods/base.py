@@ -11,7 +11,8 @@ problem is :mod:`transcription.solve`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 from typing import Callable, Protocol
 
 from ..problem import Problem, terminal_error
@@ -19,6 +20,50 @@ from ..results import Iterate, Result, Solution, trajectory
 from ..warm import WarmStart
 
 Progress = Callable[[Iterate], None]
+
+
+def phased(progress: Progress | None, phase: str) -> Progress | None:
+    """``progress`` with each record's phase under ``phase``: ``phase`` for a record without one, 'phase / its own'
+    for a nested solve's (e.g. 'coarse N=25 / effort / rollout').  None stays None: a solve nobody listens to
+    pays nothing."""
+    if progress is None:
+        return None
+    return lambda it: progress(replace(it, phase=f"{phase} / {it.phase}" if it.phase else phase))
+
+
+def clocked(progress: Progress | None) -> Progress | None:
+    """``progress`` with each record's ``elapsed_s`` the seconds since this call (the start of the top-level solve,
+    :func:`transcription.solve.solve`), whatever solve inside it made the record; None stays None."""
+    if progress is None:
+        return None
+    t0 = time.perf_counter()
+    return lambda it: progress(replace(it, elapsed_s=time.perf_counter() - t0))
+
+
+@dataclass(frozen=True)
+class Reporting:
+    """A solve of another problem inside a method's solve (e.g. the direct method's coarse grid, its relaxed or
+    effort problem) that reports its iterations to ``progress``: called as ``(problem, options)``, the shape of
+    :data:`~transcription.methods.direct.plan.SubSolve`, it calls ``solve(problem, options, progress)``;
+    :func:`under` names its records' phase."""
+
+    solve: Callable[..., Solution]
+    progress: Progress
+
+    def __call__(self, problem: Problem, options) -> Solution:
+        return self.solve(problem, options, self.progress)
+
+
+def under(subsolve: Callable, phase: str) -> Callable:
+    """``subsolve`` with its solves' progress records under ``phase`` (:func:`phased`) if it reports them
+    (:class:`Reporting`); any other callable as it is."""
+    return replace(subsolve, progress=phased(subsolve.progress, phase)) if isinstance(subsolve, Reporting) else subsolve
+
+
+def progress_of(subsolve: Callable) -> Progress | None:
+    """The progress callback ``subsolve`` reports to (:class:`Reporting`), else None: for the NLPs a caller solves
+    itself beside its subsolves (the fuel homotopy's levels)."""
+    return subsolve.progress if isinstance(subsolve, Reporting) else None
 
 
 class Method(Protocol):

@@ -46,26 +46,30 @@ def ipopt_options(options: DirectOptions, warm_duals: bool = False) -> dict[str,
 
 def make_ipopt(name: str, nlp: StructuredNLP, ipopt: dict[str, Any], progress: Callable[[Iterate], None] | None,
                obj_scale: float, phase: str = "") -> ca.Function:
-    """An IPOPT nlpsol on a StructuredNLP with its block-assembled derivatives.  (Its linear solver's BLAS, the
+    """An IPOPT nlpsol on a StructuredNLP with its block-assembled derivatives; with ``progress``, one
+    :class:`ProgressCallback` record per iteration, under ``phase``.  (Its linear solver's BLAS, the
     OpenBLAS CasADi bundles, keeps its own thread count: setting it to one made the bundled LEO engine raise stall,
     docs/mathematics.md §24.)"""
     nlp_opts: dict[str, Any] = {"print_time": False, "ipopt": ipopt, "show_eval_warnings": False,
                                 **nlp.derivative_functions()}
     if progress is not None:
         # the callback must outlive the solver call: it is kept on the NLP object
-        nlp.callback = ProgressCallback(nlp.n, nlp.ng, progress, obj_scale, nlp.lbg, nlp.ubg, phase)
+        nlp.callback = ProgressCallback(nlp.n, nlp.ng, progress, obj_scale, nlp.lbg, nlp.ubg, phase,
+                                        int(ipopt.get("max_iter", 0)))
         nlp_opts["iteration_callback"] = nlp.callback
     return ca.nlpsol(name, "ipopt", {"x": nlp.w, "f": nlp.f, "g": nlp.g}, nlp_opts)
 
 
 class ProgressCallback(ca.Callback):
     """NLP iteration callback: one :class:`~transcription.results.Iterate` per iteration to ``fn``
-    (cost = objective x ``obj_scale``, residual = max |g - bounds violation| of the scaled rows)."""
+    (cost = objective x ``obj_scale``, residual = max |g - bounds violation| of the scaled rows; ``phase``;
+    ``budget``: the solver's max_iter, the most iterations after iteration 0)."""
 
-    def __init__(self, nx: int, ng: int, fn: Callable[[Iterate], None], obj_scale: float, lbg, ubg, phase: str = ""):
+    def __init__(self, nx: int, ng: int, fn: Callable[[Iterate], None], obj_scale: float, lbg, ubg, phase: str = "",
+                 budget: int = 0):
         ca.Callback.__init__(self)
         self.nx, self.ng, self.fn, self.obj_scale, self.k = nx, ng, fn, obj_scale, 0
-        self.lbg, self.ubg, self.phase = np.asarray(lbg, float), np.asarray(ubg, float), phase
+        self.lbg, self.ubg, self.phase, self.budget = np.asarray(lbg, float), np.asarray(ubg, float), phase, budget
         self.construct("nlp_progress", {})
 
     def get_n_in(self):
@@ -100,7 +104,7 @@ class ProgressCallback(ca.Callback):
             viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
             f = float(arg[ca.nlpsol_out().index("f")])
             self.fn(Iterate(iteration=self.k, cost=f * self.obj_scale, residual=float(viol.max()) if viol.size else 0.0,
-                            phase=self.phase))
+                            phase=self.phase, budget=self.budget))
             self.k += 1
             return [0]
         except KeyboardInterrupt:

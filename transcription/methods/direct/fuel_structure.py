@@ -179,15 +179,17 @@ def _widened(tr: SmoothTranscription, x: np.ndarray, sw: dict, ref: np.ndarray,
     return burn, x
 
 
-def _solve(tr: SmoothTranscription, options: DirectOptions, x0: np.ndarray, duals, progress, extra: dict):
+def _solve(tr: SmoothTranscription, options: DirectOptions, x0: np.ndarray, duals, progress, extra: dict,
+           phase: str = ""):
     """IPOPT on ``tr`` from x0 (scaled): warm from ``duals`` = (lam_g, lam_x) with the homotopy's WARM_LEVEL options,
-    or with ROUGH_OPTIONS when None; ``extra`` IPOPT options too.  Returns (out, stats)."""
+    or with ROUGH_OPTIONS when None; ``extra`` IPOPT options too; its iterations to ``progress`` under ``phase``.
+    Returns (out, stats)."""
     ipopt = ipopt_options(options.replace(max_iter=min(options.max_iter, ROUND_BUDGET)), warm_duals=duals is not None)
     for k, val in extra.items():
         ipopt.setdefault(k, val)
     for k, val in (ROUGH_OPTIONS if duals is None else WARM_LEVEL).items():
         ipopt.setdefault(k, val)
-    solver = make_ipopt("fuel_structure", tr.nlp, ipopt, progress, tr.scales.objective)
+    solver = make_ipopt("fuel_structure", tr.nlp, ipopt, progress, tr.scales.objective, phase)
     args = dict(x0=np.clip(x0, tr.lbx, tr.ubx), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
     if duals is not None:
         args.update(lam_g0=duals[0], lam_x0=duals[1])
@@ -233,7 +235,9 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     or not; its cost the L1 cost of its controls; its iterations and times those of every solve) and stats:
     :func:`~.fuel_guard.verdict`'s of its switching values, ``fuel_structure`` (one line per round: the burn nodes,
     each solve's status and iterations, the cost, the largest switching value, where it widened),
-    ``fuel_structure_rounds``."""
+    ``fuel_structure_rounds``.  ``progress``: each solve's iterations, under 'structured rough', '... pruned',
+    '... widened' (a round after the first), '... resolved' (``resolved``'s first), with ' cold' for a retry from
+    IPOPT's own start."""
     t0 = time.perf_counter()
     ref = smoothing_reference(problem, guess.U)         # the parts' bounds, an unbounded part's largest magnitude
     per_scale = ref / SmoothTranscription.magnitude_scales(problem)     # a rounding x ref, in the NLP's terms
@@ -241,7 +245,7 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     extra = {"obj_scaling_factor": max(1.0, problem.N / RESOLVED_NODES)} if resolved else {}
     log, total = [], {"iterations": 0, "build_s": 0.0}
 
-    def solve(burn, rounding, x0, duals):
+    def solve(burn, rounding, x0, duals, phase):
         tb = time.perf_counter()
         tr = SmoothTranscription(problem, options, burn=burn, rounding=rounding * per_scale)
         total["build_s"] += time.perf_counter() - tb
@@ -249,7 +253,8 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
         said = []
         tries = [(duals, "")] + ([(None, "from IPOPT's own start: ")] if duals is not None else [])
         for warm, prefix in tries:      # a failed warm solve: again, cold (module docstring)
-            out, stats = _solve(tr, options, start, warm, progress, extra)
+            out, stats = _solve(tr, options, start, warm, progress, extra,
+                                f"structured {phase}{' cold' if prefix else ''}")
             its = int(stats.get("iter_count", 0))
             total["iterations"] += its
             status = str(stats.get("return_status", "unknown"))
@@ -263,7 +268,8 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     for rnd in range(1, ROUNDS + 1):
         rough = duals is None and not resolved
         said = [f"solve {rnd}: burn nodes {_nodes(burn)} of {burn.shape[1]}"]
-        tr, out, stats, point, what, ok = solve(burn, ROUGH if rough else EXACT, x0, duals)
+        tr, out, stats, point, what, ok = solve(burn, ROUGH if rough else EXACT, x0, duals,
+                                                "rough" if rough else "resolved" if duals is None else "widened")
         said.append(f"rough (delta {ROUGH:.0e}) {what}" if rough else
                     f"exact on the resolved structure, from IPOPT's own start: {what}" if duals is None else what)
         if ok and (rough or duals is not None):     # the resolved structure's first solve is not pruned
@@ -271,7 +277,7 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
             duals = (point[1], _released(tr, point[2], pruned))
             if rough or (pruned != tr.burn).any():
                 burn = pruned
-                tr, out, stats, point, what, ok = solve(burn, EXACT, x0, duals)
+                tr, out, stats, point, what, ok = solve(burn, EXACT, x0, duals, "pruned")
                 said.append(f"pruned to {_nodes(burn)}: {what}")
         sol = nlp_solution(problem, options, tr, out, stats, str(stats.get("return_status", "unknown")), "ipopt",
                            total["build_s"], 0.0)

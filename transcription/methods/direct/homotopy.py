@@ -48,6 +48,7 @@ from ...layout import U_FORCE, U_MOMENT
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
 from ...problem import NormBound, Problem, ThrusterBound
+from ..base import Progress, progress_of, under
 from .transcription import SmoothTranscription
 
 #: the smoothing levels: eps = SMOOTHING_FIRST, divided by SMOOTHING_FACTOR per level, down to SMOOTHING_LAST
@@ -181,10 +182,18 @@ class Point:
         return self.status == "Solve_Succeeded"
 
 
+def level_phase(eps: float) -> str:
+    """The progress phase of a level: 'eps 1e-01', or 'fuel jump' for eps = 0 (the fuel NLP from the effort
+    optimum, JUMP)."""
+    return f"eps {eps:.0e}" if eps > 0 else "fuel jump"
+
+
 def solve_level(problem: Problem, options: DirectOptions, eps: float, start: Point,
-                ref: np.ndarray | None = None, budget: int = LEVEL_BUDGET) -> tuple[Point, SmoothTranscription]:
+                ref: np.ndarray | None = None, budget: int = LEVEL_BUDGET,
+                progress: Progress | None = None) -> tuple[Point, SmoothTranscription]:
     """The fuel NLP smoothed by ``eps`` (references ``ref``, :func:`smoothing_reference`) on ``problem``'s grid,
-    from ``start`` (warm when it has multipliers), within ``budget`` NLP iterations."""
+    from ``start`` (warm when it has multipliers), within ``budget`` NLP iterations; its iterations reported to
+    ``progress`` under :func:`level_phase`."""
     tr = SmoothTranscription(problem, options, smoothing=eps, smoothing_ref=ref)
     warm = start.lam_g is not None
     ipopt = ipopt_options(options, warm_duals=warm)
@@ -192,7 +201,7 @@ def solve_level(problem: Problem, options: DirectOptions, eps: float, start: Poi
     if warm:
         for k, v in WARM_LEVEL.items():
             ipopt.setdefault(k, v)
-    solver = make_ipopt("fuel_homotopy", tr.nlp, ipopt, None, tr.scales.objective)
+    solver = make_ipopt("fuel_homotopy", tr.nlp, ipopt, progress, tr.scales.objective, level_phase(eps))
     args = dict(x0=np.clip(start.x, tr.lbx, tr.ubx), lbx=tr.lbx, ubx=tr.ubx, lbg=tr.nlp.lbg, ubg=tr.nlp.ubg)
     if warm:
         args.update(lam_g0=start.lam_g, lam_x0=start.lam_x)
@@ -215,9 +224,10 @@ def effort_optimum(effort: Problem, options: DirectOptions, subsolve, relaxation
     and how it was reached (for ``homotopy_levels``): with control bounds or path constraints (where the effort plan
     starts from the relaxed problem, :func:`~.plan.relaxation`) and no body-fixed engine, first from the free motion
     within EFFORT_ROLLOUT_BUDGET iterations; otherwise, or when that does not converge, by the effort plan
-    (``subsolve``).  (None, '') if neither converged.  ``relaxation``: :func:`~.plan.relaxation`, passed in (the
-    plan imports this module)."""
+    (``subsolve``; a :class:`~..base.Reporting` one reports under 'effort').  (None, '') if neither converged.
+    ``relaxation``: :func:`~.plan.relaxation`, passed in (the plan imports this module)."""
     tried, said = 0, ""
+    subsolve = under(subsolve, "effort")
     if EFFORT_ROLLOUT and relaxation(effort) is not None and not isinstance(effort.control.force_bound, ThrusterBound):
         sol = subsolve(effort, options.replace(initial_guess="rollout",
                                                max_iter=min(options.max_iter, EFFORT_ROLLOUT_BUDGET)))
@@ -237,7 +247,8 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
     jump, within JUMP_BUDGET iterations, on grids of at most JUMP_MAX_N steps) or, when that does not converge (or
     is not tried), the smoothed levels from it; the last
     point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the effort problem or a level
-    did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step."""
+    did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step.
+    The levels report their iterations where ``subsolve`` reports its own (:func:`~..base.progress_of`)."""
     t0 = time.perf_counter()
     effort, said = effort_optimum(effort_problem(problem), options, subsolve, relaxation)
     if effort is None:
@@ -246,9 +257,9 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
     tr = SmoothTranscription(problem, options, smoothing=SMOOTHING_FIRST)
     first = Point(tr.initial_point(Guess(X=effort.warm.X, U=effort.warm.U, C=cayley_vectors(effort.warm.X))))
     ref = smoothing_reference(problem, effort.warm.U)
-    point, schedule = first, smoothing_levels()
+    point, schedule, progress = first, smoothing_levels(), progress_of(subsolve)
     if JUMP and problem.N <= JUMP_MAX_N:
-        jump, jtr = solve_level(problem, options, 0.0, first, ref, JUMP_BUDGET)
+        jump, jtr = solve_level(problem, options, 0.0, first, ref, JUMP_BUDGET, progress=progress)
         iterations += jump.iterations
         if jump.success:
             levels.append(f"the fuel NLP from the effort optimum: {jump.iterations}")
@@ -258,7 +269,7 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
                           f"so the levels")
     prepared = PREPARED_ON
     for eps in schedule:
-        point, tr = solve_level(problem, options, eps, point, ref)
+        point, tr = solve_level(problem, options, eps, point, ref, progress=progress)
         iterations += point.iterations
         levels.append(f"eps = {eps:.0e}: {point.iterations}")
         if not point.success:

@@ -5,7 +5,8 @@ A plan is a list of (label, maker, budget): the maker makes the :class:`~transcr
 turn comes (None when it cannot), the budget bounds the NLP iterations from it.  Guesses that are solutions of
 another problem -- the problem without its bounds and path constraints, the time objective's starts on a
 coarser grid -- are solved by ``subsolve`` (the direct method itself, passed in: this module does not
-import the solve).
+import the solve); a :class:`~..base.Reporting` subsolve reports their iterations under 'relaxed' and
+'coarse N=25' (:func:`~..base.under`).
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from ...options import DirectOptions
 from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
+from ..base import under
 from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN, homotopy_guess
 from .scaling import scaled_terminal_miss
 
@@ -248,7 +250,7 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
     """The time (or fuel) objective's starts solved on Nc = max(TIME_COARSE_MIN (FUEL_COARSE_MIN), N // 4) steps
     (recursively), the best resampled to N steps (:meth:`~transcription.warm.WarmStart.fit`) with its step size T / N (None if
     the coarse solve did not converge)."""
-    sol = subsolve(problem.replace(N=Nc, mesh=None), options)     # a mesh's starts on a uniform coarse grid
+    sol = under(subsolve, f"coarse N={Nc}")(problem.replace(N=Nc, mesh=None), options)  # a mesh's: on uniform steps
     if not sol.converged or sol.warm is None:
         return None
     fitted, _ = sol.warm.fit(problem.N, problem.scheme, problem.fractions)
@@ -275,7 +277,7 @@ def relaxation(problem: Problem) -> Problem | None:
 def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, subsolve: SubSolve) -> Guess | None:
     """The Guess of :func:`relaxation`'s solution (None if it did not converge), with its iterations and time;
     for a body-fixed engine the body turned to aim the relaxed solution's force (:func:`aimed_guess`)."""
-    sol = subsolve(relaxed, options)
+    sol = under(subsolve, "relaxed")(relaxed, options)
     if not sol.converged or sol.warm is None:
         return None
     guess = replace(warm_guess(sol.warm), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s,

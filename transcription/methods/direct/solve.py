@@ -14,23 +14,43 @@ from ...options import DirectOptions
 from ...problem import Problem
 from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
-from ..base import Progress, failed_solution
+from ..base import Progress, Reporting, failed_solution
 from .fatrop import try_fatrop
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .fuel_structure import applies as structure_applies, resolves, structured_finish
-from .homotopy import LEVEL_BUDGET, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
+from .homotopy import LEVEL_BUDGET, PREPARED_ON, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, RESOLVED, PlanEntry, failure_hint, guess_plan, multistart,
                    plan_ipopt_options, warm_guess)
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
 
+#: the label (and progress phase) of a warm start's solve
+WARM = "warm start"
+#: the progress phase of a plan's solve from a guess made on another problem (Guess.prepared_on); a solve from
+#: any other guess (or a warm start, whichever grid it came from) is under its plan label ('rollout',
+#: 'interpolate (seed 1)', 'warm start', a fuel guard escape)
+FROM = {RELAXED: "from relaxed", COARSE: "from coarse", RESOLVED: "from resolved grid",
+        PREPARED_ON: "from homotopy", STRUCTURE_START: "from last level"}
+
+
+def attempt_phase(label: str, prepared_on: str) -> str:
+    """The progress phase of the plan's solve from the guess labelled ``label`` (:data:`FROM`)."""
+    if label == WARM:
+        return label
+    return FROM.get(prepared_on) or label.replace(" with symmetry-breaking controls", "")
+
+
 class _PlanRun:
     """The guesses of a plan solved in turn on one NLP (built once), with IPOPT solvers by iteration budget;
-    the attempts made and the totals of build time, solve time and iterations of all of them."""
+    the attempts made and the totals of build time, solve time and iterations of all of them.  ``progress``: the
+    iterations of each attempt, numbered from 0 and under :func:`attempt_phase` (the solvers are reused across
+    attempts), and those of the structured finish (its own phases)."""
 
     def __init__(self, problem: Problem, options: DirectOptions, progress: Progress | None, warm: WarmStart | None):
         self.problem, self.options, self.progress = problem, options, progress
+        self.phase, self.k = "", 0
+        self.listen = None if progress is None else self.report
         t0 = time.perf_counter()
         self.tr = SmoothTranscription(problem, options)
         self.build_s = time.perf_counter() - t0
@@ -55,9 +75,14 @@ class _PlanRun:
             for k, value in {**plan_ipopt_options(self.problem, phase1), **(WARM_LEVEL if level else {}),
                              **(WARM_PRIMAL if fine else {})}.items():
                 ipopt.setdefault(k, value)
-            self.solvers[key] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.progress, self.tr.scales.objective)
+            self.solvers[key] = make_ipopt("direct_ms", self.tr.nlp, ipopt, self.listen, self.tr.scales.objective)
             self.extra_build_s += time.perf_counter() - t0
         return self.solvers[key]
+
+    def report(self, it) -> None:
+        """An attempt's iterate to ``progress``, numbered within the attempt and under its phase."""
+        self.progress(replace(it, iteration=self.k, phase=self.phase))
+        self.k += 1
 
     def attempt(self, label: str, guess: Guess, budget: int) -> Solution:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
@@ -77,6 +102,7 @@ class _PlanRun:
             args.update(x0=guess.duals[1], lam_g0=guess.duals[2], lam_x0=guess.duals[3])
         elif self.nu0 is not None:
             args["lam_g0"] = tr.scaled_multipliers(self.nu0)
+        self.phase, self.k = attempt_phase(label, guess.prepared_on), 0
         t0 = time.perf_counter()
         out = solver(**args)
         solve_s = time.perf_counter() - t0
@@ -171,6 +197,11 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     and its NLP multipliers, if it carries those of an NLP of the same structure, start IPOPT's duals; the
     message and ``stats['warm_start']`` say what was resampled and what was not reused.
 
+    ``progress``: every NLP iteration of the solve, those of the guesses' own solves too (the relaxed problem,
+    the coarse grids, the fuel homotopy's effort problem and levels, the structured finish), each record under
+    the phase of its solve (nested: 'coarse N=25 / effort / rollout'; :func:`attempt_phase`) and with its
+    ``budget``.
+
     Smooth control: controls (6, n_controls) [u_f inertial; u_m body]; trajectory = the re-simulation from X0
     with those controls; terminal_error on it; costates (N, 12) from the multipliers.  The result is
     converged iff the solver converged, the re-simulated terminal error is <= terminal_tol and no path
@@ -191,9 +222,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
         # from an adaptive level's mesh that resolves the switching times, on its own burn nodes
         resampled = problem.control.objective == "fuel" and bool(notes)
         guess = replace(warm_guess(warm), prepared_on=kind) if resampled else warm_guess(warm)
-        plan, pick = [("warm start", lambda: guess, options.max_iter)], "first"
+        plan, pick = [(WARM, lambda: guess, options.max_iter)], "first"
     else:
-        plan, pick = guess_plan(problem, options, solve_direct)
+        plan, pick = guess_plan(problem, options,
+                                solve_direct if progress is None else Reporting(solve_direct, progress))
     fallback: dict = {}
     if options.solver == "fatrop":
         fsol, fallback = try_fatrop(problem, options, plan[0][1])
