@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from .options import CHECK_ENV, AccuracyOptions
+from .miss import characteristic_length as _length, scaled_miss
 from .results import Result, Solution, trajectory
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,18 +56,6 @@ BEST_ORDER = max(ORDER.values())
 ADAPTIVE_GAIN = 2.0
 
 
-def scaled_miss(check, problem) -> float:
-    """The one scalar refinement drives below ``solver.accuracy``: the largest of the continuous check's terminal
-    position miss relative to the characteristic length L, velocity miss relative to V, attitude miss (rad) and
-    rate miss (rad per time unit).  With a central body L = |x_0| (the orbit radius: 1 in normalized units) and
-    V = sqrt(mu / L) (the circular speed, 2 pi normalized); without one L = V = 1 (the file's units).  nan if the
-    flight failed."""
-    mu, L = problem.model.mu, _length(problem)
-    V = float(np.sqrt(mu / L)) if mu else 1.0
-    return float(max(check.terminal_position / L, check.terminal_velocity / V, check.terminal_attitude,
-                     check.terminal_rate))
-
-
 def path_violation(check, problem) -> float:
     """How far the flown path leaves the path constraints between the nodes, in the units of :func:`scaled_miss`:
     max(0, -smallest margin) over the constraints, a cone's margin (deg) in rad, a radius relative to L, a rate in
@@ -88,10 +77,6 @@ def margin_scales(problem) -> list[float]:
     return [scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
 
 
-def _length(problem) -> float:
-    """The characteristic length L of :func:`scaled_miss`: |x_0| with a central body, else 1."""
-    L = float(np.linalg.norm(problem.X0[0:3])) if problem.model.mu else 1.0
-    return L if L > 0 else 1.0
 
 
 def next_N(N: int, ratio: float, order: float, max_N: int) -> int:

@@ -19,6 +19,7 @@ import numpy as np
 
 from .layout import U_FORCE, U_MOMENT, split_state, unpack_states
 from .lie import orthogonality_error, rotation_angle
+from .miss import scaled_miss
 from .problem import Problem, SmoothControl, TargetState, control_activity, engine_figures, quadrature_weights
 from .warm import WarmStart
 
@@ -339,7 +340,7 @@ class Solution:
     @property
     def continuous_miss(self) -> float | None:
         """The continuous check's terminal miss as ``solver.accuracy`` judges it, shown as "continuous miss"
-        (:func:`transcription.accuracy.scaled_miss`, the one formula): the largest of the position miss relative to
+        (:func:`transcription.miss.scaled_miss`, the one formula): the largest of the position miss relative to
         the characteristic length L, the velocity miss relative to V (with a central body the orbit radius |x_0|
         and the circular speed: dimensionless; without one L = V = 1, the file's units), the attitude miss (rad)
         and the rate miss (rad per time unit).  None when not flown (or without a Problem), nan when the flight
@@ -347,8 +348,6 @@ class Solution:
         unscaled largest, in mixed units."""
         if self.continuous is None or self.problem is None:
             return None
-        from .accuracy import scaled_miss   # here, not at the top: transcription.accuracy imports this module
-
         return scaled_miss(self.continuous, self.problem)
 
     # ------------------------------------------------------------------ display
