@@ -106,6 +106,10 @@ class PoolExecutor:
                 p.terminate()
             for p in procs:
                 p.join(5)
+            # then let the executor's manager thread see the dead workers and release its queues' semaphores: a
+            # process that exits with them held makes multiprocessing's resource tracker warn of "leaked semaphore
+            # objects" on stderr after the CLI's last line (seen on a loaded machine in test_cli_ctrl_c_writes_finished_rows)
+            self.pool.shutdown(wait=True)
         else:
             self.pool.shutdown(wait=True)
 
