@@ -180,7 +180,8 @@ def test_the_raise_on_200_steps_is_an_extremal_of_the_indirect_method():
 def test_a_coarse_grid_whose_orbit_the_force_cannot_reach_is_skipped():
     """The LEO body-engine raise with the fuel objective (configs/leo_body_engine.yaml, N = 400): the free motion on
     100 steps ends 53 km from that on 400 steps, beyond half of what the 1 N engine moves 500 kg in T (31 km), so the
-    plan starts with the homotopy on the 400 steps themselves ('first'); the fuel raise keeps its coarse grid
+    plan starts with the homotopy on the 400 steps themselves ('first'; its moment unbounded, the continuation of
+    .fuel_continuation where it applies); the fuel raise keeps its coarse grid
     (gap 0.0044 against a reach of 9.8).  A 10 N engine (reach 309 km) brings the coarse grid back.  Planning solves
     nothing."""
     from se3ocp.transcription.methods.direct.plan import COARSE, coarse_resolves, guess_plan
@@ -190,8 +191,9 @@ def test_a_coarse_grid_whose_orbit_the_force_cannot_reach_is_skipped():
 
     leo = problem("leo_body_engine", 400, None, "control.objective=fuel")
     plan, pick = guess_plan(leo, se3ocp.DirectOptions(), no_solve)
-    assert pick == "first" and [e[0] for e in plan] == ["the fuel homotopy from the effort optimum", "rollout",
-                                                         "interpolate"]
+    assert pick == "first" and [e[0] for e in plan] == [
+        "the fuel homotopy from the effort optimum (or its continuation from a bounded problem)", "rollout",
+        "interpolate"]
     assert not coarse_resolves(leo, 100)
     strong = problem("leo_body_engine", 400, None, "control.objective=fuel",
                      "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 1.0e-2, min: 0.0}}}")

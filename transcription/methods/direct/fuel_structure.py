@@ -225,7 +225,7 @@ def _nodes(burn: np.ndarray) -> str:
 
 
 def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, progress=None,
-                      dilate: int = DILATE, resolved: bool = False) -> tuple[Solution, dict]:
+                      dilate: int = DILATE, resolved: bool = False, rounds: int = ROUNDS) -> tuple[Solution, dict]:
     """The fuel problem on ``problem``'s grid from ``guess`` (a coarser grid's optimum resampled) on its switching
     structure (module docstring).  ``resolved``: the guess is the optimum of a grid that already resolves the
     switching times (a previous level of refinement to an accuracy with more than RESOLVED_FRACTION of this grid's
@@ -235,7 +235,8 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
     or not; its cost the L1 cost of its controls; its iterations and times those of every solve) and stats:
     :func:`~.fuel_guard.verdict`'s of its switching values, ``fuel_structure`` (one line per round: the burn nodes,
     each solve's status and iterations, the cost, the largest switching value, where it widened),
-    ``fuel_structure_rounds``.  ``progress``: each solve's iterations, under 'structured rough', '... pruned',
+    ``fuel_structure_rounds``.  ``rounds``: at most this many rounds (ROUNDS; more for a step of the continuation,
+    :mod:`.fuel_continuation`).  ``progress``: each solve's iterations, under 'structured rough', '... pruned',
     '... widened' (a round after the first), '... resolved' (``resolved``'s first), with ' cold' for a retry from
     IPOPT's own start."""
     t0 = time.perf_counter()
@@ -265,7 +266,7 @@ def structured_finish(problem: Problem, options: DirectOptions, guess: Guess, pr
         return tr, out, stats, point, ", then ".join(said), status == "Solve_Succeeded"
 
     x0, duals, v = None, None, {}
-    for rnd in range(1, ROUNDS + 1):
+    for rnd in range(1, rounds + 1):
         rough = duals is None and not resolved
         said = [f"solve {rnd}: burn nodes {_nodes(burn)} of {burn.shape[1]}"]
         tr, out, stats, point, what, ok = solve(burn, ROUGH if rough else EXACT, x0, duals,

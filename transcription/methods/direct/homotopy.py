@@ -242,15 +242,17 @@ def effort_optimum(effort: Problem, options: DirectOptions, subsolve, relaxation
     return sol, f"{said}{plan_its} by the effort plan" if said else f"{plan_its}"
 
 
-def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxation) -> Guess | None:
+def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxation, effort=None) -> Guess | None:
     """Step 1 of the module docstring on ``problem``'s own grid: the effort optimum, then the fuel NLP from it (the
     jump, within JUMP_BUDGET iterations, on grids of at most JUMP_MAX_N steps) or, when that does not converge (or
     is not tried), the smoothed levels from it; the last
     point with its multipliers (``Guess.duals``), the start of the fuel solve (None if the effort problem or a level
     did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step.
-    The levels report their iterations where ``subsolve`` reports its own (:func:`~..base.progress_of`)."""
+    The levels report their iterations where ``subsolve`` reports its own (:func:`~..base.progress_of`).
+    ``effort``: the effort optimum as :func:`effort_optimum` returns it, when the caller has solved it already
+    (:func:`~.fuel_continuation.fuel_start`: the effort problem of its start is the file's, scaled)."""
     t0 = time.perf_counter()
-    effort, said = effort_optimum(effort_problem(problem), options, subsolve, relaxation)
+    effort, said = effort or effort_optimum(effort_problem(problem), options, subsolve, relaxation)
     if effort is None:
         return None
     iterations, levels = effort.iterations, [f"effort: {said}"]

@@ -23,7 +23,8 @@ from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
 from ...warm import WarmStart
 from ..base import under
-from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN, homotopy_guess
+from .fuel_continuation import counted_unbounded, fuel_start
+from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN
 from .scaling import scaled_terminal_miss
 
 #: one entry of a plan: (label, maker of the guess (None: not available), NLP iteration budget)
@@ -202,8 +203,12 @@ def _fuel_plan(problem: Problem, options: DirectOptions, subsolve: SubSolve, mad
                 ("interpolate", made("interpolate"), options.max_iter)], "coarse"
     # the coarsest grid, or a coarser grid that is another maneuver (coarse_resolves): the same starts, the lowest
     # converged cost kept on the coarsest grid, the first that converges otherwise
-    return [("the fuel homotopy from the effort optimum", lambda: homotopy_guess(problem, options, subsolve, relaxation),
-             options.max_iter), ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
+    # (with an unbounded counted part, the homotopy of a bounded problem continued to this one where the references
+    # differ by more than EFFORT_LEVEL_RATIO: .fuel_continuation)
+    label = "the fuel homotopy from the effort optimum" + (
+        " (or its continuation from a bounded problem)" if counted_unbounded(problem).any() else "")
+    return [(label, lambda: fuel_start(problem, options, subsolve, relaxation), options.max_iter),
+            ("rollout", made("rollout"), budget), ("interpolate", made("interpolate"), budget)], \
         "first" if Nc < N else "best"
 
 

@@ -16,6 +16,7 @@ from ...results import Attempt, Result, Solution
 from ...warm import WarmStart
 from ..base import Progress, Reporting, failed_solution
 from .fatrop import try_fatrop
+from .fuel_continuation import PREPARED_ON as CONTINUED
 from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .fuel_structure import applies as structure_applies, resolves, structured_finish
 from .homotopy import LEVEL_BUDGET, PREPARED_ON, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
@@ -31,7 +32,7 @@ WARM = "warm start"
 #: any other guess (or a warm start, whichever grid it came from) is under its plan label ('rollout',
 #: 'interpolate (seed 1)', 'warm start', a fuel guard escape)
 FROM = {RELAXED: "from relaxed", COARSE: "from coarse", RESOLVED: "from resolved grid",
-        PREPARED_ON: "from homotopy", STRUCTURE_START: "from last level"}
+        PREPARED_ON: "from homotopy", STRUCTURE_START: "from last level", CONTINUED: "from continuation"}
 
 
 def attempt_phase(label: str, prepared_on: str) -> str:
@@ -88,7 +89,8 @@ class _PlanRun:
         """IPOPT from ``guess`` within ``budget`` iterations; its Solution counts the iterations and time spent
         making the guess too."""
         tr = self.tr
-        structure = guess.prepared_on in (COARSE, RESOLVED, STRUCTURE_START)    # near the fuel optimum's structure
+        # near the fuel optimum's structure
+        structure = guess.prepared_on in (COARSE, RESOLVED, STRUCTURE_START, CONTINUED)
         if tr.fuel and structure and structure_applies(self.problem, self.options):
             sol = self.structured(label, guess)
             if sol is not None:
