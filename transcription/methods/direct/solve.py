@@ -161,9 +161,10 @@ class _PlanRun:
         for i, (label, maker, budget) in enumerate(plan):
             guess = maker()
             if guess is None:
-                what = "coarse-grid" if pick == "coarse" and i == 0 else "effort problem or a smoothed" \
-                    if "homotopy" in label else "relaxed"
-                self.attempts.append(Attempt(label, None, note=f"not available (the {what} problem did not converge)"))
+                what = "coarse-grid problem" if pick == "coarse" and i == 0 else \
+                    "effort problem, a smoothed problem or a step of the continuation" if "continuation" in label else \
+                    "effort problem or a smoothed problem" if "homotopy" in label else "relaxed problem"
+                self.attempts.append(Attempt(label, None, note=f"not available (the {what} did not converge)"))
                 continue
             if not all(np.all(np.isfinite(a)) for a in (guess.X, guess.U, guess.C)):
                 self.attempts.append(Attempt(label, None, note="not finite"))
