@@ -250,7 +250,7 @@ def homotopy_guess(problem: Problem, options: DirectOptions, subsolve, relaxatio
     did not converge).  ``stats['homotopy_levels']`` says which path was taken and the iterations of each step.
     The levels report their iterations where ``subsolve`` reports its own (:func:`~..base.progress_of`).
     ``effort``: the effort optimum as :func:`effort_optimum` returns it, when the caller has solved it already
-    (:func:`~.fuel_continuation.fuel_start`: the effort problem of its start is the file's, scaled)."""
+    (:func:`~.fuel_continuation.fuel_start`, which needs it to decide whether the continuation starts the solve)."""
     t0 = time.perf_counter()
     effort, said = effort or effort_optimum(effort_problem(problem), options, subsolve, relaxation)
     if effort is None:
