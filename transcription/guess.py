@@ -62,6 +62,12 @@ def cayley_vectors(X: np.ndarray) -> np.ndarray:
     return step_cayley_vectors(unpack_states(X).R)
 
 
+def warm_guess(warm) -> Guess:
+    """The Guess of a warm start (a :class:`~transcription.warm.WarmStart`, fitted to the problem's grid:
+    :meth:`~transcription.warm.WarmStart.fit`): its nodes, controls and Cayley vectors, with its step size."""
+    return Guess(X=warm.X, U=warm.U, C=cayley_vectors(warm.X), h=warm.h)
+
+
 def rollout_guess(disc, X0: np.ndarray, N: int, h) -> Guess:
     """Free motion of ``disc`` from X0 over N steps of size h (or the N sizes h_k of a mesh; controls zero)."""
     X, _ = disc.simulate(X0, None, h, N)

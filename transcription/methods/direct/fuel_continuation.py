@@ -42,7 +42,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...guess import Guess, cayley_vectors
+from ...guess import Guess, warm_guess
 from ...layout import U_FORCE, U_MOMENT
 from ...options import DirectOptions
 from ...problem import AT_BOUND_RTOL, NormBound, Problem
@@ -136,13 +136,13 @@ def _finished(problem: Problem, options: DirectOptions, guess: Guess, progress, 
     """``problem`` solved from ``guess`` on its switching structure (a coarser grid's optimum would be: dilated,
     rough, pruned); (its WarmStart, iterations, a line) or (None, iterations, a line) if it did not converge."""
     sol, _ = structured_finish(problem, options, guess, phased(progress, phase), rounds=STEP_ROUNDS)
-    line = f"{phase}: {sol.result.value} in {sol.iterations} iterations" + (
+    return (sol.warm if sol.converged and sol.warm is not None else None), sol.iterations, _line(phase, sol)
+
+
+def _line(what: str, sol) -> str:
+    """A step's line of ``stats['fuel_continuation']``: what was solved, how it ended, its iterations and cost."""
+    return f"{what}: {sol.result.value} in {sol.iterations} iterations" + (
         f", cost {sol.cost:.10g}" if sol.converged else "")
-    return (sol.warm if sol.converged and sol.warm is not None else None), sol.iterations, line
-
-
-def _guess(warm) -> Guess:
-    return Guess(X=warm.X, U=warm.U, C=cayley_vectors(warm.X), h=warm.h)
 
 
 def _weights(problem: Problem) -> str:
@@ -179,14 +179,13 @@ def continuation_guess(problem: Problem, start: Problem, options: DirectOptions,
     progress, free = progress_of(subsolve), counted_unbounded(problem)
     first = under(subsolve, "continuation start")(start, options)
     iterations += first.iterations
-    lines = [f"start: {_weights(start)}, {_bounds(start, free)}: {first.result.value} in {first.iterations} iterations"
-             + (f", cost {first.cost:.10g}" if first.converged else "")]
+    lines = [_line(f"start: {_weights(start)}, {_bounds(start, free)}", first)]
     warm = first.warm if first.converged else None
     step = start
     for step in weight_steps(start, problem):
         if warm is None:
             break
-        warm, its, line = _finished(step, options, _guess(warm), progress, f"continuation {_weights(step)}")
+        warm, its, line = _finished(step, options, warm_guess(warm), progress, f"continuation {_weights(step)}")
         iterations, lines = iterations + its, lines + [line]
     for _ in range(BOUND_STEPS):
         if warm is None:
@@ -195,11 +194,11 @@ def continuation_guess(problem: Problem, start: Problem, options: DirectOptions,
         if raised is None:
             break
         step = raised
-        warm, its, line = _finished(step, options, _guess(warm), progress, f"continuation {_bounds(step, free)}")
+        warm, its, line = _finished(step, options, warm_guess(warm), progress, f"continuation {_bounds(step, free)}")
         iterations, lines = iterations + its, lines + [line]
     if warm is None:
         return None
-    return replace(_guess(warm), iterations=iterations, prepared_on=PREPARED_ON, stats={"fuel_continuation": lines})
+    return replace(warm_guess(warm), iterations=iterations, prepared_on=PREPARED_ON, stats={"fuel_continuation": lines})
 
 
 __all__ = ["BOUND_FACTOR", "BOUND_MARGIN", "BOUND_STEPS", "STEP_ROUNDS", "WEIGHT_FACTOR", "continuation_guess",

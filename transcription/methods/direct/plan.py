@@ -16,12 +16,11 @@ from typing import Callable
 import numpy as np
 
 from ...guess import (Guess, aimed_guess, cayley_vectors, implied_effort, make_guess, perturbed_interpolation_guess,
-                      target_estimate)
+                      target_estimate, warm_guess)
 from ...layout import U_FORCE, U_MOMENT, X_ANG, X_POS, X_ROT
 from ...options import DirectOptions
 from ...problem import BoxBound, NormBound, Problem, ThrusterBound
 from ...results import Result, Solution
-from ...warm import WarmStart
 from ..base import under
 from .fuel_continuation import counted_unbounded, fuel_start
 from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN
@@ -259,9 +258,9 @@ def coarse_guess(problem: Problem, options: DirectOptions, Nc: int, subsolve: Su
     if not sol.converged or sol.warm is None:
         return None
     fitted, _ = sol.warm.fit(problem.N, problem.scheme, problem.fractions)
-    return Guess(X=fitted.X, U=fitted.U, C=cayley_vectors(fitted.X), iterations=sol.iterations,
-                 seconds=sol.build_s + sol.solve_s, prepared_on=COARSE, h=fitted.h,
-                 stats={k: v for k, v in sol.stats.items() if k.startswith(("multistart", "homotopy"))})
+    said = {k: v for k, v in sol.stats.items() if k.startswith(("multistart", "homotopy"))}
+    return replace(warm_guess(fitted), iterations=sol.iterations, seconds=sol.build_s + sol.solve_s, prepared_on=COARSE,
+                   stats=said)
 
 
 def relaxation(problem: Problem) -> Problem | None:
@@ -291,12 +290,6 @@ def relaxed_guess(problem: Problem, relaxed: Problem, options: DirectOptions, su
     if isinstance(engine, ThrusterBound):
         guess = aimed_guess(problem.disc, guess, engine.axis, (engine.min, engine.max), problem.steps_of(problem.h))
     return guess
-
-
-def warm_guess(warm: WarmStart) -> Guess:
-    """The Guess of a warm start on the problem's grid (fitted: :meth:`~transcription.warm.WarmStart.fit`), with
-    its step size."""
-    return Guess(X=warm.X, U=warm.U, C=cayley_vectors(warm.X), h=warm.h)
 
 
 def failure_hint(sol: Solution, options: DirectOptions) -> str:

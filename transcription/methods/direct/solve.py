@@ -8,7 +8,7 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from ...guess import Guess
+from ...guess import Guess, warm_guess
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
 from ...problem import Problem
@@ -21,7 +21,7 @@ from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
 from .fuel_structure import applies as structure_applies, resolves, structured_finish
 from .homotopy import LEVEL_BUDGET, PREPARED_ON, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
 from .plan import (COARSE, NOT_TRIED, RELAXED, RESOLVED, PlanEntry, failure_hint, guess_plan, multistart,
-                   plan_ipopt_options, warm_guess)
+                   plan_ipopt_options)
 from .solution import nlp_solution
 from .transcription import SmoothTranscription
 
