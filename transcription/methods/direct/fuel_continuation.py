@@ -48,7 +48,8 @@ from ...options import DirectOptions
 from ...problem import AT_BOUND_RTOL, NormBound, Problem
 from ..base import phased, progress_of, under
 from .fuel_structure import structured_finish
-from .homotopy import EFFORT_LEVEL_RATIO, effort_optimum, effort_problem, homotopy_guess, smoothing_reference
+from .homotopy import (EFFORT_LEVEL_RATIO, counted_parts, effort_optimum, effort_problem, homotopy_guess,
+                       smoothing_reference)
 
 #: an unbounded counted part's added bound: this times its largest magnitude in the effort optimum, rounded up to one
 #: significant digit (:func:`significant`; the effort optimum then satisfies it and the first level's effort problem
@@ -71,9 +72,10 @@ PREPARED_ON = "the fuel continuation"
 
 
 def counted_unbounded(problem: Problem) -> np.ndarray:
-    """(2,) bool: the parts (force, moment) whose fuel counts (weight > 0, not removed) and that have no bound."""
+    """(2,) bool: the parts (force, moment) whose fuel counts (:func:`~.homotopy.counted_parts`) and that have no
+    bound."""
     c = problem.control
-    return np.array([b is None and w > 0 for b, w in ((c.force_bound, c.W_f[0, 0]), (c.moment_bound, c.W_m[0, 0]))])
+    return counted_parts(problem) & np.array([c.force_bound is None, c.moment_bound is None])
 
 
 def significant(x: np.ndarray) -> np.ndarray:

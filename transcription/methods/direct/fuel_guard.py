@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...problem import NormBound, ThrusterBound, quadrature_weights
+from ...problem import ThrusterBound, quadrature_weights
 from ...results import Solution
-from .homotopy import Point, point_guess
+from .homotopy import Point, counted_parts as checked_parts, point_guess
 
 #: a node is a coast node of a part when its magnitude s is below COAST_RTOL times the part's magnitude scale
 #: (its bound, or the largest scale of its controls): an interior-point solution's coast magnitudes are ~1e-9 of it
@@ -50,14 +50,6 @@ PARTS = ("force", "moment")
 #: (the raise at N = 20 from the interpolation: the plain re-aim came back to the same point, 0.8126981586 against
 #: 0.8126981548; with the kick 0.8097587356, then 0.8096587682 with the guard passed)
 ESCAPE_KICK = 1e-3
-
-
-def checked_parts(problem) -> np.ndarray:
-    """(2,) bool: the parts (force, moment) whose fuel the guard checks: weight > 0 and not removed (a norm bound
-    of 0)."""
-    c = problem.control
-    return np.array([not (isinstance(b, NormBound) and b.b == 0) and wt > 0
-                     for b, wt in zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))])
 
 
 def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray, nu_axis=None) -> dict:

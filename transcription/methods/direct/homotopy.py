@@ -143,6 +143,14 @@ def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
     return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, SmoothTranscription.magnitude_scales(problem))
 
 
+def counted_parts(problem: Problem) -> np.ndarray:
+    """(2,) bool: the parts (force, moment) whose fuel counts: weight > 0 and not removed (a norm bound of 0) -- the
+    parts the fuel guard checks (:func:`~.fuel_guard.checked_parts`)."""
+    c = problem.control
+    return np.array([not (isinstance(b, NormBound) and b.b == 0) and wt > 0
+                     for b, wt in zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))])
+
+
 def effort_problem(problem: Problem) -> Problem:
     """The effort problem whose optimum starts the homotopy: ``problem`` with the objective effort,
     sum_j omega_j (1/2)(u_f^T W_f' u_f + u_m^T W_m' u_m), where W_i' = w_i / r_i I (w_i the fuel weights, r_i the
@@ -157,8 +165,7 @@ def effort_problem(problem: Problem) -> Problem:
     w_m = 1e5 and w_i / r_i the moment's weight is w_m r_f / (w_f r_m) = 1e10 times the force's, as in
     leo_body_engine.yaml: its effort optimum times 1e3 (235 iterations, 0.934848928)."""
     c = problem.control
-    parts = [(b, c.W_f[0, 0] if i == 0 else c.W_m[0, 0]) for i, b in enumerate((c.force_bound, c.moment_bound))]
-    counted = [b for b, w in parts if w > 0 and not (isinstance(b, NormBound) and b.b <= 0)]
+    counted = [b for b, k in zip((c.force_bound, c.moment_bound), counted_parts(problem)) if k]
     r = SmoothTranscription.magnitude_scales(problem)
     if (not counted or any(b is None for b in counted)
             or max(r[0] / r[1], r[1] / r[0]) <= EFFORT_LEVEL_RATIO):
