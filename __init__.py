@@ -28,17 +28,17 @@ _EXPORTS = {
     "export": "problems.export", "ExportError": "problems.export",
     "Maneuver": "problems.maneuvers", "ConfigError": "problems.schema",
     "DirectOptions": "transcription.options", "IndirectOptions": "transcription.options",
-    "OptionError": "transcription.options", "AccuracyOptions": "transcription.accuracy",
-    "Problem": "transcription.problem", "ProblemError": "transcription.problem",
-    "SmoothControl": "transcription.problem", "ImpulsiveControl": "transcription.problem",
-    "TargetState": "transcription.problem", "TargetOrbit": "transcription.problem",
-    "TargetRendezvous": "transcription.problem",
-    "state_from_velocities": "transcription.problem",
-    "Solution": "transcription.results", "Trajectory": "transcription.results", "Result": "transcription.results",
-    "Iterate": "transcription.results", "SolveError": "transcription.results", "Attempt": "transcription.results",
-    "WarmStart": "transcription.warm",
+    "OptionError": "transcription.options", "AccuracyOptions": "transcription.strategy.refine",
+    "Problem": "transcription.ocp", "ProblemError": "transcription.ocp",
+    "SmoothControl": "transcription.ocp", "ImpulsiveControl": "transcription.ocp",
+    "TargetState": "transcription.ocp", "TargetOrbit": "transcription.ocp",
+    "TargetRendezvous": "transcription.ocp",
+    "state_from_velocities": "transcription.ocp",
+    "Solution": "transcription.results.solution", "Trajectory": "transcription.results.solution", "Result": "transcription.results.solution",
+    "Iterate": "transcription.results.solution", "SolveError": "transcription.results.solution", "Attempt": "transcription.results.solution",
+    "WarmStart": "transcription.results.start",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
-    "tracking_gains": "transcription.tracking", "fly": "problems.flight",
+    "tracking_gains": "transcription.closedloop.tracking", "fly": "problems.flight",
 }
 __all__ = [*_EXPORTS, "__version__"]
 
@@ -61,11 +61,10 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .problems.maneuvers import Maneuver  # noqa: F401
     from .problems.schema import ConfigError  # noqa: F401
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401
-    from .transcription.accuracy import AccuracyOptions  # noqa: F401
-    from .transcription.problem import (ImpulsiveControl, Problem, ProblemError, SmoothControl,  # noqa: F401
-                                        TargetOrbit, TargetRendezvous, TargetState, state_from_velocities)
-    from .transcription.results import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
-    from .transcription.warm import WarmStart  # noqa: F401
+    from .transcription.strategy.refine import AccuracyOptions  # noqa: F401
+    from .transcription.ocp import (ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, state_from_velocities)
+    from .transcription.results.solution import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
+    from .transcription.results.start import WarmStart  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
-    from .transcription.tracking import tracking_gains  # noqa: F401
+    from .transcription.closedloop.tracking import tracking_gains  # noqa: F401
     from .problems.flight import fly  # noqa: F401

@@ -8,7 +8,7 @@
 
 ``solve`` and ``simulate`` take a :class:`~se3ocp.problems.maneuvers.Maneuver` (a loaded file: its
 Problem and its ``solver`` blocks as default options) or a
-:class:`~se3ocp.transcription.problem.Problem` built in Python (default options).
+:class:`~se3ocp.transcription.ocp.Problem` built in Python (default options).
 """
 from __future__ import annotations
 
@@ -19,13 +19,13 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..transcription.accuracy import AccuracyOptions
+from ..transcription.strategy.refine import AccuracyOptions
 from ..transcription.options import DirectOptions, IndirectOptions, Options
-from ..transcription.problem import Problem
+from ..transcription.ocp import Problem
 from ..transcription import solve as _solve
-from ..transcription.results import Iterate, Result, Solution
+from ..transcription.results.solution import Iterate, Result, Solution
 from ..transcription.solve import Comparison, compare
-from ..transcription.warm import WarmStart
+from ..transcription.results.start import WarmStart
 from .maneuvers import Maneuver, load_maneuver
 from .store import path_tolerance, solutions_of
 
@@ -71,7 +71,7 @@ def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, in
 
 
 def accuracy_options(problem: Maneuver | Problem, options: dict[str, Any]) -> AccuracyOptions:
-    """The continuous check and accuracy options of a solve (transcription.accuracy.AccuracyOptions): a
+    """The continuous check and accuracy options of a solve (transcription.strategy.refine.AccuracyOptions): a
     Maneuver's ``solver`` block (or the defaults), changed by the keywords among ``options`` that name them
     (``continuous_check=False``, ``accuracy=1e-6``, ...), which are removed from ``options``."""
     base = problem.accuracy if isinstance(problem, Maneuver) else AccuracyOptions.default()
@@ -127,13 +127,13 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     them (a DirectOptions/IndirectOptions, or a mapping of changes, e.g. ``direct={"tol": 1e-8}``);
     keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
     initial_costate="from_direct")``), except the solver block's own keys (``continuous_check=False``,
-    ``accuracy=1e-6``, ``max_N``, ...: :class:`~se3ocp.transcription.accuracy.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
+    ``accuracy=1e-6``, ``max_N``, ...: :class:`~se3ocp.transcription.strategy.refine.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
     or a callable(Iterate) (``Iterate.method`` names the method, ``phase`` the solve within it, ``elapsed_s``
     the seconds since the call).  ``warm_start``: a previous Solution (or
     its ``warm``, a WarmStart) of either method and any N or scheme: it is resampled onto this problem's grid
     and the Solution's message and ``stats['warm_start*']`` say what was reused.
 
-    Returns a :class:`~se3ocp.transcription.results.Solution` (for 'both' a
+    Returns a :class:`~se3ocp.transcription.results.solution.Solution` (for 'both' a
     :class:`~se3ocp.transcription.solve.Comparison` of the two).  A solver that fails returns a
     Solution saying why (``sol.result``, ``sol.message``); ``throw=True`` raises SolveError instead.
     """

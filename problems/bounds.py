@@ -3,7 +3,7 @@ body-fixed engine {thruster: {axis, max, min}}, and ``control.bounds_margin`` (d
 from __future__ import annotations
 
 from .schema import Validator, describe
-from ..transcription.problem import BoxBound, NormBound, ThrusterBound
+from ..transcription.ocp import BoxBound, NormBound, ThrusterBound
 
 #: positive limits whose squares enter the equations (control bounds, a rate limit, principal moments
 #: of inertia) must lie in [MIN_MAGNITUDE, MAX_MAGNITUDE], so that their squares and inverse squares are

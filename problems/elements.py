@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from ..transcription.lie import rot_x, rot_z
+from ..transcription.geometry.so3 import rot_x, rot_z
 
 #: the keys of an ``elements`` block: (file key, meaning)
 ELEMENT_KEYS = (("a", "semi-major axis (length unit; < 0 for a hyperbola)"), ("e", "eccentricity"),

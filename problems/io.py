@@ -25,7 +25,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from ..transcription.results import to_jsonable
+from ..transcription.results.solution import to_jsonable
 from .schema import yaml_dump
 
 

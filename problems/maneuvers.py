@@ -44,7 +44,7 @@ Velocities are inertial, angular velocities body-frame; momenta follow as gamma 
 Pi = J Omega.  ATT is ``identity``, ``{matrix: 3x3}``, ``{axis_angle: [ax, ay, az, angle_deg]}``
 or ``{rotations: [[x|y|z, deg], ...]}`` (product left to right).  A matrix must satisfy
 |R^T R - I|_F <= 1e-6 and det R > 0; it is then projected onto SO(3).  Directions and axes of any
-magnitude are normalized (scaled by their largest component first: transcription.lie.unit_direction);
+magnitude are normalized (scaled by their largest component first: transcription.geometry.so3.unit_direction);
 only zero and non-finite ones are refused.  The initial state and an impulsive terminal state give all
 four components (a smooth terminal state leaves out what is free).  Control bounds, rate limits and
 principal moments lie in [MIN_MAGNITUDE, MAX_MAGNITUDE]; principal moments satisfy J1 + J2 >= J3; at
@@ -63,12 +63,11 @@ from typing import Any
 
 import numpy as np
 
-from ..transcription.layout import pack_state
-from ..transcription.lgvi import FORCE_FRAMES, SCHEMES, discretization
+from ..transcription.geometry.state import pack_state
+from ..transcription.dynamics.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
-from ..transcription.problem import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState,
-                                     ThrusterBound, spd_weight)
-from ..transcription.results import Trajectory
+from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, spd_weight)
+from ..transcription.results.solution import Trajectory
 
 from . import moving as _moving
 from .bounds import MAX_MAGNITUDE, MIN_MAGNITUDE, bounds_margin, control_bound, magnitude
@@ -137,7 +136,7 @@ class StateSpec:
 
 @dataclass(frozen=True)
 class Maneuver:
-    """A validated maneuver file: the :class:`~transcription.problem.Problem` it states, the options
+    """A validated maneuver file: the :class:`~transcription.ocp.Problem` it states, the options
     of each method (its ``solver`` blocks), and the resolved document (defaults and overrides
     applied; itself a valid maneuver file).  ``initial`` and ``terminal`` are the states as given
     (velocities), ``body`` the dumbbell."""

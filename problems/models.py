@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ..transcription.model import BodyModel
+from ..transcription.dynamics.model import BodyModel
 
 GM_NORMALIZED = 4.0 * np.pi**2
 GRAVITY_KINDS = ("none", "point_mass", "gravity_gradient", "j2")

@@ -15,15 +15,15 @@ circular orbit moving at its circular rate).  Kept apart from problems/maneuvers
         angular_velocity: [3]               # optional: body frame (else free)
 
 The target moves at omega = sqrt(mu / r^3) (the model's mu); position and velocity at t = T are asked for
-(transcription.problem.TargetRendezvous, docs/mathematics.md §10).  Every error is the file's one-line
+(transcription.ocp.TargetRendezvous, docs/mathematics.md §10).  Every error is the file's one-line
 ConfigError.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..transcription.lie import rot_x, rot_z
-from ..transcription.problem import MOVING_DIRECTIONS, ProblemError, TargetRendezvous
+from ..transcription.geometry.so3 import rot_x, rot_z
+from ..transcription.ocp import MOVING_DIRECTIONS, ProblemError, TargetRendezvous
 from .physical import check_radians
 from .schema import describe
 

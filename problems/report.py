@@ -2,7 +2,7 @@
 
 The page holds the run's status per method (a failed run is red at the top), a table of figures
 of merit per method (status, cost, terminal errors, iterations, times, Δv, ∫|u_m|, peaks, time at
-a bound, minimum constraint margins: :func:`se3ocp.transcription.results.figures_of_merit`, the
+a bound, minimum constraint margins: :func:`se3ocp.transcription.results.solution.figures_of_merit`, the
 same numbers as summary.json), the comparison verdict, the figures (PNG embedded as base64 data
 URIs), the convergence history and the resolved configuration.  It needs no network, no script
 and no file beside it: it opens offline in any browser and can be mailed as it is.
@@ -19,8 +19,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..transcription.problem import BoxBound, NormBound, ThrusterBound
-from ..transcription.results import Result, Solution
+from ..transcription.ocp import BoxBound, NormBound, ThrusterBound
+from ..transcription.results.solution import Result, Solution
 from .io import atomic_write_bytes
 from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
 
@@ -91,7 +91,7 @@ def continuous_section(sols: dict[str, Solution]) -> dict[str, Any] | None:
             "messages": [f"{m}: {s.continuous.message}" for m, s in flown.items() if s.continuous.message]}
 
 
-#: the columns of a mesh history (transcription.accuracy: one record per refinement level)
+#: the columns of a mesh history (transcription.strategy.refine: one record per refinement level)
 MESH_COLUMNS = ("level", "N", "mesh", "h_min", "h_max", "miss", "predicted", "path_violation", "iterations", "solve_s",
                 "check_s", "status")
 

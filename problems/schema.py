@@ -16,11 +16,10 @@ from typing import Any, Callable, Iterable, TypeVar
 
 import numpy as np
 
-from ..transcription.lie import exp_so3, rot_x, rot_y, rot_z, unit_direction
+from ..transcription.geometry.so3 import exp_so3, rot_x, rot_y, rot_z, unit_direction
 from ..transcription.options import describe, shorten as _short, show as _show
 from .physical import check_radians
-from .yamlfile import (MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES, ConfigError, _parse, _TextError,
-                       read_yaml_file, yaml_dump, yaml_load)
+from .yamlfile import (MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES, ConfigError, _parse, _TextError, read_yaml_file, yaml_dump, yaml_load)
 
 T = TypeVar("T")
 
@@ -97,7 +96,7 @@ class Validator:
         return v
 
     def unit_vector(self, v, where, msg: str = "expected a non-zero vector (it is normalized)") -> np.ndarray:
-        """A direction given as 3 numbers, normalized by :func:`~transcription.lie.unit_direction`:
+        """A direction given as 3 numbers, normalized by :func:`~transcription.geometry.so3.unit_direction`:
         only an exactly zero vector is rejected (tiny and huge components are scaled first, so that
         neither underflows nor overflows).  Every direction of a file is read here."""
         u = unit_direction(self.vec3(v, where))

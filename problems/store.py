@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from ..transcription.flight.check import ContinuousCheck
-from ..transcription.layout import pack_state
-from ..transcription.results import Iterate, Result, Solution, Trajectory, to_jsonable
+from ..transcription.results.check import ContinuousCheck
+from ..transcription.geometry.state import pack_state
+from ..transcription.results.solution import Iterate, Result, Solution, Trajectory, to_jsonable
 from ..transcription.solve import Comparison, compare
 from .io import write_json, write_npz, write_yaml
 from .maneuvers import Maneuver, parse_maneuver
@@ -130,7 +130,7 @@ RUN_FIELDS: dict[str, Any] = {"name": str, "config": str, "command": str, "discr
                               "T": "number", "converged": bool}
 COMPARISON_FIELDS: dict[str, Any] = {"cost_relative_difference": "number", "control_max_difference_relative": "number",
                                      "same_extremal": bool, "verdict": str}
-#: the progress records of ``history`` (transcription.results.Iterate)
+#: the progress records of ``history`` (transcription.results.solution.Iterate)
 HISTORY_FIELDS: dict[str, Any] = {"iteration": "count", "trial": "count", "accepted": bool, "phase": str,
                                   "budget": "count",
                                   **{k: "number" for k in ("residual", "residual_inf", "cost", "dual", "step", "aux",

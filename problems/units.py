@@ -22,7 +22,7 @@ import math
 import weakref
 from dataclasses import dataclass
 
-from ..transcription.problem import MARGIN_DIMENSION
+from ..transcription.ocp import MARGIN_DIMENSION
 from .bodies import UnitSystem
 from .models import GM_NORMALIZED
 

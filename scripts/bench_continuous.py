@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import benchkit  # noqa: E402
 
 import se3ocp  # noqa: E402
-from se3ocp.transcription.flight import continuous_check  # noqa: E402
+from se3ocp.transcription.results.check import continuous_check  # noqa: E402
 
 CONFIG = benchkit.ROOT / "configs" / "e3_inclination_change.yaml"
 

@@ -60,7 +60,7 @@ NEW_NUMBERS = {
 def one(cfg: str, method: str, sets: list[str]) -> None:
     """Load and solve in this process; print the record (JSON)."""
     import se3ocp
-    from se3ocp.transcription import codegen
+    from se3ocp.transcription.compile import codegen
 
     said: list[str] = []
     codegen.notify = said.append
@@ -74,7 +74,7 @@ def one(cfg: str, method: str, sets: list[str]) -> None:
 
 def settle(cache: Path, timeout: float = 1800.0) -> float:
     """Wait until no background build is under way in ``cache``; the seconds waited."""
-    from se3ocp.transcription import codegen
+    from se3ocp.transcription.compile import codegen
 
     return codegen.settle(timeout, cache)
 

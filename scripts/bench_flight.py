@@ -116,7 +116,7 @@ def case_dask(runs: int) -> dict:
 def case_mpc(runs: int, workers: int) -> dict:
     import numpy as np
 
-    from se3ocp.transcription.mpc import Replanner
+    from se3ocp.transcription.closedloop.mpc import Replanner
 
     man, sol = plan(*E3)
     X = sol.trajectory.X[350].copy()

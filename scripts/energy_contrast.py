@@ -4,7 +4,7 @@ The tumbling dumbbell on the reference orbit (x0 = (1,0,0), v0 = (0, 2 pi, 0),
 R0 = I, Omega0 = (1, -2, 3) + 2 pi e3), free motion for ``--orbits`` orbits (period
 1) at h = 1e-3 (``--h``), integrated by
 
-* the second-order LGVI of docs/mathematics.md §2 (transcription.lgvi, scheme 'lgvi');
+* the second-order LGVI of docs/mathematics.md §2 (transcription.dynamics.lgvi, scheme 'lgvi');
 * classical RK4 on the continuous equations (1)-(4) with R carried as 9 numbers,
   no re-orthonormalization.
 
@@ -26,9 +26,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from se3ocp.problems.models import Dumbbell  # noqa: E402
-from se3ocp.transcription.layout import NX, join_state, pack_state, split_state, unpack_states  # noqa: E402
-from se3ocp.transcription.lgvi import Discretization  # noqa: E402
-from se3ocp.transcription.lie import hat, orthogonality_error  # noqa: E402
+from se3ocp.transcription.geometry.state import NX, join_state, pack_state, split_state, unpack_states  # noqa: E402
+from se3ocp.transcription.dynamics.lgvi import Discretization  # noqa: E402
+from se3ocp.transcription.geometry.so3 import hat, orthogonality_error  # noqa: E402
 
 H = 1e-3
 CHUNK = 2000

@@ -236,8 +236,8 @@ def slew_guess(prob, N: int, kick: float = 0.2, seed: int = 0) -> dict:
     at the largest rate the torque box allows, the torque from the inverse dynamics J a theta'' +
     w x J w), with seeded normal torques of ``kick`` times the bound added to break its symmetry (it is
     a stationary point of the time objective), at N + 1 equally spaced times over its duration."""
-    from se3ocp.transcription.layout import unpack_states
-    from se3ocp.transcription.lie import log_so3
+    from se3ocp.transcription.geometry.state import unpack_states
+    from se3ocp.transcription.geometry.so3 import log_so3
 
     J, b = prob.model.inertia, prob.control.moment_bound.b
     R0, Rd = unpack_states(prob.X0).R[0], unpack_states(prob.Xd).R[0]
@@ -294,8 +294,8 @@ def build_slew(prob, N: int, guess: dict):
 def orbit_raise_guess(prob, N: int) -> dict:
     """Our first start of the fuel objective, the rollout (free motion of our scheme), at the N + 1
     nodes; thrust and torque off (magnitudes 0, directions e_1)."""
-    from se3ocp.transcription.guess import rollout_guess
-    from se3ocp.transcription.layout import unpack_states
+    from se3ocp.transcription.strategy.starts import rollout_guess
+    from se3ocp.transcription.geometry.state import unpack_states
 
     g = rollout_guess(prob.disc, prob.X0, N, prob.h)
     s = unpack_states(g.X)
@@ -312,7 +312,7 @@ def build_orbit_raise(prob, N: int, guess: dict):
     (problem, phase)."""
     import dymos as dm
 
-    from se3ocp.transcription.problem import NormBound
+    from se3ocp.transcription.ocp import NormBound
 
     c, model, target = prob.control, prob.model, prob.terminal
     if not (isinstance(c.force_bound, NormBound) and isinstance(c.moment_bound, NormBound)):
@@ -412,7 +412,7 @@ def radau_controls(phase, time: np.ndarray, values: dict):
 def _bound_violation(prob, control, T: float) -> float:
     """The largest excess of the control over its bounds on a fine grid (16 points per node interval):
     collocation bounds the control at the nodes only."""
-    from se3ocp.transcription.problem import BoxBound
+    from se3ocp.transcription.ocp import BoxBound
 
     ts = np.linspace(0.0, T, 16 * prob.N + 1)
     U = np.array([control(t) for t in ts]).T
@@ -428,7 +428,7 @@ def _bound_violation(prob, control, T: float) -> float:
 def _reflown(rec: dict, prob, control, breaks: np.ndarray, T: float) -> dict:
     """``rec`` with the terminal error (docs/mathematics.md §8) of the DOP853 re-flight of ``control``
     over [0, T] and the bound violation between the nodes."""
-    from se3ocp.transcription.problem import terminal_error
+    from se3ocp.transcription.ocp import terminal_error
 
     XN = refly(prob.model, prob.X0, control, breaks)
     rec["terminal_error"] = terminal_error(XN, prob) if np.all(np.isfinite(XN)) else float("inf")
@@ -440,8 +440,8 @@ def _reflown(rec: dict, prob, control, breaks: np.ndarray, T: float) -> dict:
 def _miss(XN: np.ndarray, prob) -> dict:
     """The re-flown terminal error in readable units: for a state target the attitude miss (deg) and the
     body-rate miss (rad/s); for an orbit target the radius miss and the speed miss (normalized units)."""
-    from se3ocp.transcription.layout import unpack_states
-    from se3ocp.transcription.lie import log_so3
+    from se3ocp.transcription.geometry.state import unpack_states
+    from se3ocp.transcription.geometry.so3 import log_so3
 
     if not np.all(np.isfinite(XN)):
         return {}
@@ -457,7 +457,7 @@ def _miss(XN: np.ndarray, prob) -> dict:
 
 def _peer_state(p, prob) -> np.ndarray:
     """The peer's own final node state in our layout (18), for its terminal error as the NLP sees it."""
-    from se3ocp.transcription.layout import pack_state
+    from se3ocp.transcription.geometry.state import pack_state
 
     ts = "traj.phase0.timeseries."
     q = p.get_val(ts + "q")[-1]
@@ -510,7 +510,7 @@ def solve_peer(case: str, N: int) -> dict:
     import os
     import tempfile
 
-    from se3ocp.transcription.problem import terminal_error
+    from se3ocp.transcription.ocp import terminal_error
 
     prob = _problem(case, N)
     slew = prob.control.objective == "time"

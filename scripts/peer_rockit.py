@@ -53,9 +53,9 @@ WALL_CAP_S = 120.0
 
 
 def _rhs_functions(model):
-    """(X[18], u[6]) -> dX/dt as a CasADi Function (layout of transcription.layout)."""
-    from se3ocp.transcription.layout import join_state, split_state
-    from se3ocp.transcription.lie import hat
+    """(X[18], u[6]) -> dX/dt as a CasADi Function (layout of transcription.geometry.state)."""
+    from se3ocp.transcription.geometry.state import join_state, split_state
+    from se3ocp.transcription.geometry.so3 import hat
 
     X = ca.SX.sym("X", 18)
     u = ca.SX.sym("u", 6)
@@ -84,7 +84,7 @@ def resimulate(model, X0, U, T, rtol=1e-12, atol=1e-12):
 
 
 def orthogonality(X):
-    from se3ocp.transcription.layout import unpack_states
+    from se3ocp.transcription.geometry.state import unpack_states
 
     R = unpack_states(np.asarray(X)).R
     E = np.einsum("kji,kjl->kil", R, R) - np.eye(3)
@@ -124,7 +124,7 @@ STEMS = {"e3": "e3_inclination_change", "e4": "e4_orbital_capture", "slew": "sle
 
 def _attitude_rhs(model):
     """(Z[12] = [vec R (column-major); Pi], u_m[3]) -> dZ/dt of a body without a central body or force."""
-    from se3ocp.transcription.lie import hat
+    from se3ocp.transcription.geometry.so3 import hat
 
     Z = ca.SX.sym("Z", 12)
     um = ca.SX.sym("u_m", 3)
@@ -141,11 +141,11 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
     from rockit import FreeTime, Ocp
 
     import se3ocp
-    from se3ocp.transcription.guess import target_estimate
-    from se3ocp.transcription.guess import perturbed_interpolation_guess
-    from se3ocp.transcription.layout import X_ANG, X_ROT, split_state
-    from se3ocp.transcription.lie import log_so3
-    from se3ocp.transcription.problem import BoxBound
+    from se3ocp.transcription.strategy.starts import target_estimate
+    from se3ocp.transcription.strategy.starts import perturbed_interpolation_guess
+    from se3ocp.transcription.geometry.state import X_ANG, X_ROT, split_state
+    from se3ocp.transcription.geometry.so3 import log_so3
+    from se3ocp.transcription.ocp import BoxBound
 
     prob = se3ocp.load(ROOT / "configs" / f"{STEMS[case]}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
     model, c = prob.disc.model, prob.control
@@ -213,9 +213,9 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
 
 def relaxed_start(prob):
     """Node states (N+1, 18) and controls (6, N) of our direct solution of ``prob`` without its bounds (the
-    first start of our bounded effort problems, transcription.methods.direct.plan.relaxation), first-order scheme."""
+    first start of our bounded effort problems, transcription.strategy.plan.relaxation), first-order scheme."""
     from se3ocp.transcription.methods.direct import solve_direct
-    from se3ocp.transcription.methods.direct.plan import relaxation
+    from se3ocp.transcription.strategy.plan import relaxation
 
     s = solve_direct(relaxation(prob))
     if not s.converged:
@@ -243,10 +243,10 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
         return _solve_constrained(case, N, wall_cap)
 
     import se3ocp
-    from se3ocp.transcription.guess import rollout_guess
-    from se3ocp.transcription.layout import split_state
-    from se3ocp.transcription.lie import log_so3
-    from se3ocp.transcription.problem import terminal_error
+    from se3ocp.transcription.strategy.starts import rollout_guess
+    from se3ocp.transcription.geometry.state import split_state
+    from se3ocp.transcription.geometry.so3 import log_so3
+    from se3ocp.transcription.ocp import terminal_error
 
     stem = STEMS[case]
     prob = se3ocp.load(ROOT / "configs" / f"{stem}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
@@ -286,7 +286,7 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
 def _resimulated(rec: dict, prob, U: np.ndarray, T: float) -> dict:
     """``rec`` with the terminal error (docs/mathematics.md §8) and the orthogonality of the DOP853
     re-simulation of the peer's controls U (6, N) over [0, T], and a message if it did not converge."""
-    from se3ocp.transcription.problem import terminal_error
+    from se3ocp.transcription.ocp import terminal_error
 
     if np.all(np.isfinite(U)) and np.isfinite(T):
         Xr = resimulate(prob.disc.model, prob.X0, U, T)

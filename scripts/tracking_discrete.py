@@ -22,9 +22,9 @@ import numpy as np
 
 import se3ocp
 from se3ocp.problems.models import Dumbbell, Gravity, RigidBody
-from se3ocp.transcription.lgvi import discretization
-from se3ocp.transcription.lie import exp_so3
-from se3ocp.transcription.tracking import fly_discrete, retract
+from se3ocp.transcription.dynamics.lgvi import discretization
+from se3ocp.transcription.geometry.so3 import exp_so3
+from se3ocp.transcription.closedloop.tracking import fly_discrete, retract
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 

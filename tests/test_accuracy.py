@@ -9,7 +9,7 @@ docs/mathematics.md §11).
   deviations to round-off, in the CLI's table (a ``cont. miss`` column), in ``repr``/HTML, in report.html (a
   section with its table) and in a figure (``fig_continuous``, its terminal values the check's misses).  The
   "continuous miss" shown (summary.json ``continuous_miss``) is the scaled miss that ``solver.accuracy`` bounds
-  (transcription.accuracy.scaled_miss), not the check's raw ``terminal_error``.
+  (transcription.strategy.refine.scaled_miss), not the check's raw ``terminal_error``.
 """
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.accuracy import CHECK_ENV, AccuracyOptions
-from se3ocp.transcription.flight import continuous_check
+from se3ocp.transcription.strategy.refine import CHECK_ENV, AccuracyOptions
+from se3ocp.transcription.results.check import continuous_check
 
 from support import config, maneuver
 
@@ -66,11 +66,11 @@ def test_failed_and_impulsive_solves_skip_it():
 
 def test_repr_html_and_cli_table():
     """The "continuous miss" of repr, the notebook table and the CLI's ``cont. miss`` column is the scaled miss that
-    ``solver.accuracy`` bounds (Solution.continuous_miss = transcription.accuracy.scaled_miss), not the check's raw
+    ``solver.accuracy`` bounds (Solution.continuous_miss = transcription.strategy.refine.scaled_miss), not the check's raw
     ``terminal_error``: on first-order E3 at N = 40 (normalized units, V = 2 pi) the raw largest is the velocity miss
     0.638, the scaled one the rate miss 0.380.  Not flown: '-'."""
     from se3ocp.problems.cli.progress import table
-    from se3ocp.transcription.accuracy import scaled_miss
+    from se3ocp.transcription.strategy.refine import scaled_miss
 
     s = se3ocp.solve(maneuver("e3", 40, "first_order"), "direct")
     assert s.converged, s.message
@@ -136,7 +136,7 @@ def independent_miss(sol) -> dict[str, float]:
     speed, attitude angle (rad), rate (rad per time unit)."""
     from test_flight import reflight
 
-    from se3ocp.transcription.lie import rotation_angle
+    from se3ocp.transcription.geometry.so3 import rotation_angle
 
     prob, tr, U = sol.problem, sol.trajectory, sol.controls
     start, end = (U[:, :-1], U[:, 1:]) if sol.scheme == "lgvi" else (U, U)
@@ -209,7 +209,7 @@ def test_first_order_at_1e_6_is_refused_before_solving(monkeypatch):
     the free-motion estimate at N = 500) and the lgvi scheme; the estimate agrees with what a solved plan says
     (its own miss at N = 200 extrapolated at order 1) to a factor 2."""
     from se3ocp.transcription import solve as solve_module
-    from se3ocp.transcription.accuracy import scaled_miss
+    from se3ocp.transcription.strategy.refine import scaled_miss
 
     def no_solve(*a, **k):
         raise AssertionError("a solve was started")
@@ -245,7 +245,7 @@ def test_validate_names_an_accuracy_out_of_reach(capsys):
     """``se3ocp validate`` gives solve's one-line answer (the same sentence) as a 'but' line, exit 0 (the file is
     well-formed; solve refuses it with exit 2), and in --json as ``accuracy_out_of_reach``; nothing for 1e-3."""
     from se3ocp.problems.cli import main
-    from se3ocp.transcription.accuracy import out_of_reach
+    from se3ocp.transcription.strategy.refine import out_of_reach
 
     def validate(accuracy, *flags):
         rc = main(["validate", str(config("e3")), "--set", "horizon.N=100", "--set", f"solver.accuracy={accuracy}", *flags])
@@ -274,7 +274,7 @@ def test_a_path_constraint_violated_between_nodes_triggers_refinement(monkeypatc
     """The keep-out slew at N = 100 enters its cone between the nodes by 0.0057 deg (9.9e-5 rad); with the terminal
     miss taken as met (scaled_miss patched to 0), accuracy 5e-5 refines on the violation alone until the flown
     path's smallest margin is within -5e-5 rad."""
-    from se3ocp.transcription import accuracy
+    from se3ocp.transcription.strategy import refine as accuracy
 
     monkeypatch.setattr(accuracy, "scaled_miss", lambda check, problem: 0.0)
     sol = se3ocp.solve(maneuver("slew_keep_out"), accuracy=5e-5)
@@ -371,7 +371,7 @@ def test_a_tolerance_beyond_max_N_at_the_best_order_stops_after_the_first_level(
     and an adaptive mesh credited with half the steps) -- 7.7e4 (miss 1.5e-2), far above the cap -- so refinement stops after
     that level with one line naming that N and what to raise.  Before, the next level's N (at most 32 times 40 =
     1280, within the cap) was solved first (the bundled slew at 1e-9: two levels, 170-330 s)."""
-    from se3ocp.transcription.accuracy import ADAPTIVE_GAIN, BEST_ORDER, next_N
+    from se3ocp.transcription.strategy.refine import ADAPTIVE_GAIN, BEST_ORDER, next_N
 
     sol = se3ocp.solve(maneuver("slew_time_optimal", 40), accuracy=1e-9, max_N=2000)
     assert sol.converged and sol.stats["accuracy_met"] is False and len(sol.mesh) == 1, sol.message
@@ -387,7 +387,7 @@ def test_the_best_order_does_not_refuse_what_the_first_order_scheme_reaches():
     """The first-order slew's miss falls at second order (3.9e-4 at N = 200, 4.9e-7 at N = 6400): with those two
     numbers the favourable estimate says 1e-6 is within N = 6400 (so it is not refused), where the nominal first
     order would put it at 200 * 390 = 78 000, above the default cap of 50 000."""
-    from se3ocp.transcription.accuracy import least_N
+    from se3ocp.transcription.strategy.refine import least_N
 
     assert least_N(200, 3.9e-4 / 1e-6, False) <= 6400 < 200 * 3.9e-4 / 1e-6 and 200 * 3.9e-4 / 1e-6 > 50000
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from se3ocp.transcription.lgvi import discretization
-from se3ocp.transcription.problem import ProblemError, SmoothControl, ThrusterBound
+from se3ocp.transcription.dynamics.lgvi import discretization
+from se3ocp.transcription.ocp import ProblemError, SmoothControl, ThrusterBound
 
 from support import maneuver, problem
 
@@ -85,7 +85,7 @@ def test_the_engine_thrusts_along_its_axis_within_its_range(objective):
     linear rows hold to round-off), 0 <= T <= max to the solver's tolerance (1e-8 of max), and the figures
     of merit say so; the fuel cost's force part is sum_j omega_j T_j (|u_f| = T for a feasible control)."""
     import se3ocp
-    from se3ocp.transcription.problem import quadrature_weights
+    from se3ocp.transcription.ocp import quadrature_weights
 
     man = maneuver("slew_keep_out", None, None, *ENGINE_SLEW, *OBJECTIVES[objective])
     sol = se3ocp.solve(man)
@@ -150,7 +150,8 @@ def test_a_body_frame_plan_flies_as_the_independent_reflight():
     deviations from the plan agree to 1e-10 (position, of a path of length ~1.4; attitude, rad), while the
     deviations themselves are ~1e-4 (so the agreement is not trivial).  An inertial reading of the same
     command would fly elsewhere: checked against the same re-flight, it misses by more than 1e-2."""
-    from se3ocp.transcription.flight import Actuators, OpenLoop, continuous_check, fly
+    from se3ocp.transcription.dynamics.flight import Actuators, OpenLoop, fly
+    from se3ocp.transcription.results.check import continuous_check
 
     sol = _engine_plan(40)
     chk = continuous_check(sol)
@@ -166,7 +167,7 @@ def test_a_body_frame_plan_flies_as_the_independent_reflight():
 def test_the_continuous_miss_of_body_frame_plans_is_second_order():
     """The engine slew planned by the LGVI at N = 20, 40, 80, 160 and flown: the continuous terminal miss falls
     with a fitted log-log slope of 2 +- 0.15."""
-    from se3ocp.transcription.flight import continuous_check
+    from se3ocp.transcription.results.check import continuous_check
 
     Ns = np.array([20, 40, 80, 160])
     miss = [continuous_check(_engine_plan(int(N))).terminal_error for N in Ns]
@@ -208,7 +209,7 @@ def test_the_tracker_steers_a_body_fixed_engine_along_its_axis():
     0 <= T <= max), and the terminal miss (max-norm of z_N) still falls by more than 10x against open loop
     (measured 2.5e-2 -> 5.8e-4); the plan flown without error is left alone (no correction limited)."""
     import se3ocp
-    from se3ocp.transcription import tracking as tr
+    from se3ocp.transcription.closedloop import tracking as tr
 
     sol = se3ocp.solve(maneuver("slew_keep_out", None, None, *ENGINE_SLEW))
     G, disc, b = tr.tracking_gains(sol), sol.problem.disc, sol.problem.control.force_bound
@@ -244,7 +245,7 @@ def test_the_leo_engine_raise_converges_and_aims_its_burns():
     thrust's impulse sum_j omega_j T_j is along-track (measured 95.9 %), while the initial attitude points the
     engine 108 deg away from it."""
     import se3ocp
-    from se3ocp.transcription.problem import quadrature_weights
+    from se3ocp.transcription.ocp import quadrature_weights
 
     man = maneuver("leo_body_engine")
     sol = se3ocp.solve(man)
@@ -268,7 +269,7 @@ def test_the_engine_frame_and_the_aiming_rotation():
     """lie.rotation_with_first_column(a): a rotation (orthonormal to 1e-15, det 1) whose first column is a;
     lie.rotation_between(u, v): rotations taking u onto v to 1e-15, also for u = v and u = -v, by the angle
     between them (the smallest rotation; to 1e-7, the arccos of a cosine near 1)."""
-    from se3ocp.transcription.lie import rotation_angle, rotation_between, rotation_with_first_column
+    from se3ocp.transcription.geometry.so3 import rotation_angle, rotation_between, rotation_with_first_column
 
     rng = np.random.default_rng(3)
     for a in [np.array([1.0, 0, 0]), np.array([0, 0, -1.0]), *rng.standard_normal((5, 3))]:

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.results.solution import Result
 from support import CONFIGS
 from test_cli import run
 
@@ -19,7 +19,7 @@ def test_central_body_radius_adds_min_radius_once():
     at least as large is not duplicated, a smaller one is kept beside it; radius 0 (every bundled
     maneuver) and impulsive control add nothing."""
     from se3ocp.problems.maneuvers import load_maneuver, parse_maneuver
-    from se3ocp.transcription.problem import MinRadius
+    from se3ocp.transcription.ocp import MinRadius
 
     e3 = CONFIGS / "e3_inclination_change.yaml"
     m = load_maneuver(e3, ["model.central_body_radius=0.5"])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.results.solution import Result
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -274,7 +274,7 @@ def test_an_in_process_run_leaves_no_compile_notifier_behind(capsys):
 
     from se3ocp.problems.cli import main
     from se3ocp.problems.cli.progress import say
-    from se3ocp.transcription import codegen
+    from se3ocp.transcription.compile import codegen
 
     before = codegen.notify
     assert main(["validate", str(ROOT / "configs" / "e3_inclination_change.yaml")]) == 0

@@ -9,14 +9,14 @@ import pytest
 
 import se3ocp
 from se3ocp.problems.models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody
-from se3ocp.transcription import codegen
-from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.compile import codegen
+from se3ocp.transcription.dynamics.lgvi import Discretization
 from se3ocp.transcription.methods.indirect.conditions import costate_functions
 from se3ocp.transcription.methods.indirect.control import bound_data
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 from se3ocp.transcription.methods.indirect.solve import weight_inverse
 from se3ocp.transcription.nlp.blocks import dynamics
-from se3ocp.transcription.lie import exp_so3
+from se3ocp.transcription.geometry.so3 import exp_so3
 from se3ocp.transcription.options import DirectOptions, IndirectOptions
 from support import maneuver, problem
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.problem import fuel_cost, quadrature_weights
+from se3ocp.transcription.ocp import fuel_cost, quadrature_weights
 from support import ROOT, maneuver
 
 
@@ -55,8 +55,8 @@ def test_time_optimal_slews_converge_to_the_published_minimum(name, published):
 @pytest.mark.parametrize("name", ["slew_time_optimal", "slew_time_optimal_symmetric"])
 def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
     """The time objective's starts are solved on max(25, N // 4) steps and the best is finished on N
-    (transcription.methods.direct.plan.TIME_COARSE_MIN): the same minimum as the starts solved on N steps."""
-    from se3ocp.transcription.methods.direct import plan
+    (transcription.strategy.plan.TIME_COARSE_MIN): the same minimum as the starts solved on N steps."""
+    from se3ocp.transcription.strategy import plan
 
     coarse = solved(name, 100)
     assert coarse.attempts[0].label == "the best start on 25 steps, resampled"
@@ -75,7 +75,7 @@ def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
 
 def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts(monkeypatch):
     """When the coarse-grid solve does not converge, the starts are solved on N steps as before."""
-    from se3ocp.transcription.methods.direct import plan
+    from se3ocp.transcription.strategy import plan
 
     monkeypatch.setattr(plan, "coarse_guess", lambda problem, options, Nc, subsolve: None)
     s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct")
@@ -202,7 +202,7 @@ def test_maccullagh_potential_matches_the_dumbbell_far_away():
     import casadi as ca
 
     from se3ocp.problems.models import Dumbbell
-    from se3ocp.transcription.lie import exp_so3
+    from se3ocp.transcription.geometry.so3 import exp_so3
 
     R = exp_so3(np.array([0.3, -0.5, 0.2]))
     exact, approx = Dumbbell().potential(), Dumbbell(gravity="gravity_gradient").potential()
@@ -217,7 +217,7 @@ def test_maccullagh_potential_matches_the_dumbbell_far_away():
 def test_gravity_gradient_torque_formula():
     """The moment derived by AD from the MacCullagh potential is 3 mu / r^3 (rb x J rb), rb = R^T x / r."""
     from se3ocp.problems.models import Gravity, RigidBody
-    from se3ocp.transcription.lie import exp_so3
+    from se3ocp.transcription.geometry.so3 import exp_so3
 
     J = np.diag([3.0, 2.0, 1.0])
     body = RigidBody(2.0, J, Gravity("point_mass", 5.0))
@@ -389,7 +389,7 @@ def test_full_inertia_tensor_is_a_rotated_principal_body(gravity):
     """A body given by a full inertia tensor J' = Q D Q^T is the principal body D seen in body axes turned
     by Q: from R'_0 = R_0 Q^T, Omega'_0 = Q Omega_0 the free motion (LGVI, no gravity or point-mass gravity
     with the MacCullagh term) is R'_k = R_k Q^T, Omega'_k = Q Omega_k -- to 1e-11 (relative) over 400 steps."""
-    from se3ocp.transcription.lie import exp_so3
+    from se3ocp.transcription.geometry.so3 import exp_so3
 
     D = np.array([1.0, 1.5, 2.0]) * 1e-3          # a body small against its orbit (MacCullagh's expansion)
     Q = exp_so3(np.array([0.3, -0.5, 0.8]))

@@ -12,11 +12,11 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.nlp.layouts import NLPLayout, StageLayout
-from se3ocp.transcription.guess import interpolation_guess, rollout_guess
-from se3ocp.transcription.layout import NU, NX, unpack_states
-from se3ocp.transcription.lie import orthogonality_error
+from se3ocp.transcription.strategy.starts import interpolation_guess, rollout_guess
+from se3ocp.transcription.geometry.state import NU, NX, unpack_states
+from se3ocp.transcription.geometry.so3 import orthogonality_error
 from se3ocp.transcription.options import DirectOptions, OptionError
-from se3ocp.transcription.problem import quadrature_weights
+from se3ocp.transcription.ocp import quadrature_weights
 from support import maneuver, problem
 
 SCHEMES = ("lgvi", "first_order")

@@ -1,7 +1,7 @@
 """The everyday-maneuver suite (configs/everyday/): maneuvers a mission planner would try first -- large
 radius changes, large plane changes, multi-orbit horizons, a detumble, a fast-tumble capture, slews with
 transfers, both schemes, dumbbell and rigid body -- must converge with the default settings; and the
-direct method's initial-guess plan (transcription.methods.direct.plan.guess_plan) tries its guesses in
+direct method's initial-guess plan (transcription.strategy.plan.guess_plan) tries its guesses in
 order and reports each one.
 
 Tolerances: the re-simulated terminal error <= 1e-8 and max |R^T R - I| <= 1e-12, as for E3/E4 in
@@ -15,10 +15,11 @@ from pathlib import Path
 import pytest
 
 import se3ocp
-from se3ocp.transcription.guess import make_guess, target_estimate
-from se3ocp.transcription.methods.direct import plan, solve_direct
-from se3ocp.transcription.methods.direct.scaling import scaled_terminal_miss
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.strategy.starts import make_guess, target_estimate
+from se3ocp.transcription.strategy import plan
+from se3ocp.transcription.methods.direct import solve_direct
+from se3ocp.transcription.nlp.scaling import scaled_terminal_miss
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from support import CONFIGS, maneuver
 
 EVERYDAY = sorted(p.stem for p in (CONFIGS / "everyday").glob("*.yaml"))

@@ -22,7 +22,7 @@ import pytest
 import se3ocp
 from se3ocp.problems.export import ExportError, export
 from se3ocp.problems.store import read_run, write_run
-from se3ocp.transcription.problem import NormBound
+from se3ocp.transcription.ocp import NormBound
 
 from support import CONFIGS
 

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import failure_cases as ft
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.results.solution import Result
 from support import CONFIGS, ROOT
 
 
@@ -118,8 +118,8 @@ def test_solver_failure_is_data(case, tmp_path):
 def _nan_model_problem():
     """E3 at N = 10 with a potential whose gradient is NaN everywhere in the orbit (sqrt of x_1 - 5 < 0)."""
     from se3ocp.problems.maneuvers import load_maneuver
-    from se3ocp.transcription.lgvi import Discretization
-    from se3ocp.transcription.model import BodyModel
+    from se3ocp.transcription.dynamics.lgvi import Discretization
+    from se3ocp.transcription.dynamics.model import BodyModel
 
     man = load_maneuver(CONFIGS / "e3_inclination_change.yaml", ["horizon.N=10"])
     x = ca.SX.sym("x", 3)

@@ -13,11 +13,11 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.methods.direct import fatrop
-from se3ocp.transcription.methods.direct.plan import relaxation
+from se3ocp.transcription.strategy.plan import relaxation
 from se3ocp.transcription.methods.direct.solve import solve_direct
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from se3ocp.transcription.nlp.layouts import StageLayout
-from se3ocp.transcription.problem import TargetOrbit
+from se3ocp.transcription.ocp import TargetOrbit
 from support import problem
 
 SCHEMES = ["first_order", "lgvi"]

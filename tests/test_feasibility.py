@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.feasibility import necessary_conditions, step_failure
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.ocp.feasibility import necessary_conditions, step_failure
+from se3ocp.transcription.results.solution import Result
 
 from support import config
 

@@ -31,9 +31,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import se3ocp
-from se3ocp.transcription.flight import (RTOL, Actuators, ClosedLoop, FlightError, OpenLoop, continuous_check, fly,
-                                         interval_commands)
-from se3ocp.transcription.lie import exp_so3, rot_x, rotation_angle
+from se3ocp.transcription.dynamics.flight import (RTOL, Actuators, ClosedLoop, FlightError, OpenLoop, fly, interval_commands)
+from se3ocp.transcription.results.check import continuous_check
+from se3ocp.transcription.geometry.so3 import exp_so3, rot_x, rotation_angle
 
 from support import maneuver
 
@@ -246,8 +246,8 @@ def test_the_tracking_loop_in_one_call_flies_as_the_law_asked_per_interval(schem
     the Tracker asked for each interval's correction from Python (ClosedLoop): E3 with a truth inertia 1 % off,
     a 2 % thrust scale, a misalignment and an initial offset; every sample and command agrees to 1e-10 relative
     (measured 5e-13 for the states, 2e-12 for the commands)."""
-    from se3ocp.transcription.flight.loop import TrackingLoop
-    from se3ocp.transcription.tracking import tracking_gains
+    from se3ocp.transcription.closedloop.loop import TrackingLoop
+    from se3ocp.transcription.closedloop.tracking import tracking_gains
 
     sol = solved("e3", N, scheme)
     g = tracking_gains(sol)
@@ -358,7 +358,7 @@ def test_failed_flight_is_reported():
     FlightError naming CVODES, the check of such a 'plan' carries nan and the message."""
     import dataclasses
 
-    from se3ocp.transcription.results import Trajectory
+    from se3ocp.transcription.results.solution import Trajectory
 
     prob = maneuver("free", 100, None, "horizon.T=0.5").problem
     X0 = prob.X0.copy()
@@ -377,7 +377,7 @@ def test_failed_flight_is_reported():
 def test_nearest_rotation():
     """lie.nearest_rotation: the orthogonal polar factor M (M^T M)^(-1/2) for matrices near SO(3) (to 1e-14),
     a rotation (det 1) even for a matrix with det < 0, and the identity map on rotations (to 1e-14)."""
-    from se3ocp.transcription.lie import nearest_rotation, orthogonality_error
+    from se3ocp.transcription.geometry.so3 import nearest_rotation, orthogonality_error
 
     rng = np.random.default_rng(7)
     Rs = np.array([exp_so3(rng.standard_normal(3)) for _ in range(20)])

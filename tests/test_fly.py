@@ -37,6 +37,7 @@ from se3ocp.problems.flight.plan import run_seeds, sample_errors
 from se3ocp.problems.flight.run import run_flights
 from se3ocp.problems.schema import ConfigError
 from se3ocp.problems.sweep.executors import PoolExecutor, SerialExecutor
+from se3ocp.transcription.results.check import continuous_check
 
 from support import ROOT, config, maneuver
 from test_flight import gravity, reflight
@@ -154,7 +155,7 @@ def test_figures_of_merit_against_independent_arithmetic(e3_plan):
     man, sol = e3_plan
     res = run_flights(man, sol, parse_flight({"runs": 1}), executor=SerialExecutor())
     none, lqr = res.rows
-    check = se3ocp.transcription.flight.continuous_check(sol)
+    check = continuous_check(sol)
     assert none["position_miss"] == pytest.approx(check.terminal_position, rel=1e-9)
     assert none["attitude_miss_deg"] == pytest.approx(np.degrees(check.terminal_attitude), rel=1e-6)
     assert abs(none["delta_v_overhead"]) <= 1e-12 and none["saturated_fraction"] == 0.0

@@ -10,9 +10,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from se3ocp.transcription.methods.direct import fuel_continuation as fc
-from se3ocp.transcription.methods.direct.homotopy import EFFORT_LEVEL_RATIO, effort_problem
-from se3ocp.transcription.problem import NormBound
+from se3ocp.transcription.strategy import fuel_continuation as fc
+from se3ocp.transcription.strategy.homotopy import EFFORT_LEVEL_RATIO, effort_problem
+from se3ocp.transcription.ocp import NormBound
 from support import maneuver, problem
 
 FUEL = "control.objective=fuel"
@@ -118,8 +118,8 @@ def test_the_engine_raise_with_the_fuel_objective_converges():
     import re
 
     import se3ocp
-    from se3ocp.transcription.flight import continuous_check
-    from se3ocp.transcription.methods.direct.fuel_guard import GUARD_TOL
+    from se3ocp.transcription.results.check import continuous_check
+    from se3ocp.transcription.strategy.fuel_guard import GUARD_TOL
 
     man = maneuver("leo_body_engine", None, None, FUEL)
     p = man.problem

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.guess import Guess, cayley_vectors
-from se3ocp.transcription.methods.direct import fuel_guard
-from se3ocp.transcription.methods.direct.homotopy import Point
+from se3ocp.transcription.strategy.starts import Guess, cayley_vectors
+from se3ocp.transcription.strategy import fuel_guard
+from se3ocp.transcription.strategy.homotopy import Point
 from se3ocp.transcription.methods.direct.solve import solve_direct
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from se3ocp.transcription.options import DirectOptions
-from se3ocp.transcription.problem import quadrature_weights
+from se3ocp.transcription.ocp import quadrature_weights
 
 import support
 
@@ -127,7 +127,7 @@ def test_the_false_minimum_on_the_mesh_is_left_and_the_indirect_method_agrees():
 
     from se3ocp.transcription.methods.direct import solve as solve_mod
 
-    from se3ocp.transcription.methods.direct import homotopy
+    from se3ocp.transcription.strategy import homotopy
 
     p = raise_on_mesh(40, "lgvi")
     with mock.patch.object(solve_mod, "structure_applies", lambda *_: False), \

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.methods.direct import homotopy
-from se3ocp.transcription.methods.direct.plan import SAME_OPTIMUM_RTOL, relaxation
+from se3ocp.transcription.strategy import homotopy
+from se3ocp.transcription.strategy.plan import SAME_OPTIMUM_RTOL, relaxation
 from se3ocp.transcription.methods.direct.solve import solve_direct
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
-from se3ocp.transcription.problem import fuel_cost, quadrature_weights
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
+from se3ocp.transcription.ocp import fuel_cost, quadrature_weights
 from support import maneuver, problem
 
 N = 25
@@ -114,7 +114,7 @@ def _finish_on(p, coarse, warm_primal: bool):
     plan's fallback: the structured finish (.fuel_structure, tests/test_fuel_structure.py) switched off."""
     from unittest import mock
 
-    from se3ocp.transcription.methods.direct import plan as plan_mod
+    from se3ocp.transcription.strategy import plan as plan_mod
     from se3ocp.transcription.methods.direct import solve as solve_mod
 
     options = se3ocp.DirectOptions()
@@ -152,7 +152,7 @@ def test_fatrop_does_not_converge_on_the_fuel_nlp_even_from_its_optimum(raise25)
     blocks get a Hessian regularization of 10-100 at every iteration and the dual infeasibility crawls near 1e-6
     (measured: status 1 after 129-493 iterations, 1.2e-7 to 2.7e-7 above IPOPT's cost).  If this fails, fatrop
     has learned to solve it: measure the 400-step finish and extend fatrop.covers."""
-    from se3ocp.transcription.guess import Guess, cayley_vectors
+    from se3ocp.transcription.strategy.starts import Guess, cayley_vectors
     from se3ocp.transcription.methods.direct import fatrop
 
     p, sol = raise25
@@ -184,7 +184,7 @@ def test_a_coarse_grid_whose_orbit_the_force_cannot_reach_is_skipped():
     .fuel_continuation where it applies); the fuel raise keeps its coarse grid
     (gap 0.0044 against a reach of 9.8).  A 10 N engine (reach 309 km) brings the coarse grid back.  Planning solves
     nothing."""
-    from se3ocp.transcription.methods.direct.plan import COARSE, coarse_resolves, guess_plan
+    from se3ocp.transcription.strategy.plan import COARSE, coarse_resolves, guess_plan
 
     def no_solve(*_):
         raise AssertionError("planning must not solve")
@@ -207,7 +207,7 @@ def _homotopy_solve(p):
     """The fuel plan's homotopy start alone on ``p``'s grid (no rollout, no interpolation), guarded as the solve
     guards it: the Solution and its plan run."""
     from se3ocp.transcription.methods.direct import solve as solve_mod
-    from se3ocp.transcription.methods.direct.fuel_guard import guarded
+    from se3ocp.transcription.strategy.fuel_guard import guarded
 
     options = se3ocp.DirectOptions()
     run = solve_mod._PlanRun(p, options, None, None)

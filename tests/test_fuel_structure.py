@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.guess import Guess, cayley_vectors
-from se3ocp.transcription.layout import U_FORCE, U_MOMENT
-from se3ocp.transcription.methods.direct import fuel_structure, plan as plan_mod, solve as solve_mod
-from se3ocp.transcription.methods.direct.fuel_guard import GUARD_TOL
+from se3ocp.transcription.strategy.starts import Guess, cayley_vectors
+from se3ocp.transcription.geometry.state import U_FORCE, U_MOMENT
+from se3ocp.transcription.strategy import fuel_structure, plan as plan_mod
+from se3ocp.transcription.methods.direct import solve as solve_mod
+from se3ocp.transcription.strategy.fuel_guard import GUARD_TOL
 from se3ocp.transcription.methods.direct.solve import solve_direct
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
-from se3ocp.transcription.problem import fuel_cost, quadrature_weights
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
+from se3ocp.transcription.ocp import fuel_cost, quadrature_weights
 from support import maneuver, problem
 
 N = 50

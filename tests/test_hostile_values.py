@@ -255,9 +255,9 @@ def test_tampered_summary_is_refused_or_reported_as_it_was(finished_run, tmp_pat
 
 def test_orbit_target_and_axis_angle_directions_of_any_magnitude():
     """The orbit target's normal and body axis and an axis-angle axis go through the same reader as the
-    cones (transcription.lie.unit_direction): huge and tiny vectors keep their direction."""
-    from se3ocp.transcription.lie import exp_so3
-    from se3ocp.transcription.problem import ProblemError, TargetOrbit
+    cones (transcription.geometry.so3.unit_direction): huge and tiny vectors keep their direction."""
+    from se3ocp.transcription.geometry.so3 import exp_so3
+    from se3ocp.transcription.ocp import ProblemError, TargetOrbit
 
     m = se3ocp.load(config("e2"), ["terminal.orbit.body_axis=[1e200, 0, 0]", "terminal.orbit.normal=[0, 1e-200, 1e-200]"])
     assert m.terminal.body_axis.tolist() == [1.0, 0.0, 0.0]

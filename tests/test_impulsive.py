@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import pack_state, tangent_readback, unpack_states
+from se3ocp.transcription.geometry.state import pack_state, tangent_readback, unpack_states
 from se3ocp.transcription.methods.impulsive.reduced import ReducedRelaxed, _null_space
 from se3ocp.transcription.methods.impulsive.relaxed import relaxed_jacobian
 from se3ocp.transcription.methods.impulsive.sensitivity import P_COLS, sensitivity, sensitivity_ad, with_momenta
 from se3ocp.transcription.methods.impulsive.tpbvp import initial_momenta, solve_tpbvp, tpbvp_jacobian, tpbvp_residual
-from se3ocp.transcription.lie import exp_so3, hat, log_so3
-from se3ocp.transcription.problem import orbit_conditions
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.geometry.so3 import exp_so3, hat, log_so3
+from se3ocp.transcription.ocp import orbit_conditions
+from se3ocp.transcription.results.solution import Result
 from support import maneuver, problem
 
 

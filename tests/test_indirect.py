@@ -12,16 +12,15 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
+from se3ocp.transcription.geometry.state import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
 from se3ocp.transcription.methods.direct import solve_direct
 from se3ocp.transcription.methods.indirect.conditions import terminal_residual_function
 from se3ocp.transcription.methods.indirect.control import bound_data, control_cost, weight_inverse
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
-from se3ocp.transcription.methods.indirect.solve import (lam0_from_costates, outer_errors, quadratic_constant,
-                                                         solve_indirect)
+from se3ocp.transcription.methods.indirect.solve import (lam0_from_costates, outer_errors, quadratic_constant, solve_indirect)
 from se3ocp.transcription.options import IndirectOptions, OptionError
-from se3ocp.transcription.results import Result, Solution
-from se3ocp.transcription.warm import WarmStart
+from se3ocp.transcription.results.solution import Result, Solution
+from se3ocp.transcription.results.start import WarmStart
 import support
 
 EXAMPLES = {"E3": "e3", "E4": "e4"}
@@ -324,7 +323,7 @@ def test_lgvi_stage_control_is_a_momentum_kick():
     """The linearized LGVI recursion (indirect.linearized_map) uses step(X, [u_k; u]) = step(chart(X, B^b u_k), [0; u]):
     u_k enters as the kick B^b u_k of (gamma, Pi), B^b = dX_{k+1}/du_{k+1} (control_matrix)."""
     from se3ocp.transcription.methods.indirect.control import control_matrix
-    from se3ocp.transcription.layout import chart
+    from se3ocp.transcription.geometry.state import chart
 
     p = problem("E4", 50, "lgvi")
     d = p.disc

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import NU, NX, U_FORCE, U_MOMENT, X_ROT, Z_ANG, Z_MOM
-from se3ocp.transcription.lgvi import discretization
+from se3ocp.transcription.geometry.state import NU, NX, U_FORCE, U_MOMENT, X_ROT, Z_ANG, Z_MOM
+from se3ocp.transcription.dynamics.lgvi import discretization
 from se3ocp.transcription.methods.direct import solve_direct
 from se3ocp.transcription.methods.indirect.control import bound_data, control_matrix, weight_inverse
 from se3ocp.transcription.methods.indirect.coordinates import terminal_costate_function
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 from se3ocp.transcription.methods.indirect.solve import lam0_from_costates, solve_indirect
 from se3ocp.transcription.options import IndirectOptions
-from se3ocp.transcription.problem import BoxBound, SmoothControl, TargetState, ThrusterBound, quadrature_weights, state_residual
+from se3ocp.transcription.ocp import (BoxBound, SmoothControl, TargetState, ThrusterBound, quadrature_weights, state_residual)
 import support
 
 #: E3 sizes per scheme (as tests/test_indirect.py: first order N = 100, LGVI N = 50)
@@ -125,7 +125,10 @@ def test_e3_body_frame_conditions_and_the_direct_method(scheme, e3_solutions):
     assert d.converged and rel <= 1e-10 and u_rel <= 1e-6 and l_rel <= 1e-6
     lam0 = lam0_from_costates(p, d.costates[0], d.controls[:, 0], u1=d.controls[:, 1])  # lgvi: A_0(X_0, [u_0; u_1])^T
     assert np.abs(lam0 - sb.warm.lam0).max() <= 1e-9 * np.abs(sb.warm.lam0).max()
-    assert r.converged and r.stats["initial_costate"] == "from_direct" and r.iterations <= 3
+    # iterations to |z_N| <= 1e-11 (those after it wander at the round-off level until the floor is detected: 0-2 more,
+    # by the machine's rounding); the direct multipliers may already start there (0)
+    reached = next(it.iteration for it in r.history if it.accepted and it.residual <= 1e-11)
+    assert r.converged and r.stats["initial_costate"] == "from_direct" and reached <= 3
     assert r.terminal_error <= 1e-11
 
 

@@ -9,11 +9,11 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 import se3ocp
-from se3ocp.transcription.layout import U_FORCE, U_MOMENT
+from se3ocp.transcription.geometry.state import U_FORCE, U_MOMENT
 from se3ocp.transcription.methods.indirect.control import control_matrix, control_scale, weight_inverse
 from se3ocp.transcription.methods.indirect.solve import not_covered, solve_indirect
 from se3ocp.transcription.methods.indirect.switching import on_off
-from se3ocp.transcription.problem import fuel_cost, quadrature_weights
+from se3ocp.transcription.ocp import fuel_cost, quadrature_weights
 
 import support
 from support import maneuver
@@ -221,7 +221,7 @@ def test_warm_controls_on_a_mesh_are_taken_at_its_node_times():
     mesh at its own node times: the controls come back unchanged (they were resampled onto uniform node times
     before, moving every switch)."""
     from se3ocp.transcription.methods.indirect.fuel import warm_controls
-    from se3ocp.transcription.warm import warm_start_of
+    from se3ocp.transcription.results.start import warm_start_of
 
     p = raise_on_mesh(30, "lgvi")
     U = np.zeros((6, 31))
@@ -241,7 +241,7 @@ def test_fuel_raise_direct_equals_indirect_on_a_mesh(scheme, N):
     order), the indirect one exact (consistent structure, terminal error 1e-11) and on the bounds, so no costlier;
     the mesh is felt: its controls flown on uniform steps miss the orbit by more than 1e-3.
     `pytest -m slow tests/test_indirect_fuel.py -k on_a_mesh` (about 10 s and 35 s at load 5-7)."""
-    from se3ocp.transcription.problem import terminal_error
+    from se3ocp.transcription.ocp import terminal_error
 
     p = raise_on_mesh(N, scheme)
     c = se3ocp.solve(p, "both")

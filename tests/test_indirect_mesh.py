@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import NU, NX
-from se3ocp.transcription.lgvi import discretization
+from se3ocp.transcription.geometry.state import NU, NX
+from se3ocp.transcription.dynamics.lgvi import discretization
 from se3ocp.transcription.methods.indirect.control import bound_data, control_cost, weight_inverse
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 from se3ocp.transcription.methods.indirect.solve import lam0_from_costates, solve_indirect
 from se3ocp.transcription.options import IndirectOptions
-from se3ocp.transcription.problem import BoxBound, SmoothControl, TargetState, quadrature_weights, terminal_residual
+from se3ocp.transcription.ocp import BoxBound, SmoothControl, TargetState, quadrature_weights, terminal_residual
 import support
 
 N = 40
@@ -225,10 +225,10 @@ def test_from_direct_with_a_free_final_time_on_a_mesh():
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_mpc_replans_on_the_remaining_steps_of_a_mesh(scheme):
-    """MPC's re-plan (transcription.mpc.Replanner) on a mesh takes the remaining horizon's own steps h_k: from the
+    """MPC's re-plan (transcription.closedloop.mpc.Replanner) on a mesh takes the remaining horizon's own steps h_k: from the
     direct plan's own node k (k = 0: its costates mapped at h_0), one Newton step reproduces the remaining plan,
     controls to 1e-10 relative and states to 1e-10 (as on a uniform mesh, tests/test_mpc.py), node times the mesh's."""
-    from se3ocp.transcription.mpc import Replanner
+    from se3ocp.transcription.closedloop.mpc import Replanner
     p = on_mesh("e3", scheme)
     sol = se3ocp.solve(p, "direct")
     rp = Replanner(p, sol.h, jit=False)

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import NX, NZ, chart, pack_state
-from se3ocp.transcription.lie import exp_so3
+from se3ocp.transcription.geometry.state import NX, NZ, chart, pack_state
+from se3ocp.transcription.geometry.so3 import exp_so3
 from se3ocp.transcription.methods.indirect.orbit import null_basis, orbit_shooting_function
-from se3ocp.transcription.problem import orbit_residual
+from se3ocp.transcription.ocp import orbit_residual
 
 from support import maneuver
 
@@ -80,7 +80,7 @@ def test_mpc_refuses_what_only_the_solve_covers():
     """The re-planner's shooting is the state target's with the effort law: an orbit target and the fuel objective,
     which the indirect solve now covers, are refused with their names (before: the solve's coverage was the
     re-planner's)."""
-    from se3ocp.transcription.mpc import Replanner, replan_not_covered
+    from se3ocp.transcription.closedloop.mpc import Replanner, replan_not_covered
 
     p = maneuver("orbit_raise_fuel", 20).problem
     assert replan_not_covered(p) == "the fuel objective, an orbit target in a re-plan"

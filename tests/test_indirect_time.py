@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import NU, U_FORCE, U_MOMENT, tangent_readback
+from se3ocp.transcription.geometry.state import NU, U_FORCE, U_MOMENT, tangent_readback
 from se3ocp.transcription.methods.indirect.control import FUEL_EPS, bound_data, saturation, weight_inverse
 from se3ocp.transcription.methods.indirect.objectives import switching_function
 from se3ocp.transcription.methods.indirect.solve import not_covered
 from se3ocp.transcription.options import DirectOptions
-from se3ocp.transcription.problem import BoxBound, NormBound, SmoothControl, quadrature_weights
+from se3ocp.transcription.ocp import BoxBound, NormBound, SmoothControl, quadrature_weights
 import support
 
 SLEWS = ("slew_time_optimal", "slew_time_optimal_symmetric")

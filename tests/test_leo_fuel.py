@@ -1,14 +1,14 @@
 """The LEO fuel raises (configs/leo_body_engine.yaml, leo_raise_slew.yaml with control.objective=fuel; issue 27):
 what the fuel plan does differently for maneuvers in physical units (docs/mathematics.md, "LEO fuel raises").
 
-1. The smoothing references of the homotopy (:func:`~transcription.methods.direct.homotopy.smoothing_reference`):
+1. The smoothing references of the homotopy (:func:`~transcription.strategy.homotopy.smoothing_reference`):
    a bounded part keeps its bound, an unbounded part takes the effort optimum's largest magnitude (the LEO moments
    are ~1e-9 kN km against a scale of 1.5e-11).
-2. The coarse grids of a fuel problem without a force bound (:func:`~transcription.methods.direct.plan.
+2. The coarse grids of a fuel problem without a force bound (:func:`~transcription.strategy.plan.
    coarse_resolves`): used only when their free motion ends near the fine grid's compared with the displacement the
    maneuver needs (leo_raise_slew on 100 steps: a gap of 53 km against 47 km: not resolved).
 3. The bundled LEO fuel raise with reaction wheels (configs/leo_engine_fuel.yaml): the homotopy's effort problem
-   weighted as its first level (:func:`~transcription.methods.direct.homotopy.effort_problem`), and the solve.
+   weighted as its first level (:func:`~transcription.strategy.homotopy.effort_problem`), and the solve.
 """
 from __future__ import annotations
 
@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.methods.direct import homotopy
-from se3ocp.transcription.methods.direct.plan import coarse_resolves
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
-from se3ocp.transcription.problem import quadrature_weights
+from se3ocp.transcription.strategy import homotopy
+from se3ocp.transcription.strategy.plan import coarse_resolves
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
+from se3ocp.transcription.ocp import quadrature_weights
 from support import maneuver, problem
 
 FUEL = "control.objective=fuel"
@@ -132,9 +132,9 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     (measured 3.501 km, 0.22 %) -- the controls add no miss of their own.  Measured: 1066 iterations, cost
     3.2590120405 kN s, of which the engine's impulse 2.8587 kN s (5.72 m/s) and the wheels' 1e5 x 4.0e-6."""
     import se3ocp
-    from se3ocp.transcription.flight import continuous_check
-    from se3ocp.transcription.problem import quadrature_weights
-    from se3ocp.transcription.problem.controls import AT_BOUND_RTOL
+    from se3ocp.transcription.results.check import continuous_check
+    from se3ocp.transcription.ocp import quadrature_weights
+    from se3ocp.transcription.ocp.controls import AT_BOUND_RTOL
 
     man = maneuver("leo_engine_fuel")
     p = man.problem
@@ -166,8 +166,8 @@ def test_a_level_at_its_budget_starts_the_structured_finish(monkeypatch):
     start.  (configs/leo_engine_fuel.yaml, where the level's point is near bang-off-bang, takes the finish itself:
     test_the_bundled_leo_fuel_raise_converges_bang_off_bang.)"""
     from se3ocp.transcription.methods.direct import solve as solve_mod
-    from se3ocp.transcription.methods.direct.fuel_guard import guarded
-    from se3ocp.transcription.methods.direct.plan import relaxation
+    from se3ocp.transcription.strategy.fuel_guard import guarded
+    from se3ocp.transcription.strategy.plan import relaxation
     from se3ocp.transcription.methods.direct.solve import solve_direct
 
     p, options = problem("orbit_raise_fuel", 25), se3ocp.DirectOptions()

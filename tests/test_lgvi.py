@@ -27,9 +27,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from se3ocp.problems.models import Dumbbell
-from se3ocp.transcription.layout import NZ, pack_state, unpack_states
-from se3ocp.transcription.lgvi import Discretization
-from se3ocp.transcription.lie import cayley, exp_so3, hat, log_so3, orthogonality_error
+from se3ocp.transcription.geometry.state import NZ, pack_state, unpack_states
+from se3ocp.transcription.dynamics.lgvi import Discretization
+from se3ocp.transcription.geometry.so3 import cayley, exp_so3, hat, log_so3, orthogonality_error
 
 SCHEMES = ("lgvi", "first_order")
 TWO_PI = 2.0 * np.pi

@@ -12,30 +12,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from se3ocp.transcription.layout import pack_state, tangent_basis, unpack_states
-from se3ocp.transcription.lie import (
-    cayley,
-    cayley_inv,
-    exp_so3,
-    geodesic_interpolation,
-    hat,
-    is_symbolic,
-    log_so3,
-    log_so3_any,
-    mtimes,
-    orthogonality_error,
-    orthonormalize,
-    quaternion_product,
-    quaternions,
-    right_jacobian_inv,
-    rot_x,
-    rot_y,
-    rot_z,
-    rotation_angle,
-    rotation_of_quaternion,
-    step_cayley_vectors,
-    vee,
-)
+from se3ocp.transcription.geometry.state import pack_state, tangent_basis, unpack_states
+from se3ocp.transcription.geometry.so3 import (cayley, cayley_inv, exp_so3, geodesic_interpolation, hat, is_symbolic, log_so3, log_so3_any, mtimes, orthogonality_error, orthonormalize, quaternion_product, quaternions, right_jacobian_inv, rot_x, rot_y, rot_z, rotation_angle, rotation_of_quaternion, step_cayley_vectors, vee)
 
 SEEDS = range(5)
 N_SAMPLES = 200
@@ -335,7 +313,9 @@ def test_geodesic_interpolation_follows_a_constant_rate_rotation():
     out = geodesic_interpolation(R, t, tq)
     ref = np.array([R0 @ exp_so3(np.clip(tk, 0.0, 2.0) * w) for tk in tq])
     assert np.abs(out - ref).max() <= 1e-14
-    assert orthogonality_error(out)[0].max() <= ORTH_TOL
+    # each interpolated rotation is a product of a node rotation and an exponential, each orthonormal to a few ulps:
+    # their product to about twice that (measured 2.3e-15 = 10.4 eps on one x86_64 machine, below 10 eps on another)
+    assert orthogonality_error(out)[0].max() <= 2 * ORTH_TOL
 
 
 def test_orthonormalize_is_second_order_and_the_identity_on_so3():
@@ -379,7 +359,7 @@ def test_log_so3_small_symbolic_equals_numpy():
     angles from 1e-9 to 2.5 rad (measured <= 4e-16 relative), where log_so3's acos branch loses eps/theta^2."""
     import casadi as ca
 
-    from se3ocp.transcription.lie import exp_so3, log_so3, log_so3_small
+    from se3ocp.transcription.geometry.so3 import exp_so3, log_so3, log_so3_small
 
     R = ca.SX.sym("R", 3, 3)
     f = ca.Function("log_small", [R], [log_so3_small(R)])

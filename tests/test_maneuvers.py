@@ -12,8 +12,8 @@ import yaml
 from se3ocp.problems.models import Dumbbell
 from se3ocp.problems.maneuvers import load_maneuver, parse_maneuver
 from se3ocp.problems.schema import ConfigError, yaml_load
-from se3ocp.transcription.layout import unpack_states
-from se3ocp.transcription.lie import rot_x, rot_y, rot_z
+from se3ocp.transcription.geometry.state import unpack_states
+from se3ocp.transcription.geometry.so3 import rot_x, rot_y, rot_z
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 E3 = CONFIGS / "e3_inclination_change.yaml"

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from se3ocp.transcription.layout import U_FORCE, U_MOMENT, unpack_states
-from se3ocp.transcription.lie import orthogonality_error
-from se3ocp.transcription.problem import quadrature_weights
+from se3ocp.transcription.geometry.state import U_FORCE, U_MOMENT, unpack_states
+from se3ocp.transcription.geometry.so3 import orthogonality_error
+from se3ocp.transcription.ocp import quadrature_weights
 from se3ocp.transcription.solve import not_covered, solve
 from support import problem
 
@@ -112,11 +112,11 @@ def test_a_warm_start_is_resampled_onto_a_mesh_on_SO3():
 # ---------------------------------------------------------------------------- adaptive refinement
 @pytest.mark.parametrize("scheme, N", [("lgvi", 40), ("first_order", 200)])
 def test_the_error_estimate_predicts_the_continuous_miss(scheme, N):
-    """Step doubling propagated to the final node (transcription.mesh.error_estimate) predicts the continuous
+    """Step doubling propagated to the final node (transcription.strategy.mesh.error_estimate) predicts the continuous
     check's terminal miss of E3 (5.4e-2 for the LGVI at N = 40, about 0.1 for first order at N = 200: a linear
     estimate, so first order is asked for where its miss is small enough) to 10 %; on a random mesh too."""
-    from se3ocp.transcription.accuracy import ORDER, _length, scaled_miss
-    from se3ocp.transcription.mesh import error_estimate
+    from se3ocp.transcription.strategy.refine import ORDER, _length, scaled_miss
+    from se3ocp.transcription.strategy.mesh import error_estimate
 
     for mesh in (None, random_mesh(N, seed=3)):
         p = problem("e3", N, scheme).replace(mesh=mesh)
@@ -132,7 +132,7 @@ def test_the_error_estimate_predicts_the_continuous_miss(scheme, N):
 def test_equidistributed_steps_put_the_steps_where_the_error_is():
     """Local errors 100 times larger on the first half: the new steps there are 100^(1/3) ~ 4.6 times smaller
     (h ~ C^(-1/p) with C = e / h^(p+1), p = 2), they span the horizon, and their errors sum to what was asked."""
-    from se3ocp.transcription.mesh import equidistributed_steps
+    from se3ocp.transcription.strategy.mesh import equidistributed_steps
 
     h = np.full(100, 0.01)
     e = np.r_[np.full(50, 100.0), np.ones(50)] * 1e-6
@@ -160,7 +160,7 @@ def test_the_adaptive_mesh_lands_with_fewer_steps_than_uniform_refinement(eccent
     (150 (miss / tol)^(1/2) = 820; uniform refinement took 985), its steps over 5 times longer at apoapsis than at
     periapsis; a uniform mesh of the same N misses by more than the tolerance (1.5e-3)."""
     import se3ocp
-    from se3ocp.transcription.accuracy import scaled_miss
+    from se3ocp.transcription.strategy.refine import scaled_miss
     from support import maneuver
 
     ada = eccentric_adaptive

@@ -11,14 +11,14 @@ import pytest
 import se3ocp
 from se3ocp.problems.elements import state_of
 from se3ocp.problems.schema import ConfigError
-from se3ocp.transcription.flight.check import continuous_check
-from se3ocp.transcription.layout import NX, pack_state
-from se3ocp.transcription.methods.direct.scaling import terminal_row_scales
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
+from se3ocp.transcription.results.check import continuous_check
+from se3ocp.transcription.geometry.state import NX, pack_state
+from se3ocp.transcription.nlp.scaling import terminal_row_scales
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from se3ocp.transcription.methods.indirect.solve import not_covered
 from se3ocp.transcription.options import DirectOptions
-from se3ocp.transcription.problem import KeepIn, KeepOut, TargetRendezvous, rendezvous_residual
-from se3ocp.transcription.results import Trajectory
+from se3ocp.transcription.ocp import KeepIn, KeepOut, TargetRendezvous, rendezvous_residual
+from se3ocp.transcription.results.solution import Trajectory
 
 from support import config, maneuver
 

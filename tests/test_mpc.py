@@ -30,7 +30,7 @@ from se3ocp.problems.flight import fly, parse_flight
 from se3ocp.problems.flight.run import run_flights
 from se3ocp.problems.schema import ConfigError
 from se3ocp.problems.sweep.executors import PoolExecutor, SerialExecutor
-from se3ocp.transcription.mpc import Replanner, Replanning
+from se3ocp.transcription.closedloop.mpc import Replanner, Replanning
 
 from support import config, maneuver
 
@@ -98,7 +98,7 @@ def test_newton_steps_from_a_perturbed_state_converge_quadratically(plan):
 def test_a_replanning_law_re_plans_on_schedule(plan, between):
     """Flown on the plan's own nodes the law (with or without the tracker between re-plans) commands the plan:
     to 1e-9 relative (measured 1e-10 with the tracker: the re-plans' round-off times its gains)."""
-    from se3ocp.transcription.tracking import tracking_gains
+    from se3ocp.transcription.closedloop.tracking import tracking_gains
 
     man, sol = plan
     gains = tracking_gains(sol) if between == "lqr" else None
@@ -187,7 +187,7 @@ def test_a_replan_that_misses_more_than_the_warm_start_is_rejected():
     every 5 steps: near the end the saturated remaining problem becomes infeasible and the Newton step there
     misses its own target by 2 (against 3e-3 for the warm start).  Such re-plans are rejected and the current
     plan kept: terminal miss 2.6e-3 (8.2e-2 without the safeguard; open loop 3.6e-3)."""
-    from se3ocp.transcription.flight import Actuators, OpenLoop, fly as fly_law
+    from se3ocp.transcription.dynamics.flight import Actuators, OpenLoop, fly as fly_law
 
     man = maneuver("e3_bounded", 60, "lgvi")
     sol = se3ocp.solve(man, "direct")

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from se3ocp.transcription.newton import newton_armijo, noise_level
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.methods.newton import newton_armijo, noise_level
+from se3ocp.transcription.results.solution import Result
 
 
 def _system(x):

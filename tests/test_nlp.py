@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.lgvi import Discretization
+from se3ocp.transcription.dynamics.lgvi import Discretization
 from se3ocp.transcription.nlp import blocks
-from se3ocp.transcription.methods.direct.transcription import SmoothTranscription
-from se3ocp.transcription.guess import make_guess
+from se3ocp.transcription.nlp.transcription import SmoothTranscription
+from se3ocp.transcription.strategy.starts import make_guess
 from se3ocp.transcription.nlp import Block, NLPLayout, StructuredNLP, assemble, solve_time_split
 from se3ocp.transcription.options import DirectOptions
 from support import maneuver, problem

@@ -16,9 +16,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import se3ocp
-from se3ocp.transcription import accuracy
-from se3ocp.transcription.mesh import drift_shares, margin_gradients
-from se3ocp.transcription.problem import MaxAngularRate
+from se3ocp.transcription.strategy import refine as accuracy
+from se3ocp.transcription.strategy.mesh import drift_shares, margin_gradients
+from se3ocp.transcription.ocp import MaxAngularRate
 
 from support import maneuver
 from test_flight import R_to_quat, quat_to_R
@@ -96,7 +96,7 @@ def test_drift_shares_are_the_local_errors_propagated_along_the_gradient():
 def test_margin_gradients_are_the_margins_derivatives_in_tangent_coordinates():
     """The rate limit's gradient is -J^-T Omega / |Omega| in dPi and 0 elsewhere; the keep-out cone's (rad) is the
     derivative of its angle along R exp(eps e_i^) computed here with the exact exponential: both to 1e-8."""
-    from se3ocp.transcription.lie import exp_so3
+    from se3ocp.transcription.geometry.so3 import exp_so3
 
     prob = maneuver("slew_keep_out").problem
     J = prob.model.inertia
@@ -121,7 +121,7 @@ def test_margin_gradients_are_the_margins_derivatives_in_tangent_coordinates():
 def test_the_chord_share_is_where_the_two_rules_need_the_fewest_steps():
     """chord_share's tol_c minimizes a / sqrt(tol_c) + b / sqrt(tol - tol_c) (p = 2; a, b as its docstring defines
     them, formed here): a grid of 10^5 splits finds no smaller total (to 1e-6 relative)."""
-    from se3ocp.transcription.mesh import chord_share
+    from se3ocp.transcription.strategy.mesh import chord_share
 
     rng = np.random.default_rng(7)
     h = rng.uniform(0.05, 0.15, 40)

@@ -33,8 +33,8 @@ def test_the_peer_ode_is_our_model():
     pd = _peer()
     from peer_rockit import _rhs_functions
 
-    from se3ocp.transcription.layout import pack_state
-    from se3ocp.transcription.problem import orbit_residual
+    from se3ocp.transcription.geometry.state import pack_state
+    from se3ocp.transcription.ocp import orbit_residual
 
     prob = problem("orbit_raise_fuel", 30)
     model, target = prob.model, prob.terminal
@@ -75,7 +75,7 @@ def test_refly_is_exact_on_a_rigid_rotation():
     """The DOP853 re-flight (rtol = atol = 1e-12) under a constant torque about a principal axis from rest:
     Omega = tau t / J_1, R = R_x(tau t^2 / (2 J_1)); terminal error of the attitude and rate ~ 1e-11."""
     pd = _peer(openmdao=False)
-    from se3ocp.transcription.layout import unpack_states
+    from se3ocp.transcription.geometry.state import unpack_states
 
     prob = problem("slew_time_optimal", 30)
     J1, tau, T = prob.model.inertia[0, 0], 50.0, 20.0
@@ -97,8 +97,8 @@ def test_the_peers_reflight_agrees_with_the_continuous_check():
     1e-8 relative (measured 6e-12 on Betts' slew): two integrators, one reading of the LGVI's controls."""
     pd = _peer(openmdao=False)
     import se3ocp
-    from se3ocp.transcription.flight import continuous_check
-    from se3ocp.transcription.problem import terminal_error
+    from se3ocp.transcription.results.check import continuous_check
+    from se3ocp.transcription.ocp import terminal_error
 
     s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 30), "direct")
     assert s.converged, s.message

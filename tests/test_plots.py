@@ -17,8 +17,7 @@ import pytest
 
 import se3ocp
 from se3ocp.problems import plots
-from se3ocp.transcription.problem import (BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound,
-                                          SmoothControl)
+from se3ocp.transcription.ocp import BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, SmoothControl
 from support import ROOT, maneuver, slew_comparison
 
 SMOOTH = {"maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn",
@@ -299,7 +298,7 @@ def test_units_are_those_of_the_problem(both, slew):
 
 # ------------------------------------------------------------------------- a control removed by a norm bound of 0
 def test_a_removed_control_is_absent_not_at_its_bound(both, slew):
-    from se3ocp.transcription.results import figures_of_merit
+    from se3ocp.transcription.results.solution import figures_of_merit
 
     res, figs = slew
     d = res.direct

@@ -5,11 +5,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from se3ocp.transcription.layout import pack_state
-from se3ocp.transcription.lie import exp_so3
-from se3ocp.transcription.problem import (ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit,
-                                          TargetState, effort_cost, orbit_conditions, quadrature_weights,
-                                          state_residual, terminal_error)
+from se3ocp.transcription.geometry.state import pack_state
+from se3ocp.transcription.geometry.so3 import exp_so3
+from se3ocp.transcription.ocp import (ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, effort_cost, orbit_conditions, quadrature_weights, state_residual, terminal_error)
 from support import problem
 
 

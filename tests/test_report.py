@@ -21,7 +21,7 @@ import pytest
 import se3ocp
 from se3ocp.problems import plots, store
 from se3ocp.problems.report import merit_rows, render, write_report
-from se3ocp.transcription.problem import BoxBound, KeepOut, MinRadius, NormBound, SmoothControl
+from se3ocp.transcription.ocp import BoxBound, KeepOut, MinRadius, NormBound, SmoothControl
 from support import maneuver, slew_comparison
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.results import Attempt, Result, Solution, Trajectory, result_of_solver_status
+from se3ocp.transcription.results.solution import Attempt, Result, Solution, Trajectory, result_of_solver_status
 from support import maneuver
 
 

@@ -14,10 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from se3ocp.problems import yamlfile
-from se3ocp.problems.schema import (MAX_DEPTH, MAX_INTEGER, ConfigError, Validator, apply_override,
-                                    blame_overrides, describe, load_with_overrides, read_yaml_file, yaml_dump,
-                                    yaml_load)
-from se3ocp.transcription.lie import exp_so3
+from se3ocp.problems.schema import (MAX_DEPTH, MAX_INTEGER, ConfigError, Validator, apply_override, blame_overrides, describe, load_with_overrides, read_yaml_file, yaml_dump, yaml_load)
+from se3ocp.transcription.geometry.so3 import exp_so3
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 E3 = CONFIGS / "e3_inclination_change.yaml"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.results import Result, Solution, Trajectory
+from se3ocp.transcription.results.solution import Result, Solution, Trajectory
 from se3ocp.transcription.solve import compare
 from support import maneuver
 

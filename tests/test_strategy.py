@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.results import Result
+from se3ocp.transcription.results.solution import Result
 from support import maneuver
 
 #: configs/everyday/detumble.yaml: Newton from lambda_0 = 0 ends at max_iterations (|z_N| ~ 1.5 after 50
@@ -157,8 +157,8 @@ def test_time_optimal_starts_report_their_spread():
 
 
 def test_multistart_counts_optima_within_a_relative_tolerance():
-    from se3ocp.transcription.methods.direct.plan import multistart
-    from se3ocp.transcription.results import Attempt
+    from se3ocp.transcription.strategy.plan import multistart
+    from se3ocp.transcription.results.solution import Attempt
 
     ok = Result.converged
     same = multistart([Attempt("a", ok, 3, 2.0), Attempt("b", ok, 4, 2.0 * (1 + 1e-9)), Attempt("c", None)], 10)
@@ -174,7 +174,7 @@ def test_the_orbit_interpolation_meets_both_ends_and_follows_the_orbit():
     the target (states to 1e-12), turns 5.25 revolutions (10.5 pi) and stays on the circle r = 1 (the two ends
     are the same point of the turning frame); its path needs < 1e-2 of the screw interpolation's force and moment
     efforts."""
-    from se3ocp.transcription.guess import implied_effort, make_guess, orbit_turn, target_estimate
+    from se3ocp.transcription.strategy.starts import implied_effort, make_guess, orbit_turn, target_estimate
 
     p = maneuver("everyday/phasing_5_orbits", 200).problem
     Xd = target_estimate(p)
@@ -189,7 +189,7 @@ def test_the_orbit_interpolation_meets_both_ends_and_follows_the_orbit():
 
 def test_the_orbit_interpolation_without_a_central_body_is_the_screw_interpolation():
     """No central body (the keep-out slew): the turning frame stands still, 'orbit' is the screw interpolation."""
-    from se3ocp.transcription.guess import make_guess, target_estimate
+    from se3ocp.transcription.strategy.starts import make_guess, target_estimate
 
     p = maneuver("slew_keep_out", 20).problem
     a, b = (make_guess(k, p.disc, p.X0, target_estimate(p), p.N, p.T) for k in ("orbit", "interpolate"))
@@ -202,7 +202,7 @@ def test_the_start_needing_less_effort_goes_first():
     screw interpolation's where a plane turns in less than a revolution (E3, the 45 deg plane change), and for
     the LEO raise and slew (held inertially, rest to rest) the orbit's path with the screw interpolation's
     attitude; the efforts are reported."""
-    from se3ocp.transcription.methods.direct.plan import judged_interpolation
+    from se3ocp.transcription.strategy.plan import judged_interpolation
 
     for name, label in (("everyday/phasing_5_orbits", "orbit"), ("everyday/raise_3_orbits", "orbit"),
                         ("e3", "interpolate"), ("everyday/plane_change_45", "interpolate"),
@@ -252,9 +252,9 @@ def test_the_iteration_hint_names_the_budgets_the_starts_ran_on():
     import dataclasses
 
     from se3ocp.transcription.methods.base import failed_solution
-    from se3ocp.transcription.methods.direct.plan import failure_hint
+    from se3ocp.transcription.strategy.plan import failure_hint
     from se3ocp.transcription.options import DirectOptions
-    from se3ocp.transcription.results import Attempt
+    from se3ocp.transcription.results.solution import Attempt
 
     import support
     sol = failed_solution(support.problem("e3_inclination_change", 10), "direct", "ipopt", Result.max_iterations, "")

@@ -116,10 +116,10 @@ def test_grid_points_and_chains(tmp_path):
 
 
 def test_secant_predictor_extrapolates_the_warm_starts():
-    """The neighbour's warm start, or the secant through the last two (transcription.warm.secant) when the
+    """The neighbour's warm start, or the secant through the last two (transcription.results.start.secant) when the
     step is at most MAX_SECANT_RATIO spacings."""
     from se3ocp.problems.sweep.run import _predict as predict
-    from se3ocp.transcription.warm import WarmStart
+    from se3ocp.transcription.results.start import WarmStart
 
     def warm(lam0):
         X = np.tile(np.r_[np.zeros(6), np.eye(3).ravel(), np.zeros(3)], (3, 1))

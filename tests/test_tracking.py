@@ -20,10 +20,10 @@ import se3ocp
 from se3ocp.problems.maneuvers import parse_maneuver
 from se3ocp.problems.models import Dumbbell, Gravity, RigidBody
 from se3ocp.problems.schema import ConfigError
-from se3ocp.transcription import tracking as tr
-from se3ocp.transcription.lgvi import discretization
-from se3ocp.transcription.lie import exp_so3
-from se3ocp.transcription.problem import BoxBound, NormBound, ProblemError, SmoothControl, actuator_bounds
+from se3ocp.transcription.closedloop import tracking as tr
+from se3ocp.transcription.dynamics.lgvi import discretization
+from se3ocp.transcription.geometry.so3 import exp_so3
+from se3ocp.transcription.ocp import BoxBound, NormBound, ProblemError, SmoothControl, actuator_bounds
 
 from support import config, maneuver
 

@@ -27,10 +27,10 @@ import pytest
 import se3ocp
 from se3ocp.problems.cli import main
 from se3ocp.problems.flight import fly
-from se3ocp.transcription import tracking as tr
-from se3ocp.transcription.flight import Actuators, OpenLoop, fly as fly_continuous
-from se3ocp.transcription.flight.loop import TrackingLoop
-from se3ocp.transcription.mpc import Replanner, Replanning
+from se3ocp.transcription.closedloop import tracking as tr
+from se3ocp.transcription.dynamics.flight import Actuators, OpenLoop, fly as fly_continuous
+from se3ocp.transcription.closedloop.loop import TrackingLoop
+from se3ocp.transcription.closedloop.mpc import Replanner, Replanning
 
 from support import config, maneuver, problem
 from test_mesh import random_mesh
@@ -219,7 +219,7 @@ def test_on_a_mesh_the_loop_in_one_call_flies_as_the_tracker_asked_per_interval(
     an initial offset: every sample and command agrees to 1e-8 relative (measured 3.8e-11 and 5.4e-10; on a uniform
     mesh of the same 230 steps 4.0e-10 and 1.2e-9: this maneuver's stiff gains, E3 gives 5e-13, tests/test_flight.py);
     a loop without the 1 / rho weights differs by far more."""
-    from se3ocp.transcription.flight import ClosedLoop
+    from se3ocp.transcription.dynamics.flight import ClosedLoop
 
     _, sol = adaptive
     G = tr.tracking_gains(sol)

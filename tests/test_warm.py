@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.layout import NU, X_ROT, pack_state, unpack_states
-from se3ocp.transcription.lie import exp_so3, orthogonality_error
-from se3ocp.transcription.warm import WarmStart, as_warm_start, warm_start_of
+from se3ocp.transcription.geometry.state import NU, X_ROT, pack_state, unpack_states
+from se3ocp.transcription.geometry.so3 import exp_so3, orthogonality_error
+from se3ocp.transcription.results.start import WarmStart, as_warm_start, warm_start_of
 from support import maneuver
 
 

@@ -1,6 +1,6 @@
 """The continuous check's terminal miss in one dimensionless number (docs/mathematics.md §11, §16): the number
 ``solver.accuracy`` bounds and every display of "continuous miss" shows.  Its own module, importing nothing of the
-project, so that :class:`~transcription.results.Solution` can show it and :mod:`transcription.accuracy` bound it
+project, so that :class:`~transcription.results.solution.Solution` can show it and :mod:`transcription.strategy.refine` bound it
 without an import cycle (accuracy -> flight -> mesh -> results)."""
 from __future__ import annotations
 

@@ -286,7 +286,7 @@ class DirectOptions(Options):
                                   "constraints; the time objective from three interpolations with symmetry-breaking "
                                   "controls, the fastest kept, solved on a coarser grid (N // 4, at least 25 steps) and finished "
                                   "on N steps; every guess tried is reported in the message and Solution.attempts "
-                                  "(see transcription.methods.direct.plan.guess_plan)")
+                                  "(see transcription.strategy.plan.guess_plan)")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")

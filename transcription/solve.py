@@ -17,20 +17,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accuracy import AccuracyOptions, attach_checks, out_of_reach, refine
-from .feasibility import necessary_conditions, step_failure
-from .layout import NU, unpack_states
-from .lgvi import CAYLEY_TOL
-from .lie import orthogonality_error
+from .strategy.refine import AccuracyOptions, attach_checks, out_of_reach, refine
+from .ocp.feasibility import necessary_conditions, step_failure
+from .geometry.state import NU, unpack_states
+from .dynamics.lgvi import CAYLEY_TOL
+from .geometry.so3 import orthogonality_error
 from .methods.base import Method, Progress, clocked, failed_solution, phased
 from .methods.direct import DIRECT
 from .methods.impulsive import IMPULSIVE
 from .methods.indirect import INDIRECT
 from .methods.indirect.solve import needs_fallback, with_fallback
 from .options import DirectOptions, IndirectOptions
-from .problem import Problem, terminal_error
-from .results import Attempt, Result, SolveError, Solution, html_table, trajectory
-from .warm import WarmStart, as_warm_start
+from .ocp import Problem, terminal_error
+from .results.solution import Attempt, Result, SolveError, Solution, html_table, trajectory
+from .results.start import WarmStart, as_warm_start
 
 #: the registry: each method name and its implementations (one per kind of control)
 METHODS: dict[str, tuple[Method, ...]] = {"direct": (DIRECT, IMPULSIVE), "indirect": (INDIRECT,)}
@@ -237,14 +237,14 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     during the solve, the Iterate naming its method (``Iterate.method``), its solve (``phase``: e.g. the direct
     method's starts, coarse grids and homotopy levels, a refinement level 'level 1 N=200', 'retightened') and the
     seconds since this call (``elapsed_s``).  warm_start: a previous Solution
-    (its ``warm``) or a :class:`~transcription.warm.WarmStart`, of either method and of any N and scheme (it
+    (its ``warm``) or a :class:`~transcription.results.start.WarmStart`, of either method and of any N and scheme (it
     is resampled; the Solution's message and ``stats['warm_start*']`` say what was reused): continuation,
     refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
     Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
-    :class:`~transcription.results.SolveError`.  A method that cannot solve the problem at all
-    (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.accuracy.out_of_reach`), raises
+    :class:`~transcription.results.solution.SolveError`.  A method that cannot solve the problem at all
+    (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.strategy.refine.out_of_reach`), raises
     ValueError with the one-line answer.  accuracy: the continuous check and refinement to a tolerance
-    (:class:`~transcription.accuracy.AccuracyOptions`; default: the check on, N fixed): every successful
+    (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the check on, N fixed): every successful
     smooth-control Solution carries its continuous check (``sol.continuous``).
     """
     reason = not_covered(problem, method)

@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     """Parse the arguments, run the command, and map what it raises to an exit status and one line."""
-    from ...transcription import codegen
+    from ...transcription.compile import codegen
     from ..io import ResultsDirError
     from ..schema import ConfigError
     from .parser import build_parser

@@ -28,8 +28,8 @@ def _results(args, man: Maneuver):
 def cmd_validate(args) -> int:
     """Exit 0 for a valid file; a file that is valid but asks what solve will refuse or cannot reach says so in a
     line beginning 'but' (a warning, still exit 0: the input is well-formed, the request is the problem)."""
-    from ...transcription.accuracy import out_of_reach
-    from ...transcription.feasibility import necessary_conditions
+    from ...transcription.strategy.refine import out_of_reach
+    from ...transcription.ocp.feasibility import necessary_conditions
 
     man = _load(args)
     infeasible = necessary_conditions(man.problem)  # valid, but provably without a solution: said now
@@ -72,8 +72,8 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_solve(args) -> int:
-    from ...transcription.results import Result
-    from ...transcription.accuracy import out_of_reach
+    from ...transcription.results.solution import Result
+    from ...transcription.strategy.refine import out_of_reach
     from ...transcription.solve import not_covered
     from .. import api, store
 

@@ -41,7 +41,7 @@ class Progress:
     """One line per iteration of any method (at most one a second after the first ten, and every
     Newton step and the first record of every new phase), so long solves show life without flooding;
     each line names the method, the seconds since the solve started and the phase
-    (:meth:`~transcription.results.Iterate.progress_line`).  Ctrl-C is honoured here."""
+    (:meth:`~transcription.results.solution.Iterate.progress_line`).  Ctrl-C is honoured here."""
 
     def __init__(self, args):
         self.args = args
@@ -64,7 +64,7 @@ def table(sols) -> list[str]:
     """The side-by-side table; the text columns are as wide as their widest entry (a status is
     never cut, however long).  ``cont. miss``: Solution.continuous_miss, the continuous check's scaled terminal
     miss (position / L, velocity / V, rad, rad per time unit; the number solver.accuracy bounds)."""
-    from ...transcription.results import Result
+    from ...transcription.results.solution import Result
 
     sols = list(sols)
     mw = max([len("method")] + [len(s.method) for s in sols])

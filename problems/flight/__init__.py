@@ -57,7 +57,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     holding one, or None (the maneuver's own ``flight:`` block, else the defaults).  runs, feedback
     ('none', 'lqr', 'mpc', 'both', 'all'): change the block's.  workers (default 1: in-process), scheduler (a Dask
     address): where the runs go.  save_runs: keep the whole flights of the first runs (``saved``)."""
-    from ...transcription.results import Solution
+    from ...transcription.results.solution import Solution
     from ..api import solve
     from ..maneuvers import Maneuver
 
@@ -82,8 +82,8 @@ def check_plan(sol) -> None:
 
 def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
     """ConfigError (``flight.feedback``) when MPC is asked for a plan whose re-plans the indirect method's
-    Newton step does not cover (transcription.mpc)."""
-    from ...transcription.mpc import replan_not_covered
+    Newton step does not cover (transcription.closedloop.mpc)."""
+    from ...transcription.closedloop.mpc import replan_not_covered
     from ..schema import ConfigError
 
     reason = replan_not_covered(maneuver.problem) if "mpc" in spec.modes else ""

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ...transcription.problem import BoxBound, NormBound
+from ...transcription.ocp import BoxBound, NormBound
 from ..io import save_figure
 from ..units import units
 from .run import FlightResult

@@ -1,6 +1,6 @@
 """What a Monte Carlo flight writes, each file atomically: flights.csv, summary.json, flight.resolved.yaml,
 config.resolved.yaml, plan.npz (the plan flown), gains.npz (its tracker; lqr_* the LQR flights' on the sub-stepped plan of a
-non-uniform mesh, transcription.tracking.sub_stepped), runs/NNNN.npz, the figures and
+non-uniform mesh, transcription.closedloop.tracking.sub_stepped), runs/NNNN.npz, the figures and
 report.html (problems/flight/report.py)."""
 from __future__ import annotations
 

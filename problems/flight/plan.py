@@ -19,12 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...transcription.flight import Actuators
-from ...transcription.layout import NX, X_ANG, X_MOM, X_POS, X_ROT
-from ...transcription.lie import exp_so3
-from ...transcription.model import BodyModel
-from ...transcription.results import Result, Solution, Trajectory
-from ...transcription.warm import warm_start_of
+from ...transcription.dynamics.flight import Actuators
+from ...transcription.geometry.state import NX, X_ANG, X_MOM, X_POS, X_ROT
+from ...transcription.geometry.so3 import exp_so3
+from ...transcription.dynamics.model import BodyModel
+from ...transcription.results.solution import Result, Solution, Trajectory
+from ...transcription.results.start import warm_start_of
 from ..maneuvers import Maneuver, _body, parse_maneuver
 from ..schema import Validator
 from .schema import FlightSpec
@@ -36,7 +36,7 @@ DRAWS = (("position", 3), ("velocity", 3), ("attitude", 3), ("angular_velocity",
 
 def plan_payload(man: Maneuver, sol: Solution) -> dict:
     """The plan as plain data: the resolved maneuver document, its source, the method, the node times,
-    states and controls, and the costates of its warm start (the re-plans' warm start, transcription.mpc;
+    states and controls, and the costates of its warm start (the re-plans' warm start, transcription.closedloop.mpc;
     absent when it has none); ``key`` identifies it (workers cache what they build from it)."""
     doc = copy.deepcopy(man.resolved)
     arrays = {"t": np.asarray(sol.trajectory.t, float), "X": np.asarray(sol.trajectory.X, float),
@@ -76,7 +76,7 @@ def load_plan(payload: dict) -> tuple[Maneuver, Solution]:
 def plan_problem(problem, t: np.ndarray):
     """The maneuver's Problem on the plan's own steps (node times t, (N+1,)): a plan refined on an adaptive mesh
     (docs/mathematics.md §16) has more and unequal steps than the file's N, which the re-plans of MPC run on
-    (transcription.mpc.Replanner.steps); the Problem itself for a plan of equal steps (a re-plan takes its h)."""
+    (transcription.closedloop.mpc.Replanner.steps); the Problem itself for a plan of equal steps (a re-plan takes its h)."""
     d = np.diff(np.asarray(t, float))
     h = (t[-1] - t[0]) / d.size
     if np.all(np.abs(d - h) <= 1e-9 * abs(h)):          # uniform, as Solution.uniform

@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 
-from ...transcription.flight import margin_keys
+from ...transcription.results.check import margin_keys
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload

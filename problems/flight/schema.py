@@ -16,7 +16,7 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
         inertia_scale: 0.01
       feedback: both          # none | lqr | mpc | both (none and lqr side by side) | all (none, lqr, mpc)
       mpc: {replan_every: 10, iterations: 1, min_horizon: 1, between: lqr}   # re-planning (transcription/mpc.py)
-      weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.tracking.SCALE_KEYS)
+      weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.closedloop.tracking.SCALE_KEYS)
       runs: 200
       seed: 1
 
@@ -29,9 +29,9 @@ import copy
 from dataclasses import dataclass, field
 from typing import Any
 
-from ...transcription.flight import DEFAULT_SAMPLES
-from ...transcription.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_EVERY
-from ...transcription.tracking import SCALE_KEYS
+from ...transcription.dynamics.flight import DEFAULT_SAMPLES
+from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_EVERY
+from ...transcription.closedloop.tracking import SCALE_KEYS
 from ..models import parse_gravity
 from ..schema import Validator
 
@@ -44,7 +44,7 @@ INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
 FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "mpc": ("mpc",), "both": ("none", "lqr"), "all": ("none", "lqr", "mpc")}
 #: the ``mpc`` block: re-plan every this many node steps, Newton steps per re-plan, no re-plan with fewer
 #: steps left than min_horizon, and between re-plans the LQR tracker around the current plan or nothing
-#: (transcription.mpc)
+#: (transcription.closedloop.mpc)
 MPC_KEYS = ("replan_every", "iterations", "min_horizon", "between")
 MPC_DEFAULTS = {"replan_every": DEFAULT_REPLAN_EVERY, "iterations": DEFAULT_ITERATIONS, "min_horizon": 1,
                 "between": "lqr"}

@@ -7,13 +7,14 @@ import math
 
 import numpy as np
 
-from ...transcription.flight import ClosedLoop, FlightError, OpenLoop, fly, margin_keys
-from ...transcription.flight.loop import TrackingLoop
-from ...transcription.layout import X_POS, X_ROT
-from ...transcription.lie import log_so3, nearest_rotation
-from ...transcription.mpc import Replanner, Replanning
-from ...transcription.results import Trajectory, rotation_angle
-from ...transcription.tracking import saturate, sub_stepped, tracking_gains
+from ...transcription.dynamics.flight import ClosedLoop, FlightError, OpenLoop, fly
+from ...transcription.results.check import margin_keys
+from ...transcription.closedloop.loop import TrackingLoop
+from ...transcription.geometry.state import X_POS, X_ROT
+from ...transcription.geometry.so3 import log_so3, nearest_rotation
+from ...transcription.closedloop.mpc import Replanner, Replanning
+from ...transcription.results.solution import Trajectory, rotation_angle
+from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..plots.orbits import rtn
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
@@ -33,8 +34,8 @@ _GAINS: dict = {}
 
 
 def gains_of(payload: dict, weights: dict, sub_steps: bool = False):
-    """The plan's tracker (transcription.tracking), built once per process and plan; ``sub_steps``: the LQR flight's,
-    on the plan with the long steps of a non-uniform mesh split (transcription.tracking.sub_stepped: the tracker
+    """The plan's tracker (transcription.closedloop.tracking), built once per process and plan; ``sub_steps``: the LQR flight's,
+    on the plan with the long steps of a non-uniform mesh split (transcription.closedloop.tracking.sub_stepped: the tracker
     corrects inside them; the plan's own on a uniform mesh)."""
     key = (payload["key"], json.dumps(weights, sort_keys=True), bool(sub_steps))
     if key not in _GAINS:

@@ -21,9 +21,7 @@ from __future__ import annotations
 
 from .animation import Animation, animate, write_animation
 from .catalogue import CAPTIONS, FIGURES, applicable, caption, draw, draw_all, figures, is_fresh
-from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence,
-                        fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity,
-                        quaternions)
+from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence, fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity, quaternions)
 from .orbits import osculating_elements, rtn
 from .runs import Run, _runs, node_cells
 from .style import BOUND, COLORS, COMP, CONE, FAIL, QUAT, STYLES, THRUST

@@ -9,9 +9,9 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from ...transcription.problem import TargetOrbit
-from ...transcription.lie import rotation_angle
-from ...transcription.results import Solution
+from ...transcription.ocp import TargetOrbit
+from ...transcription.geometry.so3 import rotation_angle
+from ...transcription.results.solution import Solution
 from ...transcription.solve import Comparison
 from ..io import atomic_write_bytes
 from ..units import units

@@ -8,12 +8,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ...transcription.problem import Problem
-from ...transcription.results import Solution
+from ...transcription.ocp import Problem
+from ...transcription.results.solution import Solution
 from ...transcription.solve import Comparison
 from ..io import save_figure
-from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence,
-                        fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity)
+from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence, fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity)
 from .continuous import fig_continuous, flown
 from .engine import fig_thrust_direction
 from .runs import Run, _runs

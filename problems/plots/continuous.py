@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...transcription.problem import Problem
+from ...transcription.ocp import Problem
 from ..units import units
 from .runs import Run
 from .style import W, _finish, _subplots

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...transcription.problem import ENGINE_ON_RTOL, NormBound, Problem, ThrusterBound, engine_reference
+from ...transcription.ocp import ENGINE_ON_RTOL, NormBound, Problem, ThrusterBound, engine_reference
 from ..units import units
 from .runs import Run
 from .orbits import rtn

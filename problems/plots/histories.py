@@ -6,9 +6,9 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from ...transcription.lie import quaternions, rotation_angle
-from ...transcription.problem import BoxBound, MaxAngularRate, MinRadius, NormBound, Problem, ThrusterBound
-from ...transcription.results import figures_of_merit
+from ...transcription.geometry.so3 import quaternions, rotation_angle
+from ...transcription.ocp import BoxBound, MaxAngularRate, MinRadius, NormBound, Problem, ThrusterBound
+from ...transcription.results.solution import figures_of_merit
 from ..units import units
 from .orbits import osculating_elements, rtn
 from .runs import Run, node_cells

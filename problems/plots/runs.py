@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...transcription.results import Solution, Trajectory
+from ...transcription.results.solution import Solution, Trajectory
 from ...transcription.solve import Comparison
 from .style import COLORS, STYLES
 

@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import FixedLocator, MaxNLocator
 
-from ...transcription.problem import Problem
+from ...transcription.ocp import Problem
 from ..units import units
 
 #: colours of the methods (distinct from those of the components and body axes below)

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...transcription.problem import (KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, TargetOrbit, TargetRendezvous,
-                                     TargetState)
+from ...transcription.ocp import (KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, TargetOrbit, TargetRendezvous, TargetState)
 from .orbits import _circle, _orbit_ellipse, osculating_elements
 
 

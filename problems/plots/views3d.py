@@ -7,8 +7,8 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from ...transcription.problem import KeepIn, KeepOut, Problem, TargetOrbit, TargetRendezvous, TargetState
-from ...transcription.results import Solution
+from ...transcription.ocp import KeepIn, KeepOut, Problem, TargetOrbit, TargetRendezvous, TargetState
+from ...transcription.results.solution import Solution
 from ..units import units
 from .orbits import _circle, _orbit_ellipse
 from .runs import Run

@@ -26,7 +26,7 @@ before any solve starts, so a bad axis value is bad input, not a failed point.
 
 Execution.  A *task* is :func:`solve_point` applied to a plain dict (the base file
 name and text, the override strings, the method, an optional warm start: a
-transcription.warm.WarmStart, plain arrays); it returns a plain dict (the result row and
+transcription.results.start.WarmStart, plain arrays); it returns a plain dict (the result row and
 the warm start for the next point).  Tasks run in-process (``workers=1``), on a local
 :class:`~concurrent.futures.ProcessPoolExecutor` (forkserver/spawn context: CasADi
 is not fork-safe once threads exist) or, with ``scheduler=ADDRESS``, on an existing
@@ -37,7 +37,7 @@ axes and per method); the chains are independent and run in parallel, the points
 a chain in order.  Each point starts from the last converged point(s) of its chain:
 with one, its solution's warm start (``Solution.warm``: ``start = neighbour``); with
 two, a secant predictor, the extrapolation in the axis value of both on SE(3)
-(transcription.warm.secant: attitudes along geodesics, the rest linearly; ``start =
+(transcription.results.start.secant: attitudes along geodesics, the rest linearly; ``start =
 secant``).  The direct method starts from its trajectory, controls and NLP
 multipliers (primal and dual), the indirect method from its lambda_0.  A warm start that does not converge is followed by
 a cold solve (``start = cold_after_failed_warm``; ``iterations_total`` counts both).
@@ -53,8 +53,7 @@ from .executors import DaskExecutor, Executor, PoolExecutor, SerialExecutor, def
 from .figures import draw_sweep
 from .output import columns, write_results
 from .run import MAX_SECANT_RATIO, SweepResult, run_sweep
-from .schema import (MAX_AXIS_VALUES, MAX_GRID_POINTS, METHODS, RESULT_COLUMNS, Axis, Point, Sweep, load_sweep,
-                     parse_sweep, sweep_from_doc)
+from .schema import (MAX_AXIS_VALUES, MAX_GRID_POINTS, METHODS, RESULT_COLUMNS, Axis, Point, Sweep, load_sweep, parse_sweep, sweep_from_doc)
 from .task import solve_point
 
 __all__ = ["DaskExecutor", "Executor", "PoolExecutor", "SerialExecutor", "default_workers", "make_executor",

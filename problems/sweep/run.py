@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 
-from ...transcription.warm import secant
+from ...transcription.results.start import secant
 from .executors import Executor, make_executor
 from .schema import Sweep
 from .task import failed_row, solve_point
@@ -21,7 +21,7 @@ MAX_SECANT_RATIO = 3.0
 def _predict(history: list, value, numeric: bool) -> dict | None:
     """The warm start of the point at axis ``value`` from the last converged (value, WarmStart) pairs of its
     chain, as {'start': WarmStart, 'kind': 'neighbour' | 'secant'}: the neighbour's, or the secant
-    extrapolation of the last two (transcription.warm.secant, on SE(3))."""
+    extrapolation of the last two (transcription.results.start.secant, on SE(3))."""
     if not history:
         return None
     v1, w1 = history[-1]

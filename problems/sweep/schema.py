@@ -14,7 +14,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ...transcription.accuracy import out_of_reach
+from ...transcription.strategy.refine import out_of_reach
 from ...transcription.solve import not_covered
 from ..maneuvers import Maneuver, load_maneuver, parse_maneuver
 from ..schema import ConfigError, Validator, apply_override, blame_overrides, describe, join_field, read_yaml_file

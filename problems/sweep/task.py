@@ -22,7 +22,7 @@ def _maneuver_from_text(source: str, text: str, overrides):
 
 def _payload(sol):
     """What a point hands to the next point of its chain: its Solution's warm start if it converged (a
-    transcription.warm.WarmStart: plain arrays, so it travels to another process), else None."""
+    transcription.results.start.WarmStart: plain arrays, so it travels to another process), else None."""
     return sol.warm if sol.converged else None
 
 

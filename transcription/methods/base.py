@@ -15,9 +15,9 @@ import time
 from dataclasses import dataclass, replace
 from typing import Callable, Protocol
 
-from ..problem import Problem, terminal_error
-from ..results import Iterate, Result, Solution, trajectory
-from ..warm import WarmStart
+from ..ocp import Problem, terminal_error
+from ..results.solution import Iterate, Result, Solution, trajectory
+from ..results.start import WarmStart
 
 Progress = Callable[[Iterate], None]
 
@@ -44,7 +44,7 @@ def clocked(progress: Progress | None) -> Progress | None:
 class Reporting:
     """A solve of another problem inside a method's solve (e.g. the direct method's coarse grid, its relaxed or
     effort problem) that reports its iterations to ``progress``: called as ``(problem, options)``, the shape of
-    :data:`~transcription.methods.direct.plan.SubSolve`, it calls ``solve(problem, options, progress)``;
+    :data:`~transcription.strategy.plan.SubSolve`, it calls ``solve(problem, options, progress)``;
     :func:`under` names its records' phase."""
 
     solve: Callable[..., Solution]

@@ -47,9 +47,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..layout import NU, NX, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS
-from ..lgvi import per_discretization
-from ..problem import STATE_COMPONENTS, state_residual
+from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS
+from ..dynamics.lgvi import per_discretization
+from ..ocp import STATE_COMPONENTS, state_residual
 from .structured import BlockFunction
 
 NC = 3

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..layout import NU, NX, U_FORCE, U_MOMENT
+from ..geometry.state import NU, NX, U_FORCE, U_MOMENT
 from .blocks import NC
 
 

@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 
 from ..options import DirectOptions, raw_solver_value
-from ..results import Iterate
+from ..results.solution import Iterate
 from .structured import StructuredNLP
 
 #: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling,
@@ -61,7 +61,7 @@ def make_ipopt(name: str, nlp: StructuredNLP, ipopt: dict[str, Any], progress: C
 
 
 class ProgressCallback(ca.Callback):
-    """NLP iteration callback: one :class:`~transcription.results.Iterate` per iteration to ``fn``
+    """NLP iteration callback: one :class:`~transcription.results.solution.Iterate` per iteration to ``fn``
     (cost = objective x ``obj_scale``, residual = max |g - bounds violation| of the scaled rows; ``phase``;
     ``budget``: the solver's max_iter, the most iterations after iteration 0)."""
 

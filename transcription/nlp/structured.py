@@ -18,7 +18,7 @@ time ~10 s at N = 1000), each block's gradient, Jacobian and Hessian of (sigma c
 are formed once on its small SX graph, ``map``-ped over its instances and scattered into the
 global sparse matrices by index maps fixed at build time (duplicates summed).  The result is the
 exact Hessian; build and evaluation are linear in the number of instances.  Blocks marked
-``compile`` get their derivative Functions compiled to C (transcription.codegen, cached on disk).
+``compile`` get their derivative Functions compiled to C (transcription.compile.codegen, cached on disk).
 
 Rows are ordered block by block, instance-major inside a block (:meth:`StructuredNLP.rows`).
 """
@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .. import codegen
+from ..compile import codegen
 
 
 class _Derivatives:

@@ -6,7 +6,7 @@ Smooth control (effort objective)::
     s.t. X_{k+1} = step(X_k, w_k, h),   k = 0..N-1   (eqs. 7-11 or 21-25)
          X_0 = X0,   terminal_residual(X_N) = 0     (the fixed components of the target)
 
-with the quadrature weights of :func:`~transcription.problem.quadrature_weights`; the time and fuel
+with the quadrature weights of :func:`~transcription.ocp.quadrature_weights`; the time and fuel
 objectives, bounds and path constraints (§10) are blocks of the same NLP.  Impulsive control is the
 impulsive method's (:mod:`transcription.methods.impulsive`).
 

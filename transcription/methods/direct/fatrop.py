@@ -9,13 +9,13 @@ from typing import Any, Callable
 import casadi as ca
 import numpy as np
 
-from ...guess import Guess
-from ...layout import NX
+from ...strategy.starts import Guess
+from ...geometry.state import NX
 from ...options import DirectOptions, raw_solver_value
-from ...problem import Problem, TargetOrbit, TargetState
-from ...results import Solution
+from ...ocp import Problem, TargetOrbit, TargetState
+from ...results.solution import Solution
 from .solution import nlp_solution
-from .transcription import SmoothTranscription
+from ...nlp.transcription import SmoothTranscription
 
 #: why fatrop is not used for the fuel objective (IPOPT solves it; docs/mathematics.md §20, "fatrop and the fuel NLP")
 FUEL_NOT_COVERED = ("fatrop does not converge on the fuel NLP (the magnitude-direction epigraph's indefinite coast "

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...feasibility import step_failure
-from ...lgvi import CAYLEY_TOL
+from ...ocp.feasibility import step_failure
+from ...dynamics.lgvi import CAYLEY_TOL
 from ...nlp.solvers import ipopt_history, solve_time_split
 from ...options import DirectOptions
-from ...problem import Problem, control_activity, objective_value, quadrature_weights, terminal_error
-from ...results import Result, Solution, Trajectory, result_of_solver_status, trajectory
-from ...warm import warm_start_of
-from .transcription import SmoothTranscription
+from ...ocp import Problem, control_activity, objective_value, quadrature_weights, terminal_error
+from ...results.solution import Result, Solution, Trajectory, result_of_solver_status, trajectory
+from ...results.start import warm_start_of
+from ...nlp.transcription import SmoothTranscription
 
 
 def _verdict(problem: Problem, status: str, solver: str, Xsim: np.ndarray, res: np.ndarray, h: float, err: float,

@@ -8,22 +8,21 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from ...guess import Guess, warm_guess
+from ...strategy.starts import Guess, warm_guess
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
-from ...problem import Problem
-from ...results import Attempt, Result, Solution
-from ...warm import WarmStart
+from ...ocp import Problem
+from ...results.solution import Attempt, Result, Solution
+from ...results.start import WarmStart
 from ..base import Progress, Reporting, failed_solution
 from .fatrop import try_fatrop
-from .fuel_continuation import PREPARED_ON as CONTINUED
-from .fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
-from .fuel_structure import applies as structure_applies, resolves, structured_finish
-from .homotopy import LEVEL_BUDGET, PREPARED_ON, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
-from .plan import (COARSE, NOT_TRIED, RELAXED, RESOLVED, PlanEntry, failure_hint, guess_plan, multistart,
-                   plan_ipopt_options)
+from ...strategy.fuel_continuation import PREPARED_ON as CONTINUED
+from ...strategy.fuel_guard import ESCAPE, false_minima, guarded, switching, verdict
+from ...strategy.fuel_structure import applies as structure_applies, resolves, structured_finish
+from ...strategy.homotopy import LEVEL_BUDGET, PREPARED_ON, STRUCTURE_START, WARM_LEVEL, WARM_PRIMAL, Point
+from ...strategy.plan import (COARSE, NOT_TRIED, RELAXED, RESOLVED, PlanEntry, failure_hint, guess_plan, multistart, plan_ipopt_options)
 from .solution import nlp_solution
-from .transcription import SmoothTranscription
+from ...nlp.transcription import SmoothTranscription
 
 
 #: the label (and progress phase) of a warm start's solve
@@ -155,7 +154,7 @@ class _PlanRun:
         return sol
 
     def run(self, plan: list[PlanEntry], pick: str) -> Solution | None:
-        """The plan's guesses in turn (:func:`~transcription.methods.direct.plan.guess_plan` says how ``pick``
+        """The plan's guesses in turn (:func:`~transcription.strategy.plan.guess_plan` says how ``pick``
         chooses); the Solution chosen, or None if no guess could be solved."""
         sol, best = None, None
         for i, (label, maker, budget) in enumerate(plan):
@@ -193,10 +192,10 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
                  warm: WarmStart | None = None) -> Solution:
     """Solve a smooth-control ``problem`` by the direct method (transcription.methods.direct); failures are data.
 
-    The initial guesses of :func:`~transcription.methods.direct.plan.guess_plan` are tried in order until one
+    The initial guesses of :func:`~transcription.strategy.plan.guess_plan` are tried in order until one
     converges (``Solution.attempts`` and the message say which were tried; ``iterations``, ``build_s`` and
-    ``solve_s`` are those of all of them).  ``warm``: a :class:`~transcription.warm.WarmStart` (of any method,
-    N and scheme: fitted to this grid, :meth:`~transcription.warm.WarmStart.fit`) is the only initial guess,
+    ``solve_s`` are those of all of them).  ``warm``: a :class:`~transcription.results.start.WarmStart` (of any method,
+    N and scheme: fitted to this grid, :meth:`~transcription.results.start.WarmStart.fit`) is the only initial guess,
     and its NLP multipliers, if it carries those of an NLP of the same structure, start IPOPT's duals; the
     message and ``stats['warm_start']`` say what was resampled and what was not reused.
 

@@ -12,12 +12,12 @@ directions, dz_N/dp = Phi[:, (gamma, Pi) columns].  :func:`.sensitivity.sensitiv
 back at X_N (a second AD route, for the tests).
 
 * TPBVP (a state target, E1): the six conditions r(p) = [x_N - x_d; vee log(R_d^T R_N)] = 0 are
-  solved by the shared Newton-Armijo (transcription.newton); the Jacobian is
+  solved by the shared Newton-Armijo (transcription.methods.newton); the Jacobian is
   [Phi_xp; Jr^-1(vee log(R_d^T R_N)) Phi_zeta p] (Jr^-1 the inverse right Jacobian of SO(3), exact
   for the log residual).  The impulses follow: gamma_N^+ = gamma_d, Pi_N^+ = Pi_d.  There is
   nothing left to optimize: the six conditions fix p (a Lambert problem on SE(3)).
 * Relaxed (an orbit target, E2): the four terminal conditions C = 0 of
-  :func:`~transcription.problem.orbit_conditions`, the post-impulse momenta they require, and the
+  :func:`~transcription.ocp.orbit_conditions`, the post-impulse momenta they require, and the
   cost sum_i |v_i| of the four impulses written directly, from a feasible start
   (:func:`.relaxed.relaxed_start`: a TPBVP to a point of the target set).  Two transcriptions
   (``DirectOptions.transcription``):

@@ -11,13 +11,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ...guess import cayley_vectors
-from ... import codegen
-from ...layout import NX, split_state, unpack_states
-from ...lgvi import CAYLEY_TOL, per_discretization
+from ...strategy.starts import cayley_vectors
+from ...compile import codegen
+from ...geometry.state import NX, split_state, unpack_states
+from ...dynamics.lgvi import CAYLEY_TOL, per_discretization
 from ...options import DirectOptions
-from ...problem import Problem, orbit_conditions
-from ...results import Iterate, Result
+from ...ocp import Problem, orbit_conditions
+from ...results.solution import Iterate, Result
 from .relaxed import relaxed_unknown_scales
 from .sensitivity import P_ROWS_X
 from .tpbvp import simulate_momenta

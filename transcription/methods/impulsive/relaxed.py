@@ -9,16 +9,16 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from ...guess import cayley_vectors, relaxed_start_target
-from ...layout import NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, Z_POS, Z_ROT, split_state, unpack_states
-from ...lie import hat
+from ...strategy.starts import cayley_vectors, relaxed_start_target
+from ...geometry.state import NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, Z_POS, Z_ROT, split_state, unpack_states
+from ...geometry.so3 import hat
 from ...nlp import blocks
 from ...nlp.layouts import NLPLayout
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...nlp.structured import Block, StructuredNLP
 from ...options import DirectOptions
-from ...problem import Problem, TargetOrbit, TargetState, orbit_conditions
-from ...results import Iterate
+from ...ocp import Problem, TargetOrbit, TargetState, orbit_conditions
+from ...results.solution import Iterate
 from .sensitivity import P_COLS
 from .tpbvp import initial_momenta, momentum_scales, simulate_momenta, solve_tpbvp
 
@@ -41,7 +41,7 @@ def relaxed_jacobian(XN: np.ndarray, target: TargetOrbit, Phi: np.ndarray) -> np
 
 def relaxed_start(problem: Problem) -> tuple[np.ndarray, list[Iterate], str]:
     """Feasible start for the relaxed NLP: Newton-Armijo on the TPBVP towards
-    :func:`~transcription.guess.relaxed_start_target` (Pi_0^+ guessed from the attitude change, then with no impulse
+    :func:`~transcription.strategy.starts.relaxed_start_target` (Pi_0^+ guessed from the attitude change, then with no impulse
     if that fails).  Returns (p, history records, status)."""
     q = problem.replace(terminal=TargetState(relaxed_start_target(problem)), control=problem.control)
     hist: list[Iterate] = []

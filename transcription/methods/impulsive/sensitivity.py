@@ -5,8 +5,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ...layout import NX, NZ, X_ANG, X_MOM, Z_ANG, Z_MOM, chart, tangent_readback
-from ...lgvi import per_discretization
+from ...geometry.state import NX, NZ, X_ANG, X_MOM, Z_ANG, Z_MOM, chart, tangent_readback
+from ...dynamics.lgvi import per_discretization
 
 #: tangent coordinates of the unknowns p = (gamma_0^+, Pi_0^+) inside z
 P_COLS = np.r_[np.arange(Z_MOM.start, Z_MOM.stop), np.arange(Z_ANG.start, Z_ANG.stop)]

@@ -8,12 +8,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ...layout import unpack_states
+from ...geometry.state import unpack_states
 from ...nlp.solvers import ipopt_history
 from ...options import DirectOptions
-from ...problem import Problem, TargetOrbit, TargetState, impulse_cost, orbit_conditions, terminal_error
-from ...results import Iterate, Result, Solution, result_of_solver_status, trajectory
-from ...warm import WarmStart
+from ...ocp import Problem, TargetOrbit, TargetState, impulse_cost, orbit_conditions, terminal_error
+from ...results.solution import Iterate, Result, Solution, result_of_solver_status, trajectory
+from ...results.start import WarmStart
 from ..base import Progress
 from .reduced import relaxed_reduced
 from .relaxed import relaxed_nlp, relaxed_start

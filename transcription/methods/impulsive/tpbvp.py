@@ -6,12 +6,12 @@ from typing import Callable
 
 import numpy as np
 
-from ...layout import Z_POS, Z_ROT, unpack_states
-from ...lgvi import CAYLEY_TOL
-from ...lie import log_so3_any, right_jacobian_inv
-from ...newton import NewtonResult, newton_armijo
-from ...problem import Problem, TargetOrbit, TargetState
-from ...results import Iterate
+from ...geometry.state import Z_POS, Z_ROT, unpack_states
+from ...dynamics.lgvi import CAYLEY_TOL
+from ...geometry.so3 import log_so3_any, right_jacobian_inv
+from ..newton import NewtonResult, newton_armijo
+from ...ocp import Problem, TargetOrbit, TargetState
+from ...results.solution import Iterate
 from .sensitivity import P_COLS, sensitivity, with_momenta
 
 #: Newton target for the six TPBVP conditions (|r|_inf) and its iteration limit

@@ -3,7 +3,7 @@
 Scheme: the first-order modified scheme of docs/mathematics.md §3, eqs. (21)-(25), one control
 per step, ``X_{k+1} = step(X_k, u_{k+1}, h)``, k = 0 .. N-1 (the second-order LGVI
 is also supported, see the end of this docstring).  States X (18) in the
-layout of :mod:`transcription.layout`; controls u = [u_f (inertial); u_m (body)];
+layout of :mod:`transcription.geometry.state`; controls u = [u_f (inertial); u_m (body)];
 tangent coordinates z = [dx; dgamma; zeta; dPi] with dR = R S(zeta) (docs/mathematics.md §4).
 
 Lagrangian and sign convention
@@ -65,7 +65,7 @@ every problem with the same scheme, model and N.  In the per-N Functions h is th
 (1 x N; a scalar is broadcast): on a non-uniform mesh step k runs at its own h_k, and the conditions keep
 their form (docs/mathematics.md §17: the per-step quadrature meets the steps' kicks, so u = -W^-1 E^T lambda).
 
-Newton-Armijo (transcription.newton, shared with the impulsive TPBVP) runs in :func:`.solve.solve_indirect`.
+Newton-Armijo (transcription.methods.newton, shared with the impulsive TPBVP) runs in :func:`.solve.solve_indirect`.
 
 Second-order LGVI (beyond the paper)
 ------------------------------------
@@ -91,7 +91,7 @@ measures keep the floor there: A_k^-T by Gaussian elimination
 (:func:`.elimination.solve_unpivoted`; CasADi's symbolic QR gave a floor ~1e-10 at N = 100) and
 R re-orthonormalized in the argument of A_k (:func:`.conditions.orthonormalized`; without it
 the floor was ~1e-11 at N = 500, with it ~6e-13).  The floor is *measured*
-(:func:`~transcription.newton.noise_level`), and the iteration stops there at once.
+(:func:`~transcription.methods.newton.noise_level`), and the iteration stops there at once.
 
 Modules: :mod:`.elimination` (unpivoted Gaussian elimination), :mod:`.control` (the saturated control law,
 the bounds as data, the effort cost), :mod:`.conditions` (the forward map of the necessary conditions),

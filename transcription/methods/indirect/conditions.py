@@ -7,17 +7,17 @@ from typing import Callable
 
 import casadi as ca
 
-from ...layout import NU, NX, NZ, U_FORCE, join_state, split_state
-from ...lgvi import Discretization, per_discretization
-from ...lie import cayley, orthonormalize
-from ...problem import state_residual
+from ...geometry.state import NU, NX, NZ, U_FORCE, join_state, split_state
+from ...dynamics.lgvi import Discretization, per_discretization
+from ...geometry.so3 import cayley, orthonormalize
+from ...ocp import state_residual
 from .control import NB, control_law
 from .coordinates import body_coordinates, frame, frame_inverse, kicked_costate, rotated
 from .elimination import solve_unpivoted
 
 
 def terminal_residual_function() -> ca.Function:
-    """(XN[18], Xd[18]) -> zN[12]: :func:`~transcription.problem.state_residual` with every component
+    """(XN[18], Xd[18]) -> zN[12]: :func:`~transcription.ocp.state_residual` with every component
     (positions and linear momenta inertial, Pi body; the attitude error the rotation vector of
     R_d^T R_N, body frame at the target, three conditions)."""
     XN = ca.SX.sym("XN", NX)
@@ -26,7 +26,7 @@ def terminal_residual_function() -> ca.Function:
 
 
 def orthonormalized(X):
-    """X with R replaced by :func:`~transcription.lie.orthonormalize` (R) = R (3 I - R^T R) / 2.
+    """X with R replaced by :func:`~transcription.geometry.so3.orthonormalize` (R) = R (3 I - R^T R) / 2.
 
     Used only for the argument of A_k: the readback vee(skew(Rbar^T dR))
     of docs/mathematics.md §4 is sensitive to R^T R != I, and the round-off drift of R^T R, which

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from ...layout import NU, U_FORCE, U_MOMENT
+from ...geometry.state import NU, U_FORCE, U_MOMENT
 from .control import NB, NO_NORM, THRUSTER
 
 #: bound continuation (indirect method from lambda_0 = 0): the stages of the bounds' geometric path from

@@ -7,9 +7,9 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
-from ...layout import NU, NX, U_FORCE, U_MOMENT
-from ...lgvi import Discretization, discretization, per_discretization
-from ...problem import BoxBound, NormBound, Problem, ThrusterBound, effort_cost, objective_value, quadrature_weights
+from ...geometry.state import NU, NX, U_FORCE, U_MOMENT
+from ...dynamics.lgvi import Discretization, discretization, per_discretization
+from ...ocp import BoxBound, NormBound, Problem, ThrusterBound, effort_cost, objective_value, quadrature_weights
 from .switching import on_off
 
 #: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
@@ -18,7 +18,7 @@ from .switching import on_off
 #: fuel objective's homotopy parameter eps (:data:`FUEL_EPS`)
 NB = 18
 NO_NORM = 1e300
-#: the engine's part of ``bd`` (:class:`~transcription.problem.ThrusterBound`, docs/mathematics.md §15): the unit
+#: the engine's part of ``bd`` (:class:`~transcription.ocp.ThrusterBound`, docs/mathematics.md §15): the unit
 #: axis a (3), q = W_f a / (a^T W_f a) (3), T_min, T_max, and 1 (0 without an engine: all 0)
 THRUSTER = slice(8, 17)
 #: the index in ``bd`` of eps of the fuel objective's switching law (:func:`.switching.on_off`, docs/mathematics.md

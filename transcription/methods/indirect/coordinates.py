@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ...layout import NX, NZ, Z_MOM, Z_ROT, chart, split_state, tangent_readback
-from ...lgvi import Discretization
-from ...lie import hat
+from ...geometry.state import NX, NZ, Z_MOM, Z_ROT, chart, split_state, tangent_readback
+from ...dynamics.lgvi import Discretization
+from ...geometry.so3 import hat
 
 
 def body_coordinates(disc: Discretization) -> bool:
@@ -62,8 +62,8 @@ def frame_inverse(X):
 
 
 def costate_chart(disc: Discretization):
-    """(chart, readback) of the costate coordinates: :func:`~transcription.layout.chart` and
-    :func:`~transcription.layout.tangent_readback` (inertial force), or their composition with T (body force):
+    """(chart, readback) of the costate coordinates: :func:`~transcription.geometry.state.chart` and
+    :func:`~transcription.geometry.state.tangent_readback` (inertial force), or their composition with T (body force):
     chart'(X, z') = chart(X, T(X)^-1 z'), readback'_X(dX) = T(X) readback_X(dX); first-order charts of the
     same state space, so derivatives taken through them are those in z'."""
     if not body_coordinates(disc):

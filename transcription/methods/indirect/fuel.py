@@ -7,8 +7,8 @@ from typing import Callable
 
 import numpy as np
 
-from ...newton import NewtonResult
-from ...problem import NormBound, Problem, ThrusterBound
+from ..newton import NewtonResult
+from ...ocp import NormBound, Problem, ThrusterBound
 from .control import FUEL_EPS
 from .structured import StructuredShooting, node_modes
 

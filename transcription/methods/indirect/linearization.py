@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ...layout import NU, NX, NZ, chart, split_state
-from ...lgvi import Discretization, per_discretization
+from ...geometry.state import NU, NX, NZ, chart, split_state
+from ...dynamics.lgvi import Discretization, per_discretization
 from .conditions import costate_functions, node_law, orthonormalized, terminal_residual_function, theta_symbol
 from .control import NB, control_matrix, control_scale
 from .coordinates import costate_chart

@@ -28,11 +28,11 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from ...layout import NU, NX, NZ, U_FORCE, U_MOMENT, split_state
-from ...lgvi import Discretization, per_discretization
-from ...newton import NewtonResult, newton_armijo
-from ...results import Result
-from ...problem import BoxBound, NormBound, Problem, ThrusterBound, quadrature_weights
+from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, split_state
+from ...dynamics.lgvi import Discretization, per_discretization
+from ..newton import NewtonResult, newton_armijo
+from ...results.solution import Result
+from ...ocp import BoxBound, NormBound, Problem, ThrusterBound, quadrature_weights
 from .control import NB, NO_NORM, control_matrix, control_scale
 from .conditions import costate_functions, node_law, terminal_residual_function
 from .shooting import MAPACCUM_OPTS, time_gradient_function

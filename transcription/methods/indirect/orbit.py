@@ -1,5 +1,5 @@
 """The orbit target in the indirect method (docs/mathematics.md §19): the ten terminal conditions g(X_N) = 0 of
-:func:`~transcription.problem.orbit_residual` and the two transversality conditions K(X_N)^T lambda_{N-1} = 0.
+:func:`~transcription.ocp.orbit_residual` and the two transversality conditions K(X_N)^T lambda_{N-1} = 0.
 
 The Lagrangian of §6 with the terminal conditions adjoined, L = J + sum_k lambda_k^T (step ⊖ X_{k+1}) + nu^T g(X_N),
 is stationary in z_N (tangent coordinates at X_N, §4) when
@@ -25,8 +25,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ...layout import NX, NZ, chart, split_state
-from ...problem import Problem, TargetOrbit, orbit_residual
+from ...geometry.state import NX, NZ, chart, split_state
+from ...ocp import Problem, TargetOrbit, orbit_residual
 
 
 def null_basis(XN, target: TargetOrbit, mass: float, mu: float):
@@ -58,7 +58,7 @@ def orbit_shooting_function(target: TargetOrbit, mass: float, mu: float) -> ca.F
 
 class OrbitShooting:
     """The shooting residual and Jacobian of a problem with an orbit target (module docstring), in the form
-    :func:`~transcription.newton.newton_armijo` takes."""
+    :func:`~transcription.methods.newton.newton_armijo` takes."""
 
     def __init__(self, problem: Problem):
         self.F = orbit_shooting_function(problem.terminal, problem.model.mass, problem.model.mu)

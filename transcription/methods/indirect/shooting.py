@@ -7,9 +7,9 @@ import functools
 import casadi as ca
 import numpy as np
 
-from ... import codegen
-from ...layout import NU, NX, NZ, split_state, tangent_readback
-from ...lgvi import Discretization, per_discretization
+from ...compile import codegen
+from ...geometry.state import NU, NX, NZ, split_state, tangent_readback
+from ...dynamics.lgvi import Discretization, per_discretization
 from .conditions import costate_functions, node_law, terminal_residual_function
 from .control import NB, control_matrix
 from .coordinates import body_coordinates, initial_costate_function, terminal_costate_function

@@ -7,13 +7,12 @@ import time
 
 import numpy as np
 
-from ...layout import NU, NZ
-from ...newton import NewtonResult, newton_armijo
+from ...geometry.state import NU, NZ
+from ..newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...problem import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState,
-                        ThrusterBound, objective_value, terminal_error)
-from ...results import Attempt, Iterate, Result, Solution, trajectory
-from ...warm import WarmStart, warm_start_of
+from ...ocp import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, objective_value, terminal_error)
+from ...results.solution import Attempt, Iterate, Result, Solution, trajectory
+from ...results.start import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
@@ -90,7 +89,7 @@ def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: flo
 
 def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart | None) -> tuple[np.ndarray, str, list]:
     """(lambda_0, its source, notes) from ``warm`` -- fitted to the problem's grid
-    (:meth:`~transcription.warm.WarmStart.fit`): its lambda_0 on the same grid ('warm_start'), else from its
+    (:meth:`~transcription.results.start.WarmStart.fit`): its lambda_0 on the same grid ('warm_start'), else from its
     costates (:func:`lam0_from_costates`; 'from_direct' for a direct solution, whose costates are mapped from
     its multipliers) -- or from ``options.initial_costate``: 'zero', 12 numbers ('explicit'), 'from_direct'
     (needs the direct solution as ``warm``).  Raises ValueError when none is usable."""
@@ -291,7 +290,7 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
     the costates of a direct solution, mapped from its multipliers; resampled from another N or scheme) or
     from ``options.initial_costate`` ('from_direct': the direct solution is the warm start,
     :func:`transcription.solve.solve` runs it first).  The iteration is
-    :func:`~transcription.newton.newton_armijo` on z_N(lambda_0) with the exact Jacobian Psi, the
+    :func:`~transcription.methods.newton.newton_armijo` on z_N(lambda_0) with the exact Jacobian Psi, the
     round-off floor detection (``floor_factor``, ``floor_accept``) and trials whose rollout does
     not solve the Cayley equation to ``cayley_tol`` rejected.
 

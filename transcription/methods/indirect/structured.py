@@ -9,9 +9,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ...layout import NU, NX, NZ, U_FORCE, U_MOMENT
-from ...newton import NewtonResult, newton_armijo
-from ...problem import STATE_COMPONENTS, Problem, TargetOrbit
+from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT
+from ..newton import NewtonResult, newton_armijo
+from ...ocp import STATE_COMPONENTS, Problem, TargetOrbit
 from .conditions import orthonormalized, terminal_residual_function
 from .control import control_matrix, control_scale
 from .elimination import solve_unpivoted

@@ -1,0 +1,105 @@
+"""A tracking loop flown in one call: the tracker's law (docs/mathematics.md §12) evaluated inside the flight's
+CasADi Function, node interval by node interval, so that a whole closed-loop flight is one ``mapaccum`` of
+CVODES intervals (a loop in C) instead of a Python loop asking a law for each interval's command.
+
+The law is the one of :class:`transcription.closedloop.tracking.Tracker` without saturation (an unbounded plan: the
+correction is never limited): at node k, from the flown state X_k,
+
+    z_k = [x - x_k; gamma - gamma_k; vee log(R_k^T R); Pi - Pi_k]          (tangent_error, log by atan2),
+    r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1}   (r_0 = 0),     du_k = -K_k z_k - L_k r_k / rho_{k-1},
+
+with rho_{k-1} = h_{k-1} / h the relative size of the step that explained r_k (1 on a uniform mesh; the
+disturbance per mean step of transcription.closedloop.tracking.riccati), and the interval's command is the plan's
+(a_k + du_k, b_k + du_k).  The accumulated state of the loop is
+S = [X (18); z_{k-1} (12); du_{k-1} (6)].  Same numbers as the per-interval path to round-off (tested to
+1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT
+from ..geometry.so3 import log_so3_small
+from ..dynamics.flight import N_P, N_W, BoundedCache, OpenLoop
+
+#: per-interval data of the law: X_k (18), K_k (6 x 12), L_k (6 x 12), A_{k-1} (12 x 12), Bu_{k-1} (12 x 6),
+#: the weight of the disturbance term (0 at k = 0 or without it, else 1 / rho_{k-1}: 1 on a uniform mesh)
+N_G = NX + 2 * NU * NZ + NZ * NZ + NZ * NU + 1
+N_S = NX + NZ + NU
+
+
+@dataclass(frozen=True, eq=False)
+class TrackingLoop:
+    """The tracker's law as data (module docstring): ``plan`` the plan's commands, ``Xref`` (N+1, 18) its nodes,
+    K, L (N, 6, 12), A (N, 12, 12), Bu (N, 12, 6) (transcription.closedloop.tracking.Gains), ``disturbance``: with the
+    disturbance estimate r_k; ``rho`` (N,): the relative step sizes h_k / h of a non-uniform mesh (None: uniform).
+    The flight engine flies it in one call (:meth:`flown`)."""
+
+    plan: OpenLoop
+    Xref: np.ndarray
+    K: np.ndarray
+    L: np.ndarray
+    A: np.ndarray
+    Bu: np.ndarray
+    disturbance: bool = True
+    rho: np.ndarray | None = None
+
+    @classmethod
+    def of_gains(cls, gains, disturbance: bool = True) -> "TrackingLoop":
+        """The loop of a tracker's gains (transcription.closedloop.tracking.Gains) around its plan."""
+        return cls(OpenLoop.of_controls(gains.scheme, gains.U), gains.X, gains.K, gains.L, gains.A, gains.Bu,
+                   disturbance, gains.rho)
+
+    def data(self) -> np.ndarray:
+        """(N_G, N): the per-interval data, column k for interval k (matrices column-major)."""
+        N = self.K.shape[0]
+        Ap, Bp = np.zeros_like(self.A), np.zeros_like(self.Bu)
+        Ap[1:], Bp[1:] = self.A[:-1], self.Bu[:-1]
+        flat = [np.asarray(M, float).transpose(0, 2, 1).reshape(N, -1) for M in (self.K, self.L, Ap, Bp)]
+        weight = np.where(np.arange(N) > 0, 1.0 if self.disturbance else 0.0, 0.0)[:, None]
+        if self.rho is not None:          # r_k came from step k-1: per mean step, r_k / rho_{k-1}
+            weight[1:, 0] /= np.asarray(self.rho, float)[:-1]
+        return np.hstack([np.asarray(self.Xref, float)[:N], *flat, weight]).T
+
+    def flown(self, fn: ca.Function, X0: np.ndarray, h: np.ndarray, p: np.ndarray):
+        """Fly the loop with the engine's interval integrator ``fn`` (``flight_interval``) from X0 over steps h
+        (N,) with flight parameters p: (start, end) commands (6, N) each and the samples Xs (N M, 18)."""
+        N = h.size
+        run = _loop_run(fn, N)
+        W = np.vstack([self.plan.start, self.plan.end, h[None, :]])
+        S0 = np.concatenate([X0, np.zeros(NZ + NU)])
+        _, Xs, cmd = run(S0, W, self.data(), np.repeat(p[:, None], N, axis=1))
+        cmd = cmd.full()
+        return cmd[:NU], cmd[NU:], Xs.full().T
+
+
+def tracking_interval(fn: ca.Function) -> ca.Function:
+    """``flight_tracking_interval(S[36], w[13], g[N_G], p[29]) -> (S1[36], Xs[18 x M], cmd[12])``: one node
+    interval of the loop (module docstring) around the engine's ``flight_interval`` ``fn``: w = [a; b; h] the
+    plan's command, g the law's data of the interval (:meth:`TrackingLoop.data`), cmd = [a + du; b + du]."""
+    S, w, g, p = ca.MX.sym("S", N_S), ca.MX.sym("w", N_W), ca.MX.sym("g", N_G), ca.MX.sym("p", N_P)
+    X, zp, dup = S[0:NX], S[NX:NX + NZ], S[NX + NZ:]
+    Xr = g[0:NX]
+    o = NX
+    K, L = ca.reshape(g[o:o + NU * NZ], NU, NZ), ca.reshape(g[o + NU * NZ:o + 2 * NU * NZ], NU, NZ)
+    o += 2 * NU * NZ
+    A, Bu = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), ca.reshape(g[o + NZ * NZ:o + NZ * NZ + NZ * NU], NZ, NU)
+    R, Rr = ca.reshape(X[X_ROT], 3, 3), ca.reshape(Xr[X_ROT], 3, 3)
+    z = ca.vertcat(X[X_POS] - Xr[X_POS], X[X_MOM] - Xr[X_MOM], log_so3_small(ca.mtimes(Rr.T, R)), X[X_ANG] - Xr[X_ANG])
+    r = z - ca.mtimes(A, zp) - ca.mtimes(Bu, dup)
+    du = -ca.mtimes(K, z) - g[N_G - 1] * ca.mtimes(L, r)
+    a, b = w[0:NU] + du, w[NU:2 * NU] + du
+    X1, Xs = fn(X, ca.vertcat(a, b, w[2 * NU]), p)
+    return ca.Function("flight_tracking_interval", [S, w, g, p], [ca.vertcat(X1, z, du), Xs, ca.vertcat(a, b)],
+                       ["S", "w", "g", "p"], ["S1", "Xs", "cmd"])
+
+
+_RUNS = BoundedCache()
+
+
+def _loop_run(fn: ca.Function, N: int) -> ca.Function:
+    """:func:`tracking_interval` accumulated over N intervals (one call), built once per (integrator, N)."""
+    return _RUNS.get((id(fn), N), lambda: tracking_interval(fn).mapaccum(f"flight_tracking_run{N}", N), keep=fn)

@@ -1,0 +1,269 @@
+"""Re-planning (MPC): shrinking-horizon re-plans of a plan from the flown state, each a fixed budget of the
+indirect method's Newton steps warm-started from the previous plan (docs/mathematics.md §12, *Re-planning*).
+
+At node k (every ``replan_every`` steps) the flown state X(t_k) becomes the initial state of the remaining
+problem: the plan's Problem (model, weights, bounds, terminal target) over the N - k remaining steps of the
+same h.  Its unknown is the remaining problem's shooting unknown (lgvi lambda_{k-1}, first order lambda_k),
+warm-started from the current plan's costate there (:meth:`~transcription.results.start.WarmStart.tail`): by
+Bellman's principle the current plan's remainder solves the remaining problem's conditions, so from the
+plan's own node the warm start is already the answer, and from a nearby state one Newton step
+(the exact Jacobian Psi of the shooting residual) is a step of a quadratically convergent iteration --
+the real-time iteration of acados in the indirect method's coordinates: ``iterations`` full steps, no line
+search, the plan re-rolled from the result.  A step whose rollout is not finite, does not solve the
+Cayley equation to ``cayley_tol``, or misses the terminal conditions by more than the warm start did (a
+remaining problem made infeasible by saturated bounds near the end) is rejected and the current plan kept.
+
+As in acados the work is split (:meth:`Replanner.prepare`): the Jacobian is prepared at the current plan's
+node before the flown state is known, and the feedback phase -- from the flown state to the new plan -- is
+one rollout for the residual, a 12 x 12 solve and the final rollout (a chord step; further iterations take
+the exact Jacobian).
+
+Why the indirect method and not IPOPT capped at one or two iterations: the re-plan's unknown is 12 numbers,
+its Jacobian is one rollout of the linearized map (compiled to C), so the feedback phase costs two plain
+rollouts -- 2.4 ms at a 50-step horizon on a quiet machine, 4.1 ms for an exact Newton step
+(scripts/bench_flight.py --case mpc, docs/performance.md) -- where the direct method would rebuild an NLP for every horizon length and IPOPT's own overhead per
+call (scaling, restoration machinery, the KKT factorization of 1000+ variables) is of the same order or
+more.  What the indirect method does not cover (path constraints, other objectives, orbit targets) the
+re-planner refuses with that reason.
+
+* :class:`Replanner` -- one Problem's re-plan: ``replan(X, tail) -> (new plan | None, Replan)``;
+* :class:`Replanning` -- the flight engine's control law (transcription.flight.ControlLaw): re-plans at
+  k = 0, e, 2e, ... and flies the current plan's interval commands in between, optionally with the LQR
+  tracker's correction around the current plan (:func:`around`: the original plan's gains).
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dynamics.flight import interval_commands
+from ..geometry.state import NU, NX, NZ
+from ..methods.indirect.control import bound_data, weight_inverse
+from ..methods.indirect.shooting import shooting_functions
+from ..methods.indirect.solve import free_rows, not_covered
+from ..options import IndirectOptions
+from ..ocp import TargetOrbit
+from .tracking import saturate
+from ..results.start import WarmStart
+
+#: re-plan every this many node steps (the flight block's ``mpc.replan_every``)
+DEFAULT_REPLAN_EVERY = 10
+#: Newton steps per re-plan (the flight block's ``mpc.iterations``): one, as acados' real-time iteration
+DEFAULT_ITERATIONS = 1
+#: a re-plan is accepted when its own prediction misses the terminal conditions by less than the warm start
+#: did from the flown state, or by less than this (round-off): otherwise the current plan is kept -- near the
+#: end of a plan on its bounds the remaining problem can become infeasible, and a Newton step there is no plan
+ACCEPT_BELOW = 1e-9
+
+
+@dataclass(frozen=True)
+class Replan:
+    """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start from the flown state
+    (``residual_before``) and of the re-plan (``residual_after``, the terminal conditions of its own
+    prediction), the wall time from the flown state to the new plan (``solve_s``: the Newton steps and the
+    final rollout; with a prepared Jacobian the feedback phase only) and of the preparation before it
+    (``prepare_s``), ``accepted`` (else the current plan was kept) and why not (``message``)."""
+
+    k: int
+    horizon: int
+    residual_before: float
+    residual_after: float
+    solve_s: float
+    accepted: bool
+    message: str = ""
+    prepare_s: float = 0.0
+
+
+def replan_not_covered(problem) -> str:
+    """What of ``problem`` the re-planner does not cover ('' if nothing): what the indirect method does not cover
+    (:func:`~.methods.indirect.solve.not_covered` with the effort objective only: the time and fuel objectives are
+    named there), and of what it does an orbit target (docs/mathematics.md §19): the re-plan's shooting is the
+    state target's with the effort law."""
+    reasons = [r for r in (not_covered(problem, ("effort",)),) if r]
+    if isinstance(problem.terminal, TargetOrbit):
+        reasons.append("an orbit target in a re-plan")
+    return ", ".join(reasons)
+
+
+class Replanner:
+    """Re-plans of one Problem (a smooth-control effort problem with a state target, the indirect method's
+    coverage) at the (mean) step size h (on a mesh the remaining steps h r_k, :meth:`steps`): ``iterations``
+    Newton steps on the remaining problem's shooting unknown from a warm start, ``jit``: the per-step maps compiled to C (transcription.compile.codegen; interpreter without a
+    compiler).  ValueError for a problem the indirect method does not cover."""
+
+    def __init__(self, problem, h: float, iterations: int = DEFAULT_ITERATIONS, jit: bool = True,
+                 cayley_tol: float = IndirectOptions.cayley_tol):
+        reason = replan_not_covered(problem)
+        if reason:
+            raise ValueError(f"MPC re-plans by the indirect method's Newton step, which does not cover {reason}")
+        if int(iterations) < 1:
+            raise ValueError(f"iterations: expected a positive integer, got {iterations}")
+        self.problem, self.h, self.iterations, self.jit = problem, float(h), int(iterations), bool(jit)
+        self.Xd, self.Winv, self.bd = problem.terminal.X, weight_inverse(problem), bound_data(problem)
+        self.free, self.cayley_tol = free_rows(problem.terminal), float(cayley_tol)
+
+    def steps(self, n: int) -> float | np.ndarray:
+        """The step sizes of the last n steps (a shrinking horizon's remainder): h on a uniform mesh, else h_k =
+        h r_k of steps N-n..N-1 of the problem's mesh (docs/mathematics.md §17)."""
+        s = self.problem.steps_of(self.h)
+        return s if np.ndim(s) == 0 else s[len(s) - int(n):]
+
+    def functions(self, n: int):
+        """The indirect method's shooting Functions of n steps (built once per n and Discretization)."""
+        return shooting_functions(self.problem.disc, int(n), self.jit)
+
+    def start(self, plan: WarmStart) -> WarmStart:
+        """``plan`` with its shooting unknown: the plan's own lam0, else mapped from its costates (a direct
+        plan's, from its multipliers: docs/mathematics.md §7; lgvi lambda_{-1} = A_0^T lambda_0 as
+        methods.indirect.solve.lam0_from_costates, at the plan's X_0 and h -- a free final time's h is the
+        plan's, not the Problem's guess).  ValueError without costates."""
+        if plan.lam0 is not None:
+            return plan
+        if plan.costates is None:
+            raise ValueError("MPC: the plan carries no costates to warm-start the re-plans from")
+        lam0 = np.asarray(plan.costates[0], float)
+        if plan.scheme == "lgvi":             # lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0 at the plan's own X_0 and h
+            h0 = np.ravel(self.steps(plan.N))[0]   # step 0's size
+            A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], h0)[0])
+            lam0 = A0.T @ lam0
+        return WarmStart(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
+                         costates=plan.costates, lam0=np.asarray(lam0, float))
+
+    def prepare(self, tail: WarmStart) -> tuple[np.ndarray, float]:
+        """The preparation phase of a re-plan (acados' real-time iteration): the Jacobian dF/dlam at the
+        predicted state ``tail.X[0]`` (the current plan's node) and the warm start, computable before the
+        flown state is known; and its wall time (s)."""
+        t0 = time.perf_counter()
+        _, J = self._newton_system(self.functions(tail.N), np.asarray(tail.lam0, float).reshape(NZ),
+                                   (tail.X[0], self.Xd, self.steps(tail.N), self.Winv, self.bd))
+        return J, time.perf_counter() - t0
+
+    def replan(self, X, tail: WarmStart, k: int = 0, J0: np.ndarray | None = None) -> tuple[WarmStart | None, Replan]:
+        """The remaining problem from the state X (18,) over ``tail.N`` steps, warm-started from ``tail``
+        (:meth:`WarmStart.tail` of the current plan, its lam0 the remaining problem's unknown): the new plan
+        (node times from 0, the predicted states X_0 = X .. X_n, controls, costates, lam0), or None when
+        the step was rejected; and the :class:`Replan` record (k: the node, for the record).  ``J0``: the
+        prepared Jacobian (:meth:`prepare`) for the first step, whose residual is then one plain rollout from
+        X (the feedback phase); without it every step takes the exact Jacobian at X."""
+        X, n = np.asarray(X, float).reshape(NX), tail.N
+        fns, args = self.functions(n), (X, self.Xd, self.steps(n), self.Winv, self.bd)
+        lam, before, msg = np.asarray(tail.lam0, float).reshape(NZ), np.nan, ""
+        t0 = time.perf_counter()
+        try:
+            for i in range(self.iterations):
+                F, J = (self._residual(fns, lam, args), J0) if i == 0 and J0 is not None else \
+                    self._newton_system(fns, lam, args)
+                before = np.linalg.norm(F) if i == 0 else before
+                lam = lam - np.linalg.solve(J, F)
+            zN, Xs, lams, U, res, _ = (np.array(a) for a in fns.shoot(lam, *args))
+        except np.linalg.LinAlgError as e:
+            zN, res, msg = np.full(NZ, np.nan), np.array([np.inf]), f"singular Newton system ({e})"
+        solve_s = time.perf_counter() - t0
+        after = float(np.linalg.norm(np.where(self.free, 0.0, zN.ravel())))
+        ok = not msg and np.isfinite(after) and bool(np.all(np.isfinite(U))) and float(np.max(res)) <= self.cayley_tol
+        if not ok and not msg:
+            msg = f"the re-planned rollout is not finite or leaves a Cayley residual {float(np.max(res)):.1e}"
+        elif ok and not (after <= before or after <= ACCEPT_BELOW):
+            ok, msg = False, f"the re-plan misses its own target by more than the warm start ({after:.1e} > {before:.1e})"
+        rec = Replan(k=int(k), horizon=int(n), residual_before=float(before), residual_after=after, solve_s=solve_s,
+                     accepted=bool(ok), message=msg)
+        if not ok:
+            return None, rec
+        hs = self.steps(n)
+        t = np.arange(n + 1) * self.h if np.ndim(hs) == 0 else np.r_[0.0, np.cumsum(hs)]
+        new = WarmStart(t=t, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
+                        source="mpc", costates=lams.T, lam0=lam)
+        return new, rec
+
+    def _residual(self, fns, lam, args) -> np.ndarray:
+        """F: the shooting residual (z_N, lambda_{n-1} on free terminal rows) of one rollout."""
+        zN, lamN, _ = fns.residual(lam, *args)
+        return np.where(self.free, np.array(lamN).ravel(), np.array(zN).ravel())
+
+    def _newton_system(self, fns, lam, args) -> tuple[np.ndarray, np.ndarray]:
+        """(F, dF/dlam): the shooting residual (z_N, lambda_{n-1} on free terminal rows) and its Jacobian."""
+        zN, Psi, dlamN = fns.shoot_jac(lam, *args)
+        F, J = np.array(zN).ravel(), np.array(Psi)
+        if self.free.any():
+            lamN = np.array(fns.residual(lam, *args)[1]).ravel()
+            F, J = np.where(self.free, lamN, F), np.where(self.free[:, None], np.array(dlamN), J)
+        return F, J
+
+
+class Replanning:
+    """The control law of a re-planned flight (transcription.flight.ControlLaw): at nodes k = 0, e, 2e, ...
+    (e = ``every``; none in the last ``min_horizon - 1`` steps) the :class:`Replanner` re-plans the
+    remainder of the current plan from the flown state X(t_k); over every interval the current plan's
+    command as the scheme defines it between nodes (transcription.flight.interval_commands), plus, with
+    ``gains`` (the original plan's tracker, transcription.closedloop.tracking.Gains), the tracker's correction around
+    the current plan (:func:`around`).  ``prepared``: each re-plan's first Newton step takes the Jacobian
+    prepared at the current plan's node (:meth:`Replanner.prepare`, the real-time iteration's preparation
+    phase), so the time from the flown state to the new plan is one rollout, a 12 x 12 solve and the final
+    rollout.  ``replans``: the :class:`Replan` records, in order."""
+
+    def __init__(self, replanner: Replanner, plan: WarmStart, every: int = DEFAULT_REPLAN_EVERY,
+                 min_horizon: int = 1, gains=None, prepared: bool = True):
+        if int(every) < 1 or int(min_horizon) < 1:
+            raise ValueError("every and min_horizon: expected positive integers")
+        self.replanner, self.every, self.min_horizon = replanner, int(every), int(min_horizon)
+        self.current, self.k0, self.N, self.prepared = replanner.start(plan), 0, plan.N, bool(prepared)
+        self.gains, self.tracker = gains, None if gains is None else gains.tracker()
+        self.replans: list[Replan] = []
+        self._saturated, self._steps = 0, 0
+
+    def commands(self, k: int, t: float, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if k % self.every == 0 and self.N - k >= self.min_horizon:
+            tail, k0 = self.current.tail(k - self.k0), self.k0
+            J0, prep = self.replanner.prepare(tail) if self.prepared else (None, 0.0)
+            new, rec = self.replanner.replan(X, tail, k, J0)
+            self.replans.append(dataclasses.replace(rec, prepare_s=prep))
+            if new is not None:
+                self.current, self.k0 = new, k
+                if self.gains is not None:       # the disturbance estimate carries over to the new plan's tracker
+                    r = self.tracker.unexplained(k - k0, X)
+                    self._saturated += self.tracker.saturated_steps
+                    self.tracker = around(self.gains, k, new).tracker(r0=r)
+        j, self._steps = k - self.k0, k + 1
+        start, end = interval_commands(self.current.scheme, self.current.U[:, j:j + 2])
+        a, b = start[:NU, 0], end[:NU, 0]
+        if self.tracker is None:
+            return a, b
+        du = self.tracker.correction(j, X)
+        a, b = a + du, b + du
+        if self.tracker.bounded:       # the plan's round-off only (the correction keeps within the headroom)
+            g = self.gains
+            a, b = (saturate(u, g.force_bound, g.moment_bound)[0] for u in (a, b))
+        return a, b
+
+    @property
+    def solve_times(self) -> np.ndarray:
+        """The wall time (s) of every re-plan so far, from the flown state to the new plan."""
+        return np.array([r.solve_s for r in self.replans], float)
+
+    @property
+    def prepare_times(self) -> np.ndarray:
+        """The wall time (s) of every re-plan's preparation phase so far (0 without)."""
+        return np.array([r.prepare_s for r in self.replans], float)
+
+    @property
+    def rejected(self) -> int:
+        return sum(not r.accepted for r in self.replans)
+
+    @property
+    def saturated_fraction(self) -> float:
+        """The fraction of the steps so far whose tracker correction the actuators' bounds limited."""
+        steps = self._saturated + (self.tracker.saturated_steps if self.tracker is not None else 0)
+        return steps / self._steps if self._steps else 0.0
+
+
+def around(gains, k: int, plan: WarmStart):
+    """The tracker ``gains`` (transcription.closedloop.tracking.Gains of the original plan) from node k on, around the
+    re-planned ``plan`` (its nodes X and controls U over the remaining N - k steps): the original gains and
+    linearization, which the re-plan, a nearby trajectory, changes only to first order in its distance; on a
+    non-uniform mesh the steps k..N-1 (the re-plan runs on the same steps, :meth:`Replanner.steps`)."""
+    return dataclasses.replace(gains, K=gains.K[k:], L=gains.L[k:], P=gains.P[k:], S=gains.S[k:], A=gains.A[k:],
+                               B=gains.B[k:], t=gains.t[k:], X=plan.X, U=plan.U,
+                               steps=None if gains.steps is None else gains.steps[k:])

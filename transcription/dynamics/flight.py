@@ -1,0 +1,344 @@
+"""The continuous-time flight engine: eqs. (1)-(4) under the controls a scheme defines between its
+nodes, integrated by SUNDIALS CVODES (casadi.integrator) node interval by node interval
+(docs/mathematics.md §11).
+
+One Function or class per concept:
+
+* :func:`equations_of_motion` -- ``flight_eom(X[18], u[6], Jinv[3x3]) -> Xdot[18]``, eqs. (1)-(4) with
+  u = [u_f (inertial); u_m (body)] the control acting on the body;
+* :class:`Actuators` and :func:`actuator_output` -- commands -> applied controls (scale factors and
+  body-fixed misalignment rotations), ``flight_actuators(X, u_cmd[6], q[20]) -> u[6]``;
+* :func:`interval_commands` -- a scheme's controls as the affine command of each node interval
+  (LGVI: from u_k to u_{k+1} linearly; first order: u_{k+1} held), §11;
+* :class:`OpenLoop`, :class:`ClosedLoop` -- control laws: the command of interval k, as its values at
+  the interval's start and end, from (k, t_k, X_k) with X_k the flown state at t_k;
+* :func:`interval_integrator` -- ``flight_interval(X0[18], w[13], p[29]) -> (X1[18], Xs[18 x M])``,
+  one interval in its normalized time s = (t - t_k)/h_k in [0, 1], sampled at s = j/M;
+* :func:`fly` -- a law flown from X0 over a time grid -> :class:`Flight` (dense samples of the truth
+  state and the applied control).
+
+The truth body is any :class:`~transcription.dynamics.model.BodyModel` (its potential gives f and M; its mass
+and inertia are the truth's): the integrator Function is built once per potential (its ``forces``
+Function) and number of samples, with the inverse inertia and the actuator errors as parameters,
+so a Monte Carlo over inertia and actuator errors reuses it.  The attitude is integrated as the nine
+entries of R (not kept on SO(3) by the integrator): its drift, max |R^T R - I|_F, is of the order of
+the tolerance and is reported by the continuous check, which re-projects R onto SO(3) before
+measuring angles (transcription.results.check).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import casadi as ca
+import numpy as np
+
+from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, join_state, split_state
+from ..geometry.so3 import orthogonality_error
+from .model import BodyModel
+from ..results.solution import Trajectory
+
+#: CVODES (Adams, functional iteration: the equations are not stiff) relative and absolute tolerances.
+#: CVODES restarts at every node, and each interval adds an error of about RTOL relative: over N
+#: intervals about N RTOL (free motion: energy 1.1e-11 relative over 1000 intervals; 1e-13 costs the
+#: same and gives 1.1e-10); against an independent DOP853 re-flight ~1e-11 (tests/test_flight.py)
+RTOL = 1e-14
+ATOL = 1e-16
+#: the smallest step CVODES may take, as a fraction of the node interval (it integrates in s = (t - t_k)/h):
+#: its steps are some 1e-8 at a restart and larger after; a smaller one means the motion is singular there
+#: (the body at a point mass), and CVODES then fails instead of creeping on in steps of 1e-17
+MIN_STEP = 1e-12
+#: samples of the state per node interval (s = 1/M, ..., 1): path deviations and constraint margins
+#: between the nodes
+DEFAULT_SAMPLES = 4
+#: actuator parameters: force scale, moment scale, vec(A_f), vec(A_m), the force command's frame (0 inertial, 1 body)
+N_ACTUATOR = 21
+#: interval parameters w = [a (6); b (6); h] and flight parameters p = [vec(J^-1) (9); actuators (21)]
+N_W, N_P = 2 * NU + 1, 9 + N_ACTUATOR
+
+
+class FlightError(RuntimeError):
+    """The integrator failed (the state left its domain, e.g. into the central body's singularity)."""
+
+
+# --------------------------------------------------------------------------- equations of motion
+def equations_of_motion(model: BodyModel) -> ca.Function:
+    """``flight_eom(X[18], u[6], Jinv[3x3]) -> Xdot[18]``: eqs. (1)-(4) (docs/mathematics.md §1),
+
+        x' = gamma/m,  gamma' = f(x, R) + u_f,  R' = R S(Omega),  Pi' = Pi x Omega + M(x, R) + u_m,
+
+    Omega = Jinv Pi (body), u_f inertial and u_m body as they act on the body, f and M from
+    ``model.forces``; Xdot in the layout of transcription.geometry.state (vec(R') column-major)."""
+    X, u, Jinv = ca.SX.sym("X", NX), ca.SX.sym("u", NU), ca.SX.sym("Jinv", 3, 3)
+    x, gamma, R, Pi = split_state(X)
+    f, M = model.forces(x, R)
+    Om = ca.mtimes(Jinv, Pi)
+    Xdot = join_state(gamma / model.mass, f + u[0:3], ca.mtimes(R, ca.skew(Om)), ca.cross(Pi, Om) + M + u[3:6])
+    return ca.Function("flight_eom", [X, u, Jinv], [Xdot], ["X", "u", "Jinv"], ["Xdot"])
+
+
+@dataclass(frozen=True)
+class Actuators:
+    """How commands become the controls acting on the body (the nominal actuators: identity).
+
+    force_scale s_f, moment_scale s_m: scale factors; force_misalignment A_f, moment_misalignment A_m:
+    rotations (3x3) fixed in the body.  A commanded force u_f is produced by body-fixed thrusters: applied
+    s_f R A_f R^T u_f for a command in the inertial frame (``force_frame`` 'inertial'), s_f R A_f u_f for one in
+    the body frame ('body': the plan's body-frame force, docs/mathematics.md §14); a commanded moment u_m
+    (body): applied s_m A_m u_m."""
+
+    force_scale: float = 1.0
+    moment_scale: float = 1.0
+    force_misalignment: np.ndarray = field(default_factory=lambda: np.eye(3))
+    moment_misalignment: np.ndarray = field(default_factory=lambda: np.eye(3))
+    force_frame: str = "inertial"
+
+    def __post_init__(self):
+        for name in ("force_scale", "moment_scale"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: expected a finite number")
+        for name in ("force_misalignment", "moment_misalignment"):
+            A = np.asarray(getattr(self, name), dtype=float)
+            if A.shape != (3, 3) or not np.all(np.isfinite(A)) or orthogonality_error(A)[0] > 1e-9 or np.linalg.det(A) < 0:
+                raise ValueError(f"{name}: expected a rotation matrix (3x3, A^T A = I, det A = 1)")
+            object.__setattr__(self, name, A)
+
+    def vector(self) -> np.ndarray:
+        """q (21,) = [s_f; s_m; vec(A_f); vec(A_m); 1 for a body-frame force command, else 0] (column-major),
+        the parameters of :func:`actuator_output`."""
+        return np.concatenate([[self.force_scale, self.moment_scale], self.force_misalignment.ravel(order="F"),
+                               self.moment_misalignment.ravel(order="F"), [float(self.force_frame == "body")]])
+
+
+def actuator_output() -> ca.Function:
+    """``flight_actuators(X[18], u_cmd[6], q[21]) -> u[6]``: u_f = s_f R A_f u_b with u_b = R^T u_f,cmd for an
+    inertial command, u_b = u_f,cmd for a body-frame one (q[20] = 1); u_m = s_m A_m u_m,cmd (body), with
+    q = :meth:`Actuators.vector` and R the attitude in X (the flown attitude: a body-frame command turns with it)."""
+    X, uc, q = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", N_ACTUATOR)
+    _, _, R, _ = split_state(X)
+    Af, Am = ca.reshape(q[2:11], 3, 3), ca.reshape(q[11:20], 3, 3)
+    body = q[20] * uc[U_FORCE] + (1 - q[20]) * ca.mtimes(R.T, uc[U_FORCE])
+    u = ca.vertcat(q[0] * ca.mtimes([R, Af, body]), q[1] * ca.mtimes(Am, uc[U_MOMENT]))
+    return ca.Function("flight_actuators", [X, uc, q], [u], ["X", "u_cmd", "q"], ["u"])
+
+
+# ----------------------------------------------------------------------------- control laws
+def interval_commands(scheme: str, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The controls U of a scheme as the command of each node interval k, affine in time from
+    ``start[:, k]`` at t_k to ``end[:, k]`` at t_{k+1} (docs/mathematics.md §11): the LGVI's node
+    controls U (6, N+1) interpolated linearly (start = u_k, end = u_{k+1}); the first-order scheme's
+    U (6, N) = u_1..u_N, u_{k+1} held over [t_k, t_{k+1}] (start = end = u_{k+1}).  Returns (6, N) each."""
+    U = np.asarray(U, dtype=float)
+    if scheme == "lgvi":
+        return U[:, :-1], U[:, 1:]
+    if scheme == "first_order":
+        return U, U
+    raise ValueError(f"scheme must be 'lgvi' or 'first_order', got {scheme!r}")
+
+
+class ControlLaw(Protocol):
+    def commands(self, k: int, t: float, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The command (6,) at the start and at the end of interval k, from the flown state X (18,) at t_k."""
+
+
+@dataclass(frozen=True, eq=False)
+class OpenLoop:
+    """Commands fixed in advance: ``start``, ``end`` (6, N) (:func:`interval_commands`)."""
+
+    start: np.ndarray
+    end: np.ndarray
+
+    @classmethod
+    def of_controls(cls, scheme: str, U: np.ndarray) -> "OpenLoop":
+        """A plan's controls U (6, n_controls) applied as ``scheme`` defines them between the nodes."""
+        return cls(*interval_commands(scheme, U))
+
+    @classmethod
+    def free(cls, N: int) -> "OpenLoop":
+        """No control over N intervals (free motion)."""
+        return cls(np.zeros((NU, N)), np.zeros((NU, N)))
+
+    def commands(self, k, t, X):
+        return self.start[:, k], self.end[:, k]
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoop:
+    """The plan's commands plus a correction held over each interval: start + d, end + d with
+    d = correction(k, t_k, X_k) (6,) from the flown state at t_k; ``limit`` (optional) maps each of the
+    two ends into the admissible set -- for a convex set (a box, a norm ball) the affine command
+    between them then stays admissible over the whole interval."""
+
+    plan: OpenLoop
+    correction: Callable[[int, float, np.ndarray], np.ndarray]
+    limit: Callable[[np.ndarray], np.ndarray] | None = None
+
+    def commands(self, k, t, X):
+        a, b = self.plan.commands(k, t, X)
+        d = np.asarray(self.correction(k, t, X), dtype=float).reshape(NU)
+        a, b = a + d, b + d
+        return (a, b) if self.limit is None else (self.limit(a), self.limit(b))
+
+
+# ------------------------------------------------------------------------------- integrator
+class BoundedCache:
+    """Functions built once per key and kept, at most ``size`` of them (the oldest evicted first): the flight's
+    integrators and their accumulations, sized by what a process flies, not unbounded.  ``keep``: objects
+    whose ``id`` is part of the key, kept alive with the entry so that the id stays unique."""
+
+    def __init__(self, size: int = 32):
+        self.size, self.entries = size, {}
+
+    def get(self, key, make: Callable[[], ca.Function], keep=None) -> ca.Function:
+        """The Function of ``key``, made by ``make()`` when it is not kept yet."""
+        hit = self.entries.get(key)
+        if hit is None:
+            if len(self.entries) >= self.size:
+                self.entries.pop(next(iter(self.entries)))
+            hit = self.entries[key] = (keep, make())
+        return hit[1]
+
+
+_INTEGRATORS = BoundedCache()
+
+
+def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
+                        atol: float = ATOL) -> ca.Function:
+    """``flight_interval(X0[18], w[13], p[29]) -> (X1[18], Xs[18 x M])`` for M = ``samples``: one node
+    interval of length h flown from X0, in normalized time s = (t - t_k)/h in [0, 1],
+
+        dX/ds = h eom(X, actuators(X, a + s (b - a), q), Jinv),   w = [a (6); b (6); h],
+        p = [vec(Jinv) (9, column-major); q (21, Actuators.vector())],
+
+    by CVODES (Adams, functional iteration, ``rtol``/``atol``), restarted at every call, so the
+    command's kinks and jumps at the nodes are never integrated across.  Xs holds the states at
+    s = 1/M, ..., 1 (Xs[:, -1] = X1).  Built once per (model's potential, mass, M, tolerances)."""
+    key = (id(model.forces), float(model.mass), int(samples), float(rtol), float(atol))
+    return _INTEGRATORS.get(key, lambda: _interval_integrator(model, samples, rtol, atol), keep=model.forces)
+
+
+def _interval_integrator(model: BodyModel, samples: int, rtol: float, atol: float) -> ca.Function:
+    """The Function of :func:`interval_integrator`, built."""
+    eom, act = equations_of_motion(model), actuator_output()
+    X, w, p, s = ca.SX.sym("X", NX), ca.SX.sym("w", N_W), ca.SX.sym("p", N_P), ca.SX.sym("s")
+    a, b, h = w[0:NU], w[NU:2 * NU], w[2 * NU]
+    u = act(X, a + s * (b - a), p[9:])
+    ode = h * eom(X, u, ca.reshape(p[0:9], 3, 3))
+    opts = {"reltol": rtol, "abstol": atol, "max_num_steps": 100000, "min_step_size": MIN_STEP,
+            "linear_multistep_method": "adams", "nonlinear_solver_iteration": "functional"}
+    grid = [j / samples for j in range(1, samples + 1)]
+    cv = ca.integrator("flight_cvodes", "cvodes", {"x": X, "p": ca.vertcat(w, p), "t": s, "ode": ode}, 0.0, grid, opts)
+    X0, wm, pm = ca.MX.sym("X0", NX), ca.MX.sym("w", N_W), ca.MX.sym("p", N_P)
+    Xs = cv(x0=X0, p=ca.vertcat(wm, pm))["xf"]
+    return ca.Function("flight_interval", [X0, wm, pm], [Xs[:, -1], Xs], ["X0", "w", "p"], ["X1", "Xs"])
+
+
+_RUNS = BoundedCache()
+
+
+def _open_loop_run(fn: ca.Function, N: int) -> ca.Function:
+    """``flight_interval`` accumulated over N intervals (casadi mapaccum: one call, a C loop that restarts
+    CVODES at every node), built once per (integrator, N)."""
+    return _RUNS.get((id(fn), N), lambda: fn.mapaccum(f"flight_run{N}", N), keep=fn)
+
+
+# ------------------------------------------------------------------------------------ flight
+@dataclass(frozen=True, eq=False)
+class Flight:
+    """A flown motion, sampled M = ``samples`` times per node interval.
+
+    t (N M + 1,): sample times, t[k M] = t_k (node k); X (N M + 1, 18): the flown state at t (layout of
+    transcription.geometry.state; R as integrated, not re-projected).  command_start, command_end (N, 6): the
+    law's command of each interval at its two ends ([u_f inertial; u_m body], affine in between).
+    control_t (N, M + 1), control (N, M + 1, 6): the applied control [u_f inertial; u_m body] (the
+    actuators' output on the flown attitude) at s = 0, 1/M, ..., 1 of each interval, so both sides of
+    every node; with the commands and the actuators it defines the applied control at every instant.
+    mass, inertia: the truth body's.
+    """
+
+    t: np.ndarray
+    X: np.ndarray
+    samples: int
+    command_start: np.ndarray
+    command_end: np.ndarray
+    control_t: np.ndarray
+    control: np.ndarray
+    mass: float
+    inertia: np.ndarray
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """The flown state at the nodes t_0..t_N (N+1, 18)."""
+        return self.X[:: self.samples]
+
+    @property
+    def node_times(self) -> np.ndarray:
+        return self.t[:: self.samples]
+
+    def trajectory(self) -> Trajectory:
+        """The samples as a :class:`~transcription.results.solution.Trajectory` (x, v, R, Omega, ... at every sample)."""
+        return Trajectory(t=self.t, X=self.X, mass=self.mass, inertia=self.inertia)
+
+
+def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | ControlLaw",
+        actuators: Actuators | None = None, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
+        atol: float = ATOL) -> Flight:
+    """Fly ``law`` from X0 (18,) over the node grid ``times`` (N+1,) (increasing; steps may differ)
+    through eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default: nominal), one node
+    interval at a time (:func:`interval_integrator`), sampled ``samples`` times per interval.
+
+    An :class:`OpenLoop` law is flown in one call (the intervals chained in C), and so is a law with a
+    ``flown(fn, X0, h, p) -> (start, end, Xs)`` method that evaluates itself inside the integrator's
+    Function (transcription.closedloop.loop.TrackingLoop); any other law (e.g. :class:`ClosedLoop`) is asked for
+    each interval's command from the flown state at its start.
+    X0 holds the truth body's momenta (Pi = J_truth Omega).  Raises FlightError if the integrator fails."""
+    times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
+    h = np.diff(times)
+    if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
+        raise ValueError("times: expected at least two increasing finite times")
+    if not np.all(np.isfinite(X0)):
+        raise ValueError("X0: expected a finite state of 18 numbers")
+    N, M = h.size, int(samples)
+    fn = interval_integrator(model, M, rtol, atol)
+    p = np.concatenate([np.linalg.inv(model.inertia).ravel(order="F"), (actuators or Actuators()).vector()])
+    try:
+        if isinstance(law, OpenLoop):
+            A, B = np.asarray(law.start, float), np.asarray(law.end, float)
+            if A.shape != (NU, N) or B.shape != (NU, N) or not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+                raise ValueError(f"commands: expected finite start and end of shape (6, {N}), got {A.shape} and {B.shape}")
+            _, Xs = _open_loop_run(fn, N)(X0, np.vstack([A, B, h[None, :]]), np.repeat(p[:, None], N, axis=1))
+            Xs = Xs.full().T
+        elif hasattr(law, "flown"):           # a law flown in one call (transcription.closedloop.loop.TrackingLoop)
+            A, B, Xs = law.flown(fn, X0, h, p)
+        else:
+            A, B, out, Xk = np.zeros((NU, N)), np.zeros((NU, N)), [], X0
+            for k in range(N):
+                A[:, k], B[:, k] = law.commands(k, float(times[k]), Xk.copy())
+                X1, Xk_s = fn(Xk, np.concatenate([A[:, k], B[:, k], [h[k]]]), p)
+                out.append(Xk_s.full().T)
+                Xk = X1.full().ravel()
+            Xs = np.vstack(out)
+    except RuntimeError as e:
+        raise FlightError(f"the continuous flight failed (CVODES): {str(e).strip().splitlines()[-1]}") from None
+    X = np.vstack([X0[None, :], Xs])
+    ts = times[:-1, None] + h[:, None] * (np.arange(M + 1) / M)[None, :]    # (N, M+1): s = 0, 1/M, ..., 1
+    ts[:, -1] = times[1:]
+    return Flight(t=np.concatenate([[times[0]], ts[:, 1:].ravel()]), X=X, samples=M, command_start=A.T.copy(),
+                  command_end=B.T.copy(), control_t=ts, control=_applied(X, A, B, M, p[9:]),
+                  mass=float(model.mass), inertia=np.asarray(model.inertia, float))
+
+
+def _applied(X: np.ndarray, A: np.ndarray, B: np.ndarray, M: int, q: np.ndarray) -> np.ndarray:
+    """The applied control (N, M+1, 6) at s = 0, 1/M, ..., 1 of each interval: the actuators' output
+    (:func:`actuator_output`) for the command a + s (b - a) on the flown state there."""
+    N = A.shape[1]
+    s = np.arange(M + 1) / M
+    idx = np.arange(N)[:, None] * M + np.arange(M + 1)[None, :]            # sample index of (k, j)
+    cmd = A.T[:, None, :] + s[None, :, None] * (B - A).T[:, None, :]        # (N, M+1, 6)
+    n = N * (M + 1)
+    # built once per size: building it cost as much as evaluating it
+    u = _APPLIED.get(n, lambda: actuator_output().map(n))(X[idx.ravel()].T, cmd.reshape(n, NU).T, q)
+    return np.asarray(u.full()).T.reshape(N, M + 1, NU)
+
+
+_APPLIED = BoundedCache()

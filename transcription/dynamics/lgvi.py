@@ -1,0 +1,386 @@
+"""Lie group variational integrators on SE(3) as CasADi Functions.
+
+Two discretizations of docs/mathematics.md §2-§3, built once per (model, scheme) as named,
+SX-expanded CasADi Functions:
+
+* ``lgvi``        second-order LGVI, eqs. (7)-(11); controls at both nodes,
+                  stage control w_k = [u_k; u_{k+1}] in R^12.
+* ``first_order`` the paper's modified first-order scheme, eqs. (21)-(25); one
+                  control per step, stage control w_k = u_{k+1} in R^6.
+
+The only implicit part of either step is the Cayley equation (9)/(23),
+``G(c) = g + g x c + (g^T c) c - 2 J c = 0`` whose root gives F_k = cay(c).
+It is solved by a fixed number of Newton iterations unrolled on the graph, so
+derivatives of the solved step are those of the implicit function (the Newton
+map has zero derivative in c at its root) and the step stays a plain SX
+expression (fast, mappable, code-generatable).  The relative residual
+|G(c)|/|g| is an output of every solved step so callers can detect a step too
+large for the solve (reported against :data:`CAYLEY_TOL`).
+
+Functions built (all SX, inputs/outputs named):
+
+    cayley_residual (c[3], g[3])            -> (G[3])
+    cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])
+    step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])       explicit step
+    step            (X[18], w[nw], h)       -> (X1[18], res)         solved step
+    variation       (X[18], w[nw], h)       -> (A[12x12], B[12xnw])  §4 eq. (18)
+    step_seeded     (X, w, h, c0[3])        -> (X1)   two Newton iterations from c0 (derivatives)
+    variation_seeded(X, w, h, c0[3])        -> (A, B) the same from c0; with c0 = the root of
+                                               step X's Cayley equation, equal to variation
+    rollout(N)      (X0[18], W[nw x N], h)  -> (X[18 x N], res[1 x N])  mapaccum
+
+``parametric()`` gives cayley_residual .. step again with the model's numbers theta = ``model.parameters`` as their
+last input instead of constants (what the NLP's compiled dynamics block is built from: one compile per structure).
+"""
+from __future__ import annotations
+
+import functools
+import inspect
+from typing import Any, Callable, Hashable
+
+import casadi as ca
+import numpy as np
+
+from ..geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, chart, join_state, split_state, tangent_readback
+from ..geometry.so3 import cayley, hat, is_symbolic
+from .model import BodyModel
+
+SCHEMES = ("lgvi", "first_order")
+
+#: the frame the force control u_f is given in: 'inertial' (the paper's case) or 'body' (engines fixed in
+#: the body; the applied inertial force is R u_f at the node the control belongs to, docs/mathematics.md §14)
+FORCE_FRAMES = ("inertial", "body")
+
+#: default number of unrolled Newton iterations in the Cayley solve.  From the
+#: (2J)^-1 g start, s = h|Pi|/lambda_min(J) <= 0.999 needs at most 7 to reach
+#: |G|/|g| <= 1e-12 in every direction (tests/test_lgvi.py); ordinary steps
+#: (h = 1e-3) need 2-3.  At s = 1 along the minor principal axis eq. (9) has a
+#: double root (no real root beyond), Newton turns linear and 8 iterations do not
+#: suffice (~3e-4 of directions at s = 1; more for s > 1); the residual output
+#: reports it.
+DEFAULT_NEWTON_ITERS = 8
+
+#: a step whose Cayley equation is left with a relative residual |G|/|g| above this is not a step of
+#: the scheme (the rotation per step is too large for h): every method and the simulator use this bound
+CAYLEY_TOL = 1e-10
+
+
+def _solve3(A, b):
+    """Solve a 3x3 system by the adjugate (exact SX expression, no pivoting)."""
+    a = A
+    cof = ca.vertcat(
+        ca.horzcat(a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1], a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2], a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]),
+        ca.horzcat(a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2], a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0], a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]),
+        ca.horzcat(a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0], a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1], a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]),
+    )
+    det = a[0, 0] * cof[0, 0] + a[0, 1] * cof[1, 0] + a[0, 2] * cof[2, 0]
+    return ca.mtimes(cof, b) / det
+
+
+def per_discretization(build: Callable) -> Callable:
+    """Decorator: ``build(disc, *args)`` is called once per Discretization and arguments (hashable: flags,
+    sizes), its result kept on the Discretization (:meth:`Discretization.cached`), so that what is built for
+    a scheme and a model lives exactly as long as they do."""
+    signature = inspect.signature(build)
+
+    @functools.wraps(build)
+    def get(disc: "Discretization", *args, **kwargs):
+        disc = getattr(disc, "base", disc)   # a WithTheta: what is kept is the Discretization's (numbers constant)
+        bound = signature.bind(disc, *args, **kwargs)
+        bound.apply_defaults()
+        key = (build.__module__, build.__qualname__, *list(bound.arguments.values())[1:])
+        return disc.cached(key, lambda: build(*bound.args, **bound.kwargs))
+
+    return get
+
+
+class _StepFunctions:
+    """The Cayley solve and the step of one Discretization (docs/mathematics.md §2-§3), built from the model's
+    numbers as constants, or (``parametric``) from a symbol theta = ``model.parameters`` that is then the last input
+    of every Function (names suffixed ``_p``):
+
+        cayley_residual (c[3], g[3])            -> (G[3])   G = g + g x c + (g^T c) c - 2 J c
+        newton_map      (c[3], g[3])            -> c - (dG/dc)^-1 G
+        cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])  K Newton iterations from (2J)^-1 g
+        step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])
+        cayley_rhs      (X[18], w[nw], h)       -> (g[3])
+        step            (X[18], w[nw], h)       -> (X1[18], res)
+        variation, step_seeded, variation_seeded   (:class:`Discretization`; :meth:`variations`)
+    """
+
+    def __init__(self, disc: "Discretization", parametric: bool = False):
+        model, scheme, sfx = disc.model, disc.scheme, "_p" if parametric else ""
+        if parametric:
+            th = ca.SX.sym("theta", model.parameters.size)
+            m, J, inv2J, q = th[0], ca.reshape(th[1:10], 3, 3), ca.reshape(th[10:19], 3, 3), th[19:]
+            pforces = model.parametric_forces()
+            forces, extra = (lambda x, R: pforces(x, R, q)), [th]
+        else:
+            m, J, inv2J = model.mass, ca.DM(model.inertia), ca.DM(np.linalg.inv(2 * model.inertia))
+            forces, extra = model.forces, []
+        names = ["theta"] if parametric else []
+
+        def fn(name, ins, outs, names_in, names_out):
+            return ca.Function(name + sfx, ins + extra, outs, names_in + names, names_out)
+
+        c, g = ca.SX.sym("c", 3), ca.SX.sym("g", 3)
+        G = g + ca.cross(g, c) + ca.dot(g, c) * c - 2 * ca.mtimes(J, c)
+        self.cayley_residual = fn("cayley_residual", [c, g], [G], ["c", "g"], ["G"])
+        dG = hat(g) + ca.dot(g, c) * ca.DM.eye(3) + ca.mtimes(c, g.T) - 2 * J
+        self.newton_map = fn("cayley_newton_map", [c, g], [c - _solve3(dG, G)], ["c", "g"], ["c1"])
+        gnorm = ca.fmax(ca.norm_2(g), 1e-300)
+        ck = ca.mtimes(inv2J, g)
+        hist = [ca.norm_2(self.cayley_residual(ck, g, *extra)) / gnorm]
+        for _ in range(disc.newton_iters):
+            ck = self.newton_map(ck, g, *extra)
+            hist.append(ca.norm_2(self.cayley_residual(ck, g, *extra)) / gnorm)
+        self.cayley_solve = fn("cayley_solve", [g], [ck, ca.vertcat(*hist)], ["g"], ["c", "res_hist"])
+
+        X, w, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("h")
+        X1, gvec = disc._step_expr(X, c, w, h, m, forces)
+        self.step_given_c = fn(f"{scheme}_step_given_c", [X, c, w, h], [X1, self.cayley_residual(c, gvec, *extra)],
+                               ["X", "c", "w", "h"], ["X1", "G"])
+        self.cayley_rhs = fn(f"{scheme}_cayley_rhs", [X, w, h], [gvec], ["X", "w", "h"], ["g"])
+        csol, hist = self.cayley_solve(gvec, *extra)
+        X1s, _ = self.step_given_c(X, csol, w, h, *extra)
+        self.step = fn(f"{scheme}_step", [X, w, h], [X1s, hist[-1]], ["X", "w", "h"], ["X1", "res"])
+        self._later = (disc, fn, extra)
+        if not parametric:
+            self.variations()
+
+    def variations(self) -> "_StepFunctions":
+        """variation, step_seeded and variation_seeded (:class:`Discretization`) from the step, built on the first call
+        (the direct method's block needs only the step)."""
+        if hasattr(self, "variation"):
+            return self
+        disc, fn, extra = self._later
+        scheme = disc.scheme
+        X, w, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("h")
+        X1s = self.step(X, w, h, *extra)[0]
+        z = ca.SX.sym("z", NZ)
+        X1z, _ = self.step(chart(X, z), w, h, *extra)
+        dX1 = ca.substitute(ca.jacobian(X1z, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
+        AB = tangent_readback(X1s, dX1)
+        self.variation = fn(f"{scheme}_variation", [X, w, h], [AB[:, :NZ], AB[:, NZ:]], ["X", "w", "h"], ["A", "B"])
+
+        # Seeded versions for derivatives (speed): the Cayley root c0 of the *unperturbed* step is an
+        # input and the step uses two Newton iterations from it.  With c0 = the root, N^2(c0, g) agrees
+        # with the implicit function c(g) to O(|dg|^4) (quadratic convergence), so values and first
+        # to third derivatives in X, w are exact, while the graph is ~5x smaller than through the
+        # 8 unrolled iterations of cayley_solve (whose derivatives vanish at the root anyway).
+        c0 = ca.SX.sym("c0", 3)
+        gvec = self.cayley_rhs(X, w, h, *extra)
+        c2 = self.newton_map(self.newton_map(c0, gvec, *extra), gvec, *extra)
+        X1c, _ = self.step_given_c(X, c2, w, h, *extra)
+        self.step_seeded = fn(f"{scheme}_step_seeded", [X, w, h, c0], [X1c], ["X", "w", "h", "c0"], ["X1"])
+        X1zc = self.step_seeded(chart(X, z), w, h, c0, *extra)
+        dX1c = ca.substitute(ca.jacobian(X1zc, ca.vertcat(z, w)), z, ca.DM.zeros(NZ))
+        ABc = tangent_readback(X1c, dX1c)
+        self.variation_seeded = fn(f"{scheme}_variation_seeded", [X, w, h, c0], [ABc[:, :NZ], ABc[:, NZ:]],
+                                   ["X", "w", "h", "c0"], ["A", "B"])
+        return self
+
+
+#: the step Functions a :class:`WithTheta` gives with theta bound
+STEP_FUNCTIONS = ("cayley_residual", "cayley_solve", "cayley_rhs", "step_given_c", "step", "variation", "step_seeded",
+                  "variation_seeded")
+
+
+class WithTheta:
+    """A Discretization whose step Functions (:data:`STEP_FUNCTIONS`, called as on the Discretization) are those of
+    ``disc.parametric()`` with the SX symbol ``theta`` as their last input: what a builder of per-step Functions
+    (the indirect method's maps, :mod:`transcription.methods.indirect.conditions`) calls so that the Function it
+    builds takes the model's numbers theta = ``model.parameters`` as data (its last input) and its compiled code
+    serves every model of the same structure -- the mechanism of the direct method's dynamics block.  Everything
+    else (scheme, nw, force_frame, applied_force, model, what :func:`per_discretization` keeps) is the
+    Discretization's own: ``base``."""
+
+    def __init__(self, disc: "Discretization", theta):
+        self.base, self.theta = disc, theta
+        P = disc.parametric().variations()
+        for name in STEP_FUNCTIONS:
+            setattr(self, name, functools.partial(self._call, getattr(P, name)))
+
+    def _call(self, f: ca.Function, *args):
+        return f(*args, self.theta)
+
+    def __getattr__(self, name: str):
+        return getattr(self.base, name)
+
+
+def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
+                   force_frame: str = "inertial") -> "Discretization":
+    """The :class:`Discretization` of ``model``, ``scheme`` and ``force_frame``, built once per model and kept
+    on it (``model.discretizations``): every Problem of that model and scheme shares its Functions and
+    everything cached on it (NLP blocks and their derivatives, shooting Functions, compiled code)."""
+    key = (scheme, int(newton_iters), force_frame)
+    if key not in model.discretizations:
+        model.discretizations[key] = Discretization(model, scheme, newton_iters, force_frame)
+    return model.discretizations[key]
+
+
+class Discretization:
+    """One discrete scheme for one body model; every Function is built once here.
+
+    Parameters
+    ----------
+    model : BodyModel
+    scheme : 'lgvi' | 'first_order'
+    newton_iters : unrolled Newton iterations of the Cayley solve.
+    force_frame : 'inertial' | 'body' -- the frame of the force control u_f; with 'body' the applied
+        inertial force of a control at node j is R_j u_{f,j} (:meth:`applied_force`).
+
+    What the methods build for this scheme and model -- NLP blocks, shooting Functions, rollouts of a
+    length -- is built once and kept here (:meth:`cached`), so it lives as long as the Discretization.
+    """
+
+    def __init__(self, model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
+                 force_frame: str = "inertial"):
+        if scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+        if force_frame not in FORCE_FRAMES:
+            raise ValueError(f"force_frame must be one of {FORCE_FRAMES}, got {force_frame!r}")
+        self.model = model
+        self.scheme = scheme
+        self.force_frame = force_frame
+        self.newton_iters = int(newton_iters)
+        self._built: dict[Hashable, Any] = {}
+        #: stage control dimension
+        self.nw = 2 * NU if scheme == "lgvi" else NU
+        J = model.inertia
+        self.J = J
+        self.Jd = 0.5 * np.trace(J) * np.eye(3) - J
+
+        core = _StepFunctions(self)
+        self.cayley_residual, self.cayley_solve = core.cayley_residual, core.cayley_solve
+        self.step_given_c, self.cayley_rhs, self.step = core.step_given_c, core.cayley_rhs, core.step
+        self.variation, self.step_seeded, self.variation_seeded = core.variation, core.step_seeded, core.variation_seeded
+
+    # ------------------------------------------------------------------ steps
+    def _step_expr(self, X, c, w, h, m, forces):
+        """Symbolic step given the Cayley vector c, the mass m and forces(x, R) -> (f, M); returns (X_{k+1}, g_k)."""
+        x, gamma, R, Pi = split_state(X)
+        F = cayley(c)
+        if self.scheme == "lgvi":
+            uk, uk1 = w[0:NU], w[NU:]
+            f0, M0 = forces(x, R)
+            Fk0 = f0 + self.applied_force(R, uk[U_FORCE])
+            Mk0 = M0 + uk[U_MOMENT]
+            g = h * (Pi + (h / 2) * Mk0)                                       # (9)
+            x1 = x + (h / m) * gamma + (h**2 / (2 * m)) * Fk0                  # (7)
+            R1 = ca.mtimes(R, F)                                               # (10)
+            f1, M1 = forces(x1, R1)
+            gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]))  # (8)
+            Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[U_MOMENT])  # (11)
+        else:
+            u1 = w
+            g = h * Pi                                                         # (23)
+            x1 = x + (h / m) * gamma                                           # (21)
+            R1 = ca.mtimes(R, F)                                               # (24)
+            f1, M1 = forces(x1, R1)
+            gamma1 = gamma + h * f1 + h * self.applied_force(R1, u1[U_FORCE])      # (22)
+            Pi1 = ca.mtimes(F.T, Pi) + h * M1 + h * u1[U_MOMENT]                    # (25)
+        return join_state(x1, gamma1, R1, Pi1), g
+
+    def applied_force(self, R, u_f):
+        """The inertial force (3) a force control u_f (3) applies at a node of attitude R (3x3): u_f itself
+        ('inertial') or R u_f ('body').  NumPy or CasADi; R and u_f may also be stacks (n,3,3), (n,3)."""
+        if self.force_frame == "inertial":
+            return u_f
+        if is_symbolic(R) or is_symbolic(u_f):
+            return ca.mtimes(R, u_f)
+        return np.einsum("...ij,...j->...i", np.asarray(R, dtype=float), np.asarray(u_f, dtype=float))
+
+    # --------------------------------------------------------------- controls
+    def n_controls(self, N: int) -> int:
+        """Number of control vectors over N steps: N+1 (lgvi, nodes 0..N) or N (first_order, u_1..u_N)."""
+        return N + 1 if self.scheme == "lgvi" else N
+
+    def stage_controls(self, U):
+        """Controls (6 x n_controls(N)) -> stage controls W (nw x N).
+
+        Works for NumPy arrays and CasADi matrices.
+        """
+        if self.scheme == "first_order":
+            return U
+        if is_symbolic(U):
+            return ca.vertcat(U[:, :-1], U[:, 1:])
+        U = np.asarray(U, dtype=float)
+        return np.vstack([U[:, :-1], U[:, 1:]])
+
+    def with_theta(self, theta) -> "WithTheta":
+        """This Discretization as builders of per-step Functions see it, with the model's numbers the SX symbol
+        ``theta`` (:class:`WithTheta`)."""
+        return WithTheta(self, theta)
+
+    def parametric(self) -> "_StepFunctions":
+        """The step Functions with the model's numbers as data: every Function of :class:`_StepFunctions` takes
+        theta = ``model.parameters`` as its last input (equal to this Discretization's Function of the same name
+        given theta, to round-off), so that what is built and compiled from them serves every model of the same
+        structure (transcription.nlp.blocks.dynamics).  Built on first use."""
+        return self.cached("parametric", lambda: _StepFunctions(self, parametric=True))
+
+    # ------------------------------------------------------------------ cache
+    def cached(self, key: Hashable, build: Callable[[], Any]) -> Any:
+        """What ``build()`` returns, built on the first call with ``key`` and kept on this Discretization
+        (keys name what is built and its structural arguments, e.g. ('rollout', N))."""
+        if key not in self._built:
+            self._built[key] = build()
+        return self._built[key]
+
+    # ---------------------------------------------------------------- rollout
+    def rollout(self, N: int) -> ca.Function:
+        """(X0[18], W[nw x N], h) -> (X[18 x N] nodes 1..N, res[1 x N] Cayley residuals); built once per N."""
+        return self.cached(("rollout", int(N)), lambda: self._rollout(int(N)))
+
+    def _rollout(self, N: int) -> ca.Function:
+        acc = self.step.mapaccum(f"{self.scheme}_acc{N}", N)
+        X0 = ca.MX.sym("X0", NX)
+        W = ca.MX.sym("W", self.nw, N)
+        h = ca.MX.sym("h")
+        Xs, res = acc(X0, W, ca.repmat(h, 1, N))
+        return ca.Function(f"{self.scheme}_rollout{N}", [X0, W, h], [Xs, res], ["X0", "W", "h"], ["X", "res"])
+
+    def rollout_steps(self, N: int) -> ca.Function:
+        """(X0[18], W[nw x N], H[1 x N]) -> (X[18 x N], res[1 x N]): the rollout with step k of size H[k] (a
+        non-uniform mesh, docs/mathematics.md §16); built once per N."""
+        def build():
+            acc = self.step.mapaccum(f"{self.scheme}_acc{N}", N)
+            X0, W, H = ca.MX.sym("X0", NX), ca.MX.sym("W", self.nw, N), ca.MX.sym("H", 1, N)
+            Xs, res = acc(X0, W, H)
+            return ca.Function(f"{self.scheme}_rollout_steps{N}", [X0, W, H], [Xs, res], ["X0", "W", "H"],
+                               ["X", "res"])
+        return self.cached(("rollout_steps", int(N)), build)
+
+    def simulate(self, X0, U, h, N: int, chunk: int = 2000):
+        """Numeric rollout: X0 (18,), U (6 x n_controls(N)) or None for free motion; h one step size, or the N
+        step sizes h_k of a non-uniform mesh (step k from node k to k+1 with its own h_k).
+
+        Returns (X (N+1, 18) node-major, res (N,) Cayley residuals).  Long runs are
+        evaluated in chunks so that the mapped Function stays small.
+        """
+        hs = np.asarray(h, dtype=float)
+        if hs.ndim and hs.size != N:
+            raise ValueError(f"step sizes must be one number or {N} numbers, got {hs.size}")
+        X0 = np.asarray(X0, dtype=float).reshape(NX)
+        if U is None:
+            W = np.zeros((self.nw, N))
+        else:
+            U = np.asarray(U, dtype=float)
+            if U.shape != (NU, self.n_controls(N)):
+                raise ValueError(f"controls must have shape (6, {self.n_controls(N)}), got {U.shape}")
+            W = self.stage_controls(U)
+        out = [X0[None, :]]
+        res = []
+        Xk = X0
+        for s in range(0, N, chunk):
+            n = min(chunk, N - s)
+            if hs.ndim:
+                Xs, r = self.rollout_steps(n)(Xk, W[:, s : s + n], hs[None, s : s + n])
+            else:
+                Xs, r = self.rollout(n)(Xk, W[:, s : s + n], h)
+            Xs = Xs.full().T
+            out.append(Xs)
+            res.append(r.full().ravel())
+            Xk = Xs[-1]
+        return np.vstack(out), np.concatenate(res) if res else np.zeros(0)

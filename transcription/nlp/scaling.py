@@ -1,0 +1,98 @@
+"""The scales of the direct method's NLP.
+
+Scaling (:func:`characteristic_scales`): every variable is divided by a characteristic magnitude
+(positions by the orbit size, momenta by their boundary values or what the horizon requires,
+controls by momentum change over the horizon, c by h |Omega| / 2), every constraint row by the
+magnitude of its variable, and the objective by its value at the characteristic controls.  The
+control scales are then balanced so that no control's cost curvature W_i s_i^2 is below
+``BALANCE`` = 1e-2 of the largest: with W_m = I the moment directions would otherwise carry a
+scaled Hessian of ~1e-8, IPOPT's inertia correction swamps them and the solve stalls at
+"Solved_To_Acceptable_Level" (measured, E3 N = 100); balanced it reaches Solve_Succeeded.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..strategy.starts import target_estimate
+from ..geometry.state import U_FORCE, U_MOMENT, X_ANG, X_MOM, unpack_states
+from ..ocp import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, ThrusterBound, terminal_rows
+from . import blocks
+
+#: smallest allowed ratio of scaled control cost curvatures (characteristic_scales, module docstring)
+BALANCE = 1e-2
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Characteristic magnitudes: state (18,), control (6,), Cayley (3,), objective scalar."""
+
+    X: np.ndarray
+    U: np.ndarray
+    C: np.ndarray
+    objective: float
+
+
+def characteristic_scales(problem: Problem) -> Scales:
+    """Magnitudes of the unknowns from the boundary data, the horizon, the body and the bounds.
+
+    (max-norms throughout) positions L = max(|x0|, |xd|, |xd - x0|) (1 if all vanish: attitude-only
+    maneuvers); linear momenta max(|gamma0|, |gammad|, m L / T); angular momenta max(|Pi0|, |Pid|,
+    lambda_max(J) / T); forces and moments: momentum scale / T, or their bounds; attitude entries
+    1; Cayley vector h |Omega| / 2 with |Omega| the angular-momentum scale / lambda_min(J).  For
+    the effort objective the control scales are raised so that W_i s_i^2 >= BALANCE * max_j
+    W_j s_j^2 (module docstring).  Objective: its value for controls of the characteristic
+    size held over the horizon (time: T).
+    """
+    a, d = unpack_states(problem.X0), unpack_states(target_estimate(problem))
+    m, J, T, h = problem.model.mass, problem.disc.J, problem.T, problem.h
+    control: SmoothControl = problem.control
+    ev = np.linalg.eigvalsh(J)
+    L = max(np.abs(a.x).max(), np.abs(d.x).max(), np.abs(d.x - a.x).max())
+    L = L if L > 0 else 1.0
+    sg = max(np.abs(a.gamma).max(), np.abs(d.gamma).max(), m * L / T)
+    sP = max(np.abs(a.Pi).max(), np.abs(d.Pi).max(), ev[-1] / T)
+    sX = np.concatenate([np.full(3, L), np.full(3, sg), np.ones(9), np.full(3, sP)])
+    sU = np.concatenate([np.full(3, sg / T), np.full(3, sP / T)])
+    for sl, bound in ((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound)):
+        if isinstance(bound, BoxBound):
+            sU[sl] = bound.b
+        elif isinstance(bound, NormBound) and bound.b > 0:
+            sU[sl] = bound.b
+        elif isinstance(bound, ThrusterBound):
+            sU[sl] = bound.max
+    sC = np.full(3, 0.5 * h * sP / ev[0])
+    if control.objective == "effort":
+        Wdiag = np.diag(control.W)
+        cw = Wdiag * sU**2
+        sU = sU * np.sqrt(np.maximum(1.0, BALANCE * cw.max() / cw))
+        obj = 0.5 * T * float(np.sum(Wdiag * sU**2))
+    elif control.objective == "time":
+        obj = T
+    else:
+        rf, rm = control.removed
+        obj = T * ((0.0 if rf else control.W_f[0, 0] * sU[U_FORCE].max()) + (0.0 if rm else control.W_m[0, 0] * sU[U_MOMENT].max()))
+    return Scales(X=sX, U=sU, C=sC, objective=obj)
+
+
+def terminal_row_scales(problem: Problem, sc: Scales) -> np.ndarray:
+    """Scales of the terminal rows of the NLP (the row divided by its scale is what the solver sees):
+    a state target's fixed components (:func:`~transcription.nlp.blocks.state_target_scales`); an orbit
+    target's :func:`~transcription.ocp.orbit_residual` rows (radius, out-of-plane position, the body
+    axis (2), linear and angular momentum); a rendezvous target's rows as a state target's with its given
+    components."""
+    target = problem.terminal
+    if isinstance(target, TargetOrbit):
+        return np.concatenate([[target.radius, target.radius, 1.0, 1.0], sc.X[X_MOM], sc.X[X_ANG]])
+    return blocks.state_target_scales(sc.X, target.fixed)    # a state or a rendezvous target
+
+
+def scaled_terminal_miss(problem: Problem, XN: np.ndarray) -> float:
+    """max |terminal row| / its scale at the final state XN (18,): how far XN is from the target in units of
+    the problem's characteristic scales, as the solver sees it (inf if XN is not finite)."""
+    XN = np.asarray(XN, float)
+    if not np.all(np.isfinite(XN)):
+        return float("inf")
+    rows = np.asarray(terminal_rows(XN, problem), float).ravel()
+    return float(np.max(np.abs(rows / terminal_row_scales(problem, characteristic_scales(problem)))))

@@ -1,0 +1,312 @@
+"""The multiple-shooting NLP of a smooth-control Problem (docs/mathematics.md §6-§7, §10).
+
+Decision variables per node k = 0..N (see :class:`~transcription.nlp.layouts.NLPLayout`, the only place that
+knows the order): the state X_k (18), the node control u_k (6; first_order: nodes 1..N, lgvi: nodes 0..N)
+and, with ``cayley_variables`` (default), the Cayley vector c_k (3) of step k = 0..N-1.  With c_k as
+unknowns every defect is explicit: X_{k+1} - step_given_c(X_k, c_k, w_k, h) = 0 (18 rows) and the Cayley
+equation G(c_k; g(X_k, w_k)) = 0 (3 rows); without them the defect uses the Newton-solved step.  The NLP
+is the sum of the blocks of :mod:`transcription.nlp.blocks` (dynamics with the effort cost, the terminal
+target) assembled by the one builder, :class:`transcription.nlp.structured.StructuredNLP`; X_0 is fixed by
+its bounds.  IPOPT gets the exact Hessian assembled block by block; ``solver: fatrop`` gets the same blocks
+in stage order.
+
+Costates (the hand-off to the indirect method, docs/mathematics.md §6)
+----------------------------------------------------------------------
+Write the Lagrangian of the unscaled NLP as L = J + sum_k nu_k^T (step(X_k, w_k, h) - X_{k+1}) + ...,
+nu_k in R^18 the multiplier of the step-k defect *written as step minus next state*.
+``Solution.costates[k]`` (k = 0..N-1, shape (N, 12)) is lambda_k = D(X_{k+1})^T nu_k, where
+D(X) = :func:`~transcription.geometry.state.tangent_basis` maps tangent coordinates z = [dx; dgamma; zeta; dPi]
+to dX.  With this sign the discrete necessary conditions read lambda_{k-1} = A_k^T lambda_k (eq. 28)
+and, for the first-order scheme, u_{k+1} = -W^-1 B_k^T lambda_k / h (eqs. 26-27); both are tested.
+With Cayley unknowns their rows carry their own multipliers; eliminating those gives the same nu_k.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..strategy.starts import Guess
+from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, X_ANG, tangent_basis
+from . import blocks
+from .layouts import NLPLayout, StageLayout, control_nodes
+from .structured import Block, StructuredNLP
+from ..options import DirectOptions
+from ..ocp import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, ThrusterBound, orbit_residual, quadrature_weights, rendezvous_residual)
+from .scaling import characteristic_scales, terminal_row_scales
+
+NC = blocks.NC
+
+
+class SmoothTranscription:
+    """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.
+
+    Blocks (transcription.nlp.blocks), in this order: the dynamics of every step (with the effort cost), the
+    control nodes' norm bounds and fuel epigraph (with the fuel cost), the time cost, one block per path
+    constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
+    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  On a
+    non-uniform mesh (``problem.mesh``) step k has its own size h_k = r_k h in its dynamics block's data (h the
+    mean step, the unknown of a free final time) and the control nodes' weights are those of the steps.  Box
+    bounds on the controls, removed controls (a norm bound of 0), the slacks' signs and the free step size's
+    range are variable bounds.
+
+    ``stage_order``: fatrop's stage-ordered layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0
+    as constraint rows and, for the LGVI, the lifting rows; the fuel epigraph's slacks of node j sit in the
+    stage control beside the copy of u_j its rows use (fixed time, no path constraints; what fatrop is used
+    for: :func:`~transcription.methods.direct.fatrop.covers`).  Attributes: ``layout``, ``scales``, ``nlp``
+    (:class:`~transcription.nlp.structured.StructuredNLP`), ``lbx``/``ubx``, ``w_scale`` (physical w =
+    w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N) rows of
+    the step defects "step - X_{k+1}" in g, ``constraint_rows`` (one row array per path constraint),
+    ``h_scale``.
+
+    ``smoothing``: the fuel objective's smoothing eps in [0, 1] (the fuel homotopy, :mod:`.homotopy`; 0 is the
+    fuel objective itself): data of the control-node block, so every eps gives an NLP of the same structure.
+    ``smoothing_ref``: the references r = (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units
+    (None: the magnitudes' scales, :attr:`slack_scales`), data like eps (:func:`.homotopy.smoothing_reference`).
+    """
+
+    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0,
+                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None,
+                 rounding: float | np.ndarray = 0.0):
+        N = problem.N
+        self.problem, self.options, self.stage_order = problem, options, stage_order
+        self.smoothing = float(smoothing)
+        self.smoothing_ref = smoothing_ref
+        control: SmoothControl = problem.control
+        self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
+        rounding = np.broadcast_to(np.asarray(rounding, dtype=float), (2,)).copy()
+        if burn is not None and (not self.fuel or stage_order or not np.all(rounding > 0)):
+            raise ValueError("a switching structure (burn) is a fuel problem's, in IPOPT's node order, with its "
+                             "magnitudes' rounding > 0 (fuel_structure.ROUGH, EXACT)")
+        self.burn = None if burn is None else np.asarray(burn, dtype=bool)
+        self.rounding = rounding
+        self.epigraph = self.fuel and self.burn is None     # the fuel objective by its epigraph (else burn's l1 cost)
+        self.with_c = True if stage_order else bool(options.cayley_variables)
+        n_slack = blocks.FUEL_SLACKS if self.epigraph else blocks.L1_SLACKS if self.burn is not None else 0
+        self.layout = StageLayout(N, problem.scheme, n_slack) if stage_order else \
+            NLPLayout(N, control_nodes(problem.disc, N), self.with_c, n_slack=n_slack, free_h=self.free_h)
+        self.scales = characteristic_scales(problem)
+        self.h_scale = problem.h
+        self.w_scale = self._variable_scales()
+        blist, row_scales = self._blocks()
+        self.nlp = StructuredNLP(self.layout.n, blist, jit=bool(options.jit) and not stage_order)
+        self.g_scale = np.empty(self.nlp.ng)
+        for blk in blist:
+            self.g_scale[self.nlp.rows(blk.name)] = row_scales[blk.name][:, None]
+        self.defect_rows = self.nlp.rows("dynamics")[:NX]
+        self.constraint_rows = [self.nlp.rows(f"constraint{i}")[0] for i in range(len(problem.constraints))]
+        self.lbx, self.ubx = self._variable_bounds()
+
+    @property
+    def slack_scales(self) -> np.ndarray:
+        """The scales of the fuel epigraph's magnitudes (s_f, s_m): the largest force and moment scales."""
+        return self.magnitude_scales(self.problem, self.scales)
+
+    @staticmethod
+    def magnitude_scales(problem: Problem, scales=None) -> np.ndarray:
+        """(2,) the scales of the control magnitudes |u_f|, |u_m| of ``problem`` (:attr:`slack_scales`)."""
+        sU = (scales or characteristic_scales(problem)).U
+        return np.array([sU[U_FORCE].max(), sU[U_MOMENT].max()])
+
+    @property
+    def l1_rounding(self) -> np.ndarray:
+        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` (a number, or one per
+        part) x :attr:`slack_scales` (the structured finish's ROUGH and EXACT of its references,
+        :mod:`.fuel_structure`)."""
+        return self.rounding * self.slack_scales
+
+    def _smoothing_ref(self) -> np.ndarray:
+        """(r_f, r_m) of the smoothed magnitude (class docstring): ``smoothing_ref`` or the slack scales."""
+        return self.slack_scales if self.smoothing_ref is None else np.asarray(self.smoothing_ref, float).reshape(2)
+
+    def _variable_scales(self) -> np.ndarray:
+        lay, sc = self.layout, self.scales
+        ws = np.full(lay.n, np.nan)
+        ws[lay.iX] = sc.X[:, None]
+        ws[lay.iU] = sc.U[:, None]
+        if self.epigraph:
+            ws[lay.iS] = np.r_[self.slack_scales, np.ones(6)][:, None]
+        elif self.burn is not None:
+            ws[lay.iS] = self.slack_scales[:, None]
+        if self.with_c:
+            ws[lay.iC] = sc.C[:, None]
+        if getattr(lay, "iUp", None) is not None:
+            ws[lay.iUp] = sc.U[:, None]
+        if self.free_h:
+            ws[lay.ih] = self.h_scale
+        return ws
+
+    def _blocks(self) -> tuple[list[Block], dict[str, np.ndarray]]:
+        """The blocks (class docstring, in that order) and the scales of each block's rows."""
+        blist, row_scales = [], {}
+        for blk, scales in [self._dynamics_block(), self._control_block(), self._time_block(),
+                            *self._constraint_blocks(), *self._stage_order_blocks(), self._terminal_block()]:
+            if blk is not None:
+                blist.append(blk)
+                row_scales[blk.name] = scales
+        return blist, row_scales
+
+    def _dynamics_block(self):
+        problem, lay, sc, with_c = self.problem, self.layout, self.scales, self.with_c
+        disc, N, h = problem.disc, problem.N, problem.h
+        control: SmoothControl = problem.control
+        effort = control.objective == "effort"
+        sW = np.asarray(disc.stage_controls(np.repeat(sc.U[:, None], 2, axis=1)), dtype=float)[:, 0]
+        sG = np.full(NC, h * sc.X[X_ANG].max())                        # G ~ h Pi
+        dyn = blocks.dynamics(disc, with_c, True, effort, self.free_h)
+        data = blocks.dynamics_data(disc, h, sc.X, sc.C if with_c else None, sW, sG if with_c else None,
+                                    *((sc.objective, control.W_f, control.W_m) if effort else ()))
+        if not problem.uniform:    # step k's own size: h_k, or r_k h_scale times the free mean step (§16)
+            data = np.repeat(data[:, None], N, axis=1)
+            data[0] = problem.mesh * self.h_scale if self.free_h else problem.steps
+        iV = np.vstack([lay.iX[:, :-1]] + ([lay.iC] if with_c else []) + [lay.stage_controls(disc), lay.iX[:, 1:]]
+                       + ([np.full((1, N), lay.ih)] if self.free_h else []))
+        return Block("dynamics", dyn, iV, data, compile=True), np.concatenate([sc.X] + ([sG] if with_c else []))
+
+    def _control_block(self):
+        """The control nodes' norm bounds, body-fixed engine and fuel epigraph (None without any)."""
+        problem, lay, sc, fuel, l1 = self.problem, self.layout, self.scales, self.epigraph, self.burn is not None
+        control: SmoothControl = problem.control
+        norm_f = isinstance(control.force_bound, NormBound) and control.force_bound.b > 0
+        norm_m = isinstance(control.moment_bound, NormBound) and control.moment_bound.b > 0
+        engine = control.force_bound if isinstance(control.force_bound, ThrusterBound) else None
+        if not (norm_f or norm_m or fuel or l1 or engine):
+            return None, None
+        nU, sS = len(lay.control_nodes), self.slack_scales
+        # omega_j / h, h the (mean) step: the relative weights of the mesh's steps r_k (1 on a uniform mesh)
+        omega_per_h = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh)
+        bf = control.force_bound.b if norm_f else engine.max if engine else 1.0
+        bm = control.moment_bound.b if norm_m else 1.0
+        Q = engine.basis().ravel(order="F") if engine else np.zeros(0)
+        cdata = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), omega_per_h[None, :],
+                           np.repeat(np.r_[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
+                                           Q][:, None], nU, axis=1)]
+                          + ([np.repeat(np.r_[self._smoothing_ref(), self.smoothing][:, None], nU, axis=1)]
+                             if fuel or l1 else [])
+                          + ([self.burn.astype(float), np.repeat(self.l1_rounding[:, None], nU, axis=1)] if l1 else []))
+        iN = np.vstack([lay.iUn] + ([lay.iS] if fuel or l1 else []) + ([np.full((1, nU), lay.ih)] if self.free_h
+                                                                          else []))
+        n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel or l1 else 0)
+        # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0
+        n_eng = 3 if engine else 0
+        lbg = np.r_[np.full(n_norm, -np.inf), [engine.min / engine.max, 0.0, 0.0] if engine else [],
+                    np.full(n_fuel, -np.inf), np.zeros(6 if fuel else 0)]
+        ubg = np.r_[np.zeros(n_norm), [1.0, 0.0, 0.0] if engine else [], np.zeros(n_fuel + (6 if fuel else 0))]
+        fn = blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel, engine is not None, l1)
+        blk = Block("controls", fn, iN, cdata, lbg=lbg, ubg=ubg)
+        return blk, np.r_[np.ones(n_norm + n_eng), sS if l1 else np.ones(n_fuel), np.repeat(sS, 3) if fuel else []]
+
+    def _time_block(self):
+        if self.problem.control.objective != "time":
+            return None, None
+        return (Block("time", blocks.time_cost(self.problem.disc), np.array([self.layout.ih]),
+                      np.array([self.h_scale, self.problem.N / self.scales.objective])), np.zeros(0))
+
+    def _constraint_blocks(self):
+        sc, J = self.scales, self.problem.model.inertia
+        out = []
+        for i, con in enumerate(self.problem.constraints):
+            scale = {"min_radius": sc.X[0], "max_angular_rate": con.value**2 if con.kind == "max_angular_rate" else 1.0
+                     }.get(con.kind, 1.0)
+            fn = blocks.node_rows(f"path_{con.kind}", lambda X, c=con: c.expression(X, J), np.array([scale]))
+            out.append((Block(f"constraint{i}", fn, self.layout.iX[:, 1:], sc.X, lbg=0.0, ubg=np.inf),
+                        np.array([scale])))
+        return out
+
+    def _stage_order_blocks(self):
+        """fatrop: the LGVI's lifting rows and X_0 as constraint rows."""
+        if not self.stage_order:
+            return []
+        lay, sc = self.layout, self.scales
+        out = []
+        if lay.iUp is not None:
+            out.append((Block("lift", _lift_function(), np.vstack([lay.iUp, lay.iU[:, 1:]]), np.zeros(0)), sc.U))
+        out.append((Block("initial", _initial_rows_function(), lay.iX[:, 0],
+                          np.concatenate([self.problem.X0 / sc.X])), sc.X))
+        return out
+
+    def _terminal_block(self):
+        problem, lay, sc = self.problem, self.layout, self.scales
+        target = problem.terminal
+        tsc = terminal_row_scales(problem, sc)
+        if isinstance(target, TargetOrbit):
+            m, mu = problem.model.mass, problem.model.mu
+            fn = blocks.node_rows("orbit_target", lambda X: orbit_residual(X, target, m, mu), tsc)
+            return Block("terminal", fn, lay.iX[:, -1], sc.X), tsc
+        if isinstance(target, TargetRendezvous):  # the target point moves with T = N h
+            m, mu = problem.model.mass, problem.model.mu
+            fn = blocks.terminal_time_rows("rendezvous_target", lambda X, T: rendezvous_residual(X, T, target, m, mu),
+                                           tsc, self.free_h)
+            iV = np.r_[lay.iX[:, -1], [lay.ih]] if self.free_h else lay.iX[:, -1]
+            return Block("terminal", fn, iV, np.r_[sc.X, problem.N * self.h_scale if self.free_h else problem.T]), tsc
+        return (Block("terminal", blocks.state_target(problem.disc, target.fixed), lay.iX[:, -1],
+                      np.concatenate([sc.X, target.X, tsc])), tsc)
+
+    def _variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """lbx, ubx (scaled): X_0 fixed (not in stage order), box bounds and removed controls, the fuel
+        epigraph's magnitudes >= 0, the free step size's range."""
+        problem, lay, sc, fuel = self.problem, self.layout, self.scales, self.epigraph
+        control: SmoothControl = problem.control
+        lbx, ubx = np.full(lay.n, -np.inf), np.full(lay.n, np.inf)
+        if not self.stage_order:
+            lbx[lay.iX[:, 0]] = ubx[lay.iX[:, 0]] = problem.X0 / sc.X
+        for k, (sl, bound) in enumerate(((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound))):
+            if isinstance(bound, BoxBound):
+                lbx[lay.iU[sl]] = (-bound.b / sc.U[sl])[:, None]
+                ubx[lay.iU[sl]] = (bound.b / sc.U[sl])[:, None]
+            elif isinstance(bound, NormBound) and bound.b == 0:
+                lbx[lay.iU[sl]] = ubx[lay.iU[sl]] = 0.0
+                if fuel:
+                    lbx[lay.iS[k]] = ubx[lay.iS[k]] = 0.0
+        if fuel:
+            lbx[lay.iS[:2]] = np.maximum(lbx[lay.iS[:2]], 0.0)
+        if self.burn is not None:    # magnitudes >= 0; a coast node's part: u = 0, s = 0
+            lbx[lay.iS] = np.maximum(lbx[lay.iS], 0.0)
+            for k, sl in enumerate((U_FORCE, U_MOMENT)):
+                coast = np.r_[lay.iU[sl][:, ~self.burn[k]].ravel(), lay.iS[k, ~self.burn[k]]]
+                lbx[coast] = ubx[coast] = 0.0
+        if self.free_h:
+            lo, hi = problem.time_bounds
+            lbx[lay.ih], ubx[lay.ih] = lo / problem.N / self.h_scale, hi / problem.N / self.h_scale
+        return lbx, ubx
+
+    def initial_point(self, guess: Guess, h: float | None = None) -> np.ndarray:
+        """Scaled decision vector of a :class:`~transcription.strategy.starts.Guess` (and step size h); a body-fixed
+        engine's force is projected onto its axis and its thrust range (the engine's rows then hold)."""
+        U, engine = guess.U, self.problem.control.force_bound
+        if isinstance(engine, ThrusterBound):
+            U = U.copy()
+            U[U_FORCE] = np.outer(engine.axis, np.clip(engine.thrust(U[U_FORCE].T), engine.min, engine.max))
+        w = self.layout.pack(guess.X.T, U, guess.C.T if self.layout.with_c else None,
+                             h=self.problem.h if h is None else h) / self.w_scale
+        return np.clip(w, self.lbx, self.ubx)
+
+    def costates(self, X: np.ndarray, lam_g: np.ndarray, sign: float = 1.0) -> np.ndarray:
+        """lambda_k = D(X_{k+1})^T nu_k (N, 12), nu_k = multiplier of step - X_{k+1} (module docstring).
+
+        The solver's Lagrangian is f_s + lam_g^T g_s with g_s = (step - X_{k+1}) / g_scale and
+        f_s = J / objective scale, so nu = objective_scale * lam_g / g_scale on the defect rows
+        (``sign`` -1 where the solver saw the rows negated).
+        """
+        nu = sign * self.scales.objective * lam_g[self.defect_rows] / self.g_scale[self.defect_rows]
+        return np.stack([tangent_basis(X[:, k + 1]).T @ nu[:, k] for k in range(self.problem.N)])
+
+    def multipliers(self, lam_g: np.ndarray) -> np.ndarray:
+        """The solver's (scaled) constraint multipliers lam_g in physical units, nu = s_obj lam_g / g_scale:
+        what a warm start of an NLP of the same structure but other scales can start from."""
+        return self.scales.objective * np.asarray(lam_g, float) / self.g_scale
+
+    def scaled_multipliers(self, nu: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`multipliers`: lam_g of this NLP's scales from physical multipliers."""
+        return np.asarray(nu, float) * self.g_scale / self.scales.objective
+
+
+def _lift_function() -> ca.Function:
+    """fatrop, lgvi: the gap rows v_{k+1} - u'_{k+1} of the lifted node control (scaled alike)."""
+    v = ca.SX.sym("v", 2 * NU)
+    return ca.Function("lift_rows", [v, ca.SX.sym("p", 0)], [ca.SX(0), v[NU:] - v[:NU]], ["v", "p"], ["cost", "rows"])
+
+
+def _initial_rows_function() -> ca.Function:
+    """fatrop: X_0 - X0 as constraint rows (scaled; p = X0 / sX)."""
+    v, p = ca.SX.sym("v", NX), ca.SX.sym("p", NX)
+    return ca.Function("initial_rows", [v, p], [ca.SX(0), v - p], ["v", "p"], ["cost", "rows"])

@@ -1,0 +1,39 @@
+"""The optimal control problem: physics, boundary conditions and cost -- no method.
+
+A :class:`Problem` is what every method solves (rockit's shape: the problem apart from the
+method; the method and its options are chosen at ``solve`` time).  It carries numbers and a
+:class:`~transcription.dynamics.lgvi.Discretization` (the body model and the scheme: both methods solve
+the *same* discrete problem).  States are 18-vectors in the layout of
+:mod:`transcription.geometry.state` (momenta, not velocities); ``state_from_velocities`` builds them from
+velocities.  The maneuver files (``problems.maneuvers``) build Problems; so can a Python user.
+
+The terminal conditions, the cost and their weights are defined here once and used by every
+method, the re-simulation and the reports (docs/mathematics.md §5-§6):
+
+* :func:`terminal_residual` -- [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d]
+  (the components a target leaves free are dropped), CasADi or NumPy alike;
+* :func:`orbit_conditions` -- the relaxed target (any point of a circular orbit);
+* :func:`rendezvous_residual` -- a target moving on a circular orbit, met at the final time;
+* :func:`quadrature_weights` and :func:`effort_cost` -- sum_j omega_j (1/2) u_j^T W u_j;
+* :func:`impulse_cost` -- the sum of the impulse norms.
+
+The package's modules: :mod:`.targets`, :mod:`.controls`, :mod:`.constraints`, :mod:`.definition` (the
+Problem), :mod:`.conditions` (terminal conditions), :mod:`.costs`; every name is importable from the package.
+"""
+from __future__ import annotations
+
+from .conditions import (orbit_conditions, orbit_residual, rendezvous_residual, rendezvous_state, state_residual, terminal_error, terminal_residual, terminal_rows)
+from .constraints import (MARGIN_DIMENSION, MOVING_DIRECTIONS, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius)
+from .controls import (AT_BOUND_RTOL, OBJECTIVES, Bound, BoxBound, Control, ImpulsiveControl, NormBound, SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
+from .costs import (ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, engine_reference, fuel_cost, impulse_cost, objective_value, quadrature_weights)
+from .problem import Problem, state_from_velocities
+from .errors import ProblemError
+from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetRendezvous, TargetState, ascending_node
+
+__all__ = ["AT_BOUND_RTOL", "Bound", "BoxBound", "Control", "ENGINE_ON_RTOL", "ImpulsiveControl", "KeepIn", "KeepOut",
+           "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "NormBound", "OBJECTIVES",
+           "PATH_CONSTRAINTS", "Problem", "ProblemError", "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit",
+           "TargetRendezvous", "TargetState", "ThrusterBound", "actuator_bounds", "ascending_node", "control_activity",
+           "effort_cost", "engine_figures", "engine_reference", "fuel_cost", "impulse_cost", "objective_value", "orbit_conditions",
+           "orbit_residual", "quadrature_weights", "rendezvous_residual", "rendezvous_state", "spd_weight",
+           "state_from_velocities", "state_residual", "terminal_error", "terminal_residual", "terminal_rows"]

@@ -1,0 +1,180 @@
+"""Path constraints enforced at every node: minimum radius, keep-out and keep-in cones (about a fixed inertial
+direction, the nadir or the velocity), maximum angular rate.
+
+Each has ``expression(X, inertia)`` (>= 0 where it holds; CasADi or NumPy, the smooth form the direct method
+enforces) and ``margin(trajectory)`` (in the constraint's own unit, >= 0 where it holds; for reports)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from ..geometry.state import NX, split_state
+from ..geometry.so3 import is_symbolic, mtimes
+from .errors import ProblemError, positive, unit
+
+
+class _PositiveLimit:
+    """A path constraint given by one positive number (its only field), checked on construction."""
+
+    def __post_init__(self):
+        name = fields(self)[0].name
+        positive(getattr(self, name), f"constraints.{self.kind}.{name}")
+
+
+@dataclass(frozen=True)
+class MinRadius(_PositiveLimit):
+    """|x_k| >= radius at every node (stay above a sphere about the central body's centre)."""
+
+    radius: float
+    kind = "min_radius"
+    dimension = "length"
+    needs = ("position",)
+
+    def expression(self, X, inertia):
+        """g(X) >= 0 (CasADi or NumPy): |x| - r (in length units; the margin)."""
+        x, _, _, _ = split_state(X)
+        return (ca.norm_2(x) if is_symbolic(X) else np.linalg.norm(x)) - self.radius
+
+    def margin(self, traj) -> np.ndarray:
+        return np.linalg.norm(traj.x, axis=1) - self.radius
+
+
+#: the directions a cone may follow besides a fixed inertial one: the nadir -x/|x| and the direction of
+#: motion gamma/|gamma| (docs/mathematics.md §10)
+MOVING_DIRECTIONS = ("nadir", "velocity")
+
+
+def cone_direction(X, direction):
+    """The unit inertial direction d(X) (CasADi (3,1)) a cone is about at the symbolic state X (18,1):
+    -x/|x| ('nadir'), gamma/|gamma| ('velocity', the direction of the velocity), or the fixed unit vector s."""
+    x, g, _, _ = split_state(X)
+    if isinstance(direction, str):
+        v = -x if direction == "nadir" else g
+        return v / ca.norm_2(v)
+    return ca.DM(np.asarray(direction, float))
+
+
+@lru_cache(maxsize=None)
+def cone_function(body_axis: tuple, direction) -> ca.Function:
+    """X (18) -> (cos, d): cos = (R b) . d(X), the cosine of the angle between the inertial image of the
+    body axis b and the cone's direction d(X) (:func:`cone_direction`).  The one expression of a cone that
+    the direct method's rows (called on SX, inlined), the margins on trajectories and the figures evaluate.
+    ``body_axis`` and a fixed ``direction`` as tuples (hashable; the Function is built once per cone)."""
+    X = ca.SX.sym("X", NX)
+    _, _, R, _ = split_state(X)
+    d = cone_direction(X, direction)
+    return ca.Function("cone", [X], [ca.dot(mtimes(R, ca.DM(np.asarray(body_axis, float))), d), d], ["X"], ["cos", "d"])
+
+
+@dataclass(frozen=True)
+class _Cone:
+    """A cone about a direction that is fixed (a unit 3-vector, e.g. the Sun) or moves with the state:
+    'nadir' (-x/|x|) or 'velocity' (gamma/|gamma|)."""
+
+    body_axis: np.ndarray
+    direction: np.ndarray | str
+    angle_deg: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "body_axis", unit(self.body_axis, f"constraints.{self.kind}.body_axis"))
+        if isinstance(self.direction, str):
+            if self.direction not in MOVING_DIRECTIONS:
+                raise ProblemError(f"constraints.{self.kind}.direction",
+                                   f"expected {' or '.join(MOVING_DIRECTIONS)} or a 3-vector, got {self.direction!r}")
+        else:
+            object.__setattr__(self, "direction", unit(self.direction, f"constraints.{self.kind}.direction"))
+        if not (np.isfinite(self.angle_deg) and 0 < self.angle_deg < 180):
+            raise ProblemError(f"constraints.{self.kind}.angle", "expected an angle strictly between 0 and 180 degrees")
+
+    @property
+    def moving(self) -> bool:
+        """True if the direction follows the state (nadir, velocity)."""
+        return isinstance(self.direction, str)
+
+    @property
+    def needs(self) -> tuple[str, ...]:
+        """The state components the cone is a function of (names of STATE_COMPONENTS)."""
+        return ("attitude",) + {"nadir": ("position",), "velocity": ("velocity",)}.get(
+            self.direction if self.moving else "", ())
+
+    @property
+    def function(self) -> ca.Function:
+        """:func:`cone_function` of this cone."""
+        d = self.direction if self.moving else tuple(float(a) for a in self.direction)
+        return cone_function(tuple(float(a) for a in self.body_axis), d)
+
+    def cos_angle(self, X):
+        """(R b) . d(X) at one state X (CasADi symbolic: an expression; NumPy (18,): a float)."""
+        c = self.function(X)[0]
+        return c if is_symbolic(X) else float(c)
+
+    def _along(self, traj, out: int) -> np.ndarray:
+        K = traj.X.shape[0]
+        return np.array(self.function.map(K)(np.asarray(traj.X, float).T)[out])
+
+    def directions(self, traj) -> np.ndarray:
+        """d(X_k) (K, 3) along a Trajectory (the moving direction a figure draws)."""
+        return self._along(traj, 1).T
+
+    def angles_deg(self, traj) -> np.ndarray:
+        """angle(R_k b, d(X_k)) in degrees (K,) along a Trajectory."""
+        c = self._along(traj, 0).ravel()
+        return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+@dataclass(frozen=True)
+class KeepOut(_Cone):
+    """angle(R_k b, d_k) >= angle_deg at every node: the body axis b stays out of a cone about the
+    direction d_k (fixed: e.g. a camera and the Sun; or nadir, velocity).  Smooth form: cos(angle) - (R b).d >= 0."""
+
+    kind = "keep_out"
+    dimension = "angle"
+
+    def expression(self, X, inertia):
+        return np.cos(np.radians(self.angle_deg)) - self.cos_angle(X)
+
+    def margin(self, traj) -> np.ndarray:
+        return self.angles_deg(traj) - self.angle_deg
+
+
+@dataclass(frozen=True)
+class KeepIn(_Cone):
+    """angle(R_k b, d_k) <= angle_deg at every node (e.g. an antenna towards the ground: d = nadir).
+    Smooth form: (R b).d - cos(angle) >= 0."""
+
+    kind = "keep_in"
+    dimension = "angle"
+
+    def expression(self, X, inertia):
+        return self.cos_angle(X) - np.cos(np.radians(self.angle_deg))
+
+    def margin(self, traj) -> np.ndarray:
+        return self.angle_deg - self.angles_deg(traj)
+
+
+@dataclass(frozen=True)
+class MaxAngularRate(_PositiveLimit):
+    """|Omega_k| <= value at every node (Omega = J^-1 Pi, body frame).  Smooth form: value^2 - |Omega|^2 >= 0."""
+
+    value: float
+    kind = "max_angular_rate"
+    dimension = "angular_rate"
+    needs = ("angular_velocity",)
+
+    def expression(self, X, inertia):
+        _, _, _, Pi = split_state(X)
+        Om = mtimes(np.linalg.inv(inertia), Pi)
+        return self.value**2 - (ca.dot(Om, Om) if is_symbolic(X) else Om @ Om)
+
+    def margin(self, traj) -> np.ndarray:
+        return self.value - np.linalg.norm(traj.Omega, axis=1)
+
+
+#: the path constraints a Problem accepts
+PATH_CONSTRAINTS = (MinRadius, KeepOut, KeepIn, MaxAngularRate)
+#: the dimension of each path constraint's margin, by kind ('length', 'angle' in degrees, 'angular_rate'):
+#: the unit labels come from problems.units (normalized orbit units only with a central body)
+MARGIN_DIMENSION = {c.kind: c.dimension for c in (MinRadius, KeepOut, KeepIn, MaxAngularRate)}

@@ -1,0 +1,164 @@
+"""The continuous check of a Solution (docs/mathematics.md §11): how the plan flies in continuous time.
+
+The Solution's controls (impulses: free motion after the initial impulse) are flown from its
+initial state through eqs. (1)-(4) by :func:`~transcription.dynamics.flight.fly`, applied between the
+nodes as its scheme defines them, and compared with the plan's nodes (the re-simulation of the
+discrete equations).  The flown attitude is re-projected onto SO(3) (``lie.nearest_rotation``) before
+any angle is measured; the drift it removes is reported.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..geometry.state import X_ANG, X_MOM, X_ROT
+from ..geometry.so3 import nearest_rotation, orthogonality_error, rotation_angle
+from ..ocp import terminal_error
+from .solution import Result, Trajectory
+from ..dynamics.flight import DEFAULT_SAMPLES, Actuators, FlightError, OpenLoop, fly
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .solution import Solution
+
+
+@dataclass(frozen=True, eq=False)
+class ContinuousCheck:
+    """A plan flown in continuous time, against its own nodes (units of the problem; angles in rad,
+    rates in rad per time unit).
+
+    terminal_position |x(T) - x_N| (inertial), terminal_velocity |v(T) - v_N| (inertial),
+    terminal_attitude angle(R_N^T R(T)), terminal_rate |Omega(T) - Omega_N| (body): where the flight
+    ends against where the plan ends; terminal_error: the largest of the four (``continuous_terminal_error``;
+    in the normalized orbit units of §1 the position is relative to the reference orbit's radius).
+    target_error: the Solution's own terminal-error measure (docs/mathematics.md §8) at the flown final
+    state (nan without a target).  max_position_deviation, max_attitude_deviation: the largest
+    deviation from the plan over its nodes; t, position_deviation, attitude_deviation (N+1,): the
+    deviation at each node.  min_margins: every path constraint's smallest margin over all the samples
+    (nodes and between), keyed as in summary.json (``min_margin_<kind>``, ``_2``, ... for repeats).
+    orthogonality_drift: max |R^T R - I|_F of the flown attitude before re-projection.  samples: per
+    node interval.  elapsed_s: the check's wall time.  message: '' or why the flight failed (then the
+    numbers are nan).
+    """
+
+    terminal_position: float
+    terminal_velocity: float
+    terminal_attitude: float
+    terminal_rate: float
+    terminal_error: float
+    target_error: float
+    max_position_deviation: float
+    max_attitude_deviation: float
+    min_margins: dict[str, float]
+    orthogonality_drift: float
+    samples: int
+    elapsed_s: float
+    t: np.ndarray = field(repr=False)
+    position_deviation: np.ndarray = field(repr=False)
+    attitude_deviation: np.ndarray = field(repr=False)
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.message
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready scalars, named for summary.json (``continuous_...``)."""
+        out = {"continuous_terminal_error": self.terminal_error, "continuous_terminal_position": self.terminal_position,
+               "continuous_terminal_velocity": self.terminal_velocity,
+               "continuous_terminal_attitude_rad": self.terminal_attitude, "continuous_terminal_rate": self.terminal_rate,
+               "continuous_target_error": self.target_error,
+               "continuous_max_position_deviation": self.max_position_deviation,
+               "continuous_max_attitude_deviation_rad": self.max_attitude_deviation,
+               "continuous_orthogonality_drift": self.orthogonality_drift, "continuous_samples": self.samples,
+               "continuous_check_s": self.elapsed_s}
+        out.update({f"continuous_{k}": v for k, v in self.min_margins.items()})
+        if self.message:
+            out["continuous_message"] = self.message
+        return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in out.items()}
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The per-node arrays, named for the .npz file of a results directory (``continuous_...``)."""
+        return {"continuous_t": self.t, "continuous_position_deviation": self.position_deviation,
+                "continuous_attitude_deviation": self.attitude_deviation}
+
+    @classmethod
+    def from_record(cls, block: dict[str, Any], arrays: dict[str, np.ndarray]) -> "ContinuousCheck | None":
+        """The check read back from a results directory: the ``continuous_...`` scalars of a summary.json method
+        block (:meth:`summary`) and the arrays of its .npz (:meth:`arrays`); None if the run has none."""
+        if "continuous_terminal_error" not in block or "continuous_t" not in arrays:
+            return None
+
+        def num(key):
+            v = block.get(f"continuous_{key}")
+            return float("nan") if v is None else float(v)
+
+        margins = {k[len("continuous_"):]: num(k[len("continuous_"):]) for k in block
+                   if k.startswith("continuous_min_margin_")}
+        return cls(*(num(k) for k in _SCALARS), margins, num("orthogonality_drift"), int(block.get("continuous_samples") or 0),
+                   num("check_s"), np.asarray(arrays["continuous_t"], float),
+                   np.asarray(arrays["continuous_position_deviation"], float),
+                   np.asarray(arrays["continuous_attitude_deviation"], float), str(block.get("continuous_message", "")))
+
+
+#: the summary keys (after ``continuous_``) of the first eight fields of ContinuousCheck, in order
+_SCALARS = ("terminal_position", "terminal_velocity", "terminal_attitude_rad", "terminal_rate", "terminal_error",
+            "target_error", "max_position_deviation", "max_attitude_deviation_rad")
+
+
+def margin_keys(constraints) -> list[str]:
+    """The summary keys of path constraints' margins: ``min_margin_<kind>``, with ``_2``, ``_3``, ... for a
+    kind repeated (the names of results.figures_of_merit)."""
+    seen: dict[str, int] = {}
+    keys = []
+    for c in constraints:
+        seen[c.kind] = seen.get(c.kind, 0) + 1
+        keys.append(f"min_margin_{c.kind}" + (f"_{seen[c.kind]}" if seen[c.kind] > 1 else ""))
+    return keys
+
+
+def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> ContinuousCheck | None:
+    """Fly ``sol``'s controls (impulsive: free motion from the state after the initial impulse) from its
+    initial state over its node times through eqs. (1)-(4), sampled ``samples`` times per interval, and
+    measure the flight against the plan (:class:`ContinuousCheck`).  None where there is nothing to fly:
+    no problem, a method that does not apply, or a plan that is not finite."""
+    prob, traj = sol.problem, sol.trajectory
+    if prob is None or sol.result is Result.not_applicable or not np.all(np.isfinite(traj.X)):
+        return None
+    t0 = time.perf_counter()
+    N = traj.X.shape[0] - 1
+    law = OpenLoop.free(N) if sol.controls is None else OpenLoop.of_controls(prob.scheme, sol.controls)
+    try:
+        flight = fly(prob.model, traj.X[0], traj.t, law, Actuators(force_frame=prob.disc.force_frame), samples=samples)
+    except FlightError as e:
+        nan, nodes = float("nan"), np.full(N + 1, np.nan)
+        return ContinuousCheck(nan, nan, nan, nan, nan, nan, nan, nan, {k: nan for k in margin_keys(prob.constraints)},
+                               nan, int(samples), time.perf_counter() - t0, traj.t, nodes, nodes, message=str(e))
+    X, R = flight.X.copy(), flight.trajectory().R
+    drift = float(orthogonality_error(R)[0].max())
+    X[:, X_ROT] = np.swapaxes(nearest_rotation(R), -1, -2).reshape(-1, 9)     # vec(R) column-major
+    flown = Trajectory(t=flight.t, X=X, mass=traj.mass, inertia=traj.inertia)
+    k = np.arange(N + 1) * flight.samples
+    dx = np.linalg.norm(flown.x[k] - traj.x, axis=1)
+    dR = rotation_angle(np.einsum("kji,kjl->kil", traj.R, flown.R[k]))
+    end = (float(dx[-1]), float(np.linalg.norm(flown.v[-1] - traj.v[-1])), float(dR[-1]),
+           float(np.linalg.norm(flown.Omega[-1] - traj.Omega[-1])))
+    margins = {key: float(np.min(c.margin(flown))) for key, c in zip(margin_keys(prob.constraints), prob.constraints)}
+    return ContinuousCheck(*end, max(end), _target_error(sol, X[-1]), float(dx.max()), float(dR.max()), margins, drift,
+                           flight.samples, time.perf_counter() - t0, traj.t.copy(), dx, dR)
+
+
+def _target_error(sol: "Solution", XN: np.ndarray) -> float:
+    """The Solution's terminal-error measure (problem.terminal_error) at the flown final state XN (18,):
+    after the terminal impulse for an impulsive plan; nan without a target."""
+    prob = sol.problem
+    if prob.terminal is None:
+        return float("nan")
+    if sol.impulses is None:  # at the plan's final time (a rendezvous target moves with it)
+        return terminal_error(XN, prob, T=float(sol.trajectory.t[-1]))
+    plus = XN.copy()
+    plus[X_MOM] += np.asarray(sol.impulses["dgammaN"], float)
+    plus[X_ANG] += np.asarray(sol.impulses["dPiN"], float)
+    return terminal_error(XN, prob, XN_plus=plus)

@@ -1,0 +1,530 @@
+"""What every method returns: one result code, one progress record, one Solution.
+
+A :class:`Solution` is data: a failed solve is a Solution whose ``result`` says why (and whose
+``message`` says it in words), never an exception -- unless the caller of ``solve`` asks for one
+(``throw=True`` raises :class:`SolveError` carrying the Solution).  Its trajectory is the
+**re-simulation** of the discrete equations from the initial state with the returned controls or
+impulses (docs/mathematics.md §8), so it lies on SO(3) to round-off and ``terminal_error`` is
+measured on what a user would fly.
+"""
+from __future__ import annotations
+
+import enum
+import html
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from ..geometry.state import U_FORCE, U_MOMENT, split_state, unpack_states
+from ..geometry.so3 import orthogonality_error, rotation_angle
+from ..miss import scaled_miss
+from ..ocp import Problem, SmoothControl, TargetState, control_activity, engine_figures, quadrature_weights
+from .start import WarmStart
+
+
+class Result(str, enum.Enum):
+    """The outcome of a solve, shared by every method.  ``str(Result.x)`` is the code,
+    ``Result.x.message`` a sentence, ``Result.x.successful`` whether the solution can be used."""
+
+    converged = "converged"
+    round_off_floor = "round_off_floor"
+    max_iterations = "max_iterations"
+    time_limit = "time_limit"
+    acceptable = "acceptable"
+    infeasible = "infeasible"
+    terminal_error = "terminal_error"
+    cayley_failed = "cayley_failed"
+    line_search_failed = "line_search_failed"
+    singular_jacobian = "singular_jacobian"
+    stagnated = "stagnated"
+    floor_too_high = "floor_too_high"
+    non_finite = "non_finite"
+    kink = "kink"
+    solver_failed = "solver_failed"
+    invalid_option = "invalid_option"
+    not_applicable = "not_applicable"
+    interrupted = "interrupted"
+    inside_central_body = "inside_central_body"
+
+    def __str__(self) -> str:
+        return self.value
+
+    @property
+    def successful(self) -> bool:
+        return self in (Result.converged, Result.round_off_floor)
+
+    @property
+    def message(self) -> str:
+        return _MESSAGES[self]
+
+
+_MESSAGES = {
+    Result.converged: "converged to the requested tolerance",
+    Result.round_off_floor: "converged to the measured round-off floor of the residual",
+    Result.max_iterations: "stopped at the iteration limit without converging",
+    Result.time_limit: "stopped at the time limit without converging",
+    Result.acceptable: "stopped at the solver's 'acceptable' level, short of the requested tolerance",
+    Result.infeasible: "the solver found the problem (locally) infeasible",
+    Result.terminal_error: "the solver converged, but the re-simulated trajectory misses the terminal conditions",
+    Result.cayley_failed: "the implicit Cayley equation of a step was not solved: the rotation per step is too large",
+    Result.line_search_failed: "the line search found no decrease",
+    Result.singular_jacobian: "the Newton matrix is singular or ill-conditioned",
+    Result.stagnated: "the iteration stagnated",
+    Result.floor_too_high: "stopped at a round-off floor above the accepted level",
+    Result.non_finite: "a residual, a derivative or a state became non-finite",
+    Result.kink: "the optimum lies at a kink of a non-smooth cost, where the smooth formulation does not apply",
+    Result.solver_failed: "the solver failed",
+    Result.invalid_option: "an option or an initial guess is not usable",
+    Result.not_applicable: "the method does not cover this problem",
+    Result.interrupted: "interrupted by the user",
+    Result.inside_central_body: "the re-simulated path enters the central body: the maneuver is impossible as solved",
+}
+
+#: IPOPT's (and fatrop's) return statuses as results
+_SOLVER_STATUS = {
+    "Solve_Succeeded": Result.converged,
+    "Solved_To_Acceptable_Level": Result.acceptable,
+    "Maximum_Iterations_Exceeded": Result.max_iterations,
+    "Maximum_CpuTime_Exceeded": Result.time_limit,
+    "Maximum_WallTime_Exceeded": Result.time_limit,
+    "Infeasible_Problem_Detected": Result.infeasible,
+    "Restoration_Failed": Result.solver_failed,
+    "Error_In_Step_Computation": Result.solver_failed,
+    "Search_Direction_Becomes_Too_Small": Result.stagnated,
+    "Diverging_Iterates": Result.non_finite,
+    "Invalid_Number_Detected": Result.non_finite,
+    "User_Requested_Stop": Result.interrupted,
+}
+
+
+def result_of_solver_status(status: str) -> Result:
+    """The :class:`Result` of an NLP solver's return status (unknown statuses: solver_failed)."""
+    return _SOLVER_STATUS.get(status, Result.solver_failed)
+
+
+class SolveError(RuntimeError):
+    """Raised by ``solve(..., throw=True)`` for a Solution that is not successful; ``.solution`` is it."""
+
+    def __init__(self, solution: "Solution"):
+        self.solution = solution
+        super().__init__(f"{solution.method}: {solution.result}: {solution.message}")
+
+
+@dataclass(frozen=True)
+class Iterate:
+    """One progress record, the same for every method (history entries and progress callbacks).
+
+    iteration: outer iteration (NLP iteration, Newton step); trial: 0 for the iterate itself,
+    1, 2, ... for the line-search trials of a Newton step; residual: the 2-norm of the shooting
+    residual (Newton) or the primal infeasibility (NLP); residual_inf: its max-norm where known;
+    cost: the objective (NLP; nan for Newton); dual: the dual infeasibility (NLP); step: the
+    line-search step (Newton: c; IPOPT: alpha_pr); accepted: whether the trial became the next
+    iterate; aux: the largest relative Cayley residual of the trial's rollout (Newton);
+    phase: which solve of a multi-phase solve the record belongs to (e.g. 'nlp'; the direct method's
+    progress records: the start or step, nested solves under their own, 'coarse N=25 / effort / rollout');
+    elapsed_s: seconds since the solve started (the records ``solve`` passes to ``progress``: since that
+    top-level call); budget: the most iterations this phase may take (an NLP's max_iter; 0: not known;
+    the records of an NLP number its solver's calls back, and IPOPT's restoration phase calls back a few
+    times more than it counts iterations, so iteration may pass budget by those);
+    method: the method that produced it (set by ``solve`` on the records it passes to ``progress``; '' in
+    a Solution's history, which knows its method).  Absent values are nan.
+    """
+
+    iteration: int
+    residual: float = math.nan
+    residual_inf: float = math.nan
+    cost: float = math.nan
+    dual: float = math.nan
+    step: float = math.nan
+    trial: int = 0
+    accepted: bool = True
+    aux: float = math.nan
+    phase: str = ""
+    elapsed_s: float = math.nan
+    budget: int = 0
+    method: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def line(self) -> str:
+        """One readable line with the fields that are known (progress output)."""
+        parts = [f"iter {self.iteration:4d}"]
+        if math.isfinite(self.cost):
+            parts.append(f"cost {self.cost:.10g}")
+        if not math.isnan(self.residual):
+            parts.append(f"residual {self.residual:.3e}")
+        if math.isfinite(self.dual):
+            parts.append(f"dual {self.dual:.2e}")
+        if math.isfinite(self.step):
+            parts.append(f"step {self.step:.3g}")
+        within = [self.phase] if self.phase else []
+        if self.budget > 0:
+            within.append(f"<= {self.budget} it")
+        if within:
+            parts.append(f"({'; '.join(within)})")
+        return "  ".join(parts)
+
+    def progress_line(self) -> str:
+        """The line progress printers show: :meth:`line` after the method and the seconds since the solve
+        started, where known: '[direct 123 s] iter   45  cost ...  (eps 1e-01; <= 500 it)' (the phase, and the
+        most iterations it may take)."""
+        head = " ".join(p for p in (self.method, f"{self.elapsed_s:.0f} s" if math.isfinite(self.elapsed_s) else "")
+                        if p)
+        return f"[{head}] {self.line()}" if head else self.line()
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One initial guess a solve tried (the direct method's plan, transcription.strategy.plan): its
+    ``label``; the ``result`` of the solve from it (None: the guess could not be made or used, ``note`` says
+    why); its ``iterations`` (those spent making the guess included: ``guess_iterations`` of them on
+    ``prepared_on``, e.g. 'the relaxed problem') and ``cost`` (nan unless converged).  :meth:`line` is the
+    sentence of the message and of summary.json's ``guesses_tried``."""
+
+    label: str
+    result: Result | None
+    iterations: int = 0
+    cost: float = math.nan
+    guess_iterations: int = 0
+    prepared_on: str = ""
+    note: str = ""
+
+    def line(self) -> str:
+        if self.result is None:
+            return f"{self.label}: {self.note}"
+        out = f"{self.label}: {self.result} in {self.iterations} iterations"
+        if self.guess_iterations:
+            out += f" ({self.guess_iterations} of them on {self.prepared_on})"
+        if self.result.successful and math.isfinite(self.cost):
+            out += f", cost {self.cost:.10g}"
+        return out
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Node values of a motion: times t (N+1,), states X (N+1, 18) (layout of transcription.geometry.state),
+    and the body's mass and inertia, so that velocities are at hand.
+
+    Derived (node-major, computed once): x (N+1, 3) inertial position; gamma linear momentum and
+    v = gamma/m inertial velocity; R (N+1, 3, 3) body -> inertial; Pi body angular momentum and
+    Omega = J^-1 Pi body angular velocity.
+    """
+
+    t: np.ndarray
+    X: np.ndarray
+    mass: float = 1.0
+    inertia: np.ndarray = field(default_factory=lambda: np.eye(3))
+    x: np.ndarray = field(init=False, repr=False)
+    gamma: np.ndarray = field(init=False, repr=False)
+    v: np.ndarray = field(init=False, repr=False)
+    R: np.ndarray = field(init=False, repr=False)
+    Pi: np.ndarray = field(init=False, repr=False)
+    Omega: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        s = unpack_states(self.X)
+        derived = {"x": s.x, "gamma": s.gamma, "v": s.gamma / self.mass, "R": s.R, "Pi": s.Pi,
+                   "Omega": np.linalg.solve(self.inertia, s.Pi.T).T}
+        for k, a in derived.items():
+            object.__setattr__(self, k, a)
+
+    def orthogonality(self) -> dict[str, float]:
+        """max_k |R_k^T R_k - I|_F and max_k |det R_k - 1| (docs/mathematics.md §8)."""
+        orth, det = orthogonality_error(self.R)
+        return {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max())}
+
+    def __repr__(self) -> str:
+        return f"Trajectory(N = {len(self.t) - 1}, T = {float(self.t[-1]):.6g}, mass {self.mass:g})"
+
+
+def trajectory(problem: "Problem", X: np.ndarray, h: float | None = None) -> Trajectory:
+    """The Trajectory of node states X (N+1, 18) of ``problem``: the node times of its mesh for the (mean) step h
+    (the problem's by default): k h on a uniform mesh, t_k = sum_{i<k} h r_i on a non-uniform one
+    (:meth:`~transcription.ocp.Problem.times_of`); the problem's mass and inertia."""
+    m, h = problem.model, (problem.h if h is None else h)
+    t = problem.times_of(h) if X.shape[0] == problem.N + 1 else h * np.arange(X.shape[0])
+    return Trajectory(t=t, X=X, mass=m.mass, inertia=m.inertia)
+
+
+@dataclass
+class Solution:
+    """Outcome of one solve (or one simulation).
+
+    method: 'direct' | 'indirect' | 'simulate'; solver: 'ipopt', 'fatrop', 'newton-armijo', ...
+    result: a :class:`Result`; message: what happened, in words (with numbers).
+    trajectory: the re-simulation (:class:`Trajectory`).
+    controls: (6, n_controls) [u_f (inertial); u_m (body)] at ``control_times`` or None.
+    impulses: impulsive maneuvers: {dgamma0, dPi0 (at t = 0), dgammaN, dPiN (at t = T)} (3,) each.
+    costates: (N, 12) discrete costates lambda_k (indirect; for the direct method mapped from the
+    NLP multipliers) or None.  history: the :class:`Iterate` records.  attempts: the initial guesses
+    tried (:class:`Attempt`, the direct method; summary.json's ``guesses_tried`` says them in words).
+    stats: method-specific numbers (the solver's own status, split times, residuals, ...).
+    problem: the :class:`~transcription.ocp.Problem` solved (for figures and reports).
+    warm: what the next solve can start from (:class:`~transcription.results.start.WarmStart`; None when there is
+    nothing usable): ``solve(problem, method, warm_start=solution)``.
+    Derived: N, T, h (the mean step T/N), steps (N,) (the step sizes h_k = t_{k+1} - t_k of its mesh), ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's
+    force frame, ``force_frame``: 'inertial' or 'body'), u_m (n, 3) (body), f_inertial (n, 3): the inertial
+    force each control applies, R_j u_f,j at its node j for a body-frame force, u_f itself for an inertial one
+    (docs/mathematics.md §14).
+    """
+
+    method: str
+    solver: str
+    result: Result
+    message: str
+    trajectory: Trajectory
+    cost: float
+    terminal_error: float
+    iterations: int
+    build_s: float
+    solve_s: float
+    problem: "Problem | None" = field(default=None, repr=False, compare=False)
+    controls: np.ndarray | None = None
+    impulses: dict[str, np.ndarray] | None = None
+    costates: np.ndarray | None = None
+    history: list[Iterate] = field(default_factory=list)
+    stats: dict[str, Any] = field(default_factory=dict)
+    attempts: tuple[Attempt, ...] = ()
+    warm: WarmStart | None = field(default=None, repr=False, compare=False)
+    #: the continuous check (transcription.results.check.ContinuousCheck; issue 26): the plan flown through the
+    #: continuous equations, on by default for successful smooth-control solves (None: not flown)
+    continuous: Any = field(default=None, repr=False, compare=False)
+    #: refinement to ``solver.accuracy`` (transcription/accuracy.py): one record per mesh level (level, N, miss,
+    #: iterations, time, ...); empty without refinement
+    mesh: list = field(default_factory=list, repr=False, compare=False)
+
+    # derived, computed once: the horizon, the scheme, the controls' times and components
+    N: int = field(init=False, repr=False)
+    T: float = field(init=False, repr=False)
+    h: float = field(init=False, repr=False)
+    steps: np.ndarray = field(init=False, repr=False)
+    scheme: str = field(init=False, repr=False)
+    control_times: np.ndarray | None = field(init=False, repr=False)
+    u_f: np.ndarray | None = field(init=False, repr=False)
+    u_m: np.ndarray | None = field(init=False, repr=False)
+    force_frame: str = field(init=False, repr=False)
+    f_inertial: np.ndarray | None = field(init=False, repr=False)
+
+    def __post_init__(self):
+        t = self.trajectory.t
+        self.N, self.T = len(t) - 1, float(t[-1])
+        self.h = self.T / self.N
+        self.steps = np.diff(t)
+        self.scheme = self.problem.scheme if self.problem is not None else ""
+        c = self.controls
+        # controls u_0..u_N (lgvi) at t_0..t_N, or u_1..u_N (first_order) at t_1..t_N; u_f inertial, u_m body
+        self.control_times = None if c is None else (t[1:] if c.shape[1] == len(t) - 1 else t)
+        self.u_f = None if c is None else c[U_FORCE].T
+        self.u_m = None if c is None else c[U_MOMENT].T
+        disc = getattr(self.problem, "disc", None)
+        self.force_frame = getattr(disc, "force_frame", "inertial")
+        self.f_inertial = self.u_f
+        if c is not None and self.force_frame != "inertial" and len(t):
+            nodes = np.searchsorted(t, self.control_times)     # the node each control belongs to
+            self.f_inertial = np.asarray(disc.applied_force(self.trajectory.R[nodes], self.u_f), dtype=float)
+
+    @property
+    def converged(self) -> bool:
+        return self.result.successful
+
+    @property
+    def uniform(self) -> bool:
+        """Its node times are equally spaced (to round-off): a uniform mesh (also when read back from a results
+        directory, whose Problem is the file's)."""
+        d = self.steps
+        return bool(d.size == 0 or np.all(np.abs(d - self.h) <= 1e-9 * abs(self.h)))
+
+    @property
+    def continuous_miss(self) -> float | None:
+        """The continuous check's terminal miss as ``solver.accuracy`` judges it, shown as "continuous miss"
+        (:func:`transcription.miss.scaled_miss`, the one formula): the largest of the position miss relative to
+        the characteristic length L, the velocity miss relative to V (with a central body the orbit radius |x_0|
+        and the circular speed: dimensionless; without one L = V = 1, the file's units), the attitude miss (rad)
+        and the rate miss (rad per time unit).  None when not flown (or without a Problem), nan when the flight
+        failed.  The raw components are ``continuous.terminal_*``; ``continuous.terminal_error`` is their
+        unscaled largest, in mixed units."""
+        if self.continuous is None or self.problem is None:
+            return None
+        return scaled_miss(self.continuous, self.problem)
+
+    # ------------------------------------------------------------------ display
+    def display(self) -> dict[str, str]:
+        """What a notebook shows of this Solution, as text (scalars only, never an array): method, status,
+        cost, terminal error, continuous miss (:attr:`continuous_miss`: the continuous check's scaled terminal
+        miss, the number ``solver.accuracy`` bounds; '-' when not flown), max |R^T R - I|, iterations, build and
+        solve seconds, N, T, scheme."""
+        def num(x, fmt):
+            return "-" if x is None or not np.isfinite(x) else format(float(x), fmt)
+
+        na = self.result is Result.not_applicable
+        orth = self.trajectory.orthogonality()["max_orthogonality_error"] if len(self.trajectory.t) else math.nan
+        return {"method": self.method, "status": self.result.value, "cost": num(math.nan if na else self.cost, ".10g"),
+                "terminal error": num(math.nan if na else self.terminal_error, ".1e"),
+                "continuous miss": num(self.continuous_miss, ".1e"),
+                "max |R^T R - I|": num(math.nan if na else orth, ".1e"), "iterations": str(self.iterations),
+                "build s": num(self.build_s, ".2f"), "solve s": num(self.solve_s, ".2f"), "N": str(self.N),
+                "T": num(self.T, ".6g"), "scheme": self.scheme or "-"}
+
+    def __repr__(self) -> str:
+        d = self.display()
+        return (f"Solution({d['method']} {d['status']}: cost {d['cost']}, terminal error {d['terminal error']}, "
+                f"continuous miss {d['continuous miss']}, "
+                f"max |R^T R - I| {d['max |R^T R - I|']}, {d['iterations']} iterations, build {d['build s']} s, "
+                f"solve {d['solve s']} s; N = {d['N']}, T = {d['T']}, {d['scheme']})")
+
+    def _repr_html_(self) -> str:
+        return html_table([self], caption=f"{self.method}: {self.result.message}")
+
+    # ------------------------------------------------------------------ output
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready scalar summary (the per-method block of summary.json)."""
+        out = {
+            "method": self.method,
+            "status": self.result.value,
+            "message": self.message,
+            "converged": bool(self.converged),
+            "cost": float(self.cost),
+            "terminal_error": float(self.terminal_error),
+            "iterations": int(self.iterations),
+            "build_s": float(self.build_s),
+            "solve_s": float(self.solve_s),
+            "N": int(self.N),
+            "T": float(self.T),
+            "h": float(self.h),
+            "discretization": self.scheme,
+            "solver": self.solver,
+        }
+        out.update(self.trajectory.orthogonality())
+        if not self.uniform:                # a non-uniform mesh (docs/mathematics.md §16)
+            out.update(h_min=float(self.steps.min()), h_max=float(self.steps.max()))
+        if self.controls is not None:
+            out["force_frame"] = self.force_frame
+        # scalars, and lists of words
+        out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None))) or
+                    (isinstance(v, list) and all(isinstance(x, str) for x in v))})
+        if self.attempts:                   # the initial guesses tried (what a failure tried), in words
+            out["guesses_tried"] = [a.line() for a in self.attempts]
+        out.update(figures_of_merit(self))
+        if self.continuous is not None:     # the continuous check (issue 26): continuous_* keys
+            out.update(self.continuous.summary())
+            out["continuous_miss"] = self.continuous_miss     # the scaled miss shown and bounded by accuracy
+        if self.mesh:                       # refinement to solver.accuracy: the mesh history
+            out["mesh_history"] = [dict(m) for m in self.mesh]
+        return out
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Arrays for the .npz file: t, x, v, gamma, R, Omega, Pi (nodes); u_f (in the problem's force frame),
+        u_m (body), t_u, f_inertial (the applied inertial force R_j u_f,j, or u_f) (controls); lam (costates);
+        impulses."""
+        tr = self.trajectory
+        out = {"t": tr.t, "x": tr.x, "v": tr.v, "gamma": tr.gamma, "R": tr.R, "Omega": tr.Omega, "Pi": tr.Pi}
+        if self.controls is not None:
+            out["u_f"], out["u_m"], out["t_u"] = self.u_f, self.u_m, self.control_times
+            out["f_inertial"] = self.f_inertial
+        if self.impulses is not None:
+            out.update({k: np.asarray(v) for k, v in self.impulses.items()})
+        if self.costates is not None:
+            out["lam"] = self.costates
+        if self.continuous is not None:     # the continuous check's deviation at each node (its figure)
+            out.update(self.continuous.arrays())
+        return out
+
+
+
+
+
+#: the colour of a status in notebooks (as in report.html: converged green, not applicable grey, else red)
+_STATUS_COLOUR = {True: "#1a7f37", None: "#6e7781", False: "#cf222e"}
+
+
+def html_table(solutions: list[Solution], caption: str = "", footer: str = "") -> str:
+    """An HTML table of Solutions for notebooks: a row per Solution with its :meth:`Solution.display` and its
+    message beneath (escaped), the status coloured; ``caption`` above and ``footer`` below (escaped)."""
+    cols = list(solutions[0].display())
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    rows = []
+    for s in solutions:
+        d = s.display()
+        ok = None if s.result is Result.not_applicable else s.converged
+        cells = "".join(f'<td style="color:{_STATUS_COLOUR[ok]};font-weight:bold">{html.escape(v)}</td>'
+                        if c == "status" else f"<td>{html.escape(v)}</td>" for c, v in d.items())
+        rows.append(f"<tr>{cells}</tr><tr><td colspan=\"{len(cols)}\" style=\"text-align:left;font-size:smaller\">"
+                    f"{html.escape(s.message)}</td></tr>")
+    cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
+    foot = f"<p>{html.escape(footer)}</p>" if footer else ""
+    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>{foot}"
+
+
+def figures_of_merit(sol: "Solution") -> dict[str, Any]:
+    """What an engineer reads off a maneuver, computed once (summary.json, the report, sweeps).
+
+    delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m);
+    angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
+    weights of the scheme (transcription.ocp.quadrature_weights) at h = T/N (at the steps h_k of a mesh);
+    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; engine_on_time (and, for a body-fixed
+    engine, engine_off_axis_relative) of transcription.ocp.engine_figures; with a bound, force_time_at_bound /
+    moment_time_at_bound = the time_at_bound of transcription.ocp.control_activity (sum of
+    omega_j over the controls at the bound; not for a control a norm bound of 0 removes, which is
+    never "at its bound" but absent); with a state target that fixes the attitude,
+    terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints, min_margin_<kind>
+    (``_2``, ... for repeated kinds) = min_k margin_k in the constraint's unit (< 0: violated).
+    Fields that do not apply are left out; a method that does not apply to the problem
+    (Result.not_applicable) has none: its trajectory is no solution, only the initial state's free
+    motion.  Pure: reads the Solution, changes nothing."""
+    out: dict[str, Any] = {}
+    if sol.result is Result.not_applicable:
+        return out
+    prob = sol.problem
+    mass = sol.trajectory.mass
+    if sol.controls is not None:
+        uf, um = sol.u_f, sol.u_m
+        n, N = uf.shape[0], sol.N
+        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if sol.uniform else sol.steps)
+        nf, nm = np.linalg.norm(uf, axis=1), np.linalg.norm(um, axis=1)
+        out.update(delta_v=float(om @ nf / mass), angular_impulse=float(om @ nm),
+                   peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))
+        ctrl = getattr(prob, "control", None)
+        if isinstance(ctrl, SmoothControl):
+            for name, act in control_activity(ctrl, sol.controls, om, sol.control_times).items():
+                out[f"{name}_time_at_bound"] = act["time_at_bound"]
+        out.update(engine_figures(uf, om, getattr(ctrl, "force_bound", None)))
+    elif sol.impulses is not None:
+        imp = sol.impulses
+        out.update(delta_v=float((np.linalg.norm(imp["dgamma0"]) + np.linalg.norm(imp["dgammaN"])) / mass),
+                   angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
+    term = getattr(prob, "terminal", None)
+    if isinstance(term, TargetState) and "attitude" in term.fixed and np.all(np.isfinite(sol.trajectory.X[-1])):
+        Rd = split_state(term.X)[2]
+        out["terminal_attitude_error_deg"] = float(np.degrees(rotation_angle(Rd.T @ sol.trajectory.R[-1])))
+    seen: dict[str, int] = {}
+    for c in getattr(prob, "constraints", ()):
+        seen[c.kind] = seen.get(c.kind, 0) + 1
+        key = f"min_margin_{c.kind}" + (f"_{seen[c.kind]}" if seen[c.kind] > 1 else "")
+        out[key] = float(np.min(c.margin(sol.trajectory)))
+    return out
+
+
+def to_jsonable(obj):
+    """Convert numpy scalars/arrays, enums and dataclasses inside dicts/lists to plain Python."""
+    if isinstance(obj, enum.Enum):
+        return obj.value
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating,)):
+        return float(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, Iterate):
+        return to_jsonable(obj.as_dict())
+    if hasattr(obj, "__dataclass_fields__"):
+        return to_jsonable(asdict(obj))
+    return obj

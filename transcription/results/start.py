@@ -1,0 +1,220 @@
+"""Warm starts as data: what one solve hands to the next (continuation along a sweep, a finer grid, the other
+method), typed, and its resampling onto another grid on the Lie group.
+
+Every Solution carries one (``sol.warm``; None when there is nothing usable: no controls, or non-finite
+values); ``solve(problem, method, warm_start=sol)`` (or ``warm_start=sol.warm``) accepts it whatever method
+produced it and whatever its N and scheme: :meth:`WarmStart.fit` maps it onto the problem's grid and says
+what it did, and each method says in its Solution what it used and what it did not.
+
+Resampling (:meth:`WarmStart.fit`, docs/mathematics.md §4) is in normalized time: node k of N steps is at
+s = k/N of the horizon, whatever T, so a warm start of another horizon (a sweep along T) keeps its shape.
+Positions and momenta are interpolated linearly, attitudes along the geodesic of SO(3) between neighbouring
+nodes (R_a exp(s log(R_a^T R_b)), :func:`~transcription.geometry.so3.geodesic_interpolation`: the result stays on
+SO(3) to round-off), controls at the new control times (LGVI: the nodes; first order: u_{k+1} belongs to
+step k and is placed at its midpoint), costates lambda_k (the multipliers of step k) at the step midpoints
+likewise.  The NLP multipliers are reused only by an NLP of the identical structure (``nlp_key``), and the
+indirect method's shooting unknown ``lam0`` only on the same grid: elsewhere they are dropped and the notes
+say so.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, pack_state, unpack_states
+from ..geometry.so3 import exp_so3, geodesic_interpolation, log_so3_any
+
+
+@dataclass(frozen=True, eq=False)
+class WarmStart:
+    """A solution handed to the next solve.
+
+    Primal: ``t`` (N+1,) node times, ``X`` (N+1, 18) node states (the re-simulated trajectory, layout of
+    transcription.geometry.state), ``U`` (6, n_controls) controls at the scheme's control nodes (lgvi u_0..u_N,
+    first_order u_1..u_N), ``scheme``; T = t[-1].  Dual: ``multipliers``, the direct method's NLP constraint
+    multipliers in physical units (:meth:`~transcription.nlp.transcription.SmoothTranscription.
+    multipliers`), with ``nlp_key``, the structure of the NLP they belong to
+    (:attr:`~transcription.nlp.structured.StructuredNLP.key`); ``costates`` (N, 12) lambda_0..lambda_{N-1};
+    ``lam0`` (12,), the indirect method's shooting unknown (lambda_0; lgvi lambda_{-1}).  ``source``: the
+    method that produced it ('direct' or 'indirect').  Absent parts are None.
+    """
+
+    t: np.ndarray
+    X: np.ndarray
+    U: np.ndarray
+    scheme: str
+    source: str
+    multipliers: np.ndarray | None = None
+    nlp_key: tuple | None = None
+    costates: np.ndarray | None = None
+    lam0: np.ndarray | None = None
+
+    @property
+    def N(self) -> int:
+        return len(self.t) - 1
+
+    @property
+    def T(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def h(self) -> float:
+        return self.T / self.N
+
+    def __repr__(self) -> str:
+        parts = [name for name, v in (("multipliers", self.multipliers), ("costates", self.costates),
+                                      ("lambda_0", self.lam0)) if v is not None]
+        return f"WarmStart({self.describe()}, T = {self.T:.6g}; states, controls{''.join(', ' + p for p in parts)})"
+
+    def describe(self) -> str:
+        """'the direct solution (N = 100, first_order)'."""
+        return f"the {self.source} solution (N = {self.N}, {self.scheme})"
+
+    def fit(self, N: int, scheme: str, s: np.ndarray | None = None) -> tuple["WarmStart", tuple[str, ...]]:
+        """This warm start on a grid of N steps of ``scheme`` over its own T (module docstring), and notes
+        (sentences) on what was resampled and what was dropped.  ``s``: the normalized node times (N+1,) in
+        [0, 1] of a non-uniform mesh (Problem.times / T; None: uniform).  Unchanged (the same object, no notes)
+        when N, the scheme and the node times agree."""
+        own = self.s
+        sf = np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
+        if N == self.N and scheme == self.scheme and (s is None and self.uniform or
+                                                      s is not None and np.allclose(sf, own, rtol=0, atol=1e-12)):
+            return self, ()
+        t = sf * self.T if s is not None else np.linspace(0.0, self.T, N + 1)
+        X = resample_states(self.X, N, own, sf)
+        U = resample_controls(self.U, self.scheme, scheme, N, own, sf)
+        lam = None if self.costates is None else resample_costates(self.costates, N, own, sf)
+        mesh = "" if s is None else " (a non-uniform mesh)"
+        notes = [f"resampled from N = {self.N} ({self.scheme}) to N = {N}{mesh} ({scheme}) on SE(3)"]
+        dropped = [what for what, part in (("the NLP multipliers", self.multipliers),
+                                           ("the shooting unknown lambda_0", self.lam0)) if part is not None]
+        if dropped:
+            notes.append(f"{' and '.join(dropped)} not reused (they belong to the other grid)")
+        return WarmStart(t=t, X=X, U=U, scheme=scheme, source=self.source, costates=lam), tuple(notes)
+
+    @property
+    def uniform(self) -> bool:
+        """Its node times are equally spaced (to round-off)."""
+        d = np.diff(self.t)
+        return bool(np.all(np.abs(d - d.mean()) <= 1e-9 * abs(d.mean())))
+
+    @property
+    def s(self) -> np.ndarray:
+        """Its normalized node times (N+1,) in [0, 1]: k/N when uniform (exactly), else t / T."""
+        return np.linspace(0.0, 1.0, self.N + 1) if self.uniform else self.t / self.T
+
+    def tail(self, k: int) -> "WarmStart":
+        """The remaining horizon from node k (0 <= k < N) as a warm start of its own, shifted to start at t = 0
+        (shrinking-horizon re-plans, docs/mathematics.md §12): states X_k..X_N, the controls of steps k..N-1
+        (lgvi u_k..u_N, first_order u_{k+1}..u_N), costates lambda_k..lambda_{N-1}, and the shooting unknown of
+        the remaining problem: lambda_{k-1} (lgvi; for k = 0 this warm start's own lam0) or lambda_k (first
+        order); None where the parts are absent.  The NLP multipliers are dropped (they belong to the whole
+        horizon's NLP)."""
+        if not 0 <= k < self.N:
+            raise ValueError(f"tail: expected a node 0 <= k < {self.N}, got {k}")
+        lam = self.costates
+        if self.scheme == "lgvi":
+            lam0 = self.lam0 if k == 0 else (None if lam is None else lam[k - 1])
+        else:
+            lam0 = self.lam0 if k == 0 and self.lam0 is not None else (None if lam is None else lam[k])
+        return WarmStart(t=self.t[k:] - self.t[k], X=self.X[k:], U=self.U[:, k:], scheme=self.scheme,
+                         source=self.source, costates=None if lam is None else lam[k:],
+                         lam0=None if lam0 is None else np.array(lam0, dtype=float))
+
+
+def warm_start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: str, source: str,
+                  **dual) -> WarmStart | None:
+    """The WarmStart of a solution (node times t, states X (N+1, 18), controls U, its scheme and method;
+    ``dual``: multipliers, nlp_key, costates, lam0), or None when there is nothing usable: no controls or
+    non-finite states or controls (a dual part that is not finite is left out)."""
+    if U is None or not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
+        return None
+    dual = {k: v for k, v in dual.items()
+            if v is not None and (k == "nlp_key" or np.all(np.isfinite(np.asarray(v, float))))}
+    if "multipliers" not in dual:
+        dual.pop("nlp_key", None)
+    arrays = {k: (np.array(v, dtype=float) if k != "nlp_key" else v) for k, v in dual.items()}
+    return WarmStart(t=np.array(t, dtype=float), X=np.array(X, dtype=float), U=np.array(U, dtype=float),
+                     scheme=scheme, source=source, **arrays)
+
+
+def secant(w0: WarmStart, w1: WarmStart, r: float) -> WarmStart | None:
+    """The secant predictor of a continuation: w1 + r (w1 - w0) for warm starts w0, w1 of one grid (the
+    solutions at parameter values p0, p1, extrapolated to p1 + r (p1 - p0)), on SE(3): node times,
+    positions, momenta, controls, costates, lambda_0 and the multipliers (of one NLP structure) linearly,
+    attitudes along the geodesic R_1 Exp(r Log(R_0^T R_1)).  None when their grids or schemes differ; a part
+    only one of them carries is left out."""
+    if (w0.N, w0.scheme, w0.U.shape) != (w1.N, w1.scheme, w1.U.shape):
+        return None
+
+    def lin(a, b):
+        return None if a is None or b is None or np.shape(a) != np.shape(b) else b + r * (b - a)
+
+    s0, s1 = unpack_states(w0.X), unpack_states(w1.X)
+    R = np.array([R1 @ exp_so3(r * log_so3_any(R0.T @ R1)) for R0, R1 in zip(s0.R, s1.R)])
+    X = pack_state(lin(s0.x, s1.x), lin(s0.gamma, s1.gamma), R, lin(s0.Pi, s1.Pi))
+    same_nlp = w0.nlp_key is not None and w0.nlp_key == w1.nlp_key
+    return WarmStart(t=lin(w0.t, w1.t), X=X, U=lin(w0.U, w1.U), scheme=w1.scheme, source=w1.source,
+                     multipliers=lin(w0.multipliers, w1.multipliers) if same_nlp else None,
+                     nlp_key=w1.nlp_key if same_nlp else None, costates=lin(w0.costates, w1.costates),
+                     lam0=lin(w0.lam0, w1.lam0))
+
+
+def as_warm_start(given) -> tuple[WarmStart | None, str]:
+    """The WarmStart of what a caller passed as ``warm_start`` (a WarmStart, a Solution or None), and a note
+    when a Solution carries nothing usable."""
+    if given is None or isinstance(given, WarmStart):
+        return given, ""
+    warm = getattr(given, "warm", None)
+    if isinstance(warm, WarmStart):
+        return warm, ""
+    if hasattr(given, "result") and hasattr(given, "trajectory"):
+        return None, f"the warm start given ({given.method}, {given.result}) carries nothing usable: solved cold"
+    raise TypeError(f"warm_start: expected a Solution or a WarmStart, got {type(given).__name__}")
+
+
+# ------------------------------------------------------------------------------- resampling
+def _nodes(N: int, s: np.ndarray | None) -> np.ndarray:
+    """Normalized node times (N+1,) in [0, 1]: ``s`` itself, or the uniform k/N."""
+    return np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
+
+
+def _midpoints(s: np.ndarray) -> np.ndarray:
+    """The step midpoints (N,) of node times s (N+1,)."""
+    return 0.5 * (s[:-1] + s[1:])
+
+
+def resample_states(X: np.ndarray, N: int, sc: np.ndarray | None = None, sf: np.ndarray | None = None) -> np.ndarray:
+    """Node states X (M+1, 18) at the N+1 nodes of the same horizon (module docstring): positions and momenta
+    linear in time, attitudes by geodesic interpolation; the end nodes are copied exactly.  ``sc``, ``sf``: the
+    normalized node times of the given and the new grid (None: uniform)."""
+    M = X.shape[0] - 1
+    sc, sf = _nodes(M, sc), _nodes(N, sf)
+    Xf = np.empty((N + 1, NX))
+    for sl in (X_POS, X_MOM, X_ANG):
+        for i in range(sl.start, sl.stop):
+            Xf[:, i] = np.interp(sf, sc, X[:, i])
+    s = unpack_states(Xf)
+    Xf = pack_state(s.x, s.gamma, geodesic_interpolation(unpack_states(X).R, sc, sf), s.Pi)
+    Xf[0], Xf[-1] = X[0], X[-1]
+    return Xf
+
+
+def resample_controls(U: np.ndarray, scheme: str, new_scheme: str, N: int, sc: np.ndarray | None = None,
+                      sf: np.ndarray | None = None) -> np.ndarray:
+    """Controls U (6, n) of ``scheme`` at the control times of N steps of ``new_scheme``: linear in time
+    between the control times (LGVI: nodes; first order: step midpoints), held beyond the first and last
+    (``sc``, ``sf`` as in :func:`resample_states`)."""
+    M = U.shape[1] - 1 if scheme == "lgvi" else U.shape[1]
+    sc, sf = _nodes(M, sc), _nodes(N, sf)
+    uc = sc if scheme == "lgvi" else _midpoints(sc)
+    uf = sf if new_scheme == "lgvi" else _midpoints(sf)
+    return np.vstack([np.interp(uf, uc, U[i]) for i in range(NU)])
+
+
+def resample_costates(lam: np.ndarray, N: int, sc: np.ndarray | None = None, sf: np.ndarray | None = None) -> np.ndarray:
+    """Costates lambda_k (M, 12) of the steps (at their midpoints) on N steps, linear in time (``sc``, ``sf`` as
+    in :func:`resample_states`)."""
+    mc, mf = _midpoints(_nodes(lam.shape[0], sc)), _midpoints(_nodes(N, sf))
+    return np.column_stack([np.interp(mf, mc, lam[:, i]) for i in range(NZ)])

@@ -1,0 +1,290 @@
+"""Adaptive (non-uniform) meshes for refinement to a tolerance (issue 26, docs/mathematics.md §16).
+
+Two pieces, used by :func:`transcription.strategy.refine.refine`:
+
+* :func:`step_errors` -- the local error of every step of a plan, by step doubling with the plan's own scheme:
+  step k from the plan's node X_k is taken again as two half steps of size h_k / 2 with the controls the
+  continuous flight applies (the LGVI's node controls interpolated linearly, u_{k+1/2} = (u_k + u_{k+1}) / 2;
+  the first-order control u_{k+1} held), and the difference to the plan's X_{k+1} is measured in the units of
+  the continuous miss (position / L, velocity / V, attitude angle, rate).  With a local error C_k h_k^{p+1}
+  (p the scheme's order) that difference is C_k h_k^{p+1} (1 - 2^-p), so e_k = difference / (1 - 2^-p).
+* :func:`equidistributed_steps` -- the new step sizes: with the error density C(t) = e_k / h_k^{p+1} piecewise
+  constant over the old steps, sum_k C_k h_k^{p+1} is least for a given number of steps when the steps are
+  h(t) = a C(t)^(-1/p), i.e. when every step's error per unit time is the same (equidistribution); then
+  sum_k e_k = a^p T, and a is chosen for the sum asked.  The node density 1/h(t) is bounded per level to at
+  most GROWTH times the old one and at least 1/MERGE of it (a step may be split into up to GROWTH, and up to
+  MERGE steps merged), and each step's density is the largest of its own and its neighbours' (a margin where
+  the error changes fast).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.state import NZ, unpack_states
+from ..geometry.so3 import log_so3_batch
+
+#: per level, a step is split into at most GROWTH steps and at most MERGE steps are merged into one
+GROWTH, MERGE = 32.0, 4.0
+
+
+def local_errors(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int) -> np.ndarray:
+    """The local error z_k (N, 12) of each step of the plan X (N+1, 18), controls U (6, n_controls), step sizes
+    ``steps`` (N,), by step doubling (module docstring), in the tangent coordinates [dx; dgamma; zeta; dPi] at
+    X_{k+1} (transcription.geometry.state.tangent_basis): two half steps minus the plan's step, over (1 - 2^-p)."""
+    disc, N = problem.disc, len(steps)
+    W = np.asarray(disc.stage_controls(U), dtype=float)
+    if disc.scheme == "lgvi":
+        nu = W.shape[0] // 2
+        mid = 0.5 * (W[:nu] + W[nu:])
+        Wa, Wb = np.vstack([W[:nu], mid]), np.vstack([mid, W[nu:]])
+    else:
+        Wa = Wb = W
+    F = disc.step.map(N)
+    half = 0.5 * np.asarray(steps, dtype=float)[None, :]
+    X1, _ = F(X[:-1].T, Wa, half)
+    X2, _ = F(X1, Wb, half)
+    a, b = unpack_states(X[1:]), unpack_states(np.asarray(X2.full()).T)
+    zeta = log_so3_batch(np.einsum("kji,kjl->kil", a.R, b.R))
+    return np.hstack([b.x - a.x, b.gamma - a.gamma, zeta, b.Pi - a.Pi]) / (1.0 - 2.0 ** (-order))
+
+
+def propagated_errors(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The contribution c_k = A_{N-1} ... A_{k+1} z_k (N, 12) of each step's local error z_k to the error of the
+    final node, A_j the step's variation in tangent coordinates (Discretization.variation, docs/mathematics.md §4):
+    the linearized global error is sum_k c_k (its terminal miss is what refinement drives below the tolerance)."""
+    A, N = variations(problem, X, U, steps), len(steps)
+    c = np.empty_like(z)
+    P = np.eye(NZ)
+    for k in range(N - 1, -1, -1):
+        c[k] = P @ z[k]
+        P = P @ A[k]
+    return c
+
+
+def variations(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """The variation A_k (N, 12, 12) of every step of the plan X (N+1, 18) with controls U and step sizes ``steps``
+    (N,): dz_{k+1} = A_k dz_k in the tangent coordinates of transcription.geometry.state.tangent_basis (docs/mathematics.md
+    §4, Discretization.variation)."""
+    disc, N = problem.disc, len(steps)
+    W = np.asarray(disc.stage_controls(U), dtype=float)
+    A, _ = disc.variation.map(N)(X[:-1].T, W, np.asarray(steps, dtype=float)[None, :])
+    return np.asarray(A.full()).reshape(NZ, N, NZ).transpose(1, 0, 2)   # [k, i, j] = A_k[i, j]
+
+
+def tangent_norms(c: np.ndarray, problem, L: float, V: float) -> np.ndarray:
+    """max(|dx| / L, |dgamma| / (m V), |zeta|, |J^-1 dPi|) of tangent vectors c (M, 12) -> (M,): the units of the
+    continuous miss (transcription.strategy.refine.scaled_miss)."""
+    c = np.atleast_2d(c)
+    Jinv = np.linalg.inv(problem.model.inertia)
+    return np.max(np.stack([np.linalg.norm(c[:, 0:3], axis=1) / L,
+                            np.linalg.norm(c[:, 3:6], axis=1) / (problem.model.mass * V),
+                            np.linalg.norm(c[:, 6:9], axis=1), np.linalg.norm(c[:, 9:12] @ Jinv.T, axis=1)]), axis=0)
+
+
+def error_estimate(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int, L: float,
+                   V: float) -> tuple[np.ndarray, float]:
+    """(e (N,), predicted): each step's share e_k = |c_k| of the terminal error (:func:`propagated_errors`, in the
+    units of :func:`tangent_norms`) and the predicted terminal miss |sum_k c_k|."""
+    c = propagated_errors(problem, X, U, steps, local_errors(problem, X, U, steps, order))
+    return tangent_norms(c, problem, L, V), float(tangent_norms(c.sum(axis=0), problem, L, V)[0])
+
+
+def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
+    """The node density 1/h(t) (N,) on the old steps h (N,) whose local errors, e (N,) now, sum to about ``total``
+    equidistributed in time (module docstring; p = ``order``), bounded to [1/MERGE, GROWTH] times the old one."""
+    h = np.asarray(steps, dtype=float)
+    e = np.asarray(errors, dtype=float)
+    T = float(h.sum())
+    C = np.where(np.isfinite(e), e, np.nanmax(e, initial=0.0)) / h ** (order + 1)
+    C = np.maximum(C, 1e-12 * max(C.max(initial=0.0), 1e-300))
+    C = np.max(np.stack([C, np.r_[C[:1], C[:-1]], np.r_[C[1:], C[-1:]]]), axis=0)   # a neighbour's error counts
+    a = (max(total, 1e-300) / T) ** (1.0 / order)
+    return np.clip(C ** (1.0 / order) / a, 1.0 / (MERGE * h), GROWTH / h)
+
+
+def density_steps(steps: np.ndarray, density: np.ndarray) -> np.ndarray:
+    """New step sizes over the horizon of the old ``steps`` (N,) with the node density ``density`` (N,) (nodes per
+    unit time, constant on each old step): the new nodes where its integral passes the integers (rescaled so
+    that the last one is the horizon's end, kept exactly)."""
+    h = np.asarray(steps, dtype=float)
+    phi = np.r_[0.0, np.cumsum(np.asarray(density, dtype=float) * h)]
+    n = max(int(np.ceil(phi[-1] - 1e-9)), 1)
+    t_old = np.r_[0.0, np.cumsum(h)]
+    t_new = np.interp(np.linspace(0.0, phi[-1], n + 1), phi, t_old)
+    t_new[-1] = t_old[-1]
+    return np.diff(t_new)
+
+
+def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
+    """New step sizes (N',) over the same horizon whose local errors sum to about ``total`` and are
+    equidistributed in time (module docstring): steps h (N,), their local errors e (N,), the scheme's order p."""
+    return density_steps(steps, equidistributed_density(steps, errors, order, total))
+
+
+def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
+    """The mesh refined uniformly in its own density: about ``factor`` times as many steps, each old step's
+    share kept (refinement for what the local errors do not locate, a path constraint between the nodes)."""
+    h = np.asarray(steps, dtype=float)
+    n = max(int(np.ceil(factor * len(h))), 1)
+    t_old = np.r_[0.0, np.cumsum(h)]
+    t_new = np.interp(np.linspace(0.0, len(h), n + 1), np.arange(len(h) + 1), t_old)
+    t_new[-1] = t_old[-1]
+    return np.diff(t_new)
+
+
+# ---------------------------------------------------------------- path constraints between the nodes (§16)
+#: at most this many violated node intervals (the worst) set the drift's step sizes of one level
+MAX_TARGETS = 32
+#: the least share of the path tolerance left to the chords between the nodes, and to the drift before them
+MIN_SHARE = 0.05
+
+
+def interval_margins(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, scales, samples: int,
+                     restart: bool) -> np.ndarray:
+    """The margins (n_constraints, N, samples) of every path constraint at the samples s = 1/M, ..., 1 of each node
+    interval (M = ``samples``), times its scale
+    (``scales``: the units of transcription.strategy.refine.path_violation), on the plan's controls flown in continuous
+    time (transcription.dynamics.flight, ``samples`` per interval, as the continuous check): ``restart`` False --
+    one flight from X_0 (what the check measures); True -- each interval flown from the plan's own node X_k (the
+    chord between two nodes alone, without the drift accumulated before t_k).  Raises FlightError if a flight fails."""
+    from ..dynamics.flight import Actuators, FlightError, OpenLoop, fly, interval_integrator
+    from ..results.solution import Trajectory
+
+    N, M, model = len(steps), int(samples), problem.model
+    law, act = OpenLoop.of_controls(problem.scheme, U), Actuators(force_frame=problem.disc.force_frame)
+    if restart:
+        fn = interval_integrator(model, M)
+        p = np.concatenate([np.linalg.inv(model.inertia).ravel(order="F"), act.vector()])
+        try:
+            _, Xs = fn.map(N)(X[:-1].T, np.vstack([law.start, law.end, np.asarray(steps, float)[None, :]]),
+                              np.repeat(p[:, None], N, axis=1))
+        except RuntimeError as e:
+            raise FlightError(f"an interval flown from its node failed (CVODES): {str(e).strip()[-200:]}") from None
+        Xs = np.asarray(Xs.full()).T                                        # (N M, 18), interval-major
+    else:
+        Xs = fly(model, X[0], np.r_[0.0, np.cumsum(steps)], law, act, samples=M).X[1:]
+    traj = Trajectory(t=np.zeros(len(Xs)), X=Xs, mass=model.mass, inertia=model.inertia)
+    return np.stack([c.margin(traj).reshape(N, M) * s for c, s in zip(problem.constraints, scales)])
+
+
+def margin_gradients(constraint, X: np.ndarray, scale: float, mass: float, inertia: np.ndarray,
+                     eps: float = 1e-6) -> np.ndarray:
+    """w (K, 12): the gradient of ``constraint``'s margin (times ``scale``) at the states X (K, 18) in the tangent
+    coordinates z of transcription.geometry.state.tangent_basis (X + D(X) z), by central differences of size eps (the
+    margins are smooth in X; a cone's cosine is linear in R, so R + eps R S(e_i) off SO(3) costs only O(eps^2))."""
+    from ..geometry.state import tangent_basis
+    from ..results.solution import Trajectory
+
+    X = np.atleast_2d(np.asarray(X, float))
+    K = X.shape[0]
+    D = np.stack([tangent_basis(x) for x in X]).transpose(0, 2, 1)            # (K, 12, 18)
+    S = np.concatenate([(X[:, None, :] + eps * D).reshape(-1, 18), (X[:, None, :] - eps * D).reshape(-1, 18)])
+    m = constraint.margin(Trajectory(t=np.zeros(len(S)), X=S, mass=mass, inertia=inertia)) * scale
+    return (m[:K * NZ] - m[K * NZ:]).reshape(K, NZ) / (2.0 * eps)
+
+
+def drift_shares(A: np.ndarray, z: np.ndarray, nodes: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """S (n, N): S[i, k] = |w_i A_{j-1} ... A_{k+1} z_k| for k < j = nodes[i], 0 for k >= j -- step k's share of the
+    flown path's drift at node j seen through the constraint's gradient w_i (12,): the linearized drift of the margin
+    at node j is sum_k w_i A_{j-1} ... A_{k+1} z_k (z (N, 12) the local errors, A (N, 12, 12) the variations;
+    :func:`propagated_errors` with node j for the final one)."""
+    nodes = np.asarray(nodes, int)
+    S = np.zeros((len(nodes), len(z)))
+    V = np.asarray(w, float).copy()
+    for k in range(int(nodes.max(initial=0)) - 1, -1, -1):
+        live = nodes > k
+        S[:, k] = np.where(live, np.abs(V @ z[k]), 0.0)
+        V = np.where(live[:, None], V @ A[k], V)
+    return S
+
+
+def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int, tol: float, scales,
+                 samples: int) -> np.ndarray | None:
+    """The node density (N,) (nodes per unit time on each old step; 0 where the path constraints ask nothing) that
+    aims the flown path's violation of the path constraints between the nodes at ``tol``; None when the flight
+    leaves no constraint by more than tol (docs/mathematics.md §16, "Path constraints between the nodes").
+
+    Measured on interval k: v_k (the flight from X_0, as the continuous check) and its chord c_k (the interval flown
+    from the plan's own node X_k).  Both parts are O(h^2): the chord in the interval's own step, the drift
+    d_k = v_k - c_k in the steps before it (their local errors propagated to node k+1 along the constraint's
+    gradient, :func:`drift_shares`).  The tolerance is shared: tol_c for the chords, tol_d = tol - tol_c for the drift,
+    split where the two rules need the fewest steps together (:func:`chord_share`).
+    Every step whose chord -- near a contact at least its sagitta (:func:`contact_sagitta`), the chord it has when
+    the re-solved plan's contact falls inside it -- is over its share gets h_k sqrt(tol_c / c_k); before each
+    violated interval whose drift is over tol_d (the MAX_TARGETS worst), the steps equidistribute their drift shares
+    with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the
+    LGVI D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest
+    density of the rules is kept, on each step and its two neighbours, at most GROWTH times the old one."""
+    h = np.asarray(steps, float)
+    gi = interval_margins(problem, X, U, h, scales, samples, restart=False).min(axis=2)
+    v, worst = np.maximum(-gi.min(axis=0), 0.0), np.argmin(gi, axis=0)
+    gs = interval_margins(problem, X, U, h, scales, samples, restart=True)
+    c = np.maximum(-gs.min(axis=(0, 2)), 0.0)
+    chord = np.maximum(c, contact_sagitta(problem, X, gs, scales))
+    targets = np.argsort(-v)[:MAX_TARGETS]
+    targets = targets[v[targets] > tol]
+    if not targets.size:
+        over = chord > tol
+        return _with_neighbours(np.where(over, np.sqrt(chord / tol) / h, 0.0), h) if np.any(over) else None
+    z, A = local_errors(problem, X, U, h, order), variations(problem, X, U, h)
+    w = np.vstack([margin_gradients(problem.constraints[worst[k]], X[k + 1], scales[worst[k]], problem.model.mass,
+                                    problem.model.inertia) for k in targets])
+    S = drift_shares(A, z, targets + 1, w)
+    tol_c = chord_share(h, chord, S[0, :targets[0] + 1], order, tol)
+    tol_d = tol - tol_c
+    dens = np.where(chord > tol_c, np.sqrt(chord / tol_c) / h, 0.0)
+    for i, k in enumerate(targets):
+        d, D = v[k] - c[k], S[i, :k + 1]
+        if d > tol_d and D.sum() > 0:     # the shares' sum aimed at tol_d D / d: calibrated by the flight's drift
+            dens[:k + 1] = np.maximum(dens[:k + 1], equidistributed_density(h[:k + 1], D, order, tol_d * D.sum() / d))
+    return _with_neighbours(dens, h)
+
+
+def chord_share(steps: np.ndarray, chord: np.ndarray, shares: np.ndarray, order: int, tol: float) -> float:
+    """tol_c: the part of ``tol`` for the chords (the rest, tol - tol_c, for the drift) for which the two rules of
+    :func:`path_density` need the fewest steps together.  The chords' rule needs N_c = a / sqrt(tol_c) steps,
+    a = sum over the steps with a chord of sqrt(c_k); equidistributing the worst interval's drift ``shares`` S_k
+    (its first len(shares) steps, of total length T_s) needs N_d = b / tol_d^(1/p), b = T_s^(1/p) sum_k h_k
+    (S_k / h_k^(p+1))^(1/p).  For p = 2 the least a / sqrt(tol_c) + b / sqrt(tol - tol_c) is at
+    tol_c / tol_d = (a / b)^(2/3); the chords' part is kept within [MIN_SHARE, 1 - MIN_SHARE] tol."""
+    h = np.asarray(steps, float)
+    a = float(np.sqrt(np.maximum(chord, 0.0)).sum())
+    hs = h[:len(shares)]
+    b = float(hs.sum() ** (1.0 / order) * (hs * (np.asarray(shares) / hs ** (order + 1)) ** (1.0 / order)).sum())
+    q = (a / b) ** (2.0 / 3.0) if b > 0 else np.inf
+    return tol * float(np.clip(q / (1.0 + q) if np.isfinite(q) else 1.0, MIN_SHARE, 1.0 - MIN_SHARE))
+
+
+def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarray:
+    """sigma_k (N,): the chord violation a step near a contact may have when the re-solved plan's contact falls inside
+    it -- the sagitta max_s [(1 - s) g_k + s g_{k+1} - g(s)] of each constraint's margin g over step k flown from
+    the plan's node (``gs`` (n_constraints, N, M) of :func:`interval_margins` with restart, at s = 1/M, ..., 1;
+    g_k the plan's node margins), counted where the step is that close to the boundary (min(g_k, g_{k+1}) <= the
+    sagitta), and at most as large as a neighbouring step's; 0 elsewhere.  Near a touch point g(t) ~ a (t - t_c)^2
+    the sagitta is a h_k^2 / 4, and a contact inside the step pushes both its nodes onto the boundary, so the path
+    dips by that much between them (measured: the keep-out slew).  A contact is two-sided: at an arc's end one
+    neighbour is the arc, whose chord is small, and the margin leaving the arc does not dip -- hence the neighbour."""
+    from ..results.solution import Trajectory
+
+    M = gs.shape[2]
+    traj = Trajectory(t=np.zeros(len(X)), X=X, mass=problem.model.mass, inertia=problem.model.inertia)
+    g = np.stack([c.margin(traj) * s for c, s in zip(problem.constraints, scales)])        # (n_c, N+1)
+    sj = np.arange(1, M + 1) / M
+    lin = (1.0 - sj) * g[:, :-1, None] + sj * g[:, 1:, None]
+    sag = np.max(lin - gs, axis=2)
+    sag = np.where(np.minimum(g[:, :-1], g[:, 1:]) <= sag, sag, 0.0)
+    side = np.maximum(np.pad(sag[:, :-1], ((0, 0), (1, 0))), np.pad(sag[:, 1:], ((0, 0), (0, 1))))
+    return np.max(np.minimum(sag, side), axis=0)
+
+
+def _with_neighbours(dens: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Each step's density the largest of its own and its two neighbours' (the re-solved plan's contact moves by
+    about a step: an arc's end must not land in a step left coarse), at most GROWTH / h_k."""
+    return np.minimum(np.max(np.stack([dens, np.r_[dens[:1], dens[:-1]], np.r_[dens[1:], dens[-1:]]]), axis=0),
+                      GROWTH / h)
+
+
+__all__ = ["GROWTH", "MAX_TARGETS", "MERGE", "MIN_SHARE", "chord_share", "contact_sagitta", "density_steps",
+           "drift_shares", "equidistributed_density", "equidistributed_steps", "error_estimate", "interval_margins",
+           "local_errors", "margin_gradients", "path_density", "propagated_errors", "subdivided_steps", "tangent_norms",
+           "variations"]

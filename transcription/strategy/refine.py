@@ -1,0 +1,299 @@
+"""Accuracy on demand (issue 26, docs/mathematics.md §11): every smooth-control Solution of ``solve`` is flown
+in continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined
+until that flight lands within the tolerance.
+
+:class:`AccuracyOptions` (transcription/options.py, with the other options) are the ``solver`` block's own
+keys (beside ``direct`` and ``indirect``): ``continuous_check`` (default true), ``accuracy`` (absent or null:
+today's fixed N), ``max_N`` and ``max_levels``.  :func:`attach_checks` stores a :class:`~transcription.results.check.ContinuousCheck` on every
+successful smooth-control Solution (``sol.continuous``); failed solves skip it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from ..options import CHECK_ENV, AccuracyOptions
+from ..miss import characteristic_length as _length, scaled_miss
+from ..results.solution import Result, Solution, trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..solve import Comparison
+
+__all__ = ["CHECK_ENV", "AccuracyOptions", "attach_checks", "out_of_reach", "refine", "scaled_miss"]
+
+def _solutions(out: "Solution | Comparison") -> list[Solution]:
+    return list(out.solutions.values()) if hasattr(out, "solutions") else [out]
+
+
+def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
+    """Fly every successful smooth-control Solution of ``out`` (:func:`~transcription.results.check.continuous_check`)
+    and store the check as ``sol.continuous`` (a check already there is kept).  Failed solves, impulsive plans
+    and simulations are left alone.  Returns ``out``."""
+    from ..results.check import continuous_check
+
+    for s in _solutions(out):
+        if s.continuous is None and s.converged and s.problem is not None and s.problem.kind == "smooth" \
+                and s.controls is not None:
+            s.continuous = continuous_check(s)
+    return out
+
+
+# ---------------------------------------------------------------------------- refinement to a tolerance
+#: the order of each scheme's global error in h (docs/mathematics.md §2, §3; measured slopes 2.00 and 1.04)
+ORDER = {"lgvi": 2, "first_order": 1}
+#: N of the next level = SAFETY N (miss / tol)^(1/p), at least twice N and at most GROWTH N
+SAFETY, GROWTH = 1.2, 32
+#: the most favourable order a level's miss may fall with: the best of the schemes' (the LGVI's 2).  The first-order
+#: scheme can reach it too -- on the rest-to-rest time-optimal slew its miss falls from 3.9e-4 at N = 200 to 4.9e-7 at
+#: N = 6400, slope 1.93 -- so its nominal ORDER of 1 would wrongly refuse a tolerance it reaches
+BEST_ORDER = max(ORDER.values())
+#: the most an adaptive mesh is credited with over a uniform one of the same order: steps / ADAPTIVE_GAIN (measured
+#: savings over the ideal uniform mesh: 27 % on the slew at 1e-6, 8-11 % on E3 and E4, docs/mathematics.md §16)
+ADAPTIVE_GAIN = 2.0
+
+
+def path_violation(check, problem) -> float:
+    """How far the flown path leaves the path constraints between the nodes, in the units of :func:`scaled_miss`:
+    max(0, -smallest margin) over the constraints, a cone's margin (deg) in rad, a radius relative to L, a rate in
+    rad per time unit; 0 without constraints."""
+    from ..results.check import margin_keys
+
+    worst = 0.0
+    for key, s in zip(margin_keys(problem.constraints), margin_scales(problem)):
+        worst = max(worst, -check.min_margins.get(key, 0.0) * s)
+    return float(worst)
+
+
+def margin_scales(problem) -> list[float]:
+    """The factor that takes each path constraint's margin into the units of :func:`scaled_miss`: a cone's (deg)
+    pi / 180, a radius's 1 / L, a rate's 1."""
+    from ..ocp import MARGIN_DIMENSION
+
+    scale = {"angle": np.pi / 180.0, "length": 1.0 / _length(problem)}
+    return [scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
+
+
+
+
+def next_N(N: int, ratio: float, order: float, max_N: int) -> int:
+    """The N of the next level from this level's error ratio (miss / tol, > 1) and the scheme's observed order:
+    SAFETY N ratio^(1/order), at least 2 N (uniform doubling at least), at most GROWTH N; not capped at max_N
+    (the caller refuses a level beyond it)."""
+    want = SAFETY * N * ratio ** (1.0 / order) if np.isfinite(ratio) else 2 * N
+    return int(min(max(np.ceil(want), 2 * N), GROWTH * N))
+
+
+def observed_order(levels: list[dict], scheme: str) -> float:
+    """The order to extrapolate with: the scheme's (ORDER), or the slope of the last two levels' misses in N when
+    it is lower (clamped to at least 0.5)."""
+    p = float(ORDER[scheme])
+    if len(levels) >= 2:
+        a, b = levels[-2], levels[-1]
+        if a["miss"] > 0 and b["miss"] > 0 and b["N"] > a["N"]:
+            slope = np.log(a["miss"] / b["miss"]) / np.log(b["N"] / a["N"])
+            if np.isfinite(slope):
+                p = float(min(p, max(slope, 0.5)))
+    return p
+
+
+def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: bool = False) -> "Solution | Comparison":
+    """Solve ``problem`` on refined meshes until the continuous check lands within ``opts.accuracy``
+    (docs/mathematics.md §11, "Refinement to a tolerance"; §16, the adaptive mesh).
+
+    run(problem, warm) -> Solution | Comparison is one solve on the problem's own grid.  Level 0 solves on the given
+    N (from ``warm`` if any); each following level on the mesh of :func:`next_mesh` -- ``adaptive`` (the methods
+    take a non-uniform mesh and ``opts.refinement`` is 'adaptive'): steps equidistributing the estimated error
+    (transcription.strategy.mesh); else :func:`next_N` uniform steps -- warm-started from the previous level's solution
+    (resampled on SE(3) by the methods, transcription.results.start).  It stops when the miss and the path violation are
+    within the tolerance, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.  The last
+    level's result is returned, its Solutions carrying the mesh history (``sol.mesh``: level, N, mesh, h_min,
+    h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']`` and a
+    sentence in the message."""
+    tol, levels, prob = float(opts.accuracy), [], problem
+    while True:
+        t0 = time.perf_counter()
+        out = attach_checks(run(prob, warm))
+        rec, best = _record(out, prob, len(levels), time.perf_counter() - t0)
+        levels.append(rec)
+        if best is None:
+            return _finish(out, levels, False, f"refinement stopped at level {rec['level']} (N = {prob.N}): "
+                                                f"{rec['status']}")
+        worst = max(rec["miss"], rec["path_violation"]) / tol
+        if not worst > 1.0:
+            return _finish(out, levels, True, f"refined to accuracy {tol:.3g}: continuous miss {rec['miss']:.2e} at "
+                                              f"N = {prob.N} after {len(levels)} level(s)")
+        least = least_N(prob.N, worst, adaptive)
+        if least > opts.max_N:    # even the most favourable order cannot land within max_N: no further level
+            return _finish(out, levels, False, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N))
+        p = observed_order(levels, prob.scheme)
+        mesh = next_mesh(prob, best, rec, tol, p) if adaptive else None
+        if mesh is not None:      # the miss this level's error estimate predicts (its calibration)
+            rec["predicted"] = float(mesh[1])
+        N = next_N(prob.N, worst, p, opts.max_N) if mesh is None else len(mesh[0])
+        if N > opts.max_N or len(levels) >= opts.max_levels:
+            limit = f"solver.max_N = {opts.max_N}" if N > opts.max_N else f"solver.max_levels = {opts.max_levels}"
+            return _finish(out, levels, False, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit))
+        T = min(max(best.T, prob.time_bounds[0]), prob.time_bounds[1]) if prob.free_time else prob.T
+        prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=None if mesh is None else mesh[0]), best.warm
+
+
+def least_N(N: int, ratio: float, adaptive: bool) -> float:
+    """The fewest steps that could bring a level's error (``ratio`` = miss / tol, > 1, at N steps) within the
+    tolerance: N ratio^(1/BEST_ORDER), divided by ADAPTIVE_GAIN on an adaptive mesh -- an optimistic estimate, so
+    that a tolerance it puts above max_N is out of reach whichever order the scheme shows (docs/mathematics.md §16,
+    "Out of reach after the first level")."""
+    return N * ratio ** (1.0 / BEST_ORDER) / (ADAPTIVE_GAIN if adaptive else 1.0)
+
+
+def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int) -> str:
+    """'accuracy 1e-09 not reached: the continuous miss 6.01e-04 at N = 200 would need N ≈ 7.8e+04 even if it
+    fell at O(h^2), ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
+    what = (f"the continuous miss {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
+            f"the path violation {rec['path_violation']:.2e}")
+    gain = f", with an adaptive mesh credited with {ADAPTIVE_GAIN:g} times fewer steps" if adaptive else ""
+    return (f"accuracy {tol:.3g} not reached: {what} at N = {N} would need N ≈ {least:.2g} even if it fell at "
+            f"O(h^{BEST_ORDER}), the best order of either scheme{gain}, above solver.max_N = {max_N}, so no further "
+            f"level was solved: raise solver.max_N to at least {least:.2g} or loosen solver.accuracy")
+
+
+def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> tuple[np.ndarray, float]:
+    """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
+    §16): the local error of every step by step doubling, propagated to the final node (transcription.strategy.mesh); the
+    steps equidistribute it with the sum of the shares e_k aimed at tol / SAFETY times the measured miss's share of
+    that sum (the estimate calibrated by the flight).  When the flown path leaves a path constraint between the
+    nodes by more than tol, :func:`path_mesh` refines also where that violation is made: the steps before it, whose
+    local errors drift the flown path off the plan there (the keep-out slew's contact at t = 5 s: 98 % of its
+    9.9e-5 rad at N = 100 is that drift, 1.7e-6 the chord between the nodes -- why splitting only the steps where the
+    cone is left moved it from 9.7e-5 to 8.9e-5 rad in 8 levels), and the steps about a contact.  If that rule
+    finds nothing, the mesh is subdivided in its own density by the uniform factor of :func:`next_N`."""
+    from .mesh import equidistributed_steps, error_estimate, subdivided_steps
+
+    p = ORDER[problem.scheme]
+    L = _length(problem)
+    V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
+    e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, L, V)
+    if rec["path_violation"] > tol:
+        mesh = path_mesh(problem, best, e, rec, tol)
+        if mesh is not None:
+            return mesh, predicted
+    if rec["path_violation"] > rec["miss"] or not (e.sum() > 0 and rec["miss"] > 0):
+        factor = next_N(problem.N, max(rec["miss"], rec["path_violation"]) / tol, order, 0) / problem.N
+        return subdivided_steps(best.steps, factor), predicted
+    return equidistributed_steps(best.steps, e, p, tol / SAFETY * e.sum() / rec["miss"]), predicted
+
+
+def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float) -> np.ndarray | None:
+    """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
+    (docs/mathematics.md §16, "Path constraints between the nodes"): the node density of the terminal miss's rule
+    (:func:`next_mesh`; 1 / h_k, the mesh kept, when there is no miss to aim at) and that of
+    transcription.strategy.mesh.path_density (the steps about a contact and the steps whose local errors drift the path to a
+    violation, aimed at tol / SAFETY), the larger of the two on every step.  None when the path rule finds nothing
+    over the tolerance (the caller subdivides)."""
+    from ..dynamics.flight import DEFAULT_SAMPLES, FlightError
+    from .mesh import density_steps, equidistributed_density, path_density
+
+    p, h = ORDER[problem.scheme], best.steps
+    try:
+        dens = path_density(problem, best.trajectory.X, best.controls, h, p, tol / SAFETY, margin_scales(problem),
+                            DEFAULT_SAMPLES)
+    except FlightError:       # an interval flown from its own node failed: subdivide as before
+        dens = None
+    if dens is None:
+        return None
+    if e.sum() > 0 and rec["miss"] > 0:
+        dens = np.maximum(dens, equidistributed_density(h, e, p, tol / SAFETY * e.sum() / rec["miss"]))
+    else:
+        dens = np.maximum(dens, 1.0 / h)
+    return density_steps(h, dens)
+
+
+def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str) -> str:
+    """'accuracy 1e-06 not reached: ... would need N ~ 1.6e+07 (first_order, error O(h^1)), above ...; the lgvi
+    scheme (O(h^2)) would need N ~ ...' -- the one line of a tolerance out of reach."""
+    need = N * (miss / tol) ** (1.0 / order)
+    out = (f"accuracy {tol:.3g} not reached: the continuous miss {miss:.2e} at N = {N} would need N ≈ {need:.2g} "
+           f"({scheme}, error O(h^{order:g})), above {limit}")
+    if scheme != "lgvi":
+        # the second-order scheme's error constant is about the first-order one's (E3, E4: within a factor 10)
+        lg = N * (miss / tol) ** 0.5
+        out += f"; the lgvi scheme (O(h²)) would need N ≈ {lg:.2g}: use discretization: lgvi"
+    return out
+
+
+def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | None]:
+    """The mesh-history record of one level and the Solution to continue from (the direct one if flown; None
+    when no method converged and was flown)."""
+    sols = [s for s in _solutions(out) if s.continuous is not None and s.continuous.ok]
+    check_s = sum(s.continuous.elapsed_s for s in sols)
+    miss = max((scaled_miss(s.continuous, problem) for s in sols), default=math.nan)
+    viol = max((path_violation(s.continuous, problem) for s in sols), default=math.nan)
+    steps = problem.steps
+    rec = {"level": level, "N": int(problem.N), "mesh": "uniform" if problem.uniform else "adaptive",
+           "h_min": float(steps.min()), "h_max": float(steps.max()), "miss": float(miss), "path_violation": float(viol),
+           "iterations": int(sum(s.iterations for s in _solutions(out))), "solve_s": float(wall - check_s),
+           "check_s": float(check_s), "status": ", ".join(f"{s.method} {s.result.value}" for s in _solutions(out))}
+    best = next((s for s in sols if s.method == "direct"), sols[0] if sols else None)
+    return rec, best
+
+
+def _finish(out, levels: list[dict], met: bool, sentence: str):
+    """The mesh history, the verdict and its sentence on every Solution of the last level."""
+    for s in _solutions(out):
+        s.mesh = [dict(r) for r in levels]
+        s.stats.update(accuracy_met=bool(met), accuracy_levels=len(levels))
+        s.message += f"; {sentence}"
+    return out
+
+
+# ---------------------------------------------------------------------------- the answer before solving
+def free_motion_miss(problem, scheme: str | None = None) -> float:
+    """The a-priori error estimate of a scheme on ``problem``'s grid: :func:`scaled_miss` of its free motion (the
+    discrete motion without control, ``simulate``) against the same motion flown in continuous time.  Measured on
+    E3 and E4 (N = 100, 400), it is within a factor 1/2..16 of the converged plans' own miss (the controls add
+    their part), so the N it predicts is the right order of magnitude (docs/mathematics.md §11).  nan when the
+    free motion cannot be flown."""
+    from ..results.check import continuous_check
+    from ..dynamics.lgvi import discretization
+
+    scheme = scheme or problem.scheme
+    d = problem.disc
+    if scheme != problem.scheme:
+        problem = dataclasses.replace(problem, disc=discretization(d.model, scheme, d.newton_iters,
+                                                                   force_frame=d.force_frame))
+    X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
+    free = Solution(method="simulate", solver=scheme, result=Result.converged, message="free motion",
+                    trajectory=trajectory(problem, X), cost=math.nan, terminal_error=math.nan, iterations=0,
+                    build_s=0.0, solve_s=0.0, problem=problem)
+    check = continuous_check(free)
+    return scaled_miss(check, problem) if check is not None and check.ok else math.nan
+
+
+def out_of_reach(problem, opts: AccuracyOptions) -> str:
+    """The one-line answer before solving ('' when there is none): ``opts.accuracy`` needs more than ``opts.max_N``
+    steps of the problem's scheme by the a-priori estimate (:func:`free_motion_miss` extrapolated with the scheme's
+    order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the LGVI would need."""
+    if opts.accuracy is None or problem.kind is None:
+        return ""
+    if problem.kind != "smooth":
+        return ("refinement to an accuracy applies to smooth control (an impulsive plan coasts between its impulses "
+                "on the scheme's free motion): remove solver.accuracy")
+    tol, scheme, N = float(opts.accuracy), problem.scheme, problem.N
+    miss = free_motion_miss(problem)
+    need = N * (miss / tol) ** (1.0 / ORDER[scheme]) if miss > tol else 0.0
+    if not need > opts.max_N:
+        return ""
+    out = (f"accuracy {tol:.3g} is out of reach of the {scheme} scheme within solver.max_N = {opts.max_N}: it would "
+           f"need N ≈ {need:.2g} steps (error O(h^{ORDER[scheme]}); its free motion at N = {N} misses the continuous "
+           f"flight by {miss:.2e}); nothing was solved")
+    if scheme != "lgvi":
+        lg = free_motion_miss(problem, "lgvi")
+        need_lg = N * (lg / tol) ** 0.5 if lg > tol else N
+        out += (f"; the lgvi scheme (O(h²)) would need N ≈ {need_lg:.2g}" +
+                (": use discretization: lgvi" if need_lg <= opts.max_N else ", also above the cap"))
+    if "also above" in out or scheme == "lgvi":
+        out += ": loosen solver.accuracy or raise solver.max_N"
+    return out
