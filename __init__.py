@@ -34,8 +34,8 @@ _EXPORTS = {
     "TargetState": "transcription.ocp", "TargetOrbit": "transcription.ocp",
     "TargetRendezvous": "transcription.ocp",
     "state_from_velocities": "transcription.ocp",
-    "Solution": "transcription.results.solution", "Trajectory": "transcription.results.solution", "Result": "transcription.results.solution",
-    "Iterate": "transcription.results.solution", "SolveError": "transcription.results.solution", "Attempt": "transcription.results.solution",
+    "Solution": "transcription.results.solution", "Trajectory": "transcription.dynamics.trajectory", "Result": "transcription.outcome",
+    "Iterate": "transcription.outcome", "SolveError": "transcription.results.solution", "Attempt": "transcription.results.solution",
     "WarmStart": "transcription.results.start",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
     "tracking_gains": "transcription.closedloop.tracking", "fly": "problems.flight",
@@ -63,7 +63,9 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401
     from .transcription.strategy.refine import AccuracyOptions  # noqa: F401
     from .transcription.ocp import (ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, state_from_velocities)
-    from .transcription.results.solution import Attempt, Iterate, Result, SolveError, Solution, Trajectory  # noqa: F401
+    from .transcription.results.solution import Attempt, SolveError, Solution
+    from .transcription.outcome import Iterate, Result
+    from .transcription.dynamics.trajectory import Trajectory  # noqa: F401
     from .transcription.results.start import WarmStart  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
     from .transcription.closedloop.tracking import tracking_gains  # noqa: F401

@@ -23,7 +23,8 @@ from ..transcription.strategy.refine import AccuracyOptions
 from ..transcription.options import DirectOptions, IndirectOptions, Options
 from ..transcription.ocp import Problem
 from ..transcription import solve as _solve
-from ..transcription.results.solution import Iterate, Result, Solution
+from ..transcription.outcome import Iterate, Result
+from ..transcription.results.solution import Solution
 from ..transcription.solve import Comparison, compare
 from ..transcription.results.start import WarmStart
 from .maneuvers import Maneuver, load_maneuver

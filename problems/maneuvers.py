@@ -67,7 +67,7 @@ from ..transcription.geometry.state import pack_state
 from ..transcription.dynamics.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
 from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, spd_weight)
-from ..transcription.results.solution import Trajectory
+from ..transcription.dynamics.trajectory import Trajectory
 
 from . import moving as _moving
 from .bounds import MAX_MAGNITUDE, MIN_MAGNITUDE, bounds_margin, control_bound, magnitude

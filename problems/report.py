@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from ..transcription.ocp import BoxBound, NormBound, ThrusterBound
-from ..transcription.results.solution import Result, Solution
+from ..transcription.outcome import Result
+from ..transcription.results.solution import Solution
 from .io import atomic_write_bytes
 from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
 

@@ -19,7 +19,9 @@ import numpy as np
 
 from ..transcription.results.check import ContinuousCheck
 from ..transcription.geometry.state import pack_state
-from ..transcription.results.solution import Iterate, Result, Solution, Trajectory, to_jsonable
+from ..transcription.outcome import Iterate, Result
+from ..transcription.results.solution import Solution, to_jsonable
+from ..transcription.dynamics.trajectory import Trajectory
 from ..transcription.solve import Comparison, compare
 from .io import write_json, write_npz, write_yaml
 from .maneuvers import Maneuver, parse_maneuver

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 from support import CONFIGS
 from test_cli import run
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"

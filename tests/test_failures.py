@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import failure_cases as ft
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 from support import CONFIGS, ROOT
 
 

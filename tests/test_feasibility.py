@@ -16,7 +16,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.ocp.feasibility import necessary_conditions, step_failure
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 
 from support import config
 

@@ -358,7 +358,7 @@ def test_failed_flight_is_reported():
     FlightError naming CVODES, the check of such a 'plan' carries nan and the message."""
     import dataclasses
 
-    from se3ocp.transcription.results.solution import Trajectory
+    from se3ocp.transcription.dynamics.trajectory import Trajectory
 
     prob = maneuver("free", 100, None, "horizon.T=0.5").problem
     X0 = prob.X0.copy()

@@ -18,7 +18,7 @@ from se3ocp.transcription.methods.impulsive.sensitivity import P_COLS, sensitivi
 from se3ocp.transcription.methods.impulsive.tpbvp import initial_momenta, solve_tpbvp, tpbvp_jacobian, tpbvp_residual
 from se3ocp.transcription.geometry.so3 import exp_so3, hat, log_so3
 from se3ocp.transcription.ocp import orbit_conditions
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 from support import maneuver, problem
 
 

@@ -19,7 +19,8 @@ from se3ocp.transcription.methods.indirect.control import bound_data, control_co
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 from se3ocp.transcription.methods.indirect.solve import (lam0_from_costates, outer_errors, quadratic_constant, solve_indirect)
 from se3ocp.transcription.options import IndirectOptions, OptionError
-from se3ocp.transcription.results.solution import Result, Solution
+from se3ocp.transcription.outcome import Result
+from se3ocp.transcription.results.solution import Solution
 from se3ocp.transcription.results.start import WarmStart
 import support
 

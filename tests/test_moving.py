@@ -18,7 +18,7 @@ from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from se3ocp.transcription.methods.indirect.solve import not_covered
 from se3ocp.transcription.options import DirectOptions
 from se3ocp.transcription.ocp import KeepIn, KeepOut, TargetRendezvous, rendezvous_residual
-from se3ocp.transcription.results.solution import Trajectory
+from se3ocp.transcription.dynamics.trajectory import Trajectory
 
 from support import config, maneuver
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from se3ocp.transcription.methods.newton import newton_armijo, noise_level
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 
 
 def _system(x):

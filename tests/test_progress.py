@@ -17,7 +17,7 @@ import se3ocp
 from se3ocp.problems.api import _printer
 from se3ocp.problems.cli.progress import Progress
 from se3ocp.transcription.strategy import homotopy
-from se3ocp.transcription.results.solution import Iterate
+from se3ocp.transcription.outcome import Iterate
 from support import maneuver
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.results.solution import Attempt, Result, Solution, Trajectory, result_of_solver_status
+from se3ocp.transcription.results.solution import Attempt, Solution
+from se3ocp.transcription.outcome import Result, result_of_solver_status
+from se3ocp.transcription.dynamics.trajectory import Trajectory
 from support import maneuver
 
 

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.results.solution import Result, Solution, Trajectory
+from se3ocp.transcription.outcome import Result
+from se3ocp.transcription.results.solution import Solution
+from se3ocp.transcription.dynamics.trajectory import Trajectory
 from se3ocp.transcription.solve import compare
 from support import maneuver
 

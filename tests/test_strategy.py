@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.results.solution import Result
+from se3ocp.transcription.outcome import Result
 from support import maneuver
 
 #: configs/everyday/detumble.yaml: Newton from lambda_0 = 0 ends at max_iterations (|z_N| ~ 1.5 after 50

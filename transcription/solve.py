@@ -29,7 +29,9 @@ from .methods.indirect import INDIRECT
 from .methods.indirect.solve import needs_fallback, with_fallback
 from .options import DirectOptions, IndirectOptions
 from .ocp import Problem, terminal_error
-from .results.solution import Attempt, Result, SolveError, Solution, html_table, trajectory
+from .results.solution import Attempt, SolveError, Solution, html_table
+from .outcome import Result
+from .dynamics.trajectory import trajectory
 from .results.start import WarmStart, as_warm_start
 
 #: the registry: each method name and its implementations (one per kind of control)

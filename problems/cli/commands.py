@@ -72,7 +72,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_solve(args) -> int:
-    from ...transcription.results.solution import Result
+    from ...transcription.outcome import Result
     from ...transcription.strategy.refine import out_of_reach
     from ...transcription.solve import not_covered
     from .. import api, store

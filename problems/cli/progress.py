@@ -64,7 +64,7 @@ def table(sols) -> list[str]:
     """The side-by-side table; the text columns are as wide as their widest entry (a status is
     never cut, however long).  ``cont. miss``: Solution.continuous_miss, the continuous check's scaled terminal
     miss (position / L, velocity / V, rad, rad per time unit; the number solver.accuracy bounds)."""
-    from ...transcription.results.solution import Result
+    from ...transcription.outcome import Result
 
     sols = list(sols)
     mw = max([len("method")] + [len(s.method) for s in sols])

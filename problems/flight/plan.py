@@ -23,7 +23,9 @@ from ...transcription.dynamics.flight import Actuators
 from ...transcription.geometry.state import NX, X_ANG, X_MOM, X_POS, X_ROT
 from ...transcription.geometry.so3 import exp_so3
 from ...transcription.dynamics.model import BodyModel
-from ...transcription.results.solution import Result, Solution, Trajectory
+from ...transcription.outcome import Result
+from ...transcription.results.solution import Solution
+from ...transcription.dynamics.trajectory import Trajectory
 from ...transcription.results.start import warm_start_of
 from ..maneuvers import Maneuver, _body, parse_maneuver
 from ..schema import Validator

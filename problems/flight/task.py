@@ -13,7 +13,8 @@ from ...transcription.closedloop.loop import TrackingLoop
 from ...transcription.geometry.state import X_POS, X_ROT
 from ...transcription.geometry.so3 import log_so3, nearest_rotation
 from ...transcription.closedloop.mpc import Replanner, Replanning
-from ...transcription.results.solution import Trajectory, rotation_angle
+from ...transcription.dynamics.trajectory import Trajectory
+from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..plots.orbits import rtn
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model

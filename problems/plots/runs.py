@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...transcription.results.solution import Solution, Trajectory
+from ...transcription.results.solution import Solution
+from ...transcription.dynamics.trajectory import Trajectory
 from ...transcription.solve import Comparison
 from .style import COLORS, STYLES
 

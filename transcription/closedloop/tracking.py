@@ -494,7 +494,8 @@ def sub_stepped(sol, h_max: float | None = None):
     linear from u_k to u_{k+1}, first order: u_{k+1} held), its last sub-node X_{k+1} itself (so every node of the plan
     is a node of the result, at the same time).  A Solution (node times, states, controls; the plan's Problem);
     ``sol`` itself when no step is longer (a uniform plan)."""
-    from ..results.solution import Solution, Trajectory
+    from ..results.solution import Solution
+    from ..dynamics.trajectory import Trajectory
 
     t, X, U, disc = np.asarray(sol.trajectory.t, float), np.asarray(sol.trajectory.X, float), sol.controls, sol.problem.disc
     hk = np.diff(t)

@@ -36,7 +36,7 @@ import numpy as np
 from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, join_state, split_state
 from ..geometry.so3 import orthogonality_error
 from .model import BodyModel
-from ..results.solution import Trajectory
+from .trajectory import Trajectory
 
 #: CVODES (Adams, functional iteration: the equations are not stiff) relative and absolute tolerances.
 #: CVODES restarts at every node, and each interval adds an error of about RTOL relative: over N

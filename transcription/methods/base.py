@@ -16,7 +16,9 @@ from dataclasses import dataclass, replace
 from typing import Callable, Protocol
 
 from ..ocp import Problem, terminal_error
-from ..results.solution import Iterate, Result, Solution, trajectory
+from ..outcome import Iterate, Result
+from ..results.solution import Solution
+from ..dynamics.trajectory import trajectory
 from ..results.start import WarmStart
 
 Progress = Callable[[Iterate], None]

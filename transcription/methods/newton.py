@@ -35,7 +35,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..results.solution import Iterate, Result
+from ..outcome import Iterate, Result
 
 _EPS = np.finfo(float).eps
 #: near the floor (|F| <= floor_factor^2 x the measured level) the line search gives up after this many halvings

@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 
 from ..options import DirectOptions, raw_solver_value
-from ..results.solution import Iterate
+from ..outcome import Iterate
 from .structured import StructuredNLP
 
 #: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling,

@@ -28,7 +28,7 @@ import numpy as np
 from ..geometry.state import X_ANG, split_state
 from . import MaxAngularRate, Problem, SmoothControl, TargetState
 from ..geometry.so3 import rotation_angle
-from ..results.solution import Result
+from ..outcome import Result
 
 #: a requirement is refused only when it exceeds the largest achievable value by more than this
 #: fraction of that value plus SLACK times the size of the quantities compared (a target met to a

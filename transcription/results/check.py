@@ -17,7 +17,8 @@ import numpy as np
 from ..geometry.state import X_ANG, X_MOM, X_ROT
 from ..geometry.so3 import nearest_rotation, orthogonality_error, rotation_angle
 from ..ocp import terminal_error
-from .solution import Result, Trajectory
+from ..outcome import Result
+from ..dynamics.trajectory import Trajectory
 from ..dynamics.flight import DEFAULT_SAMPLES, Actuators, FlightError, OpenLoop, fly
 
 if TYPE_CHECKING:  # pragma: no cover

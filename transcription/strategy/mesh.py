@@ -148,7 +148,7 @@ def interval_margins(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, s
     one flight from X_0 (what the check measures); True -- each interval flown from the plan's own node X_k (the
     chord between two nodes alone, without the drift accumulated before t_k).  Raises FlightError if a flight fails."""
     from ..dynamics.flight import Actuators, FlightError, OpenLoop, fly, interval_integrator
-    from ..results.solution import Trajectory
+    from ..dynamics.trajectory import Trajectory
 
     N, M, model = len(steps), int(samples), problem.model
     law, act = OpenLoop.of_controls(problem.scheme, U), Actuators(force_frame=problem.disc.force_frame)
@@ -173,7 +173,7 @@ def margin_gradients(constraint, X: np.ndarray, scale: float, mass: float, inert
     coordinates z of transcription.geometry.state.tangent_basis (X + D(X) z), by central differences of size eps (the
     margins are smooth in X; a cone's cosine is linear in R, so R + eps R S(e_i) off SO(3) costs only O(eps^2))."""
     from ..geometry.state import tangent_basis
-    from ..results.solution import Trajectory
+    from ..dynamics.trajectory import Trajectory
 
     X = np.atleast_2d(np.asarray(X, float))
     K = X.shape[0]
@@ -264,7 +264,7 @@ def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarra
     the sagitta is a h_k^2 / 4, and a contact inside the step pushes both its nodes onto the boundary, so the path
     dips by that much between them (measured: the keep-out slew).  A contact is two-sided: at an arc's end one
     neighbour is the arc, whose chord is small, and the margin leaving the arc does not dip -- hence the neighbour."""
-    from ..results.solution import Trajectory
+    from ..dynamics.trajectory import Trajectory
 
     M = gs.shape[2]
     traj = Trajectory(t=np.zeros(len(X)), X=X, mass=problem.model.mass, inertia=problem.model.inertia)

@@ -19,7 +19,8 @@ from .starts import (Guess, aimed_guess, cayley_vectors, implied_effort, make_gu
 from ..geometry.state import U_FORCE, U_MOMENT, X_ANG, X_POS, X_ROT
 from ..options import DirectOptions
 from ..ocp import BoxBound, NormBound, Problem, ThrusterBound
-from ..results.solution import Result, Solution
+from ..outcome import Result
+from ..results.solution import Solution
 from ..methods.base import under
 from .fuel_continuation import counted_unbounded, fuel_start
 from .homotopy import FUEL_COARSE_FACTOR, FUEL_COARSE_MIN

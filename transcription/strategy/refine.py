@@ -18,7 +18,9 @@ import numpy as np
 
 from ..options import CHECK_ENV, AccuracyOptions
 from ..miss import characteristic_length as _length, scaled_miss
-from ..results.solution import Result, Solution, trajectory
+from ..outcome import Result
+from ..results.solution import Solution
+from ..dynamics.trajectory import trajectory
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..solve import Comparison

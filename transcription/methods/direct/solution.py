@@ -9,7 +9,9 @@ from ...dynamics.lgvi import CAYLEY_TOL
 from ...nlp.solvers import ipopt_history, solve_time_split
 from ...options import DirectOptions
 from ...ocp import Problem, control_activity, objective_value, quadrature_weights, terminal_error
-from ...results.solution import Result, Solution, Trajectory, result_of_solver_status, trajectory
+from ...outcome import Result, result_of_solver_status
+from ...results.solution import Solution
+from ...dynamics.trajectory import Trajectory, trajectory
 from ...results.start import warm_start_of
 from ...nlp.transcription import SmoothTranscription
 

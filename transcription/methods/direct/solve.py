@@ -12,7 +12,8 @@ from ...strategy.starts import Guess, warm_guess
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...options import DirectOptions
 from ...ocp import Problem
-from ...results.solution import Attempt, Result, Solution
+from ...results.solution import Attempt, Solution
+from ...outcome import Result
 from ...results.start import WarmStart
 from ..base import Progress, Reporting, failed_solution
 from .fatrop import try_fatrop

@@ -17,7 +17,7 @@ from ...geometry.state import NX, split_state, unpack_states
 from ...dynamics.lgvi import CAYLEY_TOL, per_discretization
 from ...options import DirectOptions
 from ...ocp import Problem, orbit_conditions
-from ...results.solution import Iterate, Result
+from ...outcome import Iterate, Result
 from .relaxed import relaxed_unknown_scales
 from .sensitivity import P_ROWS_X
 from .tpbvp import simulate_momenta

@@ -18,7 +18,7 @@ from ...nlp.solvers import ipopt_options, make_ipopt
 from ...nlp.structured import Block, StructuredNLP
 from ...options import DirectOptions
 from ...ocp import Problem, TargetOrbit, TargetState, orbit_conditions
-from ...results.solution import Iterate
+from ...outcome import Iterate
 from .sensitivity import P_COLS
 from .tpbvp import initial_momenta, momentum_scales, simulate_momenta, solve_tpbvp
 

@@ -12,7 +12,9 @@ from ...geometry.state import unpack_states
 from ...nlp.solvers import ipopt_history
 from ...options import DirectOptions
 from ...ocp import Problem, TargetOrbit, TargetState, impulse_cost, orbit_conditions, terminal_error
-from ...results.solution import Iterate, Result, Solution, result_of_solver_status, trajectory
+from ...outcome import Iterate, Result, result_of_solver_status
+from ...results.solution import Solution
+from ...dynamics.trajectory import trajectory
 from ...results.start import WarmStart
 from ..base import Progress
 from .reduced import relaxed_reduced

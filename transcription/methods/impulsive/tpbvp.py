@@ -11,7 +11,7 @@ from ...dynamics.lgvi import CAYLEY_TOL
 from ...geometry.so3 import log_so3_any, right_jacobian_inv
 from ..newton import NewtonResult, newton_armijo
 from ...ocp import Problem, TargetOrbit, TargetState
-from ...results.solution import Iterate
+from ...outcome import Iterate
 from .sensitivity import P_COLS, sensitivity, with_momenta
 
 #: Newton target for the six TPBVP conditions (|r|_inf) and its iteration limit

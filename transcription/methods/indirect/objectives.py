@@ -31,7 +31,7 @@ import numpy as np
 from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, split_state
 from ...dynamics.lgvi import Discretization, per_discretization
 from ..newton import NewtonResult, newton_armijo
-from ...results.solution import Result
+from ...outcome import Result
 from ...ocp import BoxBound, NormBound, Problem, ThrusterBound, quadrature_weights
 from .control import NB, NO_NORM, control_matrix, control_scale
 from .conditions import costate_functions, node_law, terminal_residual_function

@@ -11,7 +11,9 @@ from ...geometry.state import NU, NZ
 from ..newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
 from ...ocp import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, objective_value, terminal_error)
-from ...results.solution import Attempt, Iterate, Result, Solution, trajectory
+from ...results.solution import Attempt, Solution
+from ...outcome import Iterate, Result
+from ...dynamics.trajectory import trajectory
 from ...results.start import WarmStart, warm_start_of
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
