@@ -35,8 +35,9 @@ _EXPORTS = {
     "TargetRendezvous": "transcription.ocp",
     "state_from_velocities": "transcription.ocp",
     "Solution": "transcription.results.solution", "Trajectory": "transcription.dynamics.trajectory", "Result": "transcription.outcome",
-    "Iterate": "transcription.outcome", "SolveError": "transcription.results.solution", "Attempt": "transcription.results.solution",
-    "WarmStart": "transcription.results.start",
+    "Iterate": "transcription.outcome", "SolveError": "transcription.results.solution", "Attempt": "transcription.results.trace",
+    "Start": "transcription.results.start", "Effort": "transcription.objectives", "Time": "transcription.objectives",
+    "Fuel": "transcription.objectives",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
     "tracking_gains": "transcription.closedloop.tracking", "fly": "problems.flight",
 }
@@ -63,10 +64,12 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .transcription.options import DirectOptions, IndirectOptions, OptionError  # noqa: F401
     from .transcription.strategy.refine import AccuracyOptions  # noqa: F401
     from .transcription.ocp import (ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, state_from_velocities)
-    from .transcription.results.solution import Attempt, SolveError, Solution
+    from .transcription.results.solution import SolveError, Solution  # noqa: F401
+    from .transcription.results.trace import Attempt  # noqa: F401
     from .transcription.outcome import Iterate, Result
     from .transcription.dynamics.trajectory import Trajectory  # noqa: F401
-    from .transcription.results.start import WarmStart  # noqa: F401
+    from .transcription.results.start import Start  # noqa: F401
+    from .transcription.objectives import Effort, Fuel, Time  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
     from .transcription.closedloop.tracking import tracking_gains  # noqa: F401
     from .problems.flight import fly  # noqa: F401

@@ -19,16 +19,16 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..transcription.strategy.refine import AccuracyOptions
+from ..transcription.strategy.refine import AccuracyOptions, each
 from ..transcription.options import DirectOptions, IndirectOptions, Options
 from ..transcription.ocp import Problem
 from ..transcription import solve as _solve
 from ..transcription.outcome import Iterate, Result
 from ..transcription.results.solution import Solution
 from ..transcription.solve import Comparison, compare
-from ..transcription.results.start import WarmStart
+from ..transcription.results.start import Start
 from .maneuvers import Maneuver, load_maneuver
-from .store import path_tolerance, solutions_of
+from .store import path_tolerance
 
 
 def load(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Maneuver:
@@ -94,34 +94,32 @@ def check_clearance(maneuver: Maneuver, result: Solution | Comparison) -> Soluti
     if need is None:
         return result
     tol = path_tolerance(maneuver)
-    changed = False
-    for s in solutions_of(result).values():
+
+    def checked(s: Solution) -> Solution:
         if s.result in (Result.not_applicable, Result.inside_central_body):
-            continue
+            return s
         r = np.linalg.norm(np.asarray(s.trajectory.x, float), axis=1)
         if r.size == 0 or not np.all(np.isfinite(r)) or r.min() >= need - tol:
-            continue
+            return s
         k = int(np.argmin(r))
         what = (f"the re-simulated path enters the central body: |x| = {r[k]:.4g} at node {k} (t = "
                 f"{s.trajectory.t[k]:.4g}), below the clearance {need:.4g} (model.central_body_radius "
                 f"{maneuver.central_body_radius:g} + the body's bounding radius {need - maneuver.central_body_radius:g})")
-        if s.result.successful:
-            hint = ("; give model.central_body_radius (> 0) or a min_radius constraint so that the direct method "
-                    "keeps the path outside" if not maneuver.central_body_radius > 0 else "")
-            s.message = f"{what}; the solver reported: {s.message}{hint}"
-            s.result = Result.inside_central_body
-        else:
-            s.message = f"{s.message}; also, {what}"
-        changed = True
-    if changed and isinstance(result, Comparison):
-        return compare(result.direct, result.indirect)
-    return result
+        if not s.result.successful:
+            return s.with_notes(f"also, {what}")
+        hint = ("; give model.central_body_radius (> 0) or a min_radius constraint so that the direct method "
+                "keeps the path outside" if not maneuver.central_body_radius > 0 else "")
+        return dataclasses.replace(s, result=Result.inside_central_body, verdict=f"{what}; the solver reported: "
+                                                                              f"{s.verdict}").with_notes(hint[2:])
+
+    out = each(result, checked)
+    return compare(out.direct, out.indirect) if isinstance(out, Comparison) else out
 
 
 def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: DirectOptions | Mapping | None = None,
           indirect: IndirectOptions | Mapping | None = None,
-          progress: bool | Callable[[Iterate], None] | None = None, warm_start: Solution | WarmStart | None = None,
-          throw: bool = False, **options) -> Solution | Comparison:
+          progress: bool | Callable[[Iterate], None] | None = None, warm_start: Solution | Start | None = None,
+          throw: bool = False, strategy=None, **options) -> Solution | Comparison:
     """Solve a maneuver (or a Problem) by ``method``: 'direct', 'indirect' or 'both'.
 
     Options: a Maneuver's ``solver`` blocks are the defaults; ``direct=`` / ``indirect=`` replace
@@ -131,8 +129,10 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     ``accuracy=1e-6``, ``max_N``, ...: :class:`~se3ocp.transcription.strategy.refine.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
     or a callable(Iterate) (``Iterate.method`` names the method, ``phase`` the solve within it, ``elapsed_s``
     the seconds since the call).  ``warm_start``: a previous Solution (or
-    its ``warm``, a WarmStart) of either method and any N or scheme: it is resampled onto this problem's grid
-    and the Solution's message and ``stats['warm_start*']`` say what was reused.
+    its ``warm``, a Start) of either method and any N or scheme: it is resampled onto this problem's grid
+    and the Solution's message and ``stats['warm_start*']`` say what was reused.  ``strategy``: how the direct method
+    composes its solves (default: the objective's, e.g. ``EffortStrategy(first_budget=100)``:
+    :mod:`se3ocp.transcription.strategy`, :mod:`se3ocp.transcription.objectives`).
 
     Returns a :class:`~se3ocp.transcription.results.solution.Solution` (for 'both' a
     :class:`~se3ocp.transcription.solve.Comparison` of the two).  A solver that fails returns a
@@ -141,7 +141,8 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     acc = accuracy_options(problem, options)
     prob, d, i = resolve(problem, method, direct, indirect, options)
     cb = _printer if progress is True else (progress or None)
-    out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, accuracy=acc)
+    out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, accuracy=acc,
+                       strategy=strategy)
     if isinstance(problem, Maneuver):
         out = check_clearance(problem, out)
     return _solve.raise_unconverged(out) if throw else out

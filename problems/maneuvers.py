@@ -68,6 +68,7 @@ from ..transcription.dynamics.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
 from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, spd_weight)
 from ..transcription.dynamics.trajectory import Trajectory
+from ..transcription.objectives import OBJECTIVES, named
 
 from . import moving as _moving
 from .bounds import MAX_MAGNITUDE, MIN_MAGNITUDE, bounds_margin, control_bound, magnitude
@@ -345,6 +346,21 @@ def _horizon(v: Validator, hdoc):
     return N, T, None, {"N": N, "T": T}
 
 
+def _objective(v: Validator, given) -> tuple:
+    """(the Objective, its resolved document) of ``control.objective``: a name of transcription.objectives.OBJECTIVES,
+    or a mapping {kind: name, <parameter>: value, ...} of its class's fields."""
+    if isinstance(given, dict):
+        params = dict(given)
+        name = v.choice(params.pop("kind", None), "control.objective.kind", tuple(OBJECTIVES))
+    else:
+        name, params = v.choice(given, "control.objective", tuple(OBJECTIVES)), {}
+    try:
+        objective = named(name, **params)
+    except ProblemError as e:
+        v.fail("control.objective", str(e).split(": ", 1)[1])
+    return objective, ({"kind": name, **params} if params else name)
+
+
 def _control(v: Validator, c):
     """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None)."""
     if c is None:
@@ -357,7 +373,7 @@ def _control(v: Validator, c):
             if k in c:
                 v.fail(f"control.{k}", f"{k} apply to smooth controls only (the impulsive cost is a sum of impulse norms)")
         return kind, ImpulsiveControl(), {"kind": kind}
-    objective = v.choice(c.get("objective", "effort"), "control.objective", ("effort", "time", "fuel"))
+    objective, objective_doc = _objective(v, c.get("objective", "effort"))
     frame = v.choice(c.get("force_frame", "inertial"), "control.force_frame", FORCE_FRAMES)
     W = {"force": np.ones(3), "moment": np.full(3, 1e4)}
     weights_doc = {"force": 1.0, "moment": 1e4}
@@ -385,7 +401,7 @@ def _control(v: Validator, c):
     if control.removed == (True, True):
         v.fail("control.bounds", "expected at most one control removed: a norm bound of 0 on both the force and the "
                                  "moment leaves nothing to steer the body (its free motion is `se3ocp simulate`)")
-    out = {"kind": kind, "objective": objective, "weights": weights_doc}
+    out = {"kind": kind, "objective": objective_doc, "weights": weights_doc}
     if bounds_doc:
         out["bounds"] = bounds_doc
     if "bounds_margin" in c:

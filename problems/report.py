@@ -240,7 +240,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
     summ = run.summary
     methods = _status_cards(sols, summ)
     comparison = None
-    if hasattr(result, "verdict"):
+    if hasattr(result, "same_extremal"):
         comparison = {"verdict": result.verdict, "agree": bool(result.same_extremal),
                       "cost_rel": _fmt(result.cost_relative_difference, "{:.2e}"),
                       "control_rel": _fmt(result.control_max_difference_relative, "{:.2e}")}

@@ -21,6 +21,7 @@ from ..transcription.results.check import ContinuousCheck
 from ..transcription.geometry.state import pack_state
 from ..transcription.outcome import Iterate, Result
 from ..transcription.results.solution import Solution, to_jsonable
+from ..transcription.results.trace import Attempt
 from ..transcription.dynamics.trajectory import Trajectory
 from ..transcription.solve import Comparison, compare
 from .io import write_json, write_npz, write_yaml
@@ -216,11 +217,13 @@ def _solution(method: str, arrays: dict[str, np.ndarray], block: dict[str, Any],
     def number(key, default=math.nan):
         return float(default if block.get(key) is None else block[key])
 
-    return Solution(method=method, solver=str(block.get("solver", "")), result=result, message=block["message"],
+    # the run's message as its verdict, its totals as one attempt (what summary.json keeps of the trace)
+    done = Attempt("the run", result, int(block["iterations"]), number("cost"), number("build_s", 0.0),
+                   number("solve_s", 0.0))
+    return Solution(method=method, solver=str(block.get("solver", "")), result=result, verdict=block["message"],
                     trajectory=Trajectory(t=arrays["t"], X=X, mass=model.mass, inertia=model.inertia),
-                    cost=number("cost"), terminal_error=number("terminal_error"), iterations=block["iterations"],
-                    build_s=number("build_s", 0.0), solve_s=number("solve_s", 0.0), problem=man.problem, controls=controls,
-                    impulses=impulses, costates=arrays.get("lam"), history=hist,
+                    cost=number("cost"), terminal_error=number("terminal_error"), trace=(done,), problem=man.problem,
+                    controls=controls, impulses=impulses, costates=arrays.get("lam"), history=hist,
                     stats={k: v for k, v in block.items() if k not in known and not k.startswith("continuous_")},
                     continuous=ContinuousCheck.from_record(block, arrays),
                     mesh=[m for m in block.get("mesh_history", []) if isinstance(m, dict)])

@@ -37,7 +37,7 @@ def one(path: str) -> dict:
             "N": man.N, "T": man.T, "result": str(sol.result), "converged": bool(sol.converged),
             "terminal_error": float(sol.terminal_error), "cost": float(sol.cost), "iterations": int(sol.iterations),
             "build_s": float(sol.build_s), "solve_s": float(sol.solve_s), "wall_s": wall,
-            "guesses_tried": [a.line() for a in sol.attempts], "message": sol.message}
+            "guesses_tried": [a.line() for a in sol.trace], "message": sol.message}
 
 
 def run(tag: str, cases: list[Path], timeout: float) -> Path:

@@ -51,7 +51,7 @@ def one(file: str, N: int, sets: list[str]) -> dict:
     wall = time.perf_counter() - t0
     return {"converged": bool(sol.converged), "status": str(sol.result), "iterations": int(sol.iterations),
             "cost": float(sol.cost), "build_s": float(sol.build_s), "solve_s": float(sol.solve_s), "wall_s": wall,
-            "objective": man.problem.control.objective, "spread": sol.stats.get("multistart_spread"),
+            "objective": str(man.problem.control.objective), "spread": sol.stats.get("multistart_spread"),
             "optima": sol.stats.get("multistart_optima"), "load": benchkit.load()}
 
 

@@ -24,7 +24,7 @@ w(0) = w(T) = 0 (``fix_initial``/``fix_final``), and the *vector part* of q(T) e
 constraints on a three-dimensional set.  The torque is bang-bang, so the control has neither value nor
 rate continuity across segments (``continuity=False, rate_continuity=False``, as in Dymos' own
 flying-robot minimum-time example).  Start: our first start (the screw interpolation with the seed-0
-symmetry-breaking torques, ``perturbed_interpolation_guess``) interpolated onto the peer's nodes, and the
+symmetry-breaking torques, ``perturbed``) interpolated onto the peer's nodes, and the
 file's T guess.
 
 **Fuel orbit raise** (configs/orbit_raise_fuel.yaml, ``orbit_raise``): the file's body is a rigid body
@@ -294,10 +294,10 @@ def build_slew(prob, N: int, guess: dict):
 def orbit_raise_guess(prob, N: int) -> dict:
     """Our first start of the fuel objective, the rollout (free motion of our scheme), at the N + 1
     nodes; thrust and torque off (magnitudes 0, directions e_1)."""
-    from se3ocp.transcription.strategy.starts import rollout_guess
+    from se3ocp.transcription.strategy.starts import rollout
     from se3ocp.transcription.geometry.state import unpack_states
 
-    g = rollout_guess(prob.disc, prob.X0, N, prob.h)
+    g = rollout(prob.replace(N=N))
     s = unpack_states(g.X)
     q = np.array([R_to_quat(R) for R in s.R])
     for k in range(1, N + 1):
@@ -513,7 +513,7 @@ def solve_peer(case: str, N: int) -> dict:
     from se3ocp.transcription.ocp import terminal_error
 
     prob = _problem(case, N)
-    slew = prob.control.objective == "time"
+    slew = prob.control.objective.free_time
     guess = slew_guess(prob, N) if slew else orbit_raise_guess(prob, N)
     here = os.getcwd()
     with tempfile.TemporaryDirectory() as tmp:     # OpenMDAO writes its colouring files to the working directory

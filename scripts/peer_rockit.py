@@ -141,15 +141,14 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
     from rockit import FreeTime, Ocp
 
     import se3ocp
-    from se3ocp.transcription.strategy.starts import target_estimate
-    from se3ocp.transcription.strategy.starts import perturbed_interpolation_guess
+    from se3ocp.transcription.strategy.starts import perturbed
     from se3ocp.transcription.geometry.state import X_ANG, X_ROT, split_state
     from se3ocp.transcription.geometry.so3 import log_so3
     from se3ocp.transcription.ocp import BoxBound
 
     prob = se3ocp.load(ROOT / "configs" / f"{STEMS[case]}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
     model, c = prob.disc.model, prob.control
-    slew = c.objective == "time"
+    slew = c.objective.free_time
     t0 = time.perf_counter()
     if slew:
         if not (c.removed[0] and model.mu is None):
@@ -169,7 +168,7 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
         Rd, Pd = prob.Xd[X_ROT].reshape(3, 3, order="F"), prob.Xd[X_ANG]
         ocp.subject_to(ca.vertcat(log_so3(ca.mtimes(ca.DM(Rd).T, ca.reshape(ZN[0:9], 3, 3))), ZN[9:12] - Pd) == 0)
         size = np.concatenate([np.zeros(3), b])
-        guess = perturbed_interpolation_guess(prob.disc, prob.X0, target_estimate(prob), N, prob.T, size, seed=0)
+        guess = perturbed(prob.replace(N=N), size, seed=0)
         ocp.set_initial(Z, np.hstack([guess.X[:, X_ROT], guess.X[:, X_ANG]]).T)
         ocp.set_initial(um, guess.U[3:6])
         ctrl = um
@@ -214,7 +213,7 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
 def relaxed_start(prob):
     """Node states (N+1, 18) and controls (6, N) of our direct solution of ``prob`` without its bounds (the
     first start of our bounded effort problems, transcription.strategy.plan.relaxation), first-order scheme."""
-    from se3ocp.transcription.methods.direct import solve_direct
+    from se3ocp.transcription.solve import solve_direct
     from se3ocp.transcription.strategy.plan import relaxation
 
     s = solve_direct(relaxation(prob))
@@ -243,7 +242,7 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
         return _solve_constrained(case, N, wall_cap)
 
     import se3ocp
-    from se3ocp.transcription.strategy.starts import rollout_guess
+    from se3ocp.transcription.strategy.starts import rollout
     from se3ocp.transcription.geometry.state import split_state
     from se3ocp.transcription.geometry.so3 import log_so3
     from se3ocp.transcription.ocp import terminal_error
@@ -264,7 +263,7 @@ def solve_peer(case: str, N: int, wall_cap: float = WALL_CAP_S) -> dict:
     x, g, R, P = split_state(XN)
     xd, gd, Rd, Pd = split_state(ca.DM(prob.Xd))
     ocp.subject_to(ca.vertcat(x - xd, g - gd, log_so3(ca.mtimes(Rd.T, R)), P - Pd) == 0)
-    guess = rollout_guess(prob.disc, prob.X0, N, prob.h)   # the same initial guess as ours
+    guess = rollout(prob.replace(N=N))   # the same initial guess as ours
     ocp.set_initial(X, guess.X.T)
     ocp.set_initial(u, np.zeros((6, N)))
     sol, stats, status, converged, build_s, solve_s = _run_ipopt(ocp, N, wall_cap, t0)

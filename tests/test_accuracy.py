@@ -404,5 +404,5 @@ def test_both_retries_the_indirect_method_from_this_grids_direct_solution():
     warm = dataclasses.replace(d.warm, costates=d.warm.costates * 1e6)
     c = se3ocp.solve(man, "both", warm_start=warm)
     assert c.indirect.converged and c.indirect.stats["fallback"] == "from_direct", c.indirect.message
-    assert [a.result for a in c.indirect.attempts][0] is se3ocp.Result.invalid_option
+    assert [a.result for a in c.indirect.trace][0] is se3ocp.Result.invalid_option
     assert c.cost_relative_difference <= 1e-8 and c.verdict.startswith("agree"), c.verdict

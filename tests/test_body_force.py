@@ -8,6 +8,7 @@ import pytest
 
 from se3ocp.transcription.dynamics.lgvi import discretization
 from se3ocp.transcription.ocp import ProblemError, SmoothControl, ThrusterBound
+from se3ocp.transcription.objectives import Effort
 
 from support import maneuver, problem
 
@@ -38,7 +39,7 @@ def test_bounds_margin_shrinks_the_thruster_max():
 
 def test_the_problem_refuses_a_thruster_on_an_inertial_force():
     p = problem("e3", 20)
-    thruster = SmoothControl(force_bound=ThrusterBound([1, 0, 0], 10.0))
+    thruster = SmoothControl(force_bound=ThrusterBound([1, 0, 0], 10.0), objective=Effort())
     with pytest.raises(ProblemError, match="body"):
         p.replace(control=thruster)
     body = p.replace(disc=discretization(p.model, p.scheme, force_frame="body"), control=thruster)

@@ -183,7 +183,7 @@ def test_new_numbers_in_a_known_structure_compile_nothing(monkeypatch, tmp_path)
     assert sa.converged and sa.stats["jit"] and len(said) == 2          # the dynamics block's jac and hess
     assert sa.iterations == ra.iterations and abs(sa.cost - ra.cost) <= 1e-12 * ra.cost
     assert np.max(np.abs(sa.controls - ra.controls)) <= 1e-12 * np.max(np.abs(ra.controls))
-    libs = dynamics(a.disc, True, True, True).derivatives(True)._libraries
+    libs = dynamics(a.disc, True, True).derivatives(True)._libraries
     deadline = time.monotonic() + 300.0                                 # their -O0 builds (the -O1 ones follow)
     while None in codegen.arrived(codegen.candidates(libs, quick=codegen.QUICK_CFLAGS))[0] and \
             time.monotonic() < deadline:
@@ -193,7 +193,7 @@ def test_new_numbers_in_a_known_structure_compile_nothing(monkeypatch, tmp_path)
     b = problem("e3_bounded", 20, "first_order", *j2, "control.bounds.force.norm=16")
     b = b.replace(disc=Discretization(body, b.scheme))
     sb, ref = se3ocp.solve(b), se3ocp.solve(b, jit=False)
-    d = dynamics(b.disc, True, True, True).derivatives(True)
+    d = dynamics(b.disc, True, True).derivatives(True)
     stopped = codegen.stop(tmp_path)                                    # the -O1 builds: not waited for here
     assert len(said) == 2 and d.compiled and d.hess.class_name() == "External"
     assert sb.stats["jit"] and not ref.stats["jit"]

@@ -53,19 +53,18 @@ def test_time_optimal_slews_converge_to_the_published_minimum(name, published):
 
 
 @pytest.mark.parametrize("name", ["slew_time_optimal", "slew_time_optimal_symmetric"])
-def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
+def test_coarse_grid_starts_reach_the_fine_grid_minimum(name):
     """The time objective's starts are solved on max(25, N // 4) steps and the best is finished on N
-    (transcription.strategy.plan.TIME_COARSE_MIN): the same minimum as the starts solved on N steps."""
-    from se3ocp.transcription.strategy import plan
+    (TimeStrategy.coarse_min): the same minimum as the starts solved on N steps."""
+    from se3ocp.transcription.objectives.time import TimeStrategy, bracketing_times
 
     coarse = solved(name, 100)
-    assert coarse.attempts[0].label == "the best start on 25 steps, resampled"
-    assert coarse.attempts[0].prepared_on == "the coarse grid" and coarse.attempts[0].guess_iterations > 0
-    assert coarse.stats["initial_guess"] == coarse.attempts[0].label
-    monkeypatch.setattr(plan, "TIME_COARSE_MIN", 10 ** 6)     # no coarser grid: the starts on N = 100
-    fine = se3ocp.solve(maneuver(name, 100), "direct")
-    starts = plan.TIME_STARTS + len(plan.bracketing_times(maneuver(name, 100).problem))   # seeds, T bracketing
-    assert [a.prepared_on for a in fine.attempts] == [""] * starts
+    assert coarse.trace[0].label == "the best start on 25 steps, resampled"
+    assert coarse.trace[0].prepared_on == "the coarse grid" and coarse.trace[0].total_iterations > coarse.trace[0].iterations
+    assert coarse.stats["initial_guess"] == "from coarse"
+    fine = se3ocp.solve(maneuver(name, 100), "direct", strategy=TimeStrategy(coarse_min=10 ** 6))   # the starts on N
+    starts = TimeStrategy().starts + len(bracketing_times(maneuver(name, 100).problem))   # seeds, T bracketing
+    assert [a.prepared_on for a in fine.trace] == [""] * starts
     assert "resampled" not in fine.stats["initial_guess"]
     assert fine.converged and coarse.converged
     # the minimum time to solver tolerance (the controls may be a mirror image of each other: the slews
@@ -73,16 +72,27 @@ def test_coarse_grid_starts_reach_the_fine_grid_minimum(name, monkeypatch):
     assert coarse.cost == pytest.approx(fine.cost, rel=1e-9, abs=0.0)
 
 
-def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts(monkeypatch):
-    """When the coarse-grid solve does not converge, the starts are solved on N steps as before."""
-    from se3ocp.transcription.strategy import plan
+def test_failed_coarse_grid_start_falls_back_to_the_fine_grid_starts():
+    """When the coarse-grid solve does not converge (here: one start within 1 iteration), the starts are solved on N
+    steps as before; the coarse solve's iterations count."""
+    from dataclasses import replace
 
-    monkeypatch.setattr(plan, "coarse_guess", lambda problem, options, Nc, subsolve: None)
-    s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct")
-    assert s.converged and len(s.attempts) == 1 + plan.TIME_STARTS
-    first = s.attempts[0]
+    from se3ocp.transcription.objectives.time import TimeStrategy
+    from se3ocp.transcription.strategy import starts
+    from se3ocp.transcription.strategy.core import Solve
+
+    class CoarseFails(TimeStrategy):
+        def compose(self, problem, options, start=None):
+            out = super().compose(problem, options, start)
+            starved = replace(out.strategies[0], coarse=Solve(starts.interpolation, "interpolate", budget=1))
+            return replace(out, strategies=(starved,) + out.strategies[1:])
+
+    s = se3ocp.solve(maneuver("slew_time_optimal_symmetric", 50), "direct", strategy=CoarseFails())
+    assert s.converged and len(s.trace) == 1 + TimeStrategy().starts
+    first = s.trace[0]
     assert first.result is None and first.note == "not available (the coarse-grid problem did not converge)"
-    assert all(a.result is not None for a in s.attempts[1:]) and "resampled" not in s.stats["initial_guess"]
+    assert first.total_iterations == 1                      # the coarse solve's iteration counts
+    assert all(a.result is not None for a in s.trace[1:]) and "resampled" not in s.stats["initial_guess"]
     assert s.cost == pytest.approx(solved("slew_time_optimal_symmetric", 50).cost, rel=1e-9)
 
 
@@ -167,7 +177,7 @@ def test_fuel_optimal_orbit_raise():
     p = s.problem
     om = quadrature_weights(p.scheme, p.N, s.h)
     assert s.cost == pytest.approx(fuel_cost(s.controls, p.control, om), rel=1e-14)
-    effort = se3ocp.solve(p.replace(control=replace(p.control, objective="effort")), "direct")
+    effort = se3ocp.solve(p.replace(control=replace(p.control, objective=se3ocp.Effort())), "direct")
     assert effort.converged, effort.message
     assert s.cost < fuel_cost(effort.controls, p.control, om)
     b_f, b_m = p.control.force_bound.b, p.control.moment_bound.b

@@ -12,7 +12,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.nlp.layouts import NLPLayout, StageLayout
-from se3ocp.transcription.strategy.starts import interpolation_guess, rollout_guess
+from se3ocp.transcription.strategy import starts
 from se3ocp.transcription.geometry.state import NU, NX, unpack_states
 from se3ocp.transcription.geometry.so3 import orthogonality_error
 from se3ocp.transcription.options import DirectOptions, OptionError
@@ -75,7 +75,7 @@ def test_stage_layout_order_and_lifting(scheme):
 # ------------------------------------------------------------------------ guesses
 def test_rollout_guess_satisfies_dynamics():
     p = problem("e3", 50, "lgvi")
-    g = rollout_guess(p.disc, p.X0, p.N, p.h)
+    g = starts.rollout(p)
     X1 = np.array(p.disc.step_given_c.map(p.N)(g.X[:-1].T, g.C.T, np.zeros((p.disc.nw, p.N)), p.h)[0]).T
     assert np.abs(X1 - g.X[1:]).max() <= 1e-13
 
@@ -83,7 +83,7 @@ def test_rollout_guess_satisfies_dynamics():
 @pytest.mark.parametrize("name", ["e3", "e4"])
 def test_interpolation_guess_endpoints_orthogonality_and_arc(name):
     p = problem(name, 40, "lgvi")
-    g = interpolation_guess(p.disc, p.X0, p.Xd, p.N, p.T)
+    g = starts.interpolation(p)
     assert np.abs(g.X[0] - p.X0).max() <= 1e-12 and np.abs(g.X[-1] - p.Xd).max() <= 1e-12
     orth, det = orthogonality_error(unpack_states(g.X).R)
     assert orth.max() <= 1e-13 and det.max() <= 1e-13

@@ -1,7 +1,7 @@
 """The everyday-maneuver suite (configs/everyday/): maneuvers a mission planner would try first -- large
 radius changes, large plane changes, multi-orbit horizons, a detumble, a fast-tumble capture, slews with
 transfers, both schemes, dumbbell and rigid body -- must converge with the default settings; and the
-direct method's initial-guess plan (transcription.strategy.plan.guess_plan) tries its guesses in
+objective's default strategy (transcription.objectives: its ``compose``) tries its starts in
 order and reports each one.
 
 Tolerances: the re-simulated terminal error <= 1e-8 and max |R^T R - I| <= 1e-12, as for E3/E4 in
@@ -15,9 +15,10 @@ from pathlib import Path
 import pytest
 
 import se3ocp
-from se3ocp.transcription.strategy.starts import make_guess, target_estimate
-from se3ocp.transcription.strategy import plan
-from se3ocp.transcription.methods.direct import solve_direct
+from se3ocp.transcription.strategy import starts
+from se3ocp.transcription.objectives.effort import EffortStrategy
+from se3ocp.transcription.objectives.fuel.plan import FuelStrategy
+from se3ocp.transcription.strategy.core import BestOf, CoarseToFine, Solve
 from se3ocp.transcription.nlp.scaling import scaled_terminal_miss
 from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from support import CONFIGS, maneuver
@@ -41,15 +42,29 @@ def test_everyday_converges_with_defaults(name):
     assert sol.converged, sol.message
     assert sol.terminal_error <= 1e-8, sol.terminal_error          # on the re-simulation, not the NLP's nodes
     assert sol.trajectory.orthogonality()["max_orthogonality_error"] <= 1e-12
-    last = sol.attempts[-1]
+    last = sol.trace[-1]
     assert last.label == sol.stats["initial_guess"] and last.result is se3ocp.Result.converged
 
 
-# --------------------------------------------------------------------- the guess plan
+# --------------------------------------------------------------------- the objective's strategy
 def _labels(name, *sets):
+    """The starts the objective's default strategy tries for the bundled maneuver, as (label, budget) (budget: the
+    most iterations of its own solve), and how it picks: 'first' (the first that converges), 'best' (the lowest
+    converged cost), 'coarse' (a coarser grid's start, the others the fallback)."""
     man = maneuver(name, None, None, *sets)
-    entries, pick = plan.guess_plan(man.problem, man.direct, solve_direct)
-    return [(label, budget) for label, _, budget in entries], pick
+    p, mx = man.problem, man.direct.max_iter
+    strategy = p.control.objective.strategy(p, man.direct).compose(p, man.direct)
+    strategy = getattr(strategy, "inner", strategy) or strategy       # the fuel guard's inner strategy
+    if isinstance(strategy, Solve):
+        return [(strategy.label, strategy.budget or mx)], "first"
+    entries, pick = strategy.strategies, "best" if isinstance(strategy, BestOf) else "first"
+    if isinstance(entries[0], CoarseToFine):
+        entries, pick = (entries[0], *entries[1].strategies), "coarse"
+    said = []
+    for e in entries:
+        label = (f"the best start on {e.grid(p)} steps, resampled" if isinstance(e, CoarseToFine) else e.label)
+        said.append((label, min(e.budget, mx) if getattr(e, "budget", None) else mx))
+    return said, pick
 
 
 def test_plan_order():
@@ -58,12 +73,12 @@ def test_plan_order():
     the other with the rest; bounded effort: the relaxed problem's solution first; fuel: the best start on a
     coarser grid, then the rollout (its own budget) and the interpolation, and on the coarsest grid the
     multistart of the homotopy, the rollout and the interpolation; an explicit choice: that guess only."""
-    b, mx = plan.AUTO_FIRST_BUDGET, se3ocp.DirectOptions().max_iter
+    b, mx = EffortStrategy().first_budget, se3ocp.DirectOptions().max_iter
     assert _labels("e3") == ([("rollout", b), ("interpolate", mx)], "first")
     assert _labels("everyday/orbit_double") == ([("interpolate, attitude of orbit", b), ("rollout", mx)], "first")
     entries, _ = _labels("e3_bounded")
     assert [lb for lb, _ in entries] == ["the solution without bounds and path constraints", "rollout", "interpolate"]
-    bf = plan.AUTO_FIRST_BUDGET_FUEL
+    bf = FuelStrategy().first_budget
     assert _labels("orbit_raise_fuel") == ([("the best start on 50 steps, resampled", mx), ("rollout", bf),
                                             ("interpolate", mx)], "coarse")
     assert _labels("orbit_raise_fuel", "horizon.N=25") == ([("the fuel homotopy from the effort optimum", mx),
@@ -82,20 +97,19 @@ def test_rollout_miss_is_the_solvers_terminal_rows(name, far):
 
     man = maneuver(name, None, None)
     p = man.problem
-    g = make_guess("rollout", p.disc, p.X0, target_estimate(p), p.N, p.T)
+    g = starts.rollout(p)
     tr = SmoothTranscription(p, man.direct)
     rows = np.asarray(ca.Function("g", [tr.nlp.w], [tr.nlp.g])(tr.initial_point(g))).ravel()[tr.nlp.rows("terminal")]
     miss = scaled_terminal_miss(p, g.X[-1])
     assert abs(miss - np.abs(rows).max()) <= 1e-12 * max(1.0, miss)
-    assert (miss > plan.ROLLOUT_FIRST_MISS) == far
+    assert (miss > EffortStrategy().rollout_first_miss) == far
 
 
 def test_failing_first_guess_leads_to_the_next(monkeypatch):
     """The first guess stopped by its budget (2 iterations) -> the interpolation is tried and converges;
     the attempts list both, iterations count both, and the message and summary.json say them in words."""
-    monkeypatch.setattr(plan, "AUTO_FIRST_BUDGET", 2)
-    sol = se3ocp.solve(maneuver("e3", 60, "lgvi"))
-    first, second = sol.attempts
+    sol = se3ocp.solve(maneuver("e3", 60, "lgvi"), strategy=EffortStrategy(first_budget=2))
+    first, second = sol.trace
     assert sol.converged and (first.label, first.result, first.iterations) == ("rollout", se3ocp.Result.max_iterations, 2)
     assert (second.label, second.result) == ("interpolate", se3ocp.Result.converged) and second.cost == sol.cost
     assert sol.iterations == 2 + second.iterations and sol.stats["initial_guess"] == "interpolate"
@@ -108,7 +122,7 @@ def test_failing_first_guess_leads_to_the_next(monkeypatch):
 def test_failure_says_what_was_tried_and_what_to_try():
     sol = se3ocp.solve(maneuver("e3", 20, "lgvi", "solver.direct.max_iter=2"))
     assert sol.result is se3ocp.Result.max_iterations
-    assert [(a.label, a.result, a.iterations) for a in sol.attempts] == [
+    assert [(a.label, a.result, a.iterations) for a in sol.trace] == [
         ("rollout", se3ocp.Result.max_iterations, 2), ("interpolate", se3ocp.Result.max_iterations, 2)]
     assert "solver.direct.max_iter" in sol.stats["hint"] and "continuation" in sol.stats["hint"]
     assert sol.message.endswith(sol.stats["hint"])

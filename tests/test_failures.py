@@ -151,7 +151,7 @@ def test_nan_potential_indirect_is_data(tmp_path):
 
 
 def test_nan_potential_direct_is_data(tmp_path):
-    from se3ocp.transcription.methods.direct import solve_direct
+    from se3ocp.transcription.solve import solve_direct
 
     sol = solve_direct(_nan_model_problem())
     assert sol.result is Result.non_finite, sol.message

@@ -13,8 +13,9 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.methods.direct import fatrop
-from se3ocp.transcription.strategy.plan import relaxation
-from se3ocp.transcription.methods.direct.solve import solve_direct
+from se3ocp.transcription.objectives import Fuel
+from se3ocp.transcription.objectives.effort import relaxation
+from se3ocp.transcription.solve import solve_direct
 from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from se3ocp.transcription.nlp.layouts import StageLayout
 from se3ocp.transcription.ocp import TargetOrbit
@@ -36,7 +37,6 @@ def test_each_control_node_is_a_path_row_block_of_one_stage(scheme):
     assert isinstance(lay, StageLayout) and lay.iS.shape == (8, len(lay.control_nodes))
     perm, sign, ng = fatrop.stage_rows(tr)
     assert np.array_equal(np.sort(perm), np.arange(nlp.ng)) and len(ng) == p.N + 1
-    ctrl = next(b for b in nlp.blocks if b.name == "controls")
     ngap = 18 + (6 if scheme == "lgvi" else 0)           # the state s_k: X_k (and v_k = u_k, LGVI)
     assert ngap * p.N + sum(ng) == nlp.ng
     stage_of_row, pos = np.empty(nlp.ng, dtype=int), 0
@@ -45,10 +45,11 @@ def test_each_control_node_is_a_path_row_block_of_one_stage(scheme):
         assert np.all(sign[pos:pos + min(gap, 18)] == -1.0) and np.all(sign[pos + min(gap, 18):pos + gap + ng[k]] == 1.0)
         stage_of_row[perm[pos:pos + gap + ng[k]]] = k
         pos += gap + ng[k]
-    rows = nlp.rows("controls")
-    for m, j in enumerate(lay.control_nodes):
-        assert np.all(stage_of_row[rows[:, m]] == max(j - 1, 0))
-        assert np.all(lay.stage_of[ctrl.idx[:, m]] == max(j - 1, 0))
+    for name in ("controls", "fuel"):          # the norm bounds; the fuel epigraph
+        ctrl, rows = next(b for b in nlp.blocks if b.name == name), nlp.rows(name)
+        for m, j in enumerate(lay.control_nodes):
+            assert np.all(stage_of_row[rows[:, m]] == max(j - 1, 0))
+            assert np.all(lay.stage_of[ctrl.idx[:, m]] == max(j - 1, 0))
     solver, _, _ = fatrop._fatrop_solver(tr, opts)
     assert solver.name() == "direct_fatrop"
 
@@ -66,11 +67,12 @@ def test_fatrop_reaches_ipopts_optimum_to_the_orbit_target():
 
 
 def test_the_fuel_objective_is_not_covered_and_says_why():
-    """A fuel problem with ``solver: fatrop`` goes to IPOPT at once: fatrop's status not_applicable, the reason
-    (:data:`fatrop.FUEL_NOT_COVERED`) in the fallback's message; effort problems without bounds stay covered."""
-    sol, info = fatrop.try_fatrop(problem("orbit_raise_fuel", 10), se3ocp.DirectOptions(solver="fatrop"),
-                                  lambda: pytest.fail("no guess is made for a problem fatrop does not cover"))
-    assert sol is None and info["fatrop_status"] == "not_applicable"
-    assert info["fatrop_message"] == fatrop.FUEL_NOT_COVERED and "fuel NLP" in info["fatrop_message"]
+    """A fuel problem with ``solver: fatrop`` goes to IPOPT at once (no fatrop iteration): fatrop's status
+    not_applicable, the fuel objective's reason (``Fuel.fatrop``) in the fallback's message; effort problems without
+    bounds stay covered."""
+    sol = solve_direct(problem("orbit_raise_fuel", 10), se3ocp.DirectOptions(solver="fatrop"))
+    assert sol.stats["fatrop_status"] == "not_applicable" and sol.solver == "ipopt"
+    assert sol.stats["fatrop_message"] == Fuel.fatrop and "fuel NLP" in sol.stats["fatrop_message"]
+    assert sol.message.startswith(Fuel.fatrop + "; IPOPT fallback: ")
     assert fatrop.covers(problem("e3", 10)) and not fatrop.covers(problem("e3_bounded", 10))
     assert fatrop.not_covered(problem("e3_bounded", 10)) == fatrop.NOT_COVERED

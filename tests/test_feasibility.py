@@ -83,7 +83,7 @@ def test_just_outside_each_bound_is_refused_at_once(name):
     for method in ("direct", "both"):
         out = se3ocp.solve(man, method)
         for s in (out.solutions.values() if method == "both" else [out]):
-            assert s.result is Result.infeasible and s.iterations == 0 and s.history == []
+            assert s.result is Result.infeasible and s.iterations == 0 and s.history == ()
             assert s.message.startswith("provably infeasible") and name in s.message
             assert s.trajectory.X.shape == (N + 1, 18) and np.all(np.isfinite(s.trajectory.X))
 

@@ -1,6 +1,6 @@
-"""The fuel objective reached by continuation in its data (transcription/methods/direct/fuel_continuation.py,
-docs/mathematics.md §25): a fuel problem with an unbounded counted part whose references differ by more than
-EFFORT_LEVEL_RATIO -- configs/leo_body_engine.yaml with control.objective=fuel -- is reached from a bounded problem
+"""The fuel objective reached by continuation in its data (transcription/objectives/fuel/continuation.py,
+docs/mathematics.md §25): a fuel problem with an unbounded counted part whose references differ by more than the
+homotopy's effort_level_ratio -- configs/leo_body_engine.yaml with control.objective=fuel -- is reached from a bounded problem
 whose homotopy starts from the file's own effort problem, through its weights and then its added bounds.
 """
 from __future__ import annotations
@@ -10,14 +10,22 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from se3ocp.transcription.strategy import fuel_continuation as fc
-from se3ocp.transcription.strategy.homotopy import EFFORT_LEVEL_RATIO, effort_problem
+from se3ocp.transcription.objectives import Effort, Fuel
+from se3ocp.transcription.objectives.fuel.continuation import ContinuationStart, counted_unbounded, significant
+from se3ocp.transcription.objectives.fuel.homotopy import Homotopy
 from se3ocp.transcription.ocp import NormBound
 from support import maneuver, problem
 
 FUEL = "control.objective=fuel"
 #: leo_body_engine's effort optimum's largest moment (kN km; docs §21) and its engine bound (kN)
 PEAK_M, ENGINE = 8.3e-9, 1e-3
+#: the continuation and the homotopy with their default fields (the solves they compose are not run here)
+fc, HOMOTOPY = ContinuationStart(None, None, None), Homotopy(None)
+RATIO = HOMOTOPY.effort_level_ratio
+
+
+def start_problem(p, U):
+    return fc.start_problem(p, U, RATIO)
 
 
 def _effort_controls(n: int, force: float, moment: float) -> np.ndarray:
@@ -30,22 +38,22 @@ def _effort_controls(n: int, force: float, moment: float) -> np.ndarray:
 
 
 def test_the_start_problem_bounds_the_unbounded_part_and_keeps_the_files_effort_problem():
-    """start_problem(leo_body_engine, fuel): the moment bounded at BOUND_MARGIN x the effort optimum's largest moment
+    """start_problem(leo_body_engine, fuel): the moment bounded at margin x the effort optimum's largest moment
     rounded up to one significant digit (1.2 x 8.3e-9 -> 1e-8 kN km, configs/leo_engine_fuel.yaml's wheel bound);
     the fuel weights (1, 1e10) become (1, 1e10 x r_m / r_f) = (1, 1e5), leo_engine_fuel's, and the homotopy's effort
     problem of the start (weights w_i' / r_i) is the file's effort problem scaled: W_m / W_f = 1e10 to round-off.  The
     engine bound is kept: the start is leo_engine_fuel's problem."""
     p = problem("leo_body_engine", 10, None, FUEL)
     U = _effort_controls(p.N + 1, 0.7 * ENGINE, PEAK_M)
-    s = fc.start_problem(p, U)
+    s = start_problem(p, U)
     c = s.control
     assert isinstance(c.moment_bound, NormBound)
     assert c.moment_bound.b == pytest.approx(1e-8, rel=1e-15)
-    assert c.force_bound == p.control.force_bound and c.objective == "fuel"
+    assert c.force_bound == p.control.force_bound and c.objective == Fuel()
     assert c.W_f[0, 0] == pytest.approx(1.0, rel=1e-15)
     assert c.W_m[0, 0] == pytest.approx(1e5, rel=1e-14)
-    e = effort_problem(s).control
-    assert e.objective == "effort"
+    e = HOMOTOPY.effort_problem(s).control
+    assert isinstance(e.objective, Effort)
     ratio = e.W_m[0, 0] / e.W_f[0, 0]
     assert ratio == pytest.approx(p.control.W_m[0, 0] / p.control.W_f[0, 0], rel=1e-13)
     lef = problem("leo_engine_fuel", 10).control
@@ -56,7 +64,7 @@ def test_the_start_problem_bounds_the_unbounded_part_and_keeps_the_files_effort_
 
 def test_the_added_bound_is_rounded_up_to_one_significant_digit():
     """significant: 9.96e-9 -> 1e-8, 1.01e-8 -> 2e-8, and a value already of one digit stays (1e-8, 2, 0.3)."""
-    got = fc.significant(np.array([9.96e-9, 1.01e-8, 1e-8, 2.0, 0.3]))
+    got = significant(np.array([9.96e-9, 1.01e-8, 1e-8, 2.0, 0.3]))
     assert np.allclose(got, [1e-8, 2e-8, 1e-8, 2.0, 0.3], rtol=1e-14, atol=0.0)
 
 
@@ -65,19 +73,19 @@ def test_no_start_problem_where_the_homotopy_starts_the_problem_itself():
     whose reference is within EFFORT_LEVEL_RATIO of the other's (the fuel raise with its moment unbounded and an
     effort moment of 1, against the force bound 40)."""
     U = _effort_controls(11, 1.0, 1.0)
-    assert fc.start_problem(problem("orbit_raise_fuel", 10), U) is None
-    assert fc.start_problem(problem("leo_engine_fuel", 10), _effort_controls(11, 7e-4, PEAK_M)) is None
+    assert start_problem(problem("orbit_raise_fuel", 10), U) is None
+    assert start_problem(problem("leo_engine_fuel", 10), _effort_controls(11, 7e-4, PEAK_M)) is None
     free = problem("orbit_raise_fuel", 10)
     free = free.replace(control=replace(free.control, moment_bound=None))
-    assert fc.counted_unbounded(free).tolist() == [False, True]
-    assert 40.0 / 1.0 <= EFFORT_LEVEL_RATIO and fc.start_problem(free, U) is None
+    assert counted_unbounded(free).tolist() == [False, True]
+    assert 40.0 / 1.0 <= RATIO and start_problem(free, U) is None
 
 
 def test_the_weights_rise_geometrically_to_the_files():
     """weight_steps: from the start's weights to the file's in round(log10(ratio)) steps of equal factor, the last
     exactly the file's weights, the bounds of the start kept on every step."""
     p = problem("leo_body_engine", 10, None, FUEL)
-    s = fc.start_problem(p, _effort_controls(p.N + 1, 0.7 * ENGINE, PEAK_M))
+    s = start_problem(p, _effort_controls(p.N + 1, 0.7 * ENGINE, PEAK_M))
     steps = fc.weight_steps(s, p)
     ratio = p.control.W_m[0, 0] / s.control.W_m[0, 0]
     assert len(steps) == round(np.log10(ratio)) == 5
@@ -89,15 +97,15 @@ def test_the_weights_rise_geometrically_to_the_files():
 
 
 def test_an_added_bound_is_raised_while_the_optimum_touches_it():
-    """raised_bounds: the added moment bound times BOUND_FACTOR when the controls reach it (within AT_BOUND_RTOL),
+    """raised: the added moment bound times bound_factor when the controls reach it (within AT_BOUND_RTOL),
     None when they stay below it; the engine's own bound is never raised."""
     p = problem("leo_body_engine", 10, None, FUEL)
-    s = fc.start_problem(p, _effort_controls(p.N + 1, 0.7 * ENGINE, PEAK_M))
+    s = start_problem(p, _effort_controls(p.N + 1, 0.7 * ENGINE, PEAK_M))
     b = s.control.moment_bound.b
-    at = fc.raised_bounds(s, p, _effort_controls(p.N + 1, ENGINE, b))
-    assert at.control.moment_bound.b == pytest.approx(fc.BOUND_FACTOR * b, rel=1e-15)
+    at = fc.raised(s, p, _effort_controls(p.N + 1, ENGINE, b))
+    assert at.control.moment_bound.b == pytest.approx(fc.bound_factor * b, rel=1e-15)
     assert at.control.force_bound == p.control.force_bound
-    assert fc.raised_bounds(s, p, _effort_controls(p.N + 1, ENGINE, 0.99 * b)) is None
+    assert fc.raised(s, p, _effort_controls(p.N + 1, ENGINE, 0.99 * b)) is None
 
 
 @pytest.mark.slow
@@ -105,7 +113,7 @@ def test_the_engine_raise_with_the_fuel_objective_converges():
     """configs/leo_body_engine.yaml with control.objective=fuel (the moment unbounded, w_m = 1e10), default options,
     N = 400 (issue 27, strictest reading of "the LEO fuel raise of the spacecraft issue converges"): converged by the
     continuation, the fuel KKT guard passed on the problem itself (not on a bounded step: its switching values on the
-    coast nodes <= GUARD_TOL), the re-simulated terminal error <= 1e-6, the thrust along the engine axis (off-axis
+    coast nodes <= Guarded(None).tol), the re-simulated terminal error <= 1e-6, the thrust along the engine axis (off-axis
     force <= 1e-10 of the bound) with 0 <= T <= max.  The continuation's last bounded step had its bound inactive,
     and the answer is below every step with the file's weights (removing or raising a bound cannot raise the
     optimum the continuation follows; 1e-9 relative).  Flown in continuous time (the project's flight engine, not the
@@ -119,7 +127,7 @@ def test_the_engine_raise_with_the_fuel_objective_converges():
 
     import se3ocp
     from se3ocp.transcription.results.check import continuous_check
-    from se3ocp.transcription.strategy.fuel_guard import GUARD_TOL
+    from se3ocp.transcription.objectives.fuel.guard import Guarded
 
     man = maneuver("leo_body_engine", None, None, FUEL)
     p = man.problem
@@ -128,7 +136,7 @@ def test_the_engine_raise_with_the_fuel_objective_converges():
     print(f"leo_body_engine fuel: {sol.result} cost {sol.cost!r} {sol.iterations} it; {lines}; "
           f"{sol.stats.get('fuel_structure')}")
     assert sol.converged and sol.stats["fuel_guard"] == "passed", sol.message
-    assert sol.stats["fuel_switching_max"] <= GUARD_TOL
+    assert sol.stats["fuel_switching_max"] <= Guarded(None).tol
     assert lines and lines[0].startswith("start:"), lines
     assert sol.terminal_error <= 1e-6
     b = p.control.force_bound

@@ -1,4 +1,4 @@
-"""The structured fuel finish (transcription/methods/direct/fuel_structure.py, docs/mathematics.md §23, issue 27).
+"""The structured fuel finish (transcription/objectives/fuel/structure.py, docs/mathematics.md §23, issue 27).
 
 On a grid finer than the coarsest, the fuel plan finishes from the coarser optimum resampled on that optimum's
 switching structure: coast nodes u = 0, burn nodes the rounded magnitude, a rough solve (delta 1e-5) on the widened
@@ -13,12 +13,14 @@ import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.strategy.starts import Guess, cayley_vectors
 from se3ocp.transcription.geometry.state import U_FORCE, U_MOMENT
-from se3ocp.transcription.strategy import fuel_structure, plan as plan_mod
-from se3ocp.transcription.methods.direct import solve as solve_mod
-from se3ocp.transcription.strategy.fuel_guard import GUARD_TOL
-from se3ocp.transcription.methods.direct.solve import solve_direct
+from se3ocp.transcription.methods.direct import Direct, transcription
+from se3ocp.transcription.objectives.fuel import guard as fuel_guard, structure as fuel_structure
+from se3ocp.transcription.objectives.fuel.guard import Guarded
+from se3ocp.transcription.objectives.fuel.plan import FuelStrategy
+from se3ocp.transcription.objectives.fuel.structure import StructuredFinish
+from se3ocp.transcription.solve import solve_direct
+from se3ocp.transcription.strategy.core import Context
 from se3ocp.transcription.nlp.transcription import SmoothTranscription
 from se3ocp.transcription.ocp import fuel_cost, quadrature_weights
 from support import maneuver, problem
@@ -34,15 +36,25 @@ def coarse():
     return sol, problem("orbit_raise_fuel", N)
 
 
+GUARD_TOL = Guarded(None).tol
+
+
 def _guess(p, coarse_sol):
-    return plan_mod.coarse_guess(p, se3ocp.DirectOptions(), coarse_sol.problem.N, lambda *_: coarse_sol)
+    """The coarser grid's optimum resampled onto ``p``'s grid (the start CoarseToFine finishes from)."""
+    return coarse_sol.warm.fit(p.N, p.scheme)[0].primal()
+
+
+def _finish(p, start, options=None, ctx=None, **fields):
+    """The structured finish's rounds on ``p`` from ``start`` (StructuredFinish.finish): (Solution, stats)."""
+    ctx = ctx or Context(Direct(options or se3ocp.DirectOptions()))
+    return StructuredFinish(Guarded(None), **fields).finish(p, start, ctx)
 
 
 @pytest.fixture(scope="module")
 def finished(coarse):
     """(problem, Solution, stats) of the structured finish on 50 steps from the 25-step optimum."""
     sol25, p = coarse
-    sol, stats = fuel_structure.structured_finish(p, se3ocp.DirectOptions(), _guess(p, sol25))
+    sol, stats = _finish(p, _guess(p, sol25))
     return p, sol, stats
 
 
@@ -75,13 +87,13 @@ def test_its_multipliers_on_the_thrusting_nodes_and_the_coast_nodes(coarse):
     captured = {}
     real = fuel_structure.switching_l1
 
-    def spy(tr, x, lam_g, lam_x):
-        out = real(tr, x, lam_g, lam_x)
-        captured.update(tr=tr, x=x, sw=out)
+    def spy(tr, point, coast):
+        out = real(tr, point, coast)
+        captured.update(tr=tr, x=point.x, sw=out)
         return out
 
     with mock.patch.object(fuel_structure, "switching_l1", spy):
-        sol, stats = fuel_structure.structured_finish(p, options, _guess(p, sol25))
+        sol, stats = _finish(p, _guess(p, sol25), options)
     assert sol.converged
     tr, x, sw = captured["tr"], captured["x"], captured["sw"]
     w = x * tr.w_scale
@@ -90,17 +102,14 @@ def test_its_multipliers_on_the_thrusting_nodes_and_the_coast_nodes(coarse):
     omega = quadrature_weights(p.scheme, p.N, p.h)
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         mag = np.linalg.norm(w[tr.layout.iU[sl]], axis=0)
-        thrusting = tr.burn[i] & (mag > 1e-3 * tr.slack_scales[i])
+        thrusting = tr.objective.burn[i] & (mag > 1e-3 * tr.magnitudes[i])
         assert thrusting.any()
         assert np.max(np.abs(sw["value"][i][thrusting])) < 1e-6
-    # the epigraph NLP's optimum from the same start, its own multipliers
-    with mock.patch.object(solve_mod, "structure_applies", lambda *_: False):
-        run = solve_mod._PlanRun(p, options, None, None)
-        guess = _guess(p, sol25)
-        esol = run.run([("coarse", lambda: guess, options.max_iter)], "first")
+    # the epigraph NLP's optimum from the same start (the finish's fallback), its own multipliers
+    esol = Direct(options, StructuredFinish(Guarded(None)).fallback).solve(p, _guess(p, sol25))
     assert esol.converged
-    epi = run.switchings[id(esol)]
-    both = ~tr.burn & np.isfinite(epi["sigma"])                     # coast in both
+    epi = fuel_guard.switching(transcription(p, options)[0], esol.warm.point, Guarded(None).coast_rtol)
+    both = ~tr.objective.burn & np.isfinite(epi["sigma"])           # coast in both
     assert both[0].sum() > 10 and both[1].sum() > 10
     for i in range(2):
         diff = np.linalg.norm(sw["mu"][i] - epi["mu"][i], axis=0)[both[i]] / (wts[i] * omega[both[i]])
@@ -123,9 +132,9 @@ def test_a_too_narrow_structure_is_widened_where_the_switching_function_says(fin
     assert len(arc) >= 2
     j = arc[len(arc) // 2]
     U[U_FORCE, j] = 0.0
-    X = sol.warm.X
-    guess = Guess(X=X, U=U, C=cayley_vectors(X), h=p.h)
-    narrowed, stats = fuel_structure.structured_finish(p, se3ocp.DirectOptions(), guess, dilate=0)
+    from dataclasses import replace
+
+    narrowed, stats = _finish(p, replace(sol.warm.primal(), U=U), dilate=0)
     assert narrowed.converged and stats["fuel_guard"] == "passed", stats
     assert any("widened" in line for line in stats["fuel_structure"]), stats["fuel_structure"]
     assert narrowed.cost == pytest.approx(sol.cost, rel=1e-9), stats["fuel_structure"]
@@ -138,16 +147,10 @@ def test_the_plan_uses_it_and_falls_back_to_the_epigraph_nlp(coarse):
     _, p = coarse
     sol = solve_direct(p, se3ocp.DirectOptions())
     assert sol.converged and sol.stats["fuel_guard"] == "passed" and "fuel_structure" in sol.stats
-    real = fuel_structure.structured_finish
-
-    def failing(problem, options, guess, progress=None, **kw):
-        return real(problem, options.replace(max_iter=3), guess, progress, **kw)
-
-    with mock.patch.object(solve_mod, "structured_finish", failing):
-        fell = solve_direct(p, se3ocp.DirectOptions())
+    fell = solve_direct(p, se3ocp.DirectOptions(), strategy=FuelStrategy(structure=StructuredFinish(None, budget=3)))
     assert fell.converged, fell.message
     assert fell.stats["fuel_structure"][-1].startswith("not kept")
-    assert any(a.label.endswith("on its switching structure") for a in fell.attempts)
+    assert any(a.label.endswith("on its switching structure") for a in fell.trace)
     assert fell.cost == pytest.approx(sol.cost, rel=1e-8)
 
 
@@ -187,9 +190,10 @@ def test_a_body_fixed_engine_is_finished_on_its_structure_with_its_thrust_as_mag
     T = b.thrust(U[U_FORCE].T)
     assert np.max(b.off_axis(U[U_FORCE].T)) <= 1e-10 * b.max and T.min() >= -1e-8 * b.max
     assert np.count_nonzero(T <= 1e-6 * b.max) >= 5                # the engine is off somewhere
-    with mock.patch.object(solve_mod, "structure_applies", lambda *_: False):
-        epi = solve_direct(p, options)
-    assert epi.converged and "fuel_structure" not in epi.stats
+    from test_fuel_guard import EPIGRAPH
+
+    epi = solve_direct(p, options, strategy=EPIGRAPH)
+    assert epi.converged and epi.stats["fuel_structure"] == ["not kept: the fuel NLP finished from the same start"]
     assert sol.cost == pytest.approx(epi.cost, rel=1e-9)
 
 
@@ -200,18 +204,17 @@ def test_a_failed_warm_solve_is_solved_again_from_ipopts_own_start(coarse):
     4826-step level of accuracy 1e-6 the warm pruned solve ended Infeasible_Problem_Detected and from its own start
     converged in 36 iterations (docs/mathematics.md §16)."""
     sol25, p = coarse
-    options = se3ocp.DirectOptions()
-    plain, _ = fuel_structure.structured_finish(p, options, _guess(p, sol25))
-    real, cut = fuel_structure._solve, []
+    plain, _ = _finish(p, _guess(p, sol25))
+    cut = []
 
-    def failing_once(tr, opts, x0, duals, progress, *rest):
-        if duals is not None and not cut:
-            cut.append(True)
-            return real(tr, opts.replace(max_iter=1), x0, duals, progress, *rest)
-        return real(tr, opts, x0, duals, progress, *rest)
+    class FailingOnce(Context):         # the first warm solve (the pruned one) within one iteration
+        def solve(self, problem, start, label, ipopt=None, **options):
+            if label == "structured pruned" and not cut:
+                cut.append(True)
+                options["max_iter"] = 1
+            return Context.solve(self, problem, start, label, ipopt, **options)
 
-    with mock.patch.object(fuel_structure, "_solve", failing_once):
-        sol, stats = fuel_structure.structured_finish(p, options, _guess(p, sol25))
+    sol, stats = _finish(p, _guess(p, sol25), ctx=FailingOnce(Direct(se3ocp.DirectOptions())))
     assert cut and "from IPOPT's own start: Solve_Succeeded" in stats["fuel_structure"][0], stats["fuel_structure"]
     assert sol.converged and stats["fuel_guard"] == "passed"
     assert sol.cost == pytest.approx(plain.cost, rel=1e-9)

@@ -13,7 +13,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.geometry.state import NU, NX, U_FORCE, U_MOMENT, Z_ANG, Z_MOM
-from se3ocp.transcription.methods.direct import solve_direct
+from se3ocp.transcription.solve import solve_direct
 from se3ocp.transcription.methods.indirect.conditions import terminal_residual_function
 from se3ocp.transcription.methods.indirect.control import bound_data, control_cost, weight_inverse
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
@@ -21,7 +21,7 @@ from se3ocp.transcription.methods.indirect.solve import (lam0_from_costates, out
 from se3ocp.transcription.options import IndirectOptions, OptionError
 from se3ocp.transcription.outcome import Result
 from se3ocp.transcription.results.solution import Solution
-from se3ocp.transcription.results.start import WarmStart
+from se3ocp.transcription.results.start import Start
 import support
 
 EXAMPLES = {"E3": "e3", "E4": "e4"}
@@ -31,10 +31,10 @@ def problem(name: str, N: int, scheme: str = "first_order"):
     return support.problem(EXAMPLES[name], N, scheme)
 
 
-def lam0_warm(p, lam0) -> WarmStart:
+def lam0_warm(p, lam0) -> Start:
     """A warm start that carries a shooting unknown lambda_0 (its primal part: the free motion)."""
     X, _ = p.disc.simulate(p.X0, None, p.h, p.N)
-    return WarmStart(t=p.h * np.arange(p.N + 1), X=X, U=np.zeros((NU, p.disc.n_controls(p.N))), scheme=p.scheme,
+    return Start(t=p.h * np.arange(p.N + 1), X=X, U=np.zeros((NU, p.disc.n_controls(p.N))), scheme=p.scheme,
                      source="indirect", lam0=np.asarray(lam0, dtype=float))
 
 

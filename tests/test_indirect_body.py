@@ -10,13 +10,14 @@ import pytest
 import se3ocp
 from se3ocp.transcription.geometry.state import NU, NX, U_FORCE, U_MOMENT, X_ROT, Z_ANG, Z_MOM
 from se3ocp.transcription.dynamics.lgvi import discretization
-from se3ocp.transcription.methods.direct import solve_direct
+from se3ocp.transcription.solve import solve_direct
 from se3ocp.transcription.methods.indirect.control import bound_data, control_matrix, weight_inverse
 from se3ocp.transcription.methods.indirect.coordinates import terminal_costate_function
 from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 from se3ocp.transcription.methods.indirect.solve import lam0_from_costates, solve_indirect
 from se3ocp.transcription.options import IndirectOptions
 from se3ocp.transcription.ocp import (BoxBound, SmoothControl, TargetState, ThrusterBound, quadrature_weights, state_residual)
+from se3ocp.transcription.objectives import Effort
 import support
 
 #: E3 sizes per scheme (as tests/test_indirect.py: first order N = 100, LGVI N = 50)
@@ -159,7 +160,7 @@ def test_box_bound_on_a_body_force(scheme, e3_solutions):
     over the continuation's stages)."""
     p = e3_solutions[scheme][1].problem
     b = 0.9 * np.abs(e3_solutions[scheme][1].controls[U_FORCE]).max(axis=1)
-    p = p.replace(control=SmoothControl(W_f=p.control.W_f, W_m=p.control.W_m, force_bound=BoxBound(b)))
+    p = p.replace(control=SmoothControl(W_f=p.control.W_f, W_m=p.control.W_m, force_bound=BoxBound(b), objective=Effort()))
     s, d = solve_indirect(p, IndirectOptions(eps_S=0.0)), solve_direct(p)
     rel = abs(s.cost - d.cost) / d.cost
     u_rel = np.abs(s.controls - d.controls).max() / np.abs(d.controls).max()
@@ -189,7 +190,7 @@ def engine_problem(scheme: str, N: int = 50):
     X, _ = p.disc.simulate(p.X0, U, p.h, N)
     engine = ThrusterBound([0.0, 1.0, 0.0], ENGINE_MAX[scheme], 0.0)
     return p.replace(terminal=TargetState(X[-1]),
-                     control=SmoothControl(W_f=ENGINE_WF, W_m=p.control.W_m, force_bound=engine))
+                     control=SmoothControl(W_f=ENGINE_WF, W_m=p.control.W_m, force_bound=engine, objective=Effort()))
 
 
 def independent_nlp(p):
@@ -316,7 +317,7 @@ def test_engine_max_is_continued_from_the_free_peak():
 
     p = engine_problem("lgvi")
     b = ThrusterBound(p.control.force_bound.axis, 3.5, 0.0)
-    p = p.replace(control=SmoothControl(W_f=np.eye(3), W_m=p.control.W_m, force_bound=b))
+    p = p.replace(control=SmoothControl(W_f=np.eye(3), W_m=p.control.W_m, force_bound=b, objective=Effort()))
     s = solve_indirect(p, IndirectOptions(eps_S=0.0))
     stages = s.stats["bound_continuation"]
     status, cost, _ = independent_nlp(p)

@@ -221,13 +221,13 @@ def test_warm_controls_on_a_mesh_are_taken_at_its_node_times():
     mesh at its own node times: the controls come back unchanged (they were resampled onto uniform node times
     before, moving every switch)."""
     from se3ocp.transcription.methods.indirect.fuel import warm_controls
-    from se3ocp.transcription.results.start import warm_start_of
+    from se3ocp.transcription.results.start import start_of
 
     p = raise_on_mesh(30, "lgvi")
     U = np.zeros((6, 31))
     U[0, 3:6], U[1, 26:] = 40.0, -40.0                            # two burns, each switch between two nodes
     X = p.disc.simulate(p.X0, U, p.steps, p.N)[0]
-    warm = warm_start_of(p.times, X, U, p.scheme, "direct")
+    warm = start_of(p.times, X, U, p.scheme, "direct")
     assert np.array_equal(warm_controls(p, warm), U)
 
 

@@ -18,6 +18,7 @@ from se3ocp.transcription.methods.indirect.shooting import shooting_functions
 from se3ocp.transcription.methods.indirect.solve import lam0_from_costates, solve_indirect
 from se3ocp.transcription.options import IndirectOptions
 from se3ocp.transcription.ocp import BoxBound, SmoothControl, TargetState, quadrature_weights, terminal_residual
+from se3ocp.transcription.objectives import Effort
 import support
 
 N = 40
@@ -117,7 +118,7 @@ def extended(case: str, scheme: str, free_solution):
     p = on_mesh("e3", scheme)
     if case == "box":
         b = 0.9 * np.abs(free_solution.controls[:3]).max(axis=1)
-        return p.replace(control=SmoothControl(W_f=p.control.W_f, W_m=p.control.W_m, force_bound=BoxBound(b)))
+        return p.replace(control=SmoothControl(W_f=p.control.W_f, W_m=p.control.W_m, force_bound=BoxBound(b), objective=Effort()))
     if case == "free":
         return p.replace(terminal=TargetState(p.Xd, frozenset({"attitude", "angular_velocity"})))
     return body(p).replace(time_bounds=(0.8 * p.T, 1.6 * p.T))
@@ -249,8 +250,8 @@ def test_the_fallback_from_the_direct_solution_on_a_mesh():
     that one iteration to the direct cost (1e-10)."""
     p = on_mesh("e3", "lgvi")
     s = se3ocp.solve(p, "indirect", indirect=IndirectOptions(max_iter=1))
-    print(f"fallback on the mesh: {s.result.value}, {s.stats['fallback']}, {s.attempts}")
-    assert s.converged and s.stats["fallback"] == "from_direct" and not s.attempts[0].result.successful
+    print(f"fallback on the mesh: {s.result.value}, {s.stats['fallback']}, {s.trace}")
+    assert s.converged and s.stats["fallback"] == "from_direct" and not s.trace[0].result.successful
     assert abs(s.cost - s.stats["direct_cost"]) <= 1e-10 * s.cost
 
 

@@ -20,6 +20,7 @@ from se3ocp.transcription.methods.indirect.objectives import switching_function
 from se3ocp.transcription.methods.indirect.solve import not_covered
 from se3ocp.transcription.options import DirectOptions
 from se3ocp.transcription.ocp import BoxBound, NormBound, SmoothControl, quadrature_weights
+from se3ocp.transcription.objectives import Time
 import support
 
 SLEWS = ("slew_time_optimal", "slew_time_optimal_symmetric")
@@ -154,15 +155,15 @@ def test_the_laws_at_their_limits_are_the_hamiltonians_minimizer():
     (switching.on_off) at eps -> 0 is full thrust along -sigma where |sigma| > w and off below (the threshold w = 1 of
     W_f = w I); a removed control (norm bound 0) is 0."""
     sigma = np.array([[3.0, -0.1], [4.0, 0.2], [0.0, 0.0], [1.0, -2.0], [-1.0, 0.0], [2.0, 3.0]])
-    box = SmoothControl(objective="time", force_bound=NormBound(2.0), moment_bound=BoxBound([1.0, 2.0, 3.0]))
+    box = SmoothControl(objective=Time(), force_bound=NormBound(2.0), moment_bound=BoxBound([1.0, 2.0, 3.0]))
     u = law(sigma, dataclasses.replace(support.problem("slew_time_optimal", 20), control=box), 1e-12)
     assert u.shape == (NU, 2)
     assert np.allclose(u[U_FORCE, 0], [-1.2, -1.6, 0.0], rtol=1e-14) and np.all(u[U_MOMENT, 0] == [-1.0, 2.0, -3.0])
     assert np.all(u[U_MOMENT, 1] == [1.0, 0.0, -3.0])                  # sigma = 0: a switching node, 0
-    fuel = dataclasses.replace(box, objective="fuel")
+    fuel = dataclasses.replace(box, objective=se3ocp.Fuel())
     on_off = law(sigma, dataclasses.replace(support.problem("slew_time_optimal", 20), control=fuel), 1.0, 1e-12)
     assert np.allclose(on_off[U_FORCE, 0], [-1.2, -1.6, 0.0], rtol=1e-14) and np.all(on_off[U_FORCE, 1] == 0.0)
-    removed = SmoothControl(objective="time", force_bound=NormBound(0.0), moment_bound=BoxBound([1.0, 1.0, 1.0]))
+    removed = SmoothControl(objective=Time(), force_bound=NormBound(0.0), moment_bound=BoxBound([1.0, 1.0, 1.0]))
     p = dataclasses.replace(support.problem("slew_time_optimal", 20), control=removed)
     assert np.all(law(sigma, p, 1e-12)[U_FORCE] == 0.0)
 

@@ -1,28 +1,33 @@
 """The LEO fuel raises (configs/leo_body_engine.yaml, leo_raise_slew.yaml with control.objective=fuel; issue 27):
 what the fuel plan does differently for maneuvers in physical units (docs/mathematics.md, "LEO fuel raises").
 
-1. The smoothing references of the homotopy (:func:`~transcription.strategy.homotopy.smoothing_reference`):
+1. The smoothing references of the homotopy (:func:`~transcription.objectives.fuel.homotopy.smoothing_reference`):
    a bounded part keeps its bound, an unbounded part takes the effort optimum's largest magnitude (the LEO moments
    are ~1e-9 kN km against a scale of 1.5e-11).
-2. The coarse grids of a fuel problem without a force bound (:func:`~transcription.strategy.plan.
+2. The coarse grids of a fuel problem without a force bound (:func:`~transcription.objectives.fuel.plan.
    coarse_resolves`): used only when their free motion ends near the fine grid's compared with the displacement the
    maneuver needs (leo_raise_slew on 100 steps: a gap of 53 km against 47 km: not resolved).
 3. The bundled LEO fuel raise with reaction wheels (configs/leo_engine_fuel.yaml): the homotopy's effort problem
-   weighted as its first level (:func:`~transcription.strategy.homotopy.effort_problem`), and the solve.
+   weighted as its first level (:meth:`~transcription.objectives.fuel.homotopy.Homotopy.effort_problem`), and the solve.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.transcription.strategy import homotopy
-from se3ocp.transcription.strategy.plan import coarse_resolves
 from se3ocp.transcription.nlp.transcription import SmoothTranscription
-from se3ocp.transcription.ocp import quadrature_weights
+from se3ocp.transcription.objectives import Effort, Fuel
+from se3ocp.transcription.objectives.fuel.homotopy import Homotopy, smoothing_reference
+from se3ocp.transcription.objectives.fuel.plan import FuelStrategy, coarse_resolves
+from se3ocp.transcription.ocp import NormBound, quadrature_weights
 from support import maneuver, problem
 
 FUEL = "control.objective=fuel"
+#: the fuel strategy's coarse-grid reach (its default)
+REACH = FuelStrategy().coarse_reach
 
 
 def _controls(n: int, force: float, moment: float) -> np.ndarray:
@@ -41,13 +46,13 @@ def test_the_smoothing_reference_is_the_bound_or_the_effort_magnitude(name, boun
     p = problem(name, 10, None, FUEL)
     tr = SmoothTranscription(p, se3ocp.DirectOptions(jit=False))
     U = _controls(p.disc.n_controls(p.N), 7.2e-4, 8.3e-9)
-    r = homotopy.smoothing_reference(tr.problem, U)
-    assert r[0] == (tr.slack_scales[0] if bounded_force else pytest.approx(7.2e-4, rel=1e-15))
-    assert r[1] == pytest.approx(8.3e-9, rel=1e-15) and tr.slack_scales[1] < 1e-10
+    r = smoothing_reference(tr.problem, U)
+    assert r[0] == (tr.magnitudes[0] if bounded_force else pytest.approx(7.2e-4, rel=1e-15))
+    assert r[1] == pytest.approx(8.3e-9, rel=1e-15) and tr.magnitudes[1] < 1e-10
     if bounded_force:
         assert r[0] == 1e-3
     U[3:] = 0.0
-    assert homotopy.smoothing_reference(tr.problem, U)[1] == tr.slack_scales[1]
+    assert smoothing_reference(tr.problem, U)[1] == tr.magnitudes[1]
 
 
 def test_the_references_of_bounded_parts_are_unchanged():
@@ -55,12 +60,12 @@ def test_the_references_of_bounded_parts_are_unchanged():
     bounds whatever the controls, as before the references existed."""
     p = problem("orbit_raise_fuel", 10)
     tr = SmoothTranscription(p, se3ocp.DirectOptions(jit=False))
-    r = homotopy.smoothing_reference(tr.problem, _controls(p.disc.n_controls(p.N), 13.0, 0.2))
-    assert np.array_equal(r, tr.slack_scales) and np.array_equal(r, [40.0, 1.0])
+    r = smoothing_reference(tr.problem, _controls(p.disc.n_controls(p.N), 13.0, 0.2))
+    assert np.array_equal(r, tr.magnitudes) and np.array_equal(r, [40.0, 1.0])
 
 
 def test_the_smoothed_cost_uses_the_given_references():
-    """The control-node block's cost at eps = 0.3 with references r = (7e-4, 5e-9) (not the slack scales): sum_j
+    """The fuel block's cost at eps = 0.3 with references r = (7e-4, 5e-9) (not the slack scales): sum_j
     omega_j (w_f phi(s_f) + w_m phi(s_m)), phi(s) = (1 - eps) s + eps s^2 / (2 r), to 1e-13 relative; at eps = 0 the
     same NLP point gives the fuel cost whatever r."""
     p = problem("leo_raise_slew", 10, None, FUEL)
@@ -69,11 +74,12 @@ def test_the_smoothed_cost_uses_the_given_references():
     s = np.linalg.norm(U[:3], axis=0), np.linalg.norm(U[3:], axis=0)
     ref = np.array([7e-4, 5e-9])
     for eps in (0.0, 0.3):
-        tr = SmoothTranscription(p, se3ocp.DirectOptions(jit=False), smoothing=eps, smoothing_ref=ref)
+        level = p.replace(control=replace(p.control, objective=Fuel().smoothed(eps, ref)))
+        tr = SmoothTranscription(level, se3ocp.DirectOptions(jit=False))
         X = np.repeat(p.X0[None, :], p.N + 1, axis=0)
-        w = tr.layout.pack(X.T, U, np.zeros((3, p.N))) / tr.w_scale
-        w[tr.layout.iS[:2]] = np.vstack(s) / tr.slack_scales[:, None]      # the magnitudes s = |u| of the optimum
-        blk = next(b for b in tr.nlp.blocks if b.name == "controls")
+        w = tr.layout.pack(X.T, U, np.zeros((3, p.N)), tr.objective.slack_values(tr, U)) / tr.w_scale
+        assert np.allclose(w[tr.layout.iS[:2]] * tr.magnitudes[:, None], np.vstack(s), rtol=1e-15, atol=0.0)
+        blk = next(b for b in tr.nlp.blocks if b.name == "fuel")
         cost = float(np.sum(np.array(blk.fn.map(blk.M)(w[blk.idx], blk.data)[0]))) * tr.scales.objective
         phi = [(1 - eps) * si + eps * si**2 / (2 * r) for si, r in zip(s, ref)]
         want = float(om @ (p.control.W_f[0, 0] * phi[0] + p.control.W_m[0, 0] * phi[1]))
@@ -86,9 +92,9 @@ def test_a_coarse_grid_without_a_force_bound_must_be_the_same_maneuver():
     always resolved without a bound, and its 25-step problem needed 20 kN of thrust).  The fuel raise's coarse grids
     still resolve (bounded: gap 0.0044 against a reach of 9.8), and so does an unbounded fuel raise (its force bound
     lifted: gap 0.0044 against a miss of 1.4)."""
-    assert not coarse_resolves(problem("leo_raise_slew", 400, None, FUEL), 100)
-    assert coarse_resolves(problem("orbit_raise_fuel", 400), 100)
-    assert coarse_resolves(problem("orbit_raise_fuel", 400, None, "control.bounds={moment: {norm: 1.0}}"), 100)
+    assert not coarse_resolves(problem("leo_raise_slew", 400, None, FUEL), 100, REACH)
+    assert coarse_resolves(problem("orbit_raise_fuel", 400), 100, REACH)
+    assert coarse_resolves(problem("orbit_raise_fuel", 400, None, "control.bounds={moment: {norm: 1.0}}"), 100, REACH)
 
 
 # ------------------------------------------------------------------- the bundled LEO fuel raise (leo_engine_fuel)
@@ -99,22 +105,22 @@ def test_the_leo_fuel_raise_is_the_engine_raise_with_wheels():
     fuel, effort = maneuver("leo_engine_fuel"), maneuver("leo_body_engine")
     assert {k for k in fuel.resolved if fuel.resolved[k] != effort.resolved[k]} == {"name", "control"}
     c = fuel.problem.control
-    assert c.objective == "fuel"
+    assert isinstance(c.objective, Fuel)
     assert fuel.resolved["control"]["bounds"]["force"] == effort.resolved["control"]["bounds"]["force"]
-    assert isinstance(c.moment_bound, homotopy.NormBound) and c.moment_bound.b == 1e-8
+    assert isinstance(c.moment_bound, NormBound) and c.moment_bound.b == 1e-8
     assert c.W_f[0, 0] == 1.0 and c.W_m[0, 0] == 1e5 and fuel.problem.N == 400
 
 
 def test_the_homotopys_effort_problem_is_its_first_level():
-    """homotopy.effort_problem: with every counted part bounded its weights are w_i / r_i (r_i the bounds), the
-    first level's phi_1(s) = s^2 / (2 r), where the bounds differ by more than EFFORT_LEVEL_RATIO -- leo_engine_fuel:
+    """Homotopy.effort_problem: with every counted part bounded its weights are w_i / r_i (r_i the bounds), the
+    first level's phi_1(s) = s^2 / (2 r), where the bounds differ by more than effort_level_ratio -- leo_engine_fuel:
     1e3 and 1e13 (the moment's weight 1e10 times the force's, as in leo_body_engine's effort problem) -- and the
     file's weights otherwise (the fuel raise, bounds 40 and 1; leo_body_engine with the fuel objective: no moment
     bound)."""
     for name, sets, want in (("leo_engine_fuel", (), (1e3, 1e13)), ("orbit_raise_fuel", (), (1.0, 1.0)),
                              ("leo_body_engine", (FUEL,), (1.0, 1e10))):
-        e = homotopy.effort_problem(problem(name, 10, None, *sets)).control
-        assert e.objective == "effort"
+        e = Homotopy(None).effort_problem(problem(name, 10, None, *sets)).control
+        assert isinstance(e.objective, Effort)
         assert np.allclose(e.W_f, want[0] * np.eye(3), rtol=1e-15, atol=0.0)
         assert np.allclose(e.W_m, want[1] * np.eye(3), rtol=1e-15, atol=0.0)
 
@@ -157,40 +163,56 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     assert abs(miss - free.terminal_error) <= 0.01 * free.terminal_error
 
 
-def test_a_level_at_its_budget_starts_the_structured_finish(monkeypatch):
-    """homotopy.STRUCTURE_FROM_BUDGET: the fuel raise on 25 steps by the levels (no jump) with the level eps = 0.1 cut
-    to 5 iterations: the homotopy ends there, and its point starts the structured finish.  That point is far from
+@dataclass(frozen=True)
+class _CutLevel:
+    """A Context whose homotopy level eps = 0.1 gets 5 iterations (the rest of its solves as the Context's)."""
+
+    ctx: object
+
+    def solve(self, problem, start, label, ipopt=None, **options):
+        return self.ctx.solve(problem, start, label, ipopt, **({**options, "max_iter": 5} if label == "eps 1e-01"
+                                                                else options))
+
+    def under(self, phase):
+        return _CutLevel(self.ctx.under(phase))
+
+    def using(self, **options):
+        return _CutLevel(self.ctx.using(**options))
+
+    @property
+    def options(self):
+        return self.ctx.options
+
+    @property
+    def method(self):
+        return self.ctx.method
+
+
+def test_a_level_at_its_budget_starts_the_structured_finish():
+    """Homotopy.structure_from_budget: the fuel raise on 25 steps by the levels (jump=False) with the level eps = 0.1
+    cut to 5 iterations: the homotopy ends there, and its point starts the structured finish.  That point is far from
     sparse (every node burns), and the finish's rough solve does not converge (500 iterations, as from the effort
-    optimum, docs §24); the epigraph NLP from the same point, within LEVEL_BUDGET, reaches the levels' own optimum
-    (to 1e-8; measured 0.812941492) with the guard passed.  Without STRUCTURE_FROM_BUDGET the homotopy gives no
-    start.  (configs/leo_engine_fuel.yaml, where the level's point is near bang-off-bang, takes the finish itself:
-    test_the_bundled_leo_fuel_raise_converges_bang_off_bang.)"""
-    from se3ocp.transcription.methods.direct import solve as solve_mod
-    from se3ocp.transcription.strategy.fuel_guard import guarded
-    from se3ocp.transcription.strategy.plan import relaxation
-    from se3ocp.transcription.methods.direct.solve import solve_direct
+    optimum, docs §24); the epigraph NLP from the same point, within the homotopy's level_budget, reaches the levels'
+    own optimum (to 1e-8; measured 0.812941492) with the guard passed.  With structure_from_budget=False the homotopy
+    gives no start.  (configs/leo_engine_fuel.yaml, where the level's point is near bang-off-bang, takes the finish
+    itself: test_the_bundled_leo_fuel_raise_converges_bang_off_bang.)"""
+    from se3ocp.transcription.methods.direct import Direct
+    from se3ocp.transcription.strategy.core import Context
 
-    p, options = problem("orbit_raise_fuel", 25), se3ocp.DirectOptions()
-    monkeypatch.setattr(homotopy, "JUMP", False)
+    p, ctx = problem("orbit_raise_fuel", 25), Context(Direct(se3ocp.DirectOptions()))
 
-    def run():
-        r = solve_mod._PlanRun(p, options, None, None)
-        sol = r.run([("hom", lambda: homotopy.homotopy_guess(p, options, solve_direct, relaxation), options.max_iter)],
-                     "first")
-        return (guarded(r, sol) if sol is not None and sol.converged else sol), r
+    def run(ctx, **fields):
+        fuel = FuelStrategy(homotopy=Homotopy(None, jump=False, **fields))
+        return replace(fuel.guard, inner=fuel.homotopy_start()).run(p, None, ctx)
 
-    full, _ = run()
-    level = homotopy.solve_level
-    monkeypatch.setattr(homotopy, "solve_level", lambda pr, o, eps, start, ref=None, budget=homotopy.LEVEL_BUDGET,
-                        **kw: level(pr, o, eps, start, ref, 5 if eps == 0.1 else budget, **kw))
-    cut, r = run()
+    full, cut = run(ctx), run(_CutLevel(ctx))
     said = cut.stats["homotopy_levels"]
     assert "eps = 1e-01: 5, Maximum_Iterations_Exceeded: its point starts the structured finish" in said, said
     assert cut.converged and cut.stats["fuel_guard"] == "passed", cut.message
-    assert r.structure[0].startswith("solve 1: burn nodes force 26, moment 26 of 26; rough"), r.structure
-    assert r.structure[-1] == "not kept: the fuel NLP finished from the same start"
-    fallback = r.attempts[-1]
-    assert fallback.iterations - fallback.guess_iterations <= homotopy.LEVEL_BUDGET
+    structure = cut.stats["fuel_structure"]
+    assert structure[0].startswith("solve 1: burn nodes force 26, moment 26 of 26; rough"), structure
+    assert structure[-1] == "not kept: the fuel NLP finished from the same start"
+    assert cut.trace[-1].iterations <= Homotopy(None).level_budget
     assert full.converged and cut.cost == pytest.approx(full.cost, rel=1e-8), (cut.cost, full.cost)
-    monkeypatch.setattr(homotopy, "STRUCTURE_FROM_BUDGET", False)
-    assert homotopy.homotopy_guess(p, options, solve_direct, relaxation) is None
+    none = run(_CutLevel(ctx), structure_from_budget=False)
+    assert not none.converged and "not available" in none.trace[0].note, none.message

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
+from se3ocp.transcription.objectives import Time
 from se3ocp.problems.models import Dumbbell
 from se3ocp.problems.maneuvers import load_maneuver, parse_maneuver
 from se3ocp.problems.schema import ConfigError, yaml_load
@@ -237,10 +238,10 @@ def test_rigid_body_bounds_free_time_constraints_resolved_round_trip():
     p = man.problem
     assert p.free_time and p.time_bounds == (0.5, 2.0) and p.T == 1.0 and p.model.mu is None
     assert np.allclose(p.model.inertia, np.diag([3.0, 2.0, 1.0])) and p.model.mass == 2.0
-    assert p.control.objective == "time" and p.control.removed == (True, False)
+    assert p.control.objective == Time() and p.control.removed == (True, False)
     assert np.allclose(p.control.moment_bound.b, [1, 2, 3]) and p.constraints[0].value == 50.0
     again = parse_maneuver(yaml.safe_load(yaml.safe_dump(man.resolved)), "resolved")
-    assert again.problem.time_bounds == p.time_bounds and again.problem.control.objective == "time"
+    assert again.problem.time_bounds == p.time_bounds and again.problem.control.objective == Time()
 
 
 def test_orbit_normal_is_normalized_and_near_rotation_projected():

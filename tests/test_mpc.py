@@ -3,7 +3,7 @@ indirect method's Newton step, warm-started from the current plan's remainder.
 
 Every claim with its tolerance:
 
-* The remainder of a plan (WarmStart.tail) is the remaining problem's solution (Bellman): re-planned from the
+* The remainder of a plan (Start.tail) is the remaining problem's solution (Bellman): re-planned from the
   plan's own node k, one Newton step reproduces the remaining controls to 1e-10 relative and the states to
   1e-10 (measured <= 7e-14 and 5e-12), both schemes, k = 0 (the direct plan's costates mapped to the
   shooting unknown), inside and near the end.

@@ -17,7 +17,7 @@ import se3ocp
 from se3ocp.transcription.dynamics.lgvi import Discretization
 from se3ocp.transcription.nlp import blocks
 from se3ocp.transcription.nlp.transcription import SmoothTranscription
-from se3ocp.transcription.strategy.starts import make_guess
+from se3ocp.transcription.strategy import starts
 from se3ocp.transcription.nlp import Block, NLPLayout, StructuredNLP, assemble, solve_time_split
 from se3ocp.transcription.options import DirectOptions
 from support import maneuver, problem
@@ -54,7 +54,7 @@ def test_smooth_blocks_equal_ad_of_the_whole_nlp(scheme, with_c):
     p = problem("e4", 12, scheme)
     tr = SmoothTranscription(p, DirectOptions(cayley_variables=with_c, jit=False))
     rng = np.random.default_rng(3)
-    x = tr.initial_point(make_guess("interpolate", p.disc, p.X0, p.Xd, p.N, p.T))
+    x = tr.initial_point(starts.interpolation(p))
     x = x * (1.0 + 0.01 * rng.standard_normal(x.size))
     _compare_with_ad(tr.nlp, x, rng.standard_normal(tr.nlp.ng))
 
@@ -83,7 +83,7 @@ def test_dynamics_rows_vanish_on_a_rollout():
     """The NLP's dynamics rows are the discrete equations: zero (to 1e-13) on the scheme's own rollout."""
     p = problem("e3", 30, "lgvi")
     tr = SmoothTranscription(p, DirectOptions(jit=False))
-    x = tr.initial_point(make_guess("rollout", p.disc, p.X0, p.Xd, p.N, p.T))
+    x = tr.initial_point(starts.rollout(p))
     g = np.array(ca.Function("g", [tr.nlp.w], [tr.nlp.g])(x)).ravel()
     assert np.abs(g[tr.nlp.rows("dynamics").ravel()]).max() <= 1e-13
     assert np.abs(g[tr.nlp.rows("terminal").ravel()]).max() > 0.1      # the rollout misses the target

@@ -18,6 +18,7 @@ import pytest
 import se3ocp
 from se3ocp.problems import plots
 from se3ocp.transcription.ocp import BoxBound, KeepIn, KeepOut, MaxAngularRate, MinRadius, NormBound, SmoothControl
+from se3ocp.transcription.objectives import Effort
 from support import ROOT, maneuver, slew_comparison
 
 SMOOTH = {"maneuver", "attitude", "attitude_error", "control_norms", "force", "moment", "thrust_rtn",
@@ -64,7 +65,7 @@ def bounded(both):
     U[:3] *= np.minimum(1.0, bf / np.linalg.norm(U[:3], axis=0))
     U[3:] = np.clip(U[3:], -bm[:, None], bm[:, None])
     cons = (KeepOut([1, 0, 0], [0, 1, 0], 40.0), MinRadius(0.98), MaxAngularRate(7.0), KeepIn([0, 0, 1], [0, 0, 1], 60.0))
-    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, force_bound=NormBound(bf),
+    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, objective=Effort(), force_bound=NormBound(bf),
                                             moment_bound=BoxBound(bm)), constraints=cons)
     sim = se3ocp.simulate(pb, U)
     figs = se3ocp.plot(sim)
@@ -199,7 +200,7 @@ def test_without_a_central_body_no_orbit_panel(slew):
     p = res.direct.problem
     U = np.zeros((6, p.disc.n_controls(p.N)))
     U[0] = 1.0                                                      # a constant push along x: the body moves
-    sim = se3ocp.simulate(p.replace(control=SmoothControl(p.control.W_f, p.control.W_m)), U)
+    sim = se3ocp.simulate(p.replace(control=SmoothControl(p.control.W_f, p.control.W_m, objective=Effort())), U)
     fig = se3ocp.plot(sim, ("maneuver",))["maneuver"]
     assert len(fig.axes) == 1 and fig.axes[0].get_xlabel() == "x₁"
     assert {"simulate path", "body e1"} <= legend_texts(fig) and "central body" not in legend_texts(fig)
@@ -318,7 +319,7 @@ def test_a_removed_control_is_absent_not_at_its_bound(both, slew):
     p = e3.direct.problem
     U = e3.direct.controls.copy()
     U[3:] = 0.0
-    sim = se3ocp.simulate(p.replace(control=SmoothControl(p.control.W_f, p.control.W_m, moment_bound=NormBound(0.0))), U)
+    sim = se3ocp.simulate(p.replace(control=SmoothControl(p.control.W_f, p.control.W_m, moment_bound=NormBound(0.0), objective=Effort())), U)
     assert "moment_time_at_bound" not in figures_of_merit(sim)
     figs = se3ocp.plot(sim)
     assert "moment" not in figs and {"force", "thrust_rtn", "velocity"} <= set(figs)

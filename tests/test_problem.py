@@ -8,6 +8,7 @@ import pytest
 from se3ocp.transcription.geometry.state import pack_state
 from se3ocp.transcription.geometry.so3 import exp_so3
 from se3ocp.transcription.ocp import (ImpulsiveControl, Problem, ProblemError, SmoothControl, TargetOrbit, TargetState, effort_cost, orbit_conditions, quadrature_weights, state_residual, terminal_error)
+from se3ocp.transcription.objectives import Effort
 from support import problem
 
 
@@ -53,11 +54,11 @@ def test_quadrature_weights_and_effort_cost():
     om = quadrature_weights("lgvi", 10, 0.1)
     assert om[0] == om[-1] == pytest.approx(0.05) and np.allclose(om[1:-1], 0.1)
     assert np.allclose(quadrature_weights("first_order", 10, 0.1), 0.1)
-    c = SmoothControl(W_f=2.0, W_m=[1.0, 2.0, 3.0])
+    c = SmoothControl(W_f=2.0, W_m=[1.0, 2.0, 3.0], objective=Effort())
     U = np.ones((6, 11))
     # constant unit controls over T = 1: (1/2) sum_i W_ii = (1/2)(3 * 2 + 6)
     assert effort_cost(U, c, om) == pytest.approx(6.0, rel=1e-14)
-    full = SmoothControl(W_f=[[2, 0.5, 0], [0.5, 1, 0], [0, 0, 1]])
+    full = SmoothControl(W_f=[[2, 0.5, 0], [0.5, 1, 0], [0, 0, 1]], objective=Effort())
     u = np.array([1.0, -1.0, 0, 0, 0, 0])[:, None]
     assert effort_cost(u, full, np.array([2.0])) == pytest.approx(u[:3, 0] @ full.W_f @ u[:3, 0], rel=1e-15)
 
@@ -77,7 +78,7 @@ def test_problem_validation_names_the_field(kw, field):
 @pytest.mark.parametrize("W", [0.0, [1, -1, 1], [[1, 2, 0], [2, 1, 0], [0, 0, 1]], [[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]])
 def test_weights_must_be_symmetric_positive_definite(W):
     with pytest.raises(ProblemError, match="control.W_f"):
-        SmoothControl(W_f=W)
+        SmoothControl(W_f=W, objective=Effort())
 
 
 def test_targets_validate_and_normalize():

@@ -1,4 +1,4 @@
-"""Progress of long solves (transcription.methods.base: phased, clocked, Reporting): every NLP of a direct solve
+"""Progress of long solves (transcription.methods.base: phased, clocked; strategy.core.Context): every NLP of a direct solve
 reports its iterations to the caller's progress callback, the guesses' own solves too (coarse grids, the fuel
 homotopy's effort problem and levels, the structured finish), each record naming its solve (``Iterate.phase``) and
 the seconds since the top-level solve started (``elapsed_s``); the CLI and API printers show both."""
@@ -16,7 +16,7 @@ import pytest
 import se3ocp
 from se3ocp.problems.api import _printer
 from se3ocp.problems.cli.progress import Progress
-from se3ocp.transcription.strategy import homotopy
+from se3ocp.transcription.objectives.fuel.homotopy import Homotopy
 from se3ocp.transcription.outcome import Iterate
 from support import maneuver
 
@@ -67,8 +67,8 @@ def test_every_nlp_of_a_fuel_solve_reports_under_its_phase(fuel50):
     jump = [n for p, n in solves if p == "coarse N=25 / fuel jump"]
     assert f"the fuel NLP from the effort optimum: {jump[0] - 1}" in sol.stats["homotopy_levels"]
     budgets = {r.phase: r.budget for r in recs}
-    assert budgets["coarse N=25 / fuel jump"] == homotopy.JUMP_BUDGET
-    assert budgets["coarse N=25 / effort / rollout"] == homotopy.EFFORT_ROLLOUT_BUDGET
+    assert budgets["coarse N=25 / fuel jump"] == Homotopy(None).jump_budget
+    assert budgets["coarse N=25 / effort / rollout"] == Homotopy(None).effort_rollout_budget
     assert all(r.budget > 0 and r.method == "direct" for r in recs)
 
 

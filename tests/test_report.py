@@ -22,6 +22,7 @@ import se3ocp
 from se3ocp.problems import plots, store
 from se3ocp.problems.report import merit_rows, render, write_report
 from se3ocp.transcription.ocp import BoxBound, KeepOut, MinRadius, NormBound, SmoothControl
+from se3ocp.transcription.objectives import Effort
 from support import maneuver, slew_comparison
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -201,13 +202,9 @@ def test_user_text_is_escaped(compared, tmp_path):
     d, res, _ = compared
     evil = '<img src=x onerror=alert(1)>&"'
     man = maneuver("e3", 30, "first_order", f"name={json.dumps(evil)}")
-    bad = res.direct
-    bad.message, keep = evil, bad.message
-    try:
-        store.write_run(tmp_path, man, bad)
-        text = write_report(tmp_path, draw=False).read_text()
-    finally:
-        bad.message = keep
+    bad = dataclasses.replace(res.direct, verdict=evil, notes=())
+    store.write_run(tmp_path, man, bad)
+    text = write_report(tmp_path, draw=False).read_text()
     assert evil not in text and "onerror=alert(1)&gt;" in text and "&lt;img src=x" in text
     assert Page(text).imgs == []                                        # draw=False and no PNGs: no figures
 
@@ -226,7 +223,7 @@ def test_bounds_and_constraint_margins_in_the_table():
     sol = se3ocp.solve(man)
     prob = sol.problem
     b = 0.5 * np.linalg.norm(sol.u_f, axis=1).max()
-    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, force_bound=NormBound(b),
+    pb = prob.replace(control=SmoothControl(prob.control.W_f, prob.control.W_m, objective=Effort(), force_bound=NormBound(b),
                                             moment_bound=BoxBound([1e-3, 1e-3, 1e-3])),
                       constraints=(KeepOut([1, 0, 0], [0, 1, 0], 40.0), MinRadius(0.9)))
     sim = se3ocp.simulate(pb, sol.controls)                  # the unbounded optimum violates both

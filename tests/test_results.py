@@ -69,10 +69,10 @@ def test_solution_html_is_a_table_of_the_same(both):
 
 
 def test_messages_are_escaped_and_not_applicable_shows_no_numbers():
-    sol = Solution(method="indirect", solver="x", result=Result.not_applicable, message="<script>alert(1)</script>",
+    sol = Solution(method="indirect", solver="x", result=Result.not_applicable, verdict="<script>alert(1)</script>",
                    trajectory=Trajectory(np.linspace(0, 1, 3), np.tile(np.r_[np.zeros(6), np.eye(3).ravel(),
                                                                                np.zeros(3)], (3, 1))),
-                   cost=1.0, terminal_error=0.5, iterations=0, build_s=0.0, solve_s=0.0)
+                   cost=1.0, terminal_error=0.5)
     html = sol._repr_html_()
     assert "<script>" not in html and "&lt;script&gt;" in html
     d = sol.display()
@@ -91,7 +91,7 @@ def test_comparison_shows_both_and_the_verdict(both):
 def test_trajectory_and_warm_start_reprs_hold_no_array(both):
     t, w = both.direct.trajectory, both.direct.warm
     assert repr(t) == "Trajectory(N = 20, T = 0.5, mass 1)"
-    assert repr(w) == ("WarmStart(the direct solution (N = 20, first_order), T = 0.5; states, controls, multipliers, "
+    assert repr(w) == ("Start(the direct solution (N = 20, first_order), T = 0.5; states, controls, multipliers, "
                        "costates)")
     assert "lambda_0" in repr(both.indirect.warm)
 
@@ -101,7 +101,8 @@ def test_attempt_lines():
     assert Attempt("rollout", Result.max_iterations, 2).line() == "rollout: max_iterations in 2 iterations"
     assert Attempt("interpolate", Result.converged, 7, 22.3094466412).line() == \
         "interpolate: converged in 7 iterations, cost 22.30944664"
-    assert Attempt("relaxed", Result.converged, 43, 22.6, 6, "the relaxed problem").line() == \
+    made = Attempt("relaxed problem", Result.converged, 6)
+    assert Attempt("relaxed", Result.converged, 37, 22.6).prepared((made,), "the relaxed problem").line() == \
         "relaxed: converged in 43 iterations (6 of them on the relaxed problem), cost 22.6"
     assert Attempt("coarse", None, note="not available").line() == "coarse: not available"
     assert math.isnan(Attempt("x", Result.infeasible, 3).cost)

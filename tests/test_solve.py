@@ -12,6 +12,7 @@ from se3ocp.transcription.outcome import Result
 from se3ocp.transcription.results.solution import Solution
 from se3ocp.transcription.dynamics.trajectory import Trajectory
 from se3ocp.transcription.solve import compare
+from se3ocp.transcription.results.trace import Attempt
 from support import maneuver
 
 
@@ -26,17 +27,17 @@ def test_both_methods_agree_and_compare():
 
 @pytest.fixture
 def direct_solves(monkeypatch) -> list:
-    """The direct solves of the registry, counted (one entry per call)."""
+    """The direct method's solves by the entry point, counted (one entry per call)."""
     import se3ocp.transcription.solve as registry
 
     calls = []
-    direct, impulsive = registry.METHODS["direct"]
+    direct = registry.solve_direct
 
     def counted(*a, **k):
         calls.append(1)
-        return direct.solve_fn(*a, **k)
+        return direct(*a, **k)
 
-    monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=counted), impulsive))
+    monkeypatch.setattr(registry, "solve_direct", counted)
     return calls
 
 
@@ -64,8 +65,8 @@ def test_weights_are_handled_alike_by_both_methods():
 
 
 def _fake(method, cost, U, result=Result.converged):
-    return Solution(method=method, solver="x", result=result, message="", trajectory=Trajectory(np.zeros(3), np.zeros((3, 18))),
-                    cost=cost, terminal_error=1e-14, iterations=7, build_s=0.0, solve_s=0.0, controls=U)
+    return Solution(method=method, solver="x", result=result, verdict="", trajectory=Trajectory(np.zeros(3), np.zeros((3, 18))),
+                    cost=cost, terminal_error=1e-14, controls=U, trace=(Attempt("x", result, 7),))
 
 
 def test_compare_reports_different_extremals():
@@ -103,7 +104,7 @@ def test_a_problem_built_in_python_solves_like_its_file():
     man = maneuver("e3", 30, "first_order")
     p = man.problem
     q = se3ocp.Problem(disc=p.disc, N=p.N, T=p.T, X0=p.X0.copy(), terminal=se3ocp.TargetState(p.terminal.X.copy()),
-                       control=se3ocp.SmoothControl(W_f=1.0, W_m=[1e4, 1e4, 1e4]), name="python")
+                       control=se3ocp.SmoothControl(W_f=1.0, W_m=[1e4, 1e4, 1e4], objective=se3ocp.Effort()), name="python")
     a, b = se3ocp.solve(man), se3ocp.solve(q)                           # the file's solver block is the default
     assert a.converged and b.converged and a.cost == b.cost
 
@@ -141,9 +142,9 @@ def test_impulsive_maneuvers_take_the_direct_method_only():
 def test_which_methods_solve_which_problems():
     """not_covered(problem, method) is the one place that says it ('' when the method can run), solve raises
     exactly that, and the registry picks the implementation by the kind of control."""
-    from se3ocp.transcription.methods.direct import DIRECT
-    from se3ocp.transcription.methods.impulsive import IMPULSIVE
-    from se3ocp.transcription.methods.indirect import INDIRECT
+    from se3ocp.transcription.methods.direct import Direct
+    from se3ocp.transcription.methods.impulsive import Impulsive
+    from se3ocp.transcription.methods.indirect import Indirect
     from se3ocp.transcription.solve import implementation, not_covered
 
     e1, e3, free = (maneuver(name, 10).problem for name in ("e1", "e3", "free"))
@@ -157,11 +158,11 @@ def test_which_methods_solve_which_problems():
     with pytest.raises(ValueError) as err:
         se3ocp.solve(e1, "both")
     assert str(err.value) == not_covered(e1, "both")
-    assert implementation(e3, "direct") is DIRECT and implementation(e1, "direct") is IMPULSIVE
-    assert implementation(e3, "indirect") is INDIRECT and implementation(e1, "indirect") is None
+    assert type(implementation(e3, "direct")) is Direct and type(implementation(e1, "direct")) is Impulsive
+    assert type(implementation(e3, "indirect")) is Indirect and implementation(e1, "indirect") is None
     # what a method does not cover inside a problem it solves is its own: a Solution saying so
     r = maneuver("e3_min_radius", 10).problem.constraints[0].radius
-    assert INDIRECT.not_covered(maneuver("e3_min_radius", 10).problem) == f"path constraints (min_radius {r:.6g})"
+    assert Indirect().not_covered(maneuver("e3_min_radius", 10).problem) == f"path constraints (min_radius {r:.6g})"
 
 
 def test_progress_is_one_signature_naming_the_method():

@@ -28,12 +28,12 @@ def test_a_failed_cold_start_falls_back_to_the_direct_solution():
     assert not cold.converged and cold.result is Result.max_iterations, cold.message
     sol = se3ocp.solve(man, "indirect")
     assert sol.converged, sol.message
-    assert [a.result for a in sol.attempts] == [Result.max_iterations, sol.result]
-    assert sol.attempts[0].label == "initial_costate zero" and sol.attempts[1].label.startswith("from_direct")
+    assert [a.result for a in sol.trace] == [Result.max_iterations, sol.result]
+    assert sol.trace[0].label == "initial_costate zero" and sol.trace[1].label.startswith("from_direct")
     assert sol.stats["fallback"] == "from_direct" and sol.stats["direct_status"] == "converged"
     assert "started from the direct solution (initial_costate from_direct) after the start from initial_costate " \
            "zero failed (max_iterations" in sol.message
-    assert sol.iterations == cold.iterations + sol.attempts[1].iterations
+    assert sol.iterations == cold.iterations + sol.trace[1].iterations
     assert abs(sol.cost - sol.stats["direct_cost"]) <= 1e-8 * sol.cost
     assert sol.terminal_error <= 1e-10
 
@@ -53,8 +53,8 @@ def test_a_free_final_time_falls_back_with_the_direct_methods_T():
     man = maneuver(DETUMBLE, 40, None, "horizon.T={free: true, guess: 0.1, min: 0.05, max: 0.15}")
     sol = se3ocp.solve(man, "indirect")
     assert sol.converged, sol.message
-    assert sol.attempts[0].result is Result.max_iterations
-    assert "its T = 0.15)" in sol.attempts[1].label
+    assert sol.trace[0].result is Result.max_iterations
+    assert "its T = 0.15)" in sol.trace[1].label
     assert abs(sol.trajectory.t[-1] - 0.15) <= 1e-12
     assert abs(sol.cost - sol.stats["direct_cost"]) <= 1e-8 * sol.cost
 
@@ -65,7 +65,7 @@ def test_no_fallback_without_a_direct_solution():
     man = maneuver(DETUMBLE, 40)
     sol = se3ocp.solve(man, "indirect", direct={"max_iter": 2})
     assert sol.result is Result.max_iterations and sol.message.startswith("no convergence in 50 iterations")
-    assert sol.attempts[1].result is None and "not available (the direct method ended" in sol.attempts[1].note
+    assert sol.trace[1].result is None and "not available (the direct method ended" in sol.trace[1].note
     assert sol.stats["fallback"] == "failed" and np.isfinite(sol.stats["direct_solve_s"])
 
 
@@ -89,7 +89,7 @@ def test_a_difference_the_direct_tolerance_explains_is_no_mismatch():
     before = d.stats["cost_difference_before_retightening"]
     assert before > MISMATCH_COST_RTOL             # without the re-solve it would be a MISMATCH
     assert c.verdict.startswith("agree: same extremal (direct at tol 1e-12, re-solved from its solution at tol 1e-07")
-    assert "indirect at |z_N| = " in c.verdict and d.attempts[-1].label == "its solution at tol 1e-12"
+    assert "indirect at |z_N| = " in c.verdict and d.trace[-1].label == "its solution at tol 1e-12"
     F = man.problem.control.force_bound.b
     on = np.linalg.norm(c.indirect.u_f, axis=1) >= F * (1 - 1e-12)
     assert on.sum() >= 5 and np.abs(np.linalg.norm(d.u_f, axis=1)[on] - F).max() <= 1e-6 * F
@@ -120,7 +120,7 @@ def test_an_infeasible_bound_ends_infeasible_and_is_named():
     its value and how much of the last iterate sits on it."""
     sol = se3ocp.solve(maneuver("e3_bounded", 100, None, "control.bounds.force.norm=10"))
     assert sol.result is Result.infeasible, sol.message
-    first, *rest = sol.attempts
+    first, *rest = sol.trace
     assert first.result is Result.infeasible and first.iterations <= 100 and first.prepared_on == "the relaxed problem"
     assert [a.result for a in rest] == [None, None] and all(a.note.startswith("not tried") for a in rest)
     assert "the force bound |u_f| <= 10 binds (100% of the control nodes of the last iterate are at it)" in sol.message
@@ -145,8 +145,8 @@ def test_time_optimal_starts_report_their_spread():
     lowest is kept.  On 40 steps the coarse grid's spread is carried into the Solution and summary.json."""
     sol = se3ocp.solve(maneuver("slew_time_optimal", 25))
     assert sol.converged, sol.message
-    costs = [a.cost for a in sol.attempts if a.result.successful]
-    assert len(sol.attempts) == 5 and sol.attempts[3].label.startswith("interpolate over T = 5.47723")
+    costs = [a.cost for a in sol.trace if a.result.successful]
+    assert len(sol.trace) == 5 and sol.trace[3].label.startswith("interpolate over T = 5.47723")
     assert sol.cost == min(costs) and sol.stats["multistart_starts"] == 5
     assert sol.stats["multistart_optima"] >= 2 and sol.stats["multistart_spread"] > 1e-2
     assert "the 5 starts on 25 steps ended at" in sol.message and "different optima" in sol.message
@@ -157,15 +157,17 @@ def test_time_optimal_starts_report_their_spread():
 
 
 def test_multistart_counts_optima_within_a_relative_tolerance():
-    from se3ocp.transcription.strategy.plan import multistart
-    from se3ocp.transcription.results.solution import Attempt
+    """The spread of a multistart's converged costs: costs within the relative tolerance count once; fewer than two
+    converged: nothing to say; false minima are named."""
+    from se3ocp.transcription.strategy.core import spread
 
-    ok = Result.converged
-    same = multistart([Attempt("a", ok, 3, 2.0), Attempt("b", ok, 4, 2.0 * (1 + 1e-9)), Attempt("c", None)], 10)
+    same = spread([2.0, 2.0 * (1 + 1e-9)], 10, 1e-6)
     assert same["multistart_optima"] == 1 and same["multistart"].startswith("the 2 starts on 10 steps ended at the same")
-    two = multistart([Attempt("a", ok, 3, 2.0), Attempt("b", ok, 4, 3.0), Attempt("c", Result.max_iterations, 9)], 10)
+    two = spread([2.0, 3.0], 10, 1e-6)
     assert two["multistart_optima"] == 2 and two["multistart_spread"] == 0.5
-    assert multistart([Attempt("a", ok, 3, 2.0)], 10) == {}
+    assert spread([2.0], 10, 1e-6) == {}
+    false = spread([2.0, 3.0], 10, 1e-6, [3.0])
+    assert false["multistart_false_minima"] == 1 and "of these, 1 (3) fail the fuel KKT guard" in false["multistart"]
 
 
 # --------------------------------------------------------------- multi-revolution effort problems: the orbit's start
@@ -174,25 +176,26 @@ def test_the_orbit_interpolation_meets_both_ends_and_follows_the_orbit():
     the target (states to 1e-12), turns 5.25 revolutions (10.5 pi) and stays on the circle r = 1 (the two ends
     are the same point of the turning frame); its path needs < 1e-2 of the screw interpolation's force and moment
     efforts."""
-    from se3ocp.transcription.strategy.starts import implied_effort, make_guess, orbit_turn, target_estimate
+    from se3ocp.transcription.ocp.estimate import target_estimate
+    from se3ocp.transcription.strategy.starts import implied_effort, make, orbit_turn
 
     p = maneuver("everyday/phasing_5_orbits", 200).problem
     Xd = target_estimate(p)
-    g = make_guess("orbit", p.disc, p.X0, Xd, p.N, p.T)
+    g = make("orbit", p)
     assert np.abs(g.X[0] - p.X0).max() <= 1e-12 and np.abs(g.X[-1] - Xd).max() <= 1e-12
     assert abs(orbit_turn(p.X0, Xd, p.T, p.model.mu) - 10.5 * np.pi) <= 1e-12
     assert np.abs(np.linalg.norm(g.X[:, :3], axis=1) - 1.0).max() <= 1e-12
-    screw = make_guess("interpolate", p.disc, p.X0, Xd, p.N, p.T)
+    screw = make("interpolate", p)
     mine, its = implied_effort(p.disc, g.X, p.h, p.control.W), implied_effort(p.disc, screw.X, p.h, p.control.W)
     assert mine[0] <= 1e-2 * its[0] and mine[1] <= 1e-2 * its[1]       # force and moment
 
 
 def test_the_orbit_interpolation_without_a_central_body_is_the_screw_interpolation():
     """No central body (the keep-out slew): the turning frame stands still, 'orbit' is the screw interpolation."""
-    from se3ocp.transcription.strategy.starts import make_guess, target_estimate
+    from se3ocp.transcription.strategy.starts import make
 
     p = maneuver("slew_keep_out", 20).problem
-    a, b = (make_guess(k, p.disc, p.X0, target_estimate(p), p.N, p.T) for k in ("orbit", "interpolate"))
+    a, b = (make(k, p) for k in ("orbit", "interpolate"))
     assert np.array_equal(a.X, b.X) and np.array_equal(a.C, b.C)
 
 
@@ -202,14 +205,14 @@ def test_the_start_needing_less_effort_goes_first():
     screw interpolation's where a plane turns in less than a revolution (E3, the 45 deg plane change), and for
     the LEO raise and slew (held inertially, rest to rest) the orbit's path with the screw interpolation's
     attitude; the efforts are reported."""
-    from se3ocp.transcription.strategy.plan import judged_interpolation
+    from se3ocp.transcription.objectives.effort import judged_interpolation
 
     for name, label in (("everyday/phasing_5_orbits", "orbit"), ("everyday/raise_3_orbits", "orbit"),
                         ("e3", "interpolate"), ("everyday/plane_change_45", "interpolate"),
                         ("leo_raise_slew", "orbit, attitude of interpolate")):
-        got, guess = judged_interpolation(maneuver(name, 100).problem)
+        got, _, said = judged_interpolation(maneuver(name, 100).problem)
         assert got == label, name
-        assert guess.stats["interpolation_efforts"].startswith("interpolate: force ")
+        assert said.startswith("interpolate: force ")
 
 
 def test_the_phasing_reaches_the_near_circular_optimum_by_default():
@@ -252,19 +255,20 @@ def test_the_iteration_hint_names_the_budgets_the_starts_ran_on():
     import dataclasses
 
     from se3ocp.transcription.methods.base import failed_solution
-    from se3ocp.transcription.strategy.plan import failure_hint
+    from se3ocp.transcription.strategy.hints import failure_hint
     from se3ocp.transcription.options import DirectOptions
-    from se3ocp.transcription.results.solution import Attempt
+    from se3ocp.transcription.results.trace import Attempt
 
     import support
     sol = failed_solution(support.problem("e3_inclination_change", 10), "direct", "ipopt", Result.max_iterations, "")
     options = DirectOptions()
-    capped = dataclasses.replace(sol, attempts=(
-        Attempt("the best start on 25 steps, resampled", Result.max_iterations, 3000 + 961, guess_iterations=961,
-                prepared_on="the coarse grid"),
+    coarse = Attempt("coarse", Result.converged, 961)
+    capped = dataclasses.replace(sol, trace=(
+        Attempt("the best start on 25 steps, resampled", Result.max_iterations, 3000).prepared((coarse,),
+                                                                                                "the coarse grid"),
         Attempt("rollout", Result.max_iterations, 600), Attempt("interpolate", Result.max_iterations, 600)))
     hint = failure_hint(capped, options)
     assert (f"a larger solver.direct.max_iter (now {options.max_iter}) for the starts it bounds: the starts that "
             "reached their limit ran on 3000 and 600 and 600 iterations (600: the plan's cap") in hint, hint
-    full = dataclasses.replace(sol, attempts=(Attempt("interpolate", Result.max_iterations, options.max_iter),))
+    full = dataclasses.replace(sol, trace=(Attempt("interpolate", Result.max_iterations, options.max_iter),))
     assert f"a larger solver.direct.max_iter (now {options.max_iter}); or" in failure_hint(full, options)

@@ -119,11 +119,11 @@ def test_secant_predictor_extrapolates_the_warm_starts():
     """The neighbour's warm start, or the secant through the last two (transcription.results.start.secant) when the
     step is at most MAX_SECANT_RATIO spacings."""
     from se3ocp.problems.sweep.run import _predict as predict
-    from se3ocp.transcription.results.start import WarmStart
+    from se3ocp.transcription.results.start import Start
 
     def warm(lam0):
         X = np.tile(np.r_[np.zeros(6), np.eye(3).ravel(), np.zeros(3)], (3, 1))
-        return WarmStart(t=np.linspace(0, 1, 3), X=X, U=np.zeros((6, 2)), scheme="first_order", source="indirect",
+        return Start(t=np.linspace(0, 1, 3), X=X, U=np.zeros((6, 2)), scheme="first_order", source="indirect",
                          lam0=np.asarray(lam0, float))
 
     a, b = warm(np.arange(12.0)), warm(np.arange(12.0) + 1.0)
@@ -236,18 +236,16 @@ def test_exception_in_a_task_is_a_row(tmp_path, monkeypatch):
 
 
 def test_warm_start_that_raises_falls_back_cold(tmp_path, monkeypatch):
-    import dataclasses
-
     import se3ocp.transcription.solve as registry
 
-    direct, impulsive = registry.METHODS["direct"]
+    direct = registry.solve_direct
 
-    def no_warm(problem, options, progress, warm):
+    def no_warm(problem, options=None, progress=None, warm=None, strategy=None):
         if warm is not None:
             raise RuntimeError("warm start broke the solver")
-        return direct.solve_fn(problem, options, progress, None)
+        return direct(problem, options, progress, None, strategy)
 
-    monkeypatch.setitem(registry.METHODS, "direct", (dataclasses.replace(direct, solve_fn=no_warm), impulsive))
+    monkeypatch.setattr(registry, "solve_direct", no_warm)
     s = sw.load_sweep(write_sweep(tmp_path, "set: {horizon.N: 20}\naxes: {horizon.T: [0.5, 0.52]}\ncontinuation: true\n"))
     res = sw.run_sweep(s, workers=1)
     assert [r["start"] for r in res.rows] == ["cold", "cold_after_failed_warm"]

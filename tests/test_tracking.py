@@ -24,6 +24,7 @@ from se3ocp.transcription.closedloop import tracking as tr
 from se3ocp.transcription.dynamics.lgvi import discretization
 from se3ocp.transcription.geometry.so3 import exp_so3
 from se3ocp.transcription.ocp import BoxBound, NormBound, ProblemError, SmoothControl, actuator_bounds
+from se3ocp.transcription.objectives import Effort
 
 from support import config, maneuver
 
@@ -383,9 +384,9 @@ def test_bounds_margin_plans_with_a_fraction_of_the_bounds_and_keeps_the_actuato
     assert resolved["bounds"]["force"] == {"norm": 12.0} and resolved["bounds_margin"] == 0.25
     again = parse_maneuver(man.resolved).problem.control
     assert again.force_bound == c.force_bound and np.array_equal(again.moment_bound.b, c.moment_bound.b)
-    assert actuator_bounds(SmoothControl(force_bound=NormBound(0.0)))[0] == NormBound(0.0)
+    assert actuator_bounds(SmoothControl(force_bound=NormBound(0.0), objective=Effort()))[0] == NormBound(0.0)
     with pytest.raises(ProblemError, match="bounds_margin"):
-        SmoothControl(bounds_margin=1.0)
+        SmoothControl(bounds_margin=1.0, objective=Effort())
 
 
 @pytest.mark.parametrize("value, message", [

@@ -15,11 +15,11 @@ import pytest
 import se3ocp
 from se3ocp.transcription.geometry.state import NU, X_ROT, pack_state, unpack_states
 from se3ocp.transcription.geometry.so3 import exp_so3, orthogonality_error
-from se3ocp.transcription.results.start import WarmStart, as_warm_start, warm_start_of
+from se3ocp.transcription.results.start import Start, as_start, start_of
 from support import maneuver
 
 
-def synthetic(N: int, scheme: str, **dual) -> WarmStart:
+def synthetic(N: int, scheme: str, **dual) -> Start:
     """A warm start over T = 2 whose states and controls are known functions of time: positions and momenta
     linear, the attitude turning at a constant rate (R(t) = exp(t w)), controls and costates linear."""
     T = 2.0
@@ -31,14 +31,14 @@ def synthetic(N: int, scheme: str, **dual) -> WarmStart:
     U = np.vstack([a + b * tu for a, b in zip(np.arange(NU), np.linspace(-1, 1, NU))])
     tl = t[1:] - 0.5 * T / N
     lam = np.column_stack([k - 0.5 * k * tl for k in range(12)])
-    return WarmStart(t=t, X=X, U=U, scheme=scheme, source="direct", costates=lam, **dual)
+    return Start(t=t, X=X, U=U, scheme=scheme, source="direct", costates=lam, **dual)
 
 
-def midpoints(w: WarmStart) -> np.ndarray:
+def midpoints(w: Start) -> np.ndarray:
     return w.t[1:] - 0.5 * w.h
 
 
-def control_times(w: WarmStart) -> np.ndarray:
+def control_times(w: Start) -> np.ndarray:
     return w.t if w.scheme == "lgvi" else midpoints(w)
 
 
@@ -81,20 +81,20 @@ def test_resampling_is_exact_on_what_it_interpolates_exactly(scheme, new_scheme)
 def test_refining_keeps_the_old_nodes():
     """On a grid 3x finer every third node is an old node (the geodesic passes through its ends)."""
     w = synthetic(8, "lgvi")
-    w = WarmStart(t=w.t, X=np.vstack([w.X[:4], w.X[4:] * 1.0]), U=w.U ** 2, scheme="lgvi", source="indirect")
+    w = Start(t=w.t, X=np.vstack([w.X[:4], w.X[4:] * 1.0]), U=w.U ** 2, scheme="lgvi", source="indirect")
     f, _ = w.fit(24, "lgvi")
     assert np.abs(f.X[::3] - w.X).max() <= 1e-13 and np.abs(f.U[:, ::3] - w.U).max() <= 1e-12
 
 
 def test_nothing_usable_is_no_warm_start():
     t, X = np.linspace(0, 1, 3), synthetic(2, "lgvi").X
-    assert warm_start_of(t, X, None, "lgvi", "direct") is None
-    assert warm_start_of(t, X, np.full((NU, 3), np.nan), "lgvi", "direct") is None
-    w = warm_start_of(t, X, np.zeros((NU, 3)), "lgvi", "direct", multipliers=np.array([np.nan]), nlp_key=(1, ()),
+    assert start_of(t, X, None, "lgvi", "direct") is None
+    assert start_of(t, X, np.full((NU, 3), np.nan), "lgvi", "direct") is None
+    w = start_of(t, X, np.zeros((NU, 3)), "lgvi", "direct", multipliers=np.array([np.nan]), nlp_key=(1, ()),
                       lam0=np.zeros(12))
     assert w.multipliers is None and w.nlp_key is None and np.array_equal(w.lam0, np.zeros(12))
     with pytest.raises(TypeError, match="warm_start"):
-        as_warm_start(np.zeros(12))
+        as_start(np.zeros(12))
 
 
 # ------------------------------------------------------------------- solves, by method
@@ -128,7 +128,7 @@ def test_direct_to_indirect_and_back():
     ind = se3ocp.solve(man, "indirect", warm_start=d100)
     assert ind.converged and ind.stats["initial_costate"] == "from_direct"
     assert "lambda_0 from the resampled costates" in ind.message
-    d = se3ocp.solve(man, warm_start=i100.warm)                        # a WarmStart itself, not only a Solution
+    d = se3ocp.solve(man, warm_start=i100.warm)                        # a Start itself, not only a Solution
     assert d.converged and "IPOPT's multipliers started cold (the warm start carries none)" in d.message
     assert abs(ind.cost - d.cost) <= 1e-10 * d.cost
 

@@ -1,41 +1,44 @@
-"""The one entry point of the method layer: ``solve(problem, method)``, plus ``simulate`` and ``compare``.
+"""The one entry point of the numerical core: ``solve(problem, method)``, plus ``simulate`` and ``compare``.
 
-Every front end -- the Python API (``se3ocp.solve``), the CLI, sweeps, scripts -- calls :func:`solve`.  It
-is a registry: each method name ('direct', 'indirect') stands for the implementations of
-:class:`~transcription.methods.base.Method` listed in :data:`METHODS`, and the one whose ``kind`` is the
-problem's runs it (the direct method: its NLP for smooth control, the impulsive solver for impulsive
-control).  Which methods can solve which problems is decided in one place, :func:`not_covered`.  For
-``method='both'`` it runs both on the same discretization and compares them; the direct solution starts
-the indirect method when ``initial_costate: from_direct`` (as it does for 'indirect' alone).
+Every front end -- the Python API (``se3ocp.solve``), the CLI, sweeps, scripts -- calls :func:`solve`.  It picks the
+method's implementation for the problem's kind of control (:data:`METHODS`; which methods solve which problems is
+decided in one place, :func:`not_covered`), composes its solves by a strategy -- the objective's default
+(``Objective.strategy``), or the one the caller gives -- and returns a frozen Solution: checks (the continuous flight,
+refinement's mesh history) add to it by :func:`dataclasses.replace`.  For ``method='both'`` it runs both on the same
+discretization and compares them; the direct solution starts the indirect method when ``initial_costate:
+from_direct`` (as it does for 'indirect' alone).
 """
 from __future__ import annotations
 
 import dataclasses
 import itertools
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .strategy.refine import AccuracyOptions, attach_checks, out_of_reach, refine
-from .ocp.feasibility import necessary_conditions, step_failure
-from .geometry.state import NU, unpack_states
 from .dynamics.lgvi import CAYLEY_TOL
-from .geometry.so3 import orthogonality_error
-from .methods.base import Method, Progress, clocked, failed_solution, phased
-from .methods.direct import DIRECT
-from .methods.impulsive import IMPULSIVE
-from .methods.indirect import INDIRECT
-from .methods.indirect.solve import needs_fallback, with_fallback
-from .options import DirectOptions, IndirectOptions
-from .ocp import Problem, terminal_error
-from .results.solution import Attempt, SolveError, Solution, html_table
-from .outcome import Result
 from .dynamics.trajectory import trajectory
-from .results.start import WarmStart, as_warm_start
+from .geometry.so3 import orthogonality_error
+from .geometry.state import NU, unpack_states
+from .methods.base import Progress, clocked, failed_solution
+from .methods.direct import Direct, transcription
+from .methods.impulsive import Impulsive
+from .methods.indirect import Indirect
+from .ocp import Problem, terminal_error
+from .ocp.feasibility import necessary_conditions, step_failure
+from .options import DirectOptions, IndirectOptions
+from .outcome import Result
+from .results.solution import SolveError, Solution, html_table
+from .results.start import Start, as_start
+from .results.trace import Attempt
+from .objectives.effort import first_start
+from .strategy.core import Context
+from .strategy.hints import failure_hint
+from .strategy.refine import AccuracyOptions, attach_checks, each, out_of_reach, refine
 
 #: the registry: each method name and its implementations (one per kind of control)
-METHODS: dict[str, tuple[Method, ...]] = {"direct": (DIRECT, IMPULSIVE), "indirect": (INDIRECT,)}
+METHODS = {"direct": {"smooth": Direct, "impulsive": Impulsive}, "indirect": {"smooth": Indirect}}
 #: the implementations (method name, kind of control) that take a non-uniform mesh, step k with its own h_k
 #: (issue 26, docs/mathematics.md §16); the others refuse one in :func:`not_covered`
 ON_A_MESH = {("direct", "smooth"), ("indirect", "smooth")}
@@ -49,7 +52,18 @@ MISMATCH_COST_RTOL = 1e-6
 RETIGHTEN_TOL = 1e-12
 
 
-@dataclass
+class NotCovered(ValueError):
+    """:func:`solve`'s refusal of a method that cannot run on the problem at all: :func:`not_covered`'s sentence.
+    A ValueError, so that whoever catches ValueError still does; a front end that tells bad input from a defect
+    catches this class (the CLI: one line naming the file's field, exit 2)."""
+
+
+class OutOfReach(ValueError):
+    """:func:`solve`'s refusal of an accuracy its scheme cannot reach within the cap on N, before solving:
+    :func:`~transcription.strategy.refine.out_of_reach`'s sentence (a ValueError, as :class:`NotCovered`)."""
+
+
+@dataclass(frozen=True)
 class Comparison:
     """Both methods on one problem: their Solutions and how far they agree.
 
@@ -97,7 +111,7 @@ def compare(a: Solution, b: Solution) -> Comparison:
     na = next((s for s in (a, b) if s.result is Result.not_applicable), None)
     d, i = (a, b) if a.method == "direct" else (b, a)
     if na is not None:
-        verdict = f"not comparable: {na.message.split(';')[0]}"
+        verdict = f"not comparable: {na.verdict}"
     elif not both:
         verdict = "not comparable: at least one method did not converge"
     elif same:
@@ -129,21 +143,16 @@ def _tolerances(d: Solution, i: Solution) -> str:
 
 def _retightened(d: Solution, direct: DirectOptions, progress: Progress | None, why: str, **stats) -> Solution:
     """The direct Solution ``d`` re-solved at tol RETIGHTEN_TOL from its own solution (primal and dual), for
-    :func:`reconcile` and :func:`fuel_retighten`; when it converges, it carries ``d``'s iterations and times too,
-    ``d``'s attempts and itself as the last, ``stats['retightened_from_tol']`` and ``stats``, and a message that
-    says ``why``."""
-    tight = _run(d.problem, "direct", direct.replace(tol=RETIGHTEN_TOL), phased(progress, "retightened"), d.warm)
+    :func:`reconcile` and :func:`fuel_retighten`; when it converges, it carries ``d``'s attempts and itself as the
+    last (their iterations and times), ``stats['retightened_from_tol']`` and ``stats``, and a verdict that says
+    ``why``."""
+    tight = Direct(direct.replace(tol=RETIGHTEN_TOL)).solve(d.problem, d.warm, _tagged(progress, "direct", "retightened"),
+                                                          f"its solution at tol {RETIGHTEN_TOL:.0e}")
     if not tight.converged:
         return tight
-    tight.stats.update(retightened_from_tol=float(direct.tol), **stats)
-    tight.message = (f"{d.message.split(';')[0]}; re-solved at tol {RETIGHTEN_TOL:.0e} from it {why}: "
-                     f"{tight.message.split(';')[0]}")
-    tight.attempts = (*d.attempts, Attempt(f"its solution at tol {RETIGHTEN_TOL:.0e}", tight.result, tight.iterations,
-                                           tight.cost))
-    tight.iterations += d.iterations
-    tight.build_s += d.build_s
-    tight.solve_s += d.solve_s
-    return tight
+    return replace(tight, verdict=f"{d.verdict}; re-solved at tol {RETIGHTEN_TOL:.0e} from it {why}: {tight.verdict}",
+                   trace=d.trace + tight.trace, notes=d.notes,
+                   stats={**tight.stats, "retightened_from_tol": float(direct.tol), **stats})
 
 
 def reconcile(cmp: Comparison, direct: DirectOptions, progress: Progress | None = None) -> Comparison:
@@ -160,25 +169,29 @@ def reconcile(cmp: Comparison, direct: DirectOptions, progress: Progress | None 
     tight = _retightened(d, direct, progress, f"before comparing (the costs were {cmp.cost_relative_difference:.1e} "
                                               f"apart)", cost_difference_before_retightening=cmp.cost_relative_difference)
     if not tight.converged:
-        d.stats["retighten"] = f"the re-solve at tol {RETIGHTEN_TOL:.0e} ended {tight.result}"
-        d.message += f"; {d.stats['retighten']}"
-        return compare(d, cmp.indirect)
+        said = f"the re-solve at tol {RETIGHTEN_TOL:.0e} ended {tight.result}"
+        return compare(d.with_notes(said, retighten=said), cmp.indirect)
     return compare(tight, cmp.indirect)
 
 
 # ---------------------------------------------------------------------------- the registry
-def implementation(problem: Problem, name: str) -> Method | None:
-    """The implementation of method ``name`` ('direct' or 'indirect') for the kind of ``problem``'s control
-    (None if the method has none)."""
-    return next((m for m in METHODS[name] if m.kind == problem.kind), None)
+def implementation(problem: Problem, name: str, direct: DirectOptions | None = None,
+                   indirect: IndirectOptions | None = None):
+    """The method ``name`` ('direct' or 'indirect') for the kind of ``problem``'s control with its options (None if
+    the method has none)."""
+    cls = METHODS[name].get(problem.kind)
+    if cls is None:
+        return None
+    return cls(indirect or IndirectOptions()) if name == "indirect" else cls(direct or DirectOptions())
 
 
 def not_covered(problem: Problem, method: str) -> str:
     """Why ``method`` ('direct', 'indirect' or 'both') cannot be run on ``problem`` at all, in one sentence
     ('' when it can): the one place that says which methods solve which problems (impulsive maneuvers: the
-    direct method only; a motion without control: none).  ``solve`` raises ValueError with it; the CLI and
-    the sweeps report it as bad input (and the CLI narrows 'both' to the method that applies).  What a method does not cover *within* a problem it solves (the indirect method
-    and path constraints) is not decided here: that method's Solution says so (Result.not_applicable)."""
+    direct method only; a motion without control: none).  ``solve`` raises NotCovered with it; the CLI and
+    the sweeps report it as bad input (and the CLI narrows 'both' to the method that applies).  What a method does
+    not cover *within* a problem it solves (the indirect method and path constraints) is not decided here: that
+    method's Solution says so (Result.not_applicable)."""
     if method not in METHOD_NAMES:
         return f"method must be one of {', '.join(METHOD_NAMES)}, got {method!r}"
     if problem.kind is None:
@@ -187,71 +200,193 @@ def not_covered(problem: Problem, method: str) -> str:
         if not problem.uniform and (name, problem.kind) not in ON_A_MESH:   # issue 26
             return f"a non-uniform mesh (Problem.mesh) is not supported yet by the {name} method: use uniform steps"
         if implementation(problem, name) is None:
-            return METHODS[name][0].not_covered(problem)
+            return Indirect().not_covered(problem) if name == "indirect" else Direct().not_covered(problem)
     return ""
 
 
-def _tagged(progress: Progress | None, name: str) -> Progress | None:
-    """progress with each Iterate naming its method."""
-    return None if progress is None else (lambda it: progress(dataclasses.replace(it, method=name)))
+def _tagged(progress: Progress | None, name: str, phase: str = "") -> Progress | None:
+    """progress with each Iterate naming its method (and under ``phase``)."""
+    if progress is None:
+        return None
+    return lambda it: progress(dataclasses.replace(
+        it, method=name, phase=f"{phase} / {it.phase}" if phase and it.phase else phase or it.phase))
 
 
-def _run(problem: Problem, name: str, options, progress: Progress | None, warm: WarmStart | None) -> Solution:
-    return implementation(problem, name).solve(problem, options, warm=warm, progress=_tagged(progress, name))
+# ---------------------------------------------------------------------------- one method
+def solve_direct(problem: Problem, options: DirectOptions | None = None, progress: Progress | None = None,
+                 warm: Start | None = None, strategy=None) -> Solution:
+    """The direct method on ``problem``: impulsive control by its one solve; smooth control by ``strategy`` (default:
+    the objective's, ``Objective.strategy``) -- from ``warm`` when given (fitted to the grid; what was reused said in
+    the message and ``stats['warm_start*']``), fatrop first when ``options.solver`` is 'fatrop' (IPOPT the fallback)
+    -- with what to try next when it fails from its own starts (:func:`~transcription.strategy.hints.failure_hint`)."""
+    options = options or DirectOptions()
+    ctx = Context(implementation(problem, "direct", options), progress)
+    if problem.kind == "impulsive":
+        sol = ctx.method.solve(problem, None, progress)
+        return sol.with_notes(f"warm start from {warm.describe()} not used (the impulsive method starts from its own "
+                              "guesses)") if warm is not None else sol
+    strategy = strategy or problem.control.objective.strategy(problem, options)
+    if options.solver == "fatrop":
+        sol = _fatrop_first(problem, strategy, ctx, warm)
+    else:
+        sol = strategy.run(problem, warm, ctx)
+    if warm is not None:
+        return _warm_notes(problem, sol, warm, options)
+    hint = failure_hint(sol, options)
+    return sol.with_notes(hint, hint=hint) if hint else sol
+
+
+def _warm_notes(problem: Problem, sol: Solution, warm: Start, options: DirectOptions) -> Solution:
+    """``sol``, solved from the warm start ``warm``, with what became of it in the message and stats: ``warm_start``
+    (where it came from), ``warm_start_resampled``, ``warm_start_notes`` (what was resampled, what was not
+    reused)."""
+    fitted, notes = warm.fit(problem.N, problem.scheme, problem.fractions)
+    said = list(notes)
+    key = transcription(problem, options)[0].nlp.key
+    if not (fitted.multipliers is not None and fitted.nlp_key == key) and not any("multipliers" in n for n in said):
+        why = "the warm start carries none" if warm.multipliers is None else "they belong to an NLP of another structure"
+        said.append(f"IPOPT's multipliers started cold ({why})")
+    return sol.with_notes(f"warm start from {warm.describe()}", *said, warm_start=warm.describe(),
+                          warm_start_resampled=bool(notes), warm_start_notes="; ".join(said))
+
+
+def _fatrop_first(problem: Problem, strategy, ctx: Context, warm: Start | None) -> Solution:
+    """fatrop from ``warm`` (else the effort objective's first start: fatrop covers effort problems only), IPOPT by
+    ``strategy`` when it does not converge (or does not cover the problem): the Solution says what fatrop did
+    (``stats['fatrop_*']``, its verdict before IPOPT's)."""
+    label, start = ("warm start", warm) if warm is not None else first_start(problem)
+    fat = ctx.solve(problem, start, label)
+    if fat.converged:
+        return fat.with_notes(fatrop_fallback=False)
+    why = fat.verdict if fat.result is Result.not_applicable or fat.verdict.startswith("fatrop") else \
+        f"fatrop did not converge ({fat.verdict})"
+    sol = strategy.run(problem, warm, replace(ctx, method=ctx.method.replace(solver="ipopt")))
+    return replace(sol, verdict=f"{why}; IPOPT fallback: {sol.verdict}", trace=fat.trace + sol.trace).with_notes(
+        fatrop_fallback=True, fatrop_status=str(fat.stats.get("solver_status", fat.result.value)),
+        fatrop_message=why)
 
 
 def _indirect_after_direct(problem: Problem, indirect: IndirectOptions, progress: Progress | None,
                            dsol: Solution, direct_s: float | None) -> Solution:
     """The indirect method started from the direct solution (initial_costate: from_direct); with ``direct_s``
     (the direct solve was run for it) its stats say what the direct solve did."""
-    isol = _run(problem, "indirect", indirect, progress, dsol.warm)
+    isol = Indirect(indirect).solve(problem, dsol.warm, _tagged(progress, "indirect"))
+    if direct_s is None:
+        return isol
+    return isol.with_notes(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
+
+
+#: results after which a failed start of the indirect method is final (nothing to retry: the method does not apply,
+#: or the user stopped it)
+NO_FALLBACK = (Result.not_applicable, Result.interrupted)
+
+
+def needs_fallback(sol: Solution, options: IndirectOptions, warm: Start | None, *, retry_warm: bool = False) -> bool:
+    """Whether the indirect solve ``sol``, started from ``options.initial_costate`` or from the warm start ``warm``,
+    failed and is to be started again from the direct solution (``options.fallback``, :func:`with_fallback`).  A
+    failed warm start is retried only with ``retry_warm``: when the direct solution of this very grid is at hand
+    ('both': the warm start came from elsewhere, e.g. refinement's previous level)."""
+    return (bool(options.fallback) and (warm is None or retry_warm) and options.initial_costate != "from_direct"
+            and not sol.result.successful and sol.result not in NO_FALLBACK)
+
+
+def with_fallback(cold: Solution, retry: Solution | None, dsol: Solution, direct_s: float | None) -> Solution:
+    """The Solution of an indirect solve whose start from ``initial_costate`` (``cold``) failed and that was started
+    again from the direct solution ``dsol`` (``retry``; None when the direct method did not converge, so that there
+    was nothing to start from).  The successful one is returned (else the cold one, whose failure is the reason), its
+    trace the two starts (with ``direct_s``, the direct solve run for the second: its time, as the second's part), its
+    message saying which start succeeded; ``stats['fallback']``."""
+    spec = cold.stats.get("initial_costate", "zero")
+    first = (replace(cold.trace[0], label=f"initial_costate {spec}"),) if cold.trace else ()
+    what = "from_direct (the direct solution's costates" + (f", its T = {dsol.warm.T:.10g})" if
+                                                             cold.problem.free_time and dsol.warm else ")")
+    ran = (Attempt("the direct solution", dsol.result, 0, float(dsol.cost), 0.0, direct_s,
+                   note="the direct method's solve for this start"),) if direct_s is not None else ()
+    if retry is None:
+        second = Attempt(what, None, note=f"not available (the direct method ended {dsol.result}: {dsol.message})")
+        out, said = cold, f"the fallback {second.line()}"
+    else:
+        second = replace(retry.trace[0], label=what) if retry.trace else Attempt(what, retry.result)
+        out = retry if retry.converged else cold
+        said = (f"started from the direct solution (initial_costate from_direct) after the start from initial_costate "
+                f"{spec} failed ({cold.result}: {cold.verdict})" if retry.converged else
+                f"the fallback from the direct solution failed too ({retry.result}: {retry.verdict})")
+    stats = {"fallback": "from_direct" if retry is not None and retry.converged else "failed"}
     if direct_s is not None:
-        isol.stats.update(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
-    return isol
+        stats.update(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
+    return replace(out, trace=first + (second.prepared(ran, "the direct solution"),)).with_notes(said, **stats)
 
 
 def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect: IndirectOptions,
-              progress: Progress | None, warm: WarmStart | None, dsol: Solution | None) -> Solution:
-    """``isol`` if it succeeded or needs no fallback (:func:`~.methods.indirect.solve.needs_fallback`), else the
-    indirect method started again from the direct solution ``dsol`` (solved here when None) -- the cold start's
-    failure and the fallback in its attempts and message (:func:`~.methods.indirect.solve.with_fallback`).  A warm
-    start is retried too when ``dsol`` is given ('both': the warm start came from elsewhere, e.g. refinement's previous
-    level resampled onto this mesh, where the fuel raise's indirect start failed and this grid's direct solution
-    converges in 2 iterations, docs/mathematics.md §19)."""
+              progress: Progress | None, warm: Start | None, dsol: Solution | None) -> Solution:
+    """``isol`` if it succeeded or needs no fallback (:func:`needs_fallback`), else the indirect method started again
+    from the direct solution ``dsol`` (solved here when None) -- the cold start's failure and the fallback in its
+    trace and message (:func:`with_fallback`).  A warm start is retried too when ``dsol`` is given ('both': the warm
+    start came from elsewhere, e.g. refinement's previous level resampled onto this mesh, where the fuel raise's
+    indirect start failed and this grid's direct solution converges in 2 iterations, docs/mathematics.md §19)."""
     if not needs_fallback(isol, indirect, warm, retry_warm=dsol is not None):
         return isol
     direct_s = None
     if dsol is None:
         t0 = time.perf_counter()
-        dsol = _run(problem, "direct", direct, progress, None)
+        dsol = solve_direct(problem, direct, _tagged(progress, "direct"))
         direct_s = time.perf_counter() - t0
-    retry = _run(problem, "indirect", indirect, progress, dsol.warm) if dsol.converged and dsol.warm else None
+    retry = Indirect(indirect).solve(problem, dsol.warm, _tagged(progress, "indirect")) \
+        if dsol.converged and dsol.warm else None
     return with_fallback(isol, retry, dsol, direct_s)
 
 
+def fuel_retighten(cmp: Comparison, direct: DirectOptions, indirect: IndirectOptions,
+                   progress: Progress | None) -> Comparison:
+    """When the direct method converged and the indirect one did not (from its own start and from the direct
+    solution) on a problem whose indirect law starts from the direct solution's switching structure (the fuel
+    objective): the direct method re-solved at tol RETIGHTEN_TOL from its solution and the indirect one started again
+    from that (docs/mathematics.md §19: at IPOPT's default tol the fuel raise's switching structure is scattered, its
+    costates contradicting it).  ``cmp`` unchanged otherwise, or when the re-solve does not converge; the re-solve's
+    iterations and time are the direct Solution's (``stats['retightened_from_tol']``), the indirect Solution's
+    message says it was restarted."""
+    d, i = cmp.direct, cmp.indirect
+    law = getattr(d.problem.control, "objective", None)
+    if (d.problem.kind != "smooth" or not getattr(law.indirect, "from_structure", False) or not d.converged
+            or i.converged or i.result is Result.not_applicable or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL
+            or d.warm is None):
+        return cmp
+    tight = _retightened(d, direct, progress, "for the indirect method's switching structure",
+                         retightened_for="where the indirect method failed from its switching structure")
+    if not tight.converged:
+        return cmp
+    retry = Indirect(indirect).solve(d.problem, tight.warm, _tagged(progress, "indirect"))
+    retry = replace(retry, trace=i.trace + retry.trace).with_notes(
+        f"started from the direct solution re-solved at tol {RETIGHTEN_TOL:.0e} after the indirect method failed "
+        f"({i.result}: {i.verdict})")
+    return compare(tight, retry if retry.converged else i)
+
+
+# ---------------------------------------------------------------------------- the entry point
 def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | None = None,
           indirect: IndirectOptions | None = None, progress: Progress | None = None,
-          warm_start: Solution | WarmStart | None = None, throw: bool = False,
-          accuracy: AccuracyOptions | None = None) -> Solution | Comparison:
+          warm_start: Solution | Start | None = None, throw: bool = False,
+          accuracy: AccuracyOptions | None = None, strategy=None) -> Solution | Comparison:
     """Solve ``problem`` by ``method`` ('direct', 'indirect' or 'both').
 
-    direct, indirect: the options of each method (defaults if None).  progress: called as progress(Iterate)
-    during the solve, the Iterate naming its method (``Iterate.method``), its solve (``phase``: e.g. the direct
-    method's starts, coarse grids and homotopy levels, a refinement level 'level 1 N=200', 'retightened') and the
-    seconds since this call (``elapsed_s``).  warm_start: a previous Solution
-    (its ``warm``) or a :class:`~transcription.results.start.WarmStart`, of either method and of any N and scheme (it
-    is resampled; the Solution's message and ``stats['warm_start*']`` say what was reused): continuation,
-    refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
+    direct, indirect: the options of each method (defaults if None).  strategy: how the direct method composes its
+    solves (:mod:`transcription.strategy`; default: the objective's, ``Objective.strategy``, whose parameters are its
+    fields).  progress: called as progress(Iterate) during the solve, the Iterate naming its method
+    (``Iterate.method``), its solve (``phase``: e.g. the direct method's starts, coarse grids and homotopy levels, a
+    refinement level 'level 1 N=200', 'retightened') and the seconds since this call (``elapsed_s``).  warm_start: a
+    previous Solution (its ``warm``) or a :class:`~transcription.results.start.Start`, of either method and of any N
+    and scheme (it is resampled; the Solution's message and ``stats['warm_start*']`` say what was reused):
+    continuation, refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
     Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
     :class:`~transcription.results.solution.SolveError`.  A method that cannot solve the problem at all
     (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.strategy.refine.out_of_reach`), raises
-    ValueError with the one-line answer.  accuracy: the continuous check and refinement to a tolerance
-    (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the check on, N fixed): every successful
-    smooth-control Solution carries its continuous check (``sol.continuous``).
+    :class:`NotCovered` or :class:`OutOfReach` (ValueErrors) with the one-line answer.  accuracy: the continuous
+    check and refinement to a tolerance (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the
+    check on, N fixed): every successful smooth-control Solution carries its continuous check (``sol.continuous``).
     """
     reason = not_covered(problem, method)
     if reason:
-        raise ValueError(reason)
+        raise NotCovered(reason)
     reason = necessary_conditions(problem)
     if reason is not None:  # provably no solution: said at once, with the reason (feasibility.py)
         out = _infeasible(problem, method, reason)
@@ -261,75 +396,52 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     accuracy = accuracy or AccuracyOptions.default()
     reason = out_of_reach(problem, accuracy)      # a tolerance the scheme cannot reach: said before solving
     if reason:
-        raise ValueError(reason)
-    warm, note = as_warm_start(warm_start)
+        raise OutOfReach(reason)
+    warm, note = as_start(warm_start)
     progress = clocked(progress)
-    if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
+
+    def one(p, w, phase=""):
+        return _dispatch(p, method, direct, indirect, progress, w, strategy, phase)
+
+    if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (refine.py)
         names = ("direct", "indirect") if method == "both" else (method,)
         adaptive = accuracy.refinement == "adaptive" and all((n, problem.kind) in ON_A_MESH for n in names)
         levels = itertools.count()      # one call a level: numbered as refine's mesh history numbers them
-
-        def level(p, w):
-            return _dispatch(p, method, direct, indirect, phased(progress, f"level {next(levels)} N={p.N}"), w)
-
-        out = refine(problem, level, accuracy, warm, adaptive=adaptive)
+        out = refine(problem, lambda p, w: one(p, w, f"level {next(levels)} N={p.N}"), accuracy, warm,
+                     adaptive=adaptive)
     else:
-        out = _dispatch(problem, method, direct, indirect, progress, warm)
+        out = one(problem, warm)
     if accuracy.continuous_check:
-        attach_checks(out)
+        out = attach_checks(out)
     if note:
-        for s in (out.solutions.values() if isinstance(out, Comparison) else [out]):
-            s.message += f"; {note}"
+        out = each(out, lambda s: s.with_notes(note))
     return raise_unconverged(out) if throw else out
 
 
 def _dispatch(problem: Problem, method: str, direct: DirectOptions, indirect: IndirectOptions,
-              progress: Progress | None, warm: WarmStart | None) -> Solution | Comparison:
-    """One solve of ``problem`` by ``method`` on its own grid (``solve`` without its checks and notes)."""
-    out: Solution | Comparison
+              progress: Progress | None, warm: Start | None, strategy, phase: str = "") -> Solution | Comparison:
+    """One solve of ``problem`` by ``method`` on its own grid (``solve`` without its checks and notes); its
+    progress under ``phase``."""
+    def d(w):
+        return solve_direct(problem, direct, _tagged(progress, "direct", phase), w, strategy)
+
+    def i(w):
+        return Indirect(indirect).solve(problem, w, _tagged(progress, "indirect", phase))
+
     if method == "direct":
-        out = _run(problem, "direct", direct, progress, warm)
-    elif method == "indirect" and (warm is not None or indirect.initial_costate != "from_direct"):
-        out = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
-                        warm, None)
-    elif method == "indirect":                       # from_direct: the direct solution first
+        return d(warm)
+    if method == "indirect" and (warm is not None or indirect.initial_costate != "from_direct"):
+        return _fallback(problem, i(warm), direct, indirect, progress, warm, None)
+    if method == "indirect":                       # from_direct: the direct solution first
         t0 = time.perf_counter()
-        dsol = _run(problem, "direct", direct, progress, None)
-        out = _indirect_after_direct(problem, indirect, progress, dsol, time.perf_counter() - t0)
+        dsol = d(None)
+        return _indirect_after_direct(problem, indirect, progress, dsol, time.perf_counter() - t0)
+    dsol = d(warm)
+    if indirect.initial_costate == "from_direct":
+        isol = _indirect_after_direct(problem, indirect, progress, dsol, None)
     else:
-        dsol = _run(problem, "direct", direct, progress, warm)
-        if indirect.initial_costate == "from_direct":
-            isol = _indirect_after_direct(problem, indirect, progress, dsol, None)
-        else:
-            isol = _fallback(problem, _run(problem, "indirect", indirect, progress, warm), direct, indirect, progress,
-                             warm, dsol)
-        out = reconcile(fuel_retighten(compare(dsol, isol), direct, indirect, progress), direct, progress)
-    return out
-
-
-def fuel_retighten(cmp: Comparison, direct: DirectOptions, indirect: IndirectOptions,
-                   progress: Progress | None) -> Comparison:
-    """For the fuel objective, when the direct method converged and the indirect one did not (from its own start
-    and from the direct solution): the direct method re-solved at tol RETIGHTEN_TOL from its solution and the
-    indirect one started again from that (docs/mathematics.md §19: the indirect method takes the switching structure
-    of the direct solution, and at IPOPT's default tol the fuel raise's is scattered, its costates contradicting it).
-    ``cmp`` unchanged otherwise, or when the re-solve does not converge; the re-solve's iterations and time are the
-    direct Solution's (``stats['retightened_from_tol']``), the indirect Solution's message says it was restarted."""
-    d, i = cmp.direct, cmp.indirect
-    if (d.problem.kind != "smooth" or d.problem.control.objective != "fuel" or not d.converged or i.converged
-            or i.result is Result.not_applicable or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL
-            or d.warm is None):
-        return cmp
-    tight = _retightened(d, direct, progress, "for the indirect method's switching structure",
-                         retightened_for="where the indirect method failed from its switching structure")
-    if not tight.converged:
-        return cmp
-    retry = _run(d.problem, "indirect", indirect, progress, tight.warm)
-    retry.message += (f"; started from the direct solution re-solved at tol {RETIGHTEN_TOL:.0e} after the indirect "
-                      f"method failed ({i.result}: {i.message.split(';')[0]})")
-    retry.iterations += i.iterations
-    retry.solve_s += i.solve_s
-    return compare(tight, retry if retry.converged else i)
+        isol = _fallback(problem, i(warm), direct, indirect, progress, warm, dsol)
+    return reconcile(fuel_retighten(compare(dsol, isol), direct, indirect, progress), direct, progress)
 
 
 def _infeasible(problem: Problem, method: str, reason: str) -> Solution | Comparison:
@@ -377,9 +489,9 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     stats = {"max_orthogonality_error": float(orth.max()), "max_determinant_error": float(det.max()),
              "energy_initial": float(E[0]), "max_relative_energy_error": float(np.nanmax(rel)),
              "final_relative_energy_error": float(rel[-1]), "max_cayley_residual": worst}
-    return Solution(method="simulate", solver=disc.scheme, result=result, message=message,
-                    trajectory=trajectory(problem, X), cost=float("nan"), terminal_error=miss, iterations=0,
-                    build_s=0.0, solve_s=run_s, problem=problem, controls=U, stats=stats)
+    return Solution(method="simulate", solver=disc.scheme, result=result, verdict=message,
+                    trajectory=trajectory(problem, X), cost=float("nan"), terminal_error=miss, problem=problem,
+                    controls=U, stats=stats, trace=(Attempt("simulate", result, 0, solve_s=run_s),))
 
 
 def _simulation_verdict(problem: Problem, X: np.ndarray, res: np.ndarray, worst: float) -> tuple[Result, str]:
@@ -392,3 +504,7 @@ def _simulation_verdict(problem: Problem, X: np.ndarray, res: np.ndarray, worst:
                                    "the model parameters and that the body stays away from the central mass)")
     # a step's Cayley equation not solved: the fold of the scheme, or data no step size can fix
     return step_failure(problem, X, res, problem.h)
+
+
+__all__ = ["Comparison", "NotCovered", "OutOfReach", "compare", "not_covered", "reconcile", "simulate",
+           "solve", "solve_direct"]

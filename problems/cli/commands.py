@@ -118,7 +118,7 @@ def cmd_solve(args) -> int:
     out = tx.target
     for line in table(sols.values()):
         say(args, line)
-    if hasattr(result, "verdict"):
+    if hasattr(result, "same_extremal"):
         say(args, f"comparison: {result.verdict}")
     say(args, f"results in {out}/")
     emit_summary(args, store.summary(man, result, with_history=False))

@@ -26,7 +26,7 @@ from ...transcription.dynamics.model import BodyModel
 from ...transcription.outcome import Result
 from ...transcription.results.solution import Solution
 from ...transcription.dynamics.trajectory import Trajectory
-from ...transcription.results.start import warm_start_of
+from ...transcription.results.start import start_of
 from ..maneuvers import Maneuver, _body, parse_maneuver
 from ..schema import Validator
 from .schema import FlightSpec
@@ -65,12 +65,11 @@ def load_plan(payload: dict) -> tuple[Maneuver, Solution]:
         man = parse_maneuver(copy.deepcopy(payload["doc"]), payload["source"])
         problem = plan_problem(man.problem, payload["t"])
         model = problem.model
-        warm = warm_start_of(payload["t"], payload["X"], payload["U"], man.problem.scheme, payload["method"],
-                             costates=payload.get("costates"), lam0=payload.get("lam0"))
-        sol = Solution(method=payload["method"], solver="", result=Result.converged, message="the plan",
+        warm = start_of(payload["t"], payload["X"], payload["U"], man.problem.scheme, payload["method"],
+                        costates=payload.get("costates"), lam0=payload.get("lam0"))
+        sol = Solution(method=payload["method"], solver="", result=Result.converged, verdict="the plan",
                        trajectory=Trajectory(t=payload["t"], X=payload["X"], mass=model.mass, inertia=model.inertia),
-                       cost=float("nan"), terminal_error=float("nan"), iterations=0, build_s=0.0, solve_s=0.0,
-                       problem=problem, controls=payload["U"], warm=warm)
+                       cost=float("nan"), terminal_error=float("nan"), problem=problem, controls=payload["U"], warm=warm)
         _PLANS[key] = (man, sol)
     return _PLANS[key]
 

@@ -4,7 +4,7 @@ indirect method's Newton steps warm-started from the previous plan (docs/mathema
 At node k (every ``replan_every`` steps) the flown state X(t_k) becomes the initial state of the remaining
 problem: the plan's Problem (model, weights, bounds, terminal target) over the N - k remaining steps of the
 same h.  Its unknown is the remaining problem's shooting unknown (lgvi lambda_{k-1}, first order lambda_k),
-warm-started from the current plan's costate there (:meth:`~transcription.results.start.WarmStart.tail`): by
+warm-started from the current plan's costate there (:meth:`~transcription.results.start.Start.tail`): by
 Bellman's principle the current plan's remainder solves the remaining problem's conditions, so from the
 plan's own node the warm start is already the answer, and from a nearby state one Newton step
 (the exact Jacobian Psi of the shooting residual) is a step of a quadratically convergent iteration --
@@ -47,7 +47,7 @@ from ..methods.indirect.solve import free_rows, not_covered
 from ..options import IndirectOptions
 from ..ocp import TargetOrbit
 from .tracking import saturate
-from ..results.start import WarmStart
+from ..results.start import Start
 
 #: re-plan every this many node steps (the flight block's ``mpc.replan_every``)
 DEFAULT_REPLAN_EVERY = 10
@@ -82,7 +82,7 @@ def replan_not_covered(problem) -> str:
     (:func:`~.methods.indirect.solve.not_covered` with the effort objective only: the time and fuel objectives are
     named there), and of what it does an orbit target (docs/mathematics.md §19): the re-plan's shooting is the
     state target's with the effort law."""
-    reasons = [r for r in (not_covered(problem, ("effort",)),) if r]
+    reasons = [r for r in (not_covered(problem, replan=True),) if r]
     if isinstance(problem.terminal, TargetOrbit):
         reasons.append("an orbit target in a re-plan")
     return ", ".join(reasons)
@@ -115,7 +115,7 @@ class Replanner:
         """The indirect method's shooting Functions of n steps (built once per n and Discretization)."""
         return shooting_functions(self.problem.disc, int(n), self.jit)
 
-    def start(self, plan: WarmStart) -> WarmStart:
+    def start(self, plan: Start) -> Start:
         """``plan`` with its shooting unknown: the plan's own lam0, else mapped from its costates (a direct
         plan's, from its multipliers: docs/mathematics.md §7; lgvi lambda_{-1} = A_0^T lambda_0 as
         methods.indirect.solve.lam0_from_costates, at the plan's X_0 and h -- a free final time's h is the
@@ -129,10 +129,10 @@ class Replanner:
             h0 = np.ravel(self.steps(plan.N))[0]   # step 0's size
             A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], h0)[0])
             lam0 = A0.T @ lam0
-        return WarmStart(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
+        return Start(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
                          costates=plan.costates, lam0=np.asarray(lam0, float))
 
-    def prepare(self, tail: WarmStart) -> tuple[np.ndarray, float]:
+    def prepare(self, tail: Start) -> tuple[np.ndarray, float]:
         """The preparation phase of a re-plan (acados' real-time iteration): the Jacobian dF/dlam at the
         predicted state ``tail.X[0]`` (the current plan's node) and the warm start, computable before the
         flown state is known; and its wall time (s)."""
@@ -141,9 +141,9 @@ class Replanner:
                                    (tail.X[0], self.Xd, self.steps(tail.N), self.Winv, self.bd))
         return J, time.perf_counter() - t0
 
-    def replan(self, X, tail: WarmStart, k: int = 0, J0: np.ndarray | None = None) -> tuple[WarmStart | None, Replan]:
+    def replan(self, X, tail: Start, k: int = 0, J0: np.ndarray | None = None) -> tuple[Start | None, Replan]:
         """The remaining problem from the state X (18,) over ``tail.N`` steps, warm-started from ``tail``
-        (:meth:`WarmStart.tail` of the current plan, its lam0 the remaining problem's unknown): the new plan
+        (:meth:`Start.tail` of the current plan, its lam0 the remaining problem's unknown): the new plan
         (node times from 0, the predicted states X_0 = X .. X_n, controls, costates, lam0), or None when
         the step was rejected; and the :class:`Replan` record (k: the node, for the record).  ``J0``: the
         prepared Jacobian (:meth:`prepare`) for the first step, whose residual is then one plain rollout from
@@ -174,7 +174,7 @@ class Replanner:
             return None, rec
         hs = self.steps(n)
         t = np.arange(n + 1) * self.h if np.ndim(hs) == 0 else np.r_[0.0, np.cumsum(hs)]
-        new = WarmStart(t=t, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
+        new = Start(t=t, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
                         source="mpc", costates=lams.T, lam0=lam)
         return new, rec
 
@@ -204,7 +204,7 @@ class Replanning:
     phase), so the time from the flown state to the new plan is one rollout, a 12 x 12 solve and the final
     rollout.  ``replans``: the :class:`Replan` records, in order."""
 
-    def __init__(self, replanner: Replanner, plan: WarmStart, every: int = DEFAULT_REPLAN_EVERY,
+    def __init__(self, replanner: Replanner, plan: Start, every: int = DEFAULT_REPLAN_EVERY,
                  min_horizon: int = 1, gains=None, prepared: bool = True):
         if int(every) < 1 or int(min_horizon) < 1:
             raise ValueError("every and min_horizon: expected positive integers")
@@ -259,7 +259,7 @@ class Replanning:
         return steps / self._steps if self._steps else 0.0
 
 
-def around(gains, k: int, plan: WarmStart):
+def around(gains, k: int, plan: Start):
     """The tracker ``gains`` (transcription.closedloop.tracking.Gains of the original plan) from node k on, around the
     re-planned ``plan`` (its nodes X and controls U over the remaining N - k steps): the original gains and
     linearization, which the re-plan, a nearby trajectory, changes only to first order in its distance; on a

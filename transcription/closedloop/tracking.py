@@ -518,10 +518,9 @@ def sub_stepped(sol, h_max: float | None = None):
         Xt.append(X[k + 1])
         j += mk
     tr = sol.trajectory
-    return Solution(method=sol.method, solver=sol.solver, result=sol.result, message=sol.message,
+    return Solution(method=sol.method, solver=sol.solver, result=sol.result, verdict=sol.message,
                     trajectory=Trajectory(t=tt, X=np.array(Xt), mass=tr.mass, inertia=tr.inertia), cost=sol.cost,
-                    terminal_error=sol.terminal_error, iterations=0, build_s=0.0, solve_s=0.0, problem=sol.problem,
-                    controls=Ut)
+                    terminal_error=sol.terminal_error, problem=sol.problem, controls=Ut)
 
 
 def linearization(disc, X: np.ndarray, U: np.ndarray, h: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .so3 import cayley, hat, is_symbolic, vee_skew
+from .so3 import cayley, hat, is_symbolic, step_cayley_vectors, vee_skew
 
 NX = 18
 NU = 6
@@ -126,3 +126,9 @@ def tangent_basis(X: np.ndarray) -> np.ndarray:
     for i in range(3):
         D[X_ROT, 6 + i] = (R @ hat(np.eye(3)[i])).ravel(order="F")
     return D
+
+
+def cayley_vectors(X: np.ndarray) -> np.ndarray:
+    """c_k = cay^-1(R_k^T R_{k+1}) (N, 3) of node states X (N+1, 18): the Cayley vectors of the steps, consistent with
+    the attitudes (:func:`~transcription.geometry.so3.step_cayley_vectors`)."""
+    return step_cayley_vectors(unpack_states(X).R)

@@ -8,32 +8,19 @@ problem of the same structure: the builders with only structural arguments retur
 :class:`~.structured.BlockFunction` built once per Discretization and kept on it (its derivatives with it;
 ``disc`` is their owner even where the block does not depend on the scheme).
 
-    dynamics(disc, with_c, controls, effort, free_h)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
+    dynamics(disc, with_c, controls, free_h)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
         v = [X_k (18); c_k (3, with_c); w_k (nw, controls); X_{k+1} (18); h / h_scale (1, free_h)]
         p = [h (or h_scale, free_h); sX (18); sC (3, with_c); sW (nw, controls); sG (3, with_c);
-             s_obj; W_f (9); W_m (9) (effort); theta (the model's numbers, ``disc.model.parameters``)]
+             theta (the model's numbers, ``disc.model.parameters``)]
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
         (the step of ``disc.parametric()``: mass, inertia and the potential's numbers are data, so the block and
-        its compiled derivatives serve every model of the same structure -- compiled once)
-        cost = the step's share of sum_j omega_j (1/2) u_j^T W u_j, / s_obj (effort; else 0)
-    control_node(disc, free_h, norm_f, norm_m, fuel, thruster)   one control node j (docs/mathematics.md §10, §14)
-        v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (fuel: magnitudes and directions); h / h_scale (1, free_h)]
-        p = [sU (6); sS (2); omega_j / h; h (or h_scale); b_f; b_m (norm bounds); w_f; w_m; s_obj;
-             vec(Q) (9, thruster: the engine frame [a, b, c], column-major; b_f its max);
-             r_f, r_m, eps (3, fuel: the smoothing references and the smoothing of the fuel homotopy, 0 = the fuel
-             objective)]
+        its compiled derivatives serve every model of the same structure -- compiled once); no cost (the
+        objective's blocks carry it: transcription.objectives)
+    control_node(disc, norm_f, norm_m, thruster)   one control node j's bounds (docs/mathematics.md §10, §14)
+        v = u_j (6); p = [sU (6); b_f; b_m (norm bounds); vec(Q) (9, thruster: the engine frame [a, b, c],
+             column-major; b_f its max)]
         rows = [(|u_f|^2 - b_f^2) / b_f^2 (norm_f, <= 0); (|u_m|^2 - b_m^2) / b_m^2 (norm_m, <= 0);
-                Q^T u_f / b_f (thruster: the thrust a^T u_f / max in [min/max, 1], the off-axis b^T u_f, c^T u_f = 0);
-                |d_f|^2 - 1, |d_m|^2 - 1 (fuel, <= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (fuel, = 0)]
-        cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj (fuel; else 0), phi(s) = (1 - eps) s + eps s^2 / (2 r)
-               (docs/mathematics.md, the fuel homotopy: phi = s at eps = 0)
-    control_node(..., l1=True)                    the fuel cost on a fixed switching structure (docs/mathematics.md,
-        §23): v = [u_j (6); s_f, s_m; h / h_scale (free_h)]; p = [... (as above, with r_f, r_m, eps); b_f, b_m (1 on
-        a burn node of the part, 0 on a coast node, whose u and s are fixed to 0 by their bounds); delta_f, delta_m]
-        rows += [(b_f (sqrt(|u_f|^2 + delta_f^2) - delta_f - s_f) - (1 - b_f) sS_f) / sS_f (<= 0); the same of u_m]
-        (the epigraph's rows are not there); cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj as above.  With a
-        body-fixed engine (thruster) the force's magnitude is its thrust a^T u_f, linear and exact on the engine's
-        rows (|u_f| = T >= 0 there): no rounding, and the force burns on every node (T = 0 is the engine row's bound)
+                Q^T u_f / b_f (thruster: the thrust a^T u_f / max in [min/max, 1], the off-axis b^T u_f, c^T u_f = 0)]
     time_cost(disc)                               the time objective
         v = [h / h_scale]; p = [h_scale; N / s_obj]; cost = N h / s_obj
     state_target(disc, fixed)                  the terminal conditions of a state target
@@ -55,20 +42,19 @@ from .structured import BlockFunction
 NC = 3
 
 
-def dynamics_sizes(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = False) -> tuple[int, int]:
+def dynamics_sizes(disc, with_c: bool, controls: bool, free_h: bool = False) -> tuple[int, int]:
     """(nv, np) of :func:`dynamics`."""
     nc = NC if with_c else 0
     nw = disc.nw if controls else 0
-    return NX + nc + nw + NX + (1 if free_h else 0), 1 + NX + nc + nw + nc + (1 + 18 if effort else 0) + \
-        disc.model.parameters.size
+    return NX + nc + nw + NX + (1 if free_h else 0), 1 + NX + nc + nw + nc + disc.model.parameters.size
 
 
 @per_discretization
-def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = False) -> BlockFunction:
+def dynamics(disc, with_c: bool, controls: bool, free_h: bool = False) -> BlockFunction:
     """The dynamics block of one step (module docstring)."""
     nc = NC if with_c else 0
     nw = disc.nw if controls else 0
-    nv, npar = dynamics_sizes(disc, with_c, controls, effort, free_h)
+    nv, npar = dynamics_sizes(disc, with_c, controls, free_h)
     v = ca.SX.sym("v", nv)
     p = ca.SX.sym("p", npar)
     h = p[0] * v[-1] if free_h else p[0]
@@ -91,84 +77,30 @@ def dynamics(disc, with_c: bool, controls: bool, effort: bool, free_h: bool = Fa
     else:
         Xn, _ = core.step(X, w, h, theta)
         rows = (Xn - X1) / sX
-    cost = ca.SX(0)
-    if effort:
-        s_obj = p[i]
-        W = ca.SX.zeros(NU, NU)
-        W[0:3, 0:3] = ca.reshape(p[i + 1:i + 10], 3, 3)
-        W[3:6, 3:6] = ca.reshape(p[i + 10:i + 19], 3, 3)
-        if disc.scheme == "lgvi":            # trapezoidal: half of each node control's h-weighted cost
-            uk, uk1 = w[:NU], w[NU:]
-            cost = 0.25 * h * (ca.bilin(W, uk, uk) + ca.bilin(W, uk1, uk1))
-        else:                                # first order: u_{k+1} weighted by h
-            cost = 0.5 * h * ca.bilin(W, w, w)
-        cost = cost / s_obj
-    tag = f"{disc.scheme}{'_c' if with_c else ''}{'_u' if controls else ''}{'_effort' if effort else ''}" \
-          f"{'_freeh' if free_h else ''}"
-    return BlockFunction(ca.Function(f"dynamics_{tag}", [v, p], [cost, rows], ["v", "p"], ["cost", "rows"]))
-
-
-#: the fuel epigraph's variables per control node: magnitudes s_f, s_m and unit directions d_f, d_m
-FUEL_SLACKS = 8
-#: ... and those of the fixed switching structure's (``l1``): the magnitudes s_f, s_m
-L1_SLACKS = 2
+    tag = f"{disc.scheme}{'_c' if with_c else ''}{'_u' if controls else ''}{'_freeh' if free_h else ''}"
+    return BlockFunction(ca.Function(f"dynamics_{tag}", [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"]))
 
 
 @per_discretization
-def control_node(disc, free_h: bool, norm_f: bool, norm_m: bool, fuel: bool, thruster: bool = False,
-                 l1: bool = False) -> BlockFunction:
-    """The block of one control node: norm bounds, a body-fixed engine and the fuel epigraph (module docstring);
-    ``l1``: instead of the epigraph, the fuel cost of a fixed switching structure (no slacks; module docstring).
+def control_node(disc, norm_f: bool, norm_m: bool, thruster: bool = False) -> BlockFunction:
+    """The bounds of one control node: norm bounds and a body-fixed engine (module docstring).
 
     The engine's rows are linear in u_f: IPOPT's steps satisfy a linear equality exactly (to the linear
-    solver's round-off), so the off-axis force of the solution is zero to round-off, not merely to the tolerance.
-
-    The fuel epigraph is the magnitude-direction split u_f = s_f d_f, |d_f| <= 1, s_f >= 0 (the same
-    for u_m), with the cost omega_j (w_f s_f + w_m s_m): at the optimum s = |u|.  Unlike
-    |u|^2 <= s^2 its constraint gradients do not vanish where the control is off (u = s = 0), which
-    is where a fuel-optimal control spends its coast arcs (with |u|^2 <= s^2 IPOPT declared the
-    E3 fuel problem locally infeasible after 424 iterations).
-    """
-    ns = FUEL_SLACKS if fuel else L1_SLACKS if l1 else 0
-    v = ca.SX.sym("v", NU + ns + (1 if free_h else 0))
-    p = ca.SX.sym("p", NU + 2 + 2 + 2 + 3 + (9 if thruster else 0) + (3 if fuel or l1 else 0) + (4 if l1 else 0))
-    sU, sS = p[:NU], p[NU:NU + 2]
-    i = NU + 2
-    omega_per_h, hp, bf, bm, wf, wm, s_obj = (p[i + k] for k in range(7))
-    h = hp * v[-1] if free_h else hp
-    u = v[:NU] * sU
+    solver's round-off), so the off-axis force of the solution is zero to round-off, not merely to the tolerance."""
+    v = ca.SX.sym("v", NU)
+    p = ca.SX.sym("p", NU + 2 + (9 if thruster else 0))
+    u = v * p[:NU]
+    bf, bm = p[NU], p[NU + 1]
     rows = []
     if norm_f:
         rows.append((ca.dot(u[U_FORCE], u[U_FORCE]) - bf**2) / bf**2)
     if norm_m:
         rows.append((ca.dot(u[U_MOMENT], u[U_MOMENT]) - bm**2) / bm**2)
     if thruster:
-        rows.append(ca.mtimes(ca.reshape(p[i + 7:i + 16], 3, 3).T, u[U_FORCE]) / bf)
-    cost = ca.SX(0)
-    if fuel:
-        sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
-        df, dm = v[NU + 2:NU + 5], v[NU + 5:NU + 8]
-        rows += [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0]
-        rows += [(u[U_FORCE] - sf * df) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
-    if l1:   # the burn flags b_f, b_m of the node (0 or 1) and the roundings delta_f, delta_m (physical)
-        bfl, bml, df_, dm_ = p[-4], p[-3], p[-2], p[-1]
-        sf, sm = v[NU] * sS[0], v[NU + 1] * sS[1]
-        mag_f = ca.dot(ca.reshape(p[i + 7:i + 10], 3, 1), u[U_FORCE]) if thruster else \
-            ca.sqrt(ca.dot(u[U_FORCE], u[U_FORCE]) + df_**2) - df_
-        mag_m = ca.sqrt(ca.dot(u[U_MOMENT], u[U_MOMENT]) + dm_**2) - dm_
-        # rounded |u| <= s on a burn node; -1 <= 0 on a coast node (u = s = 0 there: no row at its bound)
-        rows += [(bfl * (mag_f - sf) - (1.0 - bfl) * sS[0]) / sS[0], (bml * (mag_m - sm) - (1.0 - bml) * sS[1]) / sS[1]]
-    if fuel or l1:
-        # the homotopy's smoothing: phi(s) = (1 - eps) s + eps s^2 / (2 r), phi = s at eps = 0
-        rf, rm, eps = (p[-3], p[-2], p[-1]) if fuel else (p[-7], p[-6], p[-5])
-        phi_f = (1.0 - eps) * sf + eps * sf**2 / (2.0 * rf)
-        phi_m = (1.0 - eps) * sm + eps * sm**2 / (2.0 * rm)
-        cost = omega_per_h * h * (wf * phi_f + wm * phi_m) / s_obj
-    # the name from its non-empty parts: CasADi refuses empty parts ("control_node__fuel": fuel without norm bounds)
-    parts = ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}", "thruster" if thruster else "",
-             "fuel" if fuel else "", "l1" if l1 else "", "freeh" if free_h else "")
-    return BlockFunction(ca.Function("_".join(w for w in parts if w), [v, p],
-                                     [cost, ca.vertcat(*rows) if rows else ca.SX(0, 1)], ["v", "p"], ["cost", "rows"]))
+        rows.append(ca.mtimes(ca.reshape(p[NU + 2:NU + 11], 3, 3).T, u[U_FORCE]) / bf)
+    name = "_".join(w for w in ("control_node", f"{'f' if norm_f else ''}{'m' if norm_m else ''}",
+                                "thruster" if thruster else "") if w)
+    return BlockFunction(ca.Function(name, [v, p], [ca.SX(0), ca.vertcat(*rows)], ["v", "p"], ["cost", "rows"]))
 
 
 @per_discretization
@@ -198,14 +130,12 @@ def terminal_time_rows(name: str, rows_of, scales: np.ndarray, free_h: bool) -> 
     return ca.Function(name, [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"])
 
 
-def dynamics_data(disc, h: float, sX, sC, sW, sG, s_obj=None, W_f=None, W_m=None) -> np.ndarray:
+def dynamics_data(disc, h: float, sX, sC, sW, sG) -> np.ndarray:
     """The data vector p of :func:`dynamics` (None entries are omitted: match the flags); the model's numbers last."""
     parts = [[h], sX]
     parts += [sC] if sC is not None else []
     parts += [sW] if sW is not None else []
     parts += [sG] if sG is not None else []
-    if s_obj is not None:
-        parts += [[s_obj], np.asarray(W_f, float).ravel(order="F"), np.asarray(W_m, float).ravel(order="F")]
     parts += [disc.model.parameters]
     return np.concatenate([np.asarray(a, dtype=float).ravel() for a in parts])
 
@@ -228,5 +158,5 @@ def state_target_scales(sX: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
     return np.concatenate([per[c] for c in fixed])
 
 
-__all__ = ["FUEL_SLACKS", "NC", "STATE_COMPONENTS", "control_node", "dynamics", "dynamics_data", "dynamics_sizes", "node_rows",
+__all__ = ["NC", "STATE_COMPONENTS", "control_node", "dynamics", "dynamics_data", "dynamics_sizes", "node_rows",
            "state_target", "terminal_time_rows", "state_target_scales", "time_cost"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.state import NU, NX, U_FORCE, U_MOMENT
+from ..geometry.state import NU, NX
 from .blocks import NC
 
 
@@ -13,7 +13,7 @@ class NLPLayout:
     """Order of the NLP decision vector: node-major blocks [X_k, u_k?, s_k?, c_k?], k = 0..N, then
     the global h.
 
-    X_k (18) at every node; u_k (6) and the slacks s_k (``n_slack``: the fuel epigraph) at the
+    X_k (18) at every node; u_k (6) and the slacks s_k (``n_slack``: the objective's own variables, e.g. the fuel epigraph's) at the
     nodes that carry a control (``control_nodes``); c_k (3) at nodes 0..N-1 when ``with_c``; the
     step size h last when ``free_h``.  :meth:`pack` and :meth:`unpack` are the only routines that
     know the order.  Shapes: X (18, N+1) (column k = node k), U (6, n_controls), S (n_slack,
@@ -61,14 +61,13 @@ class NLPLayout:
 
     def pack(self, X, U, C=None, S=None, h=None) -> np.ndarray:
         """NumPy (X (18, N+1), U (6, nU), C (3, N), S (n_slack, nU), h) -> w (n,).  C required iff
-        ``with_c``; S defaults to the first n_slack rows of the fuel epigraph's point of U (:func:`fuel_slacks`,
-        the magnitudes first); h required iff the layout has it."""
+        ``with_c``; S (the objective's own variables) iff ``n_slack``; h required iff the layout has it."""
         w = np.full(self.n, np.nan)
         w[self.iX] = np.asarray(X, dtype=float)
         U = np.asarray(U, dtype=float)
         w[self.iU] = U
         if self.n_slack:
-            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)[:self.n_slack]
+            w[self.iS] = np.asarray(S, dtype=float)
         if self.with_c:
             if C is None:
                 raise ValueError("this layout has Cayley variables: C (3, N) is required")
@@ -80,18 +79,6 @@ class NLPLayout:
         if np.isnan(w).any():
             raise ValueError("pack: some entries were not filled (shape mismatch?)")
         return w
-
-
-def fuel_slacks(U: np.ndarray) -> np.ndarray:
-    """The fuel epigraph's variables (8, n) of controls U (6, n): magnitudes |u_f|, |u_m| and unit
-    directions (u / |u|, or e1 where the control is 0)."""
-    out = []
-    for sl in (U_FORCE, U_MOMENT):
-        n = np.linalg.norm(U[sl], axis=0)
-        d = np.where(n > 0, U[sl] / np.where(n > 0, n, 1.0), np.array([[1.0], [0.0], [0.0]]))
-        out.append((n, d))
-    (nf, df), (nm, dm) = out
-    return np.vstack([nf, nm, df, dm])
 
 
 class StageLayout(NLPLayout):
@@ -156,7 +143,7 @@ class StageLayout(NLPLayout):
         if self.iUp is not None:
             w[self.iUp] = U[:, 1:]
         if self.n_slack:
-            w[self.iS] = np.asarray(S, dtype=float) if S is not None else fuel_slacks(U)[:self.n_slack]
+            w[self.iS] = np.asarray(S, dtype=float)
         if np.isnan(w).any():
             raise ValueError("pack: some entries were not filled (shape mismatch?)")
         return w

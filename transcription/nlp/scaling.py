@@ -3,11 +3,9 @@
 Scaling (:func:`characteristic_scales`): every variable is divided by a characteristic magnitude
 (positions by the orbit size, momenta by their boundary values or what the horizon requires,
 controls by momentum change over the horizon, c by h |Omega| / 2), every constraint row by the
-magnitude of its variable, and the objective by its value at the characteristic controls.  The
-control scales are then balanced so that no control's cost curvature W_i s_i^2 is below
-``BALANCE`` = 1e-2 of the largest: with W_m = I the moment directions would otherwise carry a
-scaled Hessian of ~1e-8, IPOPT's inertia correction swamps them and the solve stalls at
-"Solved_To_Acceptable_Level" (measured, E3 N = 100); balanced it reaches Solve_Succeeded.
+magnitude of its variable, and the objective by its value at the characteristic controls (the objective's own
+rule, :meth:`~transcription.ocp.objective.Objective.scales`: the effort objective also balances the control
+scales).
 """
 from __future__ import annotations
 
@@ -15,14 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..strategy.starts import target_estimate
+from ..ocp.estimate import target_estimate
 from ..geometry.state import U_FORCE, U_MOMENT, X_ANG, X_MOM, unpack_states
 from ..ocp import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, ThrusterBound, terminal_rows
 from . import blocks
-
-#: smallest allowed ratio of scaled control cost curvatures (characteristic_scales, module docstring)
-BALANCE = 1e-2
-
 
 @dataclass(frozen=True)
 class Scales:
@@ -40,10 +34,9 @@ def characteristic_scales(problem: Problem) -> Scales:
     (max-norms throughout) positions L = max(|x0|, |xd|, |xd - x0|) (1 if all vanish: attitude-only
     maneuvers); linear momenta max(|gamma0|, |gammad|, m L / T); angular momenta max(|Pi0|, |Pid|,
     lambda_max(J) / T); forces and moments: momentum scale / T, or their bounds; attitude entries
-    1; Cayley vector h |Omega| / 2 with |Omega| the angular-momentum scale / lambda_min(J).  For
-    the effort objective the control scales are raised so that W_i s_i^2 >= BALANCE * max_j
-    W_j s_j^2 (module docstring).  Objective: its value for controls of the characteristic
-    size held over the horizon (time: T).
+    1; Cayley vector h |Omega| / 2 with |Omega| the angular-momentum scale / lambda_min(J).  The
+    objective's scale (and, for the effort objective, the control scales balanced):
+    :meth:`~transcription.ocp.objective.Objective.scales`.
     """
     a, d = unpack_states(problem.X0), unpack_states(target_estimate(problem))
     m, J, T, h = problem.model.mass, problem.disc.J, problem.T, problem.h
@@ -63,16 +56,7 @@ def characteristic_scales(problem: Problem) -> Scales:
         elif isinstance(bound, ThrusterBound):
             sU[sl] = bound.max
     sC = np.full(3, 0.5 * h * sP / ev[0])
-    if control.objective == "effort":
-        Wdiag = np.diag(control.W)
-        cw = Wdiag * sU**2
-        sU = sU * np.sqrt(np.maximum(1.0, BALANCE * cw.max() / cw))
-        obj = 0.5 * T * float(np.sum(Wdiag * sU**2))
-    elif control.objective == "time":
-        obj = T
-    else:
-        rf, rm = control.removed
-        obj = T * ((0.0 if rf else control.W_f[0, 0] * sU[U_FORCE].max()) + (0.0 if rm else control.W_m[0, 0] * sU[U_MOMENT].max()))
+    sU, obj = control.objective.scales(problem, sU)
     return Scales(X=sX, U=sU, C=sC, objective=obj)
 
 

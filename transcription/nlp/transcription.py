@@ -5,8 +5,9 @@ knows the order): the state X_k (18), the node control u_k (6; first_order: node
 and, with ``cayley_variables`` (default), the Cayley vector c_k (3) of step k = 0..N-1.  With c_k as
 unknowns every defect is explicit: X_{k+1} - step_given_c(X_k, c_k, w_k, h) = 0 (18 rows) and the Cayley
 equation G(c_k; g(X_k, w_k)) = 0 (3 rows); without them the defect uses the Newton-solved step.  The NLP
-is the sum of the blocks of :mod:`transcription.nlp.blocks` (dynamics with the effort cost, the terminal
-target) assembled by the one builder, :class:`transcription.nlp.structured.StructuredNLP`; X_0 is fixed by
+is the sum of the blocks of :mod:`transcription.nlp.blocks` (dynamics, the actuators' rows, the terminal target)
+and those of the problem's objective (its cost and rows: :meth:`~transcription.ocp.objective.Objective.blocks`)
+assembled by the one builder, :class:`transcription.nlp.structured.StructuredNLP`; X_0 is fixed by
 its bounds.  IPOPT gets the exact Hessian assembled block by block; ``solver: fatrop`` gets the same blocks
 in stage order.
 
@@ -22,16 +23,19 @@ With Cayley unknowns their rows carry their own multipliers; eliminating those g
 """
 from __future__ import annotations
 
+import hashlib
+
 import casadi as ca
 import numpy as np
 
-from ..strategy.starts import Guess
 from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, X_ANG, tangent_basis
 from . import blocks
 from .layouts import NLPLayout, StageLayout, control_nodes
 from .structured import Block, StructuredNLP
 from ..options import DirectOptions
-from ..ocp import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, ThrusterBound, orbit_residual, quadrature_weights, rendezvous_residual)
+from ..results.start import Start
+from ..ocp import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, ThrusterBound,
+                   orbit_residual, quadrature_weights, rendezvous_residual)
 from .scaling import characteristic_scales, terminal_row_scales
 
 NC = blocks.NC
@@ -40,14 +44,15 @@ NC = blocks.NC
 class SmoothTranscription:
     """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.
 
-    Blocks (transcription.nlp.blocks), in this order: the dynamics of every step (with the effort cost), the
-    control nodes' norm bounds and fuel epigraph (with the fuel cost), the time cost, one block per path
-    constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
+    Blocks (transcription.nlp.blocks), in this order: the dynamics of every step, the control nodes' norm bounds
+    and body-fixed engine, the objective's blocks (its cost at the control nodes or of the final time, and its
+    rows: :meth:`~transcription.ocp.objective.Objective.blocks`), one block per path constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
     target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  On a
     non-uniform mesh (``problem.mesh``) step k has its own size h_k = r_k h in its dynamics block's data (h the
     mean step, the unknown of a free final time) and the control nodes' weights are those of the steps.  Box
     bounds on the controls, removed controls (a norm bound of 0), the slacks' signs and the free step size's
-    range are variable bounds.
+    range are variable bounds (the objective's own variables: :meth:`~transcription.ocp.objective.Objective.
+    slack_bounds`).
 
     ``stage_order``: fatrop's stage-ordered layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0
     as constraint rows and, for the LGVI, the lifting rows; the fuel epigraph's slacks of node j sit in the
@@ -57,31 +62,15 @@ class SmoothTranscription:
     w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N) rows of
     the step defects "step - X_{k+1}" in g, ``constraint_rows`` (one row array per path constraint),
     ``h_scale``.
-
-    ``smoothing``: the fuel objective's smoothing eps in [0, 1] (the fuel homotopy, :mod:`.homotopy`; 0 is the
-    fuel objective itself): data of the control-node block, so every eps gives an NLP of the same structure.
-    ``smoothing_ref``: the references r = (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units
-    (None: the magnitudes' scales, :attr:`slack_scales`), data like eps (:func:`.homotopy.smoothing_reference`).
     """
 
-    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False, smoothing: float = 0.0,
-                 smoothing_ref: np.ndarray | None = None, burn: np.ndarray | None = None,
-                 rounding: float | np.ndarray = 0.0):
+    def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False):
         N = problem.N
         self.problem, self.options, self.stage_order = problem, options, stage_order
-        self.smoothing = float(smoothing)
-        self.smoothing_ref = smoothing_ref
-        control: SmoothControl = problem.control
-        self.free_h, self.fuel = problem.free_time, control.objective == "fuel"
-        rounding = np.broadcast_to(np.asarray(rounding, dtype=float), (2,)).copy()
-        if burn is not None and (not self.fuel or stage_order or not np.all(rounding > 0)):
-            raise ValueError("a switching structure (burn) is a fuel problem's, in IPOPT's node order, with its "
-                             "magnitudes' rounding > 0 (fuel_structure.ROUGH, EXACT)")
-        self.burn = None if burn is None else np.asarray(burn, dtype=bool)
-        self.rounding = rounding
-        self.epigraph = self.fuel and self.burn is None     # the fuel objective by its epigraph (else burn's l1 cost)
+        self.objective = problem.control.objective
+        self.free_h = problem.free_time
         self.with_c = True if stage_order else bool(options.cayley_variables)
-        n_slack = blocks.FUEL_SLACKS if self.epigraph else blocks.L1_SLACKS if self.burn is not None else 0
+        n_slack = self.objective.slacks(self)
         self.layout = StageLayout(N, problem.scheme, n_slack) if stage_order else \
             NLPLayout(N, control_nodes(problem.disc, N), self.with_c, n_slack=n_slack, free_h=self.free_h)
         self.scales = characteristic_scales(problem)
@@ -97,36 +86,44 @@ class SmoothTranscription:
         self.lbx, self.ubx = self._variable_bounds()
 
     @property
-    def slack_scales(self) -> np.ndarray:
-        """The scales of the fuel epigraph's magnitudes (s_f, s_m): the largest force and moment scales."""
+    def point_key(self) -> tuple:
+        """The identity of this NLP's scaled points: its structure (``nlp.key``) and its variable and row scales --
+        a point of another NLP with the same key means the same physical values here (a homotopy's next level,
+        whose data differ)."""
+        return self.nlp.key, hashlib.sha1(self.w_scale.tobytes() + self.g_scale.tobytes()).hexdigest()
+
+    @property
+    def magnitudes(self) -> np.ndarray:
+        """(2,) the scales of the control magnitudes |u_f|, |u_m|: the largest force and moment scales."""
         return self.magnitude_scales(self.problem, self.scales)
 
     @staticmethod
     def magnitude_scales(problem: Problem, scales=None) -> np.ndarray:
-        """(2,) the scales of the control magnitudes |u_f|, |u_m| of ``problem`` (:attr:`slack_scales`)."""
+        """(2,) the scales of the control magnitudes |u_f|, |u_m| of ``problem`` (:attr:`magnitudes`)."""
         sU = (scales or characteristic_scales(problem)).U
         return np.array([sU[U_FORCE].max(), sU[U_MOMENT].max()])
 
     @property
-    def l1_rounding(self) -> np.ndarray:
-        """(2,) delta_f, delta_m of the fixed structure's magnitudes (``burn``): ``rounding`` (a number, or one per
-        part) x :attr:`slack_scales` (the structured finish's ROUGH and EXACT of its references,
-        :mod:`.fuel_structure`)."""
-        return self.rounding * self.slack_scales
+    def omega_per_h(self) -> np.ndarray:
+        """omega_j / h at the control nodes, h the (mean) step: the relative weights of the mesh's steps r_k (the
+        quadrature weights at h = 1 on a uniform mesh)."""
+        problem = self.problem
+        return quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh)
 
-    def _smoothing_ref(self) -> np.ndarray:
-        """(r_f, r_m) of the smoothed magnitude (class docstring): ``smoothing_ref`` or the slack scales."""
-        return self.slack_scales if self.smoothing_ref is None else np.asarray(self.smoothing_ref, float).reshape(2)
+    def node_variables(self, own: bool = True) -> np.ndarray:
+        """The variables of each control node's block (n, n_controls): its controls, its objective's variables (with
+        ``own``) and the free step size."""
+        lay, nU = self.layout, len(self.layout.control_nodes)
+        return np.vstack([lay.iUn] + ([lay.iS] if own and lay.n_slack else [])
+                         + ([np.full((1, nU), lay.ih)] if self.free_h else []))
 
     def _variable_scales(self) -> np.ndarray:
         lay, sc = self.layout, self.scales
         ws = np.full(lay.n, np.nan)
         ws[lay.iX] = sc.X[:, None]
         ws[lay.iU] = sc.U[:, None]
-        if self.epigraph:
-            ws[lay.iS] = np.r_[self.slack_scales, np.ones(6)][:, None]
-        elif self.burn is not None:
-            ws[lay.iS] = self.slack_scales[:, None]
+        if lay.n_slack:
+            ws[lay.iS] = self.objective.slack_scales(self)[:, None]
         if self.with_c:
             ws[lay.iC] = sc.C[:, None]
         if getattr(lay, "iUp", None) is not None:
@@ -138,7 +135,7 @@ class SmoothTranscription:
     def _blocks(self) -> tuple[list[Block], dict[str, np.ndarray]]:
         """The blocks (class docstring, in that order) and the scales of each block's rows."""
         blist, row_scales = [], {}
-        for blk, scales in [self._dynamics_block(), self._control_block(), self._time_block(),
+        for blk, scales in [self._dynamics_block(), self._control_block(), *self.objective.blocks(self),
                             *self._constraint_blocks(), *self._stage_order_blocks(), self._terminal_block()]:
             if blk is not None:
                 blist.append(blk)
@@ -148,13 +145,10 @@ class SmoothTranscription:
     def _dynamics_block(self):
         problem, lay, sc, with_c = self.problem, self.layout, self.scales, self.with_c
         disc, N, h = problem.disc, problem.N, problem.h
-        control: SmoothControl = problem.control
-        effort = control.objective == "effort"
         sW = np.asarray(disc.stage_controls(np.repeat(sc.U[:, None], 2, axis=1)), dtype=float)[:, 0]
         sG = np.full(NC, h * sc.X[X_ANG].max())                        # G ~ h Pi
-        dyn = blocks.dynamics(disc, with_c, True, effort, self.free_h)
-        data = blocks.dynamics_data(disc, h, sc.X, sc.C if with_c else None, sW, sG if with_c else None,
-                                    *((sc.objective, control.W_f, control.W_m) if effort else ()))
+        dyn = blocks.dynamics(disc, with_c, True, self.free_h)
+        data = blocks.dynamics_data(disc, h, sc.X, sc.C if with_c else None, sW, sG if with_c else None)
         if not problem.uniform:    # step k's own size: h_k, or r_k h_scale times the free mean step (§16)
             data = np.repeat(data[:, None], N, axis=1)
             data[0] = problem.mesh * self.h_scale if self.free_h else problem.steps
@@ -163,43 +157,24 @@ class SmoothTranscription:
         return Block("dynamics", dyn, iV, data, compile=True), np.concatenate([sc.X] + ([sG] if with_c else []))
 
     def _control_block(self):
-        """The control nodes' norm bounds, body-fixed engine and fuel epigraph (None without any)."""
-        problem, lay, sc, fuel, l1 = self.problem, self.layout, self.scales, self.epigraph, self.burn is not None
+        """The control nodes' norm bounds and body-fixed engine (None without either)."""
+        problem, sc = self.problem, self.scales
         control: SmoothControl = problem.control
         norm_f = isinstance(control.force_bound, NormBound) and control.force_bound.b > 0
         norm_m = isinstance(control.moment_bound, NormBound) and control.moment_bound.b > 0
         engine = control.force_bound if isinstance(control.force_bound, ThrusterBound) else None
-        if not (norm_f or norm_m or fuel or l1 or engine):
+        if not (norm_f or norm_m or engine):
             return None, None
-        nU, sS = len(lay.control_nodes), self.slack_scales
-        # omega_j / h, h the (mean) step: the relative weights of the mesh's steps r_k (1 on a uniform mesh)
-        omega_per_h = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh)
         bf = control.force_bound.b if norm_f else engine.max if engine else 1.0
         bm = control.moment_bound.b if norm_m else 1.0
         Q = engine.basis().ravel(order="F") if engine else np.zeros(0)
-        cdata = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), omega_per_h[None, :],
-                           np.repeat(np.r_[problem.h, bf, bm, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
-                                           Q][:, None], nU, axis=1)]
-                          + ([np.repeat(np.r_[self._smoothing_ref(), self.smoothing][:, None], nU, axis=1)]
-                             if fuel or l1 else [])
-                          + ([self.burn.astype(float), np.repeat(self.l1_rounding[:, None], nU, axis=1)] if l1 else []))
-        iN = np.vstack([lay.iUn] + ([lay.iS] if fuel or l1 else []) + ([np.full((1, nU), lay.ih)] if self.free_h
-                                                                          else []))
-        n_norm, n_fuel = int(norm_f) + int(norm_m), (2 if fuel or l1 else 0)
-        # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0; fuel: |d|^2 - 1 <= 0, u - s d = 0
-        n_eng = 3 if engine else 0
-        lbg = np.r_[np.full(n_norm, -np.inf), [engine.min / engine.max, 0.0, 0.0] if engine else [],
-                    np.full(n_fuel, -np.inf), np.zeros(6 if fuel else 0)]
-        ubg = np.r_[np.zeros(n_norm), [1.0, 0.0, 0.0] if engine else [], np.zeros(n_fuel + (6 if fuel else 0))]
-        fn = blocks.control_node(problem.disc, self.free_h, norm_f, norm_m, fuel, engine is not None, l1)
-        blk = Block("controls", fn, iN, cdata, lbg=lbg, ubg=ubg)
-        return blk, np.r_[np.ones(n_norm + n_eng), sS if l1 else np.ones(n_fuel), np.repeat(sS, 3) if fuel else []]
-
-    def _time_block(self):
-        if self.problem.control.objective != "time":
-            return None, None
-        return (Block("time", blocks.time_cost(self.problem.disc), np.array([self.layout.ih]),
-                      np.array([self.h_scale, self.problem.N / self.scales.objective])), np.zeros(0))
+        n_norm = int(norm_f) + int(norm_m)
+        # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0
+        lbg = np.r_[np.full(n_norm, -np.inf), [engine.min / engine.max, 0.0, 0.0] if engine else []]
+        ubg = np.r_[np.zeros(n_norm), [1.0, 0.0, 0.0] if engine else []]
+        fn = blocks.control_node(problem.disc, norm_f, norm_m, engine is not None)
+        blk = Block("controls", fn, self.layout.iUn, np.r_[sc.U, bf, bm, Q], lbg=lbg, ubg=ubg)
+        return blk, np.ones(n_norm + (3 if engine else 0))
 
     def _constraint_blocks(self):
         sc, J = self.scales, self.problem.model.inertia
@@ -242,42 +217,36 @@ class SmoothTranscription:
                       np.concatenate([sc.X, target.X, tsc])), tsc)
 
     def _variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """lbx, ubx (scaled): X_0 fixed (not in stage order), box bounds and removed controls, the fuel
-        epigraph's magnitudes >= 0, the free step size's range."""
-        problem, lay, sc, fuel = self.problem, self.layout, self.scales, self.epigraph
+        """lbx, ubx (scaled): X_0 fixed (not in stage order), box bounds and removed controls, the objective's own
+        variables' bounds (:meth:`~transcription.ocp.objective.Objective.slack_bounds`), the free step size's
+        range."""
+        problem, lay, sc = self.problem, self.layout, self.scales
         control: SmoothControl = problem.control
         lbx, ubx = np.full(lay.n, -np.inf), np.full(lay.n, np.inf)
         if not self.stage_order:
             lbx[lay.iX[:, 0]] = ubx[lay.iX[:, 0]] = problem.X0 / sc.X
-        for k, (sl, bound) in enumerate(((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound))):
+        for sl, bound in ((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound)):
             if isinstance(bound, BoxBound):
                 lbx[lay.iU[sl]] = (-bound.b / sc.U[sl])[:, None]
                 ubx[lay.iU[sl]] = (bound.b / sc.U[sl])[:, None]
             elif isinstance(bound, NormBound) and bound.b == 0:
                 lbx[lay.iU[sl]] = ubx[lay.iU[sl]] = 0.0
-                if fuel:
-                    lbx[lay.iS[k]] = ubx[lay.iS[k]] = 0.0
-        if fuel:
-            lbx[lay.iS[:2]] = np.maximum(lbx[lay.iS[:2]], 0.0)
-        if self.burn is not None:    # magnitudes >= 0; a coast node's part: u = 0, s = 0
-            lbx[lay.iS] = np.maximum(lbx[lay.iS], 0.0)
-            for k, sl in enumerate((U_FORCE, U_MOMENT)):
-                coast = np.r_[lay.iU[sl][:, ~self.burn[k]].ravel(), lay.iS[k, ~self.burn[k]]]
-                lbx[coast] = ubx[coast] = 0.0
+        self.objective.slack_bounds(self, lbx, ubx)
         if self.free_h:
             lo, hi = problem.time_bounds
             lbx[lay.ih], ubx[lay.ih] = lo / problem.N / self.h_scale, hi / problem.N / self.h_scale
         return lbx, ubx
 
-    def initial_point(self, guess: Guess, h: float | None = None) -> np.ndarray:
-        """Scaled decision vector of a :class:`~transcription.strategy.starts.Guess` (and step size h); a body-fixed
-        engine's force is projected onto its axis and its thrust range (the engine's rows then hold)."""
-        U, engine = guess.U, self.problem.control.force_bound
+    def initial_point(self, start: Start) -> np.ndarray:
+        """Scaled decision vector of a :class:`~transcription.results.start.Start` on this NLP's grid (its node
+        states, controls, Cayley vectors and mean step size); a body-fixed engine's force is projected onto its
+        axis and its thrust range (the engine's rows then hold)."""
+        U, engine = start.U, self.problem.control.force_bound
         if isinstance(engine, ThrusterBound):
             U = U.copy()
             U[U_FORCE] = np.outer(engine.axis, np.clip(engine.thrust(U[U_FORCE].T), engine.min, engine.max))
-        w = self.layout.pack(guess.X.T, U, guess.C.T if self.layout.with_c else None,
-                             h=self.problem.h if h is None else h) / self.w_scale
+        w = self.layout.pack(start.X.T, U, start.C.T if self.layout.with_c else None,
+                             self.objective.slack_values(self, U), h=start.h) / self.w_scale
         return np.clip(w, self.lbx, self.ubx)
 
     def costates(self, X: np.ndarray, lam_g: np.ndarray, sign: float = 1.0) -> np.ndarray:

@@ -24,14 +24,15 @@ from __future__ import annotations
 
 from .conditions import (orbit_conditions, orbit_residual, rendezvous_residual, rendezvous_state, state_residual, terminal_error, terminal_residual, terminal_rows)
 from .constraints import (MARGIN_DIMENSION, MOVING_DIRECTIONS, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius)
-from .controls import (AT_BOUND_RTOL, OBJECTIVES, Bound, BoxBound, Control, ImpulsiveControl, NormBound, SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
+from .controls import (AT_BOUND_RTOL, Bound, BoxBound, Control, ImpulsiveControl, NormBound, SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
 from .costs import (ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, engine_reference, fuel_cost, impulse_cost, objective_value, quadrature_weights)
+from .objective import Objective
 from .problem import Problem, state_from_velocities
 from .errors import ProblemError
 from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetRendezvous, TargetState, ascending_node
 
 __all__ = ["AT_BOUND_RTOL", "Bound", "BoxBound", "Control", "ENGINE_ON_RTOL", "ImpulsiveControl", "KeepIn", "KeepOut",
-           "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "NormBound", "OBJECTIVES",
+           "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "NormBound", "Objective",
            "PATH_CONSTRAINTS", "Problem", "ProblemError", "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit",
            "TargetRendezvous", "TargetState", "ThrusterBound", "actuator_bounds", "ascending_node", "control_activity",
            "effort_cost", "engine_figures", "engine_reference", "fuel_cost", "impulse_cost", "objective_value", "orbit_conditions",

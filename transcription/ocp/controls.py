@@ -9,6 +9,7 @@ import numpy as np
 from ..geometry.state import NU, U_FORCE, U_MOMENT
 from ..geometry.so3 import rotation_with_first_column
 from .errors import ProblemError
+from .objective import Objective
 
 
 def spd_weight(W, name: str) -> np.ndarray:
@@ -155,18 +156,14 @@ class ThrusterBound:
 
 Bound = Union[BoxBound, NormBound, ThrusterBound]
 
-OBJECTIVES = ("effort", "time", "fuel")
-
-
 @dataclass(frozen=True)
 class SmoothControl:
     """Controls u_f (inertial force) and u_m (body moment) at the nodes of the scheme.
 
-    objective (docs/mathematics.md §6, §10):
-      'effort' min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m), W_f, W_m symmetric positive
-               definite (given as scalars, diagonals or matrices);
-      'time'   min T (a free final time; every control bounded);
-      'fuel'   min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), the weights scalars (W = w I).
+    objective: an :class:`~transcription.ocp.objective.Objective` (docs/mathematics.md §6, §10; the kinds are the
+      modules of :mod:`transcription.objectives`: effort min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m),
+      time min T, fuel min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), ...), which says what it needs of the
+      weights W_f, W_m (symmetric positive definite, given as scalars, diagonals or matrices) and of the bounds.
     force_bound, moment_bound: a BoxBound, a NormBound or None (unbounded); NormBound(0) removes the
     control (attitude-only or translation-only maneuvers).
     bounds_margin: m in [0, 1): the bounds above are the ones the plan respects, a fraction 1 - m of the
@@ -176,10 +173,10 @@ class SmoothControl:
 
     W_f: np.ndarray = field(default_factory=lambda: np.eye(3))
     W_m: np.ndarray = field(default_factory=lambda: np.eye(3))
-    objective: str = "effort"
     force_bound: Bound | None = None
     moment_bound: Bound | None = None
     bounds_margin: float = 0.0
+    objective: Objective = field(kw_only=True)
 
     def __post_init__(self):
         m = self.bounds_margin
@@ -187,22 +184,16 @@ class SmoothControl:
             raise ProblemError("control.bounds_margin", f"expected a number in [0, 1), got {self.bounds_margin!r}")
         object.__setattr__(self, "W_f", spd_weight(self.W_f, "control.W_f"))
         object.__setattr__(self, "W_m", spd_weight(self.W_m, "control.W_m"))
-        if self.objective not in OBJECTIVES:
-            raise ProblemError("control.objective", f"expected one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
+        if not isinstance(self.objective, Objective):
+            raise ProblemError("control.objective", f"expected an Objective (transcription.objectives), got "
+                                                    f"{self.objective!r}")
         for name in ("force_bound", "moment_bound"):
             b = getattr(self, name)
             if b is not None and not isinstance(b, (BoxBound, NormBound, ThrusterBound)):
                 raise ProblemError(f"control.{name}", "expected a BoxBound, a NormBound, a ThrusterBound or None")
         if isinstance(self.moment_bound, ThrusterBound):
             raise ProblemError("control.moment_bound", "a thruster bounds the force; the moment takes a box or a norm bound")
-        if self.objective == "fuel":
-            for name in ("W_f", "W_m"):
-                W = getattr(self, name)
-                if not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-12, atol=0.0):
-                    raise ProblemError(f"control.{name}", "for the fuel objective a weight is one number (the weight of the norm)")
-        if self.objective == "time" and (self.force_bound is None or self.moment_bound is None):
-            raise ProblemError("control.bounds", "the time objective needs a bound on every control (force and moment; "
-                                                 "a norm bound of 0 removes one)")
+        self.objective.check(self)
 
     @property
     def W(self) -> np.ndarray:

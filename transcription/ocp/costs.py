@@ -43,13 +43,9 @@ def fuel_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> float
 
 
 def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:
-    """The objective of a smooth-control problem for controls U with (mean) step size h: effort, fuel
-    (with the quadrature weights of the scheme on the problem's steps h r_k) or the final time N h."""
-    control: SmoothControl = problem.control
-    if control.objective == "time":
-        return float(problem.N * h)
-    omega = quadrature_weights(problem.scheme, problem.N, problem.steps_of(h))
-    return fuel_cost(U, control, omega) if control.objective == "fuel" else effort_cost(U, control, omega)
+    """The objective of a smooth-control problem for controls U with (mean) step size h (its objective's value:
+    :meth:`~transcription.ocp.objective.Objective.value`)."""
+    return problem.control.objective.value(problem, U, h)
 
 
 def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray, times: np.ndarray) -> dict:

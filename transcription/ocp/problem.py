@@ -36,6 +36,9 @@ class Problem:
     time_bounds: tuple[float, float] | None = None
     constraints: tuple = ()
     mesh: np.ndarray | None = None
+    #: what methods build from this (immutable) Problem and keep with it (its NLP, by the options it depends on):
+    #: :meth:`memo`
+    _memo: dict = dataclasses.field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if isinstance(self.N, bool) or not isinstance(self.N, (int, np.integer)) or self.N < 1:
@@ -64,8 +67,9 @@ class Problem:
             if self.kind != "smooth":
                 raise ProblemError("time_bounds", "a free final time needs smooth control")
             object.__setattr__(self, "time_bounds", (lo, hi))
-        elif isinstance(self.control, SmoothControl) and self.control.objective == "time":
-            raise ProblemError("time_bounds", "the time objective needs a free final time (time_bounds)")
+        elif isinstance(self.control, SmoothControl) and self.control.objective.free_time:
+            raise ProblemError("time_bounds", f"the {self.control.objective} objective needs a free final time "
+                                              "(time_bounds)")
         if isinstance(self.control, SmoothControl) and isinstance(self.control.force_bound, ThrusterBound) \
                 and self.disc.force_frame != "body":
             raise ProblemError("control.force_bound", "a thruster is fixed in the body: it needs the force in the body "
@@ -146,6 +150,13 @@ class Problem:
     def Xd(self) -> np.ndarray | None:
         """The target state (18) of a state target, else None."""
         return self.terminal.X if isinstance(self.terminal, TargetState) else None
+
+    def memo(self, key, build):
+        """``build()`` once per ``key`` for this Problem, kept with it (a method's NLP of it: the Problem is
+        immutable, so what is built from it stays valid; :meth:`replace` starts a new memo)."""
+        if key not in self._memo:
+            self._memo[key] = build()
+        return self._memo[key]
 
     def replace(self, **changes) -> "Problem":
         """A copy with some fields changed (e.g. ``N``)."""

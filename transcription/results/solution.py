@@ -12,8 +12,9 @@ from __future__ import annotations
 import enum
 import html
 import math
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass, field, replace
+from types import MappingProxyType
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -21,9 +22,10 @@ from ..dynamics.trajectory import Trajectory
 from ..geometry.state import U_FORCE, U_MOMENT, split_state
 from ..geometry.so3 import rotation_angle
 from ..outcome import Iterate, Result
-from ..miss import scaled_miss
+from .check import scaled_miss
 from ..ocp import Problem, SmoothControl, TargetState, control_activity, engine_figures, quadrature_weights
-from .start import WarmStart
+from .start import Start
+from .trace import Attempt, totals
 
 
 class SolveError(RuntimeError):
@@ -34,79 +36,53 @@ class SolveError(RuntimeError):
         super().__init__(f"{solution.method}: {solution.result}: {solution.message}")
 
 
-@dataclass(frozen=True)
-class Attempt:
-    """One initial guess a solve tried (the direct method's plan, transcription.strategy.plan): its
-    ``label``; the ``result`` of the solve from it (None: the guess could not be made or used, ``note`` says
-    why); its ``iterations`` (those spent making the guess included: ``guess_iterations`` of them on
-    ``prepared_on``, e.g. 'the relaxed problem') and ``cost`` (nan unless converged).  :meth:`line` is the
-    sentence of the message and of summary.json's ``guesses_tried``."""
-
-    label: str
-    result: Result | None
-    iterations: int = 0
-    cost: float = math.nan
-    guess_iterations: int = 0
-    prepared_on: str = ""
-    note: str = ""
-
-    def line(self) -> str:
-        if self.result is None:
-            return f"{self.label}: {self.note}"
-        out = f"{self.label}: {self.result} in {self.iterations} iterations"
-        if self.guess_iterations:
-            out += f" ({self.guess_iterations} of them on {self.prepared_on})"
-        if self.result.successful and math.isfinite(self.cost):
-            out += f", cost {self.cost:.10g}"
-        return out
-
-
-@dataclass
+@dataclass(frozen=True, eq=False)
 class Solution:
-    """Outcome of one solve (or one simulation).
+    """Outcome of one solve (or one simulation): data, made once and never changed -- a check that adds to it (the
+    continuous flight, the clearance of the central body, refinement's mesh history) makes a new one
+    (:func:`dataclasses.replace`, :meth:`with_notes`).
 
     method: 'direct' | 'indirect' | 'simulate'; solver: 'ipopt', 'fatrop', 'newton-armijo', ...
-    result: a :class:`Result`; message: what happened, in words (with numbers).
+    result: a :class:`Result`; verdict: the method's sentence on its last solve (with numbers); trace: the method
+    solves the strategy made (:class:`~transcription.results.trace.Attempt`), from which iterations, build_s and
+    solve_s are summed; notes: what strategies and checks added, in words; ``message`` renders the three.
     trajectory: the re-simulation (:class:`Trajectory`).
     controls: (6, n_controls) [u_f (inertial); u_m (body)] at ``control_times`` or None.
     impulses: impulsive maneuvers: {dgamma0, dPi0 (at t = 0), dgammaN, dPiN (at t = T)} (3,) each.
     costates: (N, 12) discrete costates lambda_k (indirect; for the direct method mapped from the
-    NLP multipliers) or None.  history: the :class:`Iterate` records.  attempts: the initial guesses
-    tried (:class:`Attempt`, the direct method; summary.json's ``guesses_tried`` says them in words).
-    stats: method-specific numbers (the solver's own status, split times, residuals, ...).
+    NLP multipliers) or None.  history: the :class:`Iterate` records of the last solve.
+    stats: method-specific numbers (the solver's own status, split times, residuals, ...), read-only.
     problem: the :class:`~transcription.ocp.Problem` solved (for figures and reports).
-    warm: what the next solve can start from (:class:`~transcription.results.start.WarmStart`; None when there is
+    warm: what the next solve can start from (:class:`~transcription.results.start.Start`; None when there is
     nothing usable): ``solve(problem, method, warm_start=solution)``.
-    Derived: N, T, h (the mean step T/N), steps (N,) (the step sizes h_k = t_{k+1} - t_k of its mesh), ``scheme`` ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's
-    force frame, ``force_frame``: 'inertial' or 'body'), u_m (n, 3) (body), f_inertial (n, 3): the inertial
-    force each control applies, R_j u_f,j at its node j for a body-frame force, u_f itself for an inertial one
-    (docs/mathematics.md §14).
+    Derived: N, T, h (the mean step T/N), steps (N,) (the step sizes h_k = t_{k+1} - t_k of its mesh), ``scheme``
+    ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's force frame, ``force_frame``: 'inertial'
+    or 'body'), u_m (n, 3) (body), f_inertial (n, 3): the inertial force each control applies, R_j u_f,j at its
+    node j for a body-frame force, u_f itself for an inertial one (docs/mathematics.md §14).
     """
 
     method: str
     solver: str
     result: Result
-    message: str
+    verdict: str
     trajectory: Trajectory
     cost: float
     terminal_error: float
-    iterations: int
-    build_s: float
-    solve_s: float
-    problem: "Problem | None" = field(default=None, repr=False, compare=False)
+    problem: "Problem | None" = field(default=None, repr=False)
     controls: np.ndarray | None = None
     impulses: dict[str, np.ndarray] | None = None
     costates: np.ndarray | None = None
-    history: list[Iterate] = field(default_factory=list)
-    stats: dict[str, Any] = field(default_factory=dict)
-    attempts: tuple[Attempt, ...] = ()
-    warm: WarmStart | None = field(default=None, repr=False, compare=False)
+    history: tuple[Iterate, ...] = ()
+    stats: Mapping[str, Any] = field(default_factory=dict)
+    trace: tuple[Attempt, ...] = ()
+    notes: tuple[str, ...] = ()
+    warm: Start | None = field(default=None, repr=False)
     #: the continuous check (transcription.results.check.ContinuousCheck; issue 26): the plan flown through the
     #: continuous equations, on by default for successful smooth-control solves (None: not flown)
-    continuous: Any = field(default=None, repr=False, compare=False)
-    #: refinement to ``solver.accuracy`` (transcription/accuracy.py): one record per mesh level (level, N, miss,
-    #: iterations, time, ...); empty without refinement
-    mesh: list = field(default_factory=list, repr=False, compare=False)
+    continuous: Any = field(default=None, repr=False)
+    #: refinement to ``solver.accuracy`` (transcription/strategy/refine.py): one record per mesh level (level, N,
+    #: miss, iterations, time, ...); empty without refinement
+    mesh: tuple = field(default=(), repr=False)
 
     # derived, computed once: the horizon, the scheme, the controls' times and components
     N: int = field(init=False, repr=False)
@@ -121,22 +97,59 @@ class Solution:
     f_inertial: np.ndarray | None = field(init=False, repr=False)
 
     def __post_init__(self):
+        def put(name, value):
+            object.__setattr__(self, name, value)
+
+        put("stats", MappingProxyType(dict(self.stats)))
+        put("history", tuple(self.history))
+        put("trace", tuple(self.trace))
+        put("notes", tuple(n for n in self.notes if n))
+        put("mesh", tuple(self.mesh))
         t = self.trajectory.t
-        self.N, self.T = len(t) - 1, float(t[-1])
-        self.h = self.T / self.N
-        self.steps = np.diff(t)
-        self.scheme = self.problem.scheme if self.problem is not None else ""
+        put("N", len(t) - 1)
+        put("T", float(t[-1]))
+        put("h", self.T / self.N)
+        put("steps", np.diff(t))
+        put("scheme", self.problem.scheme if self.problem is not None else "")
         c = self.controls
         # controls u_0..u_N (lgvi) at t_0..t_N, or u_1..u_N (first_order) at t_1..t_N; u_f inertial, u_m body
-        self.control_times = None if c is None else (t[1:] if c.shape[1] == len(t) - 1 else t)
-        self.u_f = None if c is None else c[U_FORCE].T
-        self.u_m = None if c is None else c[U_MOMENT].T
+        put("control_times", None if c is None else (t[1:] if c.shape[1] == len(t) - 1 else t))
+        put("u_f", None if c is None else c[U_FORCE].T)
+        put("u_m", None if c is None else c[U_MOMENT].T)
         disc = getattr(self.problem, "disc", None)
-        self.force_frame = getattr(disc, "force_frame", "inertial")
-        self.f_inertial = self.u_f
+        put("force_frame", getattr(disc, "force_frame", "inertial"))
+        f = self.u_f
         if c is not None and self.force_frame != "inertial" and len(t):
             nodes = np.searchsorted(t, self.control_times)     # the node each control belongs to
-            self.f_inertial = np.asarray(disc.applied_force(self.trajectory.R[nodes], self.u_f), dtype=float)
+            f = np.asarray(disc.applied_force(self.trajectory.R[nodes], self.u_f), dtype=float)
+        put("f_inertial", f)
+
+    # ------------------------------------------------------------------ derived from the trace
+    @property
+    def iterations(self) -> int:
+        """The iterations of every solve of the trace (the starts' own solves included)."""
+        return totals(self.trace)[0]
+
+    @property
+    def build_s(self) -> float:
+        return totals(self.trace)[1]
+
+    @property
+    def solve_s(self) -> float:
+        return totals(self.trace)[2]
+
+    @property
+    def message(self) -> str:
+        """What happened, in words: the verdict on the last solve, the starts tried (when there were several) and the
+        notes; rendered from the data, never parsed back."""
+        parts = [self.verdict] if self.verdict else []
+        if len(self.trace) > 1:
+            parts.append("initial guesses tried: " + "; ".join(a.line() for a in self.trace))
+        return "; ".join(parts + list(self.notes))
+
+    def with_notes(self, *notes: str, **stats) -> "Solution":
+        """This Solution with ``notes`` added to its message and ``stats`` to its stats."""
+        return replace(self, notes=self.notes + tuple(notes), stats={**self.stats, **stats})
 
     @property
     def converged(self) -> bool:
@@ -217,8 +230,8 @@ class Solution:
         # scalars, and lists of words
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None))) or
                     (isinstance(v, list) and all(isinstance(x, str) for x in v))})
-        if self.attempts:                   # the initial guesses tried (what a failure tried), in words
-            out["guesses_tried"] = [a.line() for a in self.attempts]
+        if self.trace:                      # the solves tried (what a failure tried), in words
+            out["guesses_tried"] = [a.line() for a in self.trace]
         out.update(figures_of_merit(self))
         if self.continuous is not None:     # the continuous check (issue 26): continuous_* keys
             out.update(self.continuous.summary())

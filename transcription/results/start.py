@@ -1,52 +1,82 @@
-"""Warm starts as data: what one solve hands to the next (continuation along a sweep, a finer grid, the other
-method), typed, and its resampling onto another grid on the Lie group.
+"""Where a solve starts: one :class:`Start` -- node states, controls, their times, and what a solver can reuse of a
+previous solve (NLP multipliers, costates, the shooting unknown) -- passed explicitly from solve to solve (a sweep's
+continuation, a finer grid, the other method, a strategy's next step), and its resampling onto another grid on the
+Lie group.
 
-Every Solution carries one (``sol.warm``; None when there is nothing usable: no controls, or non-finite
-values); ``solve(problem, method, warm_start=sol)`` (or ``warm_start=sol.warm``) accepts it whatever method
-produced it and whatever its N and scheme: :meth:`WarmStart.fit` maps it onto the problem's grid and says
-what it did, and each method says in its Solution what it used and what it did not.
+Every Solution carries the Start of its solution (``sol.warm``; None when there is nothing usable: no controls, or
+non-finite values); ``solve(problem, method, warm_start=sol)`` (or ``warm_start=sol.warm``) accepts it whatever
+method produced it and whatever its N and scheme: :meth:`Start.fit` maps it onto the problem's grid and says what it
+did, and each method says in its Solution what it used and what it did not.  The starts a strategy makes itself (the
+free motion, the screw interpolation, ...: :mod:`transcription.strategy.starts`) are Starts too, their ``origin``
+saying which.
 
-Resampling (:meth:`WarmStart.fit`, docs/mathematics.md §4) is in normalized time: node k of N steps is at
-s = k/N of the horizon, whatever T, so a warm start of another horizon (a sweep along T) keeps its shape.
-Positions and momenta are interpolated linearly, attitudes along the geodesic of SO(3) between neighbouring
-nodes (R_a exp(s log(R_a^T R_b)), :func:`~transcription.geometry.so3.geodesic_interpolation`: the result stays on
-SO(3) to round-off), controls at the new control times (LGVI: the nodes; first order: u_{k+1} belongs to
-step k and is placed at its midpoint), costates lambda_k (the multipliers of step k) at the step midpoints
-likewise.  The NLP multipliers are reused only by an NLP of the identical structure (``nlp_key``), and the
-indirect method's shooting unknown ``lam0`` only on the same grid: elsewhere they are dropped and the notes
-say so.
+Resampling (:meth:`Start.fit`, docs/mathematics.md §4) is in normalized time: node k of N steps is at s = k/N of the
+horizon, whatever T, so a start of another horizon (a sweep along T) keeps its shape.  Positions and momenta are
+interpolated linearly, attitudes along the geodesic of SO(3) between neighbouring nodes (R_a exp(s log(R_a^T R_b)),
+:func:`~transcription.geometry.so3.geodesic_interpolation`: the result stays on SO(3) to round-off), controls at the
+new control times (LGVI: the nodes; first order: u_{k+1} belongs to step k and is placed at its midpoint), costates
+lambda_k (the multipliers of step k) at the step midpoints likewise.  The NLP multipliers are reused only by an NLP
+of the identical structure (``nlp_key``), the exact primal-dual point only by the identical NLP (``point``), and the
+indirect method's shooting unknown ``lam0`` only on the same grid: elsewhere they are dropped and the notes say so.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import enum
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, pack_state, unpack_states
 from ..geometry.so3 import exp_so3, geodesic_interpolation, log_so3_any
+from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, cayley_vectors, pack_state, unpack_states
+
+
+class Origin(str, enum.Enum):
+    """What a Start is: a solution of a solve (``solution``) or a start made from the problem's data."""
+
+    solution = "solution"
+    rollout = "rollout"
+    interpolate = "interpolate"
+    orbit = "orbit"
+    aimed = "aimed"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(frozen=True)
+class Point:
+    """The exact point of one NLP: x and the multipliers lam_g, lam_x (None: not given) scaled as that NLP's, and
+    ``key``, the NLP's identity (structure and scales): an NLP with the same key starts from it as it is (a
+    continuation's next level, a structured finish's next round)."""
+
+    key: tuple
+    x: np.ndarray
+    lam_g: np.ndarray | None = None
+    lam_x: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
-class WarmStart:
-    """A solution handed to the next solve.
+class Start:
+    """Where a solve starts.
 
-    Primal: ``t`` (N+1,) node times, ``X`` (N+1, 18) node states (the re-simulated trajectory, layout of
-    transcription.geometry.state), ``U`` (6, n_controls) controls at the scheme's control nodes (lgvi u_0..u_N,
-    first_order u_1..u_N), ``scheme``; T = t[-1].  Dual: ``multipliers``, the direct method's NLP constraint
-    multipliers in physical units (:meth:`~transcription.nlp.transcription.SmoothTranscription.
-    multipliers`), with ``nlp_key``, the structure of the NLP they belong to
-    (:attr:`~transcription.nlp.structured.StructuredNLP.key`); ``costates`` (N, 12) lambda_0..lambda_{N-1};
-    ``lam0`` (12,), the indirect method's shooting unknown (lambda_0; lgvi lambda_{-1}).  ``source``: the
-    method that produced it ('direct' or 'indirect').  Absent parts are None.
+    Primal: ``t`` (N+1,) node times, ``X`` (N+1, 18) node states (layout of transcription.geometry.state), ``U``
+    (6, n_controls) controls at the scheme's control nodes (lgvi u_0..u_N, first_order u_1..u_N), ``scheme``;
+    T = t[-1], the mean step h = T / N (a free final time starts there).  ``origin`` (:class:`Origin`) and ``source``
+    (the method that solved it, '' for a made start).  Dual: ``multipliers``, the direct method's NLP constraint
+    multipliers in physical units, with ``nlp_key``, the structure of the NLP they belong to; ``point``, the exact
+    primal-dual point of its NLP (:class:`Point`); ``costates`` (N, 12) lambda_0..lambda_{N-1}; ``lam0`` (12,), the
+    indirect method's shooting unknown (lambda_0; lgvi lambda_{-1}).  Absent parts are None.
     """
 
     t: np.ndarray
     X: np.ndarray
     U: np.ndarray
     scheme: str
-    source: str
+    origin: Origin = Origin.solution
+    source: str = ""
     multipliers: np.ndarray | None = None
     nlp_key: tuple | None = None
+    point: Point | None = None
     costates: np.ndarray | None = None
     lam0: np.ndarray | None = None
 
@@ -62,20 +92,30 @@ class WarmStart:
     def h(self) -> float:
         return self.T / self.N
 
+    @property
+    def C(self) -> np.ndarray:
+        """c_k = cay^-1(R_k^T R_{k+1}) (N, 3): the Cayley vectors of the steps, consistent with the attitudes."""
+        return cayley_vectors(self.X)
+
+    @property
+    def finite(self) -> bool:
+        return bool(np.all(np.isfinite(self.X)) and np.all(np.isfinite(self.U)))
+
     def __repr__(self) -> str:
         parts = [name for name, v in (("multipliers", self.multipliers), ("costates", self.costates),
                                       ("lambda_0", self.lam0)) if v is not None]
-        return f"WarmStart({self.describe()}, T = {self.T:.6g}; states, controls{''.join(', ' + p for p in parts)})"
+        return f"Start({self.describe()}, T = {self.T:.6g}; states, controls{''.join(', ' + p for p in parts)})"
 
     def describe(self) -> str:
-        """'the direct solution (N = 100, first_order)'."""
-        return f"the {self.source} solution (N = {self.N}, {self.scheme})"
+        """'the direct solution (N = 100, first_order)', 'the rollout (N = 100, lgvi)'."""
+        what = f"{self.source} solution" if self.origin is Origin.solution and self.source else str(self.origin)
+        return f"the {what} (N = {self.N}, {self.scheme})"
 
-    def fit(self, N: int, scheme: str, s: np.ndarray | None = None) -> tuple["WarmStart", tuple[str, ...]]:
-        """This warm start on a grid of N steps of ``scheme`` over its own T (module docstring), and notes
-        (sentences) on what was resampled and what was dropped.  ``s``: the normalized node times (N+1,) in
-        [0, 1] of a non-uniform mesh (Problem.times / T; None: uniform).  Unchanged (the same object, no notes)
-        when N, the scheme and the node times agree."""
+    def fit(self, N: int, scheme: str, s: np.ndarray | None = None) -> tuple["Start", tuple[str, ...]]:
+        """This start on a grid of N steps of ``scheme`` over its own T (module docstring), and notes (sentences) on
+        what was resampled and what was dropped.  ``s``: the normalized node times (N+1,) in [0, 1] of a non-uniform
+        mesh (Problem.fractions; None: uniform).  Unchanged (the same object, no notes) when N, the scheme and the
+        node times agree."""
         own = self.s
         sf = np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
         if N == self.N and scheme == self.scheme and (s is None and self.uniform or
@@ -91,7 +131,11 @@ class WarmStart:
                                            ("the shooting unknown lambda_0", self.lam0)) if part is not None]
         if dropped:
             notes.append(f"{' and '.join(dropped)} not reused (they belong to the other grid)")
-        return WarmStart(t=t, X=X, U=U, scheme=scheme, source=self.source, costates=lam), tuple(notes)
+        return Start(t=t, X=X, U=U, scheme=scheme, origin=self.origin, source=self.source, costates=lam), tuple(notes)
+
+    def primal(self) -> "Start":
+        """This start without its dual parts (multipliers, point, costates, lambda_0)."""
+        return replace(self, multipliers=None, nlp_key=None, point=None, costates=None, lam0=None)
 
     @property
     def uniform(self) -> bool:
@@ -104,11 +148,11 @@ class WarmStart:
         """Its normalized node times (N+1,) in [0, 1]: k/N when uniform (exactly), else t / T."""
         return np.linspace(0.0, 1.0, self.N + 1) if self.uniform else self.t / self.T
 
-    def tail(self, k: int) -> "WarmStart":
-        """The remaining horizon from node k (0 <= k < N) as a warm start of its own, shifted to start at t = 0
+    def tail(self, k: int) -> "Start":
+        """The remaining horizon from node k (0 <= k < N) as a start of its own, shifted to start at t = 0
         (shrinking-horizon re-plans, docs/mathematics.md §12): states X_k..X_N, the controls of steps k..N-1
         (lgvi u_k..u_N, first_order u_{k+1}..u_N), costates lambda_k..lambda_{N-1}, and the shooting unknown of
-        the remaining problem: lambda_{k-1} (lgvi; for k = 0 this warm start's own lam0) or lambda_k (first
+        the remaining problem: lambda_{k-1} (lgvi; for k = 0 this start's own lam0) or lambda_k (first
         order); None where the parts are absent.  The NLP multipliers are dropped (they belong to the whole
         horizon's NLP)."""
         if not 0 <= k < self.N:
@@ -118,33 +162,32 @@ class WarmStart:
             lam0 = self.lam0 if k == 0 else (None if lam is None else lam[k - 1])
         else:
             lam0 = self.lam0 if k == 0 and self.lam0 is not None else (None if lam is None else lam[k])
-        return WarmStart(t=self.t[k:] - self.t[k], X=self.X[k:], U=self.U[:, k:], scheme=self.scheme,
-                         source=self.source, costates=None if lam is None else lam[k:],
-                         lam0=None if lam0 is None else np.array(lam0, dtype=float))
+        return Start(t=self.t[k:] - self.t[k], X=self.X[k:], U=self.U[:, k:], scheme=self.scheme, origin=self.origin,
+                     source=self.source, costates=None if lam is None else lam[k:],
+                     lam0=None if lam0 is None else np.array(lam0, dtype=float))
 
 
-def warm_start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: str, source: str,
-                  **dual) -> WarmStart | None:
-    """The WarmStart of a solution (node times t, states X (N+1, 18), controls U, its scheme and method;
-    ``dual``: multipliers, nlp_key, costates, lam0), or None when there is nothing usable: no controls or
-    non-finite states or controls (a dual part that is not finite is left out)."""
+def start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: str, source: str, **dual) -> Start | None:
+    """The Start of a solution (node times t, states X (N+1, 18), controls U, its scheme and method; ``dual``:
+    multipliers, nlp_key, point, costates, lam0), or None when there is nothing usable: no controls or non-finite
+    states or controls (a dual part that is not finite is left out)."""
     if U is None or not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
         return None
     dual = {k: v for k, v in dual.items()
-            if v is not None and (k == "nlp_key" or np.all(np.isfinite(np.asarray(v, float))))}
+            if v is not None and (k in ("nlp_key", "point") or np.all(np.isfinite(np.asarray(v, float))))}
     if "multipliers" not in dual:
         dual.pop("nlp_key", None)
-    arrays = {k: (np.array(v, dtype=float) if k != "nlp_key" else v) for k, v in dual.items()}
-    return WarmStart(t=np.array(t, dtype=float), X=np.array(X, dtype=float), U=np.array(U, dtype=float),
-                     scheme=scheme, source=source, **arrays)
+    arrays = {k: (np.array(v, dtype=float) if k not in ("nlp_key", "point") else v) for k, v in dual.items()}
+    return Start(t=np.array(t, dtype=float), X=np.array(X, dtype=float), U=np.array(U, dtype=float), scheme=scheme,
+                 source=source, **arrays)
 
 
-def secant(w0: WarmStart, w1: WarmStart, r: float) -> WarmStart | None:
-    """The secant predictor of a continuation: w1 + r (w1 - w0) for warm starts w0, w1 of one grid (the
-    solutions at parameter values p0, p1, extrapolated to p1 + r (p1 - p0)), on SE(3): node times,
-    positions, momenta, controls, costates, lambda_0 and the multipliers (of one NLP structure) linearly,
-    attitudes along the geodesic R_1 Exp(r Log(R_0^T R_1)).  None when their grids or schemes differ; a part
-    only one of them carries is left out."""
+def secant(w0: Start, w1: Start, r: float) -> Start | None:
+    """The secant predictor of a continuation: w1 + r (w1 - w0) for starts w0, w1 of one grid (the solutions at
+    parameter values p0, p1, extrapolated to p1 + r (p1 - p0)), on SE(3): node times, positions, momenta, controls,
+    costates, lambda_0 and the multipliers (of one NLP structure) linearly, attitudes along the geodesic
+    R_1 Exp(r Log(R_0^T R_1)).  None when their grids or schemes differ; a part only one of them carries is left
+    out."""
     if (w0.N, w0.scheme, w0.U.shape) != (w1.N, w1.scheme, w1.U.shape):
         return None
 
@@ -155,23 +198,23 @@ def secant(w0: WarmStart, w1: WarmStart, r: float) -> WarmStart | None:
     R = np.array([R1 @ exp_so3(r * log_so3_any(R0.T @ R1)) for R0, R1 in zip(s0.R, s1.R)])
     X = pack_state(lin(s0.x, s1.x), lin(s0.gamma, s1.gamma), R, lin(s0.Pi, s1.Pi))
     same_nlp = w0.nlp_key is not None and w0.nlp_key == w1.nlp_key
-    return WarmStart(t=lin(w0.t, w1.t), X=X, U=lin(w0.U, w1.U), scheme=w1.scheme, source=w1.source,
-                     multipliers=lin(w0.multipliers, w1.multipliers) if same_nlp else None,
-                     nlp_key=w1.nlp_key if same_nlp else None, costates=lin(w0.costates, w1.costates),
-                     lam0=lin(w0.lam0, w1.lam0))
+    return Start(t=lin(w0.t, w1.t), X=X, U=lin(w0.U, w1.U), scheme=w1.scheme, source=w1.source,
+                 multipliers=lin(w0.multipliers, w1.multipliers) if same_nlp else None,
+                 nlp_key=w1.nlp_key if same_nlp else None, costates=lin(w0.costates, w1.costates),
+                 lam0=lin(w0.lam0, w1.lam0))
 
 
-def as_warm_start(given) -> tuple[WarmStart | None, str]:
-    """The WarmStart of what a caller passed as ``warm_start`` (a WarmStart, a Solution or None), and a note
-    when a Solution carries nothing usable."""
-    if given is None or isinstance(given, WarmStart):
+def as_start(given) -> tuple[Start | None, str]:
+    """The Start of what a caller passed as ``warm_start`` (a Start, a Solution or None), and a note when a Solution
+    carries nothing usable."""
+    if given is None or isinstance(given, Start):
         return given, ""
     warm = getattr(given, "warm", None)
-    if isinstance(warm, WarmStart):
+    if isinstance(warm, Start):
         return warm, ""
     if hasattr(given, "result") and hasattr(given, "trajectory"):
         return None, f"the warm start given ({given.method}, {given.result}) carries nothing usable: solved cold"
-    raise TypeError(f"warm_start: expected a Solution or a WarmStart, got {type(given).__name__}")
+    raise TypeError(f"warm_start: expected a Solution or a Start, got {type(given).__name__}")
 
 
 # ------------------------------------------------------------------------------- resampling

@@ -1,5 +1,2 @@
-"""strategy"""
-# the direct method first (interim, until its solve no longer imports the strategies: methods.direct.solve imports
-# the fuel strategies, which import methods.direct.solution)
-from ..methods import direct as _direct  # noqa: F401  (pyflakes: used for its import)
-_direct.DIRECT  # noqa: B018
+"""Strategies: combinators over one method solve (:mod:`.core`), the starts they make (:mod:`.starts`), refinement to a
+tolerance (:mod:`.refine`, :mod:`.mesh`) and what to try after a failure (:mod:`.hints`)."""

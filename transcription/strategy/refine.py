@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..options import CHECK_ENV, AccuracyOptions
-from ..miss import characteristic_length as _length, scaled_miss
+from ..results.check import characteristic_length as _length, scaled_miss
 from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
@@ -31,17 +31,26 @@ def _solutions(out: "Solution | Comparison") -> list[Solution]:
     return list(out.solutions.values()) if hasattr(out, "solutions") else [out]
 
 
+def each(out: "Solution | Comparison", fn) -> "Solution | Comparison":
+    """``fn`` applied to every Solution of ``out`` (a Comparison made again with them, its verdict unchanged)."""
+    if hasattr(out, "solutions"):
+        return dataclasses.replace(out, direct=fn(out.direct), indirect=fn(out.indirect))
+    return fn(out)
+
+
 def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
-    """Fly every successful smooth-control Solution of ``out`` (:func:`~transcription.results.check.continuous_check`)
-    and store the check as ``sol.continuous`` (a check already there is kept).  Failed solves, impulsive plans
-    and simulations are left alone.  Returns ``out``."""
+    """Every successful smooth-control Solution of ``out`` with its continuous check (``continuous``,
+    :func:`~transcription.results.check.continuous_check`; a check already there is kept).  Failed solves,
+    impulsive plans and simulations are left alone."""
     from ..results.check import continuous_check
 
-    for s in _solutions(out):
+    def checked(s: Solution) -> Solution:
         if s.continuous is None and s.converged and s.problem is not None and s.problem.kind == "smooth" \
                 and s.controls is not None:
-            s.continuous = continuous_check(s)
-    return out
+            return dataclasses.replace(s, continuous=continuous_check(s))
+        return s
+
+    return each(out, checked)
 
 
 # ---------------------------------------------------------------------------- refinement to a tolerance
@@ -244,11 +253,8 @@ def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | Non
 
 def _finish(out, levels: list[dict], met: bool, sentence: str):
     """The mesh history, the verdict and its sentence on every Solution of the last level."""
-    for s in _solutions(out):
-        s.mesh = [dict(r) for r in levels]
-        s.stats.update(accuracy_met=bool(met), accuracy_levels=len(levels))
-        s.message += f"; {sentence}"
-    return out
+    return each(out, lambda s: dataclasses.replace(s, mesh=tuple(dict(r) for r in levels)).with_notes(
+        sentence, accuracy_met=bool(met), accuracy_levels=len(levels)))
 
 
 # ---------------------------------------------------------------------------- the answer before solving
@@ -267,9 +273,8 @@ def free_motion_miss(problem, scheme: str | None = None) -> float:
         problem = dataclasses.replace(problem, disc=discretization(d.model, scheme, d.newton_iters,
                                                                    force_frame=d.force_frame))
     X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
-    free = Solution(method="simulate", solver=scheme, result=Result.converged, message="free motion",
-                    trajectory=trajectory(problem, X), cost=math.nan, terminal_error=math.nan, iterations=0,
-                    build_s=0.0, solve_s=0.0, problem=problem)
+    free = Solution(method="simulate", solver=scheme, result=Result.converged, verdict="free motion",
+                    trajectory=trajectory(problem, X), cost=math.nan, terminal_error=math.nan, problem=problem)
     check = continuous_check(free)
     return scaled_miss(check, problem) if check is not None and check.ok else math.nan
 

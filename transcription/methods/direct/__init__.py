@@ -10,18 +10,12 @@ with the quadrature weights of :func:`~transcription.ocp.quadrature_weights`; th
 objectives, bounds and path constraints (§10) are blocks of the same NLP.  Impulsive control is the
 impulsive method's (:mod:`transcription.methods.impulsive`).
 
-Modules: :mod:`.scaling` (characteristic scales), :mod:`.transcription` (the NLP, costates from the
-multipliers), :mod:`.plan` (the initial guesses and what to try after a failure), :mod:`.solution` (the
-Solution of a finished NLP solve), :mod:`.fatrop` (the stage-ordered NLP for fatrop), :mod:`.solve` (the
-solve; :data:`DIRECT`, the method).
+The NLP itself is :mod:`transcription.nlp.transcription`; here are the solve (:mod:`.solve`: :class:`Direct`, one
+NLP solve), the Solution of a finished NLP solve (:mod:`.solution`) and fatrop's stage-ordered form (:mod:`.fatrop`).
+Which starts to try is the strategy's (:mod:`transcription.strategy`).
 """
 from __future__ import annotations
 
-from ...options import DirectOptions
-from ..base import Implementation
-from .solve import not_covered, solve_direct
+from .solve import Direct, transcription
 
-#: the direct method on smooth control (a :class:`~transcription.methods.base.Method`)
-DIRECT = Implementation("direct", "smooth", DirectOptions, solve_direct, not_covered)
-
-__all__ = ["DIRECT", "not_covered", "solve_direct"]
+__all__ = ["Direct", "transcription"]

@@ -1,42 +1,40 @@
 """fatrop on the stage-ordered NLP of the direct method (fixed-time effort problems to a state or orbit target
-without bounds or path constraints: :func:`covers`; the fuel objective is not covered, :data:`FUEL_NOT_COVERED`); IPOPT is
-its fallback (transcription.methods.direct.solve)."""
+without bounds or path constraints: :func:`covers`; an objective says why it is not covered, ``Objective.fatrop``);
+IPOPT is its fallback (transcription.solve)."""
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
 
-from ...strategy.starts import Guess
 from ...geometry.state import NX
 from ...options import DirectOptions, raw_solver_value
 from ...ocp import Problem, TargetOrbit, TargetState
+from ...outcome import Result
 from ...results.solution import Solution
+from ...results.start import Start
+from ..base import failed_solution
 from .solution import nlp_solution
 from ...nlp.transcription import SmoothTranscription
 
-#: why fatrop is not used for the fuel objective (IPOPT solves it; docs/mathematics.md §20, "fatrop and the fuel NLP")
-FUEL_NOT_COVERED = ("fatrop does not converge on the fuel NLP (the magnitude-direction epigraph's indefinite coast "
-                    "nodes): from IPOPT's own optimum of the fuel raise on 25 steps it stops after 129-3001 iterations "
-                    "1e-7 to 1e-3 above it")
-#: why fatrop is not used for another problem it does not cover (IPOPT solves it)
+#: why fatrop is not used for a problem it does not cover (IPOPT solves it); an objective says its own reason
+#: (``Objective.fatrop``)
 NOT_COVERED = ("fatrop is used for fixed-time effort problems to a state or orbit target without bounds or path "
                "constraints")
 
 
 def not_covered(problem: Problem) -> str:
-    """Why fatrop's stage-ordered NLP is not used for ``problem`` ("" if it is): :data:`FUEL_NOT_COVERED`,
-    :data:`NOT_COVERED`.  The stage form itself takes the control bounds' rows and the fuel epigraph too
+    """Why fatrop's stage-ordered NLP is not used for ``problem`` ("" if it is): its objective's reason
+    (``Objective.fatrop``: the fuel objective's, docs/mathematics.md §20), :data:`NOT_COVERED`.  The stage form itself takes the control bounds' rows and the fuel epigraph too
     (:func:`stage_rows`), but with an active bound fatrop stalls short of IPOPT's tolerance (e3_bounded.yaml,
     N = 40: the dual infeasibility at 1.2e-10 against tol 1e-10, the Hessian regularized at every iteration),
     so bounded effort problems stay with IPOPT."""
     c = problem.control
-    if c.objective == "fuel":
-        return FUEL_NOT_COVERED
-    if problem.free_time or problem.constraints or c.objective != "effort" or c.bounded \
-            or not isinstance(problem.terminal, (TargetState, TargetOrbit)):
+    if c.objective.fatrop:
+        return c.objective.fatrop
+    if problem.free_time or problem.constraints or c.bounded or not isinstance(problem.terminal, (TargetState,
+                                                                                                 TargetOrbit)):
         return NOT_COVERED
     return ""
 
@@ -44,16 +42,6 @@ def not_covered(problem: Problem) -> str:
 def covers(problem: Problem) -> bool:
     """Whether fatrop's stage-ordered NLP covers ``problem`` (:func:`not_covered`)."""
     return not not_covered(problem)
-
-
-def try_fatrop(problem: Problem, options: DirectOptions, guess: Callable[[], Guess]) -> tuple[Solution | None, dict]:
-    """fatrop from the first guess of the plan: (its Solution, {}) if it converged, else (None, what the IPOPT
-    fallback reports: fatrop_fallback, fatrop_status, fatrop_message, fatrop_build_s, fatrop_solve_s)."""
-    why = not_covered(problem)
-    if why:
-        return None, {"fatrop_fallback": True, "fatrop_status": "not_applicable", "fatrop_build_s": 0.0,
-                      "fatrop_solve_s": 0.0, "fatrop_message": why}
-    return _solve_fatrop(problem, options, guess())
 
 
 def stage_rows(tr: SmoothTranscription) -> tuple[np.ndarray, np.ndarray, list[int]]:
@@ -111,38 +99,36 @@ def stage_bounds(tr: SmoothTranscription, perm: np.ndarray, sign: np.ndarray) ->
     return np.where(sign > 0, lo, -hi), np.where(sign > 0, hi, -lo)
 
 
-def _solve_fatrop(problem: Problem, options: DirectOptions, guess: Guess) -> tuple[Solution | None, dict[str, Any]]:
-    """fatrop on the stage-ordered NLP; (Solution, {}) if it converged, else (None, fallback info)."""
+def solve_fatrop(problem: Problem, options: DirectOptions, start: Start, label: str) -> Solution:
+    """fatrop on the stage-ordered NLP from ``start`` (on the problem's grid): its Solution, converged or not; a
+    problem it does not cover (:func:`not_covered`) or an NLP it cannot set up is Result.not_applicable or
+    Result.solver_failed, saying why (a strategy then falls back to IPOPT)."""
+    why = not_covered(problem)
+    if why:
+        return failed_solution(problem, "direct", "fatrop", Result.not_applicable, why)
     t0 = time.perf_counter()
     try:
         tr = SmoothTranscription(problem, options, stage_order=True)
         solver, perm, sign = _fatrop_solver(tr, options)
     except RuntimeError as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
-        return None, {"fatrop_fallback": True, "fatrop_status": "build_failed", "fatrop_message":
-                      f"fatrop could not be set up ({msg[:300]})", "fatrop_build_s": time.perf_counter() - t0,
-                      "fatrop_solve_s": 0.0}
+        return failed_solution(problem, "direct", "fatrop", Result.solver_failed,
+                               f"fatrop could not be set up ({msg[:300]})")
     build_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     try:
         lbg, ubg = stage_bounds(tr, perm, sign)
-        out = solver(x0=tr.initial_point(guess), lbx=tr.lbx, ubx=tr.ubx, lbg=lbg, ubg=ubg)
+        out = solver(x0=tr.initial_point(start), lbx=tr.lbx, ubx=tr.ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         status = "Solve_Succeeded" if stats.get("success") else f"fatrop_{stats.get('return_status', 'failed')}"
     except RuntimeError as exc:
         out, stats, status = None, {}, f"fatrop_error: {str(exc).strip().splitlines()[-1][:200] if str(exc).strip() else ''}"
     solve_s = time.perf_counter() - t0
-    sol = None
-    if out is not None and all(np.all(np.isfinite(np.array(out[k]))) for k in ("x", "lam_g")):
-        lam = np.zeros(tr.nlp.ng)
-        lam[perm] = sign * np.array(out["lam_g"]).ravel()
-        gval = np.zeros(tr.nlp.ng)
-        gval[perm] = sign * np.array(out["g"]).ravel()
-        out = {"x": out["x"], "lam_g": lam, "g": gval}
-        sol = nlp_solution(problem, options, tr, out, stats, status, "fatrop", build_s, solve_s)
-        if sol.converged:
-            sol.stats["fatrop_fallback"] = False
-            return sol, {}
-    why = sol.message if sol is not None else status
-    return None, {"fatrop_fallback": True, "fatrop_status": status, "fatrop_message": f"fatrop did not converge ({why})",
-                  "fatrop_build_s": build_s, "fatrop_solve_s": solve_s}
+    if out is None or not all(np.all(np.isfinite(np.array(out[k]))) for k in ("x", "lam_g")):
+        return failed_solution(problem, "direct", "fatrop", Result.solver_failed, f"fatrop did not converge ({status})")
+    lam = np.zeros(tr.nlp.ng)
+    lam[perm] = sign * np.array(out["lam_g"]).ravel()
+    gval = np.zeros(tr.nlp.ng)
+    gval[perm] = sign * np.array(out["g"]).ravel()
+    return nlp_solution(problem, options, tr, {"x": out["x"], "lam_g": lam, "g": gval}, stats, status, "fatrop",
+                        build_s, solve_s, label)

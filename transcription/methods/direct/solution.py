@@ -12,7 +12,8 @@ from ...ocp import Problem, control_activity, objective_value, quadrature_weight
 from ...outcome import Result, result_of_solver_status
 from ...results.solution import Solution
 from ...dynamics.trajectory import Trajectory, trajectory
-from ...results.start import warm_start_of
+from ...results.start import Point, start_of
+from ...results.trace import Attempt
 from ...nlp.transcription import SmoothTranscription
 
 
@@ -38,7 +39,7 @@ def _verdict(problem: Problem, status: str, solver: str, Xsim: np.ndarray, res: 
 
 
 def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscription, out, stats, status: str,
-                 solver: str, build_s: float, solve_s: float) -> Solution:
+                 solver: str, build_s: float, solve_s: float, label: str = "") -> Solution:
     """The Solution of a finished NLP solve (IPOPT or fatrop): re-simulation, checks, costates, warm start.
 
     The result is converged iff the solver converged, the re-simulated terminal error is <= terminal_tol and
@@ -56,7 +57,7 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
     stats_out = {
         "solver_status": status,
         "kkt_tol": float(options.tol),
-        "initial_guess": options.initial_guess,
+        "initial_guess": label or options.initial_guess,
         "cayley_variables": tr.layout.with_c,
         "n_variables": int(tr.layout.n),
         "n_constraints": int(tr.nlp.ng),
@@ -81,12 +82,16 @@ def nlp_solution(problem: Problem, options: DirectOptions, tr: SmoothTranscripti
             result = Result.terminal_error
             message += f"; a path constraint is violated on the re-simulation by {-worst:.2e}"
     costates = tr.costates(Xn, lam_g)
-    return Solution(method="direct", solver=solver, result=result, message=message, trajectory=traj,
-                    cost=objective_value(problem, U, h), terminal_error=err,
-                    iterations=int(stats.get("iter_count", 0)), build_s=build_s, solve_s=solve_s, problem=problem,
-                    controls=U, costates=costates, history=ipopt_history(stats, tr.scales.objective), stats=stats_out,
-                    warm=warm_start_of(traj.t, Xsim, U, problem.scheme, "direct", multipliers=tr.multipliers(lam_g),
-                                       nlp_key=tr.nlp.key, costates=costates))
+    cost = objective_value(problem, U, h)
+    point = Point(tr.point_key, np.array(out["x"]).ravel(), lam_g, np.array(out["lam_x"]).ravel()) \
+        if "lam_x" in out else None
+    attempt = Attempt(label, result, int(stats.get("iter_count", 0)), cost if result.successful else float("nan"),
+                      build_s, solve_s)
+    return Solution(method="direct", solver=solver, result=result, verdict=message, trajectory=traj, cost=cost,
+                    terminal_error=err, problem=problem, controls=U, costates=costates,
+                    history=ipopt_history(stats, tr.scales.objective), stats=stats_out, trace=(attempt,),
+                    warm=start_of(traj.t, Xsim, U, problem.scheme, "direct", multipliers=tr.multipliers(lam_g),
+                                  nlp_key=tr.nlp.key, point=point, costates=costates))
 
 
 def _constraint_report(problem: Problem, traj: Trajectory, tr: SmoothTranscription, lam_g: np.ndarray) -> list[dict]:

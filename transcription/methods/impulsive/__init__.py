@@ -55,16 +55,11 @@ most NEWTON_MAX_ITER); ``options`` (raw IPOPT options, multiple shooting); ``jit
 Newton fails from the first; ``terminal_tol`` the largest max |C| of a converged relaxed solve.
 
 Modules: :mod:`.sensitivity` (Phi), :mod:`.tpbvp` (the state target), :mod:`.relaxed` (the orbit target's start,
-gradient and multiple-shooting NLP), :mod:`.reduced` (its single shooting), :mod:`.solve` (the solve; :data:`IMPULSIVE`,
+gradient and multiple-shooting NLP), :mod:`.reduced` (its single shooting), :mod:`.solve` (the solve; :class:`Impulsive`,
 the method).
 """
 from __future__ import annotations
 
-from ...options import DirectOptions
-from ..base import Implementation
-from .solve import not_covered, solve_impulsive
+from .solve import Impulsive, not_covered, solve_impulsive
 
-#: the direct method on impulsive control (a :class:`~transcription.methods.base.Method`)
-IMPULSIVE = Implementation("direct", "impulsive", DirectOptions, solve_impulsive, not_covered)
-
-__all__ = ["IMPULSIVE", "not_covered", "solve_impulsive"]
+__all__ = ["Impulsive", "not_covered", "solve_impulsive"]

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ...strategy.starts import cayley_vectors
+from ...geometry.state import cayley_vectors
 from ...compile import codegen
 from ...geometry.state import NX, split_state, unpack_states
 from ...dynamics.lgvi import CAYLEY_TOL, per_discretization

@@ -9,7 +9,8 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from ...strategy.starts import cayley_vectors, relaxed_start_target
+from ...geometry.state import cayley_vectors
+from ...ocp.estimate import relaxed_start_target
 from ...geometry.state import NX, NZ, X_ANG, X_MOM, X_POS, X_ROT, Z_POS, Z_ROT, split_state, unpack_states
 from ...geometry.so3 import hat
 from ...nlp import blocks
@@ -100,7 +101,7 @@ def relaxed_nlp(problem: Problem, p0: np.ndarray, options: DirectOptions, progre
     sG = np.full(3, h * sPi.max())
     lay = NLPLayout(N, [], True)
     w_scale = lay.pack(np.repeat(sX[:, None], N + 1, axis=1), np.zeros((6, 0)), np.repeat(sC[:, None], N, axis=1))
-    dyn = blocks.dynamics(disc, True, False, False)
+    dyn = blocks.dynamics(disc, True, False)
     initial, terminal, norms0, normsN = relaxed_blocks(problem, sX, sg)
     iV = np.vstack([lay.iX[:, :-1], lay.iC, lay.iX[:, 1:]])
     nlp = StructuredNLP(lay.n, [Block("dynamics", dyn, iV, blocks.dynamics_data(disc, h, sX, sC, None, sG), compile=True),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import ClassVar
 
 import numpy as np
 
@@ -15,7 +16,8 @@ from ...ocp import Problem, TargetOrbit, TargetState, impulse_cost, orbit_condit
 from ...outcome import Iterate, Result, result_of_solver_status
 from ...results.solution import Solution
 from ...dynamics.trajectory import trajectory
-from ...results.start import WarmStart
+from ...results.start import Start
+from ...results.trace import Attempt
 from ..base import Progress
 from .reduced import relaxed_reduced
 from .relaxed import relaxed_nlp, relaxed_start
@@ -121,7 +123,7 @@ def not_covered(problem: Problem) -> str:
 
 
 def solve_impulsive(problem: Problem, options: DirectOptions | None = None, progress: Progress | None = None,
-                    warm: WarmStart | None = None) -> Solution:
+                    warm: Start | None = None, label: str = "") -> Solution:
     """Solve an impulsive Problem (package docstring) by the direct method.
 
     The Solution has solver 'newton-armijo' (TPBVP), 'sqp' (relaxed, single shooting) or 'ipopt'
@@ -150,7 +152,29 @@ def solve_impulsive(problem: Problem, options: DirectOptions | None = None, prog
     message = out.message
     if warm is not None:
         message += f"; warm start from {warm.describe()} not used (the impulsive method starts from its own guesses)"
-    return Solution(method="direct", solver=out.solver, result=out.result, message=message,
-                    trajectory=trajectory(problem, out.X), cost=impulse_cost(imp), terminal_error=float(err),
-                    iterations=out.iterations, build_s=build_s + out.build_s, solve_s=out.solve_s, problem=problem,
-                    impulses=imp, history=out.history, stats=out.stats)
+    cost = impulse_cost(imp)
+    attempt = Attempt(label or str(out.stats.get("start", "")) or "impulsive", out.result, out.iterations,
+                      cost if out.result.successful else float("nan"), build_s + out.build_s, out.solve_s)
+    return Solution(method="direct", solver=out.solver, result=out.result, verdict=message,
+                    trajectory=trajectory(problem, out.X), cost=cost, terminal_error=float(err), problem=problem,
+                    impulses=imp, history=out.history, stats=out.stats, trace=(attempt,))
+
+
+@dataclass(frozen=True)
+class Impulsive:
+    """The direct method on impulsive control (package docstring): one solve of the impulsive problem (a TPBVP for a
+    state target, the relaxed problem for an orbit target) with the direct method's ``options``."""
+
+    options: DirectOptions = field(default_factory=DirectOptions)
+    name: ClassVar[str] = "direct"
+    kind: ClassVar[str] = "impulsive"
+
+    def not_covered(self, problem: Problem) -> str:
+        return not_covered(problem)
+
+    def replace(self, ipopt=None, **options) -> "Impulsive":
+        return Impulsive(self.options.replace(**options) if options else self.options)
+
+    def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
+              label: str = "") -> Solution:
+        return solve_impulsive(problem, self.options, report, start, label)

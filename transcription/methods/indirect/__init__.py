@@ -99,18 +99,13 @@ the bounds as data, the effort cost), :mod:`.conditions` (the forward map of the
 :mod:`.continuation` (bound continuation, free final time), :mod:`.coordinates` (the body-fixed force),
 :mod:`.orbit` (an orbit target's transversality conditions, docs/mathematics.md §19), :mod:`.switching` and :mod:`.fuel`
 (the fuel objective's on/off law and its homotopy in eps, §19),
-:mod:`.solve` (the solve; :data:`INDIRECT`, the method).
+:mod:`.laws` (each objective's conditions), :mod:`.solve` (the solve; :class:`Indirect`, the method).
 
 The time objective (docs/mathematics.md §18): :mod:`.objectives` -- the switching function, the Hamiltonian's
 minimizer over the bounds, and min T + eps (effort) with the saturated law above, Newton on (lambda_0, h).
 """
 from __future__ import annotations
 
-from ...options import IndirectOptions
-from ..base import Implementation
-from .solve import not_covered, solve_indirect
+from .solve import Indirect, not_covered, solve_indirect
 
-#: the indirect method (a :class:`~transcription.methods.base.Method`)
-INDIRECT = Implementation("indirect", "smooth", IndirectOptions, solve_indirect, not_covered)
-
-__all__ = ["INDIRECT", "not_covered", "solve_indirect"]
+__all__ = ["Indirect", "not_covered", "solve_indirect"]

@@ -9,7 +9,7 @@ import numpy as np
 
 from ...geometry.state import NU, NX, U_FORCE, U_MOMENT
 from ...dynamics.lgvi import Discretization, discretization, per_discretization
-from ...ocp import BoxBound, NormBound, Problem, ThrusterBound, effort_cost, objective_value, quadrature_weights
+from ...ocp import BoxBound, NormBound, Problem, ThrusterBound
 from .switching import on_off
 
 #: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
@@ -80,8 +80,8 @@ def bound_data(problem: Problem) -> np.ndarray:
             bd[sl] = 0.0
         elif isinstance(bound, NormBound):
             bd[NU + i] = bound.b ** 2
-    if problem.control.objective == "fuel":
-        bd[FUEL_EPS] = 1.0
+    law = problem.control.objective.indirect
+    bd[FUEL_EPS] = law.eps if law is not None else 0.0
     return bd
 
 
@@ -149,10 +149,7 @@ def weight_inverse(problem: Problem) -> np.ndarray:
 
 
 def control_cost(problem: Problem, U: np.ndarray, h: float | None = None) -> float:
-    """The effort cost (the fuel cost for the fuel objective) of controls U (6 x n_controls) with the quadrature
-    weights of the scheme at the steps of the (mean) step size h (default: the problem's; on a non-uniform mesh
-    the steps h r_k, docs/mathematics.md §16)."""
-    h = problem.h if h is None else h
-    if problem.control.objective == "fuel":
-        return objective_value(problem, U, h)
-    return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.steps_of(h)))
+    """The cost of controls U (6 x n_controls) under the objective's law (:mod:`.laws`: the effort cost, the fuel cost
+    for the fuel objective) with the quadrature weights of the scheme at the steps of the (mean) step size h
+    (default: the problem's; on a non-uniform mesh the steps h r_k, docs/mathematics.md §16)."""
+    return problem.control.objective.indirect.cost(problem, U, problem.h if h is None else h)

@@ -4,45 +4,46 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
 from ...geometry.state import NU, NZ
 from ..newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...ocp import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, objective_value, terminal_error)
-from ...results.solution import Attempt, Solution
+from ...ocp import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState,
+                    ThrusterBound, objective_value, terminal_error)
+from ...results.solution import Solution
 from ...outcome import Iterate, Result
 from ...dynamics.trajectory import trajectory
-from ...results.start import WarmStart, warm_start_of
+from ...results.start import Start, start_of
+from ...results.trace import Attempt
 from ..base import Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
-from .fuel import fuel_not_covered, solve_fuel, warm_controls
-from .objectives import solve_time
 from .orbit import orbit_shooting
 from .shooting import RolloutCache, shooting_functions, time_gradient_function
 
 
-def not_covered(problem: Problem, objectives: tuple[str, ...] = ("effort", "time", "fuel")) -> str:
+def not_covered(problem: Problem, replan: bool = False) -> str:
     """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
-    smooth control what its necessary conditions do not cover -- they are those of the effort objective to a state target (free components by
-    transversality) or to an orbit target (its transversality conditions, :mod:`.orbit`), with box or norm bounds
-    whose saturation is the Hamiltonian's minimizer -- a box on a block with a diagonal weight, a norm bound on one
-    with an isotropic weight -- and those of the time objective (:mod:`.objectives`) and of the fuel objective
-    (:mod:`.fuel`).  ``objectives``: the objectives to count as covered (MPC's re-plan, the fixed-h Newton step of
-    the effort conditions, passes ('effort',))."""
+    smooth control what its necessary conditions do not cover -- those its objective brings (``Objective.indirect``,
+    :mod:`.laws`: the effort objective's saturated law to a state target (free components by transversality) or to an
+    orbit target (its transversality conditions, :mod:`.orbit`), with box or norm bounds whose saturation is the
+    Hamiltonian's minimizer -- a box on a block with a diagonal weight, a norm bound on one with an isotropic weight
+    --, the time and fuel objectives' laws).  ``replan``: count only the laws a re-plan's fixed-h Newton step covers
+    (MPC, transcription.closedloop.mpc)."""
     if problem.kind != "smooth":
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
+    law = c.objective.indirect
     reasons = []
-    if c.objective == "fuel" and "fuel" in objectives:
-        reasons += fuel_not_covered(problem)   # on a non-uniform mesh too (docs/mathematics.md §19)
-    elif c.objective not in objectives:
+    if law is None or (replan and not law.replannable):
         reasons.append(f"the {c.objective} objective")
-    if c.objective == "time" and problem.disc.force_frame != "inertial":
-        reasons.append("the time objective with a body-fixed force")
+    else:
+        reasons += law.not_covered(problem)   # on a non-uniform mesh too (docs/mathematics.md §19)
     if problem.constraints:
         moving = [f"{c.kind.replace('_', '-')} cone about the {c.direction}" for c in problem.constraints
                   if getattr(c, "moving", False)]
@@ -89,9 +90,9 @@ def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: flo
     return lam
 
 
-def initial_costate(problem: Problem, options: IndirectOptions, warm: WarmStart | None) -> tuple[np.ndarray, str, list]:
+def initial_costate(problem: Problem, options: IndirectOptions, warm: Start | None) -> tuple[np.ndarray, str, list]:
     """(lambda_0, its source, notes) from ``warm`` -- fitted to the problem's grid
-    (:meth:`~transcription.results.start.WarmStart.fit`): its lambda_0 on the same grid ('warm_start'), else from its
+    (:meth:`~transcription.results.start.Start.fit`): its lambda_0 on the same grid ('warm_start'), else from its
     costates (:func:`lam0_from_costates`; 'from_direct' for a direct solution, whose costates are mapped from
     its multipliers) -- or from ``options.initial_costate``: 'zero', 12 numbers ('explicit'), 'from_direct'
     (needs the direct solution as ``warm``).  Raises ValueError when none is usable."""
@@ -137,6 +138,7 @@ class _Shooting:
         self.Winv, self.bd = weight_inverse(problem), bound_data(problem)
         self.free = np.zeros(NZ, bool) if self.orbit else free_rows(problem.terminal)
         self.stats: dict = {"jit": bool(self.fns.compiled), "initial_costate": source}
+        self.conditions = problem.control.objective.indirect   # the objective's law (.laws)
         self.law = (self.Winv, self.bd)   # the (Winv, bd) of the final rollout (the time objective: its eps-law's)
         self.primal = None                # (X, U) of the warm start on this grid (the time objective's first stage)
         self.structured, self.warm_U = None, None   # the fuel objective's (.fuel)
@@ -180,11 +182,10 @@ class _Shooting:
         return nr
 
     def solve_at(self, lam, h: float, first: bool, phase: str = "") -> NewtonResult:
-        """The fixed-step problem at h from lam; from lambda_0 = 0 with bounds, by the bound continuation; the
-        fuel objective by the homotopy in eps (:func:`~.fuel.fuel_homotopy`; the final eps kept in bd)."""
-        if self.problem.control.objective == "fuel":   # the structured conditions and the homotopy in eps (.fuel)
-            return solve_fuel(self, lam, h, first, phase)
-        return self.fixed(lam, h, first, phase, self.bd)
+        """The fixed-step problem at h from lam by the objective's law (:mod:`.laws`): from lambda_0 = 0 with bounds,
+        by the bound continuation; the fuel objective by the homotopy in eps (:func:`~.fuel.fuel_homotopy`; the final
+        eps kept in bd)."""
+        return self.conditions.solve_at(self, lam, h, first, phase)
 
     def cost(self, lam, h: float, bd: np.ndarray) -> float:
         """The cost of the controls of the rollout from lam at h with the bound data bd."""
@@ -212,12 +213,14 @@ class _Shooting:
         return control_cost(problem, U, h) / h + float(np.sum(g if problem.uniform else problem.mesh * g.ravel()))
 
     def run(self, lam, h: float) -> tuple[NewtonResult, float]:
+        """The solve from lam at the step size h by the objective's law (:mod:`.laws`; the time objective: its
+        homotopy in eps, with the free final time); the result and the final step size."""
+        return self.conditions.run(self, lam, h)
+
+    def default_run(self, lam, h: float) -> tuple[NewtonResult, float]:
         """The Newton iteration from lam at the step size h (with a free final time, inside the secant iteration
         on h, h the first guess); the result and the final step size."""
         problem = self.problem
-        if problem.control.objective == "time":   # the homotopy in eps, with the free final time (objectives.py)
-            nr, h, self.stats["time_homotopy"], self.law = solve_time(self, lam, h, self.primal)
-            return nr, h
         if not problem.free_time:
             return self.solve_at(lam, h, True), h
         N = problem.N
@@ -226,7 +229,7 @@ class _Shooting:
         self.stats["free_time"] = outer
         return nr, h
 
-    def solution(self, nr: NewtonResult, h: float, solve_s: float) -> Solution:
+    def solution(self, nr: NewtonResult, h: float, solve_s: float, label: str) -> Solution:
         """The Solution of the final lambda_0: controls and costates from it, the re-simulated trajectory."""
         problem, stats, lam = self.problem, self.stats, nr.x
         _, _, lams, U, _, lres = self.fns.shoot(lam, self.X0, self.Xd, problem.steps_of(h), *self.law)
@@ -245,12 +248,13 @@ class _Shooting:
             quadratic_C=quadratic_constant(nr.history, floor=10.0 * nr.noise if nr.noise else 0.0),
         )
         traj = trajectory(problem, Xsim, h)
-        return Solution(method="indirect", solver="newton-armijo", result=result, message=message, trajectory=traj,
-                        cost=objective_value(problem, U, h) if np.all(np.isfinite(U)) else float("inf"),
-                        terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
-                        iterations=nr.iterations, build_s=self.build_s, solve_s=solve_s, problem=problem,
-                        controls=U, costates=lams, history=nr.history, stats=stats,
-                        warm=warm_start_of(traj.t, Xsim, U, problem.scheme, "indirect", costates=lams, lam0=lam.copy()))
+        cost = objective_value(problem, U, h) if np.all(np.isfinite(U)) else float("inf")
+        attempt = Attempt(label or f"initial_costate {self.source}", result, nr.iterations,
+                          cost if result.successful else float("nan"), self.build_s, solve_s)
+        return Solution(method="indirect", solver="newton-armijo", result=result, verdict=message, trajectory=traj,
+                        cost=cost, terminal_error=terminal_error(Xsim[-1], problem) if finite else float("inf"),
+                        problem=problem, controls=U, costates=lams, history=nr.history, stats=stats, trace=(attempt,),
+                        warm=start_of(traj.t, Xsim, U, problem.scheme, "indirect", costates=lams, lam0=lam.copy()))
 
     def _verdict(self, nr: NewtonResult, finite: bool) -> tuple[Result, str]:
         stats = self.stats
@@ -274,7 +278,7 @@ class _Shooting:
 
 
 def solve_indirect(problem: Problem, options: IndirectOptions | None = None, progress: Progress | None = None,
-                   warm: WarmStart | None = None) -> Solution:
+                   warm: Start | None = None, label: str = "") -> Solution:
     """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6, §10) for a smooth-control effort
     problem with a state target ('first_order' or 'lgvi'; for 'lgvi' the unknown is lambda_{-1}, see
     LGVI_CONDITIONS); problems it does not cover (:func:`not_covered`) return Result.not_applicable.
@@ -313,14 +317,12 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
         lam, source, notes = initial_costate(problem, options, warm)
     except ValueError as exc:
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, str(exc))
-    if problem.control.objective == "time" and warm is None:   # objectives.py starts from a solution's structure
-        return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
-                               f"the time objective starts from a solution (initial_costate from_direct: the direct "
-                               f"solution's switching structure and T); a cold start from initial_costate {source} "
-                               "is not implemented")
+    law = problem.control.objective.indirect
+    why = law.start_error(warm, source)     # the time objective starts from a solution's structure (.laws)
+    if why:
+        return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option, why)
     shooting = _Shooting(problem, options, progress, source)
-    if problem.control.objective == "fuel":
-        shooting.warm_U = warm_controls(problem, warm)
+    law.prepare(shooting, warm)
     h = initial_step(problem, warm)
     if warm is not None and np.isclose(warm.T, h * problem.N, rtol=1e-14):
         fitted = warm.fit(problem.N, problem.scheme, problem.fractions)[0]   # on a mesh: its node times
@@ -330,20 +332,18 @@ def solve_indirect(problem: Problem, options: IndirectOptions | None = None, pro
         return failed_solution(problem, "indirect", "newton-armijo", Result.invalid_option,
                                f"the rollout from the initial lambda_0 does not solve the Cayley equation (residual "
                                f"{r0:.1e} > cayley_tol {options.cayley_tol:.0e}): the rotation per step is too large; "
-                               f"use a smaller step h = T/N (increase horizon.N) or another initial costate",
-                               shooting.build_s)
+                               f"use a smaller step h = T/N (increase horizon.N) or another initial costate")
     t1 = time.perf_counter()
     nr, h = shooting.run(lam, h)
-    sol = shooting.solution(nr, h, time.perf_counter() - t1)
+    sol = shooting.solution(nr, h, time.perf_counter() - t1, label)
     if notes:
-        sol.stats.update(warm_start=notes[0].removeprefix("warm start from "),
-                         warm_start_resampled=any(n.startswith("resampled") for n in notes),
-                         warm_start_notes="; ".join(notes[1:]))
-        sol.message += "; " + "; ".join(notes)
+        sol = sol.with_notes(*notes, warm_start=notes[0].removeprefix("warm start from "),
+                             warm_start_resampled=any(n.startswith("resampled") for n in notes),
+                             warm_start_notes="; ".join(notes[1:]))
     return sol
 
 
-def initial_step(problem: Problem, warm: WarmStart | None) -> float:
+def initial_step(problem: Problem, warm: Start | None) -> float:
     """The first step size of the shooting: the problem's h = T/N, except for a free final time started from a
     solution (``warm``: the direct solution of initial_costate from_direct, or any warm start), whose T
     (clipped to the time bounds) goes with its costates."""
@@ -353,48 +353,25 @@ def initial_step(problem: Problem, warm: WarmStart | None) -> float:
     return min(max(warm.T, lo), hi) / problem.N
 
 
-#: results after which a failed start is final (nothing to retry: the method does not apply, or the user stopped it)
-NO_FALLBACK = (Result.not_applicable, Result.interrupted)
+@dataclass(frozen=True)
+class Indirect:
+    """The indirect method (package docstring): one solve of the discrete necessary conditions by Newton-Armijo
+    shooting on the initial costate (with the objective's law: its continuations and homotopies inside) from a
+    start's costates or ``options.initial_costate``."""
 
+    options: IndirectOptions = field(default_factory=IndirectOptions)
+    name: ClassVar[str] = "indirect"
+    kind: ClassVar[str] = "smooth"
 
-def needs_fallback(sol: Solution, options: IndirectOptions, warm: WarmStart | None, *,
-                   retry_warm: bool = False) -> bool:
-    """Whether the solve ``sol``, started from ``options.initial_costate`` or from the warm start ``warm``, failed and
-    is to be started again from the direct solution (``options.fallback``, :func:`with_fallback`).  A failed warm
-    start is retried only with ``retry_warm``: when the direct solution of this very grid is at hand ('both': the
-    warm start came from elsewhere, e.g. refinement's previous level)."""
-    return (bool(options.fallback) and (warm is None or retry_warm) and options.initial_costate != "from_direct"
-            and not sol.result.successful and sol.result not in NO_FALLBACK)
+    def not_covered(self, problem: Problem) -> str:
+        return not_covered(problem)
 
+    def replace(self, ipopt=None, **options) -> "Indirect":
+        return Indirect(self.options.replace(**options) if options else self.options)
 
-def with_fallback(cold: Solution, retry: Solution | None, dsol: Solution, direct_s: float | None) -> Solution:
-    """The Solution of a solve whose start from ``initial_costate`` (``cold``) failed and that was started again
-    from the direct solution ``dsol`` (``retry``; None when the direct method did not converge, so that there was
-    nothing to start from).  The successful one is returned (else the cold one, whose failure is the reason), its
-    ``attempts`` the two starts, its message saying which start succeeded, its iterations and solve time those of
-    both Newton iterations (plus ``direct_s``, the direct solve run for it); ``stats['fallback']``."""
-    spec = cold.stats.get("initial_costate", "zero")
-    first = Attempt(f"initial_costate {spec}", cold.result, cold.iterations)
-    what = "from_direct (the direct solution's costates" + (f", its T = {dsol.warm.T:.10g})" if
-                                                             cold.problem.free_time and dsol.warm else ")")
-    if retry is None:
-        second = Attempt(what, None, note=f"not available (the direct method ended {dsol.result}: {dsol.message})")
-        out, said = cold, f"; the fallback {second.line()}"
-    else:
-        second = Attempt(what, retry.result, retry.iterations, retry.cost if retry.converged else float("nan"))
-        out = retry if retry.converged else cold
-        said = (f"; started from the direct solution (initial_costate from_direct) after the start from initial_costate "
-                f"{spec} failed ({cold.result}: {cold.message.split(';')[0]})" if retry.converged else
-                f"; the fallback from the direct solution failed too ({retry.result}: {retry.message.split(';')[0]})")
-        out.iterations = cold.iterations + retry.iterations
-        out.solve_s = cold.solve_s + retry.solve_s
-    out.message += said
-    out.attempts = (first, second)
-    out.stats["fallback"] = "from_direct" if retry is not None and retry.converged else "failed"
-    if direct_s is not None:
-        out.solve_s += direct_s
-        out.stats.update(direct_solve_s=direct_s, direct_status=dsol.result.value, direct_cost=float(dsol.cost))
-    return out
+    def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
+              label: str = "") -> Solution:
+        return solve_indirect(problem, self.options, report, start, label)
 
 
 def outer_errors(history: list[Iterate]) -> np.ndarray:

@@ -1,0 +1,247 @@
+"""The effort objective (the paper's, docs/mathematics.md §6): min sum_j omega_j (1/2) u_j^T W u_j,
+W = blkdiag(W_f, W_m) symmetric positive definite -- its cost block of the direct method's NLP, its scales, and its
+default strategy (:class:`EffortStrategy`).  The indirect method's conditions are the effort objective's own
+(:mod:`transcription.methods.indirect`: the saturated control law of the costate)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import partial
+from typing import ClassVar, Mapping
+
+import casadi as ca
+import numpy as np
+
+from ..dynamics.lgvi import per_discretization
+from ..geometry.state import NU, X_ANG, X_ROT
+from ..nlp.scaling import scaled_terminal_miss
+from ..nlp.structured import Block, BlockFunction
+from ..methods.indirect.laws import EffortLaw
+from ..ocp import Objective, Problem, effort_cost, quadrature_weights
+from ..outcome import Result
+from ..results.start import Start
+from ..strategy import starts
+from ..strategy.core import Composed, Context, FirstOf, Solve, chosen, labelled, not_made
+from ..strategy.starts import aimed, implied_effort
+
+
+@per_discretization
+def effort_node(disc, free_h: bool) -> BlockFunction:
+    """The effort at one control node j: v = [u_j (6); h / h_scale (free_h)], p = [sU (6); omega_j / h; h (or
+    h_scale); s_obj; vec W_f (9); vec W_m (9)]; cost omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m) / s_obj, no rows.
+    (The LGVI's trapezoid: each node control at half the weight of the steps it joins.)"""
+    v = ca.SX.sym("v", NU + (1 if free_h else 0))
+    p = ca.SX.sym("p", NU + 3 + 18)
+    u = v[:NU] * p[:NU]
+    h = p[NU + 1] * v[NU] if free_h else p[NU + 1]
+    W = ca.SX.zeros(NU, NU)
+    W[0:3, 0:3] = ca.reshape(p[NU + 3:NU + 12], 3, 3)
+    W[3:6, 3:6] = ca.reshape(p[NU + 12:NU + 21], 3, 3)
+    cost = p[NU] * h * 0.5 * ca.bilin(W, u, u) / p[NU + 2]
+    return BlockFunction(ca.Function(f"effort_node{'_freeh' if free_h else ''}", [v, p], [cost, ca.SX(0, 1)],
+                                     ["v", "p"], ["cost", "rows"]))
+
+
+@dataclass(frozen=True)
+class Effort(Objective):
+    """min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m) (module docstring).
+
+    ``balance``: the smallest ratio of the scaled control cost curvatures W_i s_i^2 the NLP's scales allow (the
+    control scales are raised until every W_i s_i^2 >= balance max_j W_j s_j^2): with W_m = I the moment directions
+    would otherwise carry a scaled Hessian of ~1e-8, IPOPT's inertia correction swamps them and the solve stalls at
+    "Solved_To_Acceptable_Level" (measured, E3 N = 100); balanced it reaches Solve_Succeeded."""
+
+    balance: float = 1e-2
+    indirect: ClassVar = EffortLaw()
+    fatrop: ClassVar[str] = ""
+    name: ClassVar[str] = "effort"
+
+    def value(self, problem: Problem, U: np.ndarray, h: float) -> float:
+        return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.steps_of(h)))
+
+    def scales(self, problem: Problem, sU: np.ndarray) -> tuple[np.ndarray, float]:
+        Wdiag = np.diag(problem.control.W)
+        cw = Wdiag * sU**2
+        sU = sU * np.sqrt(np.maximum(1.0, self.balance * cw.max() / cw))
+        return sU, 0.5 * problem.T * float(np.sum(Wdiag * sU**2))
+
+    def blocks(self, tr) -> list:
+        problem, sc, c = tr.problem, tr.scales, tr.problem.control
+        nU = len(tr.layout.control_nodes)
+        data = np.vstack([np.repeat(sc.U[:, None], nU, axis=1), tr.omega_per_h[None, :],
+                          np.repeat(np.r_[problem.h, sc.objective, c.W_f.ravel(order="F"),
+                                          c.W_m.ravel(order="F")][:, None], nU, axis=1)])
+        fn = effort_node(problem.disc, tr.free_h)
+        return [(Block("effort", fn, tr.node_variables(own=False), data), np.zeros(0))]
+
+    def strategy(self, problem: Problem, options) -> "EffortStrategy":
+        return EffortStrategy()
+
+
+# ---------------------------------------------------------------------------- the default strategy
+def relaxation(problem: Problem) -> Problem | None:
+    """The problem without its control bounds (a removed control stays removed) and path constraints, whose solution
+    starts the solve of the full one (None if there is nothing to relax).  The bounded E3 (configs/e3_bounded.yaml):
+    6 + 37 iterations, 2.4 s, against 200 from the rollout then 37 from the interpolation, 12 s; the keep-out slew
+    5 + 11 against 200 + 12."""
+    c = problem.control
+    removed = c.removed
+    bounds = [b for b, r in zip((c.force_bound, c.moment_bound), removed) if b is not None and not r]
+    if not (bounds or problem.constraints):
+        return None
+    keep = [b if r else None for b, r in zip((c.force_bound, c.moment_bound), removed)]
+    return problem.replace(control=replace(c, force_bound=keep[0], moment_bound=keep[1]), constraints=())
+
+
+def judged_interpolation(problem: Problem) -> tuple[str, Start, str]:
+    """The interpolated start of an effort problem: the path of the screw interpolation ('interpolate') or, around
+    a central body, of the screw interpolation in the frame turning with the orbit ('orbit',
+    :func:`~transcription.strategy.starts.orbit_interpolation`), judged before any solve by the effort its motion
+    needs (:func:`~transcription.strategy.starts.implied_effort`), the translation and the rotation each on its own:
+    the positions and momenta of the one whose force effort is lower, the attitudes and angular momenta of the one
+    whose moment effort is lower (both meet both ends, so the parts fit).  Its label names what was taken
+    ('orbit', 'interpolate', or 'orbit, attitude of interpolate'); the third part says the efforts.
+
+    Why: over several revolutions the screw interpolation turns once at most, and the solver ends at a local
+    minimum of its shape -- the five-orbit phasing (configs/everyday/phasing_5_orbits.yaml, N = 1000) solved to
+    cost 17.38 on a path out to r = 4.7 (120 iterations) from it, to 0.02868 near r = 1 (9) from the orbit's; the
+    three-orbit raise 47.5 out to r = 3.5 against 0.295 (22 each).  The attitude is judged apart because a body
+    held inertially (the LEO raise and slew, rest to rest) would turn a whole revolution with the orbit's frame:
+    from that start the LEO raise ended at twice the cost (0.00225 against 0.001125).  Where the screw path is
+    the cheaper (E3, E4, the plane changes, the captures) nothing changes."""
+    judged = {}
+    for kind in ("interpolate", "orbit"):
+        start = starts.make(kind, problem)
+        if start.finite:
+            efforts = implied_effort(problem.disc, start.X, problem.steps, problem.control.W)
+            judged[kind] = (start, tuple(e if np.isfinite(e) else np.inf for e in efforts))
+    if not judged:       # not finite (a singular potential along the path): the strategy's solve says so
+        return "interpolate", starts.interpolation(problem), ""
+    path = min(judged, key=lambda k: judged[k][1][0])         # dict order: the screw interpolation on a tie
+    turn = min(judged, key=lambda k: judged[k][1][1])
+    X = judged[path][0].X.copy()
+    X[:, X_ROT], X[:, X_ANG] = judged[turn][0].X[:, X_ROT], judged[turn][0].X[:, X_ANG]
+    label = path if path == turn else f"{path}, attitude of {turn}"
+    said = "; ".join(f"{k}: force {e[0]:.3g}, moment {e[1]:.3g}" for k, (_, e) in judged.items())
+    return label, replace(judged[path][0], X=X), said
+
+
+def ordered_starts(problem: Problem, rollout_first_miss: float) -> list[tuple[str, Start, dict | None]]:
+    """The free motion and the judged interpolation (:func:`judged_interpolation`) as (label, Start, stats to report),
+    the rollout first when it ends within ``rollout_first_miss`` characteristic scales of the target
+    (:class:`EffortStrategy`)."""
+    rollout = starts.rollout(problem)          # its final state decides the order
+    label, interpolated, said = judged_interpolation(problem)
+    order = [(label, interpolated, {"interpolation_efforts": said} if said else None), ("rollout", rollout, None)]
+    if scaled_terminal_miss(problem, rollout.X[-1]) <= rollout_first_miss:
+        order.reverse()
+    return order
+
+
+def first_start(problem: Problem) -> tuple[str, Start]:
+    """The first start of the default effort strategy (:func:`ordered_starts`): (label, Start)."""
+    label, start, _ = ordered_starts(problem, EffortStrategy().rollout_first_miss)[0]
+    return label, start
+
+
+@dataclass(frozen=True)
+class RelaxedStart:
+    """The solve from the solution of ``relaxed`` (the problem without its bounds and path constraints, solved by
+    ``inner``): with a body-fixed engine the body turned to aim its force (:func:`~.starts.aimed`, ``aim_fraction``);
+    within ``budget`` iterations, IPOPT options ``ipopt``.  ``phase1``: its solve starts in IPOPT's restoration
+    phase; one that ends locally infeasible ends the strategy (:meth:`ends`)."""
+
+    inner: object
+    relaxed: Problem
+    budget: int
+    ipopt: Mapping
+    phase1: bool
+    aim_fraction: float
+    label: str = "the solution without bounds and path constraints"
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context):
+        sub = self.inner.run(self.relaxed, None, ctx.under("relaxed"))
+        if not sub.converged or sub.warm is None:
+            return not_made(problem, ctx, self.label, "not available (the relaxed problem did not converge)",
+                            sub.trace, "the relaxed problem")
+        first = sub.warm.primal()
+        engine = problem.control.force_bound
+        if hasattr(engine, "axis"):
+            first = aimed(problem, first, engine.axis, (engine.min, engine.max), fraction=self.aim_fraction)
+        sol = ctx.solve(problem, first, "from relaxed", ipopt=self.ipopt,
+                        max_iter=min(int(ctx.options.max_iter), self.budget))
+        return labelled(sol, self.label, sub.trace, "the relaxed problem")
+
+    def ends(self, sol) -> bool:
+        return self.phase1 and sol.result is Result.infeasible
+
+
+@dataclass(frozen=True)
+class EffortStrategy(Composed):
+    """The effort objective's default (``initial_guess: auto``): with bounds or path constraints, first the start
+    from the relaxed problem's solution (:class:`RelaxedStart`); then the free motion (rollout) and the judged
+    interpolation (:func:`judged_interpolation`) in the order ``rollout_first_miss`` decides, the first of them
+    within ``first_budget`` iterations; the first that converges is kept.
+
+    ``first_budget``: the first starts get at most this many NLP iterations before the next one is tried (a solve
+    that needs more is usually wandering).  ``rollout_first_miss``: the rollout goes first when it ends within this
+    many characteristic scales of the target (:func:`~transcription.nlp.scaling.scaled_terminal_miss`, the terminal
+    rows as the solver sees them), else the interpolation.  A free motion that misses by far is a poor start:
+    doubling the orbit radius in one period (configs/everyday/orbit_double.yaml, miss 3.1) takes > 1100 iterations
+    from the rollout, 5 from the interpolation; the capture from a fast tumble (capture_fast_tumble.yaml, 1.9) 185 to
+    a local minimum of cost 97.0 against 10 to 32.7.  A near one is a good start, and the interpolation's defects,
+    spread over every step, cost iterations that grow with N: E3 (0.52) 6 iterations from the rollout at N = 250,
+    1000 and 4000 against 7, 8 and 11 from the interpolation; the 45 deg plane change (0.79) 9 against 12, the
+    detumble (0.93) 6 against 8; E4 (0.78) is the exception, 7-8 against 6.  Misses of the everyday cases:
+    0.30 ... 3.1 (docs/everyday.md).
+
+    ``infeasibility_detection``: IPOPT options of a problem with bounds or path constraints (IPOPT's heuristics for a
+    problem expected to be infeasible: the restoration phase called sooner, more reduction of the violation before
+    leaving it; off once the violation is below 1e-3) ...  ``phase1``: ... and for the start from the relaxation's
+    solution, with a control bound, IPOPT starting in its restoration phase, which minimizes the violation of the
+    bounds and constraints the relaxed optimum breaks; if that ends at a least violation > 0
+    (Infeasible_Problem_Detected) the problem is reported infeasible and the other starts are not tried.  E3 with
+    the thrust norm bounded by 10 instead of 12 (no solution), N = 500: infeasible in 54 iterations from the relaxed
+    optimum, where without the phase 1 IPOPT spent its 200 there, then 69 (rollout) and 79 (interpolation) more to
+    Infeasible_Problem_Detected, and without either option 200 + 3000 + 3000 iterations (> 900 s on the loaded
+    machine).  The price on feasible problems: the bounded E3 (N = 500) 57 iterations instead of 43 to the same
+    solution.  Only with a control bound: with path constraints alone it cost the keep-out slew 42 iterations
+    instead of 14 and E3 with a minimum radius 34 instead of 26.  Neither for a body-fixed engine (its start is the
+    aimed relaxed solution: not measured with these).  ``aim_fraction``: the engine's aimed start
+    (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j |f_j|."""
+
+    first_budget: int = 200
+    rollout_first_miss: float = 1.0
+    infeasibility_detection: Mapping = field(default_factory=lambda: {"expect_infeasible_problem": "yes"})
+    phase1: Mapping = field(default_factory=lambda: {"start_with_resto": "yes"})
+    aim_fraction: float = 0.1
+    not_tried: str = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally "
+                      "infeasible; solver.direct.initial_guess=rollout or interpolate tries this start)")
+
+    def compose(self, problem: Problem, options, start: Start | None = None):
+        if start is not None:
+            return Solve(label="warm start")
+        if (one := chosen(problem, options)) is not None:
+            return one
+        relaxed = relaxation(problem)
+        c = problem.control
+        engine = hasattr(c.force_bound, "axis")
+        extra = {} if relaxed is None or engine else dict(self.infeasibility_detection)
+        bounded = any(b is not None and not r for b, r in zip((c.force_bound, c.moment_bound), c.removed))
+        entries = []
+        if relaxed is not None:
+            phase1 = bounded and not engine
+            entries.append(RelaxedStart(self, relaxed, self.first_budget, {**extra, **(self.phase1 if phase1 else {})},
+                                        phase1, self.aim_fraction))
+        (l0, s0, st0), (l1, s1, st1) = ordered_starts(problem, self.rollout_first_miss)
+        entries += [Solve(partial(_given, s0), l0, self.first_budget, extra or None, st0),
+                    Solve(partial(_given, s1), l1, None, extra or None, st1)]
+        return FirstOf(tuple(entries), self.not_tried)
+
+
+def _given(start: Start, problem: Problem) -> Start:
+    """``start`` (made before the strategy ran), whatever the problem."""
+    return start
+
+
+__all__ = ["Effort", "EffortStrategy", "RelaxedStart", "effort_node", "first_start", "judged_interpolation",
+           "ordered_starts", "relaxation"]

@@ -1,0 +1,103 @@
+"""The fuel objective (docs/mathematics.md §10, §19-§25): min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), the weights
+scalars -- its cost block of the direct method's NLP (:mod:`.nlp`: the magnitude-direction epigraph, smoothed along
+the homotopy or on a fixed switching structure), its scales, its conditions in the indirect method (the switching
+law, :mod:`transcription.methods.indirect.fuel`) and its default strategy (:mod:`.plan`).
+
+The parameters of the NLP's form are the objective's fields, so that every step of a strategy -- a homotopy level, a
+structured finish -- is the solve of a Problem by the direct method: ``smoothing`` eps in [0, 1] and ``reference``
+(r_f, r_m) of the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 r) (eps = 0: the fuel objective);
+``burn`` (2, n_controls) bool, a fixed switching structure (None: the epigraph u = s d on every node) with the
+magnitudes' ``rounding`` (2,) (a fraction of each part's magnitude scale)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
+
+import numpy as np
+
+from ...geometry.state import U_FORCE, U_MOMENT
+from ...methods.indirect.laws import FuelLaw
+from ...ocp import NormBound, Objective, Problem, ProblemError, fuel_cost, quadrature_weights
+from .nlp import fuel_blocks, fuel_slacks
+from .plan import FuelStrategy
+
+
+@dataclass(frozen=True, eq=False)
+class Fuel(Objective):
+    """min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), w_f = W_f[0, 0], w_m = W_m[0, 0] (module docstring)."""
+
+    smoothing: float = 0.0
+    reference: tuple[float, float] | None = None
+    burn: np.ndarray | None = field(default=None, repr=False)
+    rounding: tuple[float, float] = (0.0, 0.0)
+    indirect: ClassVar = FuelLaw()
+    fatrop: ClassVar[str] = ("fatrop does not converge on the fuel NLP (the magnitude-direction epigraph's indefinite "
+                             "coast nodes): from IPOPT's own optimum of the fuel raise on 25 steps it stops after "
+                             "129-3001 iterations 1e-7 to 1e-3 above it")
+    name: ClassVar[str] = "fuel"
+
+    def check(self, control) -> None:
+        for name in ("W_f", "W_m"):
+            W = getattr(control, name)
+            if not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-12, atol=0.0):
+                raise ProblemError(f"control.{name}", "for the fuel objective a weight is one number (the weight of the norm)")
+        if self.burn is not None and not np.all(np.asarray(self.rounding, float) > 0):
+            raise ProblemError("control.objective", "a switching structure (burn) needs its magnitudes' rounding > 0")
+
+    def __eq__(self, other) -> bool:
+        same = lambda a, b: a is b or (a is not None and b is not None and np.array_equal(a, b))
+        return (type(other) is type(self) and (self.smoothing, self.reference, self.rounding)
+                == (other.smoothing, other.reference, other.rounding) and same(self.burn, other.burn))
+
+    def __hash__(self) -> int:
+        return hash((self.smoothing, self.reference, self.rounding, None if self.burn is None else self.burn.tobytes()))
+
+    @property
+    def epigraph(self) -> bool:
+        """The magnitude-direction epigraph on every node (no fixed switching structure)."""
+        return self.burn is None
+
+    def smoothed(self, eps: float, reference) -> "Fuel":
+        """This objective smoothed by eps with the references (r_f, r_m) (a homotopy level)."""
+        return replace(self, smoothing=float(eps), reference=tuple(float(r) for r in reference))
+
+    def structured(self, burn: np.ndarray, rounding) -> "Fuel":
+        """This objective on the switching structure ``burn`` with the magnitudes' ``rounding`` (a structured finish)."""
+        return replace(self, burn=np.asarray(burn, dtype=bool), rounding=tuple(float(r) for r in rounding))
+
+    def value(self, problem: Problem, U: np.ndarray, h: float) -> float:
+        return fuel_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.steps_of(h)))
+
+    def scales(self, problem: Problem, sU: np.ndarray) -> tuple[np.ndarray, float]:
+        c = problem.control
+        rf, rm = c.removed
+        return sU, problem.T * ((0.0 if rf else c.W_f[0, 0] * sU[U_FORCE].max())
+                                + (0.0 if rm else c.W_m[0, 0] * sU[U_MOMENT].max()))
+
+    def slacks(self, tr) -> int:
+        return 8 if self.epigraph else 2
+
+    def slack_scales(self, tr) -> np.ndarray:
+        return np.r_[tr.magnitudes, np.ones(6)] if self.epigraph else tr.magnitudes
+
+    def slack_values(self, tr, U: np.ndarray) -> np.ndarray:
+        return fuel_slacks(U)[:self.slacks(tr)]
+
+    def slack_bounds(self, tr, lbx: np.ndarray, ubx: np.ndarray) -> None:
+        lay, c = tr.layout, tr.problem.control
+        lbx[lay.iS[:2]] = np.maximum(lbx[lay.iS[:2]], 0.0)      # the magnitudes s >= 0
+        for k, (sl, bound) in enumerate(((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound))):
+            if isinstance(bound, NormBound) and bound.b == 0:    # a removed part: no magnitude
+                lbx[lay.iS[k]] = ubx[lay.iS[k]] = 0.0
+            if not self.epigraph:                                # a coast node's part: u = 0, s = 0
+                coast = np.r_[lay.iU[sl][:, ~self.burn[k]].ravel(), lay.iS[k, ~self.burn[k]]]
+                lbx[coast] = ubx[coast] = 0.0
+
+    def blocks(self, tr) -> list:
+        return fuel_blocks(self, tr)
+
+    def strategy(self, problem: Problem, options) -> FuelStrategy:
+        return FuelStrategy()
+
+
+__all__ = ["Fuel"]

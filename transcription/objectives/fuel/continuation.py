@@ -1,0 +1,174 @@
+"""The fuel objective reached by continuation in its data (docs/mathematics.md §25): the start of a fuel problem whose
+homotopy (:mod:`.homotopy`) cannot begin with its first level.
+
+:meth:`~.homotopy.Homotopy.effort_problem` makes the homotopy's effort problem its first level, phi_1(s) = s^2 / (2 r),
+when every part whose fuel counts is bounded and the parts' references r differ by more than the homotopy's
+``effort_level_ratio`` (configs/leo_engine_fuel.yaml).  With an unbounded counted part it cannot: r is then the effort
+optimum's largest magnitude, known only after the effort solve, and the fuel weights, chosen for the squared effort,
+price the parts' magnitudes in another ratio than the effort's.  configs/leo_body_engine.yaml with the fuel objective
+(the moment unbounded, w_m = 1e10 against w_f = 1; references 1e-3 kN and 8.3e-9 kN km) did not converge by the
+homotopy in 8 min (docs §21), nor with its moment bounded at 1e-8 and w_m = 1e10 (the smoothed levels crawled).
+
+:class:`ContinuationStart` reaches it through problems it can solve, each on the problem's own grid from the last
+one's optimum (a :class:`~transcription.strategy.core.Continuation` along the path of :meth:`ContinuationStart.path`):
+
+0. the start: every unbounded counted part bounded at its reference (``margin`` x its effort optimum's largest
+   magnitude, rounded up to one significant digit, so that the effort optimum is feasible), and the fuel weights
+   w_i' = w_i r_i / max_j r_j, so that the first level's weights w_i' / r_i are the file's effort weights (scaled):
+   its effort problem is the file's (with a bound its optimum satisfies), and the homotopy starts it with its first
+   level.  The fuel strategy solves it (its effort problem, homotopy and structured finish).  On leo_body_engine the
+   start is configs/leo_engine_fuel.yaml's problem to the last bit (1.2 x 8.3e-9 -> 1e-8, w_m = 1e10 x 1e-8 / 1e-3 =
+   1e5).  That path is at the edge of converging: with w_m one unit in the last place higher, or the bound 9.96e-9
+   unrounded, its level eps = 0.1 at its budget left a point from which the structured finish's rough solve reached
+   its 500 iterations, and the epigraph fallback from it its 500 too (docs §25);
+1. the weights raised geometrically, by about ``weight_factor`` a step, to the file's;
+2. the added bounds raised by ``bound_factor`` a step while any is active at the optimum (a bound the optimum does
+   not touch leaves it a KKT point of the problem without it), at most ``bound_steps`` times;
+3. the problem itself, from that optimum, by the structured finish and the fuel KKT guard.
+
+Steps 1 and 2 are each a structured finish from the last optimum (``step``, as from a coarser grid's); a step need
+not pass the guard (only the last solve is the answer), but it must converge.  leo_body_engine, fuel, N = 400 (docs
+§25): the start is configs/leo_engine_fuel.yaml; w_m 1e5 -> 1e10 in five steps of 34-79 s each, the bound 1e-8 ->
+1e-7 -> 1e-6 (inactive at 1.09e-7), the problem itself in 232 iterations to 30201.72849, guard passed.  A step of
+100 in the weights did not converge (its rough solve reached 500 iterations).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...geometry.state import U_FORCE, U_MOMENT
+from ...ocp import AT_BOUND_RTOL, NormBound, Problem
+from ...results.solution import Solution
+from ...strategy.core import Context, Continuation, labelled, not_made
+from .guard import counted_parts
+from .homotopy import smoothing_reference
+
+
+def counted_unbounded(problem: Problem) -> np.ndarray:
+    """(2,) bool: the parts (force, moment) whose fuel counts (:func:`~.guard.counted_parts`) and that have no
+    bound."""
+    c = problem.control
+    return counted_parts(problem) & np.array([c.force_bound is None, c.moment_bound is None])
+
+
+def significant(x: np.ndarray) -> np.ndarray:
+    """x > 0 rounded up to one significant digit (9.96e-9 -> 1e-8, 1.01e-8 -> 2e-8)."""
+    e = 10.0 ** np.floor(np.log10(x))
+    return np.ceil(x / e * (1 - 1e-12)) * e
+
+
+def _weights(problem: Problem) -> str:
+    c = problem.control
+    return f"w_f {c.W_f[0, 0]:.3g}, w_m {c.W_m[0, 0]:.3g}"
+
+
+def _bounds(problem: Problem, free: np.ndarray) -> str:
+    c = problem.control
+    parts = (("f", c.force_bound, free[0]), ("m", c.moment_bound, free[1]))
+    return ", ".join(f"|u_{n}| <= {b.b:.3g}" for n, b, f in parts if f)
+
+
+def _line(what: str, sol: Solution) -> str:
+    """A step's line of ``stats['fuel_continuation']``: what was solved, how it ended, its iterations and cost."""
+    return f"{what}: {sol.result.value} in {sol.iterations} iterations" + (
+        f", cost {sol.cost:.10g}" if sol.converged else "")
+
+
+@dataclass(frozen=True)
+class ContinuationStart:
+    """Steps 0-3 of the module docstring: ``first`` solves the start problem (the fuel strategy), ``step`` each step
+    of the path (a structured finish without fallback, more rounds than the problem's own: leo_body_engine's bound
+    1e-7 passed the guard in 8, and with 4 it stopped at a worse point, 30226.27 against 30218.56), ``finish`` the
+    problem itself.  ``margin``, ``weight_factor``, ``bound_factor``, ``bound_steps``: module docstring (w_m 1e5 ->
+    1e7 in one step of leo_body_engine: the rough solve at its 500 iterations; by 10: 42-79 s a step)."""
+
+    first: object
+    step: object
+    finish: object
+    margin: float = 1.2
+    weight_factor: float = 10.0
+    bound_factor: float = 10.0
+    bound_steps: int = 6
+    label: str = "the fuel homotopy from the effort optimum (or its continuation from a bounded problem)"
+
+    def start_problem(self, problem: Problem, U: np.ndarray, ratio: float) -> Problem | None:
+        """Step 0 from the effort optimum's controls U (6, n): ``problem`` with every unbounded counted part bounded
+        at r = margin x its largest magnitude in U rounded up to one significant digit (:func:`significant`) and the
+        fuel weights w_i r_i / max_j r_j; None when the homotopy starts ``problem`` itself: no unbounded counted part,
+        or references within ``ratio`` of each other (there the file's weights are the first level's)."""
+        free = counted_unbounded(problem)
+        if not free.any():
+            return None
+        r = smoothing_reference(problem, U).astype(float)
+        r[free] = significant(self.margin * r[free])
+        if max(r[0] / r[1], r[1] / r[0]) <= ratio:
+            return None
+        c = problem.control
+        bounds = [NormBound(r[i]) if free[i] else b for i, b in enumerate((c.force_bound, c.moment_bound))]
+        # (w_i r_i) / max r, not w_i (r_i / max r): leo_body_engine's 1e10 x 1e-8 / 1e-3 is 1e5 to the bit so, and its
+        # start problem the bundled leo_engine_fuel's (module docstring: one unit in the last place changed the path)
+        W_f, W_m = c.W_f * r[0] / r.max(), c.W_m * r[1] / r.max()
+        return problem.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1], W_f=W_f, W_m=W_m))
+
+    def weight_steps(self, start: Problem, problem: Problem) -> list[Problem]:
+        """Step 1: ``start`` with its weights raised geometrically to ``problem``'s in n steps of about
+        ``weight_factor`` (n = the largest ratio's rounded number of factors, at least 1 where a weight differs), its
+        bounds kept."""
+        c0, c1 = start.control, problem.control
+        w0 = np.array([c0.W_f[0, 0], c0.W_m[0, 0]])
+        w1 = np.array([c1.W_f[0, 0], c1.W_m[0, 0]])
+        ratio = np.where(w0 > 0, w1 / np.where(w0 > 0, w0, 1.0), 1.0)
+        n = int(max(np.round(np.log(ratio.max()) / np.log(self.weight_factor)), 1)) if ratio.max() > 1.0 else 0
+        return [start.replace(control=replace(c0, W_f=np.eye(3) * w[0], W_m=np.eye(3) * w[1]))
+                for w in (w0 * ratio ** (k / n) if k < n else w1 for k in range(1, n + 1))]
+
+    def raised(self, step: Problem, problem: Problem, U: np.ndarray) -> Problem | None:
+        """Step 2: ``step`` with its added bounds (the parts ``problem`` leaves unbounded) that the controls U (6, n)
+        touch (within AT_BOUND_RTOL) raised by ``bound_factor``; None when none is touched."""
+        free = counted_unbounded(problem)
+        c = step.control
+        bounds = [c.force_bound, c.moment_bound]
+        raised = False
+        for i, sl in enumerate((U_FORCE, U_MOMENT)):
+            if free[i] and np.linalg.norm(U[sl], axis=0).max() >= bounds[i].b * (1.0 - AT_BOUND_RTOL):
+                bounds[i], raised = NormBound(bounds[i].b * self.bound_factor), True
+        return step.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1])) if raised else None
+
+    def path(self, start: Problem, problem: Problem):
+        """The path of steps 1-2 as the Continuation asks for it: (phase, problem) after the ``history`` solved."""
+        weights, free = self.weight_steps(start, problem), counted_unbounded(problem)
+
+        def nxt(_, history):
+            if len(history) < len(weights):
+                step = weights[len(history)]
+                return f"continuation {_weights(step)}", step
+            last, sol = history[-1] if history else (start, None)
+            raises = len(history) - len(weights)
+            step = None if sol is None or raises >= self.bound_steps else self.raised(last, problem, sol.warm.U)
+            return None if step is None else (f"continuation {_bounds(step, free)}", step)
+
+        return nxt
+
+    def run(self, problem: Problem, start_problem: Problem, ctx: Context) -> Solution:
+        free = counted_unbounded(problem)
+        first = self.first.run(start_problem, None, ctx.under("continuation start"))
+        lines = [_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
+        last = first if first.converged and first.warm is not None else None
+        stepped = None
+        if last is not None:
+            stepped = Continuation(self.path(start_problem, problem), self.step, "continuation").run(
+                problem, first.warm, ctx)
+            if stepped is not None:
+                lines += stepped.stats["continuation_steps"]
+                last = stepped if stepped.converged and stepped.warm is not None else None
+        parts = first.trace + (() if stepped is None else stepped.trace)
+        if last is None:
+            return not_made(problem, ctx, self.label, "not available (the effort problem, a smoothed problem or a "
+                            "step of the continuation did not converge)", parts, "the fuel continuation")
+        done = self.finish.run(problem, last.warm.primal(), ctx.under("from continuation"))
+        return labelled(done, self.label, parts, "the fuel continuation").with_notes(fuel_continuation=lines)
+
+
+__all__ = ["ContinuationStart", "counted_unbounded", "significant"]

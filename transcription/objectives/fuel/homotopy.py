@@ -1,0 +1,196 @@
+"""The fuel objective by homotopy (docs/mathematics.md, "The fuel homotopy"): the start of a fuel problem's solve on
+its coarsest grid.
+
+The L1 objective sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) has bang-off-bang minimizers that IPOPT reaches slowly
+from the free motion or the screw interpolation (configs/orbit_raise_fuel.yaml, N = 100: 1020 iterations, 54 s;
+N = 400: stopped at 'acceptable' after ~1300).  :class:`Homotopy` reaches it through smooth problems instead: the
+effort problem (the same maneuver with objective effort, :meth:`Homotopy.effort_problem`; :meth:`Homotopy.effort`:
+from the free motion first when its plan would start from the relaxed problem), then the fuel NLP itself (eps = 0)
+from the effort optimum, cold (the jump, on grids of at most ``jump_max_n`` steps); without the jump or when it does
+not converge the fuel NLP with the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for eps =
+``first``, first / factor, ... down to ``last``, each level started from the last one's primal and dual point (the
+NLPs have the same structure: eps is data of the fuel block), and the fuel NLP from the last level and its
+multipliers.  Why the jump first: on the fuel raise (25 steps) the levels took 62 + 76 + 61 + 117 + 5 iterations
+(eps = 1 ... 1e-4, then the fuel NLP) to 0.8129414920, the jump 55 to the same optimum; the effort problem 92
+iterations by its plan (40 on the relaxed problem, which ends at another local minimum, 1.376 against 0.980, then 52
+from it with the phase 1), 21 from the free motion to the same effort optimum.  The homotopy: 418 -> 77 iterations.
+Measured on ten fuel problems of <= 40 steps (the raise on 20, 25 (LGVI and first order), 30 steps and on the mesh of
+issue 26 on 25 and 40; the engine slew, the keep-out slew, the raise without a moment bound and leo_raise_slew, fuel,
+on 25 steps): the same final optimum to 12 digits in every case, and fewer iterations for the whole solve in every case
+(e.g. 1048 -> 649 on 20 steps; 754 -> 731 without a moment bound, where the jump took 283 and the levels 365).  On
+leo_raise_slew's 400 steps the jump did not converge (``jump_max_n``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Mapping
+
+import numpy as np
+
+from ...geometry.state import U_FORCE, U_MOMENT
+from ...nlp.transcription import SmoothTranscription
+from ...ocp import NormBound, Problem
+from ...results.solution import Solution
+from ...results.start import Start
+from ...strategy.core import Context, not_made
+from ..effort import Effort, EffortStrategy, relaxation
+from .guard import counted_parts
+
+
+def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
+    """The references (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units: a bounded part's
+    bound (its magnitude's scale, :meth:`SmoothTranscription.magnitude_scales`); an unbounded part's largest
+    magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part).  (The
+    structured finish's roundings are fractions of the same references, :mod:`.structure`.)  Why: an unbounded
+    part's scale is a guess from the boundary data, and where the magnitudes are far from r the levels are no
+    homotopy.  The LEO raises (docs/mathematics.md, "LEO fuel raises"): moments of up to 8e-9 kN km against a scale
+    of 1.5e-11 made eps s^2 / (2 r) dominate the moment's cost down to eps ~ 1e-2, and the first level (eps = 1, 413
+    iterations on 400 steps) ended with multipliers that left the next one a dual infeasibility of 6.5e4
+    (restoration failures after > 700 iterations); with r = 8.3e-9 the first level took 100 iterations and left
+    2.2e-3.  Forces of 6e-4 kN against a scale of 0.54 kN (no bound) left the force part of every level the fuel
+    objective itself.  With these references phi_eps'(s) = 1 - eps + eps s / r is in [1 - eps, 1] on the effort
+    optimum's magnitudes at every level."""
+    c = problem.control
+    mags = np.array([np.linalg.norm(U[sl], axis=0).max(initial=0.0) for sl in (U_FORCE, U_MOMENT)])
+    unbounded = np.array([b is None or (isinstance(b, NormBound) and b.b <= 0) for b in (c.force_bound,
+                                                                                        c.moment_bound)])
+    return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, SmoothTranscription.magnitude_scales(problem))
+
+
+@dataclass(frozen=True)
+class Homotopy:
+    """The homotopy of the module docstring, run on the problem's own grid: the effort optimum, the jump or the
+    smoothed levels, then the fuel NLP from the last point; its Solution's attempt (named ``label``) carries the
+    effort solves and the levels as its parts, ``stats['homotopy_levels']`` says which path was taken.
+
+    ``jump``, ``jump_budget``, ``jump_max_n``: the first step from the effort optimum is the fuel NLP itself (eps = 0,
+    cold, within jump_budget iterations) on grids of at most jump_max_n steps (the largest measured: the jumps of the
+    measured problems took 55-398 iterations; on the 400 steps of leo_raise_slew with the fuel objective the jump
+    reached its budget without converging, 114 s, and then the levels failed as before), the levels only when that
+    does not converge.  ``first``, ``factor``, ``last``: the levels eps = first, first / factor, ... >= last, each
+    within ``level_budget`` iterations (the fuel raise's levels take 5-117 on 25 steps; on the LEO raises' 400 steps a
+    level that had not converged in a few hundred iterations crawled on -- mu = 1e-9, steps cut to 1e-2 by the
+    bounds -- to 3000, minutes each), warm from the last level's point with the ``warm`` IPOPT options (the fuel
+    strategy's guard's, :class:`.guard.Guarded`).  ``structure_from_budget``: a
+    level after the first that reaches its budget ends the homotopy with its last point, which then starts the
+    structured finish (``finish``) as a coarser grid's optimum would, instead of no start (on a grid the coarse grids
+    do not resolve the levels run on the problem's own steps, where a level may crawl; its point is still near the
+    fuel optimum's switching structure: configs/leo_engine_fuel.yaml, N = 400, the level eps = 0.1 reached its 500
+    iterations with the thrust at 0 or its maximum on most nodes, and the structured finish from such a point
+    converged and passed the guard, docs/mathematics.md §21).  ``effort_rollout``, ``effort_rollout_budget``: the
+    effort problem, when its plan would start from the relaxed problem (control bounds or path constraints) and the
+    force is no body-fixed engine, is first solved from the free motion within that budget (they reach the same
+    optima at the default tol: the raise, 25 steps, 0.8129414920420919 against 0.8129414920420421).
+    ``effort_level_ratio``: :meth:`effort_problem`."""
+
+    finish: object
+    warm: Mapping | None = None
+    jump: bool = True
+    jump_budget: int = 500
+    jump_max_n: int = 40
+    first: float = 1.0
+    factor: float = 10.0
+    last: float = 1e-4
+    level_budget: int = 500
+    structure_from_budget: bool = True
+    effort_rollout: bool = True
+    effort_rollout_budget: int = 200
+    effort_level_ratio: float = 1e3
+    label: str = "the fuel homotopy from the effort optimum"
+
+    def levels(self) -> list[float]:
+        """eps of the smoothed levels, decreasing geometrically: first, first / factor, ... >= last."""
+        n = int(round(np.log(self.first / self.last) / np.log(self.factor)))
+        return [self.first / self.factor**k for k in range(n + 1)]
+
+    def effort_problem(self, problem: Problem) -> Problem:
+        """The effort problem whose optimum starts the homotopy: ``problem`` with the objective effort,
+        sum_j omega_j (1/2)(u_f^T W_f' u_f + u_m^T W_m' u_m), where W_i' = w_i / r_i I (w_i the fuel weights, r_i the
+        parts' magnitude scales: their bounds) when every part whose fuel counts is bounded and the bounds differ by
+        more than ``effort_level_ratio``; otherwise W_i' = w_i I (an unbounded part's reference is the effort
+        optimum's own magnitude).  This effort problem is the first level's, phi_1(s) = s^2 / (2 r): its optimum is
+        the level's.  Why: the fuel weights price |u| and the effort weights |u|^2, so the same numbers weigh the
+        parts in the ratio of their magnitudes differently.  configs/leo_engine_fuel.yaml (engine <= 1e-3 kN, wheels
+        <= 1e-8 kN km) in a first draft with w_m = 1e4 /km: with those weights the moment's squared cost was ~1e-9 of
+        the force's, the moment free in the effort problem, and its effort plan did not converge.  With w_m = 1e5 and
+        w_i / r_i the moment's weight is w_m r_f / (w_f r_m) = 1e10 times the force's, as in leo_body_engine.yaml:
+        its effort optimum times 1e3 (235 iterations, 0.934848928).  The fuel raise (references 40 and 1) keeps the
+        file's weights: with (1/40, 1) its 100-step direct point re-tightened at tol 1e-12 was one from which the
+        indirect method did not converge, and on its 40-step mesh the path stopped at another false minimum."""
+        c = problem.control
+        counted = [b for b, k in zip((c.force_bound, c.moment_bound), counted_parts(problem)) if k]
+        r = SmoothTranscription.magnitude_scales(problem)
+        if (not counted or any(b is None for b in counted)
+                or max(r[0] / r[1], r[1] / r[0]) <= self.effort_level_ratio):
+            return problem.replace(control=replace(c, objective=Effort()))
+        return problem.replace(control=replace(c, objective=Effort(), W_f=c.W_f / r[0], W_m=c.W_m / r[1]))
+
+    def effort(self, problem: Problem, ctx: Context) -> tuple[Solution, str]:
+        """The effort optimum of the effort problem ``problem`` (module docstring) -- with control bounds or path
+        constraints and no body-fixed engine, first from the free motion within ``effort_rollout_budget``; otherwise,
+        or when that does not converge, by the effort strategy; its trace holds every solve -- and how it was reached,
+        in words."""
+        ctx = ctx.under("effort")
+        tried, said = (), ""
+        if self.effort_rollout and relaxation(problem) is not None and \
+                not hasattr(problem.control.force_bound, "axis"):
+            sol = ctx.solve(problem, None, "rollout", max_iter=min(int(ctx.options.max_iter),
+                                                                    self.effort_rollout_budget))
+            if sol.converged and sol.warm is not None:
+                return sol, f"{sol.iterations} (from the free motion)"
+            tried, said = sol.trace, f"{sol.iterations} from the free motion ({sol.result}), then "
+        sol = EffortStrategy().run(problem, None, ctx)
+        return replace(sol, trace=tried + sol.trace), (f"{said}{sol.iterations} by the effort plan" if said
+                                                        else f"{sol.iterations}")
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context,
+            effort: tuple[Solution, str] | None = None) -> Solution:
+        effort, said = effort or self.effort(self.effort_problem(problem), ctx)
+        if not effort.converged or effort.warm is None:
+            return not_made(problem, ctx, self.label, "not available (the effort problem or a smoothed problem did "
+                                                      "not converge)", effort.trace, "the effort problem")
+        parts, levels = list(effort.trace), [f"effort: {said}"]
+        ref = smoothing_reference(problem, effort.warm.U)
+        fuel = problem.control.objective
+        last, schedule = None, self.levels()
+        if self.jump and problem.N <= self.jump_max_n:
+            jump = ctx.solve(self._level(problem, fuel, 0.0, ref), effort.warm.primal(), "fuel jump",
+                             max_iter=min(int(ctx.options.max_iter), self.jump_budget))
+            parts += jump.trace
+            status = jump.stats.get("solver_status", str(jump.result))
+            if jump.converged:
+                levels.append(f"the fuel NLP from the effort optimum: {jump.trace[-1].iterations}")
+                last, schedule = jump, []
+            else:
+                levels.append(f"the fuel NLP from the effort optimum: {jump.trace[-1].iterations}, {status}, so the "
+                              "levels")
+        for eps in schedule:
+            sol = ctx.solve(self._level(problem, fuel, eps, ref), effort.warm.primal() if last is None else last.warm,
+                            f"eps {eps:.0e}", ipopt=None if last is None else self.warm,
+                            max_iter=min(int(ctx.options.max_iter), self.level_budget))
+            parts += sol.trace
+            levels.append(f"eps = {eps:.0e}: {sol.trace[-1].iterations}")
+            if not sol.converged:
+                status = sol.stats.get("solver_status", str(sol.result))
+                if not (self.structure_from_budget and eps < self.first and status == "Maximum_Iterations_Exceeded") \
+                        or sol.warm is None:
+                    return not_made(problem, ctx, self.label, "not available (the effort problem or a smoothed "
+                                    "problem did not converge)", tuple(parts), "the fuel homotopy")
+                levels[-1] += f", {status}: its point starts the structured finish"
+                done = self.finish.run(problem, sol.warm.primal(), ctx.under("from last level"))
+                return self._said(done, parts, levels, "the fuel homotopy's last level, at its budget")
+            last = sol
+        done = ctx.solve(problem, last.warm, "from homotopy", ipopt=self.warm)
+        return self._said(done, parts, levels, "the fuel homotopy")
+
+    @staticmethod
+    def _level(problem: Problem, fuel, eps: float, ref: np.ndarray) -> Problem:
+        """``problem`` with its fuel objective smoothed by eps (references ``ref``)."""
+        return problem.replace(control=replace(problem.control, objective=fuel.smoothed(eps, ref)))
+
+    def _said(self, sol: Solution, parts: list, levels: list[str], on: str) -> Solution:
+        first = replace(sol.trace[0], label=self.label).prepared(tuple(parts), on)
+        return replace(sol, trace=(first,) + sol.trace[1:]).with_notes(homotopy_levels="; ".join(levels))
+
+
+__all__ = ["Homotopy", "smoothing_reference"]

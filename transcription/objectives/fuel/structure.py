@@ -1,0 +1,281 @@
+"""The structured fuel finish (docs/mathematics.md §23): a fuel problem on a finer grid finished from its coarser
+grid's optimum on that optimum's switching structure.
+
+On the fine grid the epigraph u = s d of the fuel NLP (:mod:`.nlp`) is what makes IPOPT slow: the (s, d) block of the
+Hessian of the Lagrangian is [[0, -mu^T], [-mu, s w omega I]], indefinite wherever mu is not along d (every coast
+node, every burn node away from the optimum), and IPOPT regularizes it at most iterations (the raise's 400-step finish
+from its 100-step optimum resampled: 362 iterations, 27-31 s; 203 with the coast nodes' (s, d) fixed at 0).  A
+fuel-optimal control is bang-off-bang, and the coarser optimum says where it is off.  So the fine grid is solved on a
+switching structure B (per part, force and moment: the burn nodes), the objective :meth:`Fuel.structured
+<transcription.objectives.fuel.Fuel.structured>` (the NLP's ``l1`` block): on a coast node u_j = 0 and s_j = 0 (their
+bounds); on a burn node
+
+    rho_delta(u_j) = sqrt(|u_j|^2 + delta^2) - delta <= s_j,   s_j >= 0,   cost sum_j omega_j (w_f s_f,j + w_m s_m,j),
+
+delta a fraction of the part's magnitude scale: the row's gradient never vanishes and its Hessian is positive
+semidefinite.
+
+The switching function (:func:`switching_l1`): on a coast node of B, mu_j is the multiplier of the bound that fixes
+u_j = 0 (the same -(gradient in u_j of the rest of the Lagrangian) as the epigraph's mu_j, :mod:`.guard`); on a
+burn node mu_j = nu_j u_j / sqrt(|u_j|^2 + delta^2), nu_j <= w omega_j the row's multiplier, so a burn node the
+optimum switched off (|u_j| ~ delta) has sigma_j < 0.  A point with sigma_j <= the guard's tol on every coast node is
+a KKT point of the L1 problem, and of the epigraph NLP too (s = |u|, d = u / |u| on the burn nodes; s = 0,
+d = mu / (w omega) on the coast ones).
+
+:class:`StructuredFinish`: B = the coarse optimum's burn nodes widened by ``dilate`` nodes on each side; the rough
+solve (delta = ``rough`` x the scale, IPOPT's own start with the ``cold`` options); the burn nodes it switched off
+(below ``prune`` x the scale) pruned; the solve with delta = ``exact`` x the scale from there, warm; the guard.  Coast
+nodes with sigma_j > tol join B (their control started at the guard's kick x the scale along mu_j / |mu_j|) and the
+NLP is solved again, warm, and pruned again: at most ``rounds`` solves.  A warm solve that fails is solved once more
+from the same primal point with IPOPT's own barrier start (``cold``): on the raise's adaptive 4826-step level of
+accuracy 1e-6 (from its 200-step optimum) the pruned solve warm from the rough one's multipliers (the barrier at 1e-9)
+wandered (primal infeasibility up to 1.4) and ended Infeasible_Problem_Detected after 59 iterations; from its own
+barrier start the same point converged in 36, the guard passed (docs/mathematics.md §16).  From an adaptive level's
+optimum that resolves the switching times (``resolved``) the finish is one exact solve on the resampled burn nodes,
+neither widened, rough nor pruned, with the objective scaled by N / ``resolved_nodes``.  When the finish does not
+converge or pass the guard, the epigraph NLP is solved from the same start (``fallback``).
+
+The roundings, the pruning threshold and the widening's kick are fractions of each part's reference r
+(:func:`.homotopy.smoothing_reference`: its bound, or without one the start's largest magnitude): an unbounded
+part's scale is a guess from the boundary data (the raise without its moment bound at N = 100: with the scale the
+finish failed and the epigraph NLP took 1900 iterations, 43 s; with r 786, 7.7 s; docs §24).  A body-fixed engine's
+force has the magnitude a^T u_f = T, linear and exact on the engine's rows: its row is a^T u_f - s_f <= 0 on every
+node (no rounding, never pruned; T = 0 is the engine row's bound, where a fixed u_f = 0 would leave the engine's rows
+constant).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Mapping
+
+import numpy as np
+
+from ...geometry.state import U_FORCE, U_MOMENT
+from ...methods.direct import transcription
+from ...nlp.transcription import SmoothTranscription
+from ...ocp import NormBound, Problem, ThrusterBound
+from ...results.solution import Solution
+from ...results.start import Point, Start
+from ...strategy.core import Context, collapsed
+from .guard import PARTS, Guarded, counted_parts, engine_multipliers, switching_values, verdict
+from .homotopy import smoothing_reference
+
+
+def engine(problem: Problem) -> ThrusterBound | None:
+    """The body-fixed engine of ``problem``'s force (None without one): its magnitude is the thrust, linear, and its
+    force burns on every node of the structure (T = 0 is the engine row's bound, :func:`burn_structure`)."""
+    b = problem.control.force_bound
+    return b if isinstance(b, ThrusterBound) else None
+
+
+def burn_structure(problem: Problem, U: np.ndarray, scales: np.ndarray, dilate: int, burn_rtol: float) -> np.ndarray:
+    """(2, nU) bool: the burn nodes of controls U (6, nU) -- |u_j| > burn_rtol x the part's scale (``scales``, (2,),
+    physical) -- widened by ``dilate`` nodes on each side; a part whose fuel is not counted (weight 0) burns
+    everywhere (its control is free), a removed one nowhere."""
+    c = problem.control
+    mags = np.stack([np.linalg.norm(U[sl], axis=0) for sl in (U_FORCE, U_MOMENT)])
+    burn = mags > burn_rtol * np.asarray(scales)[:, None]
+    wide = burn.copy()
+    for k in range(1, dilate + 1):
+        wide[:, k:] |= burn[:, :-k]
+        wide[:, :-k] |= burn[:, k:]
+    for i, (b, wt) in enumerate(zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))):
+        if isinstance(b, NormBound) and b.b == 0:
+            wide[i] = False
+        elif wt <= 0 or isinstance(b, ThrusterBound):
+            wide[i] = True
+    return wide
+
+
+def switching_l1(tr: SmoothTranscription, point: Point, coast_rtol: float) -> dict:
+    """The switching values of a point of the structured NLP ``tr`` (its objective on a structure): the keys of
+    :func:`.guard.switching`: 'sigma' (2, nU) on the coast nodes of the L1 problem -- the structure's coast nodes and
+    the burn nodes with |u_j| < coast_rtol x scale -- (nan elsewhere and on parts not checked), 'value' on every node,
+    'mu' (2, 3, nU) physical, 'primer', 'nodes', 'checked'.  mu_j = s_obj lam_x(u_j) / sU on a coast node of the
+    structure (module docstring) and nu_j u_j / sqrt(|u_j|^2 + delta^2) on a burn node, nu_j the multiplier of its
+    row |u_j| - s_j <= 0."""
+    lay, objective = tr.layout, tr.objective
+    w = np.asarray(point.x, float) * tr.w_scale
+    delta = np.asarray(objective.rounding, float) * tr.magnitudes
+    mu = np.empty((2, 3, len(lay.control_nodes)))
+    mags = np.empty((2, mu.shape[2]))
+    nus = tr.multipliers(point.lam_g)
+    nu = nus[tr.nlp.rows("fuel")]        # (2, nU): |u_f| - s_f, |u_m| - s_m
+    eng = engine(tr.problem)
+    for i, sl in enumerate((U_FORCE, U_MOMENT)):
+        iu = lay.iU[sl]
+        u = w[iu]
+        mags[i] = np.linalg.norm(u, axis=0)
+        fixed = tr.scales.objective * np.asarray(point.lam_x, float)[iu] / tr.w_scale[iu]
+        burning = nu[i] * (eng.axis[:, None] if i == 0 and eng else u / np.sqrt(mags[i] ** 2 + delta[i] ** 2))
+        mu[i] = np.where(objective.burn[i][None, :], burning, fixed)
+    coast = ~objective.burn | (mags < coast_rtol * tr.magnitudes[:, None])
+    return switching_values(tr, w, mu, coast, engine_multipliers(tr, nus))
+
+
+def _nodes(burn: np.ndarray) -> str:
+    return f"force {int(burn[0].sum())}, moment {int(burn[1].sum())}"
+
+
+@dataclass(frozen=True)
+class StructuredFinish:
+    """The fuel problem from a start near its optimum (a coarser grid's optimum resampled, a level's point, a
+    continuation's optimum) on its switching structure (module docstring); ``label`` names it in the trace.
+
+    ``dilate``: the start's burn nodes (magnitude > ``burn_rtol`` x the part's scale) widened by this many nodes on
+    each side (the fine grid resolves the switching times the coarse one rounds to its nodes: the raise 100 -> 400,
+    23 force burn nodes, 29 widened; with the 23 alone its 400-step problem is infeasible).  ``rough``: the rough
+    solve's rounding (x the part's scale), smooth where the widened nodes switch off (with 1e-9 in one solve those
+    nodes pass |u| ~ delta, where the row's curvature is 1e9 times the scale's: from four 100- and 200-step starts
+    90, 214, 330 and 500 (not converged) iterations at N = 400; with 1e-5, 50-84), from IPOPT's own start with
+    ``cold`` (adaptive barrier; with the default monotone barrier 84-129 iterations from those starts).  ``prune``:
+    burn nodes the rough solve took below this x the scale are pruned (coast: there it leaves ~delta of thrust, up
+    to 4e-7 of the raise's cost).  ``exact``: the rounding of the solves on the pruned structure (on burn nodes of
+    |u| >= prune x the scale it moves the gradient by < exact^2 / (2 prune^2) = 5e-7, and the raise's cost at N = 400
+    is 4.5e-10 (relative) above the delta -> 0 limit; 1e-8 after it: 42 more iterations).  ``rounds``: at most this
+    many rounds (a solve and its pruning; a round after the first widens the structure), each within ``budget``
+    iterations.  ``resolved``: the start resolves the switching times (an adaptive level of refinement: module
+    docstring), ``resolved_nodes`` its objective scaling (each node's share of the fuel falls with its step, the
+    barrier's pull does not, so on a fine grid IPOPT's own barrier start wanders: the raise, 4923 -> 6216 adaptive
+    steps, unscaled at primal infeasibility 36 after 80 iterations, scaled by 31 Solve_Succeeded in 38).
+    ``fallback``: the epigraph NLP from the same start with these IPOPT options (the barrier small and the point
+    pushed off its bounds as little as possible, so IPOPT does not first wander away from a point already near an
+    optimum: IPOPT's default mu_init = 0.1 and bound_push = 1e-2 tripled the raise's cost in its first 10
+    iterations), within ``fallback_budget`` iterations (None: max_iter); None: no fallback.  ``guard``: the
+    guard's tolerances and kick (:class:`.guard.Guarded`)."""
+
+    guard: Guarded
+    label: str = "structured finish"
+    dilate: int = 2
+    burn_rtol: float = 1e-6
+    rough: float = 1e-5
+    cold: Mapping = field(default_factory=lambda: {"mu_strategy": "adaptive"})
+    prune: float = 1e-3
+    exact: float = 1e-6
+    rounds: int = 4
+    budget: int = 500
+    resolved: bool = False
+    resolved_nodes: int = 200
+    fallback: Mapping | None = field(default_factory=lambda: {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9,
+                                                              "slack_bound_push": 1e-9, "slack_bound_frac": 1e-9})
+    fallback_budget: int | None = None
+
+    def run(self, problem: Problem, start: Start, ctx: Context) -> Solution:
+        sol, stats = self.finish(problem, start, ctx)
+        if (sol.converged and stats["fuel_guard"] == "passed") or self.fallback is None:
+            return replace(collapsed(sol, self.label, "its rounds"), problem=problem).with_notes(**stats)
+        budget = {} if self.fallback_budget is None else {"max_iter": min(int(ctx.options.max_iter),
+                                                                            self.fallback_budget)}
+        tried = collapsed(sol, f"{self.label}, on its switching structure", "its rounds").trace
+        fb = ctx.solve(problem, start.primal(), self.label, ipopt=self.fallback, **budget)
+        said = stats["fuel_structure"] + ["not kept: the fuel NLP finished from the same start"]
+        return replace(fb, trace=tried + fb.trace).with_notes(fuel_structure=said)
+
+    def finish(self, problem: Problem, start: Start, ctx: Context) -> tuple[Solution, dict]:
+        """The rounds of the module docstring: the last Solution (converged or not; on the structured problem) with
+        the trace of every solve, and stats: :func:`~.guard.verdict`'s of its switching values, ``fuel_structure``
+        (one line per round), ``fuel_structure_rounds``."""
+        ref = smoothing_reference(problem, start.U)      # the parts' bounds, an unbounded part's largest magnitude
+        per_scale = ref / SmoothTranscription.magnitude_scales(problem)   # a rounding x ref, in the NLP's terms
+        burn = burn_structure(problem, start.U, ref, 0 if self.resolved else self.dilate, self.burn_rtol)
+        extra = {"obj_scaling_factor": max(1.0, problem.N / self.resolved_nodes)} if self.resolved else {}
+        log, trace, v = [], [], {}
+        point, sol = None, None
+        for rnd in range(1, self.rounds + 1):
+            rough = point is None and not self.resolved
+            said = [f"solve {rnd}: burn nodes {_nodes(burn)} of {burn.shape[1]}"]
+            phase = "rough" if rough else "resolved" if point is None or point.lam_g is None else "widened"
+            p, sol, what = self._solve(problem, ctx, burn, self.rough if rough else self.exact, per_scale, start, point,
+                                       extra, phase, trace)
+            said.append(f"rough (delta {self.rough:.0e}) {what}" if rough else
+                        f"exact on the resolved structure, from IPOPT's own start: {what}" if phase == "resolved"
+                        else what)
+            tr, _ = transcription(p, ctx.options)
+            if sol.converged and phase != "resolved":     # the resolved structure's first solve is not pruned
+                pruned, x0 = self._pruned(tr, sol.warm.point.x, ref)
+                point = Point(tr.point_key, x0, sol.warm.point.lam_g, _released(tr, sol.warm.point.lam_x, pruned))
+                if rough or (pruned != p.control.objective.burn).any():
+                    burn = pruned
+                    p, sol, what = self._solve(problem, ctx, burn, self.exact, per_scale, start, point, extra, "pruned",
+                                               trace)
+                    tr, _ = transcription(p, ctx.options)
+                    said.append(f"pruned to {_nodes(burn)}: {what}")
+            if not sol.converged:
+                log.append("; ".join(said))
+                break
+            point = sol.warm.point
+            sw = switching_l1(tr, point, self.guard.coast_rtol)
+            v = verdict(sw, self.guard.tol)
+            log.append(f"{'; '.join(said)}; cost {sol.cost:.10g}, switching function up to {v['fuel_switching_max']:+.1e}")
+            if v["fuel_guard"] != "failed":
+                break
+            burn, x0 = self._widened(tr, point.x, sw, ref)
+            point = Point(tr.point_key, x0, point.lam_g, _released(tr, point.lam_x, burn))
+            log[-1] += "; widened at " + "; ".join(
+                f"{part} {', '.join(map(str, sw['nodes'][burn[i] & ~p.control.objective.burn[i]]))}"
+                for i, part in enumerate(PARTS) if (burn[i] & ~p.control.objective.burn[i]).any())
+        stats = {"fuel_guard": "failed", **v, "fuel_structure": log, "fuel_structure_rounds": len(log)}
+        return replace(sol, trace=tuple(trace)), stats
+
+    def _solve(self, problem, ctx, burn, rounding, per_scale, start, point, extra, phase, trace):
+        """One solve of the structured problem (``burn``, ``rounding`` x the part's reference) from ``start`` (the
+        first) or ``point`` (scaled, with multipliers: warm; a warm solve that fails is solved again from its x with
+        IPOPT's own start).  (problem, Solution, what it did in words); its attempts appended to ``trace``."""
+        c = problem.control
+        p = problem.replace(control=replace(c, objective=c.objective.structured(burn, rounding * per_scale)))
+        budget = min(int(ctx.options.max_iter), self.budget)
+        tries = [(point, self.guard.warm, "")] if point is not None and point.lam_g is not None else []
+        first = start.primal() if point is None else replace(start.primal(), point=replace(point, lam_g=None,
+                                                                                          lam_x=None))
+        tries.append((None, self.cold, "from IPOPT's own start: " if tries else ""))
+        said = []
+        for warm, options, prefix in tries:      # a failed warm solve: again, cold (module docstring)
+            s = first if warm is None else replace(start.primal(), point=warm)
+            sol = ctx.solve(p, s, f"structured {phase}{' cold' if prefix else ''}", ipopt={**extra, **options},
+                            max_iter=budget)
+            trace += sol.trace
+            said.append(f"{prefix}{sol.stats.get('solver_status', sol.result)} in {sol.trace[-1].iterations} "
+                        f"iterations")
+            if sol.converged:
+                break
+        return p, sol, ", then ".join(said)
+
+    def _pruned(self, tr, x: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The structure without the burn nodes whose magnitude the solve took below ``prune`` x the part's reference
+        ``ref`` (an engine's force is never pruned: :func:`engine`), and x with their controls and magnitudes at 0."""
+        base = tr.objective.burn
+        burn, x = base.copy(), x.copy()
+        w = x * tr.w_scale
+        for i, sl in enumerate((U_FORCE, U_MOMENT)):
+            iu = tr.layout.iU[sl]
+            if i == 0 and engine(tr.problem) is not None:
+                continue
+            off = base[i] & (np.linalg.norm(w[iu], axis=0) < self.prune * ref[i]) & counted_parts(tr.problem)[i]
+            burn[i, off] = False
+            x[iu[:, off]] = 0.0
+            x[tr.layout.iS[i, off]] = 0.0
+        return burn, x
+
+    def _widened(self, tr, x: np.ndarray, sw: dict, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The structure with the coast nodes whose sigma > tol burning, and x with their controls set to the guard's
+        kick x the part's reference ``ref`` along the primer (scaled)."""
+        base = tr.objective.burn
+        burn, x = base.copy(), x.copy()
+        for i, sl in enumerate((U_FORCE, U_MOMENT)):
+            bad = np.flatnonzero(~base[i] & np.isfinite(sw["sigma"][i]) & (sw["sigma"][i] > self.guard.tol))
+            burn[i, bad] = True
+            iu = tr.layout.iU[sl][:, bad]
+            x[iu] = self.guard.kick * ref[i] * sw["primer"][i][:, bad] / tr.w_scale[iu]
+            x[tr.layout.iS[i, bad]] = self.guard.kick * ref[i] / tr.magnitudes[i]
+        return burn, x
+
+
+def _released(tr, lam_x: np.ndarray, burn: np.ndarray) -> np.ndarray:
+    """lam_x with the bound multipliers of the nodes whose flags ``burn`` changes set to 0 (they held for the old
+    structure)."""
+    lam_x = lam_x.copy()
+    lam_x[tr.layout.iU[:, np.any(burn != tr.objective.burn, axis=0)]] = 0.0
+    return lam_x
+
+
+__all__ = ["StructuredFinish", "burn_structure", "engine", "switching_l1"]

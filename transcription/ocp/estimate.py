@@ -1,0 +1,72 @@
+"""Estimates of the target from the problem's data: a terminal state standing for the target of any kind (a state
+target's own, a point of the target orbit, the rendezvous point), for scales and starts."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.state import pack_state, unpack_states
+from .conditions import orbit_conditions, rendezvous_state
+from .problem import Problem
+from .targets import TargetOrbit, TargetRendezvous, TargetState
+
+
+def _transfer_angle(r0: float, r1: float, mu: float, T: float) -> float:
+    """Angle travelled in time T on the Hohmann-type ellipse from radius r0 towards r1.
+
+    Starts at periapsis (r0 <= r1) or apoapsis; Kepler's equation by Newton.
+    """
+    a = 0.5 * (r0 + r1)
+    e = abs(r1 - r0) / (r1 + r0)
+    n = np.sqrt(mu / a**3)
+    M0 = 0.0 if r0 <= r1 else np.pi
+
+    def true_anomaly(M):
+        E = M
+        for _ in range(50):
+            E -= (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
+        return 2.0 * np.arctan2(np.sqrt(1 + e) * np.sin(E / 2), np.sqrt(1 - e) * np.cos(E / 2))
+
+    return float(np.mod(true_anomaly(M0 + n * T) - true_anomaly(M0), 2 * np.pi))
+
+
+def relaxed_start_target(problem: Problem) -> np.ndarray:
+    """A point of the relaxed terminal set to aim the feasibility TPBVP at (18-vector).
+
+    x_N: on the target orbit, at the Hohmann transfer angle (:func:`_transfer_angle`) from the
+    projection of x_0 onto the orbit plane, turning with the initial orbital motion; R_N: the body
+    axis along +-e_n (the sign closer to R_0 b), another body axis radial.  Momenta: those
+    required after the terminal impulse.
+    """
+    target: TargetOrbit = problem.terminal
+    n, a, _ = target.plane_basis()
+    s0 = unpack_states(problem.X0)
+    x0, g0, R0 = s0.x[0], s0.gamma[0], s0.R[0]
+    xp = x0 - (n @ x0) * n
+    xp = xp / np.linalg.norm(xp) if np.linalg.norm(xp) > 1e-12 else a
+    sigma = 1.0 if n @ np.cross(x0, g0) >= 0 else -1.0
+    nu = _transfer_angle(float(np.linalg.norm(x0)), float(target.radius), problem.model.mu, problem.T)
+    c, s = np.cos(sigma * nu), np.sin(sigma * nu)
+    xN = float(target.radius) * (c * xp + s * np.cross(n, xp))
+    # inertial frame (e_axis, radial, their cross product) carried by the body frame (b, b2, b x b2)
+    e_axis = n if n @ (R0 @ target.body_axis) >= 0 else -n
+    e_rad = xN / np.linalg.norm(xN)
+    b = target.body_axis
+    b2 = np.eye(3)[int(np.argmin(np.abs(b)))]
+    b2 = b2 - (b2 @ b) * b
+    b2 /= np.linalg.norm(b2)
+    RN = np.column_stack([e_axis, e_rad, np.cross(e_axis, e_rad)]) @ np.column_stack([b, b2, np.cross(b, b2)]).T
+    _, gp, Pp = orbit_conditions(pack_state(xN, np.zeros(3), RN, np.zeros(3)), target, problem.model.mass,
+                                 problem.model.mu)
+    return pack_state(xN, gp, RN, Pp)
+
+
+def target_estimate(problem: Problem) -> np.ndarray:
+    """A terminal state (18) standing for the target: a state target's X (its free components
+    hold placeholders), or for an orbit target a point of the orbit reached by a Hohmann-like
+    transfer (:func:`relaxed_start_target`), for a rendezvous target the target's state at the problem's T
+    (with a free final time its guess; free attitude components those of X0).  For scales and guesses."""
+    if isinstance(problem.terminal, TargetState):
+        return problem.terminal.X
+    if isinstance(problem.terminal, TargetRendezvous):
+        return rendezvous_state(problem.terminal, problem.T, problem.model.mass, problem.model.mu, problem.X0)
+    return relaxed_start_target(problem)

@@ -1,0 +1,76 @@
+"""The objective of a smooth-control problem, as a class: what it costs and what it needs of the problem here; each
+objective's module (:mod:`transcription.objectives`) brings the rest -- its cost block of the direct method's NLP, its
+conditions in the indirect method where they exist, its default strategy.  The layers below ask the objective a
+Problem holds (``problem.control.objective``), never its name."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .controls import SmoothControl
+    from .problem import Problem
+
+
+class Objective:
+    """The cost of a smooth-control problem (docs/mathematics.md §6, §10).
+
+    ``name``: what files and messages call it; ``free_time``: the final time is what it minimizes (the problem
+    needs time_bounds); ``indirect``: its conditions in the indirect method (None: the method does not cover it).  A subclass is a frozen dataclass (its parameters are fields) implementing the methods below;
+    those of the direct method's NLP are called by :class:`~transcription.nlp.transcription.SmoothTranscription`,
+    the others by the strategy layer and the indirect method."""
+
+    name: ClassVar[str] = ""
+    free_time: ClassVar[bool] = False
+    #: its necessary conditions in the indirect method (transcription.methods.indirect.laws; None: not covered)
+    indirect: ClassVar[Any] = None
+    #: why fatrop's stage-ordered NLP is not used for it ('' when it is: transcription.methods.direct.fatrop)
+    fatrop: ClassVar[str] = "fatrop is used for the effort objective"
+
+    def __str__(self) -> str:
+        return self.name
+
+    # ------------------------------------------------------------------ the problem
+    def check(self, control: "SmoothControl") -> None:
+        """Raise ProblemError when ``control`` (its weights, its bounds) does not suit this objective."""
+
+    def value(self, problem: "Problem", U: np.ndarray, h: float) -> float:
+        """The cost of controls U (6, n_controls) on ``problem``'s grid at the (mean) step size h."""
+        raise NotImplementedError
+
+    def with_weights(self, control: "SmoothControl") -> "Objective":
+        """This objective for ``control``'s weights (an objective keeping derived data of them refreshes it)."""
+        return self
+
+    # ------------------------------------------------------------------ the direct method's NLP
+    def scales(self, problem: "Problem", sU: np.ndarray) -> tuple[np.ndarray, float]:
+        """The control scales (6,) the NLP uses (``sU`` from the boundary data and the bounds, raised where the
+        objective balances them) and the objective's scale."""
+        raise NotImplementedError
+
+    def slacks(self, tr: Any) -> int:
+        """How many variables of its own this objective adds at each control node of the NLP ``tr``."""
+        return 0
+
+    def blocks(self, tr: Any) -> list:
+        """The NLP blocks of this objective on ``tr`` (a SmoothTranscription: its layout, scales and data), as
+        (Block, row scales) pairs: its running cost at the control nodes, its rows, a cost of the final time."""
+        return []
+
+    def slack_bounds(self, tr: Any, lbx: np.ndarray, ubx: np.ndarray) -> None:
+        """Bound this objective's variables in lbx, ubx (scaled, in place)."""
+
+    def slack_values(self, tr: Any, U: np.ndarray) -> np.ndarray | None:
+        """Initial values (n_slack, n_controls) of this objective's variables for controls U (None: none)."""
+        return None
+
+    def slack_scales(self, tr: Any) -> np.ndarray:
+        """The scales (n_slack,) of this objective's variables."""
+        return np.zeros(0)
+
+    # ------------------------------------------------------------------ methods and strategies
+    def strategy(self, problem: "Problem", options: Any) -> Any:
+        """This objective's default strategy for ``problem`` with the direct method's ``options``
+        (:mod:`transcription.strategy`)."""
+        raise NotImplementedError

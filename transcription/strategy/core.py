@@ -1,0 +1,271 @@
+"""Strategies: small typed combinators over one method solve (diffrax's step-size controllers apart from its solvers).
+
+A strategy is a frozen dataclass whose fields are its parameters (tests and callers set them; there are no module
+globals to patch) with one method,
+
+    run(problem, start, ctx) -> Solution
+
+that makes method solves through its :class:`Context` (``ctx.solve``: one solve of ``ctx.method``, the method with
+its options) and returns a Solution whose trace holds every attempt it made (:mod:`transcription.results.trace`).
+The combinators here are generic (any method, any objective): :class:`Solve` (one solve from a start the problem
+gives), :class:`FirstOf`, :class:`BestOf`, :class:`CoarseToFine` and :class:`Continuation`; each objective composes
+its default strategy from them (:mod:`transcription.objectives`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Callable, Protocol
+
+import numpy as np
+
+from ..methods.base import Method, Progress, failed_solution, phased
+from ..ocp import Problem
+from ..outcome import Result
+from ..results.solution import Solution
+from ..results.start import Start
+from ..results.trace import Attempt
+from . import starts
+
+
+@dataclass(frozen=True)
+class Context:
+    """What a strategy solves with: ``method`` (a Method and its options) and ``report`` (the progress callback,
+    already under the phase of the strategy running)."""
+
+    method: Method
+    report: Progress | None = None
+
+    def solve(self, problem: Problem, start: Start | None, label: str, ipopt=None, **options) -> Solution:
+        """One solve of ``problem`` from ``start`` by the method with ``options`` changed (and, for the direct method,
+        the IPOPT options ``ipopt`` added), its progress under ``label``, its trace's attempt named ``label``."""
+        method = self.method
+        if options or ipopt:
+            method = method.replace(**options) if ipopt is None else method.replace(ipopt=ipopt, **options)
+        return method.solve(problem, start, phased(self.report, label), label)
+
+    def under(self, phase: str) -> "Context":
+        """This context with its solves' progress under ``phase`` (nested: 'coarse N=25 / effort / rollout')."""
+        return replace(self, report=phased(self.report, phase))
+
+    def using(self, **options) -> "Context":
+        """This context with the method's options changed."""
+        return replace(self, method=self.method.replace(**options))
+
+    @property
+    def options(self):
+        return self.method.options
+
+
+class Strategy(Protocol):
+    """A strategy (module docstring)."""
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        ...
+
+
+class Composed:
+    """A strategy composed of others for each problem: :meth:`compose` gives the combinator it runs (data: a caller or
+    a test reads which starts it tries, in which order, with which budgets), :meth:`run` runs it."""
+
+    def compose(self, problem: Problem, options, start: Start | None = None) -> Strategy:
+        raise NotImplementedError
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        return self.compose(problem, ctx.options, start).run(problem, start, ctx)
+
+
+def chosen(problem: Problem, options) -> "Solve | None":
+    """The one start a user chose (``initial_guess`` other than 'auto': :data:`~.starts.KINDS`) as a strategy, its
+    whole budget; None with 'auto'."""
+    kind = options.initial_guess
+    return None if kind == "auto" else Solve(lambda p: starts.make(kind, p), kind)
+
+
+def not_made(problem: Problem, ctx: Context, label: str, why: str, parts: tuple[Attempt, ...] = (),
+             on: str = "") -> Solution:
+    """The Solution of a start that could not be made (its ``parts``: the solves that tried to make it): no solve
+    from it; the trace's attempt says why."""
+    sol = failed_solution(problem, ctx.method.name, getattr(ctx.options, "solver", ""), Result.solver_failed, why)
+    return replace(sol, trace=(Attempt(label, None, note=why, parts=parts, prepared_on=on),))
+
+
+def labelled(sol: Solution, label: str, parts: tuple[Attempt, ...] = (), on: str = "", was: str = "") -> Solution:
+    """``sol`` with its first attempt named ``label`` -- or, with ``was``, every attempt whose name begins with
+    ``was`` renamed so (a finish's attempts: 'from coarse, on its switching structure', 'from coarse') -- and
+    ``parts`` (the solves that made its start, on ``on``) before the first."""
+    trace = sol.trace or (Attempt(label, sol.result),)
+    named = [replace(a, label=label + a.label[len(was):]) if was and a.label.startswith(was) else a for a in trace]
+    if not was:
+        named[0] = replace(named[0], label=label)
+    return replace(sol, trace=(named[0].prepared(parts, on), *named[1:]))
+
+
+def collapsed(sol: Solution, label: str, on: str) -> Solution:
+    """``sol`` with its attempts made one, named ``label``: its last solve's, the earlier ones its parts (``on``
+    describing them) -- a strategy whose several solves make one start (a structured finish's rounds)."""
+    if not sol.trace:
+        return sol
+    *earlier, last = sol.trace
+    return replace(sol, trace=(replace(last, label=label).prepared(tuple(earlier), on),))
+
+
+@dataclass(frozen=True)
+class Solve:
+    """One solve from the start ``make(problem)`` gives (None: the start given to the strategy), within ``budget``
+    iterations (None: the method's own), named ``label``, with IPOPT options ``ipopt`` added (the direct method) and
+    ``stats`` (what the start's making says) added to its Solution."""
+
+    make: Callable[[Problem], Start | None] | None = None
+    label: str = ""
+    budget: int | None = None
+    ipopt: dict | None = None
+    stats: dict | None = None
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        start = self.make(problem) if self.make is not None else start
+        label = self.label or (str(start.origin) if start is not None else "rollout")
+        budget = {} if self.budget is None else {"max_iter": min(int(ctx.options.max_iter), int(self.budget))}
+        sol = ctx.solve(problem, start, label, ipopt=self.ipopt, **budget)
+        return sol.with_notes(**self.stats) if self.stats else sol
+
+
+@dataclass(frozen=True)
+class FirstOf:
+    """The strategies in turn until one converges (or the user interrupts): its Solution, the trace of all of them.
+    A strategy whose Solution it ``ends`` (its own method ``ends(solution)``, e.g. a phase 1 that proved the problem
+    locally infeasible) ends the list; the rest are recorded as not tried, ``not_tried`` saying why."""
+
+    strategies: tuple
+    not_tried: str = "not tried"
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        trace, sol = [], None
+        for i, s in enumerate(self.strategies):
+            sol = s.run(problem, start, ctx)
+            trace += sol.trace
+            if sol.converged or sol.result is Result.interrupted:
+                break
+            if getattr(s, "ends", lambda _: False)(sol):
+                trace += [Attempt(getattr(r, "label", type(r).__name__), None, note=self.not_tried)
+                          for r in self.strategies[i + 1:]]
+                break
+        return replace(sol, trace=tuple(trace))
+
+
+@dataclass(frozen=True)
+class BestOf:
+    """Every strategy (a multistart); the lowest-cost converged Solution, the trace of all of them, and the spread of
+    the converged costs (:func:`spread`).  ``judge(solution, ctx) -> bool``: whether a converged start is a false
+    minimum of the NLP rather than an optimum of the problem (named in the sentence; None: none judged)."""
+
+    strategies: tuple
+    same_optimum_rtol: float = 1e-6
+    judge: Callable[[Solution, "Context"], bool] | None = None
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        sols = []
+        for s in self.strategies:
+            sols.append(s.run(problem, start, ctx))
+            if sols[-1].result is Result.interrupted:
+                return replace(sols[-1], trace=tuple(a for x in sols for a in x.trace))
+        done = [s for s in sols if s.converged]
+        best = min(done, key=lambda s: s.cost) if done else sols[-1]
+        said = spread([s.cost for s in done], problem.N, self.same_optimum_rtol,
+                      [s.cost for s in done if self.judge is not None and self.judge(s, ctx)])
+        best = replace(best, trace=tuple(a for x in sols for a in x.trace))
+        return best.with_notes(said["multistart"] if best.converged and said else "", **said)
+
+
+def spread(costs: list[float], N: int, rtol: float, false: list[float] = ()) -> dict:
+    """The spread of a multistart's converged costs on a grid of N steps, as Solution stats: ``multistart_starts``,
+    ``multistart_optima`` (distinct optima: costs within ``rtol`` of one another counted once), ``multistart_spread``
+    = (max - min) / min, ``multistart_grid`` = N, ``multistart`` (the sentence of the message), and with ``false``
+    (the costs of converged starts that are false minima of the NLP) ``multistart_false_minima``; {} with fewer than
+    two."""
+    costs = sorted(c for c in costs if np.isfinite(c))
+    if len(costs) < 2:
+        return {}
+    optima = [costs[0]]
+    for c in costs[1:]:
+        if c - optima[-1] > rtol * abs(optima[-1]):
+            optima.append(c)
+    rel = (costs[-1] - costs[0]) / max(abs(costs[0]), 1e-300)
+    said = (f"the {len(costs)} starts on {N} steps ended at the same optimum (spread {rel:.1e})" if len(optima) == 1
+            else f"the {len(costs)} starts on {N} steps ended at {len(optima)} different optima (costs "
+                 f"{', '.join(f'{c:.6g}' for c in optima)}; spread {rel:.1%}): the lowest is kept, and a lower one "
+                 f"may exist (more starts: a sweep over horizon.T.guess or the seeds)")
+    out = {"multistart_starts": len(costs), "multistart_optima": len(optima), "multistart_spread": float(rel),
+           "multistart_grid": N}
+    if false:
+        bad = ", ".join(f"{c:.6g}" for c in sorted(false))
+        said += (f"; of these, {len(false)} ({bad}) fail the fuel KKT guard: false minima of the NLP, where thrust "
+                 f"would pay on coast nodes, not optima of the fuel problem")
+        out["multistart_false_minima"] = len(false)
+    return {**out, "multistart": said}
+
+
+@dataclass(frozen=True)
+class CoarseToFine:
+    """``coarse`` on a coarser uniform grid of max(min_N, N // factor) steps, its solution resampled onto this grid
+    on SE(3) and finished by ``finish`` (named ``label``, the coarse solves its attempt's parts); when the coarse
+    solve fails, a Solution saying so (a FirstOf then tries the next start).  ``ipopt``: see :class:`Solve`."""
+
+    coarse: Strategy
+    finish: Strategy
+    factor: int = 4
+    min_N: int = 25
+
+    def grid(self, problem: Problem) -> int:
+        return max(self.min_N, problem.N // self.factor)
+
+    @property
+    def label(self) -> str:
+        return "the best start on a coarser grid, resampled"
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        Nc = self.grid(problem)
+        label = f"the best start on {Nc} steps, resampled"
+        c = self.coarse.run(problem.replace(N=Nc, mesh=None), None, ctx.under(f"coarse N={Nc}"))
+        if not c.converged or c.warm is None:
+            return not_made(problem, ctx, label, "not available (the coarse-grid problem did not converge)", c.trace,
+                            "the coarse grid")
+        fine = c.warm.fit(problem.N, problem.scheme, problem.fractions)[0]
+        sol = labelled(self.finish.run(problem, fine, ctx), label, c.trace, "the coarse grid",
+                       getattr(self.finish, "label", ""))
+        stats = {k: v for k, v in c.stats.items() if k.startswith(("multistart", "homotopy", "fuel_continuation"))}
+        said = stats.get("multistart", "") if sol.converged else ""
+        return sol.with_notes(said, **stats)
+
+
+@dataclass(frozen=True)
+class Continuation:
+    """A path of problems solved in turn, each from the last one's solution: ``path(problem, history)`` gives the next
+    (phase, problem) from the history of ((problem, solution), ...) solved so far (None: the path is done), each
+    solved by ``step``.  The Solution is the last one's, its attempt named ``label`` with every step's solves as its
+    parts and ``stats['continuation_steps']`` one line per step; None when the path is empty (nothing was solved).
+    The parameter the path moves (a smoothing eps, the weights, the bounds, a sweep's axis) is the path's; the
+    mechanism is this one.  A step that does not converge ends the path (its Solution says so)."""
+
+    path: Callable[[Problem, tuple], tuple[str, Problem] | None]
+    step: Strategy
+    label: str = "continuation"
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution | None:
+        history, parts, lines, sol = (), [], [], None
+        while (nxt := self.path(problem, history)) is not None:
+            phase, p = nxt
+            sol = self.step.run(p, start if sol is None else sol.warm, ctx.under(phase))
+            parts += sol.trace
+            lines.append(f"{phase}: {sol.result.value} in {sol.iterations} iterations"
+                         + (f", cost {sol.cost:.10g}" if sol.converged else ""))
+            history += ((p, sol),)
+            if not sol.converged or sol.warm is None:
+                break
+        if sol is None:
+            return None
+        last = replace(parts[-1], label=self.label).prepared(tuple(parts[:-1]), "the continuation")
+        return replace(sol, trace=(last,)).with_notes(continuation_steps=lines)
+
+
+__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "Solve", "Strategy", "chosen",
+           "collapsed", "labelled", "not_made", "spread"]
