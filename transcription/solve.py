@@ -47,6 +47,17 @@ MISMATCH_COST_RTOL = 1e-6
 RETIGHTEN_TOL = 1e-12
 
 
+class NotCovered(ValueError):
+    """:func:`solve`'s refusal of a method that cannot run on the problem at all: :func:`not_covered`'s sentence.
+    A ValueError, so that whoever catches ValueError still does; a front end that tells bad input from a defect
+    catches this class (the CLI: one line naming the file's field, exit 2)."""
+
+
+class OutOfReach(ValueError):
+    """:func:`solve`'s refusal of an accuracy its scheme cannot reach within the cap on N, before solving:
+    :func:`~transcription.strategy.refine.out_of_reach`'s sentence (a ValueError, as :class:`NotCovered`)."""
+
+
 @dataclass
 class Comparison:
     """Both methods on one problem: their Solutions and how far they agree.
@@ -174,7 +185,7 @@ def implementation(problem: Problem, name: str) -> Method | None:
 def not_covered(problem: Problem, method: str) -> str:
     """Why ``method`` ('direct', 'indirect' or 'both') cannot be run on ``problem`` at all, in one sentence
     ('' when it can): the one place that says which methods solve which problems (impulsive maneuvers: the
-    direct method only; a motion without control: none).  ``solve`` raises ValueError with it; the CLI and
+    direct method only; a motion without control: none).  ``solve`` raises NotCovered with it; the CLI and
     the sweeps report it as bad input (and the CLI narrows 'both' to the method that applies).  What a method does not cover *within* a problem it solves (the indirect method
     and path constraints) is not decided here: that method's Solution says so (Result.not_applicable)."""
     if method not in METHOD_NAMES:
@@ -243,13 +254,13 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
     :class:`~transcription.results.solution.SolveError`.  A method that cannot solve the problem at all
     (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.strategy.refine.out_of_reach`), raises
-    ValueError with the one-line answer.  accuracy: the continuous check and refinement to a tolerance
-    (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the check on, N fixed): every successful
-    smooth-control Solution carries its continuous check (``sol.continuous``).
+    :class:`NotCovered` or :class:`OutOfReach` (ValueErrors) with the one-line answer.  accuracy: the continuous
+    check and refinement to a tolerance (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the
+    check on, N fixed): every successful smooth-control Solution carries its continuous check (``sol.continuous``).
     """
     reason = not_covered(problem, method)
     if reason:
-        raise ValueError(reason)
+        raise NotCovered(reason)
     reason = necessary_conditions(problem)
     if reason is not None:  # provably no solution: said at once, with the reason (feasibility.py)
         out = _infeasible(problem, method, reason)
@@ -259,7 +270,7 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     accuracy = accuracy or AccuracyOptions.default()
     reason = out_of_reach(problem, accuracy)      # a tolerance the scheme cannot reach: said before solving
     if reason:
-        raise ValueError(reason)
+        raise OutOfReach(reason)
     warm, note = as_warm_start(warm_start)
     progress = clocked(progress)
     if accuracy.accuracy is not None and problem.kind == "smooth":   # refinement to a tolerance (accuracy.py)
