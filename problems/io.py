@@ -114,8 +114,13 @@ def write_json(path: Path, obj: Any) -> None:
 
 
 def write_yaml(path: Path, obj: Any) -> None:
+    """:func:`yaml_text` of ``obj`` into ``path`` (atomically)."""
+    atomic_write_bytes(path, yaml_text(obj).encode())
+
+
+def yaml_text(obj: Any) -> str:
     """YAML that reads back as written with the project's YAML 1.2 loader and with YAML 1.1."""
-    atomic_write_bytes(path, yaml_dump(to_jsonable(obj)).encode())
+    return yaml_dump(to_jsonable(obj))
 
 
 def _csv_cell(v):

@@ -23,9 +23,9 @@ from ..transcription.results.check import ContinuousCheck
 from ..transcription.geometry.state import pack_state
 from ..transcription.results.solution import Iterate, Result, Solution, Trajectory, to_jsonable
 from ..transcription.solve import Comparison, compare
-from .io import atomic_write_bytes, write_json, write_npz
+from .io import atomic_write_bytes, write_json, write_npz, yaml_text
 from .maneuvers import Maneuver, parse_maneuver
-from .schema import ConfigError, describe, read_yaml_file, yaml_dump
+from .schema import ConfigError, describe, read_yaml_file
 
 #: margins of path constraints more negative than this are violations, smaller ones round-off, when
 #: the run's options are not at hand (with them: DirectOptions.terminal_tol, the direct method's own
@@ -132,7 +132,7 @@ def held_run(man: Maneuver, result: Solution | Comparison) -> Run:
     config.resolved.yaml) and holding ``result`` itself: what a command that has just solved writes
     (:func:`save_run`) and draws its figures and report from, without reading anything back."""
     return Run(man, applicable(result), to_jsonable(summary(man, result)),
-               yaml_dump(to_jsonable(man.resolved)), held=result)
+               yaml_text(man.resolved), held=result)
 
 
 # ----------------------------------------------------------------- summary.json, read back

@@ -144,24 +144,22 @@ def _solved(args, man: Maneuver, method: str):
                               [o.split("=", 1)[0].strip() for o in args.overrides or ()]) from None
 
 
-def _write(args, out: Path, run) -> list[Path]:
+def _write(args, out: Path, run) -> None:
     """After simulate/solve/compare: write ``run`` (a :class:`problems.store.Run` held in memory:
     store.held_run) into ``out`` once -- the resolved configuration, the .npz files and summary.json, then the
     figures (unless --no-figures), the animation (--animate) and report.html (always; with the figures just
-    drawn embedded), all drawn from what the command holds: nothing is read back.  Returns the paths written."""
+    drawn embedded), all drawn from what the command holds: nothing is read back."""
     from .. import store
     from ..plots import draw_run, write_animation
     from ..report import write_run_report
 
-    written = store.save_run(out, run)
+    store.save_run(out, run)
     drawn: dict[str, bytes] = {}
     if not args.no_figures:
         drawn = draw_run(out, run)
-        written += [out / f"fig_{name}.{ext}" for name in drawn for ext in ("png", "pdf")]
         if args.animate:
-            written.append(write_animation(run.result, out / "maneuver.gif", frames=args.frames, fps=args.fps))
-    written.append(write_run_report(out, run, list(drawn.items())))
-    return written
+            write_animation(run.result, out / "maneuver.gif", frames=args.frames, fps=args.fps)
+    write_run_report(out, run, list(drawn.items()))
 
 
 def _results_dir(d: Path, flights: bool = False) -> int:
