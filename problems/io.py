@@ -114,8 +114,13 @@ def write_json(path: Path, obj: Any) -> None:
 
 
 def write_yaml(path: Path, obj: Any) -> None:
+    """:func:`yaml_text` of ``obj`` into ``path`` (atomically)."""
+    atomic_write_bytes(path, yaml_text(obj).encode())
+
+
+def yaml_text(obj: Any) -> str:
     """YAML that reads back as written with the project's YAML 1.2 loader and with YAML 1.1."""
-    atomic_write_bytes(path, yaml_dump(to_jsonable(obj)).encode())
+    return yaml_dump(to_jsonable(obj))
 
 
 def _csv_cell(v):
@@ -147,11 +152,24 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
 
 def save_figure(fig, path_stem: Path) -> list[Path]:
     """Save a matplotlib figure as PNG and PDF (atomically); returns the paths."""
-    out = []
+    return write_figure(figure_files(fig), path_stem)
+
+
+def figure_files(fig) -> dict[str, bytes]:
+    """The files of a matplotlib figure as :func:`save_figure` writes them: {"png": PNG at 130 dpi, "pdf": PDF}."""
+    out = {}
     for ext in ("png", "pdf"):
         buf = io.BytesIO()
         fig.savefig(buf, format=ext, dpi=130 if ext == "png" else None, bbox_inches="tight")
+        out[ext] = buf.getvalue()
+    return out
+
+
+def write_figure(files: dict[str, bytes], path_stem: Path) -> list[Path]:
+    """Write :func:`figure_files` as ``path_stem.png`` and ``path_stem.pdf`` (atomically); returns the paths."""
+    out = []
+    for ext, data in files.items():
         p = Path(f"{path_stem}.{ext}")
-        atomic_write_bytes(p, buf.getvalue())
+        atomic_write_bytes(p, data)
         out.append(p)
     return out

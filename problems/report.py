@@ -227,7 +227,8 @@ def figure_images(results_dir: Path | None, result, draw: bool = True, tol: floa
 
 
 def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
-    """The HTML of the report of a results directory read back (:class:`problems.store.Run`)."""
+    """The HTML of the report of a run (:class:`problems.store.Run`, read back or held in memory) with
+    ``images`` ((name, PNG bytes)) embedded and ``config_text`` (the resolved configuration) shown."""
     import jinja2
 
     from .. import __version__
@@ -322,9 +323,10 @@ def _cell(v) -> str:
 
 
 def write_report(results_dir: Path, draw: bool = True) -> Path:
-    """Write ``report.html`` into a results directory (atomically); figures are taken from the
-    directory where up to date, else drawn in memory (``draw=False``: the page without them).  A flight
-    directory (``se3ocp fly``) gets the flight report (problems/flight/report.py)."""
+    """Write ``report.html`` into a results directory (atomically), from the run read back
+    (:func:`problems.store.read_run`; :func:`write_run_report` writes the report of a run held in memory);
+    figures are taken from the directory where up to date, else drawn in memory (``draw=False``: the page
+    without them).  A flight directory (``se3ocp fly``) gets the flight report (problems/flight/report.py)."""
     from .flight.report import is_flight_dir, write_flight_report
     from .store import path_tolerance, read_run
 
@@ -332,12 +334,18 @@ def write_report(results_dir: Path, draw: bool = True) -> Path:
     if is_flight_dir(d):
         return write_flight_report(d)
     run = read_run(d)
-    images = figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver))
-    cfg = d / "config.resolved.yaml"
-    html = render(run, images, cfg.read_text() if cfg.is_file() else "")
-    out = d / "report.html"
-    atomic_write_bytes(out, html.encode("utf-8"))
+    return write_run_report(d, run, figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver)))
+
+
+def write_run_report(results_dir: Path, run, images: list[tuple[str, bytes]]) -> Path:
+    """Write ``report.html`` of ``run`` (a :class:`problems.store.Run`: read back, or held by the command
+    that has just written it) into the results directory (atomically), with ``images`` ((name, PNG bytes),
+    in FIGURES order: :func:`figure_images`, or the PNGs :func:`problems.plots.draw_run` has just written)
+    embedded and the run's resolved configuration.  Returns the path written."""
+    out = Path(results_dir) / "report.html"
+    atomic_write_bytes(out, render(run, images, run.config_text).encode("utf-8"))
     return out
 
 
-__all__ = ["CONTINUOUS_ROWS", "ROWS", "continuous_section", "figure_images", "merit_rows", "render", "write_report"]
+__all__ = ["CONTINUOUS_ROWS", "ROWS", "continuous_section", "figure_images", "merit_rows", "render", "write_report",
+           "write_run_report"]

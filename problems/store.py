@@ -2,10 +2,12 @@
 
 A results directory holds ``config.resolved.yaml`` (the maneuver after defaults and overrides,
 itself a valid maneuver file), ``summary.json`` and one ``<method>.npz`` per solution
-(``trajectory.npz`` for ``simulate``).  :func:`write_run` writes them (each file atomically);
-:func:`read_run` rebuilds the Maneuver and the Solutions (trajectory, controls, impulses,
-costates, result, cost, history), so figures and reports are drawn from Solutions whether they
-come from memory or from disk.
+(``trajectory.npz`` for ``simulate``).  Both ways give a :class:`Run`: :func:`held_run` of the
+result a command holds (which :func:`save_run` writes, each file atomically; :func:`write_run`
+does both), :func:`read_run` of a directory on disk (rebuilding the Maneuver and the Solutions:
+trajectory, controls, impulses, costates, result, cost, history) -- so figures and reports are
+drawn from one Run whether it comes from memory or from disk, and a command that has just
+written its run draws from what it holds, reading nothing back.
 """
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ from ..transcription.results.solution import Solution, to_jsonable
 from ..transcription.results.trace import Attempt
 from ..transcription.dynamics.trajectory import Trajectory
 from ..transcription.solve import Comparison, compare
-from .io import write_json, write_npz, write_yaml
+from .io import atomic_write_bytes, write_json, write_npz, yaml_text
 from .maneuvers import Maneuver, parse_maneuver
 from .schema import ConfigError, describe, read_yaml_file
 
@@ -81,35 +83,59 @@ def summary(man: Maneuver, result: Solution | Comparison, with_history: bool = T
 
 
 def write_run(out: Path, man: Maneuver, result: Solution | Comparison) -> list[Path]:
-    """config.resolved.yaml, the .npz of each Solution and summary.json (written last) into ``out``."""
+    """config.resolved.yaml, the .npz of each Solution and summary.json (written last) into ``out``:
+    :func:`save_run` of :func:`held_run`.  Returns the paths written."""
+    return save_run(out, held_run(man, result))
+
+
+def save_run(out: Path, run: "Run") -> list[Path]:
+    """Write ``run`` (a :class:`Run` held in memory, :func:`held_run`) into the directory ``out``: its
+    ``config_text`` as config.resolved.yaml, the .npz of each of its Solutions, its summary document as
+    summary.json (written last, each file atomically).  Returns the paths written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "config.resolved.yaml"]
-    write_yaml(written[0], man.resolved)
-    for m, s in applicable(result).items():
+    atomic_write_bytes(written[0], run.config_text.encode())
+    for m, s in run.solutions.items():
         p = out / NPZ[m]
         write_npz(p, s.arrays())
         written.append(p)
-    write_json(out / "summary.json", summary(man, result))
+    write_json(out / "summary.json", run.summary)
     return written + [out / "summary.json"]
 
 
 @dataclass
 class Run:
-    """A results directory read back: the maneuver, its Solutions by method, the summary document."""
+    """A results directory: the maneuver, its Solutions by method (those with a .npz: the methods that
+    apply), the summary document (summary.json), the resolved configuration's text (config.resolved.yaml)
+    -- read back (:func:`read_run`), or held by the command that writes it (:func:`held_run`)."""
 
     maneuver: Maneuver
     solutions: dict[str, Solution]
     summary: dict[str, Any] = field(default_factory=dict)
+    config_text: str = ""
+    #: the Solution or Comparison the run was made from, when it is held in memory (None: read back)
+    held: Solution | Comparison | None = None
 
     @property
     def result(self) -> Solution | Comparison:
-        """The Solution, or the Comparison of a run with both methods -- compared again from the
-        Solutions read back (costs, controls, statuses), so that its verdict is always the one of what is
-        drawn, whatever summary.json's comparison block says."""
+        """The result held (:func:`held_run`); read back, the Solution, or the Comparison of a run with both
+        methods -- compared again from the Solutions read back (costs, controls, statuses), so that its verdict
+        is always the one of what is drawn, whatever summary.json's comparison block says."""
+        if self.held is not None:
+            return self.held
         if {"direct", "indirect"} <= set(self.solutions):
             return compare(self.solutions["direct"], self.solutions["indirect"])
         return next(iter(self.solutions.values()))
+
+
+def held_run(man: Maneuver, result: Solution | Comparison) -> Run:
+    """The :class:`Run` of a result in memory, as :func:`read_run` would read it back once written (the
+    applicable methods' Solutions, the summary document as summary.json holds it, the text of
+    config.resolved.yaml) and holding ``result`` itself: what a command that has just solved writes
+    (:func:`save_run`) and draws its figures and report from, without reading anything back."""
+    return Run(man, applicable(result), to_jsonable(summary(man, result)),
+               yaml_text(man.resolved), held=result)
 
 
 # ----------------------------------------------------------------- summary.json, read back
@@ -242,7 +268,9 @@ def read_run(results_dir: Path) -> Run:
         raise ConfigError(str(d / "summary.json"), "", f"unreadable ({e})") from None
     if not isinstance(summ, dict):
         raise ConfigError(str(d / "summary.json"), "", "expected a JSON object")
-    man = parse_maneuver(read_yaml_file(d / "config.resolved.yaml"), str(d / "config.resolved.yaml"))
+    cfg = d / "config.resolved.yaml"
+    man = parse_maneuver(read_yaml_file(cfg), str(cfg))
+    config_text = cfg.read_text(encoding="utf-8")   # read_yaml_file has checked that it is UTF-8
     present = [m for m, fname in NPZ.items() if (d / fname).is_file()]
     if not present:
         raise ConfigError(str(d), "", "no direct.npz, indirect.npz or trajectory.npz")
@@ -263,7 +291,8 @@ def read_run(results_dir: Path) -> Run:
         except Exception as e:  # noqa: BLE001 - see above; KeyboardInterrupt is not an Exception
             raise ConfigError(str(p), "", f"unreadable or not written by se3ocp ({type(e).__name__}: "
                                           f"{str(e).splitlines()[0] if str(e) else 'no details'})") from None
-    return Run(man, sols, summ)
+    return Run(man, sols, summ, config_text)
 
 
-__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "path_tolerance", "read_run", "solutions_of", "summary", "to_jsonable", "write_run"]
+__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "held_run", "path_tolerance", "read_run", "save_run",
+           "solutions_of", "summary", "to_jsonable", "write_run"]

@@ -54,8 +54,7 @@ def cmd_simulate(args) -> int:
     with _results(args, man) as tx:
         sol = api.simulate(man)
         Interrupt.check()
-        store.write_run(tx.path, man, sol)
-        _figures_and_report(args, tx.path)
+        _write(args, tx.path, store.held_run(man, sol))
         Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     st = sol.stats
@@ -72,31 +71,21 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_solve(args) -> int:
+    """``solve`` and ``compare`` (``--method both``): validate, solve, write the run once.  The maneuver is
+    validated once (here); which methods apply and whether solver.accuracy is within reach are decided once,
+    by the solve (:func:`_solved`); the figures and report.html are drawn from the result held (:func:`_write`).
+    0 if every method that applies converged, 1 if not (the run is still written and flagged)."""
     from ...transcription.outcome import Result
-    from ...transcription.strategy.refine import out_of_reach
-    from ...transcription.solve import not_covered
-    from .. import api, store
+    from .. import store
 
     man = _load(args)
     if man.control_kind is None:
         raise ConfigError(man.source, "control/terminal",
                           "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
-    method = args.method
-    if method == "both" and not_covered(man.problem, method) and not not_covered(man.problem, "direct"):
-        method = "direct"                           # both, of a maneuver only the direct method solves
-    reason = not_covered(man.problem, method)       # which methods solve which problems: decided there
-    if reason:
-        raise ConfigError(man.source, "control.kind", reason)
-    reason = out_of_reach(man.problem, man.accuracy)  # a tolerance out of reach: the N it needs, before solving
-    if reason:   # named where it was given: the file, or --set (of the accuracy, the scheme, N or the cap)
-        raise blame_overrides(ConfigError(man.source, "solver.accuracy", reason,
-                                          also=("discretization", "horizon.N", "solver.max_N")),
-                              [o.split("=", 1)[0].strip() for o in args.overrides or ()])
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
-        say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
-        result = api.solve(man, method, progress=Progress(args))  # with the central-body check of the path
+        result = _solved(args, man, args.method)
         Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols = store.solutions_of(result)
         for m, sol in sols.items():
@@ -112,8 +101,7 @@ def cmd_solve(args) -> int:
                           f"{rec['solve_s']:.2f} s, check {rec['check_s']:.2f} s ({rec['status']})"
                           + (f"; {rec['mesh']} mesh, steps {rec['h_min']:.3g} to {rec['h_max']:.3g}" if "mesh" in rec
                              else ""))
-        store.write_run(tx.path, man, result)
-        _figures_and_report(args, tx.path)
+        _write(args, tx.path, store.held_run(man, result))
         Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     for line in table(sols.values()):
@@ -132,19 +120,46 @@ def cmd_solve(args) -> int:
     return 1
 
 
-def _figures_and_report(args, out: Path) -> list[Path]:
-    """After simulate/solve/compare: the figures (unless --no-figures), the animation (--animate)
-    and report.html (always; with the figures just drawn embedded)."""
-    from ..plots import animate, draw_all
-    from ..report import write_report
+def _solved(args, man: Maneuver, method: str):
+    """``api.solve`` of the maneuver by ``method`` (with the central-body check of the path), the progress
+    shown.  What the solve refuses before solving -- a method that cannot run on the problem (NotCovered) or a
+    solver.accuracy out of reach (OutOfReach), each decided there, once -- is bad input: ConfigError naming
+    the file (or --set) and the field.  'both', of a maneuver only the direct method solves, is solved by the
+    direct method (its refusal, when the direct method cannot run either, is the same sentence)."""
+    from ...transcription.solve import NotCovered, OutOfReach
+    from .. import api
 
-    written = []
+    say(args, f"solving by the {method} method{'s' if method == 'both' else ''} ...")
+    try:
+        return api.solve(man, method, progress=Progress(args))
+    except NotCovered as e:
+        if method == "both":                        # which methods solve which problems: decided there
+            say(args, f"  not by both: {e}")
+            return _solved(args, man, "direct")
+        raise ConfigError(man.source, "control.kind", str(e)) from None
+    except OutOfReach as e:  # the N it needs: named where it was given, the file or --set (of the accuracy,
+        # the scheme, N or the cap)
+        raise blame_overrides(ConfigError(man.source, "solver.accuracy", str(e),
+                                          also=("discretization", "horizon.N", "solver.max_N")),
+                              [o.split("=", 1)[0].strip() for o in args.overrides or ()]) from None
+
+
+def _write(args, out: Path, run) -> None:
+    """After simulate/solve/compare: write ``run`` (a :class:`problems.store.Run` held in memory:
+    store.held_run) into ``out`` once -- the resolved configuration, the .npz files and summary.json, then the
+    figures (unless --no-figures), the animation (--animate) and report.html (always; with the figures just
+    drawn embedded), all drawn from what the command holds: nothing is read back."""
+    from .. import store
+    from ..plots import draw_run, write_animation
+    from ..report import write_run_report
+
+    store.save_run(out, run)
+    drawn: dict[str, bytes] = {}
     if not args.no_figures:
-        written += draw_all(out)
+        drawn = draw_run(out, run)
         if args.animate:
-            written.append(animate(out, frames=args.frames, fps=args.fps))
-    written.append(write_report(out, draw=False))
-    return written
+            write_animation(run.result, out / "maneuver.gif", frames=args.frames, fps=args.fps)
+    write_run_report(out, run, list(drawn.items()))
 
 
 def _results_dir(d: Path, flights: bool = False) -> int:

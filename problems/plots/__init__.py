@@ -20,7 +20,7 @@ elements, RTN frame, orbit ellipses; NumPy only), ``targets`` (what the Problem 
 from __future__ import annotations
 
 from .animation import Animation, animate, write_animation
-from .catalogue import CAPTIONS, FIGURES, applicable, caption, draw, draw_all, figures, is_fresh
+from .catalogue import CAPTIONS, FIGURES, applicable, caption, draw, draw_all, draw_run, figures, is_fresh
 from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence, fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity, quaternions)
 from .orbits import osculating_elements, rtn
 from .runs import Run, _runs, node_cells
@@ -29,7 +29,7 @@ from .targets import _describe, removed
 from .views3d import _body_points, fig_attitude, fig_maneuver
 
 __all__ = ["Animation", "animate", "write_animation", "CAPTIONS", "FIGURES", "applicable", "caption", "draw",
-           "draw_all", "figures", "is_fresh", "fig_angular_velocity", "fig_attitude_error", "fig_constraints",
+           "draw_all", "draw_run", "figures", "is_fresh", "fig_angular_velocity", "fig_attitude_error", "fig_constraints",
            "fig_control_norms", "fig_convergence", "fig_costates", "fig_force", "fig_moment", "fig_orbital_elements",
            "fig_thrust_rtn", "fig_velocity", "quaternions", "osculating_elements", "rtn", "Run", "_runs", "node_cells",
            "BOUND", "COLORS", "COMP", "CONE", "FAIL", "QUAT", "STYLES", "THRUST", "_describe", "removed",

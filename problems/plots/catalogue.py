@@ -1,6 +1,6 @@
 """The catalogue of figures: their names (the files fig_<name>.png/.pdf), captions, which apply
-to a run, and drawing them -- in memory (:func:`figures`) or into a results directory
-(:func:`draw_all`)."""
+to a run, and drawing them -- in memory (:func:`figures`) or into a results directory, from a
+run held in memory (:func:`draw_run`) or read back from it (:func:`draw_all`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,7 +11,7 @@ import numpy as np
 from ...transcription.ocp import Problem
 from ...transcription.results.solution import Solution
 from ...transcription.solve import Comparison
-from ..io import save_figure
+from ..io import figure_files, write_figure
 from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence, fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity)
 from .continuous import fig_continuous, flown
 from .engine import fig_thrust_direction
@@ -116,35 +116,48 @@ def figures(result: Solution | Comparison, which: tuple[str, ...] | None = None,
 
 
 def draw_all(results_dir: Path, which: tuple[str, ...] | None = None, *, stale_only: bool = False) -> list[Path]:
-    """(Re)draw the figures of a results directory as PNG and PDF; returns the paths written.
-    ``stale_only``: draw only the figures whose PNG is missing or older than the run's data.
-    Redrawing every figure also deletes the files of figures that no longer apply (drawn by an
-    earlier version: e.g. a force figure for a run whose force is removed)."""
-    from ..store import path_tolerance, read_run
+    """(Re)draw the figures of a results directory as PNG and PDF, from the run read back
+    (:func:`problems.store.read_run`; :func:`draw_run` draws a run held in memory); returns the paths
+    written.  ``which``, ``stale_only``: as :func:`draw_run`."""
+    from ..store import read_run
 
     d = Path(results_dir)
-    run = read_run(d)
-    tol = path_tolerance(run.maneuver)
+    drawn = draw_run(d, read_run(d), which, stale_only=stale_only)
+    return [d / f"fig_{name}.{ext}" for name in drawn for ext in ("png", "pdf")]
+
+
+def draw_run(results_dir: Path, run, which: tuple[str, ...] | None = None, *,
+             stale_only: bool = False) -> dict[str, bytes]:
+    """Draw the figures of ``run`` (a :class:`problems.store.Run`: read back, or held by the command that has
+    just written it) into the results directory as fig_<name>.png and .pdf; returns {name: the PNG's bytes,
+    as written} of the figures drawn, in FIGURES order (report.html embeds them).  ``which`` limits the
+    names; ``stale_only``: draw only the figures whose PNG is missing or older than the run's data.
+    Redrawing every figure also deletes the files of figures that no longer apply (drawn by an
+    earlier version: e.g. a force figure for a run whose force is removed)."""
+    from ..store import path_tolerance
+
+    d = Path(results_dir)
+    runs = _runs(run.result, path_tolerance(run.maneuver))
+    problem = runs[0].sol.problem
+    names = applicable(runs, problem)
     if stale_only:
-        runs = _runs(run.result, tol)
-        todo = tuple(n for n in applicable(runs, runs[0].sol.problem) if not is_fresh(d, n) and (not which or n in which))
-        if not todo:
-            return []
-        which = todo
-    runs = _runs(run.result, tol)
-    names = applicable(runs, runs[0].sol.problem)
+        which = tuple(n for n in names if not is_fresh(d, n) and (not which or n in which))
+        if not which:
+            return {}
     if not which:
         for name in set(FIGURES) - set(names):
             for ext in (".png", ".pdf"):
                 (d / f"fig_{name}{ext}").unlink(missing_ok=True)
-    written = []
+    drawn = {}
     for name in names:  # one at a time: one figure in memory
         if which and name not in which:
             continue
-        fig = draw(name, runs, runs[0].sol.problem)
-        written += save_figure(fig, d / f"fig_{name}")
+        fig = draw(name, runs, problem)
+        files = figure_files(fig)
         plt.close(fig)
-    return written
+        write_figure(files, d / f"fig_{name}")
+        drawn[name] = files["png"]
+    return drawn
 
 
 def is_fresh(results_dir: Path, name: str) -> bool:
