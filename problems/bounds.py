@@ -2,6 +2,8 @@
 body-fixed engine {thruster: {axis, max, min}}, and ``control.bounds_margin`` (docs/mathematics.md §10, §14)."""
 from __future__ import annotations
 
+import numpy as np
+
 from .schema import Validator, describe
 from ..transcription.ocp import BoxBound, NormBound, ThrusterBound
 
@@ -20,9 +22,10 @@ def bounds_margin(v: Validator, c, bounds: dict) -> float:
     if not bounds:
         v.fail("control.bounds_margin", "applies to bounded controls only (give control.bounds)")
     for k, b in bounds.items():
-        if isinstance(b, ThrusterBound) and not b.min < b.max * (1.0 - m):
-            v.fail("control.bounds_margin", f"leaves the thruster no range: min {b.min:g} >= (1 - margin) max "
-                                            f"{b.max * (1.0 - m):g}", also=(f"control.bounds.{k}",))
+        lo, hi = b.engine_range or (-np.inf, np.inf)
+        if not lo < hi * (1.0 - m):
+            v.fail("control.bounds_margin", f"leaves the thruster no range: min {lo:g} >= (1 - margin) max "
+                                            f"{hi * (1.0 - m):g}", also=(f"control.bounds.{k}",))
         bounds[k] = b.scaled(1.0 - m)
     return m
 

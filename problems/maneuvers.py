@@ -16,7 +16,8 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
                             angular_velocity: [3]}}          # problems/moving.py
     control:
       kind: smooth | impulsive
-      objective: effort | time | fuel    # smooth; default effort
+      objective: effort                  # smooth; default effort: a name of transcription.objectives.OBJECTIVES
+                                         # (effort, time, fuel, ...) or {kind: name, <its parameters>}
       weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
       force_frame: inertial | body       # the frame of u_f (default inertial); body: engines fixed in the body
       bounds: {force: {box: [3]} | {norm: b} | {thruster: {axis: [3], max: F, min: 0}}, moment: ...}
@@ -66,7 +67,7 @@ import numpy as np
 from ..transcription.geometry.state import pack_state
 from ..transcription.dynamics.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
-from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, ThrusterBound, spd_weight)
+from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, spd_weight)
 from ..transcription.dynamics.trajectory import Trajectory
 from ..transcription.objectives import OBJECTIVES, named
 
@@ -389,7 +390,7 @@ def _control(v: Validator, c):
         for k in ("force", "moment"):
             if k in bd:
                 bounds[k], bounds_doc[k] = control_bound(v, bd[k], f"control.bounds.{k}", thruster=k == "force")
-        if isinstance(bounds.get("force"), ThrusterBound) and frame != "body":
+        if getattr(bounds.get("force"), "body_fixed", False) and frame != "body":
             v.fail("control.bounds.force.thruster", "a thruster is fixed in the body: it needs control.force_frame: "
                                                     f"body (got {frame})", also=("control.force_frame",))
     margin = bounds_margin(v, c, bounds)

@@ -19,7 +19,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..transcription.ocp import BoxBound, NormBound, ThrusterBound
 from ..transcription.outcome import Result
 from ..transcription.results.solution import Solution
 from .io import atomic_write_bytes
@@ -154,15 +153,8 @@ def _bounds(problem) -> list[str]:
     ctrl, un = problem.control, units(problem)
     for name, b in (("force", getattr(ctrl, "force_bound", None)), ("moment", getattr(ctrl, "moment_bound", None))):
         f, u = un.factor(name), (f" {un.unit(name)}" if un.system is not None else "")  # shown as the figures show it
-        if isinstance(b, NormBound) and b.b == 0:
-            out.append(f"{name}: removed (a norm bound of 0)")
-        elif isinstance(b, NormBound):
-            out.append(f"{name}: |u| ≤ {f * b.b:g}{u}")
-        elif isinstance(b, BoxBound):
-            out.append(f"{name}: |u_i| ≤ ({', '.join(f'{f * x:g}' for x in b.b)}){u}")
-        elif isinstance(b, ThrusterBound):
-            out.append(f"force: one engine along body ({', '.join(f'{x:.4g}' for x in b.axis)}), "
-                       f"{f * b.min:g} ≤ T ≤ {f * b.max:g}{u}")
+        if b is not None:
+            out.append(f"{name}: {b.describe('u', f, u)}")
     if getattr(getattr(problem, "disc", None), "force_frame", "inertial") == "body":
         out.append("force: in the body frame (applied inertial force R u_f)")
     return out

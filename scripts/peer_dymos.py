@@ -312,10 +312,8 @@ def build_orbit_raise(prob, N: int, guess: dict):
     (problem, phase)."""
     import dymos as dm
 
-    from se3ocp.transcription.ocp import NormBound
-
     c, model, target = prob.control, prob.model, prob.terminal
-    if not (isinstance(c.force_bound, NormBound) and isinstance(c.moment_bound, NormBound)):
+    if not all(b is not None and np.isfinite(b.radius) for b in (c.force_bound, c.moment_bound)):
         raise SystemExit("peer_dymos.py: the orbit-raise peer is written for norm bounds on thrust and torque")
     wf, wm = float(c.W[0, 0]), float(c.W[3, 3])
     n, a, a2 = target.plane_basis()
@@ -412,16 +410,12 @@ def radau_controls(phase, time: np.ndarray, values: dict):
 def _bound_violation(prob, control, T: float) -> float:
     """The largest excess of the control over its bounds on a fine grid (16 points per node interval):
     collocation bounds the control at the nodes only."""
-    from se3ocp.transcription.ocp import BoxBound
-
     ts = np.linspace(0.0, T, 16 * prob.N + 1)
     U = np.array([control(t) for t in ts]).T
     worst = 0.0
     for sl, bound in ((slice(0, 3), prob.control.force_bound), (slice(3, 6), prob.control.moment_bound)):
-        if isinstance(bound, BoxBound):
-            worst = max(worst, float((np.abs(U[sl]) - bound.b[:, None]).max()))
-        elif bound is not None and bound.b > 0:
-            worst = max(worst, float((np.linalg.norm(U[sl], axis=0) - bound.b).max()))
+        if bound is not None and not bound.removed:
+            worst = max(worst, float(-bound.margin(U[sl].T).min()))
     return max(worst, 0.0)
 
 

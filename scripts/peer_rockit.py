@@ -144,7 +144,6 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
     from se3ocp.transcription.strategy.starts import perturbed
     from se3ocp.transcription.geometry.state import X_ANG, X_ROT, split_state
     from se3ocp.transcription.geometry.so3 import log_so3
-    from se3ocp.transcription.ocp import BoxBound
 
     prob = se3ocp.load(ROOT / "configs" / f"{STEMS[case]}.yaml", [f"horizon.N={N}", "discretization=first_order"]).problem
     model, c = prob.disc.model, prob.control
@@ -180,10 +179,11 @@ def _solve_constrained(case: str, N: int, wall_cap: float) -> dict:
         W = c.W
         ocp.add_objective(ocp.integral(0.5 * ca.bilin(ca.DM(W), u, u)))
         for sl, bound in ((slice(0, 3), c.force_bound), (slice(3, 6), c.moment_bound)):
-            if isinstance(bound, BoxBound):
-                ocp.subject_to(-ca.DM(bound.b) <= (u[sl] <= ca.DM(bound.b)))
+            box = None if bound is None else bound.variable_box()
+            if box is not None:
+                ocp.subject_to(ca.DM(box[0]) <= (u[sl] <= ca.DM(box[1])))
             elif bound is not None:
-                ocp.subject_to(ca.sumsqr(u[sl]) <= float(bound.b) ** 2)
+                ocp.subject_to(ca.sumsqr(u[sl]) <= float(bound.radius) ** 2)
         ocp.subject_to(ocp.at_t0(X) == ca.DM(prob.X0))
         x, g, R, P = split_state(ocp.at_tf(X))
         xd, gd, Rd, Pd = split_state(ca.DM(prob.Xd))

@@ -208,3 +208,64 @@ def test_pyflakes_clean():
     included).  (The package's __init__.py is left out: its names for type checkers look unused to pyflakes.)"""
     found = pyflakes_messages([ROOT / d for d in ("transcription", "problems", "tests", "scripts")])
     assert not found, found
+
+
+# ------------------------------------------------------------------ the layers of transcription/ (issue 40)
+#: the layers of transcription/, lowest first (docs/architecture.md): a module imports its own layer and those
+#: before it, never one after it
+TRANSCRIPTION_LAYERS = ("compile", "geometry", "outcome", "dynamics", "ocp", "options", "results", "nlp", "methods",
+                        "strategy", "objectives", "solve", "closedloop", "")
+
+
+def transcription_layer(module: str) -> int:
+    """The index in TRANSCRIPTION_LAYERS of a module of transcription/ ('' for the package itself)."""
+    rest = module[len(f"{PACKAGE}.transcription"):].lstrip(".")
+    return TRANSCRIPTION_LAYERS.index(rest.split(".")[0])
+
+
+def test_every_module_of_transcription_is_in_a_layer():
+    for name in modules("transcription"):
+        transcription_layer(name)       # raises ValueError for a module outside the layers
+
+
+def test_no_import_goes_up_a_layer():
+    """No module of transcription/ imports one of a later layer (at module level or in a function)."""
+    graph = import_graph(("transcription",))
+    up = sorted(f"{m} -> {t}" for m, deps in graph.items() for t in deps
+                if transcription_layer(t) > transcription_layer(m))
+    assert not up, up
+
+
+#: the upper-case module-level names of methods/ and strategy/ that are not tuning constants: a data layout, a
+#: scheme's order, a sentence, CasADi's options (module: names)
+NOT_TUNING = {
+    "methods.impulsive.sensitivity": {"P_COLS", "P_ROWS_X"},              # index sets of the state layout
+    "methods.direct.fatrop": {"NOT_COVERED"},                             # a sentence
+    "methods.indirect.conditions": {"LGVI_CONDITIONS"},                   # the conditions, written out
+    "methods.indirect.control": {"NB", "NO_NORM", "THRUSTER", "FUEL_EPS"},  # the bound data's layout
+    "methods.indirect.switching": {"TINY"},                               # the smallest divisor
+    "methods.indirect.shooting": {"MAPACCUM_OPTS"},                       # CasADi's mapaccum options
+    "strategy.starts": {"KINDS"},                                         # the starts' names
+    "strategy.refine": {"ORDER", "BEST_ORDER"},                           # each scheme's order of accuracy
+}
+
+
+def module_constants(path: Path) -> list[str]:
+    """The upper-case names a module assigns at its top level."""
+    out = []
+    for n in ast.parse(path.read_text(), str(path)).body:
+        targets = n.targets if isinstance(n, ast.Assign) else [n.target] if isinstance(n, ast.AnnAssign) else []
+        for t in targets:
+            names = [t] if isinstance(t, ast.Name) else [e for e in getattr(t, "elts", []) if isinstance(e, ast.Name)]
+            out += [e.id for e in names if e.id.isupper()]
+    return out
+
+
+@pytest.mark.parametrize("package", ["methods", "strategy"])
+def test_no_module_level_tuning_constant(package):
+    """methods/ and strategy/ assign no upper-case module-level name but the facts of NOT_TUNING: an algorithm's
+    parameters are dataclass fields or arguments that callers and tests set, not globals to patch."""
+    prefix = f"{PACKAGE}.transcription."
+    found = [f"{name}.{c}" for name, path in modules(f"transcription/{package}").items()
+             for c in module_constants(path) if c not in NOT_TUNING.get(name[len(prefix):], set())]
+    assert not found, found

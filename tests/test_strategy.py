@@ -123,7 +123,7 @@ def test_an_infeasible_bound_ends_infeasible_and_is_named():
     first, *rest = sol.trace
     assert first.result is Result.infeasible and first.iterations <= 100 and first.prepared_on == "the relaxed problem"
     assert [a.result for a in rest] == [None, None] and all(a.note.startswith("not tried") for a in rest)
-    assert "the force bound |u_f| <= 10 binds (100% of the control nodes of the last iterate are at it)" in sol.message
+    assert "the force bound |u_f| ≤ 10 binds (100% of the control nodes of the last iterate are at it)" in sol.message
     assert sol.stats["hint"].startswith("try the force bound")
 
 

@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ...transcription.ocp import BoxBound, NormBound
 from ..io import save_figure
 from ..units import units
 from .run import FlightResult
@@ -147,14 +146,14 @@ def _controls(result: FlightResult) -> Figure | None:
             if tr is None:
                 continue
             tt, uu = tr["control_t"].ravel(), tr["control"][..., sl].reshape(-1, 3)
-            y = np.abs(uu).max(axis=1) if isinstance(act, BoxBound) else np.linalg.norm(uu, axis=1)
+            y = act.magnitude(uu) if act is not None else np.linalg.norm(uu, axis=1)
             ax.plot(tt, y, color=MODE_COLORS[mode], lw=0.6, alpha=0.6)
         for b, style in ((act, "-"), (planned, "--")):
-            if isinstance(b, (BoxBound, NormBound)) and np.max(b.b) > 0:
-                ax.axhline(float(np.max(b.b)), color="#444444", ls=style, lw=1.0)
+            if b is not None and b.scale() > 0:
+                ax.axhline(b.scale(), color="#444444", ls=style, lw=1.0)
         ax.set_xlabel(units(result.maneuver.problem).time_label)
-        ax.set_ylabel(f"{'max_i |u_i|' if isinstance(act, BoxBound) else '|u|'} ({name})")
-        bounded = isinstance(act, (BoxBound, NormBound))
+        ax.set_ylabel(f"{act.magnitude_label if act is not None else '|u|'} ({name})")
+        bounded = act is not None
         ax.set_title(f"{name}: {MODE_LABELS[mode]}" + (", actuators' bound solid, plan's dashed" if bounded
                                                        else " (unbounded)"), fontsize=9)
     return _titled(fig, result, f"control usage, first {len(result.tracks)} runs")

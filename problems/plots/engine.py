@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...transcription.ocp import ENGINE_ON_RTOL, NormBound, Problem, ThrusterBound, engine_reference
+from ...transcription.ocp import ENGINE_ON_RTOL, Problem, engine_reference
 from ..units import units
 from .runs import Run
 from .orbits import rtn
@@ -46,7 +46,7 @@ def fig_thrust_direction(runs: list[Run], problem: Problem):
     un = units(problem)
     f = un.factor("force")
     bound = _bound_of(problem, "force")
-    engine = bound.axis if isinstance(bound, ThrusterBound) else None
+    engine = None if bound is None else bound.engine_axis
     fig, axs = _subplots(3, figsize=(W, 7.6), height_ratios=(1, 1.2, 1))
     for run in runs:
         fb = body_force(run)
@@ -68,8 +68,8 @@ def fig_thrust_direction(runs: list[Run], problem: Problem):
         run.plot_control(axs[2], f * n, color=THRUST if run is runs[0] else run.color, lw=1.6,
                          label=f"|u_f| ({run.name})")
     ref = engine_reference(bound, runs[0].sol.u_f) if runs else 0.0
-    if isinstance(bound, (ThrusterBound, NormBound)):
-        top = f * (bound.max if isinstance(bound, ThrusterBound) else bound.b)
+    if bound is not None and bound.norm_limit is not None:
+        top = f * bound.norm_limit
         axs[2].axhline(top, color=BOUND, ls="-.", lw=1.2, label=f"bound {top:.3g}")
     if ref > 0:
         axs[2].axhline(f * ENGINE_ON_RTOL * ref, color=BOUND, ls=":", lw=1.0,

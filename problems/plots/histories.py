@@ -7,7 +7,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from ...transcription.geometry.so3 import quaternions, rotation_angle
-from ...transcription.ocp import BoxBound, MaxAngularRate, MinRadius, NormBound, Problem, ThrusterBound
+from ...transcription.ocp import MaxAngularRate, MinRadius, Problem
 from ...transcription.results.solution import figures_of_merit
 from ..units import units
 from .orbits import osculating_elements, rtn
@@ -42,11 +42,12 @@ def fig_attitude_error(runs: list[Run], problem: Problem):
 
 
 def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None, controls=False, quantity=None):
-    """Three stacked component plots, methods overlaid; a BoxBound draws ±b_i and shades where a
-    component is at its limit.  ``controls``: the values are the run's controls (drawn by
+    """Three stacked component plots, methods overlaid; a box (an actuator bounding each component) draws ±b_i
+    and shades where a component is at its limit.  ``controls``: the values are the run's controls (drawn by
     Run.plot_control: per-step controls as steps).  ``quantity``: the values are drawn times
     ``units(problem).factor(quantity)`` (a km file's kN in N), bounds too."""
     f = units(problem).factor(quantity) if quantity else 1.0
+    box = None if bound is None or bound.removed else bound.variable_box()
     fig, axs = _subplots(3, figsize=(W, 6.0))
     for run in runs:
         t, Y = key_fn(run)
@@ -57,9 +58,9 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None,
                 run.plot_control(ax, f * Y[:, i], lw=1.5, label=run.name)
             else:
                 ax.plot(t, f * Y[:, i], color=run.color, ls=run.ls, lw=1.5, label=run.name)
-        if isinstance(bound, BoxBound):
+        if box is not None:
             for i, ax in enumerate(axs):
-                _shade(ax, run.control_edges, bound.active_components(Y)[:, i], run.color,
+                _shade(ax, run.control_edges, bound.active_channels(Y)[:, i], run.color,
                        label=f"{run.label} at bound")
         if impulses is not None:
             jumps = impulses(run)
@@ -69,11 +70,11 @@ def _components(runs, problem, key_fn, ylabels, what, bound=None, impulses=None,
                         ax.plot([tt, tt], [before[i], after[i]], ":", color=run.color, lw=1.2)
                         ax.plot(tt, before[i], "o", mfc="white", color=run.color, ms=5)
                         ax.plot(tt, after[i], "o", color=run.color, ms=5)
-    if isinstance(bound, BoxBound):
+    if box is not None:
         for i, ax in enumerate(axs):
             for sgn in (1, -1):
-                ax.axhline(sgn * f * bound.b[i], color=BOUND, ls="-.", lw=1.1, gid="bound-line",
-                           label=f"bound ±{f * bound.b[i]:.3g}" if sgn > 0 else None)
+                ax.axhline(sgn * f * box[1][i], color=BOUND, ls="-.", lw=1.1, gid="bound-line",
+                           label=f"bound ±{f * box[1][i]:.3g}" if sgn > 0 else None)
     for i, ax in enumerate(axs):
         ax.set_ylabel(ylabels[i])
     handles, labels = axs[0].get_legend_handles_labels()
@@ -160,7 +161,7 @@ def _active(u: np.ndarray, bound) -> np.ndarray:
 
 
 def fig_control_norms(runs, problem: Problem):
-    """|u_f| and |u_m| over time: a NormBound is a line at b; where a bound (norm or box) is active
+    """|u_f| and |u_m| over time: a bound on |u| (a norm, an engine's max) is a line; where a bound is active
     the time is shaded, so the switching structure (bang-bang, saturated arcs) reads at a glance.
     A control removed by a norm bound of 0 gets no panel (it is absent, not "at its bound")."""
     runs = [r for r in runs if r.sol.controls is not None]
@@ -178,17 +179,15 @@ def fig_control_norms(runs, problem: Problem):
                 act = _active(u, bound)
                 tab = figures_of_merit(run.sol).get(f"{which}_time_at_bound", float("nan"))
                 _shade(ax, run.control_edges, act, run.color,
-                       label=f"{run.label} at bound ({un.duration(tab)})" if isinstance(bound, (NormBound, ThrusterBound)) else
+                       label=f"{run.label} at bound ({un.duration(tab)})" if bound.norm_limit is not None else
                        f"{run.label}: a component at its bound ({un.duration(tab)})")
-        if isinstance(bound, NormBound):
-            ax.axhline(f * bound.b, color=BOUND, ls="-.", lw=1.2, gid="bound-line", label=f"bound |u| ≤ {f * bound.b:.3g}")
-        elif isinstance(bound, ThrusterBound):
-            ax.axhline(f * bound.max, color=BOUND, ls="-.", lw=1.2, gid="bound-line",
-                       label=f"engine: {f * bound.min:.3g} ≤ T ≤ {f * bound.max:.3g}")
-        elif isinstance(bound, BoxBound):  # |u| reaches |b| only with every component at its bound
-            nb = f * float(np.linalg.norm(bound.b))
+        if bound is not None and bound.norm_limit is not None:
+            ax.axhline(f * bound.norm_limit, color=BOUND, ls="-.", lw=1.2, gid="bound-line",
+                       label=f"bound {bound.describe('u', f)}")
+        elif bound is not None and bound.variable_box() is not None:  # |u| reaches |b| only with every component at its bound
+            nb = f * bound.largest_norm()
             ax.axhline(nb, color=BOUND, ls=":", lw=1.2, label=f"|b| = {nb:.3g}: every component at its bound")
-            ax.plot([], [], ls="", label=f"box bound ±({', '.join(f'{f * b:.3g}' for b in bound.b)}): see {which}")
+            ax.plot([], [], ls="", label=f"box bound {bound.describe('u', f)}: see {which}")
         ax.set_ylim(0.0, 1.12 * max(ax.get_ylim()[1] / 1.05, 1e-300))  # room above a bound the data ride on
         ax.legend(fontsize=8, loc="best")
         ax.set_ylabel(un.label(ylab, which))

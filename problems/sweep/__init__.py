@@ -26,7 +26,7 @@ before any solve starts, so a bad axis value is bad input, not a failed point.
 
 Execution.  A *task* is :func:`solve_point` applied to a plain dict (the base file
 name and text, the override strings, the method, an optional warm start: a
-transcription.results.start.WarmStart, plain arrays); it returns a plain dict (the result row and
+transcription.results.start.Start, plain arrays); it returns a plain dict (the result row and
 the warm start for the next point).  Tasks run in-process (``workers=1``), on a local
 :class:`~concurrent.futures.ProcessPoolExecutor` (forkserver/spawn context: CasADi
 is not fork-safe once threads exist) or, with ``scheduler=ADDRESS``, on an existing

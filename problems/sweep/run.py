@@ -19,8 +19,8 @@ MAX_SECANT_RATIO = 3.0
 
 
 def _predict(history: list, value, numeric: bool) -> dict | None:
-    """The warm start of the point at axis ``value`` from the last converged (value, WarmStart) pairs of its
-    chain, as {'start': WarmStart, 'kind': 'neighbour' | 'secant'}: the neighbour's, or the secant
+    """The warm start of the point at axis ``value`` from the last converged (value, Start) pairs of its
+    chain, as {'start': Start, 'kind': 'neighbour' | 'secant'}: the neighbour's, or the secant
     extrapolation of the last two (transcription.results.start.secant, on SE(3))."""
     if not history:
         return None

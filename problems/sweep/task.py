@@ -22,7 +22,7 @@ def _maneuver_from_text(source: str, text: str, overrides):
 
 def _payload(sol):
     """What a point hands to the next point of its chain: its Solution's warm start if it converged (a
-    transcription.results.start.WarmStart: plain arrays, so it travels to another process), else None."""
+    transcription.results.start.Start: plain arrays, so it travels to another process), else None."""
     return sol.warm if sol.converged else None
 
 
@@ -57,7 +57,7 @@ def solve_point(task: dict) -> dict:
     """One grid point by one method: the unit of work sent to a pool or a Dask cluster.
 
     task: {'source': base file name, 'text': its YAML text, 'overrides': [KEY=VALUE, ...],
-    'method': 'direct' | 'indirect', 'warm': None | {'start': WarmStart, 'kind': 'neighbour' | 'secant'}}.
+    'method': 'direct' | 'indirect', 'warm': None | {'start': Start, 'kind': 'neighbour' | 'secant'}}.
     Returns {'row': result fields (RESULT_COLUMNS), 'payload': warm start for the next
     point or None}.  Never raises for a failing solve: the error is the row's status.
     """

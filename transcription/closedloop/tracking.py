@@ -42,7 +42,7 @@ import numpy as np
 
 from ..geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS, X_ROT, Z_ANG, Z_MOM, Z_POS, Z_ROT
 from ..geometry.so3 import exp_so3, log_so3
-from ..ocp import BoxBound, NormBound, SmoothControl, ThrusterBound, actuator_bounds
+from ..ocp import Actuator, SmoothControl, actuator_bounds
 
 #: the default closed-loop bandwidth: omega_c = min(BANDWIDTH_PER_HORIZON / T, BANDWIDTH_PER_STEP / h)
 #: (rad per time unit): the time constant 1/omega_c is T/60 (errors are corrected well within the
@@ -84,21 +84,15 @@ def retract(Xref, z) -> np.ndarray:
 
 # ------------------------------------------------------------------------------- saturation
 def saturate(u, force_bound=None, moment_bound=None) -> tuple[np.ndarray, np.ndarray]:
-    """Clip controls u (..., 6) to the bounds: a box component by component, a norm by scaling the
-    block into its ball (the rule of docs/mathematics.md §10; a norm bound of 0 gives 0), a body-fixed engine
-    (body-frame force) by projecting onto its axis and clipping the thrust to [min, max] (§14).
-    Returns (clipped controls, clipped (...) bool: some component was changed)."""
+    """Controls u (..., 6) projected onto the actuators (:meth:`~transcription.ocp.actuators.Actuator.project`: a box
+    component by component, a norm by scaling the block into its ball -- the rule of docs/mathematics.md §10, a norm
+    bound of 0 gives 0 --, a body-fixed engine onto its axis with the thrust in [min, max], §14).
+    Returns (projected controls, projected (...) bool: some component was changed)."""
     u = np.array(u, dtype=float)
     v = u.copy()
     for sl, bound in ((U_FORCE, force_bound), (U_MOMENT, moment_bound)):
-        blk = v[..., sl]
-        if isinstance(bound, BoxBound):
-            v[..., sl] = np.clip(blk, -bound.b, bound.b)
-        elif isinstance(bound, ThrusterBound):     # a body-fixed engine: onto its axis, the thrust into [min, max]
-            v[..., sl] = np.clip(blk @ bound.axis, bound.min, bound.max)[..., None] * bound.axis
-        elif isinstance(bound, NormBound):
-            n = np.linalg.norm(blk, axis=-1, keepdims=True)
-            v[..., sl] = blk * np.minimum(1.0, bound.b / np.maximum(n, 1e-300))
+        if bound is not None:
+            v[..., sl] = bound.project(v[..., sl])
     return v, np.any(v != u, axis=-1)
 
 
@@ -134,14 +128,7 @@ def characteristic_controls(control: SmoothControl, U: np.ndarray, mass: float, 
     fallback = (mass / T**2, float(np.linalg.eigvalsh(inertia).max()) / T**2)
     out = []
     for bound, peak, fb in zip(bounds, peaks, fallback):
-        if isinstance(bound, BoxBound):
-            out.append(bound.b.copy())
-        elif isinstance(bound, NormBound):
-            out.append(np.full(3, bound.b))
-        elif isinstance(bound, ThrusterBound):
-            out.append(np.full(3, bound.max))
-        else:
-            out.append(np.full(3, peak if peak > 0 else fb))
+        out.append(bound.sizes() if bound is not None else np.full(3, peak if peak > 0 else fb))
     return out[0], out[1]
 
 
@@ -300,8 +287,8 @@ class Gains:
     scheme: str
     h: float
     weights: TrackingWeights
-    force_bound: BoxBound | NormBound | ThrusterBound | None = None
-    moment_bound: BoxBound | NormBound | None = None
+    force_bound: Actuator | None = None
+    moment_bound: Actuator | None = None
     removed: tuple = (False, False)
     steps: np.ndarray | None = None
 
@@ -369,9 +356,9 @@ class Tracker:
         self.gains, self.feedback, self.disturbance = gains, bool(feedback), bool(disturbance)
         self.r0 = None if r0 is None else np.asarray(r0, float).reshape(NZ)
         self.box = box_limits(gains.force_bound, gains.moment_bound)
-        self.norms = [(sl, b.b) for sl, b in ((U_FORCE, gains.force_bound), (U_MOMENT, gains.moment_bound))
-                      if isinstance(b, NormBound)]
-        self.engine = gains.force_bound if isinstance(gains.force_bound, ThrusterBound) else None
+        self.norms = [(sl, b.radius) for sl, b in ((U_FORCE, gains.force_bound), (U_MOMENT, gains.moment_bound))
+                      if b is not None and np.isfinite(b.radius)]
+        self.engine = gains.force_bound if gains.force_bound is not None and gains.force_bound.channel_rows else None
         self.bounded = bool(self.norms) or bool(np.isfinite(self.box).any()) or self.engine is not None
         self.k = -1
         self.z = self.dw = None
@@ -430,12 +417,12 @@ class Tracker:
             if n > hn:
                 du[sl] *= hn / n
                 limited = True
-        if self.engine is not None:   # the engine corrects along its axis only, within its thrust headroom
-            a, T = self.engine.axis, plan[:, U_FORCE] @ self.engine.axis
-            hn = max(min(self.engine.max - T.max(), T.min() - self.engine.min), 0.0)
-            dT = float(du[U_FORCE] @ a)
-            kept = float(np.clip(dT, -hn, hn)) * a
-            limited = limited or bool(np.linalg.norm(du[U_FORCE] - kept) > 1e-9 * self.engine.max)
+        if self.engine is not None:   # channel rows (an engine: along its axis only, within its thrust headroom)
+            Q, lo, hi = self.engine.channels
+            T = plan[:, U_FORCE] @ Q
+            hn = np.maximum(np.minimum(hi - T.max(axis=0), T.min(axis=0) - lo), 0.0)
+            kept = Q @ np.clip(Q.T @ du[U_FORCE], -hn, hn)
+            limited = limited or bool(np.linalg.norm(du[U_FORCE] - kept) > 1e-9 * self.engine.scale())
             du[U_FORCE] = kept
         return du, limited
 
@@ -450,10 +437,9 @@ def box_limits(force_bound, moment_bound) -> np.ndarray:
     (a norm bound is met by scaling)."""
     out = np.full(NU, np.inf)
     for sl, bound in ((U_FORCE, force_bound), (U_MOMENT, moment_bound)):
-        if isinstance(bound, BoxBound):
-            out[sl] = bound.b
-        elif isinstance(bound, NormBound) and bound.b == 0:
-            out[sl] = 0.0
+        box = None if bound is None else bound.variable_box()
+        if box is not None:
+            out[sl] = np.minimum(-box[0], box[1])
     return out
 
 

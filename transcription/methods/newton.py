@@ -18,7 +18,7 @@ Refinements, each optional and reported in the result:
 * ``floor_factor``: round-off floor detection.  When the full step fails Armijo, the round-off
   level of F at x is *measured* (:func:`noise_level`); if |F| is within ``floor_factor`` of it
   there is no further decrease to be had: stop with Result.round_off_floor (or floor_too_high
-  above ``floor_accept``).  Also after NEAR_FLOOR_HALVINGS failed halvings within
+  above ``floor_accept``).  Also after ``near_floor_halvings`` failed halvings within
   floor_factor^2 of the level.  And when the line search has halved the step until x + c D == x (the full
   step having failed): no representable change of x along D decreases |F|, the floor of x's resolution.
 * ``stagnation_steps``: stop (stagnated) after that many consecutive steps with c < 1e-2.
@@ -38,8 +38,6 @@ import numpy as np
 from ..outcome import Iterate, Result
 
 _EPS = np.finfo(float).eps
-#: near the floor (|F| <= floor_factor^2 x the measured level) the line search gives up after this many halvings
-NEAR_FLOOR_HALVINGS = 3
 
 
 @dataclass
@@ -81,9 +79,10 @@ class _Run:
     round-off floor and noise, the rejected aux values) and its two steps: the direction and the line search."""
 
     def __init__(self, x0, residual, jacobian, *, tol, norm, alpha, max_halvings, aux_tol, floor_factor,
-                 check_interrupt):
+                 near_floor_halvings, check_interrupt):
         self.residual, self.jacobian, self.tol, self.norm, self.alpha = residual, jacobian, tol, norm, alpha
         self.max_halvings, self.aux_tol, self.floor_factor = max_halvings, aux_tol, floor_factor
+        self.near_floor_halvings = near_floor_halvings
         self.check_interrupt = check_interrupt
         self.t0 = time.perf_counter()
         self.x = np.asarray(x0, dtype=float).copy()
@@ -170,7 +169,7 @@ class _Run:
                 return (Result.round_off_floor,
                         f"round-off floor reached after {it - 1} iterations: |F| = {e:.3e} (measured round-off level "
                         f"{self.noise:.1e}); the full Newton step gives {et:.3e}, no further decrease possible")
-        elif j == NEAR_FLOOR_HALVINGS and self.noise is not None and e <= ff**2 * self.noise:
+        elif j == self.near_floor_halvings and self.noise is not None and e <= ff**2 * self.noise:
             self.floor = e
             return (Result.round_off_floor,
                     f"round-off floor reached after {it - 1} iterations: |F| = {e:.3e} (measured round-off "
@@ -182,13 +181,15 @@ def newton_armijo(x0: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndar
                   jacobian: Callable[[np.ndarray], np.ndarray], *, tol: float, norm: float = 2, alpha: float = 1e-4,
                   max_iter: int = 50, max_halvings: int = 30, aux_tol: float = np.inf,
                   step_scale: np.ndarray | None = None, floor_factor: float | None = None, floor_accept: float = 1e-8,
-                  stagnation_steps: int | None = None, progress: Callable[[Iterate], None] | None = None,
+                  stagnation_steps: int | None = None, near_floor_halvings: int = 3,
+                  progress: Callable[[Iterate], None] | None = None,
                   check_interrupt: Callable[[], bool] | None = None) -> NewtonResult:
     """Solve F(x) = 0 from x0 (see the module docstring).  ``norm``: the norm of the convergence
-    test (2 or np.inf); Armijo's test uses the 2-norm.  ``check_interrupt``: returns True to stop
+    test (2 or np.inf); Armijo's test uses the 2-norm.  ``near_floor_halvings``: near the floor (|F| <=
+    floor_factor^2 x the measured level) the line search gives up after this many halvings.  ``check_interrupt``: returns True to stop
     (Result.interrupted) between rollouts.  The caller checks that F(x0) is usable (aux, finite)."""
     run = _Run(x0, residual, jacobian, tol=tol, norm=norm, alpha=alpha, max_halvings=max_halvings, aux_tol=aux_tol,
-               floor_factor=floor_factor, check_interrupt=check_interrupt)
+               floor_factor=floor_factor, near_floor_halvings=near_floor_halvings, check_interrupt=check_interrupt)
     small = 0
     while True:
         if not np.all(np.isfinite(run.F)):

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..ocp.estimate import target_estimate
 from ..geometry.state import U_FORCE, U_MOMENT, X_ANG, X_MOM, unpack_states
-from ..ocp import BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, ThrusterBound, terminal_rows
+from ..ocp import Problem, SmoothControl, TargetOrbit, terminal_rows
 from . import blocks
 
 @dataclass(frozen=True)
@@ -49,12 +49,8 @@ def characteristic_scales(problem: Problem) -> Scales:
     sX = np.concatenate([np.full(3, L), np.full(3, sg), np.ones(9), np.full(3, sP)])
     sU = np.concatenate([np.full(3, sg / T), np.full(3, sP / T)])
     for sl, bound in ((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound)):
-        if isinstance(bound, BoxBound):
-            sU[sl] = bound.b
-        elif isinstance(bound, NormBound) and bound.b > 0:
-            sU[sl] = bound.b
-        elif isinstance(bound, ThrusterBound):
-            sU[sl] = bound.max
+        if bound is not None and not bound.removed:
+            sU[sl] = bound.sizes()
     sC = np.full(3, 0.5 * h * sP / ev[0])
     sU, obj = control.objective.scales(problem, sU)
     return Scales(X=sX, U=sU, C=sC, objective=obj)

@@ -34,7 +34,7 @@ from .layouts import NLPLayout, StageLayout, control_nodes
 from .structured import Block, StructuredNLP
 from ..options import DirectOptions
 from ..results.start import Start
-from ..ocp import (BoxBound, NormBound, Problem, SmoothControl, TargetOrbit, TargetRendezvous, ThrusterBound,
+from ..ocp import (Problem, SmoothControl, TargetOrbit, TargetRendezvous,
                    orbit_residual, quadrature_weights, rendezvous_residual)
 from .scaling import characteristic_scales, terminal_row_scales
 
@@ -157,24 +157,27 @@ class SmoothTranscription:
         return Block("dynamics", dyn, iV, data, compile=True), np.concatenate([sc.X] + ([sG] if with_c else []))
 
     def _control_block(self):
-        """The control nodes' norm bounds and body-fixed engine (None without either)."""
+        """The control nodes' rows: each part's ball |u|^2 <= radius^2 and an actuator's channel rows
+        Q^T u_f / scale in [lo, hi] / scale (an engine: thrust / max in [min / max, 1], off-axis = 0;
+        :mod:`~transcription.ocp.actuators`); None without either."""
         problem, sc = self.problem, self.scales
         control: SmoothControl = problem.control
-        norm_f = isinstance(control.force_bound, NormBound) and control.force_bound.b > 0
-        norm_m = isinstance(control.moment_bound, NormBound) and control.moment_bound.b > 0
-        engine = control.force_bound if isinstance(control.force_bound, ThrusterBound) else None
-        if not (norm_f or norm_m or engine):
+        force, moment = control.force_bound, control.moment_bound
+        ball = [b is not None and 0.0 < b.radius < np.inf for b in (force, moment)]
+        if moment is not None and moment.channel_rows:
+            raise ValueError("the NLP states channel rows for the force only")
+        ruled = force if force is not None and force.channel_rows else None
+        if not (any(ball) or ruled):
             return None, None
-        bf = control.force_bound.b if norm_f else engine.max if engine else 1.0
-        bm = control.moment_bound.b if norm_m else 1.0
-        Q = engine.basis().ravel(order="F") if engine else np.zeros(0)
-        n_norm = int(norm_f) + int(norm_m)
-        # rows: norms (<= 0); engine: thrust / max in [min / max, 1], off-axis = 0
-        lbg = np.r_[np.full(n_norm, -np.inf), [engine.min / engine.max, 0.0, 0.0] if engine else []]
-        ubg = np.r_[np.zeros(n_norm), [1.0, 0.0, 0.0] if engine else []]
-        fn = blocks.control_node(problem.disc, norm_f, norm_m, engine is not None)
-        blk = Block("controls", fn, self.layout.iUn, np.r_[sc.U, bf, bm, Q], lbg=lbg, ubg=ubg)
-        return blk, np.ones(n_norm + (3 if engine else 0))
+        bf = force.scale() if ball[0] or ruled else 1.0
+        bm = moment.scale() if ball[1] else 1.0
+        Q, lo, hi = ruled.channels if ruled else (np.zeros((3, 0)), np.zeros(0), np.zeros(0))
+        n_ball = sum(ball)
+        lbg = np.r_[np.full(n_ball, -np.inf), lo / bf]
+        ubg = np.r_[np.zeros(n_ball), hi / bf]
+        fn = blocks.control_node(problem.disc, ball[0], ball[1], ruled is not None)
+        blk = Block("controls", fn, self.layout.iUn, np.r_[sc.U, bf, bm, Q.ravel(order="F")], lbg=lbg, ubg=ubg)
+        return blk, np.ones(n_ball + len(lo))
 
     def _constraint_blocks(self):
         sc, J = self.scales, self.problem.model.inertia
@@ -226,11 +229,10 @@ class SmoothTranscription:
         if not self.stage_order:
             lbx[lay.iX[:, 0]] = ubx[lay.iX[:, 0]] = problem.X0 / sc.X
         for sl, bound in ((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound)):
-            if isinstance(bound, BoxBound):
-                lbx[lay.iU[sl]] = (-bound.b / sc.U[sl])[:, None]
-                ubx[lay.iU[sl]] = (bound.b / sc.U[sl])[:, None]
-            elif isinstance(bound, NormBound) and bound.b == 0:
-                lbx[lay.iU[sl]] = ubx[lay.iU[sl]] = 0.0
+            box = None if bound is None else bound.variable_box()
+            if box is not None:
+                lbx[lay.iU[sl]] = (box[0] / sc.U[sl])[:, None]
+                ubx[lay.iU[sl]] = (box[1] / sc.U[sl])[:, None]
         self.objective.slack_bounds(self, lbx, ubx)
         if self.free_h:
             lo, hi = problem.time_bounds
@@ -239,12 +241,12 @@ class SmoothTranscription:
 
     def initial_point(self, start: Start) -> np.ndarray:
         """Scaled decision vector of a :class:`~transcription.results.start.Start` on this NLP's grid (its node
-        states, controls, Cayley vectors and mean step size); a body-fixed engine's force is projected onto its
-        axis and its thrust range (the engine's rows then hold)."""
+        states, controls, Cayley vectors and mean step size); an actuator with channel rows's force is projected onto its
+        channels' box (an engine's onto its axis and thrust range: the engine's rows then hold)."""
         U, engine = start.U, self.problem.control.force_bound
-        if isinstance(engine, ThrusterBound):
+        if engine is not None and engine.channel_rows:
             U = U.copy()
-            U[U_FORCE] = np.outer(engine.axis, np.clip(engine.thrust(U[U_FORCE].T), engine.min, engine.max))
+            U[U_FORCE] = engine.project(U[U_FORCE].T).T
         w = self.layout.pack(start.X.T, U, start.C.T if self.layout.with_c else None,
                              self.objective.slack_values(self, U), h=start.h) / self.w_scale
         return np.clip(w, self.lbx, self.ubx)

@@ -165,8 +165,8 @@ class RelaxedStart:
                             sub.trace, "the relaxed problem")
         first = sub.warm.primal()
         engine = problem.control.force_bound
-        if hasattr(engine, "axis"):
-            first = aimed(problem, first, engine.axis, (engine.min, engine.max), fraction=self.aim_fraction)
+        if engine is not None and engine.engine_axis is not None:
+            first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction)
         sol = ctx.solve(problem, first, "from relaxed", ipopt=self.ipopt,
                         max_iter=min(int(ctx.options.max_iter), self.budget))
         return labelled(sol, self.label, sub.trace, "the relaxed problem")
@@ -224,7 +224,7 @@ class EffortStrategy(Composed):
             return one
         relaxed = relaxation(problem)
         c = problem.control
-        engine = hasattr(c.force_bound, "axis")
+        engine = c.force_bound is not None and c.force_bound.engine_axis is not None
         extra = {} if relaxed is None or engine else dict(self.infeasibility_detection)
         bounded = any(b is not None and not r for b, r in zip((c.force_bound, c.moment_bound), c.removed))
         entries = []

@@ -14,7 +14,7 @@ from ..geometry.state import U_FORCE, U_MOMENT
 from ..nlp import blocks
 from ..nlp.structured import Block
 from ..methods.indirect.laws import TimeLaw
-from ..ocp import BoxBound, Objective, Problem, ProblemError, ThrusterBound
+from ..ocp import Objective, Problem, ProblemError
 from ..strategy.core import BestOf, CoarseToFine, Composed, FirstOf, Solve, chosen
 from ..strategy.starts import perturbed
 
@@ -62,8 +62,7 @@ def start_sizes(problem: Problem) -> np.ndarray:
     its box bound, an engine's max (its random force is projected onto its axis), or a norm bound / sqrt(3)."""
     size = np.zeros(6)
     for sl, bound in ((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound)):
-        size[sl] = bound.b if isinstance(bound, BoxBound) else bound.max if isinstance(bound, ThrusterBound) else \
-            bound.b / np.sqrt(3.0)
+        size[sl] = bound.sizes() / (np.sqrt(3.0) if np.isfinite(bound.radius) else 1.0)
     return size
 
 

@@ -17,21 +17,22 @@ method, the re-simulation and the reports (docs/mathematics.md §5-§6):
 * :func:`quadrature_weights` and :func:`effort_cost` -- sum_j omega_j (1/2) u_j^T W u_j;
 * :func:`impulse_cost` -- the sum of the impulse norms.
 
-The package's modules: :mod:`.targets`, :mod:`.controls`, :mod:`.constraints`, :mod:`.definition` (the
+The package's modules: :mod:`.targets`, :mod:`.actuators`, :mod:`.controls`, :mod:`.constraints`, :mod:`.definition` (the
 Problem), :mod:`.conditions` (terminal conditions), :mod:`.costs`; every name is importable from the package.
 """
 from __future__ import annotations
 
 from .conditions import (orbit_conditions, orbit_residual, rendezvous_residual, rendezvous_state, state_residual, terminal_error, terminal_residual, terminal_rows)
 from .constraints import (MARGIN_DIMENSION, MOVING_DIRECTIONS, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius)
-from .controls import (AT_BOUND_RTOL, Bound, BoxBound, Control, ImpulsiveControl, NormBound, SmoothControl, ThrusterBound, actuator_bounds, spd_weight)
+from .actuators import AT_BOUND_RTOL, Actuator, BoxBound, NormBound, ThrusterBound
+from .controls import Bound, Control, ImpulsiveControl, SmoothControl, actuator_bounds, spd_weight
 from .costs import (ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, engine_reference, fuel_cost, impulse_cost, objective_value, quadrature_weights)
 from .objective import Objective
 from .problem import Problem, state_from_velocities
 from .errors import ProblemError
 from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetRendezvous, TargetState, ascending_node
 
-__all__ = ["AT_BOUND_RTOL", "Bound", "BoxBound", "Control", "ENGINE_ON_RTOL", "ImpulsiveControl", "KeepIn", "KeepOut",
+__all__ = ["AT_BOUND_RTOL", "Actuator", "Bound", "BoxBound", "Control", "ENGINE_ON_RTOL", "ImpulsiveControl", "KeepIn", "KeepOut",
            "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "NormBound", "Objective",
            "PATH_CONSTRAINTS", "Problem", "ProblemError", "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit",
            "TargetRendezvous", "TargetState", "ThrusterBound", "actuator_bounds", "ascending_node", "control_activity",

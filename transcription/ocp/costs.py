@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.state import U_FORCE, U_MOMENT
-from .controls import AT_BOUND_RTOL, BoxBound, NormBound, SmoothControl, ThrusterBound
+from .controls import SmoothControl
 from .problem import Problem
 
 
@@ -50,38 +50,21 @@ def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:
 
 def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray, times: np.ndarray) -> dict:
     """Where the bounded controls sit on their bounds, per control ('force', 'moment'): at_bound_fraction
-    (of the control nodes at the bound, :meth:`BoxBound.active` / :meth:`NormBound.active`: within
-    AT_BOUND_RTOL), time_at_bound = sum_j omega_j over them (``weights`` the quadrature weights, so that
-    it is the time the controls at the bound act), and switch_times: for a box bound every sign change
-    of a component (the switches of a bang-bang control; linear interpolation between the node
-    ``times``), for a norm bound the times where the control enters or leaves the bound (midpoints), for a
-    body-fixed engine (ThrusterBound) those where the thrust reaches or leaves max or min (midpoints).
+    (of the control nodes at the bound, :meth:`~.actuators.Actuator.active`: within AT_BOUND_RTOL), time_at_bound
+    = sum_j omega_j over them (``weights`` the quadrature weights, so that it is the time the controls at the bound
+    act), and switch_times (:meth:`~.actuators.Actuator.switches` at the node ``times``: a box's sign changes per
+    component, an engine's thrust reaching or leaving max or min, a norm bound's entries and exits).
     Removed and unbounded controls are left out."""
     U = np.asarray(U, dtype=float)
     t = np.asarray(times, dtype=float)
     out = {}
     for name, sl, bound in (("force", U_FORCE, control.force_bound), ("moment", U_MOMENT, control.moment_bound)):
-        if bound is None or (isinstance(bound, NormBound) and bound.b == 0):
+        if bound is None or bound.removed:
             continue
         u = U[sl].T
         at = bound.active(u)
-        if isinstance(bound, ThrusterBound):    # switches: the thrust reaches or leaves max or min
-            T, tol = bound.thrust(u), AT_BOUND_RTOL * bound.max
-            level = np.where(T >= bound.max - tol, 1, np.where(T <= bound.min + tol, -1, 0))
-            switches = [float(0.5 * (t[j] + t[j + 1])) for j in np.flatnonzero(level[:-1] != level[1:])]
-        elif isinstance(bound, BoxBound):
-            switches = []
-            for i in range(3):
-                ui = u[:, i]
-                k = np.flatnonzero(ui[:-1] * ui[1:] < 0)
-                switches.append([float(t[j] + (t[j + 1] - t[j]) * ui[j] / (ui[j] - ui[j + 1])) for j in k])
-        else:
-            k = np.flatnonzero(at[:-1] != at[1:])
-            switches = [float(0.5 * (t[j] + t[j + 1])) for j in k]
-        out[name] = {"bound": "box" if isinstance(bound, BoxBound) else "thruster" if isinstance(bound, ThrusterBound)
-                     else "norm",
-                     "at_bound_fraction": float(at.mean()) if len(at) else 0.0,
-                     "time_at_bound": float(np.asarray(weights, float) @ at), "switch_times": switches}
+        out[name] = {"bound": bound.kind, "at_bound_fraction": float(at.mean()) if len(at) else 0.0,
+                     "time_at_bound": float(np.asarray(weights, float) @ at), "switch_times": bound.switches(u, t)}
     return out
 
 
@@ -107,8 +90,8 @@ def engine_figures(u_f: np.ndarray, weights: np.ndarray, bound) -> dict:
     n = np.linalg.norm(u_f, axis=1)
     ref = engine_reference(bound, u_f)
     out = {"engine_on_time": float(np.asarray(weights, float) @ (n > ENGINE_ON_RTOL * ref)) if ref > 0 else 0.0}
-    if isinstance(bound, ThrusterBound):
-        out["engine_off_axis_relative"] = float(bound.off_axis(u_f).max(initial=0.0) / bound.max)
+    if bound is not None and bound.fixed.any():     # an engine: the force it cannot give, relative to its size
+        out["engine_off_axis_relative"] = float(bound.unavailable(u_f).max(initial=0.0) / bound.scale())
     return out
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from ..geometry.state import NX, pack_state
 from ..dynamics.lgvi import Discretization
 from .constraints import PATH_CONSTRAINTS
-from .controls import Control, ImpulsiveControl, SmoothControl, ThrusterBound
+from .controls import Control, ImpulsiveControl, SmoothControl
 from .errors import ProblemError
 from .targets import Target, TargetOrbit, TargetRendezvous, TargetState
 
@@ -70,7 +70,7 @@ class Problem:
         elif isinstance(self.control, SmoothControl) and self.control.objective.free_time:
             raise ProblemError("time_bounds", f"the {self.control.objective} objective needs a free final time "
                                               "(time_bounds)")
-        if isinstance(self.control, SmoothControl) and isinstance(self.control.force_bound, ThrusterBound) \
+        if isinstance(self.control, SmoothControl) and getattr(self.control.force_bound, "body_fixed", False) \
                 and self.disc.force_frame != "body":
             raise ProblemError("control.force_bound", "a thruster is fixed in the body: it needs the force in the body "
                                                       f"frame (disc.force_frame 'body', got {self.disc.force_frame!r})")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.state import U_FORCE, U_MOMENT
-from ..ocp import BoxBound, NormBound, ThrusterBound
 from ..options import DirectOptions
 from ..outcome import Result
 from ..results.solution import Solution
@@ -64,7 +63,7 @@ def binding_bound(sol: Solution, fraction: float) -> str:
     c, U = sol.problem.control, np.asarray(sol.controls, float)
     best = None
     for name, sl, bound in (("force", U_FORCE, c.force_bound), ("moment", U_MOMENT, c.moment_bound)):
-        if not hasattr(bound, "active") or (isinstance(bound, NormBound) and bound.b == 0):
+        if bound is None or bound.removed:
             continue
         at = float(np.mean(bound.active(U[sl].T)))
         if at >= fraction and (best is None or at > best[0]):
@@ -73,10 +72,7 @@ def binding_bound(sol: Solution, fraction: float) -> str:
         return ""
     at, name, bound = best
     sym = "u_f" if name == "force" else "u_m"
-    what = (f"|{sym}| <= {bound.b:.6g}" if isinstance(bound, NormBound) else
-            f"|{sym},i| <= [{', '.join(f'{b:.6g}' for b in bound.b)}]" if isinstance(bound, BoxBound) else
-            f"(engine thrust <= {bound.max:.6g})" if isinstance(bound, ThrusterBound) else "")
-    return (f"the {name} bound {what} binds ({at:.0%} of the control nodes of the last iterate are at it): a larger "
+    return (f"the {name} bound {bound.describe(sym)} binds ({at:.0%} of the control nodes of the last iterate are at it): a larger "
             f"control.bounds.{name} or a longer horizon.T")
 
 

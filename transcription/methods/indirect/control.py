@@ -9,7 +9,7 @@ import numpy as np
 
 from ...geometry.state import NU, NX, U_FORCE, U_MOMENT
 from ...dynamics.lgvi import Discretization, discretization, per_discretization
-from ...ocp import BoxBound, NormBound, Problem, ThrusterBound
+from ...ocp import Problem
 from .switching import on_off
 
 #: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
@@ -70,16 +70,17 @@ def bound_data(problem: Problem) -> np.ndarray:
     """The bound data ``bd`` (NB) of a smooth-control problem (see :data:`NB`; for the fuel objective eps = 1, the
     start of its homotopy, :mod:`.fuel`)."""
     bd = np.r_[np.full(NU, np.inf), NO_NORM, NO_NORM, np.zeros(NB - NU - 2)]
-    for i, (sl, bound) in enumerate(((U_FORCE, problem.control.force_bound), (U_MOMENT, problem.control.moment_bound))):
-        if isinstance(bound, ThrusterBound):
-            a, Wf = bound.axis, problem.control.W_f
-            bd[THRUSTER] = np.r_[a, Wf @ a / (a @ Wf @ a), bound.min, bound.max, 1.0]
-        elif isinstance(bound, BoxBound):
-            bd[sl] = bound.b
-        elif isinstance(bound, NormBound) and bound.b == 0:
-            bd[sl] = 0.0
-        elif isinstance(bound, NormBound):
-            bd[NU + i] = bound.b ** 2
+    c = problem.control
+    for i, (sl, bound) in enumerate(((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound))):
+        if bound is None:
+            continue
+        box, a = bound.variable_box(), bound.engine_axis
+        if a is not None:               # an engine (on the force): the W_f-projection onto its thrust segment
+            bd[THRUSTER] = np.r_[a, c.W_f @ a / (a @ c.W_f @ a), *bound.engine_range, 1.0]
+        elif box is not None:           # a symmetric box on the axes (0: removed)
+            bd[sl] = np.minimum(-box[0], box[1])
+        elif np.isfinite(bound.radius):
+            bd[NU + i] = bound.radius ** 2
     law = problem.control.objective.indirect
     bd[FUEL_EPS] = law.eps if law is not None else 0.0
     return bd

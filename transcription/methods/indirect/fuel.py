@@ -8,7 +8,7 @@ from typing import Callable
 import numpy as np
 
 from ..newton import NewtonResult
-from ...ocp import NormBound, Problem, ThrusterBound
+from ...ocp import Problem
 from .control import FUEL_EPS
 from .structured import StructuredShooting, node_modes
 
@@ -33,8 +33,8 @@ def fuel_not_covered(problem: Problem) -> list[str]:
     controls) on both blocks, at a fixed final time."""
     reasons = []
     for name, bound in (("force", problem.control.force_bound), ("moment", problem.control.moment_bound)):
-        if not isinstance(bound, NormBound):
-            kind = "an engine" if isinstance(bound, ThrusterBound) else "no bound" if bound is None else "a box bound"
+        if bound is None or not np.isfinite(bound.radius):
+            kind = "no bound" if bound is None else bound.noun
             reasons.append(f"the fuel objective with {kind} on the {name} (its switching law needs a norm bound)")
     if problem.free_time:
         reasons.append("the fuel objective with a free final time")

@@ -32,7 +32,7 @@ from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, split_state
 from ...dynamics.lgvi import Discretization, per_discretization
 from ..newton import NewtonResult, newton_armijo
 from ...outcome import Result
-from ...ocp import BoxBound, NormBound, Problem, ThrusterBound, quadrature_weights
+from ...ocp import Problem, quadrature_weights
 from .control import NB, NO_NORM, control_matrix, control_scale
 from .conditions import costate_functions, node_law, terminal_residual_function
 from .shooting import MAPACCUM_OPTS, time_gradient_function
@@ -89,15 +89,8 @@ def node_matrix(disc: Discretization, h: float) -> np.ndarray:
 def saturated_effort_rate(problem: Problem) -> float:
     """u_max^2 = the largest u^T W u the bounds allow (box with diagonal W: sum W_ii b_i^2; norm b: W_11 b^2;
     an engine: a^T W_f a T_max^2): the eps-term of the time homotopy is eps T at full saturation."""
-    c, out = problem.control, 0.0
-    for W, bound in ((c.W_f, c.force_bound), (c.W_m, c.moment_bound)):
-        if isinstance(bound, BoxBound):
-            out += float(np.diag(W) @ bound.b ** 2)
-        elif isinstance(bound, NormBound):
-            out += float(W[0, 0] * bound.b ** 2)
-        elif isinstance(bound, ThrusterBound):
-            out += float(bound.axis @ W @ bound.axis * bound.max ** 2)
-    return out
+    c = problem.control
+    return sum(b.effort_rate(W) for W, b in ((c.W_f, c.force_bound), (c.W_m, c.moment_bound)) if b is not None)
 
 
 def lean_rollout(disc: Discretization, N: int, lam0, X0, h, Winv, bd) -> tuple:
@@ -299,19 +292,23 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
         W = c.W[sl, sl]
         for j, Sj in enumerate(S):
             u = U[sl, j]
-            if isinstance(bound, BoxBound):
-                inside = np.abs(u) < bound.b * (1.0 - 1e-6)
-                for i in np.flatnonzero(inside & (bound.b > 0)):
+            box = None if bound is None else bound.variable_box()
+            if bound is not None and bound.removed:
+                continue
+            if box is not None:             # a symmetric box on the axes
+                b = box[1]
+                inside = np.abs(u) < b * (1.0 - 1e-6)
+                for i in np.flatnonzero(inside & (b > 0)):
                     rows.append(Sj[sl][i]); rhs0.append(0.0); rhs1.append(-W[i, i] * u[i])
-                bang += [(Sj[sl][i], W[i, i] * bound.b[i]) for i in np.flatnonzero(~inside)]
+                bang += [(Sj[sl][i], W[i, i] * b[i]) for i in np.flatnonzero(~inside)]
                 bang_u += [u[i] for i in np.flatnonzero(~inside)]
-            elif isinstance(bound, NormBound) and bound.b > 0:
-                if np.linalg.norm(u) < bound.b * (1.0 - 1e-6):
+            elif bound is not None and np.isfinite(bound.radius):
+                if np.linalg.norm(u) < bound.radius * (1.0 - 1e-6):
                     rows += list(Sj[sl]); rhs0 += [0.0] * 3; rhs1 += list(-W @ u)
                 else:
-                    bang.append((Sj[sl], W[0, 0] * bound.b))
+                    bang.append((Sj[sl], W[0, 0] * bound.radius))
                     bang_u.append(u)
-            elif not (isinstance(bound, NormBound) and bound.b == 0):
+            else:
                 return None
     Xk, Wst = X[:-1].T, disc.stage_controls(U)
     t = np.vstack([np.array(ts.tg(Xk, Wst, np.repeat(np.eye(NZ)[:, [i]], N, axis=1), p.steps_of(h)))

@@ -12,8 +12,8 @@ import numpy as np
 from ...geometry.state import NU, NZ
 from ..newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
-from ...ocp import (STATE_COMPONENTS, BoxBound, NormBound, Problem, TargetOrbit, TargetRendezvous, TargetState,
-                    ThrusterBound, objective_value, terminal_error)
+from ...ocp import (STATE_COMPONENTS, Problem, TargetOrbit, TargetRendezvous, TargetState,
+                    objective_value, terminal_error)
 from ...results.solution import Solution
 from ...outcome import Iterate, Result
 from ...dynamics.trajectory import trajectory
@@ -56,13 +56,15 @@ def not_covered(problem: Problem, replan: bool = False) -> str:
         reasons.append("a rendezvous target (its point moves with the final time)")
     elif not isinstance(problem.terminal, (TargetState, TargetOrbit)):
         reasons.append("this kind of target")
-    if isinstance(c.force_bound, ThrusterBound) and problem.disc.force_frame != "body":
-        reasons.append("a thruster on a force in the inertial frame")
     for name, W, bound in (("force", c.W_f, c.force_bound), ("moment", c.W_m, c.moment_bound)):
-        if isinstance(bound, BoxBound) and np.count_nonzero(W - np.diag(np.diag(W))):
-            reasons.append(f"a box bound on the {name} with a non-diagonal weight")
-        if isinstance(bound, NormBound) and bound.b > 0 and not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-14, atol=0):
-            reasons.append(f"a norm bound on the {name} with a weight that is not a multiple of the identity")
+        if bound is None or bound.removed:
+            continue
+        if bound.channel_rows and (name != "force" or bound.engine_axis is None):
+            reasons.append(f"{bound.noun} on the {name} (the saturation law takes one engine on the force)")
+        if bound.variable_box() is not None and np.count_nonzero(W - np.diag(np.diag(W))):
+            reasons.append(f"{bound.noun} on the {name} with a non-diagonal weight")
+        if 0 < bound.radius < np.inf and not np.allclose(W, W[0, 0] * np.eye(3), rtol=1e-14, atol=0):
+            reasons.append(f"{bound.noun} on the {name} with a weight that is not a multiple of the identity")
     return ", ".join(reasons)
 
 

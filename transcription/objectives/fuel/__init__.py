@@ -17,7 +17,7 @@ import numpy as np
 
 from ...geometry.state import U_FORCE, U_MOMENT
 from ...methods.indirect.laws import FuelLaw
-from ...ocp import NormBound, Objective, Problem, ProblemError, fuel_cost, quadrature_weights
+from ...ocp import Objective, Problem, ProblemError, fuel_cost, quadrature_weights
 from .nlp import fuel_blocks, fuel_slacks
 from .plan import FuelStrategy
 
@@ -87,8 +87,10 @@ class Fuel(Objective):
         lay, c = tr.layout, tr.problem.control
         lbx[lay.iS[:2]] = np.maximum(lbx[lay.iS[:2]], 0.0)      # the magnitudes s >= 0
         for k, (sl, bound) in enumerate(((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound))):
-            if isinstance(bound, NormBound) and bound.b == 0:    # a removed part: no magnitude
+            if bound is not None and bound.removed:              # a removed part: no magnitude
                 lbx[lay.iS[k]] = ubx[lay.iS[k]] = 0.0
+            if self.epigraph and bound is not None and bound.engine_axis is not None:   # an engine: no direction
+                lbx[lay.iS[2 + 3 * k:5 + 3 * k]] = ubx[lay.iS[2 + 3 * k:5 + 3 * k]] = np.array([[1.0], [0.0], [0.0]])
             if not self.epigraph:                                # a coast node's part: u = 0, s = 0
                 coast = np.r_[lay.iU[sl][:, ~self.burn[k]].ravel(), lay.iS[k, ~self.burn[k]]]
                 lbx[coast] = ubx[coast] = 0.0

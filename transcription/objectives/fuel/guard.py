@@ -18,9 +18,9 @@ mu_j / |mu_j| (the primer direction) lowers the cost at the rate (|mu_j| - w ome
 reports it and, when it exceeds the tolerance, escapes: d_j re-aimed along mu_j / |mu_j| on the offending nodes and
 the same NLP re-solved warm from there, at most ``escapes`` times while the cost falls.
 
-A force with a body-fixed engine (u_f = T a, T >= 0) can only thrust along a: its value is
-(a^T mu_j + nu_a / max) / (w omega_j) - 1 with nu_a the multiplier of the engine's axis row, and its primer a
-(:func:`switching`).  Not checked: a part with weight 0 or removed (a norm bound of 0).
+A part whose magnitude is linear -- an engine's force, |u_f| = T = a^T u_f on its rows (:mod:`.nlp`) -- has no
+epigraph and no false minimum: the NLP's own KKT conditions there are the fuel problem's, and it is not checked
+(:func:`checked_parts`); nor is a part with weight 0 or removed (a norm bound of 0).
 """
 from __future__ import annotations
 
@@ -30,10 +30,11 @@ from typing import Mapping
 import numpy as np
 
 from ...methods.direct import transcription
-from ...ocp import NormBound, Problem, ThrusterBound, quadrature_weights
+from ...ocp import Problem, quadrature_weights
 from ...results.solution import Solution
 from ...results.start import Point
 from ...strategy.core import Context
+from .nlp import fuel_rows
 
 PARTS = ("force", "moment")
 
@@ -41,40 +42,36 @@ PARTS = ("force", "moment")
 def counted_parts(problem: Problem) -> np.ndarray:
     """(2,) bool: the parts (force, moment) whose fuel counts: weight > 0 and not removed (a norm bound of 0)."""
     c = problem.control
-    return np.array([not (isinstance(b, NormBound) and b.b == 0) and wt > 0
+    return np.array([not (b is not None and b.removed) and wt > 0
                      for b, wt in zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))])
 
 
-def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray, nu_axis=None) -> dict:
+def linear_parts(problem: Problem) -> np.ndarray:
+    """(2,) bool: the parts whose magnitude is linear in u, an engine's (|u| = a^T u: no epigraph, :mod:`.nlp`)."""
+    c = problem.control
+    return np.array([b is not None and b.engine_axis is not None for b in (c.force_bound, c.moment_bound)])
+
+
+def checked_parts(problem: Problem) -> np.ndarray:
+    """(2,) bool: the parts the guard checks: counted, with a magnitude that is not linear."""
+    return counted_parts(problem) & ~linear_parts(problem)
+
+
+def switching_values(tr, w: np.ndarray, mu: np.ndarray, coast: np.ndarray) -> dict:
     """The switching values of :func:`switching` from the multipliers ``mu`` (2, 3, nU, physical) of a point ``w``
-    (physical) of the NLP ``tr`` and its ``coast`` nodes (2, nU) bool; ``nu_axis`` (nU,): with a body-fixed engine,
-    the multipliers of its axis row a^T u_f / max (physical), whose rate a^T mu_j + nu_a / max and primer a replace
-    |mu_j| and mu_j / |mu_j| for the force.  The one place sigma is computed, for the epigraph NLP and the structured
-    one (:func:`.structure.switching_l1`)."""
+    (physical) of the NLP ``tr`` and its ``coast`` nodes (2, nU) bool.  The one place sigma is computed, for the
+    epigraph NLP and the structured one (:func:`.structure.switching_l1`)."""
     problem, lay, c = tr.problem, tr.layout, tr.problem.control
     h = float(w[lay.ih]) if lay.ih is not None else problem.h
     omega = quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh) * h
     weights = np.array([c.W_f[0, 0], c.W_m[0, 0]])
-    checked = counted_parts(problem)
+    checked = checked_parts(problem)
     rate = np.linalg.norm(mu, axis=1)                       # (2, nU): the gain of thrust per unit of s
     with np.errstate(divide="ignore", invalid="ignore"):
         primer = mu / rate[:, None, :]
-    if isinstance(c.force_bound, ThrusterBound):
-        a = c.force_bound.axis
-        rate[0], primer[0] = a @ mu[0] + nu_axis / c.force_bound.max, a[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
         sigma = rate / (weights[:, None] * omega[None, :]) - 1.0
     return {"sigma": np.where(coast & checked[:, None], sigma, np.nan), "value": sigma, "mu": mu, "primer": primer,
             "nodes": np.asarray(lay.control_nodes), "checked": checked}
-
-
-def engine_multipliers(tr, nu: np.ndarray) -> np.ndarray | None:
-    """The multipliers (nU,) of a body-fixed engine's axis row a^T u_f / max in ``tr`` (physical; ``nu`` all of
-    them), None without an engine."""
-    if not isinstance(tr.problem.control.force_bound, ThrusterBound):
-        return None
-    rows = tr.nlp.rows("controls")      # (nr, nU): norms; engine (3)
-    return nu[rows[-3]]
 
 
 def switching(tr, point: Point, coast_rtol: float) -> dict:
@@ -87,11 +84,11 @@ def switching(tr, point: Point, coast_rtol: float) -> dict:
     (mu_j / |mu_j|), 'nodes': the node index of each control node (first order 1..N, LGVI 0..N), 'checked': (2,)
     bool}.  omega_j = omega_j/h * h (h the point's own with a free final time)."""
     w = np.asarray(point.x, float) * tr.w_scale
-    rows = tr.nlp.rows("fuel")      # (8, nU): |d_f|^2 - 1, |d_m|^2 - 1; u_f - s_f d_f (3); u_m - s_m d_m (3)
+    rows = tr.nlp.rows("fuel")      # (8, nU) or, an engine's force, (5, nU): fuel_rows
     nu = tr.multipliers(point.lam_g)
-    mu = np.stack([nu[rows[2:5]], nu[rows[5:8]]])        # (2, 3, nU)
+    mu = np.stack([nu[r] if r is not None else np.zeros((3, rows.shape[1])) for r in fuel_rows(tr.objective, tr, rows)])
     coast = w[tr.layout.iS[:2]] < coast_rtol * tr.magnitudes[:, None]
-    return switching_values(tr, w, mu, coast, engine_multipliers(tr, nu))
+    return switching_values(tr, w, mu, coast)
 
 
 def verdict(sw: dict, tol: float) -> dict:
@@ -109,8 +106,7 @@ def verdict(sw: dict, tol: float) -> dict:
 def reaimed(tr, point: Point, sw: dict, tol: float, kick: float = 0.0) -> Point:
     """``point`` with d_j = mu_j / |mu_j| (the primer of :func:`switching`; scaled d has scale 1) on the coast nodes
     whose sigma > tol, so that mu_j^T d_j = |mu_j| > w omega_j there, and the bound multipliers of those nodes' s set
-    to 0 (their old value, w omega_j - mu_j^T d_j, belonged to the old d); lam_g kept (but an engine's T >= min row
-    there: 0).  ``kick`` > 0: s_j = kick times the magnitude's scale and u_j = s_j d_j on those nodes."""
+    to 0 (their old value, w omega_j - mu_j^T d_j, belonged to the old d); lam_g kept.  ``kick`` > 0: s_j = kick times the magnitude's scale and u_j = s_j d_j on those nodes."""
     x, lam_x, lam_g = point.x.copy(), point.lam_x.copy(), point.lam_g.copy()
     iS, iU = tr.layout.iS, tr.layout.iU
     for i in range(2):
@@ -122,8 +118,6 @@ def reaimed(tr, point: Point, sw: dict, tol: float, kick: float = 0.0) -> Point:
             x[iS[i, bad]] = kick                                   # scaled s: its scale is tr.magnitudes[i]
             x[iu] = kick * tr.magnitudes[i] * d / tr.w_scale[iu]
         lam_x[iS[i, bad]] = 0.0
-        if i == 0 and isinstance(tr.problem.control.force_bound, ThrusterBound):
-            lam_g[tr.nlp.rows("controls")[-3, bad]] = 0.0     # the engine's T >= min row: held for the old d
     return Point(point.key, x, lam_g, lam_x)
 
 

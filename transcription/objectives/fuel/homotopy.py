@@ -29,7 +29,7 @@ import numpy as np
 
 from ...geometry.state import U_FORCE, U_MOMENT
 from ...nlp.transcription import SmoothTranscription
-from ...ocp import NormBound, Problem
+from ...ocp import Problem
 from ...results.solution import Solution
 from ...results.start import Start
 from ...strategy.core import Context, not_made
@@ -52,8 +52,7 @@ def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
     optimum's magnitudes at every level."""
     c = problem.control
     mags = np.array([np.linalg.norm(U[sl], axis=0).max(initial=0.0) for sl in (U_FORCE, U_MOMENT)])
-    unbounded = np.array([b is None or (isinstance(b, NormBound) and b.b <= 0) for b in (c.force_bound,
-                                                                                        c.moment_bound)])
+    unbounded = np.array([b is None or b.removed for b in (c.force_bound, c.moment_bound)])
     return np.where(unbounded & np.isfinite(mags) & (mags > 0.0), mags, SmoothTranscription.magnitude_scales(problem))
 
 
@@ -133,7 +132,7 @@ class Homotopy:
         ctx = ctx.under("effort")
         tried, said = (), ""
         if self.effort_rollout and relaxation(problem) is not None and \
-                not hasattr(problem.control.force_bound, "axis"):
+                getattr(problem.control.force_bound, "engine_axis", None) is None:
             sol = ctx.solve(problem, None, "rollout", max_iter=min(int(ctx.options.max_iter),
                                                                     self.effort_rollout_budget))
             if sol.converged and sol.warm is not None:

@@ -1,22 +1,26 @@
 """The fuel objective's block of the direct method's NLP: one per control node (docs/mathematics.md §19, §23).
 
-    fuel_node(disc, free_h, engine)   the epigraph (:attr:`Fuel.epigraph`)
+    fuel_node(disc, free_h)            the epigraph (:attr:`Fuel.epigraph`)
         v = [u_j (6); s_f, s_m, d_f (3), d_m (3) (magnitudes and directions); h / h_scale (1, free_h)]
-        p = [sU (6); sS (2); omega_j / h; h (or h_scale); w_f; w_m; s_obj; a (3, the engine axis: unused here);
+        p = [sU (6); sS (2); omega_j / h; h (or h_scale); w_f; w_m; s_obj; a (3, an engine's axis);
              r_f, r_m, eps (the smoothing references and the homotopy's eps, 0 = the fuel objective)]
         rows = [|d_f|^2 - 1, |d_m|^2 - 1 (<= 0); (u_f - s_f d_f) / sS_f, (u_m - s_m d_m) / sS_m (= 0)]
         cost = omega_j (w_f phi(s_f) + w_m phi(s_m)) / s_obj,  phi(s) = (1 - eps) s + eps s^2 / (2 r)
+    fuel_node(..., engine=True)        the force an engine's (:attr:`~transcription.ocp.actuators.Actuator.engine_axis`)
+        its magnitude is its thrust, linear: rows = [|d_m|^2 - 1 (<= 0); (a^T u_f - s_f) / sS_f (= 0);
+        (u_m - s_m d_m) / sS_m (= 0)], d_f unused (held by its bounds, :meth:`Fuel.slack_bounds`)
     fuel_node(..., l1=True)            on a fixed switching structure (:attr:`Fuel.burn`)
         v = [u_j (6); s_f, s_m; h / h_scale (free_h)]; p = [... as above; b_f, b_m (1 on a burn node of the part, 0
         on a coast node, whose u and s are fixed to 0 by their bounds); delta_f, delta_m]
         rows = [(b_f (sqrt(|u_f|^2 + delta_f^2) - delta_f - s_f) - (1 - b_f) sS_f) / sS_f (<= 0); the same of u_m];
-        with a body-fixed engine the force's magnitude is its thrust a^T u_f, linear and exact on the engine's rows
-        (|u_f| = T >= 0 there): no rounding, and the force burns on every node (T = 0 is the engine row's bound).
+        an engine's force: a^T u_f - s_f <= 0 on every node (no rounding; T = 0 is the engine row's bound).
 
 The epigraph is the magnitude-direction split u = s d, |d| <= 1, s >= 0, with the cost omega_j (w_f s_f + w_m s_m):
 at the optimum s = |u|.  Unlike |u|^2 <= s^2 its constraint gradients do not vanish where the control is off
 (u = s = 0), which is where a fuel-optimal control spends its coast arcs (with |u|^2 <= s^2 IPOPT declared the E3 fuel
-problem locally infeasible after 424 iterations).
+problem locally infeasible after 424 iterations); but it is bilinear, and a coast node of its KKT points need not be
+one of the fuel problem's (the guard, :mod:`.guard`).  An engine's force needs none of it: on the engine's rows
+(T = a^T u_f in [min, max], no off-axis force) |u_f| = T, and the force's part of the NLP is linear.
 """
 from __future__ import annotations
 
@@ -26,7 +30,6 @@ import numpy as np
 from ...dynamics.lgvi import per_discretization
 from ...geometry.state import NU, U_FORCE, U_MOMENT
 from ...nlp.structured import Block, BlockFunction
-from ...ocp import ThrusterBound
 
 
 def fuel_slacks(U: np.ndarray) -> np.ndarray:
@@ -62,13 +65,16 @@ def fuel_node(disc, free_h: bool, l1: bool = False, engine: bool = False) -> Blo
         rows = [(bfl * (mag_f - sf) - (1.0 - bfl) * sS[0]) / sS[0], (bml * (mag_m - sm) - (1.0 - bml) * sS[1]) / sS[1]]
     else:
         df, dm = v[NU + 2:NU + 5], v[NU + 5:NU + 8]
-        rows = [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0, (u[U_FORCE] - sf * df) / sS[0],
-                (u[U_MOMENT] - sm * dm) / sS[1]]
+        if engine:      # the force's magnitude is its thrust (module docstring)
+            rows = [ca.dot(dm, dm) - 1.0, (ca.dot(axis, u[U_FORCE]) - sf) / sS[0], (u[U_MOMENT] - sm * dm) / sS[1]]
+        else:
+            rows = [ca.dot(df, df) - 1.0, ca.dot(dm, dm) - 1.0, (u[U_FORCE] - sf * df) / sS[0],
+                    (u[U_MOMENT] - sm * dm) / sS[1]]
     # the homotopy's smoothing: phi(s) = (1 - eps) s + eps s^2 / (2 r), phi = s at eps = 0
     phi_f = (1.0 - eps) * sf + eps * sf**2 / (2.0 * rf)
     phi_m = (1.0 - eps) * sm + eps * sm**2 / (2.0 * rm)
     cost = omega_per_h * h * (wf * phi_f + wm * phi_m) / s_obj
-    name = "_".join(w for w in ("fuel_node", "l1" if l1 else "", "engine" if engine and l1 else "",
+    name = "_".join(w for w in ("fuel_node", "l1" if l1 else "", "engine" if engine else "",
                                 "freeh" if free_h else "") if w)
     return BlockFunction(ca.Function(name, [v, p], [cost, ca.vertcat(*rows)], ["v", "p"], ["cost", "rows"]))
 
@@ -78,11 +84,11 @@ def fuel_blocks(objective, tr) -> list:
     problem, lay, sc = tr.problem, tr.layout, tr.scales
     control = problem.control
     nU, sS = len(lay.control_nodes), tr.magnitudes
-    engine = control.force_bound if isinstance(control.force_bound, ThrusterBound) else None
+    engine = None if control.force_bound is None else control.force_bound.engine_axis
     l1 = not objective.epigraph
     ref = sS if objective.reference is None else np.asarray(objective.reference, float).reshape(2)
     shared = np.r_[problem.h, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
-                   engine.axis if engine else np.zeros(3), ref, objective.smoothing]
+                   engine if engine is not None else np.zeros(3), ref, objective.smoothing]
     data = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), tr.omega_per_h[None, :],
                       np.repeat(shared[:, None], nU, axis=1)]
                      + ([objective.burn.astype(float),
@@ -90,10 +96,22 @@ def fuel_blocks(objective, tr) -> list:
     fn = fuel_node(problem.disc, tr.free_h, l1, engine is not None)
     if l1:
         lbg, ubg, scales = np.full(2, -np.inf), np.zeros(2), sS
+    elif engine is not None:
+        lbg, ubg = np.r_[-np.inf, np.zeros(4)], np.zeros(5)
+        scales = np.r_[1.0, sS[0], np.repeat(sS[1], 3)]
     else:
         lbg, ubg = np.r_[-np.inf, -np.inf, np.zeros(6)], np.zeros(8)
         scales = np.r_[1.0, 1.0, np.repeat(sS, 3)]
     return [(Block("fuel", fn, tr.node_variables(), data, lbg=lbg, ubg=ubg), scales)]
 
 
-__all__ = ["fuel_blocks", "fuel_node", "fuel_slacks"]
+def fuel_rows(objective, tr, rows: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """The rows (3, nU) u - s d of the force and of the moment among the epigraph's fuel rows ``rows`` (nr, nU) of
+    the NLP ``tr`` (the force's None where its magnitude is an engine's, linear: module docstring)."""
+    force = tr.problem.control.force_bound
+    if force is not None and force.engine_axis is not None:
+        return None, rows[2:5]
+    return rows[2:5], rows[5:8]
+
+
+__all__ = ["fuel_blocks", "fuel_node", "fuel_rows", "fuel_slacks"]

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...geometry.state import X_POS
-from ...ocp import Problem, ThrusterBound
+from ...ocp import Problem
 from ...ocp.estimate import target_estimate
 from ...results.solution import Solution
 from ...results.start import Start
@@ -36,7 +36,7 @@ def coarse_resolves(problem: Problem, Nc: int, fraction: float) -> bool:
     thrust where the 400-step one needs 0.6 N (docs/mathematics.md, "LEO fuel raises"); gaps at round-off (1e-9 of
     the position) always resolve, so a maneuver the free motion already completes keeps its coarse grids."""
     bound = problem.control.force_bound
-    F = bound.max if isinstance(bound, ThrusterBound) else bound.largest_norm() if bound is not None else np.inf
+    F = bound.largest_norm() if bound is not None else np.inf
     Xd, T = target_estimate(problem), problem.T
     fine = starts.rollout(problem).X[-1]
     coarse = starts.rollout(problem.replace(N=Nc, mesh=None)).X[-1]

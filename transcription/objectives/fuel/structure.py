@@ -53,19 +53,12 @@ import numpy as np
 from ...geometry.state import U_FORCE, U_MOMENT
 from ...methods.direct import transcription
 from ...nlp.transcription import SmoothTranscription
-from ...ocp import NormBound, Problem, ThrusterBound
+from ...ocp import Problem
 from ...results.solution import Solution
 from ...results.start import Point, Start
 from ...strategy.core import Context, collapsed
-from .guard import PARTS, Guarded, counted_parts, engine_multipliers, switching_values, verdict
+from .guard import PARTS, Guarded, counted_parts, linear_parts, switching_values, verdict
 from .homotopy import smoothing_reference
-
-
-def engine(problem: Problem) -> ThrusterBound | None:
-    """The body-fixed engine of ``problem``'s force (None without one): its magnitude is the thrust, linear, and its
-    force burns on every node of the structure (T = 0 is the engine row's bound, :func:`burn_structure`)."""
-    b = problem.control.force_bound
-    return b if isinstance(b, ThrusterBound) else None
 
 
 def burn_structure(problem: Problem, U: np.ndarray, scales: np.ndarray, dilate: int, burn_rtol: float) -> np.ndarray:
@@ -79,10 +72,11 @@ def burn_structure(problem: Problem, U: np.ndarray, scales: np.ndarray, dilate: 
     for k in range(1, dilate + 1):
         wide[:, k:] |= burn[:, :-k]
         wide[:, :-k] |= burn[:, k:]
-    for i, (b, wt) in enumerate(zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]))):
-        if isinstance(b, NormBound) and b.b == 0:
+    for i, (b, wt, linear) in enumerate(zip((c.force_bound, c.moment_bound), (c.W_f[0, 0], c.W_m[0, 0]),
+                                            linear_parts(problem))):
+        if b is not None and b.removed:
             wide[i] = False
-        elif wt <= 0 or isinstance(b, ThrusterBound):
+        elif wt <= 0 or linear:
             wide[i] = True
     return wide
 
@@ -99,18 +93,16 @@ def switching_l1(tr: SmoothTranscription, point: Point, coast_rtol: float) -> di
     delta = np.asarray(objective.rounding, float) * tr.magnitudes
     mu = np.empty((2, 3, len(lay.control_nodes)))
     mags = np.empty((2, mu.shape[2]))
-    nus = tr.multipliers(point.lam_g)
-    nu = nus[tr.nlp.rows("fuel")]        # (2, nU): |u_f| - s_f, |u_m| - s_m
-    eng = engine(tr.problem)
+    nu = tr.multipliers(point.lam_g)[tr.nlp.rows("fuel")]        # (2, nU): |u_f| - s_f, |u_m| - s_m
     for i, sl in enumerate((U_FORCE, U_MOMENT)):
         iu = lay.iU[sl]
         u = w[iu]
         mags[i] = np.linalg.norm(u, axis=0)
         fixed = tr.scales.objective * np.asarray(point.lam_x, float)[iu] / tr.w_scale[iu]
-        burning = nu[i] * (eng.axis[:, None] if i == 0 and eng else u / np.sqrt(mags[i] ** 2 + delta[i] ** 2))
+        burning = nu[i] * u / np.sqrt(mags[i] ** 2 + delta[i] ** 2)
         mu[i] = np.where(objective.burn[i][None, :], burning, fixed)
     coast = ~objective.burn | (mags < coast_rtol * tr.magnitudes[:, None])
-    return switching_values(tr, w, mu, coast, engine_multipliers(tr, nus))
+    return switching_values(tr, w, mu, coast)
 
 
 def _nodes(burn: np.ndarray) -> str:
@@ -242,15 +234,15 @@ class StructuredFinish:
 
     def _pruned(self, tr, x: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The structure without the burn nodes whose magnitude the solve took below ``prune`` x the part's reference
-        ``ref`` (an engine's force is never pruned: :func:`engine`), and x with their controls and magnitudes at 0."""
+        ``ref`` (a linear part, an engine's force, is never pruned: :func:`.guard.linear_parts`), and x with their
+        controls and magnitudes at 0."""
         base = tr.objective.burn
         burn, x = base.copy(), x.copy()
         w = x * tr.w_scale
+        pruned = counted_parts(tr.problem) & ~linear_parts(tr.problem)
         for i, sl in enumerate((U_FORCE, U_MOMENT)):
             iu = tr.layout.iU[sl]
-            if i == 0 and engine(tr.problem) is not None:
-                continue
-            off = base[i] & (np.linalg.norm(w[iu], axis=0) < self.prune * ref[i]) & counted_parts(tr.problem)[i]
+            off = base[i] & (np.linalg.norm(w[iu], axis=0) < self.prune * ref[i]) & pruned[i]
             burn[i, off] = False
             x[iu[:, off]] = 0.0
             x[tr.layout.iS[i, off]] = 0.0
@@ -278,4 +270,4 @@ def _released(tr, lam_x: np.ndarray, burn: np.ndarray) -> np.ndarray:
     return lam_x
 
 
-__all__ = ["StructuredFinish", "burn_structure", "engine", "switching_l1"]
+__all__ = ["StructuredFinish", "burn_structure", "switching_l1"]
