@@ -9,7 +9,14 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 
-class Result(str, enum.Enum):
+class Code(str, enum.Enum):
+    """An enumeration whose members are their own codes: ``str(member)`` is its value (a file's, a message's word)."""
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class Result(Code):
     """The outcome of a solve, shared by every method.  ``str(Result.x)`` is the code,
     ``Result.x.message`` a sentence, ``Result.x.successful`` whether the solution can be used."""
 
@@ -32,9 +39,6 @@ class Result(str, enum.Enum):
     not_applicable = "not_applicable"
     interrupted = "interrupted"
     inside_central_body = "inside_central_body"
-
-    def __str__(self) -> str:
-        return self.value
 
     @property
     def successful(self) -> bool:

@@ -21,16 +21,16 @@ indirect method's shooting unknown ``lam0`` only on the same grid: elsewhere the
 """
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..geometry.so3 import exp_so3, geodesic_interpolation, log_so3_any
 from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, cayley_vectors, pack_state, unpack_states
+from ..outcome import Code
 
 
-class Origin(str, enum.Enum):
+class Origin(Code):
     """What a Start is: a solution of a solve (``solution``) or a start made from the problem's data."""
 
     solution = "solution"
@@ -38,9 +38,6 @@ class Origin(str, enum.Enum):
     interpolate = "interpolate"
     orbit = "orbit"
     aimed = "aimed"
-
-    def __str__(self) -> str:
-        return self.value
 
 
 @dataclass(frozen=True)

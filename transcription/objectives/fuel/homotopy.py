@@ -67,10 +67,11 @@ class Homotopy:
     measured problems took 55-398 iterations; on the 400 steps of leo_raise_slew with the fuel objective the jump
     reached its budget without converging, 114 s, and then the levels failed as before), the levels only when that
     does not converge.  ``first``, ``factor``, ``last``: the levels eps = first, first / factor, ... >= last, each
-    within ``level_budget`` iterations (the fuel raise's levels take 5-117 on 25 steps; on the LEO raises' 400 steps a
-    level that had not converged in a few hundred iterations crawled on -- mu = 1e-9, steps cut to 1e-2 by the
-    bounds -- to 3000, minutes each), warm from the last level's point with the ``warm`` IPOPT options (the fuel
-    strategy's guard's, :class:`.guard.Guarded`).  ``structure_from_budget``: a
+    within ``level_budget`` iterations, from the last level's primal point with IPOPT's own barrier start: a level is
+    another problem, and from the barrier mu = 1e-9 of a warm start far from its optimum IPOPT crawls (configs/
+    leo_engine_fuel.yaml's level eps = 0.1 reached its 500 iterations with steps of 1e-2 to 1e-4; from its own
+    start it converged in 135).  The fuel NLP after the last level starts warm (``warm``, the IPOPT options of the
+    fuel strategy's guard, :class:`.guard.Guarded`: the same problem but for eps).  ``structure_from_budget``: a
     level after the first that reaches its budget ends the homotopy with its last point, which then starts the
     structured finish (``finish``) as a coarser grid's optimum would, instead of no start (on a grid the coarse grids
     do not resolve the levels run on the problem's own steps, where a level may crawl; its point is still near the
@@ -165,7 +166,7 @@ class Homotopy:
                               "levels")
         for eps in schedule:
             sol = ctx.solve(self._level(problem, fuel, eps, ref), effort.warm.primal() if last is None else last.warm,
-                            f"eps {eps:.0e}", ipopt=None if last is None else self.warm,
+                            f"eps {eps:.0e}",
                             max_iter=min(int(ctx.options.max_iter), self.level_budget))
             parts += sol.trace
             levels.append(f"eps = {eps:.0e}: {sol.trace[-1].iterations}")
