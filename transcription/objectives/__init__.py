@@ -13,11 +13,12 @@ from typing import Any
 
 from ..ocp import Objective, ProblemError
 from .effort import Effort
+from .effort_time import EffortTime
 from .fuel import Fuel
 from .time import Time
 
 #: the objectives by the name a maneuver file gives (``control.objective``)
-OBJECTIVES: dict[str, type[Objective]] = {cls.name: cls for cls in (Effort, Time, Fuel)}
+OBJECTIVES: dict[str, type[Objective]] = {cls.name: cls for cls in (Effort, Time, Fuel, EffortTime)}
 
 
 def named(name: str, **parameters: Any) -> Objective:
@@ -31,4 +32,4 @@ def named(name: str, **parameters: Any) -> Objective:
         raise ProblemError("control.objective", f"the {name} objective: {exc}") from None
 
 
-__all__ = ["OBJECTIVES", "Effort", "Fuel", "Time", "named"]
+__all__ = ["OBJECTIVES", "Effort", "EffortTime", "Fuel", "Time", "named"]
