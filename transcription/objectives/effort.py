@@ -80,9 +80,7 @@ class Effort(Objective):
 # ---------------------------------------------------------------------------- the default strategy
 def relaxation(problem: Problem) -> Problem | None:
     """The problem without its control bounds (a removed control stays removed) and path constraints, whose solution
-    starts the solve of the full one (None if there is nothing to relax).  The bounded E3 (configs/e3_bounded.yaml):
-    6 + 37 iterations, 2.4 s, against 200 from the rollout then 37 from the interpolation, 12 s; the keep-out slew
-    5 + 11 against 200 + 12."""
+    starts the solve of the full one (None if there is nothing to relax)."""
     c = problem.control
     removed = c.removed
     bounds = [b for b, r in zip((c.force_bound, c.moment_bound), removed) if b is not None and not r]
@@ -101,13 +99,10 @@ def judged_interpolation(problem: Problem) -> tuple[str, Start, str]:
     whose moment effort is lower (both meet both ends, so the parts fit).  Its label names what was taken
     ('orbit', 'interpolate', or 'orbit, attitude of interpolate'); the third part says the efforts.
 
-    Why: over several revolutions the screw interpolation turns once at most, and the solver ends at a local
-    minimum of its shape -- the five-orbit phasing (configs/everyday/phasing_5_orbits.yaml, N = 1000) solved to
-    cost 17.38 on a path out to r = 4.7 (120 iterations) from it, to 0.02868 near r = 1 (9) from the orbit's; the
-    three-orbit raise 47.5 out to r = 3.5 against 0.295 (22 each).  The attitude is judged apart because a body
-    held inertially (the LEO raise and slew, rest to rest) would turn a whole revolution with the orbit's frame:
-    from that start the LEO raise ended at twice the cost (0.00225 against 0.001125).  Where the screw path is
-    the cheaper (E3, E4, the plane changes, the captures) nothing changes."""
+    Why: over several revolutions the screw interpolation turns once at most, and the solver ends at a local minimum
+    of its shape (the five-orbit phasing: cost 17.38 on a path out to r = 4.7 from it, 0.02868 from the orbit's); the
+    attitude is judged apart because a body held inertially would turn a whole revolution with the orbit's frame
+    (docs/everyday.md)."""
     judged = {}
     for kind in ("interpolate", "orbit"):
         start = starts.make(kind, problem)
@@ -184,30 +179,17 @@ class EffortStrategy(Composed):
 
     ``first_budget``: the first starts get at most this many NLP iterations before the next one is tried (a solve
     that needs more is usually wandering).  ``rollout_first_miss``: the rollout goes first when it ends within this
-    many characteristic scales of the target (:func:`~transcription.nlp.scaling.scaled_terminal_miss`, the terminal
-    rows as the solver sees them), else the interpolation.  A free motion that misses by far is a poor start:
-    doubling the orbit radius in one period (configs/everyday/orbit_double.yaml, miss 3.1) takes > 1100 iterations
-    from the rollout, 5 from the interpolation; the capture from a fast tumble (capture_fast_tumble.yaml, 1.9) 185 to
-    a local minimum of cost 97.0 against 10 to 32.7.  A near one is a good start, and the interpolation's defects,
-    spread over every step, cost iterations that grow with N: E3 (0.52) 6 iterations from the rollout at N = 250,
-    1000 and 4000 against 7, 8 and 11 from the interpolation; the 45 deg plane change (0.79) 9 against 12, the
-    detumble (0.93) 6 against 8; E4 (0.78) is the exception, 7-8 against 6.  Misses of the everyday cases:
-    0.30 ... 3.1 (docs/everyday.md).
+    many characteristic scales of the target (:func:`~transcription.nlp.scaling.scaled_terminal_miss`), else the
+    interpolation: a free motion that misses by far is a poor start, and a near one a good one (the interpolation's
+    defects, spread over every step, cost iterations that grow with N; docs/everyday.md).
 
-    ``infeasibility_detection``: IPOPT options of a problem with bounds or path constraints (IPOPT's heuristics for a
-    problem expected to be infeasible: the restoration phase called sooner, more reduction of the violation before
-    leaving it; off once the violation is below 1e-3) ...  ``phase1``: ... and for the start from the relaxation's
-    solution, with a control bound, IPOPT starting in its restoration phase, which minimizes the violation of the
-    bounds and constraints the relaxed optimum breaks; if that ends at a least violation > 0
-    (Infeasible_Problem_Detected) the problem is reported infeasible and the other starts are not tried.  E3 with
-    the thrust norm bounded by 10 instead of 12 (no solution), N = 500: infeasible in 54 iterations from the relaxed
-    optimum, where without the phase 1 IPOPT spent its 200 there, then 69 (rollout) and 79 (interpolation) more to
-    Infeasible_Problem_Detected, and without either option 200 + 3000 + 3000 iterations (> 900 s on the loaded
-    machine).  The price on feasible problems: the bounded E3 (N = 500) 57 iterations instead of 43 to the same
-    solution.  Only with a control bound: with path constraints alone it cost the keep-out slew 42 iterations
-    instead of 14 and E3 with a minimum radius 34 instead of 26.  Neither for a body-fixed engine (its start is the
-    aimed relaxed solution: not measured with these).  ``aim_fraction``: the engine's aimed start
-    (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j |f_j|."""
+    ``infeasibility_detection``: IPOPT options of a problem with bounds or path constraints (the restoration phase
+    called sooner) ...  ``phase1``: ... and, with a control bound, the start from the relaxation's solution in IPOPT's
+    restoration phase, which minimizes the violation the relaxed optimum leaves; if that ends at a least violation > 0
+    (Infeasible_Problem_Detected) the problem is reported infeasible and the other starts are not tried (E3 with the
+    thrust bounded by 10, N = 500: infeasible in 54 iterations, against 200 + 3000 + 3000 without either option).
+    Neither for a body-fixed engine, whose start is the aimed relaxed solution.  ``aim_fraction``: the engine's aimed
+    start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j |f_j|."""
 
     first_budget: int = 200
     rollout_first_miss: float = 1.0

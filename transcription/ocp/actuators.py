@@ -245,10 +245,6 @@ class BoxBound(Actuator):
 
     magnitude_label: ClassVar[str] = "max_i |u_i|"
 
-    def active_components(self, u: np.ndarray) -> np.ndarray:
-        """(n, 3) bool: |u_i| within AT_BOUND_RTOL of b_i."""
-        return self.active_channels(u)
-
     def magnitude(self, u: np.ndarray) -> np.ndarray:
         return np.abs(np.asarray(u, float)).max(axis=-1)
 

@@ -3,11 +3,10 @@ homotopy (:mod:`.homotopy`) cannot begin with its first level.
 
 :meth:`~.homotopy.Homotopy.effort_problem` makes the homotopy's effort problem its first level, phi_1(s) = s^2 / (2 r),
 when every part whose fuel counts is bounded and the parts' references r differ by more than the homotopy's
-``effort_level_ratio`` (configs/leo_engine_fuel.yaml).  With an unbounded counted part it cannot: r is then the effort
-optimum's largest magnitude, known only after the effort solve, and the fuel weights, chosen for the squared effort,
-price the parts' magnitudes in another ratio than the effort's.  configs/leo_body_engine.yaml with the fuel objective
-(the moment unbounded, w_m = 1e10 against w_f = 1; references 1e-3 kN and 8.3e-9 kN km) did not converge by the
-homotopy in 8 min (docs §21), nor with its moment bounded at 1e-8 and w_m = 1e10 (the smoothed levels crawled).
+``effort_level_ratio``.  With an unbounded counted part it cannot: r is then the effort optimum's largest magnitude,
+known only after the effort solve, and the fuel weights, chosen for the squared effort, price the parts' magnitudes in
+another ratio than the effort's (configs/leo_body_engine.yaml with the fuel objective: the moment unbounded,
+w_m = 1e10; its first level did not converge in 500 iterations).
 
 :class:`ContinuationStart` reaches it through problems it can solve, each on the problem's own grid from the last
 one's optimum (a :class:`~transcription.strategy.core.Continuation` along the path of :meth:`ContinuationStart.path`):
@@ -15,22 +14,15 @@ one's optimum (a :class:`~transcription.strategy.core.Continuation` along the pa
 0. the start: every unbounded counted part bounded at its reference (``margin`` x its effort optimum's largest
    magnitude, rounded up to one significant digit, so that the effort optimum is feasible), and the fuel weights
    w_i' = w_i r_i / max_j r_j, so that the first level's weights w_i' / r_i are the file's effort weights (scaled):
-   its effort problem is the file's (with a bound its optimum satisfies), and the homotopy starts it with its first
-   level.  The fuel strategy solves it (its effort problem, homotopy and structured finish).  On leo_body_engine the
-   start is configs/leo_engine_fuel.yaml's problem to the last bit (1.2 x 8.3e-9 -> 1e-8, w_m = 1e10 x 1e-8 / 1e-3 =
-   1e5).  That path is at the edge of converging: with w_m one unit in the last place higher, or the bound 9.96e-9
-   unrounded, its level eps = 0.1 at its budget left a point from which the structured finish's rough solve reached
-   its 500 iterations, and the epigraph fallback from it its 500 too (docs §25);
+   its effort problem is the file's, and the fuel strategy solves it (on leo_body_engine the start is
+   configs/leo_engine_fuel.yaml's problem to the last bit);
 1. the weights raised geometrically, by about ``weight_factor`` a step, to the file's;
 2. the added bounds raised by ``bound_factor`` a step while any is active at the optimum (a bound the optimum does
    not touch leaves it a KKT point of the problem without it), at most ``bound_steps`` times;
 3. the problem itself, from that optimum, by the structured finish and the fuel KKT guard.
 
-Steps 1 and 2 are each a structured finish from the last optimum (``step``, as from a coarser grid's); a step need
-not pass the guard (only the last solve is the answer), but it must converge.  leo_body_engine, fuel, N = 400 (docs
-§25): the start is configs/leo_engine_fuel.yaml; w_m 1e5 -> 1e10 in five steps of 34-79 s each, the bound 1e-8 ->
-1e-7 -> 1e-6 (inactive at 1.09e-7), the problem itself in 232 iterations to 30201.72849, guard passed.  A step of
-100 in the weights did not converge (its rough solve reached 500 iterations).
+Steps 1 and 2 are each a structured finish from the last optimum (``step``); a step need not pass the guard (only
+the last solve is the answer), but it must converge.  Measurements: docs/mathematics.md §25.
 """
 from __future__ import annotations
 
@@ -79,10 +71,8 @@ def _line(what: str, sol: Solution) -> str:
 @dataclass(frozen=True)
 class ContinuationStart:
     """Steps 0-3 of the module docstring: ``first`` solves the start problem (the fuel strategy), ``step`` each step
-    of the path (a structured finish without fallback, more rounds than the problem's own: leo_body_engine's bound
-    1e-7 passed the guard in 8, and with 4 it stopped at a worse point, 30226.27 against 30218.56), ``finish`` the
-    problem itself.  ``margin``, ``weight_factor``, ``bound_factor``, ``bound_steps``: module docstring (w_m 1e5 ->
-    1e7 in one step of leo_body_engine: the rough solve at its 500 iterations; by 10: 42-79 s a step)."""
+    of the path (a structured finish without fallback, more rounds than the problem's own), ``finish`` the problem
+    itself.  ``margin``, ``weight_factor``, ``bound_factor``, ``bound_steps``: module docstring."""
 
     first: object
     step: object

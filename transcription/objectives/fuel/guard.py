@@ -104,9 +104,9 @@ def verdict(sw: dict, tol: float) -> dict:
 
 
 def reaimed(tr, point: Point, sw: dict, tol: float, kick: float = 0.0) -> Point:
-    """``point`` with d_j = mu_j / |mu_j| (the primer of :func:`switching`; scaled d has scale 1) on the coast nodes
-    whose sigma > tol, so that mu_j^T d_j = |mu_j| > w omega_j there, and the bound multipliers of those nodes' s set
-    to 0 (their old value, w omega_j - mu_j^T d_j, belonged to the old d); lam_g kept.  ``kick`` > 0: s_j = kick times the magnitude's scale and u_j = s_j d_j on those nodes."""
+    """``point`` with d_j = mu_j / |mu_j| (the primer of :func:`switching`) on the coast nodes whose sigma > tol and
+    the bound multipliers of those nodes' s set to 0 (they belonged to the old d); lam_g kept.  ``kick`` > 0: also
+    s_j = kick times the magnitude's scale and u_j = s_j d_j there."""
     x, lam_x, lam_g = point.x.copy(), point.lam_x.copy(), point.lam_g.copy()
     iS, iU = tr.layout.iS, tr.layout.iU
     for i in range(2):
@@ -133,20 +133,13 @@ def _said(v: dict) -> str:
 @dataclass(frozen=True)
 class Guarded:
     """``inner``, then the fuel KKT guard on its converged epigraph solution and the escape from a false minimum
-    (module docstring): the offending coast nodes' directions re-aimed (and, when that does not lower the cost,
-    their magnitudes set to ``kick`` times their scale: a coast node with |d| < 1 is also a KKT point of the NLP, and
-    from the re-aimed point IPOPT can shorten d again instead of raising s -- the raise at N = 20 from the
-    interpolation: the plain re-aim came back to the same point, 0.8126981586 against 0.8126981548; with the kick
-    0.8097587356, then 0.8096587682 with the guard passed), the same NLP re-solved warm (``warm`` IPOPT options)
-    within ``budget`` iterations, at most ``escapes`` times while the cost falls.
-
-    ``tol``: the guard fails when sigma exceeds it on a coast node (partial nodes hold sigma = 0 to ~1e-9 at IPOPT's
-    tol).  Measured on the fuel raise's optima: the largest sigma of a coast node -8.0e-4 (LGVI, N = 40), -1.5e-3
-    (first order, N = 40 on the mesh r_k = 1.5 + sin 2.3k), -1.8e-3 (LGVI, N = 25); the false minima +7.4e-4 (LGVI,
-    N = 40 on that mesh, nodes 3 and 4), +1.3e-2 and +8.8e-4 (two of the three 25-step starts), +9.4e-3 (N = 20).
-    ``coast_rtol``: a node is a coast node of a part when its magnitude s is below this times the part's magnitude
-    scale (an interior-point solution's coast magnitudes are ~1e-9 of it).  Stats of the Solution: :func:`verdict`'s
-    and ``fuel_escape`` (one line per escape)."""
+    (module docstring): the offending coast nodes' directions re-aimed -- and, when that does not lower the cost,
+    their magnitudes set to ``kick`` times their scale (a coast node with |d| < 1 is a KKT point too) -- and the same
+    NLP re-solved warm (``warm`` IPOPT options) within ``budget`` iterations, at most ``escapes`` times while the cost
+    falls.  ``tol``: the guard fails where sigma exceeds it on a coast node (partial nodes hold sigma = 0 to ~1e-9;
+    the fuel raise's optima have their largest coast sigma at -8e-4 to -1.8e-3, its false minima at +7e-4 to +1.3e-2,
+    docs/mathematics.md, "The fuel KKT guard").  ``coast_rtol``: a coast node's magnitude is below this times the
+    part's scale.  Stats: :func:`verdict`'s and ``fuel_escape`` (one line per escape)."""
 
     inner: object
     warm: Mapping = field(default_factory=lambda: {"warm_start_init_point": "yes", "mu_init": 1e-9,

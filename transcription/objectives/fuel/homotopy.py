@@ -2,23 +2,12 @@
 its coarsest grid.
 
 The L1 objective sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) has bang-off-bang minimizers that IPOPT reaches slowly
-from the free motion or the screw interpolation (configs/orbit_raise_fuel.yaml, N = 100: 1020 iterations, 54 s;
-N = 400: stopped at 'acceptable' after ~1300).  :class:`Homotopy` reaches it through smooth problems instead: the
-effort problem (the same maneuver with objective effort, :meth:`Homotopy.effort_problem`; :meth:`Homotopy.effort`:
-from the free motion first when its plan would start from the relaxed problem), then the fuel NLP itself (eps = 0)
-from the effort optimum, cold (the jump, on grids of at most ``jump_max_n`` steps); without the jump or when it does
-not converge the fuel NLP with the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for eps =
-``first``, first / factor, ... down to ``last``, each level started from the last one's primal and dual point (the
-NLPs have the same structure: eps is data of the fuel block), and the fuel NLP from the last level and its
-multipliers.  Why the jump first: on the fuel raise (25 steps) the levels took 62 + 76 + 61 + 117 + 5 iterations
-(eps = 1 ... 1e-4, then the fuel NLP) to 0.8129414920, the jump 55 to the same optimum; the effort problem 92
-iterations by its plan (40 on the relaxed problem, which ends at another local minimum, 1.376 against 0.980, then 52
-from it with the phase 1), 21 from the free motion to the same effort optimum.  The homotopy: 418 -> 77 iterations.
-Measured on ten fuel problems of <= 40 steps (the raise on 20, 25 (LGVI and first order), 30 steps and on the mesh of
-issue 26 on 25 and 40; the engine slew, the keep-out slew, the raise without a moment bound and leo_raise_slew, fuel,
-on 25 steps): the same final optimum to 12 digits in every case, and fewer iterations for the whole solve in every case
-(e.g. 1048 -> 649 on 20 steps; 754 -> 731 without a moment bound, where the jump took 283 and the levels 365).  On
-leo_raise_slew's 400 steps the jump did not converge (``jump_max_n``).
+from the free motion or the screw interpolation.  :class:`Homotopy` reaches it through smooth problems instead: the
+effort problem (the same maneuver with objective effort, :meth:`Homotopy.effort_problem`), then the fuel NLP itself
+(eps = 0) from the effort optimum, cold (the jump, on grids of at most ``jump_max_n`` steps); without the jump or
+when it does not converge the fuel NLP with the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for
+eps = ``first``, first / factor, ... down to ``last``, each level from the last one's primal point, and the fuel NLP
+from the last level, warm.  The measurements behind the jump and the levels: docs/mathematics.md, "The fuel homotopy".
 """
 from __future__ import annotations
 
@@ -43,13 +32,8 @@ def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
     magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part).  (The
     structured finish's roundings are fractions of the same references, :mod:`.structure`.)  Why: an unbounded
     part's scale is a guess from the boundary data, and where the magnitudes are far from r the levels are no
-    homotopy.  The LEO raises (docs/mathematics.md, "LEO fuel raises"): moments of up to 8e-9 kN km against a scale
-    of 1.5e-11 made eps s^2 / (2 r) dominate the moment's cost down to eps ~ 1e-2, and the first level (eps = 1, 413
-    iterations on 400 steps) ended with multipliers that left the next one a dual infeasibility of 6.5e4
-    (restoration failures after > 700 iterations); with r = 8.3e-9 the first level took 100 iterations and left
-    2.2e-3.  Forces of 6e-4 kN against a scale of 0.54 kN (no bound) left the force part of every level the fuel
-    objective itself.  With these references phi_eps'(s) = 1 - eps + eps s / r is in [1 - eps, 1] on the effort
-    optimum's magnitudes at every level."""
+    homotopy; with these references phi_eps'(s) = 1 - eps + eps s / r is in [1 - eps, 1] on the effort optimum's
+    magnitudes at every level (docs/mathematics.md, "LEO fuel raises")."""
     c = problem.control
     mags = np.array([np.linalg.norm(U[sl], axis=0).max(initial=0.0) for sl in (U_FORCE, U_MOMENT)])
     unbounded = np.array([b is None or b.removed for b in (c.force_bound, c.moment_bound)])
@@ -63,25 +47,16 @@ class Homotopy:
     effort solves and the levels as its parts, ``stats['homotopy_levels']`` says which path was taken.
 
     ``jump``, ``jump_budget``, ``jump_max_n``: the first step from the effort optimum is the fuel NLP itself (eps = 0,
-    cold, within jump_budget iterations) on grids of at most jump_max_n steps (the largest measured: the jumps of the
-    measured problems took 55-398 iterations; on the 400 steps of leo_raise_slew with the fuel objective the jump
-    reached its budget without converging, 114 s, and then the levels failed as before), the levels only when that
-    does not converge.  ``first``, ``factor``, ``last``: the levels eps = first, first / factor, ... >= last, each
-    within ``level_budget`` iterations, from the last level's primal point with IPOPT's own barrier start: a level is
-    another problem, and from the barrier mu = 1e-9 of a warm start far from its optimum IPOPT crawls (configs/
-    leo_engine_fuel.yaml's level eps = 0.1 reached its 500 iterations with steps of 1e-2 to 1e-4; from its own
-    start it converged in 135).  The fuel NLP after the last level starts warm (``warm``, the IPOPT options of the
-    fuel strategy's guard, :class:`.guard.Guarded`: the same problem but for eps).  ``structure_from_budget``: a
-    level after the first that reaches its budget ends the homotopy with its last point, which then starts the
-    structured finish (``finish``) as a coarser grid's optimum would, instead of no start (on a grid the coarse grids
-    do not resolve the levels run on the problem's own steps, where a level may crawl; its point is still near the
-    fuel optimum's switching structure: configs/leo_engine_fuel.yaml, N = 400, the level eps = 0.1 reached its 500
-    iterations with the thrust at 0 or its maximum on most nodes, and the structured finish from such a point
-    converged and passed the guard, docs/mathematics.md §21).  ``effort_rollout``, ``effort_rollout_budget``: the
-    effort problem, when its plan would start from the relaxed problem (control bounds or path constraints) and the
-    force is no body-fixed engine, is first solved from the free motion within that budget (they reach the same
-    optima at the default tol: the raise, 25 steps, 0.8129414920420919 against 0.8129414920420421).
-    ``effort_level_ratio``: :meth:`effort_problem`."""
+    cold, within jump_budget iterations) on grids of at most jump_max_n steps, the levels only when that does not
+    converge.  ``first``, ``factor``, ``last``: the levels eps = first, first / factor, ... >= last, each within
+    ``level_budget`` iterations, from the last level's primal point with IPOPT's own barrier start (a level is another
+    problem: from the barrier mu = 1e-9 of a warm start far from its optimum IPOPT crawls); the fuel NLP after the
+    last level starts warm (``warm``, the guard's IPOPT options, :class:`.guard.Guarded`).  ``structure_from_budget``:
+    a level after the first that reaches its budget ends the homotopy with its last point, which then starts the
+    structured finish (``finish``) as a coarser grid's optimum would (it is near the switching structure already).
+    ``effort_rollout``, ``effort_rollout_budget``: the effort problem, when its plan would start from the relaxed
+    problem and the force is no body-fixed engine, is first solved from the free motion within that budget.
+    ``effort_level_ratio``: :meth:`effort_problem`.  Measurements: docs/mathematics.md §21, "The fuel homotopy"."""
 
     finish: object
     warm: Mapping | None = None
@@ -110,13 +85,8 @@ class Homotopy:
         more than ``effort_level_ratio``; otherwise W_i' = w_i I (an unbounded part's reference is the effort
         optimum's own magnitude).  This effort problem is the first level's, phi_1(s) = s^2 / (2 r): its optimum is
         the level's.  Why: the fuel weights price |u| and the effort weights |u|^2, so the same numbers weigh the
-        parts in the ratio of their magnitudes differently.  configs/leo_engine_fuel.yaml (engine <= 1e-3 kN, wheels
-        <= 1e-8 kN km) in a first draft with w_m = 1e4 /km: with those weights the moment's squared cost was ~1e-9 of
-        the force's, the moment free in the effort problem, and its effort plan did not converge.  With w_m = 1e5 and
-        w_i / r_i the moment's weight is w_m r_f / (w_f r_m) = 1e10 times the force's, as in leo_body_engine.yaml:
-        its effort optimum times 1e3 (235 iterations, 0.934848928).  The fuel raise (references 40 and 1) keeps the
-        file's weights: with (1/40, 1) its 100-step direct point re-tightened at tol 1e-12 was one from which the
-        indirect method did not converge, and on its 40-step mesh the path stopped at another false minimum."""
+        parts in the ratio of their magnitudes differently (configs/leo_engine_fuel.yaml's moment, 1e-10 of the
+        force, was free in the file's effort problem; docs/mathematics.md §21)."""
         c = problem.control
         counted = [b for b, k in zip((c.force_bound, c.moment_bound), counted_parts(problem)) if k]
         r = SmoothTranscription.magnitude_scales(problem)

@@ -25,16 +25,11 @@ from .structure import StructuredFinish
 def coarse_resolves(problem: Problem, Nc: int, fraction: float) -> bool:
     """Whether the maneuver on Nc uniform steps is near enough the one on ``problem``'s grid for its optimum to
     start the fuel solve: the two grids' free motions end at positions at most ``fraction`` * F T^2 / (2 m) apart, F
-    the largest force the bound allows (without a bound: the displacement the maneuver needs, below).  Why: around
-    the Earth a one-revolution LEO raise with a 1 N engine on 500 kg (configs/leo_body_engine.yaml, N = 400) can move
-    the body by F T^2 / (2 m) = 31 km in T, while the discrete orbit of 100 steps ends 53 km from that of 400 steps:
-    the coarse problems are infeasible (their effort version at N = 100 ended cayley_failed after 3467 iterations)
-    and each cost minutes before the fine grid was tried.  For the fuel raise the gap is 0.0044 against a reach of
-    9.8.  Without a force bound the reach is the displacement the maneuver needs, the fine free motion's miss
-    |x_d - x_N^(N)| (x_d of :func:`~transcription.ocp.estimate.target_estimate`): leo_raise_slew.yaml (the same
-    orbit, no bound) has a gap of 53 km against a miss of 47 km on 100 steps, and its 25-step problem needed 20 kN of
-    thrust where the 400-step one needs 0.6 N (docs/mathematics.md, "LEO fuel raises"); gaps at round-off (1e-9 of
-    the position) always resolve, so a maneuver the free motion already completes keeps its coarse grids."""
+    the largest force the bound allows (without a bound: the displacement the maneuver needs, |x_d - x_N^(N)|, x_d of
+    :func:`~transcription.ocp.estimate.target_estimate`); gaps at round-off (1e-9 of the position) always resolve.
+    Why: around the Earth a one-revolution LEO raise with a 1 N engine on 500 kg can move the body by 31 km, while the
+    discrete orbit of 100 steps ends 53 km from that of 400 steps: its coarse problems are infeasible
+    (docs/mathematics.md, "LEO fuel raises"); the fuel raise's gap is 0.0044 against a reach of 9.8."""
     bound = problem.control.force_bound
     F = bound.largest_norm() if bound is not None else np.inf
     Xd, T = target_estimate(problem), problem.T
@@ -74,14 +69,11 @@ class FuelStart:
 @dataclass(frozen=True)
 class FuelStrategy(Composed):
     """The fuel objective's default (module docstring).  ``first_budget``: the free-motion and interpolation starts
-    get at most this many iterations (their bang-off-bang solutions take IPOPT long from those starts:
-    configs/orbit_raise_fuel.yaml, N = 100, the rollout reached max_iterations in 600 iterations, the interpolation
-    converged in 420 more to 0.8195953).  ``coarse_factor``, ``coarse_min``: the coarse grid; ``coarse_reach``: it
-    starts the solve only when its free motion ends near this grid's (:func:`coarse_resolves`).  ``resolved_fraction``:
-    a warm start on a non-uniform mesh (an adaptive level of refinement to an accuracy, docs/mathematics.md §16) with
-    more than this fraction of the problem's steps resolves the switching times (its finish one exact solve on its own
-    burn nodes: the raise at accuracy 1e-6, 4826 -> 4923 adaptive steps, converged in 91 iterations, guard passed,
-    where the widened rough solve did not converge in 500).  ``guard``, ``structure``, ``homotopy``,
+    get at most this many iterations (IPOPT is slow to their bang-off-bang optima).  ``coarse_factor``,
+    ``coarse_min``: the coarse grid; ``coarse_reach``: it starts the solve only when its free motion ends near this
+    grid's (:func:`coarse_resolves`).  ``resolved_fraction``: a warm start on a non-uniform mesh (an adaptive level of
+    refinement, docs/mathematics.md §16) with more than this fraction of the problem's steps resolves the switching
+    times: its finish is one exact solve on its own burn nodes.  ``guard``, ``structure``, ``homotopy``,
     ``continuation``: the parts (their own parameters; their sub-strategies are wired here)."""
 
     first_budget: int = 600

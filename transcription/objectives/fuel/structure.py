@@ -2,13 +2,11 @@
 grid's optimum on that optimum's switching structure.
 
 On the fine grid the epigraph u = s d of the fuel NLP (:mod:`.nlp`) is what makes IPOPT slow: the (s, d) block of the
-Hessian of the Lagrangian is [[0, -mu^T], [-mu, s w omega I]], indefinite wherever mu is not along d (every coast
-node, every burn node away from the optimum), and IPOPT regularizes it at most iterations (the raise's 400-step finish
-from its 100-step optimum resampled: 362 iterations, 27-31 s; 203 with the coast nodes' (s, d) fixed at 0).  A
-fuel-optimal control is bang-off-bang, and the coarser optimum says where it is off.  So the fine grid is solved on a
-switching structure B (per part, force and moment: the burn nodes), the objective :meth:`Fuel.structured
-<transcription.objectives.fuel.Fuel.structured>` (the NLP's ``l1`` block): on a coast node u_j = 0 and s_j = 0 (their
-bounds); on a burn node
+Hessian of the Lagrangian is [[0, -mu^T], [-mu, s w omega I]], indefinite wherever mu is not along d, and IPOPT
+regularizes it at most iterations.  A fuel-optimal control is bang-off-bang, and the coarser optimum says where it is
+off.  So the fine grid is solved on a switching structure B (per part, force and moment: the burn nodes), the
+objective :meth:`Fuel.structured <transcription.objectives.fuel.Fuel.structured>` (the NLP's ``l1`` block): on a
+coast node u_j = 0 and s_j = 0 (their bounds); on a burn node
 
     rho_delta(u_j) = sqrt(|u_j|^2 + delta^2) - delta <= s_j,   s_j >= 0,   cost sum_j omega_j (w_f s_f,j + w_m s_m,j),
 
@@ -27,21 +25,15 @@ solve (delta = ``rough`` x the scale, IPOPT's own start with the ``cold`` option
 (below ``prune`` x the scale) pruned; the solve with delta = ``exact`` x the scale from there, warm; the guard.  Coast
 nodes with sigma_j > tol join B (their control started at the guard's kick x the scale along mu_j / |mu_j|) and the
 NLP is solved again, warm, and pruned again: at most ``rounds`` solves.  A warm solve that fails is solved once more
-from the same primal point with IPOPT's own barrier start (``cold``): on the raise's adaptive 4826-step level of
-accuracy 1e-6 (from its 200-step optimum) the pruned solve warm from the rough one's multipliers (the barrier at 1e-9)
-wandered (primal infeasibility up to 1.4) and ended Infeasible_Problem_Detected after 59 iterations; from its own
-barrier start the same point converged in 36, the guard passed (docs/mathematics.md §16).  From an adaptive level's
-optimum that resolves the switching times (``resolved``) the finish is one exact solve on the resampled burn nodes,
-neither widened, rough nor pruned, with the objective scaled by N / ``resolved_nodes``.  When the finish does not
-converge or pass the guard, the epigraph NLP is solved from the same start (``fallback``).
+from the same primal point with IPOPT's own barrier start (``cold``).  From an adaptive level's optimum that resolves
+the switching times (``resolved``) the finish is one exact solve on the resampled burn nodes, neither widened, rough
+nor pruned, with the objective scaled by N / ``resolved_nodes``.  When the finish does not converge or pass the
+guard, the epigraph NLP is solved from the same start (``fallback``).
 
 The roundings, the pruning threshold and the widening's kick are fractions of each part's reference r
-(:func:`.homotopy.smoothing_reference`: its bound, or without one the start's largest magnitude): an unbounded
-part's scale is a guess from the boundary data (the raise without its moment bound at N = 100: with the scale the
-finish failed and the epigraph NLP took 1900 iterations, 43 s; with r 786, 7.7 s; docs §24).  A body-fixed engine's
-force has the magnitude a^T u_f = T, linear and exact on the engine's rows: its row is a^T u_f - s_f <= 0 on every
-node (no rounding, never pruned; T = 0 is the engine row's bound, where a fixed u_f = 0 would leave the engine's rows
-constant).
+(:func:`.homotopy.smoothing_reference`: its bound, or without one the start's largest magnitude).  An engine's force
+has the magnitude a^T u_f = T, linear and exact on the engine's rows: its row is a^T u_f - s_f <= 0 on every node (no
+rounding, never pruned; T = 0 is the engine row's bound).  Measurements: docs/mathematics.md §16, §23, §24.
 """
 from __future__ import annotations
 
@@ -112,29 +104,19 @@ def _nodes(burn: np.ndarray) -> str:
 @dataclass(frozen=True)
 class StructuredFinish:
     """The fuel problem from a start near its optimum (a coarser grid's optimum resampled, a level's point, a
-    continuation's optimum) on its switching structure (module docstring); ``label`` names it in the trace.
+    continuation's optimum) on its switching structure (module docstring; the values' reasons: docs/mathematics.md
+    §23-§24); ``label`` names it in the trace.
 
     ``dilate``: the start's burn nodes (magnitude > ``burn_rtol`` x the part's scale) widened by this many nodes on
-    each side (the fine grid resolves the switching times the coarse one rounds to its nodes: the raise 100 -> 400,
-    23 force burn nodes, 29 widened; with the 23 alone its 400-step problem is infeasible).  ``rough``: the rough
-    solve's rounding (x the part's scale), smooth where the widened nodes switch off (with 1e-9 in one solve those
-    nodes pass |u| ~ delta, where the row's curvature is 1e9 times the scale's: from four 100- and 200-step starts
-    90, 214, 330 and 500 (not converged) iterations at N = 400; with 1e-5, 50-84), from IPOPT's own start with
-    ``cold`` (adaptive barrier; with the default monotone barrier 84-129 iterations from those starts).  ``prune``:
-    burn nodes the rough solve took below this x the scale are pruned (coast: there it leaves ~delta of thrust, up
-    to 4e-7 of the raise's cost).  ``exact``: the rounding of the solves on the pruned structure (on burn nodes of
-    |u| >= prune x the scale it moves the gradient by < exact^2 / (2 prune^2) = 5e-7, and the raise's cost at N = 400
-    is 4.5e-10 (relative) above the delta -> 0 limit; 1e-8 after it: 42 more iterations).  ``rounds``: at most this
-    many rounds (a solve and its pruning; a round after the first widens the structure), each within ``budget``
-    iterations.  ``resolved``: the start resolves the switching times (an adaptive level of refinement: module
-    docstring), ``resolved_nodes`` its objective scaling (each node's share of the fuel falls with its step, the
-    barrier's pull does not, so on a fine grid IPOPT's own barrier start wanders: the raise, 4923 -> 6216 adaptive
-    steps, unscaled at primal infeasibility 36 after 80 iterations, scaled by 31 Solve_Succeeded in 38).
-    ``fallback``: the epigraph NLP from the same start with these IPOPT options (the barrier small and the point
-    pushed off its bounds as little as possible, so IPOPT does not first wander away from a point already near an
-    optimum: IPOPT's default mu_init = 0.1 and bound_push = 1e-2 tripled the raise's cost in its first 10
-    iterations), within ``fallback_budget`` iterations (None: max_iter); None: no fallback.  ``guard``: the
-    guard's tolerances and kick (:class:`.guard.Guarded`)."""
+    each side (the fine grid resolves the switching times the coarse one rounds to its nodes).  ``rough``: the rough
+    solve's rounding (x the part's scale), from IPOPT's own start with the ``cold`` options.  ``prune``: burn nodes
+    the rough solve took below this x the scale become coast nodes.  ``exact``: the rounding of the solves on the
+    pruned structure.  ``rounds``: at most this many solves (a round after the first widens the structure), each
+    within ``budget`` iterations.  ``resolved``: the start resolves the switching times (an adaptive level of
+    refinement), its objective scaled by N / ``resolved_nodes``.  ``fallback``: the epigraph NLP from the same start
+    with these IPOPT options (a small barrier, the point pushed off its bounds as little as possible), within
+    ``fallback_budget`` iterations (None: max_iter); None: no fallback.  ``guard``: the guard's tolerances and kick
+    (:class:`.guard.Guarded`)."""
 
     guard: Guarded
     label: str = "structured finish"
