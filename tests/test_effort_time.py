@@ -3,7 +3,6 @@ time in its bounds, checked against the effort objective at fixed final times (a
 fixed-T NLP has no time variable and no time cost)."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 import se3ocp
