@@ -25,8 +25,7 @@ class EffortLaw:
     """The effort objective's conditions (module docstring).  ``eps``: the fuel homotopy's parameter in the bound data
     (0: the saturation); ``replannable``: a re-plan's fixed-h Newton step (transcription.closedloop.mpc) covers it;
     ``from_structure``: the law starts from a solution's switching structure (a direct solution at IPOPT's default tol
-    may not give it: transcription.solve.fuel_retighten).  The fields: the parameters of its outer loops
-    (:mod:`.continuation`)."""
+    may not give it: transcription.solve.fuel_retighten).  The fields: its outer loops' (:mod:`.continuation`)."""
 
     eps: ClassVar[float] = 0.0
     replannable: ClassVar[bool] = True
@@ -64,7 +63,7 @@ class EffortLaw:
 
 @dataclass(frozen=True)
 class TimeLaw(EffortLaw):
-    """The time objective's conditions (module docstring); the fields: its homotopy (:func:`.objectives.solve_time`)."""
+    """The time objective's conditions (module docstring); fields: its homotopy (:func:`.objectives.solve_time`)."""
 
     replannable: ClassVar[bool] = False
     #: when the structure start is not available or fails: the first eps; when that first stage fails (too few nodes
@@ -100,8 +99,7 @@ class TimeLaw(EffortLaw):
 
 @dataclass(frozen=True)
 class FuelLaw(EffortLaw):
-    """The fuel objective's conditions (module docstring); the fields: its homotopy (:func:`.fuel.fuel_homotopy`) and
-    structured finish (:func:`.fuel.structured_finish`)."""
+    """The fuel objective's conditions (module docstring); fields: its homotopy and structured finish (:mod:`.fuel`)."""
 
     eps: ClassVar[float] = 1.0
     replannable: ClassVar[bool] = False
@@ -126,8 +124,8 @@ class FuelLaw(EffortLaw):
     #: interior-point solution sits inside its bounds: the fuel raise's burns at 1 - 4e-5 of b)
     partial_rtol: float = 1e-3
     #: Newton iterations of the structured conditions: from a consistent structure they converge in 1-3 (the bundled
-    #: raise from the tight direct solution: 1); from a wrong one (the raise's default-tol direct solution) they wander,
-    #: 11 iterations at N = 100 to magnitudes outside (0, b), at ~8 s per Jacobian
+    #: raise from the tight direct solution: 1); from a wrong one (the raise's default-tol direct solution) they
+    #: wander, 11 iterations at N = 100 to magnitudes outside (0, b), at ~8 s per Jacobian
     structured_max_iter: int = 8
 
     def not_covered(self, problem: Problem) -> list[str]:

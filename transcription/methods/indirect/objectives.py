@@ -312,14 +312,13 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
 
 def solve_time(shooting, lam, h: float, law, primal: tuple | None = None) -> tuple[NewtonResult, float, dict, tuple]:
     """The time objective from (lambda_0, h) (the direct solution's, :func:`~.solve.initial_costate`) and, when
-    given, that solution's ``primal`` (X (N+1, 18), U), with the homotopy's parameters of ``law`` (a
-    :class:`~.laws.TimeLaw`): the first stage from :func:`structure_start` (eps small, the direct solution's
-    switching structure), else -- or when it fails -- the homotopy in eps from law.eps_start (raised by
-    law.start_raise when that fails) from (lambda_0, h).  Then stages with eps multiplied by law.eps_factor (by its
-    square root after a failed stage), each a :class:`TimeShooting` Newton iteration from the previous solution
-    moved along the path's tangent (:meth:`TimeShooting.predictor`), until two consecutive stages give the same T
-    to law.t_rtol: every switch then has its one interior node, and T and the controls are those of eps = 0
-    (docs/mathematics.md), or eps reaches law.eps_end.
+    given, that solution's ``primal`` (X (N+1, 18), U), by ``law`` (a :class:`~.laws.TimeLaw`): the first stage from
+    :func:`structure_start` (eps small, the direct solution's switching structure), else -- or when it fails -- the
+    homotopy in eps from law.eps_start (raised by law.start_raise when that fails) from (lambda_0, h).  Then stages
+    with eps multiplied by law.eps_factor (by its square root after a failed stage), each a :class:`TimeShooting`
+    Newton iteration from the previous solution moved along the path's tangent (:meth:`TimeShooting.predictor`),
+    until two consecutive stages give the same T to law.t_rtol: every switch then has its one interior node, and T
+    and the controls are those of eps = 0 (docs/mathematics.md), or eps reaches law.eps_end.
     Returns (the last good stage's NewtonResult -- x its lambda_0, its history and iterations those of every
     stage --, h, a summary for the stats (the final eps and e, eps and T per stage, whether T settled, a
     message), the (Winv, bd) of the final eps-law for the rollout of the Solution).  The terminal conditions no
