@@ -262,7 +262,7 @@ def _line_search(red: ReducedRelaxed, pt: _Point, d: np.ndarray, lam: np.ndarray
 
 
 def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, progress,
-                    settings: ImpulsiveSettings) -> ReducedResult:
+                    s: ImpulsiveSettings) -> ReducedResult:
     """Single shooting of the relaxed case in the six unknowns p, started from p0.
 
     Newton's method on the constraint manifold c(y) = 0 (a feasible-point SQP, as in the
@@ -271,7 +271,7 @@ def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, pr
     Lagrangian at the least-squares multipliers (:class:`ReducedRelaxed`); a trial y + alpha d is
     projected back onto c = 0 (:func:`_project`) and accepted when the cost decreases (Armijo on
     g^T d), else alpha is halved.  Z^T H Z is shifted to positive definite if it is not; steps are
-    capped at settings.max_step (scaled units).  A start off the constraint set is projected
+    capped at s.max_step (scaled units).  A start off the constraint set is projected
     first.  Converged when |g + Jc^T lambda|_inf <= tol (the reduced gradient, scaled) at a point
     with |c|_inf <= 1e-12.
 
@@ -288,7 +288,7 @@ def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, pr
     tol, max_iter = float(options.tol), int(options.max_iter)
     history: list[Iterate] = []
     pt = _Point(red, np.asarray(p0, dtype=float) / red.sy)
-    pt, rollouts, ok = _project(pt, settings.projection_tol, 50, damped=True)
+    pt, rollouts, ok = _project(pt, s.projection_tol, 50, damped=True)
     rollouts += 1
     result = Result.max_iterations if ok else Result.infeasible
     for it in range(max_iter + 1 if ok else 0):
@@ -304,8 +304,8 @@ def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, pr
             if progress and inf_du <= tol:
                 progress(rec)
             break
-        d = _reduced_newton_direction(red, pt, lam, Z, Z.T @ g, settings.max_step)
-        trial, alpha, accepted, n = _line_search(red, pt, d, lam, settings)
+        d = _reduced_newton_direction(red, pt, lam, Z, Z.T @ g, s.max_step)
+        trial, alpha, accepted, n = _line_search(red, pt, d, lam, s)
         rollouts += n
         rec = dataclasses.replace(rec, step=alpha)
         history.append(rec)

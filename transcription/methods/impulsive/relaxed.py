@@ -48,7 +48,7 @@ def relaxed_start(problem: Problem, settings: ImpulsiveSettings) -> tuple[np.nda
     hist: list[Iterate] = []
     status = "not_run"
     for kind in ("interpolate", "rollout"):
-        nr, _ = solve_tpbvp(q, initial_momenta(q, kind), settings, tol=1e-12)
+        nr, _ = solve_tpbvp(q, initial_momenta(q, kind), replace(settings, newton_tol=1e-12))
         hist += [replace(r, phase=f"start_{kind}") for r in nr.history]
         status = nr.result.value
         if nr.result.successful:

@@ -50,11 +50,10 @@ def _impulses(problem: Problem, p: np.ndarray, XN: np.ndarray, gp: np.ndarray, P
     return {"dgamma0": p[:3] - a0.gamma[0], "dPi0": p[3:] - a0.Pi[0], "dgammaN": gp - aN.gamma[0], "dPiN": Pp - aN.Pi[0]}
 
 
-def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None,
-             settings: ImpulsiveSettings) -> _Outcome:
+def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None, s: ImpulsiveSettings) -> _Outcome:
     """An orbit target: the feasible start (a TPBVP to a point of the orbit), then single or multiple shooting."""
     t1 = time.perf_counter()
-    p0, history, start_status = relaxed_start(problem, settings)
+    p0, history, start_status = relaxed_start(problem, s)
     start_s = time.perf_counter() - t1
     extra = {"transcription": options.transcription}
     if options.transcription == "multiple_shooting":
@@ -66,7 +65,7 @@ def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None
         solver_name, label = "ipopt", "IPOPT"
         extra["solver_status"] = status
     else:
-        red = relaxed_reduced(problem, p0, options, progress, settings)
+        red = relaxed_reduced(problem, p0, options, progress, s)
         p, result, iterations, build_s, solve_s = red.p, red.result, red.iterations, red.build_s, red.solve_s
         _, gp, Pp = orbit_conditions(red.XN, problem.terminal, problem.model.mass, problem.model.mu)
         min_norm = float(min(np.linalg.norm(v) for v in _impulses(problem, p, red.XN, gp, Pp).values()))
@@ -79,7 +78,7 @@ def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None
     message = f"{label}: {status}; max |C| = {err:.2e} on the re-simulation"
     if result is Result.converged and not err <= options.terminal_tol:
         result = Result.terminal_error
-    if min_norm <= settings.kink_tol:
+    if min_norm <= s.kink_tol:
         result = Result.kink
         message += (f"; an impulse norm is {min_norm:.1e}: the optimum is at a kink of the sum of norms, where the "
                     "smooth formulation does not apply")
@@ -89,7 +88,7 @@ def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None
 
 
 def _state_target(problem: Problem, options: DirectOptions, progress: Progress | None,
-                  settings: ImpulsiveSettings) -> _Outcome:
+                  s: ImpulsiveSettings) -> _Outcome:
     """A state target: the TPBVP by Newton-Armijo from one guess, then from the other if it fails."""
     Xd = problem.terminal.X
     t1 = time.perf_counter()
@@ -97,8 +96,8 @@ def _state_target(problem: Problem, options: DirectOptions, progress: Progress |
     history, attempts, iterations = [], [], 0
     for kind in (first, "rollout" if first == "interpolate" else "interpolate"):
         # Newton may stagnate at a local minimum of |r|: restart from the other guess
-        nr, X = solve_tpbvp(problem, initial_momenta(problem, kind), settings,
-                            max_iter=min(options.max_iter, settings.newton_max_iter), progress=progress)
+        nr, X = solve_tpbvp(problem, initial_momenta(problem, kind),
+                            replace(s, newton_max_iter=min(options.max_iter, s.newton_max_iter)), progress=progress)
         history += [replace(r, phase=kind) for r in nr.history]
         attempts.append(f"{kind}: {nr.result.value} in {nr.iterations} iterations")
         iterations += nr.iterations

@@ -73,11 +73,9 @@ def momentum_scales(problem: Problem) -> np.ndarray:
     return np.r_[np.full(3, sg), np.full(3, sP)]
 
 
-def solve_tpbvp(problem: Problem, p0: np.ndarray, settings: ImpulsiveSettings = ImpulsiveSettings(),
-                tol: float | None = None, max_iter: int | None = None, alpha: float = 1e-4,
+def solve_tpbvp(problem: Problem, p0: np.ndarray, s: ImpulsiveSettings, alpha: float = 1e-4,
                 progress: Callable[[Iterate], None] | None = None) -> tuple[NewtonResult, np.ndarray]:
-    """Newton-Armijo on the six conditions from p0 (tol, max_iter: default the settings' newton_*); returns
-    (NewtonResult, X of its last point)."""
+    """Newton-Armijo on the six conditions from p0 with the settings s; returns (NewtonResult, X of its last point)."""
     Xd = problem.terminal.X
     memo: dict[bytes, tuple[np.ndarray, float]] = {}
 
@@ -96,9 +94,7 @@ def solve_tpbvp(problem: Problem, p0: np.ndarray, settings: ImpulsiveSettings = 
         X, _ = rollout(p)
         return tpbvp_jacobian(X[-1], Xd, sensitivity(problem.disc, X, problem.h))
 
-    s = settings
-    nr = newton_armijo(p0, residual, jacobian, tol=s.newton_tol if tol is None else tol, norm=np.inf, alpha=alpha,
-                       max_iter=s.newton_max_iter if max_iter is None else max_iter, max_halvings=s.newton_max_halvings,
-                       aux_tol=CAYLEY_TOL, step_scale=momentum_scales(problem), stagnation_steps=s.stagnation_steps,
-                       progress=progress)
+    nr = newton_armijo(p0, residual, jacobian, tol=s.newton_tol, norm=np.inf, alpha=alpha, max_iter=s.newton_max_iter,
+                       max_halvings=s.newton_max_halvings, aux_tol=CAYLEY_TOL, step_scale=momentum_scales(problem),
+                       stagnation_steps=s.stagnation_steps, progress=progress)
     return nr, rollout(nr.x)[0]
