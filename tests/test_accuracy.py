@@ -371,12 +371,12 @@ def test_a_tolerance_beyond_max_N_at_the_best_order_stops_after_the_first_level(
     and an adaptive mesh credited with half the steps) -- 7.7e4 (miss 1.5e-2), far above the cap -- so refinement stops after
     that level with one line naming that N and what to raise.  Before, the next level's N (at most 32 times 40 =
     1280, within the cap) was solved first (the bundled slew at 1e-9: two levels, 170-330 s)."""
-    from se3ocp.transcription.strategy.refine import ADAPTIVE_GAIN, BEST_ORDER, next_N
+    from se3ocp.transcription.strategy.refine import BEST_ORDER, Refinement, next_N
 
     sol = se3ocp.solve(maneuver("slew_time_optimal", 40), accuracy=1e-9, max_N=2000)
     assert sol.converged and sol.stats["accuracy_met"] is False and len(sol.mesh) == 1, sol.message
     miss = sol.mesh[0]["miss"]
-    least = 40 * (miss / 1e-9) ** (1 / BEST_ORDER) / ADAPTIVE_GAIN
+    least = 40 * (miss / 1e-9) ** (1 / BEST_ORDER) / Refinement().adaptive_gain
     assert least > 2000 and next_N(40, miss / 1e-9, 2, 2000) <= 2000     # the old rule would have solved a level
     said = [m for m in sol.message.split("; ") if m.startswith("accuracy 1e-09 not reached")]
     assert len(said) == 1 and f"would need N ≈ {least:.2g} even if it fell at O(h^2)" in said[0], sol.message

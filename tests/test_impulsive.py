@@ -15,7 +15,8 @@ from se3ocp.transcription.geometry.state import pack_state, tangent_readback, un
 from se3ocp.transcription.methods.impulsive.reduced import ReducedRelaxed, _null_space
 from se3ocp.transcription.methods.impulsive.relaxed import relaxed_jacobian
 from se3ocp.transcription.methods.impulsive.sensitivity import P_COLS, sensitivity, sensitivity_ad, with_momenta
-from se3ocp.transcription.methods.impulsive.tpbvp import initial_momenta, solve_tpbvp, tpbvp_jacobian, tpbvp_residual
+from se3ocp.transcription.methods.impulsive.tpbvp import (ImpulsiveSettings, initial_momenta, solve_tpbvp,
+                                                          tpbvp_jacobian, tpbvp_residual)
 from se3ocp.transcription.geometry.so3 import exp_so3, hat, log_so3
 from se3ocp.transcription.ocp import orbit_conditions
 from se3ocp.transcription.outcome import Result
@@ -146,7 +147,7 @@ def test_e1_tpbvp_small(scheme):
 
 def test_e1_failure_is_data():
     p = problem("e1", 100)
-    nr, X = solve_tpbvp(p, initial_momenta(p, "rollout"), max_iter=1)
+    nr, X = solve_tpbvp(p, initial_momenta(p, "rollout"), ImpulsiveSettings(newton_max_iter=1))
     assert nr.result is Result.max_iterations and nr.iterations == 1 and X.shape == (101, 18)
     with pytest.raises(ValueError, match="indirect method applies to smooth maneuvers"):
         se3ocp.solve(maneuver("e1", 100), "indirect")

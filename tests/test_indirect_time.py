@@ -183,13 +183,14 @@ def test_the_homotopy_from_the_direct_costates_reaches_the_same_T(monkeypatch):
     """Without the structure start (the path taken when it fails): from the direct lambda_0 and T at eps = 1e-2,
     eps halved along the path's tangent until T settles -- Betts' slew at N = 100 (measured: 5 stages, 1 retried)."""
     from se3ocp.transcription.methods.indirect import objectives
+    from se3ocp.transcription.methods.indirect.laws import TimeLaw
 
     cmp = both("slew_time_optimal", 100)
     monkeypatch.setattr(objectives, "structure_start", lambda *args: None)
     again = se3ocp.solve(support.maneuver("slew_time_optimal", 100), "indirect", warm_start=cmp.direct)
     stages = again.stats["time_homotopy"]["stages"]
     print(again.stats["time_homotopy"]["message"])
-    assert again.converged and stages[0]["eps"] == objectives.TIME_EPS_START
+    assert again.converged and stages[0]["eps"] == TimeLaw().eps_start
     assert abs(again.cost - cmp.indirect.cost) <= 1e-12 * cmp.indirect.cost
 
 

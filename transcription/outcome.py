@@ -93,7 +93,6 @@ def result_of_solver_status(status: str) -> Result:
     return _SOLVER_STATUS.get(status, Result.solver_failed)
 
 
-
 @dataclass(frozen=True)
 class Iterate:
     """One progress record, the same for every method (history entries and progress callbacks).

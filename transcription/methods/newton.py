@@ -37,8 +37,6 @@ import numpy as np
 
 from ..outcome import Iterate, Result
 
-_EPS = np.finfo(float).eps
-
 
 @dataclass
 class NewtonResult:
@@ -69,7 +67,7 @@ def noise_level(residual: Callable[[np.ndarray], np.ndarray], x: np.ndarray, F: 
     rng = np.random.default_rng(seed)
     out = 0.0
     for _ in range(n):
-        xp = x * (1.0 + ulps * _EPS * rng.standard_normal(x.size))
+        xp = x * (1.0 + ulps * np.finfo(float).eps * rng.standard_normal(x.size))
         out = max(out, float(np.linalg.norm(residual(xp) - F - J @ (xp - x))))
     return out
 

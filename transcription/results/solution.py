@@ -258,9 +258,6 @@ class Solution:
         return out
 
 
-
-
-
 #: the colour of a status in notebooks (as in report.html: converged green, not applicable grey, else red)
 _STATUS_COLOUR = {True: "#1a7f37", None: "#6e7781", False: "#cf222e"}
 

@@ -12,19 +12,36 @@ Two pieces, used by :func:`transcription.strategy.refine.refine`:
   constant over the old steps, sum_k C_k h_k^{p+1} is least for a given number of steps when the steps are
   h(t) = a C(t)^(-1/p), i.e. when every step's error per unit time is the same (equidistribution); then
   sum_k e_k = a^p T, and a is chosen for the sum asked.  The node density 1/h(t) is bounded per level to at
-  most GROWTH times the old one and at least 1/MERGE of it (a step may be split into up to GROWTH, and up to
-  MERGE steps merged), and each step's density is the largest of its own and its neighbours' (a margin where
-  the error changes fast).
+  most split times the old one and at least 1/merge of it (a step may be split into up to split, and up to
+  merge steps merged: :class:`Refinement`), and each step's density is the largest of its own and its neighbours' (a
+  margin where the error changes fast).
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..geometry.state import NZ, unpack_states
 from ..geometry.so3 import log_so3_batch
 
-#: per level, a step is split into at most GROWTH steps and at most MERGE steps are merged into one
-GROWTH, MERGE = 32.0, 4.0
+
+@dataclass(frozen=True)
+class Refinement:
+    """The parameters of refinement to a tolerance: each level's N (:mod:`.refine`) and adaptive mesh (this module)."""
+
+    #: N of the next level = safety N (miss / tol)^(1/p), at least twice N and at most growth N
+    safety: float = 1.2
+    growth: int = 32
+    #: the most an adaptive mesh is credited with over a uniform one of the same order: steps / adaptive_gain (measured
+    #: savings over the ideal uniform mesh: 27 % on the slew at 1e-6, 8-11 % on E3 and E4, docs/mathematics.md §16)
+    adaptive_gain: float = 2.0
+    #: per level, a step is split into at most split steps and at most merge steps are merged into one
+    split: float = 32.0
+    merge: float = 4.0
+    max_targets: int = 32   # at most this many violated node intervals (the worst) set the drift's steps of one level
+    #: the least share of the path tolerance left to the chords between the nodes, and to the drift before them
+    min_share: float = 0.05
 
 
 def local_errors(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int) -> np.ndarray:
@@ -89,9 +106,10 @@ def error_estimate(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, ord
     return tangent_norms(c, problem, L, V), float(tangent_norms(c.sum(axis=0), problem, L, V)[0])
 
 
-def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
+def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, total: float,
+                            rules: Refinement = Refinement()) -> np.ndarray:
     """The node density 1/h(t) (N,) on the old steps h (N,) whose local errors, e (N,) now, sum to about ``total``
-    equidistributed in time (module docstring; p = ``order``), bounded to [1/MERGE, GROWTH] times the old one."""
+    equidistributed in time (module docstring; p = ``order``), bounded to [1/merge, split] times the old one."""
     h = np.asarray(steps, dtype=float)
     e = np.asarray(errors, dtype=float)
     T = float(h.sum())
@@ -99,7 +117,7 @@ def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, t
     C = np.maximum(C, 1e-12 * max(C.max(initial=0.0), 1e-300))
     C = np.max(np.stack([C, np.r_[C[:1], C[:-1]], np.r_[C[1:], C[-1:]]]), axis=0)   # a neighbour's error counts
     a = (max(total, 1e-300) / T) ** (1.0 / order)
-    return np.clip(C ** (1.0 / order) / a, 1.0 / (MERGE * h), GROWTH / h)
+    return np.clip(C ** (1.0 / order) / a, 1.0 / (rules.merge * h), rules.split / h)
 
 
 def density_steps(steps: np.ndarray, density: np.ndarray) -> np.ndarray:
@@ -115,10 +133,11 @@ def density_steps(steps: np.ndarray, density: np.ndarray) -> np.ndarray:
     return np.diff(t_new)
 
 
-def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, total: float) -> np.ndarray:
+def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, total: float,
+                          rules: Refinement = Refinement()) -> np.ndarray:
     """New step sizes (N',) over the same horizon whose local errors sum to about ``total`` and are
     equidistributed in time (module docstring): steps h (N,), their local errors e (N,), the scheme's order p."""
-    return density_steps(steps, equidistributed_density(steps, errors, order, total))
+    return density_steps(steps, equidistributed_density(steps, errors, order, total, rules))
 
 
 def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
@@ -133,11 +152,6 @@ def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- path constraints between the nodes (§16)
-#: at most this many violated node intervals (the worst) set the drift's step sizes of one level
-MAX_TARGETS = 32
-#: the least share of the path tolerance left to the chords between the nodes, and to the drift before them
-MIN_SHARE = 0.05
-
 
 def interval_margins(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, scales, samples: int,
                      restart: bool) -> np.ndarray:
@@ -199,7 +213,7 @@ def drift_shares(A: np.ndarray, z: np.ndarray, nodes: np.ndarray, w: np.ndarray)
 
 
 def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int, tol: float, scales,
-                 samples: int) -> np.ndarray | None:
+                 samples: int, rules: Refinement = Refinement()) -> np.ndarray | None:
     """The node density (N,) (nodes per unit time on each old step; 0 where the path constraints ask nothing) that
     aims the flown path's violation of the path constraints between the nodes at ``tol``; None when the flight
     leaves no constraint by more than tol (docs/mathematics.md §16, "Path constraints between the nodes").
@@ -211,48 +225,49 @@ def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     split where the two rules need the fewest steps together (:func:`chord_share`).
     Every step whose chord -- near a contact at least its sagitta (:func:`contact_sagitta`), the chord it has when
     the re-solved plan's contact falls inside it -- is over its share gets h_k sqrt(tol_c / c_k); before each
-    violated interval whose drift is over tol_d (the MAX_TARGETS worst), the steps equidistribute their drift shares
+    violated interval whose drift is over tol_d (the max_targets worst), the steps equidistribute their drift shares
     with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the
     LGVI D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest
-    density of the rules is kept, on each step and its two neighbours, at most GROWTH times the old one."""
+    density of the rules is kept, on each step and its two neighbours, at most split times the old one."""
     h = np.asarray(steps, float)
     gi = interval_margins(problem, X, U, h, scales, samples, restart=False).min(axis=2)
     v, worst = np.maximum(-gi.min(axis=0), 0.0), np.argmin(gi, axis=0)
     gs = interval_margins(problem, X, U, h, scales, samples, restart=True)
     c = np.maximum(-gs.min(axis=(0, 2)), 0.0)
     chord = np.maximum(c, contact_sagitta(problem, X, gs, scales))
-    targets = np.argsort(-v)[:MAX_TARGETS]
+    targets = np.argsort(-v)[:rules.max_targets]
     targets = targets[v[targets] > tol]
     if not targets.size:
         over = chord > tol
-        return _with_neighbours(np.where(over, np.sqrt(chord / tol) / h, 0.0), h) if np.any(over) else None
+        return _with_neighbours(np.where(over, np.sqrt(chord / tol) / h, 0.0), h, rules.split) if over.any() else None
     z, A = local_errors(problem, X, U, h, order), variations(problem, X, U, h)
     w = np.vstack([margin_gradients(problem.constraints[worst[k]], X[k + 1], scales[worst[k]], problem.model.mass,
                                     problem.model.inertia) for k in targets])
     S = drift_shares(A, z, targets + 1, w)
-    tol_c = chord_share(h, chord, S[0, :targets[0] + 1], order, tol)
+    tol_c = chord_share(h, chord, S[0, :targets[0] + 1], order, tol, rules.min_share)
     tol_d = tol - tol_c
     dens = np.where(chord > tol_c, np.sqrt(chord / tol_c) / h, 0.0)
     for i, k in enumerate(targets):
         d, D = v[k] - c[k], S[i, :k + 1]
         if d > tol_d and D.sum() > 0:     # the shares' sum aimed at tol_d D / d: calibrated by the flight's drift
-            dens[:k + 1] = np.maximum(dens[:k + 1], equidistributed_density(h[:k + 1], D, order, tol_d * D.sum() / d))
-    return _with_neighbours(dens, h)
+            dens[:k + 1] = np.maximum(dens[:k + 1], equidistributed_density(h[:k + 1], D, order, tol_d * D.sum() / d, rules))
+    return _with_neighbours(dens, h, rules.split)
 
 
-def chord_share(steps: np.ndarray, chord: np.ndarray, shares: np.ndarray, order: int, tol: float) -> float:
+def chord_share(steps: np.ndarray, chord: np.ndarray, shares: np.ndarray, order: int, tol: float,
+                min_share: float = Refinement.min_share) -> float:
     """tol_c: the part of ``tol`` for the chords (the rest, tol - tol_c, for the drift) for which the two rules of
     :func:`path_density` need the fewest steps together.  The chords' rule needs N_c = a / sqrt(tol_c) steps,
     a = sum over the steps with a chord of sqrt(c_k); equidistributing the worst interval's drift ``shares`` S_k
     (its first len(shares) steps, of total length T_s) needs N_d = b / tol_d^(1/p), b = T_s^(1/p) sum_k h_k
     (S_k / h_k^(p+1))^(1/p).  For p = 2 the least a / sqrt(tol_c) + b / sqrt(tol - tol_c) is at
-    tol_c / tol_d = (a / b)^(2/3); the chords' part is kept within [MIN_SHARE, 1 - MIN_SHARE] tol."""
+    tol_c / tol_d = (a / b)^(2/3); the chords' part is kept within [min_share, 1 - min_share] tol."""
     h = np.asarray(steps, float)
     a = float(np.sqrt(np.maximum(chord, 0.0)).sum())
     hs = h[:len(shares)]
     b = float(hs.sum() ** (1.0 / order) * (hs * (np.asarray(shares) / hs ** (order + 1)) ** (1.0 / order)).sum())
     q = (a / b) ** (2.0 / 3.0) if b > 0 else np.inf
-    return tol * float(np.clip(q / (1.0 + q) if np.isfinite(q) else 1.0, MIN_SHARE, 1.0 - MIN_SHARE))
+    return tol * float(np.clip(q / (1.0 + q) if np.isfinite(q) else 1.0, min_share, 1.0 - min_share))
 
 
 def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarray:
@@ -277,14 +292,13 @@ def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarra
     return np.max(np.minimum(sag, side), axis=0)
 
 
-def _with_neighbours(dens: np.ndarray, h: np.ndarray) -> np.ndarray:
+def _with_neighbours(dens: np.ndarray, h: np.ndarray, split: float) -> np.ndarray:
     """Each step's density the largest of its own and its two neighbours' (the re-solved plan's contact moves by
-    about a step: an arc's end must not land in a step left coarse), at most GROWTH / h_k."""
+    about a step: an arc's end must not land in a step left coarse), at most split / h_k."""
     return np.minimum(np.max(np.stack([dens, np.r_[dens[:1], dens[:-1]], np.r_[dens[1:], dens[-1:]]]), axis=0),
-                      GROWTH / h)
+                      split / h)
 
 
-__all__ = ["GROWTH", "MAX_TARGETS", "MERGE", "MIN_SHARE", "chord_share", "contact_sagitta", "density_steps",
-           "drift_shares", "equidistributed_density", "equidistributed_steps", "error_estimate", "interval_margins",
-           "local_errors", "margin_gradients", "path_density", "propagated_errors", "subdivided_steps", "tangent_norms",
-           "variations"]
+__all__ = ["Refinement", "chord_share", "contact_sagitta", "density_steps", "drift_shares", "equidistributed_density",
+           "equidistributed_steps", "error_estimate", "interval_margins", "local_errors", "margin_gradients",
+           "path_density", "propagated_errors", "subdivided_steps", "tangent_norms", "variations"]

@@ -21,11 +21,13 @@ from ..results.check import characteristic_length as _length, scaled_miss
 from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
+from .mesh import (Refinement, density_steps, equidistributed_density, equidistributed_steps, error_estimate,
+                   path_density, subdivided_steps)
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..solve import Comparison
 
-__all__ = ["CHECK_ENV", "AccuracyOptions", "attach_checks", "out_of_reach", "refine", "scaled_miss"]
+__all__ = ["CHECK_ENV", "AccuracyOptions", "Refinement", "attach_checks", "out_of_reach", "refine", "scaled_miss"]
 
 def _solutions(out: "Solution | Comparison") -> list[Solution]:
     return list(out.solutions.values()) if hasattr(out, "solutions") else [out]
@@ -56,15 +58,10 @@ def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
 # ---------------------------------------------------------------------------- refinement to a tolerance
 #: the order of each scheme's global error in h (docs/mathematics.md §2, §3; measured slopes 2.00 and 1.04)
 ORDER = {"lgvi": 2, "first_order": 1}
-#: N of the next level = SAFETY N (miss / tol)^(1/p), at least twice N and at most GROWTH N
-SAFETY, GROWTH = 1.2, 32
 #: the most favourable order a level's miss may fall with: the best of the schemes' (the LGVI's 2).  The first-order
 #: scheme can reach it too -- on the rest-to-rest time-optimal slew its miss falls from 3.9e-4 at N = 200 to 4.9e-7 at
 #: N = 6400, slope 1.93 -- so its nominal ORDER of 1 would wrongly refuse a tolerance it reaches
 BEST_ORDER = max(ORDER.values())
-#: the most an adaptive mesh is credited with over a uniform one of the same order: steps / ADAPTIVE_GAIN (measured
-#: savings over the ideal uniform mesh: 27 % on the slew at 1e-6, 8-11 % on E3 and E4, docs/mathematics.md §16)
-ADAPTIVE_GAIN = 2.0
 
 
 def path_violation(check, problem) -> float:
@@ -88,14 +85,12 @@ def margin_scales(problem) -> list[float]:
     return [scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
 
 
-
-
-def next_N(N: int, ratio: float, order: float, max_N: int) -> int:
+def next_N(N: int, ratio: float, order: float, max_N: int, rules: Refinement = Refinement()) -> int:
     """The N of the next level from this level's error ratio (miss / tol, > 1) and the scheme's observed order:
-    SAFETY N ratio^(1/order), at least 2 N (uniform doubling at least), at most GROWTH N; not capped at max_N
+    safety N ratio^(1/order), at least 2 N (uniform doubling at least), at most growth N; not capped at max_N
     (the caller refuses a level beyond it)."""
-    want = SAFETY * N * ratio ** (1.0 / order) if np.isfinite(ratio) else 2 * N
-    return int(min(max(np.ceil(want), 2 * N), GROWTH * N))
+    want = rules.safety * N * ratio ** (1.0 / order) if np.isfinite(ratio) else 2 * N
+    return int(min(max(np.ceil(want), 2 * N), rules.growth * N))
 
 
 def observed_order(levels: list[dict], scheme: str) -> float:
@@ -111,7 +106,8 @@ def observed_order(levels: list[dict], scheme: str) -> float:
     return p
 
 
-def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: bool = False) -> "Solution | Comparison":
+def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: bool = False,
+           rules: Refinement = Refinement()) -> "Solution | Comparison":
     """Solve ``problem`` on refined meshes until the continuous check lands within ``opts.accuracy``
     (docs/mathematics.md §11, "Refinement to a tolerance"; §16, the adaptive mesh).
 
@@ -123,7 +119,7 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
     within the tolerance, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.  The last
     level's result is returned, its Solutions carrying the mesh history (``sol.mesh``: level, N, mesh, h_min,
     h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']`` and a
-    sentence in the message."""
+    sentence in the message.  ``rules``: how each next level is chosen (:class:`~.mesh.Refinement`)."""
     tol, levels, prob = float(opts.accuracy), [], problem
     while True:
         t0 = time.perf_counter()
@@ -137,14 +133,15 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
         if not worst > 1.0:
             return _finish(out, levels, True, f"refined to accuracy {tol:.3g}: continuous miss {rec['miss']:.2e} at "
                                               f"N = {prob.N} after {len(levels)} level(s)")
-        least = least_N(prob.N, worst, adaptive)
+        least = least_N(prob.N, worst, adaptive, rules)
         if least > opts.max_N:    # even the most favourable order cannot land within max_N: no further level
-            return _finish(out, levels, False, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N))
+            return _finish(out, levels, False, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N,
+                                                                     rules))
         p = observed_order(levels, prob.scheme)
-        mesh = next_mesh(prob, best, rec, tol, p) if adaptive else None
+        mesh = next_mesh(prob, best, rec, tol, p, rules) if adaptive else None
         if mesh is not None:      # the miss this level's error estimate predicts (its calibration)
             rec["predicted"] = float(mesh[1])
-        N = next_N(prob.N, worst, p, opts.max_N) if mesh is None else len(mesh[0])
+        N = next_N(prob.N, worst, p, opts.max_N, rules) if mesh is None else len(mesh[0])
         if N > opts.max_N or len(levels) >= opts.max_levels:
             limit = f"solver.max_N = {opts.max_N}" if N > opts.max_N else f"solver.max_levels = {opts.max_levels}"
             return _finish(out, levels, False, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit))
@@ -152,71 +149,70 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
         prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=None if mesh is None else mesh[0]), best.warm
 
 
-def least_N(N: int, ratio: float, adaptive: bool) -> float:
+def least_N(N: int, ratio: float, adaptive: bool, rules: Refinement = Refinement()) -> float:
     """The fewest steps that could bring a level's error (``ratio`` = miss / tol, > 1, at N steps) within the
-    tolerance: N ratio^(1/BEST_ORDER), divided by ADAPTIVE_GAIN on an adaptive mesh -- an optimistic estimate, so
+    tolerance: N ratio^(1/BEST_ORDER), divided by adaptive_gain on an adaptive mesh -- an optimistic estimate, so
     that a tolerance it puts above max_N is out of reach whichever order the scheme shows (docs/mathematics.md §16,
     "Out of reach after the first level")."""
-    return N * ratio ** (1.0 / BEST_ORDER) / (ADAPTIVE_GAIN if adaptive else 1.0)
+    return N * ratio ** (1.0 / BEST_ORDER) / (rules.adaptive_gain if adaptive else 1.0)
 
 
-def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int) -> str:
+def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int,
+                          rules: Refinement) -> str:
     """'accuracy 1e-09 not reached: the continuous miss 6.01e-04 at N = 200 would need N ≈ 7.8e+04 even if it
     fell at O(h^2), ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
     what = (f"the continuous miss {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
             f"the path violation {rec['path_violation']:.2e}")
-    gain = f", with an adaptive mesh credited with {ADAPTIVE_GAIN:g} times fewer steps" if adaptive else ""
+    gain = f", with an adaptive mesh credited with {rules.adaptive_gain:g} times fewer steps" if adaptive else ""
     return (f"accuracy {tol:.3g} not reached: {what} at N = {N} would need N ≈ {least:.2g} even if it fell at "
             f"O(h^{BEST_ORDER}), the best order of either scheme{gain}, above solver.max_N = {max_N}, so no further "
             f"level was solved: raise solver.max_N to at least {least:.2g} or loosen solver.accuracy")
 
 
-def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float) -> tuple[np.ndarray, float]:
+def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float,
+              rules: Refinement) -> tuple[np.ndarray, float]:
     """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
     §16): the local error of every step by step doubling, propagated to the final node (transcription.strategy.mesh); the
-    steps equidistribute it with the sum of the shares e_k aimed at tol / SAFETY times the measured miss's share of
+    steps equidistribute it with the sum of the shares e_k aimed at tol / safety times the measured miss's share of
     that sum (the estimate calibrated by the flight).  When the flown path leaves a path constraint between the
     nodes by more than tol, :func:`path_mesh` refines also where that violation is made: the steps before it, whose
     local errors drift the flown path off the plan there (the keep-out slew's contact at t = 5 s: 98 % of its
     9.9e-5 rad at N = 100 is that drift, 1.7e-6 the chord between the nodes -- why splitting only the steps where the
     cone is left moved it from 9.7e-5 to 8.9e-5 rad in 8 levels), and the steps about a contact.  If that rule
     finds nothing, the mesh is subdivided in its own density by the uniform factor of :func:`next_N`."""
-    from .mesh import equidistributed_steps, error_estimate, subdivided_steps
-
     p = ORDER[problem.scheme]
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
     e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, L, V)
     if rec["path_violation"] > tol:
-        mesh = path_mesh(problem, best, e, rec, tol)
+        mesh = path_mesh(problem, best, e, rec, tol, rules)
         if mesh is not None:
             return mesh, predicted
     if rec["path_violation"] > rec["miss"] or not (e.sum() > 0 and rec["miss"] > 0):
-        factor = next_N(problem.N, max(rec["miss"], rec["path_violation"]) / tol, order, 0) / problem.N
+        factor = next_N(problem.N, max(rec["miss"], rec["path_violation"]) / tol, order, 0, rules) / problem.N
         return subdivided_steps(best.steps, factor), predicted
-    return equidistributed_steps(best.steps, e, p, tol / SAFETY * e.sum() / rec["miss"]), predicted
+    return equidistributed_steps(best.steps, e, p, tol / rules.safety * e.sum() / rec["miss"], rules), predicted
 
 
-def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float) -> np.ndarray | None:
+def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rules: Refinement) -> np.ndarray | None:
     """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
     (docs/mathematics.md §16, "Path constraints between the nodes"): the node density of the terminal miss's rule
     (:func:`next_mesh`; 1 / h_k, the mesh kept, when there is no miss to aim at) and that of
     transcription.strategy.mesh.path_density (the steps about a contact and the steps whose local errors drift the path to a
-    violation, aimed at tol / SAFETY), the larger of the two on every step.  None when the path rule finds nothing
+    violation, aimed at tol / safety), the larger of the two on every step.  None when the path rule finds nothing
     over the tolerance (the caller subdivides)."""
     from ..dynamics.flight import DEFAULT_SAMPLES, FlightError
-    from .mesh import density_steps, equidistributed_density, path_density
 
     p, h = ORDER[problem.scheme], best.steps
     try:
-        dens = path_density(problem, best.trajectory.X, best.controls, h, p, tol / SAFETY, margin_scales(problem),
-                            DEFAULT_SAMPLES)
+        dens = path_density(problem, best.trajectory.X, best.controls, h, p, tol / rules.safety,
+                            margin_scales(problem), DEFAULT_SAMPLES, rules)
     except FlightError:       # an interval flown from its own node failed: subdivide as before
         dens = None
     if dens is None:
         return None
     if e.sum() > 0 and rec["miss"] > 0:
-        dens = np.maximum(dens, equidistributed_density(h, e, p, tol / SAFETY * e.sum() / rec["miss"]))
+        dens = np.maximum(dens, equidistributed_density(h, e, p, tol / rules.safety * e.sum() / rec["miss"], rules))
     else:
         dens = np.maximum(dens, 1.0 / h)
     return density_steps(h, dens)

@@ -47,12 +47,12 @@ back at X_N (a second AD route, for the tests).
   :func:`.relaxed.relaxed_jacobian` gives the Phi-based gradient dC/dp, used by the tests to check the
   reduced KKT conditions of the returned solution.
 
-Options: the direct method's (:class:`~transcription.options.DirectOptions`): ``transcription``
-(relaxed); ``tol``, ``max_iter`` (single shooting: the scaled reduced gradient and the iteration
-limit; multiple shooting: IPOPT's; ``max_iter`` also bounds the TPBVP's Newton iterations, at
-most NEWTON_MAX_ITER); ``options`` (raw IPOPT options, multiple shooting); ``jit``; ``initial_guess`` 'rollout' (no impulse) or
-'interpolate' (Pi_0^+ = J log(R_0^T R_d)/T) for the TPBVP, which restarts from the other guess if
-Newton fails from the first; ``terminal_tol`` the largest max |C| of a converged relaxed solve.
+Options: the direct method's (:class:`~transcription.options.DirectOptions`): ``transcription`` (relaxed); ``tol``,
+``max_iter`` (single shooting: the scaled reduced gradient and the iteration limit; multiple shooting: IPOPT's;
+``max_iter`` also bounds the TPBVP's Newton iterations, at most newton_max_iter); ``options`` (raw IPOPT options,
+multiple shooting); ``jit``; ``initial_guess`` 'rollout' (no impulse) or 'interpolate' (Pi_0^+ = J log(R_0^T R_d)/T)
+for the TPBVP, which restarts from the other guess if Newton fails from the first; ``terminal_tol`` the largest
+max |C| of a converged relaxed solve.  Numerical parameters: :class:`ImpulsiveSettings`, a field of :class:`Impulsive`.
 
 Modules: :mod:`.sensitivity` (Phi), :mod:`.tpbvp` (the state target), :mod:`.relaxed` (the orbit target's start,
 gradient and multiple-shooting NLP), :mod:`.reduced` (its single shooting), :mod:`.solve` (the solve; :class:`Impulsive`,
@@ -60,6 +60,6 @@ the method).
 """
 from __future__ import annotations
 
-from .solve import Impulsive, not_covered, solve_impulsive
+from .solve import Impulsive, ImpulsiveSettings, not_covered, solve_impulsive
 
-__all__ = ["Impulsive", "not_covered", "solve_impulsive"]
+__all__ = ["Impulsive", "ImpulsiveSettings", "not_covered", "solve_impulsive"]

@@ -20,10 +20,7 @@ from ...ocp import Problem, orbit_conditions
 from ...outcome import Iterate, Result
 from .relaxed import relaxed_unknown_scales
 from .sensitivity import P_ROWS_X
-from .tpbvp import simulate_momenta
-
-#: single shooting of the relaxed case: the step cap in scaled unknowns
-MAX_STEP = 1.0
+from .tpbvp import ImpulsiveSettings, simulate_momenta
 
 
 @per_discretization
@@ -170,11 +167,6 @@ def _null_space(Jc: np.ndarray) -> np.ndarray:
     return Q[:, Jc.shape[0]:]
 
 
-#: the projection onto c = 0 stops at |c|_inf <= this (scaled); below the test tolerances, above round-off
-PROJECTION_TOL = 1e-12
-PROJECTION_MAX_ITER = 8
-
-
 class _Point:
     """A point y of the reduced problem with its rollout, values and (lazily) first derivatives."""
 
@@ -241,38 +233,36 @@ class ReducedResult:
     XN: np.ndarray
 
 
-def _reduced_newton_direction(red: ReducedRelaxed, pt: _Point, lam: np.ndarray, Z: np.ndarray,
-                              rg: np.ndarray) -> np.ndarray:
-    """d = -Z (Z^T H Z + delta I)^-1 Z^T g, Z^T H Z shifted to positive definite if it is not, capped at MAX_STEP."""
+def _reduced_newton_direction(red: ReducedRelaxed, pt: _Point, lam: np.ndarray, Z: np.ndarray, rg: np.ndarray,
+                              max_step: float) -> np.ndarray:
+    """d = -Z (Z^T H Z + delta I)^-1 Z^T g, Z^T H Z shifted to positive definite if it is not, capped at max_step."""
     Hr = Z.T @ red.hessian(pt.X, pt.y, lam, pt.d1) @ Z
     ev = np.linalg.eigvalsh(Hr)
     delta = 0.0 if ev[0] > 1e-12 * max(1.0, ev[-1]) else -ev[0] + 1e-4 * max(1.0, abs(ev[-1]))
     d = -Z @ np.linalg.solve(Hr + delta * np.eye(Hr.shape[0]), rg)
-    return d * min(1.0, MAX_STEP / max(np.abs(d).max(), 1e-300))
+    return d * min(1.0, max_step / max(np.abs(d).max(), 1e-300))
 
 
-#: Armijo constant of the reduced line search
-ARMIJO = 1e-4
-
-
-def _line_search(red: ReducedRelaxed, pt: _Point, d: np.ndarray, lam: np.ndarray) -> tuple[_Point, float, bool, int]:
-    """Halve alpha until the projected trial y + alpha d decreases f + lam^T c by Armijo's rule on g^T d:
-    (trial, alpha, accepted, rollouts)."""
+def _line_search(red: ReducedRelaxed, pt: _Point, d: np.ndarray, lam: np.ndarray,
+                 s: ImpulsiveSettings) -> tuple[_Point, float, bool, int]:
+    """Halve alpha until the projected trial y + alpha d decreases f + lam^T c by Armijo's rule on g^T d (s.armijo;
+    the projection's s.projection_*): (trial, alpha, accepted, rollouts)."""
     D = float(pt.d1["g"] @ d)
     alpha, rollouts, trial = 1.0, 0, pt
     while alpha >= 1e-8:
-        trial, n, ok = _project(_Point(red, pt.y + alpha * d), PROJECTION_TOL, PROJECTION_MAX_ITER, damped=False)
+        trial, n, ok = _project(_Point(red, pt.y + alpha * d), s.projection_tol, s.projection_max_iter, damped=False)
         rollouts += n + 1
-        # compare f + lam^T c (the trial and pt satisfy c = 0 only to PROJECTION_TOL, which moves f by
+        # compare f + lam^T c (the trial and pt satisfy c = 0 only to projection_tol, which moves f by
         # lam^T c, more than the last Newton steps gain); allow 10 ulp of |f| for round-off
         slack = 10 * np.finfo(float).eps * abs(pt.f)
-        if ok and trial.f + lam @ trial.c <= pt.f + lam @ pt.c + ARMIJO * alpha * D + slack:
+        if ok and trial.f + lam @ trial.c <= pt.f + lam @ pt.c + s.armijo * alpha * D + slack:
             return trial, alpha, True, rollouts
         alpha *= 0.5
     return trial, alpha, False, rollouts
 
 
-def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, progress) -> ReducedResult:
+def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, progress,
+                    s: ImpulsiveSettings) -> ReducedResult:
     """Single shooting of the relaxed case in the six unknowns p, started from p0.
 
     Newton's method on the constraint manifold c(y) = 0 (a feasible-point SQP, as in the
@@ -281,7 +271,7 @@ def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, pr
     Lagrangian at the least-squares multipliers (:class:`ReducedRelaxed`); a trial y + alpha d is
     projected back onto c = 0 (:func:`_project`) and accepted when the cost decreases (Armijo on
     g^T d), else alpha is halved.  Z^T H Z is shifted to positive definite if it is not; steps are
-    capped at MAX_STEP (scaled units).  A start off the constraint set is projected
+    capped at s.max_step (scaled units).  A start off the constraint set is projected
     first.  Converged when |g + Jc^T lambda|_inf <= tol (the reduced gradient, scaled) at a point
     with |c|_inf <= 1e-12.
 
@@ -298,7 +288,7 @@ def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, pr
     tol, max_iter = float(options.tol), int(options.max_iter)
     history: list[Iterate] = []
     pt = _Point(red, np.asarray(p0, dtype=float) / red.sy)
-    pt, rollouts, ok = _project(pt, PROJECTION_TOL, 50, damped=True)
+    pt, rollouts, ok = _project(pt, s.projection_tol, 50, damped=True)
     rollouts += 1
     result = Result.max_iterations if ok else Result.infeasible
     for it in range(max_iter + 1 if ok else 0):
@@ -314,7 +304,8 @@ def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, pr
             if progress and inf_du <= tol:
                 progress(rec)
             break
-        trial, alpha, accepted, n = _line_search(red, pt, _reduced_newton_direction(red, pt, lam, Z, Z.T @ g), lam)
+        d = _reduced_newton_direction(red, pt, lam, Z, Z.T @ g, s.max_step)
+        trial, alpha, accepted, n = _line_search(red, pt, d, lam, s)
         rollouts += n
         rec = dataclasses.replace(rec, step=alpha)
         history.append(rec)

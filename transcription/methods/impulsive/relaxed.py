@@ -21,7 +21,7 @@ from ...options import DirectOptions
 from ...ocp import Problem, TargetOrbit, TargetState, orbit_conditions
 from ...outcome import Iterate
 from .sensitivity import P_COLS
-from .tpbvp import initial_momenta, momentum_scales, simulate_momenta, solve_tpbvp
+from .tpbvp import ImpulsiveSettings, initial_momenta, momentum_scales, simulate_momenta, solve_tpbvp
 
 
 def relaxed_jacobian(XN: np.ndarray, target: TargetOrbit, Phi: np.ndarray) -> np.ndarray:
@@ -40,7 +40,7 @@ def relaxed_jacobian(XN: np.ndarray, target: TargetOrbit, Phi: np.ndarray) -> np
     return dC @ Phi[:, P_COLS]
 
 
-def relaxed_start(problem: Problem) -> tuple[np.ndarray, list[Iterate], str]:
+def relaxed_start(problem: Problem, settings: ImpulsiveSettings) -> tuple[np.ndarray, list[Iterate], str]:
     """Feasible start for the relaxed NLP: Newton-Armijo on the TPBVP towards
     :func:`~transcription.strategy.starts.relaxed_start_target` (Pi_0^+ guessed from the attitude change, then with no impulse
     if that fails).  Returns (p, history records, status)."""
@@ -48,7 +48,7 @@ def relaxed_start(problem: Problem) -> tuple[np.ndarray, list[Iterate], str]:
     hist: list[Iterate] = []
     status = "not_run"
     for kind in ("interpolate", "rollout"):
-        nr, _ = solve_tpbvp(q, initial_momenta(q, kind), tol=1e-12)
+        nr, _ = solve_tpbvp(q, initial_momenta(q, kind), replace(settings, newton_tol=1e-12))
         hist += [replace(r, phase=f"start_{kind}") for r in nr.history]
         status = nr.result.value
         if nr.result.successful:

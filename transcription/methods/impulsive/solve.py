@@ -22,10 +22,7 @@ from ..base import Progress
 from .reduced import relaxed_reduced
 from .relaxed import relaxed_nlp, relaxed_start
 from .sensitivity import with_momenta
-from .tpbvp import NEWTON_MAX_ITER, initial_momenta, simulate_momenta, solve_tpbvp, tpbvp_residual
-
-#: an impulse norm below this at the relaxed optimum means a kink of the cost
-KINK_TOL = 1e-8
+from .tpbvp import ImpulsiveSettings, initial_momenta, simulate_momenta, solve_tpbvp, tpbvp_residual
 
 
 @dataclass
@@ -53,10 +50,10 @@ def _impulses(problem: Problem, p: np.ndarray, XN: np.ndarray, gp: np.ndarray, P
     return {"dgamma0": p[:3] - a0.gamma[0], "dPi0": p[3:] - a0.Pi[0], "dgammaN": gp - aN.gamma[0], "dPiN": Pp - aN.Pi[0]}
 
 
-def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None) -> _Outcome:
+def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None, s: ImpulsiveSettings) -> _Outcome:
     """An orbit target: the feasible start (a TPBVP to a point of the orbit), then single or multiple shooting."""
     t1 = time.perf_counter()
-    p0, history, start_status = relaxed_start(problem)
+    p0, history, start_status = relaxed_start(problem, s)
     start_s = time.perf_counter() - t1
     extra = {"transcription": options.transcription}
     if options.transcription == "multiple_shooting":
@@ -68,7 +65,7 @@ def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None
         solver_name, label = "ipopt", "IPOPT"
         extra["solver_status"] = status
     else:
-        red = relaxed_reduced(problem, p0, options, progress)
+        red = relaxed_reduced(problem, p0, options, progress, s)
         p, result, iterations, build_s, solve_s = red.p, red.result, red.iterations, red.build_s, red.solve_s
         _, gp, Pp = orbit_conditions(red.XN, problem.terminal, problem.model.mass, problem.model.mu)
         min_norm = float(min(np.linalg.norm(v) for v in _impulses(problem, p, red.XN, gp, Pp).values()))
@@ -81,7 +78,7 @@ def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None
     message = f"{label}: {status}; max |C| = {err:.2e} on the re-simulation"
     if result is Result.converged and not err <= options.terminal_tol:
         result = Result.terminal_error
-    if min_norm <= KINK_TOL:
+    if min_norm <= s.kink_tol:
         result = Result.kink
         message += (f"; an impulse norm is {min_norm:.1e}: the optimum is at a kink of the sum of norms, where the "
                     "smooth formulation does not apply")
@@ -90,7 +87,8 @@ def _relaxed(problem: Problem, options: DirectOptions, progress: Progress | None
     return _Outcome(p, X, gp, Pp, result, message, solver_name, history, iterations, build_s, solve_s + start_s, extra)
 
 
-def _state_target(problem: Problem, options: DirectOptions, progress: Progress | None) -> _Outcome:
+def _state_target(problem: Problem, options: DirectOptions, progress: Progress | None,
+                  s: ImpulsiveSettings) -> _Outcome:
     """A state target: the TPBVP by Newton-Armijo from one guess, then from the other if it fails."""
     Xd = problem.terminal.X
     t1 = time.perf_counter()
@@ -98,8 +96,8 @@ def _state_target(problem: Problem, options: DirectOptions, progress: Progress |
     history, attempts, iterations = [], [], 0
     for kind in (first, "rollout" if first == "interpolate" else "interpolate"):
         # Newton may stagnate at a local minimum of |r|: restart from the other guess
-        nr, X = solve_tpbvp(problem, initial_momenta(problem, kind), max_iter=min(options.max_iter, NEWTON_MAX_ITER),
-                            progress=progress)
+        nr, X = solve_tpbvp(problem, initial_momenta(problem, kind),
+                            replace(s, newton_max_iter=min(options.max_iter, s.newton_max_iter)), progress=progress)
         history += [replace(r, phase=kind) for r in nr.history]
         attempts.append(f"{kind}: {nr.result.value} in {nr.iterations} iterations")
         iterations += nr.iterations
@@ -123,7 +121,8 @@ def not_covered(problem: Problem) -> str:
 
 
 def solve_impulsive(problem: Problem, options: DirectOptions | None = None, progress: Progress | None = None,
-                    warm: Start | None = None, label: str = "") -> Solution:
+                    warm: Start | None = None, label: str = "",
+                    settings: ImpulsiveSettings = ImpulsiveSettings()) -> Solution:
     """Solve an impulsive Problem (package docstring) by the direct method.
 
     The Solution has solver 'newton-armijo' (TPBVP), 'sqp' (relaxed, single shooting) or 'ipopt'
@@ -133,7 +132,7 @@ def solve_impulsive(problem: Problem, options: DirectOptions | None = None, prog
     last node the state just *before* the terminal impulse (``stats['XN_plus']`` is the state
     after it).  terminal_error: TPBVP: the error of X_N^+ against the target (the momenta are
     matched by the impulse); relaxed: max |C|.  A ``warm`` start is not used (the impulsive method starts
-    from its own guesses; the message says so); its Solutions carry none.
+    from its own guesses; the message says so); its Solutions carry none.  ``settings``: the numerical parameters.
     """
     options = options or DirectOptions()
     if problem.kind != "impulsive":
@@ -141,7 +140,8 @@ def solve_impulsive(problem: Problem, options: DirectOptions | None = None, prog
     t0 = time.perf_counter()
     problem.disc.rollout(problem.N)
     build_s = time.perf_counter() - t0
-    out = (_relaxed if isinstance(problem.terminal, TargetOrbit) else _state_target)(problem, options, progress)
+    run = _relaxed if isinstance(problem.terminal, TargetOrbit) else _state_target
+    out = run(problem, options, progress, settings)
     imp = _impulses(problem, out.p, out.X[-1], out.gp, out.Pp)
     XNp = with_momenta(out.X[-1], np.r_[out.gp, out.Pp])
     if isinstance(problem.terminal, TargetState):
@@ -166,6 +166,7 @@ class Impulsive:
     state target, the relaxed problem for an orbit target) with the direct method's ``options``."""
 
     options: DirectOptions = field(default_factory=DirectOptions)
+    settings: ImpulsiveSettings = ImpulsiveSettings()     # the numerical parameters of its solves
     name: ClassVar[str] = "direct"
     kind: ClassVar[str] = "impulsive"
 
@@ -173,8 +174,8 @@ class Impulsive:
         return not_covered(problem)
 
     def replace(self, ipopt=None, **options) -> "Impulsive":
-        return Impulsive(self.options.replace(**options) if options else self.options)
+        return replace(self, options=self.options.replace(**options) if options else self.options)
 
     def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
               label: str = "") -> Solution:
-        return solve_impulsive(problem, self.options, report, start, label)
+        return solve_impulsive(problem, self.options, report, start, label, self.settings)

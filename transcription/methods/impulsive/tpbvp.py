@@ -2,6 +2,7 @@
 for the momenta after the first impulse by the shared Newton-Armijo (docs/mathematics.md §5)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -14,13 +15,21 @@ from ...ocp import Problem, TargetOrbit, TargetState
 from ...outcome import Iterate
 from .sensitivity import P_COLS, sensitivity, with_momenta
 
-#: Newton target for the six TPBVP conditions (|r|_inf) and its iteration limit
-NEWTON_TOL = 1e-13
-NEWTON_MAX_ITER = 50
-#: the TPBVP line search halves down to c ~ 1e-10
-NEWTON_MAX_HALVINGS = 34
-#: consecutive line-search steps below 1e-2 after which Newton gives up (stagnated)
-STAGNATION_STEPS = 8
+
+@dataclass(frozen=True)
+class ImpulsiveSettings:
+    """The impulsive method's numerical parameters (:class:`~.solve.Impulsive` holds them; tests set them)."""
+
+    newton_tol: float = 1e-13      # Newton target for the six TPBVP conditions (|r|_inf) and its iteration limit
+    newton_max_iter: int = 50
+    newton_max_halvings: int = 34  # the TPBVP line search halves down to c ~ 1e-10
+    stagnation_steps: int = 8      # consecutive line-search steps below 1e-2 after which Newton gives up (stagnated)
+    kink_tol: float = 1e-8         # an impulse norm below this at the relaxed optimum means a kink of the cost
+    max_step: float = 1.0          # single shooting of the relaxed case: the step cap in scaled unknowns
+    #: the projection onto c = 0 stops at |c|_inf <= this (scaled); below the test tolerances, above round-off
+    projection_tol: float = 1e-12
+    projection_max_iter: int = 8
+    armijo: float = 1e-4           # Armijo constant of the reduced line search
 
 
 def tpbvp_residual(XN: np.ndarray, Xd: np.ndarray) -> np.ndarray:
@@ -64,9 +73,9 @@ def momentum_scales(problem: Problem) -> np.ndarray:
     return np.r_[np.full(3, sg), np.full(3, sP)]
 
 
-def solve_tpbvp(problem: Problem, p0: np.ndarray, tol: float = NEWTON_TOL, max_iter: int = NEWTON_MAX_ITER,
-                alpha: float = 1e-4, progress: Callable[[Iterate], None] | None = None) -> tuple[NewtonResult, np.ndarray]:
-    """Newton-Armijo on the six conditions from p0; returns (NewtonResult, X of its last point)."""
+def solve_tpbvp(problem: Problem, p0: np.ndarray, s: ImpulsiveSettings, alpha: float = 1e-4,
+                progress: Callable[[Iterate], None] | None = None) -> tuple[NewtonResult, np.ndarray]:
+    """Newton-Armijo on the six conditions from p0 with the settings s; returns (NewtonResult, X of its last point)."""
     Xd = problem.terminal.X
     memo: dict[bytes, tuple[np.ndarray, float]] = {}
 
@@ -85,7 +94,7 @@ def solve_tpbvp(problem: Problem, p0: np.ndarray, tol: float = NEWTON_TOL, max_i
         X, _ = rollout(p)
         return tpbvp_jacobian(X[-1], Xd, sensitivity(problem.disc, X, problem.h))
 
-    nr = newton_armijo(p0, residual, jacobian, tol=tol, norm=np.inf, alpha=alpha, max_iter=max_iter,
-                       max_halvings=NEWTON_MAX_HALVINGS, aux_tol=CAYLEY_TOL, step_scale=momentum_scales(problem),
-                       stagnation_steps=STAGNATION_STEPS, progress=progress)
+    nr = newton_armijo(p0, residual, jacobian, tol=s.newton_tol, norm=np.inf, alpha=alpha, max_iter=s.newton_max_iter,
+                       max_halvings=s.newton_max_halvings, aux_tol=CAYLEY_TOL, step_scale=momentum_scales(problem),
+                       stagnation_steps=s.stagnation_steps, progress=progress)
     return nr, rollout(nr.x)[0]

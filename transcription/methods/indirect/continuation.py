@@ -9,14 +9,9 @@ import numpy as np
 from ...geometry.state import NU, U_FORCE, U_MOMENT
 from .control import NB, NO_NORM, THRUSTER
 
-#: bound continuation (indirect method from lambda_0 = 0): the stages of the bounds' geometric path from
-#: the unbounded peak to the given bounds, tried when the step from the unbounded solution fails
-CONTINUATION_STAGES = 4
-
-
-def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
+def bound_continuation(newton, lam, bd, fns, args, law) -> tuple[Any, list[str]]:
     """Newton from lambda_0 = 0 on the unbounded problem (removed controls stay removed), then on the
-    bounded one from its solution; if that fails, along CONTINUATION_STAGES bounds shrinking
+    bounded one from its solution; if that fails, along law.continuation_stages bounds (:mod:`.laws`) shrinking
     geometrically from the unbounded controls' peaks to bd (:func:`stage_bounds`; an engine keeps its
     axis throughout, its T_max shrinks from the free force's peak).  A semismooth Newton method converges
     locally; this brings it there.  Returns the last stage's NewtonResult (its history and iteration
@@ -31,7 +26,7 @@ def bound_continuation(newton, lam, bd, fns, args) -> tuple[Any, list[str]]:
     U = np.array(fns.shoot(first.x, *args, free_bd)[3])
     peak = np.r_[np.abs(U).max(axis=1), [np.linalg.norm(U[sl], axis=0).max() ** 2 for sl in (U_FORCE, U_MOMENT)],
                  np.linalg.norm(U[U_FORCE], axis=0).max()]
-    paths = [[1.0], [(j + 1) / CONTINUATION_STAGES for j in range(CONTINUATION_STAGES)]]
+    paths = [[1.0], [(j + 1) / law.continuation_stages for j in range(law.continuation_stages)]]
     for path in paths:
         x, ok = first.x, True
         for t in path:
@@ -62,20 +57,15 @@ def stage_bounds(bd: np.ndarray, peak: np.ndarray, t: float) -> np.ndarray:
     return out
 
 
-#: free final time (indirect): outer iterations on the step size, and their relative step tolerance
-FREE_TIME_MAX_OUTER = 30
-FREE_TIME_RTOL = 1e-11
-
-
-def free_final_time(solve_at, dL_dh, lam, h, lo, hi, N) -> tuple[Any, float, dict]:
+def free_final_time(solve_at, dL_dh, lam, h, lo, hi, N, law) -> tuple[Any, float, dict]:
     """The free-final-time condition: the step size h in [lo, hi] with dJ*/dh = dL/dh = 0 (or at a bound
     with dL/dh pointing out of the interval), by a safeguarded secant iteration on the scalar g(h) = dL/dh,
     each g from a fixed-h shooting solved from the previous lambda_0.
 
     Secant steps keep inside the bracket of a sign change once one is known (bisection when a secant step
     leaves it); before that they are clipped to [lo, hi], and a bound where g keeps its sign is the
-    answer.  Stops when the step is below FREE_TIME_RTOL h.  Returns (the NewtonResult at the final h
-    -- its history and iterations those of every inner solve --, h, a summary for the stats)."""
+    answer.  Stops when the step is below law.free_time_rtol h, or fails after law.free_time_max_outer.  Returns
+    (the NewtonResult at the final h -- its history and iterations those of every inner solve --, h, a summary)."""
     history, iters, evals = [], 0, []
 
     def at(h, lam, first=False):
@@ -96,7 +86,7 @@ def free_final_time(solve_at, dL_dh, lam, h, lo, hi, N) -> tuple[Any, float, dic
     nr, g = at(h, lam, first=True)
     below, above = (lo, None), (hi, None)          # the bracket: g < 0 at below, g > 0 at above
     prev = None
-    for _ in range(FREE_TIME_MAX_OUTER):
+    for _ in range(law.free_time_max_outer):
         if not nr.result.successful:
             return done(nr, h, False, f"free final time: the shooting at T = {N * h:.10g} failed")
         if g == 0.0:
@@ -124,8 +114,8 @@ def free_final_time(solve_at, dL_dh, lam, h, lo, hi, N) -> tuple[Any, float, dic
         prev = (h, g)
         nr, g = at(cand, nr.x)
         h = cand
-        if step <= FREE_TIME_RTOL * h and nr.result.successful:
+        if step <= law.free_time_rtol * h and nr.result.successful:
             return done(nr, h, True, f"free final time T = {N * h:.12g} (dL/dh = {g:.3e}, last step "
                                      f"{step / h:.1e} h, {len(evals)} shootings)")
-    return done(nr, h, False, f"free final time: no convergence in {FREE_TIME_MAX_OUTER} outer iterations "
+    return done(nr, h, False, f"free final time: no convergence in {law.free_time_max_outer} outer iterations "
                               f"(T = {N * h:.12g}, dL/dh = {g:.3e})")

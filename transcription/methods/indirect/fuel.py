@@ -1,6 +1,6 @@
 """The fuel objective in the indirect method (docs/mathematics.md §19): the homotopy in eps of the switching law
 (:func:`.switching.on_off`) from an effort-like problem (eps = 1) or near the fuel optimum (a start from a solution)
-down to FUEL_EPS_END, each stage a Newton-Armijo shooting from the previous stage's lambda_0."""
+down to eps_end, each stage a Newton-Armijo shooting from the previous stage's lambda_0 (the parameters: FuelLaw's)."""
 from __future__ import annotations
 
 from typing import Callable
@@ -11,22 +11,6 @@ from ..newton import NewtonResult
 from ...ocp import Problem
 from .control import FUEL_EPS
 from .structured import StructuredShooting, node_modes
-
-#: the homotopy: the first eps from lambda_0 = 0 (the bounded problem with the effort-like cost |u|^2 / (2 b)) and
-#: from a solution's costates (a fuel optimum's, e.g. the direct method's: the switching nodes sit at S ~ 0), the
-#: factor per stage (its square root after a failed stage, up to FUEL_EPS_FACTOR_MAX), and the last eps.  The fuel
-#: cost of the eps-problem's optimum exceeds the fuel optimum by at most eps/2 relative (§19); measured on the
-#: bundled raise it is O(eps^2).
-FUEL_EPS_COLD = 1.0
-FUEL_EPS_WARM = 1e-2
-FUEL_EPS_FACTOR = 0.1
-FUEL_EPS_FACTOR_MAX = 0.9
-FUEL_EPS_END = 1e-6
-#: the homotopy stops earlier, at eps <= FUEL_EPS_SETTLE, once the fuel cost's estimated change to eps = 0
-#: (:func:`remaining`) is at most FUEL_COST_RTOL relative
-FUEL_EPS_SETTLE = 1e-2
-FUEL_COST_RTOL = 1e-9
-
 
 def fuel_not_covered(problem: Problem) -> list[str]:
     """What of the fuel objective the indirect method does not cover: its law is for norm bounds (or removed
@@ -49,16 +33,16 @@ def with_eps(bd: np.ndarray, eps: float) -> np.ndarray:
 
 
 def fuel_homotopy(stage: Callable[[np.ndarray, float, bool], NewtonResult], cost: Callable[[np.ndarray, float], float],
-                  lam: np.ndarray, cold: bool) -> tuple[NewtonResult, float, dict]:
-    """eps from FUEL_EPS_COLD (``cold``: from lambda_0 = 0) or FUEL_EPS_WARM down to FUEL_EPS_END by the factor
-    FUEL_EPS_FACTOR per stage (after a failed stage from the last solution by the factor's square root, until it
-    exceeds FUEL_EPS_FACTOR_MAX), or until, at eps <= FUEL_EPS_SETTLE, the fuel cost's estimated change to eps = 0
-    (:func:`remaining`) is at most FUEL_COST_RTOL relative;
+                  lam: np.ndarray, cold: bool, law) -> tuple[NewtonResult, float, dict]:
+    """eps from law.eps_cold (``cold``: from lambda_0 = 0) or law.eps_warm down to law.eps_end by the factor
+    law.eps_factor per stage (after a failed stage from the last solution by the factor's square root, until it
+    exceeds law.eps_factor_max), or until, at eps <= law.eps_settle, the fuel cost's estimated change to eps = 0
+    (:func:`remaining`) is at most law.cost_rtol relative (``law`` a :class:`~.laws.FuelLaw`);
     ``stage(lam, eps, first)`` the Newton solve at eps (first: the first stage), ``cost(lam, eps)`` the fuel cost
     of its solution.
     Returns (the last successful stage's NewtonResult, its history and iterations those of all stages -- or the
     first stage's failure --, its eps, a summary for the stats)."""
-    eps, factor, good = (FUEL_EPS_COLD if cold else FUEL_EPS_WARM), FUEL_EPS_FACTOR, None
+    eps, factor, good = (law.eps_cold if cold else law.eps_warm), law.eps_factor, None
     history, iters, stages, costs = [], 0, [], []
     x = np.asarray(lam, dtype=float)
     while True:
@@ -69,16 +53,16 @@ def fuel_homotopy(stage: Callable[[np.ndarray, float, bool], NewtonResult], cost
         if nr.result.successful:
             costs.append((eps, cost(nr.x, eps)))
             good = (nr, eps)
-            settled = remaining(costs) <= FUEL_COST_RTOL * abs(costs[-1][1]) and eps <= FUEL_EPS_SETTLE
-            if eps <= FUEL_EPS_END * (1 + 1e-9) or settled:
+            settled = remaining(costs) <= law.cost_rtol * abs(costs[-1][1]) and eps <= law.eps_settle
+            if eps <= law.eps_end * (1 + 1e-9) or settled:
                 break
-        elif good is None or factor ** 0.5 > FUEL_EPS_FACTOR_MAX:
+        elif good is None or factor ** 0.5 > law.eps_factor_max:
             break
         else:
             factor = factor ** 0.5
-        x, eps = good[0].x, max(good[1] * factor, FUEL_EPS_END)
-    done = good is not None and (good[1] <= FUEL_EPS_END * (1 + 1e-9) or (
-        remaining(costs) <= FUEL_COST_RTOL * abs(costs[-1][1]) and good[1] <= FUEL_EPS_SETTLE))
+        x, eps = good[0].x, max(good[1] * factor, law.eps_end)
+    done = good is not None and (good[1] <= law.eps_end * (1 + 1e-9) or (
+        remaining(costs) <= law.cost_rtol * abs(costs[-1][1]) and good[1] <= law.eps_settle))
     out = good[0] if good is not None else nr
     if good is not None and not done:
         out.result, out.message = nr.result, (f"the fuel homotopy stopped at eps = {good[1]:.1e} (the stage at eps "
@@ -102,30 +86,26 @@ def remaining(costs: list[tuple[float, float]]) -> float:
     return e1 * abs(J1 - J0) / abs(e0 - e1)
 
 
-#: active-set repairs of an inconsistent switching structure (:meth:`.structured.StructuredShooting.repaired`)
-STRUCTURE_REPAIRS = 3
-
-
 def warm_controls(problem: Problem, warm) -> np.ndarray | None:
     """The controls of a warm start on the problem's grid -- on a non-uniform mesh at its node times (None without
     one): the switching structure to start from."""
     return None if warm is None else np.asarray(warm.fit(problem.N, problem.scheme, problem.fractions)[0].U, float)
 
 
-def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float,
+def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float, law,
                       h: float | None = None) -> tuple[NewtonResult | None, dict]:
     """The conditions at eps = 0 with the switching structure of the controls U fixed (:mod:`.structured`) from
     lambda_0 = lam: (the NewtonResult with x = lambda_0 when it converged and its solution is consistent with the
     structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded).  An
-    inconsistent solution is repaired up to STRUCTURE_REPAIRS times (the offending nodes partial, an active-set
-    step) and solved again from it.  h: the (mean) step size (default the problem's; on a non-uniform mesh step k
-    runs at h_k = r_k h)."""
+    inconsistent solution is repaired up to law.structure_repairs times (the offending nodes partial, an active-set
+    step) and solved again from it (``law`` a :class:`~.laws.FuelLaw`: also partial_rtol, structured_max_iter).
+    h: the (mean) step size (default the problem's; on a non-uniform mesh step k runs at h_k = r_k h)."""
     if problem.disc.force_frame != "inertial":
         return None, {"skipped": "a body-fixed force (the structured conditions are written for an inertial one)"}
-    modes, x, out = node_modes(problem, U), np.asarray(lam, float), {"repairs": 0, "iterations": 0}
-    for _ in range(STRUCTURE_REPAIRS + 1):
+    modes, x, out = node_modes(problem, U, law.partial_rtol), np.asarray(lam, float), {"repairs": 0, "iterations": 0}
+    for _ in range(law.structure_repairs + 1):
         st = StructuredShooting(problem, modes, h)
-        nr = st.solve(x[:12], U, tol)
+        nr = st.solve(x[:12], U, tol, law.structured_max_iter)
         out.update(partial_nodes=len(st.partial), result=nr.result.value, iterations=out["iterations"] + nr.iterations)
         if not nr.result.successful:
             return None, out
@@ -135,7 +115,7 @@ def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: flo
             break
         out["inconsistent"] = why
         new, U = st.repaired(nr.x)
-        if np.array_equal(new, modes) or out["repairs"] == STRUCTURE_REPAIRS:
+        if np.array_equal(new, modes) or out["repairs"] == law.structure_repairs:
             return None, out
         modes, x, out["repairs"] = new, nr.x, out["repairs"] + 1
     out.pop("inconsistent", None)
@@ -145,29 +125,30 @@ def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: flo
     return nr, out
 
 
-def solve_fuel(shooting, lam, h: float, first: bool, phase: str) -> NewtonResult:
+def solve_fuel(shooting, lam, h: float, first: bool, phase: str, law) -> NewtonResult:
     """The fuel objective at the step size h (``shooting`` the method's :class:`~.solve._Shooting`): from a solution
     (``shooting.warm_U``), first the structured conditions at eps = 0 with its switching structure; otherwise, or when
     that fails or is inconsistent, the homotopy in eps (:func:`fuel_homotopy`) and then the structured finish from
     its last converged stage's controls (also when a later stage failed: a consistent exact solution is the answer).
     The exact (eps = 0) solution, when found, is ``shooting.structured`` (U, costates),
-    the Solution's controls and costates; the stats ``fuel_homotopy`` and ``fuel_structured``."""
+    the Solution's controls and costates; the stats ``fuel_homotopy`` and ``fuel_structured``; ``law`` the
+    :class:`~.laws.FuelLaw` (their parameters)."""
     opts, stats = shooting.options, shooting.stats
     U0 = getattr(shooting, "warm_U", None)
     if first and U0 is not None:
-        nr, stats["fuel_structured"] = structured_finish(shooting.problem, lam, U0, opts.eps_S, h)
+        nr, stats["fuel_structured"] = structured_finish(shooting.problem, lam, U0, opts.eps_S, law, h)
         if nr is not None:
             return _structured(shooting, nr, "from the warm start's switching structure")
     nr, eps, stats["fuel_homotopy"] = fuel_homotopy(
         lambda l, e, fst: shooting.fixed(l, h, fst and first, f"{phase}eps = {e:.1e}: ", with_eps(shooting.bd, e)),
-        lambda l, e: shooting.cost(l, h, with_eps(shooting.bd, e)), lam, first and shooting.source == "zero")
+        lambda l, e: shooting.cost(l, h, with_eps(shooting.bd, e)), lam, first and shooting.source == "zero", law)
     shooting.bd = with_eps(shooting.bd, eps)
     shooting.law = (shooting.Winv, shooting.bd)     # the final rollout's law: the last stage's eps
     if not stats["fuel_homotopy"]["costs"]:   # no stage converged: nothing to finish from
         return nr
     hk = shooting.problem.steps_of(h)   # h itself on a uniform mesh, h r_k on a non-uniform one
     U = np.array(shooting.fns.shoot(nr.x, shooting.X0, shooting.Xd, hk, shooting.Winv, shooting.bd)[3])
-    fin, stats["fuel_structured"] = structured_finish(shooting.problem, nr.x, U, opts.eps_S, h)
+    fin, stats["fuel_structured"] = structured_finish(shooting.problem, nr.x, U, opts.eps_S, law, h)
     if fin is None:
         return nr
     fin.history, fin.iterations = nr.history + fin.history, nr.iterations + fin.iterations

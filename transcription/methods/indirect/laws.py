@@ -10,6 +10,9 @@ objective's name.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 import numpy as np
 
 from ...ocp import Problem, effort_cost, objective_value, quadrature_weights
@@ -17,15 +20,22 @@ from .fuel import fuel_not_covered, solve_fuel, warm_controls
 from .objectives import solve_time
 
 
+@dataclass(frozen=True)
 class EffortLaw:
     """The effort objective's conditions (module docstring).  ``eps``: the fuel homotopy's parameter in the bound data
     (0: the saturation); ``replannable``: a re-plan's fixed-h Newton step (transcription.closedloop.mpc) covers it;
     ``from_structure``: the law starts from a solution's switching structure (a direct solution at IPOPT's default tol
-    may not give it: transcription.solve.fuel_retighten)."""
+    may not give it: transcription.solve.fuel_retighten).  The fields: its outer loops' (:mod:`.continuation`)."""
 
-    eps = 0.0
-    replannable = True
-    from_structure = False
+    eps: ClassVar[float] = 0.0
+    replannable: ClassVar[bool] = True
+    from_structure: ClassVar[bool] = False
+    #: from lambda_0 = 0: the stages of the bounds' geometric path from the unbounded peak to the given bounds, tried
+    #: when the step from the unbounded solution fails (:func:`~.continuation.bound_continuation`)
+    continuation_stages: int = 4
+    #: a free final time: outer iterations on the step size, and their relative step tolerance
+    free_time_max_outer: int = 30
+    free_time_rtol: float = 1e-11
 
     def not_covered(self, problem: Problem) -> list[str]:
         """What of ``problem``, under this objective, the indirect method does not cover (in words)."""
@@ -51,10 +61,27 @@ class EffortLaw:
         return shooting.default_run(lam, h)
 
 
+@dataclass(frozen=True)
 class TimeLaw(EffortLaw):
-    """The time objective's conditions (module docstring)."""
+    """The time objective's conditions (module docstring); fields: its homotopy (:func:`.objectives.solve_time`)."""
 
-    replannable = False
+    replannable: ClassVar[bool] = False
+    #: when the structure start is not available or fails: the first eps; when that first stage fails (too few nodes
+    #: inside the switching bands for a regular Jacobian: a coarse grid) it is tried again from the start at eps times
+    #: start_raise, up to start_tries times
+    eps_start: float = 1e-2
+    start_raise: float = 4.0
+    start_tries: int = 3
+    #: the factor on eps per stage (its square root after a failed stage, given up above eps_factor_max), Newton
+    #: iterations per stage after the first, and the smallest eps
+    eps_factor: float = 0.5
+    eps_factor_max: float = 0.9
+    stage_iterations: int = 20
+    eps_end: float = 1e-8
+    max_stages: int = 12        # the most stages of one solve (a bound on its time; the structure start settles in 2)
+    #: two consecutive stages whose T agree to this (relative) end the homotopy: every switch has its one interior
+    #: node, and T and the controls are exactly those of eps = 0 (docs/mathematics.md §18)
+    t_rtol: float = 1e-12
 
     def not_covered(self, problem: Problem) -> list[str]:
         return ["the time objective with a body-fixed force"] if problem.disc.force_frame != "inertial" else []
@@ -66,16 +93,40 @@ class TimeLaw(EffortLaw):
                 f"switching structure and T); a cold start from initial_costate {source} is not implemented")
 
     def run(self, shooting, lam, h: float):
-        nr, h, shooting.stats["time_homotopy"], shooting.law = solve_time(shooting, lam, h, shooting.primal)
+        nr, h, shooting.stats["time_homotopy"], shooting.law = solve_time(shooting, lam, h, self, shooting.primal)
         return nr, h
 
 
+@dataclass(frozen=True)
 class FuelLaw(EffortLaw):
-    """The fuel objective's conditions (module docstring)."""
+    """The fuel objective's conditions (module docstring); fields: its homotopy and structured finish (:mod:`.fuel`)."""
 
-    eps = 1.0
-    replannable = False
-    from_structure = True
+    eps: ClassVar[float] = 1.0
+    replannable: ClassVar[bool] = False
+    from_structure: ClassVar[bool] = True
+    #: the homotopy: the first eps from lambda_0 = 0 (the bounded problem with the effort-like cost |u|^2 / (2 b)) and
+    #: from a solution's costates (a fuel optimum's, e.g. the direct method's: the switching nodes sit at S ~ 0), the
+    #: factor per stage (its square root after a failed stage, up to eps_factor_max), and the last eps.  The fuel
+    #: cost of the eps-problem's optimum exceeds the fuel optimum by at most eps/2 relative (§19); measured on the
+    #: bundled raise it is O(eps^2).
+    eps_cold: float = 1.0
+    eps_warm: float = 1e-2
+    eps_factor: float = 0.1
+    eps_factor_max: float = 0.9
+    eps_end: float = 1e-6
+    #: the homotopy stops earlier, at eps <= eps_settle, once the fuel cost's estimated change to eps = 0
+    #: (:func:`.fuel.remaining`) is at most cost_rtol relative
+    eps_settle: float = 1e-2
+    cost_rtol: float = 1e-9
+    #: active-set repairs of an inconsistent switching structure (:meth:`.structured.StructuredShooting.repaired`)
+    structure_repairs: int = 3
+    #: a control node counts as partial when its magnitude is within this fraction of b from neither 0 nor b (an
+    #: interior-point solution sits inside its bounds: the fuel raise's burns at 1 - 4e-5 of b)
+    partial_rtol: float = 1e-3
+    #: Newton iterations of the structured conditions: from a consistent structure they converge in 1-3 (the bundled
+    #: raise from the tight direct solution: 1); from a wrong one (the raise's default-tol direct solution) they
+    #: wander, 11 iterations at N = 100 to magnitudes outside (0, b), at ~8 s per Jacobian
+    structured_max_iter: int = 8
 
     def not_covered(self, problem: Problem) -> list[str]:
         return fuel_not_covered(problem)
@@ -87,7 +138,7 @@ class FuelLaw(EffortLaw):
         shooting.warm_U = warm_controls(shooting.problem, warm)
 
     def solve_at(self, shooting, lam, h: float, first: bool, phase: str):
-        return solve_fuel(shooting, lam, h, first, phase)
+        return solve_fuel(shooting, lam, h, first, phase, self)
 
 
 __all__ = ["EffortLaw", "FuelLaw", "TimeLaw"]

@@ -37,25 +37,6 @@ from .control import NB, NO_NORM, control_matrix, control_scale
 from .conditions import costate_functions, node_law, terminal_residual_function
 from .shooting import MAPACCUM_OPTS, time_gradient_function
 
-#: the homotopy of the time objective (:func:`solve_time`) when the structure start is not available or fails: its
-#: first eps; when that first stage fails (too few nodes inside the switching bands for a regular Jacobian: a coarse
-#: grid) it is tried again from the start at eps times TIME_START_RAISE, up to TIME_START_TRIES times
-TIME_EPS_START = 1e-2
-TIME_START_RAISE = 4.0
-TIME_START_TRIES = 3
-#: the factor on eps per stage (its square root after a failed stage, given up above TIME_EPS_FACTOR_MAX), Newton
-#: iterations per stage after the first, and the smallest eps
-TIME_EPS_FACTOR = 0.5
-TIME_EPS_FACTOR_MAX = 0.9
-TIME_STAGE_ITERATIONS = 20
-TIME_EPS_END = 1e-8
-#: the most stages of one solve (a bound on its time; the structure start settles in 2)
-TIME_MAX_STAGES = 12
-#: two consecutive stages whose T agree to this (relative) end the homotopy: every switch has its one interior
-#: node, and T and the controls are exactly those of eps = 0 (docs/mathematics.md §18)
-TIME_T_RTOL = 1e-12
-
-
 def switching_function(problem: Problem, lams: np.ndarray, h: float) -> np.ndarray:
     """sigma (6 x n_controls): sigma_j = (s/h_j) B_c(h_j)^T lambda_{j-1} for every control node j, from ``lams`` (12 x
     n_controls) the costates the controls are read from, in order (first_order: lambda_0..lambda_{N-1} for u_1..u_N;
@@ -329,15 +310,15 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
     return np.r_[y0 + e * y1, 1.0], e * ts.umax2 / 2.0
 
 
-def solve_time(shooting, lam, h: float, primal: tuple | None = None) -> tuple[NewtonResult, float, dict, tuple]:
+def solve_time(shooting, lam, h: float, law, primal: tuple | None = None) -> tuple[NewtonResult, float, dict, tuple]:
     """The time objective from (lambda_0, h) (the direct solution's, :func:`~.solve.initial_costate`) and, when
-    given, that solution's ``primal`` (X (N+1, 18), U): the first stage from :func:`structure_start` (eps small,
-    the direct solution's switching structure), else -- or when it fails -- the homotopy in eps from
-    TIME_EPS_START (raised by TIME_START_RAISE when that fails) from (lambda_0, h).  Then stages with eps
-    multiplied by TIME_EPS_FACTOR (by its square root after a failed stage), each a :class:`TimeShooting` Newton
-    iteration from the previous solution moved along the path's tangent (:meth:`TimeShooting.predictor`), until
-    two consecutive stages give the same T to TIME_T_RTOL: every switch then has its one interior node, and T
-    and the controls are those of eps = 0 (docs/mathematics.md), or eps reaches TIME_EPS_END.
+    given, that solution's ``primal`` (X (N+1, 18), U), by ``law`` (a :class:`~.laws.TimeLaw`): the first stage from
+    :func:`structure_start` (eps small, the direct solution's switching structure), else -- or when it fails -- the
+    homotopy in eps from law.eps_start (raised by law.start_raise when that fails) from (lambda_0, h).  Then stages
+    with eps multiplied by law.eps_factor (by its square root after a failed stage), each a :class:`TimeShooting`
+    Newton iteration from the previous solution moved along the path's tangent (:meth:`TimeShooting.predictor`),
+    until two consecutive stages give the same T to law.t_rtol: every switch then has its one interior node, and T
+    and the controls are those of eps = 0 (docs/mathematics.md), or eps reaches law.eps_end.
     Returns (the last good stage's NewtonResult -- x its lambda_0, its history and iterations those of every
     stage --, h, a summary for the stats (the final eps and e, eps and T per stage, whether T settled, a
     message), the (Winv, bd) of the final eps-law for the rollout of the Solution).  The terminal conditions no
@@ -346,9 +327,9 @@ def solve_time(shooting, lam, h: float, primal: tuple | None = None) -> tuple[Ne
     ts, N = TimeShooting(shooting, h), shooting.problem.N
     x0 = np.r_[np.asarray(lam, dtype=float), 1.0]
     starts = [structure_start(ts, *primal, h)] if primal is not None else []
-    starts = [s for s in starts if s is not None] + [(x0, TIME_EPS_START * TIME_START_RAISE ** i)
-                                                     for i in range(TIME_START_TRIES + 1)]
-    history, iters, stages, good, settled, factor = [], 0, [], None, False, TIME_EPS_FACTOR
+    starts = [s for s in starts if s is not None] + [(x0, law.eps_start * law.start_raise ** i)
+                                                     for i in range(law.start_tries + 1)]
+    history, iters, stages, good, settled, factor = [], 0, [], None, False, law.eps_factor
 
     def stage(x, eps, max_iter):
         nonlocal iters
@@ -360,19 +341,19 @@ def solve_time(shooting, lam, h: float, primal: tuple | None = None) -> tuple[Ne
         return nr, T
 
     for j, (x, eps) in enumerate(starts):
-        nr, T = stage(x, eps, shooting.options.max_iter if j == 0 else TIME_STAGE_ITERATIONS)
+        nr, T = stage(x, eps, shooting.options.max_iter if j == 0 else law.stage_iterations)
         if nr.result.successful:
             good = (nr, eps, T)
             break
-    while good is not None and good[1] > TIME_EPS_END * (1 + 1e-9) and len(stages) < TIME_MAX_STAGES:
-        eps1 = max(good[1] * factor, TIME_EPS_END)
-        nr, T = stage(ts.predictor(good[0].x, good[1], eps1), eps1, TIME_STAGE_ITERATIONS)
+    while good is not None and good[1] > law.eps_end * (1 + 1e-9) and len(stages) < law.max_stages:
+        eps1 = max(good[1] * factor, law.eps_end)
+        nr, T = stage(ts.predictor(good[0].x, good[1], eps1), eps1, law.stage_iterations)
         if nr.result.successful:
-            settled = abs(T - good[2]) <= TIME_T_RTOL * T
+            settled = abs(T - good[2]) <= law.t_rtol * T
             good = (nr, eps1, T)
             if settled:
                 break
-        elif factor >= TIME_EPS_FACTOR_MAX:
+        elif factor >= law.eps_factor_max:
             break
         else:
             factor = np.sqrt(factor)
@@ -384,7 +365,7 @@ def solve_time(shooting, lam, h: float, primal: tuple | None = None) -> tuple[Ne
     out.history, out.iterations = history, iters
     final = good[1] if good is not None else stages[-1]["eps"]
     summary = {"eps": float(final), "e": ts.law(final)[0], "stages": stages, "settled": settled,
-               "structure_start": primal is not None and len(starts) > TIME_START_TRIES + 1,
+               "structure_start": primal is not None and len(starts) > law.start_tries + 1,
                "message": _homotopy_message(stages, settled)}
     if out.result.successful:
         _check_uncontrolled(ts, out, final)

@@ -198,8 +198,8 @@ class _Shooting:
         """The fixed-step problem at h with the bound data bd from lam; from lambda_0 = 0 with bounds, by the bound
         continuation."""
         if first and self.source == "zero" and bounded(bd):
-            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, bd,
-                                            self.fns, (self.X0, self.Xd, self.problem.steps_of(h), self.Winv))
+            nr, stages = bound_continuation(lambda l, b, ph: self.newton(l, b, f"{phase}{ph}", h), lam, bd, self.fns,
+                                            (self.X0, self.Xd, self.problem.steps_of(h), self.Winv), self.conditions)
             self.stats["bound_continuation"] = stages
             return nr
         return self.newton(lam, bd, phase, h)
@@ -227,7 +227,7 @@ class _Shooting:
             return self.solve_at(lam, h, True), h
         N = problem.N
         lo, hi = (t / N for t in problem.time_bounds)
-        nr, h, outer = free_final_time(self.solve_at, self.dL_dh, lam, h, lo, hi, N)
+        nr, h, outer = free_final_time(self.solve_at, self.dL_dh, lam, h, lo, hi, N, self.conditions)
         self.stats["free_time"] = outer
         return nr, h
 

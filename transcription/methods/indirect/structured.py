@@ -17,24 +17,15 @@ from .control import control_matrix, control_scale
 from .elimination import solve_unpivoted
 from .orbit import orbit_shooting_function
 
-#: a control node counts as partial when its magnitude is within this fraction of b from neither 0 nor b (an
-#: interior-point solution sits inside its bounds: the fuel raise's burns at 1 - 4e-5 of b)
-PARTIAL_RTOL = 1e-3
-#: Newton iterations of the structured conditions: from a consistent structure they converge in 1-3 (the bundled raise
-#: from the tight direct solution: 1); from a wrong one (the raise's default-tol direct solution) they wander, 11
-#: iterations at N = 100 to magnitudes outside (0, b), at ~8 s per Jacobian
-STRUCTURED_MAX_ITER = 8
-
-
-def node_modes(problem: Problem, U: np.ndarray) -> np.ndarray:
-    """(2, n_controls) modes of the control nodes of U per block (force, moment): 1 on (|u| = b), 0 off, -1 partial;
-    a removed block (b = 0) off."""
+def node_modes(problem: Problem, U: np.ndarray, partial_rtol: float) -> np.ndarray:
+    """(2, n_controls) modes of the control nodes of U per block (force, moment): 1 on (|u| = b), 0 off, -1 partial
+    (within partial_rtol b of neither 0 nor b: the fuel law's); a removed block (b = 0) off."""
     c = problem.control
     modes = []
     for sl, bound in ((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound)):
         m, b = np.linalg.norm(U[sl], axis=0), bound.b
-        modes.append(np.zeros(m.size) if b == 0 else np.where(m >= (1 - PARTIAL_RTOL) * b, 1.0,
-                                                                np.where(m <= PARTIAL_RTOL * b, 0.0, -1.0)))
+        modes.append(np.zeros(m.size) if b == 0 else np.where(m >= (1 - partial_rtol) * b, 1.0,
+                                                                np.where(m <= partial_rtol * b, 0.0, -1.0)))
     return np.array(modes)
 
 
@@ -164,8 +155,8 @@ class StructuredShooting:
         c = self.problem.control
         return (c.force_bound if blk == 0 else c.moment_bound).b
 
-    def solve(self, lam0, U, tol: float, max_iter: int = STRUCTURED_MAX_ITER) -> NewtonResult:
-        """Newton-Armijo from lambda_0 and the magnitudes of the partial nodes of U."""
+    def solve(self, lam0, U, tol: float, max_iter: int) -> NewtonResult:
+        """Newton-Armijo from lambda_0 and the magnitudes of the partial nodes of U (max_iter: the fuel law's)."""
         m0 = np.array([np.linalg.norm(U[U_FORCE if blk == 0 else U_MOMENT, j]) for blk, j in self.partial])
         x0 = np.r_[np.asarray(lam0, float), m0]
 
