@@ -45,11 +45,10 @@ ACCEPT_BELOW = 1e-9
 
 @dataclass(frozen=True)
 class Replan:
-    """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start from the flown state
-    (``residual_before``) and of the re-plan (``residual_after``, the terminal conditions of its own
-    prediction), the wall time from the flown state to the new plan (``solve_s``: the Newton steps and the
-    final rollout; with a prepared Jacobian the feedback phase only) and of the preparation before it
-    (``prepare_s``), ``accepted`` (else the current plan was kept) and why not (``message``)."""
+    """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start (``residual_before``) and of
+    the re-plan's own prediction (``residual_after``), the wall time from the flown state to the new plan
+    (``solve_s``) and of the preparation (``prepare_s``), ``accepted`` (else the current plan was kept) and why not
+    (``message``)."""
 
     k: int
     horizon: int

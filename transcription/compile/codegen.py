@@ -85,10 +85,9 @@ def compiled_many(fns: Sequence[ca.Function], name: str, timeout: float = 600.0,
 
 @dataclass(frozen=True)
 class Library:
-    """One shared library: its name (prefix of the cached file), its Functions, whether SX Functions go through
-    common-subexpression elimination before C generation, its compiler flags (None: the call's), and whether a
-    background build compiles it with the quick flags first (:func:`compiled_libraries`; not for C of loops, which
-    at -O0 runs slower than the interpreter)."""
+    """One shared library: its name (the cached file's prefix), its Functions, ``cse`` (common-subexpression
+    elimination of SX Functions), its flags (None: the call's), and ``quick``: a background build compiles it at the
+    quick flags first (not for C of loops, slower than the interpreter at -O0)."""
 
     name: str
     fns: tuple

@@ -1,18 +1,11 @@
 """The continuous-time flight engine: eqs. (1)-(4) under the controls a scheme defines between its nodes, integrated
 by SUNDIALS CVODES (casadi.integrator) node interval by node interval (docs/mathematics.md §11).
 
-* :func:`equations_of_motion` -- ``flight_eom(X[18], u[6], Jinv[3x3]) -> Xdot[18]``, eqs. (1)-(4) with
-  u = [u_f (inertial); u_m (body)] the control acting on the body;
-* :class:`Actuators` and :func:`actuator_output` -- commands -> applied controls (scale factors and
-  body-fixed misalignment rotations), ``flight_actuators(X, u_cmd[6], q[20]) -> u[6]``;
-* :func:`interval_commands` -- a scheme's controls as the affine command of each node interval
-  (LGVI: from u_k to u_{k+1} linearly; first order: u_{k+1} held), §11;
-* :class:`OpenLoop`, :class:`ClosedLoop` -- control laws: the command of interval k, as its values at
-  the interval's start and end, from (k, t_k, X_k) with X_k the flown state at t_k;
-* :func:`interval_integrator` -- ``flight_interval(X0[18], w[13], p[29]) -> (X1[18], Xs[18 x M])``,
-  one interval in its normalized time s = (t - t_k)/h_k in [0, 1], sampled at s = j/M;
-* :func:`fly` -- a law flown from X0 over a time grid -> :class:`Flight` (dense samples of the truth
-  state and the applied control).
+* :func:`equations_of_motion` -- eqs. (1)-(4); :class:`Actuators`, :func:`actuator_output` -- commands -> applied
+  controls; :func:`interval_commands` -- a scheme's controls as each node interval's affine command;
+* :class:`OpenLoop`, :class:`ClosedLoop` -- control laws: interval k's command at its two ends from (k, t_k, X_k);
+* :func:`interval_integrator` -- one interval in normalized time s = (t - t_k)/h_k, sampled at s = j/M;
+* :func:`fly` -- a law flown from X0 over a time grid -> :class:`Flight` (dense samples of state and control).
 
 The truth body is any :class:`~transcription.dynamics.model.BodyModel`; the integrator is built once per potential
 and number of samples, with the inverse inertia and actuator errors as parameters (a Monte Carlo reuses it).  R is
