@@ -1,13 +1,9 @@
 """The options of each method: frozen dataclasses, validated when they are made.
 
-``DirectOptions`` and ``IndirectOptions`` are the YAML blocks ``solver.direct`` and
-``solver.indirect``; :meth:`Options.from_mapping` builds one from such a block (unknown keys
-rejected) and ``Options.replace(**changes)`` derives a variant.  Every check raises
-:class:`OptionError` naming the option, so a Python caller and a maneuver file get the same
-message (the file layer adds the file name and the block).
-
-Each field states its check in its metadata (``_opt``): the kind of value and its range.  That
-is the only place where an option's type, range and default are written.
+``DirectOptions`` and ``IndirectOptions`` are the YAML blocks ``solver.direct`` and ``solver.indirect``;
+:meth:`Options.from_mapping` builds one (unknown keys rejected), ``Options.replace(**changes)`` derives a variant.
+Every check raises :class:`OptionError` naming the option, for a Python caller and a maneuver file alike.  Each
+field's metadata (``_opt``) is the one place its type, range and default are written.
 """
 from __future__ import annotations
 
@@ -140,25 +136,20 @@ def raw_solver_value(v):
 
 
 def check_raw_options(solver: str, raw: Mapping, name: str) -> None:
-    """Raise OptionError ``name.KEY`` for a raw option the solver plugin rejects or cannot honour.
-
-    Each option is tried alone on a one-variable problem solved once (milliseconds): unknown
-    names and wrong types fail when the solver is made, unavailable choices (e.g. a linear solver
-    that is not installed) when it runs ('Invalid_Option').
-    """
+    """Raise OptionError ``name.KEY`` for a raw option the solver plugin rejects or cannot honour: each is tried
+    alone on a one-variable problem (unknown names and types fail when the solver is made, unavailable choices when
+    it runs: 'Invalid_Option')."""
     for k, v in raw.items():
         _check_raw_option(solver, k, v, name)
 
 
-#: raw options naming files: checked for their type only, never tried (a trial would create the
-#: output file at validation, or read an option file that may be huge or never end, e.g. /dev/zero)
+#: raw options naming files: checked for their type only, never tried (a trial would create or read the file)
 _FILE_OPTIONS = {"output_file": "a file name", "option_file_name": None}
 
 
 @lru_cache(maxsize=4096)
 def _check_raw_option(solver: str, k: str, v, name: str) -> None:
-    """One raw option (cached: a sweep checks the same options at every grid point).  The trial
-    prints nothing (the solver's output during it is discarded) and writes no file."""
+    """One raw option (cached: a sweep checks the same options at every point); the trial prints nothing."""
 
     if k in _FILE_OPTIONS:
         if _FILE_OPTIONS[k] is None:
@@ -172,8 +163,7 @@ def _check_raw_option(solver: str, k: str, v, name: str) -> None:
                                              f"got {v!r}: {why}")
         return
     if isinstance(v, (int, float)) and not isinstance(v, bool) and _option_kind(solver, k) == "int":
-        # CasADi passes an integer option to the solver as a C int, silently truncated or wrapped
-        # (max_iter 2.5 -> 2, 1e30 -> 0, 2^32 + 5 -> 5): refuse what does not convert exactly
+        # CasADi passes an integer option as a C int, silently truncated or wrapped: refuse what does not convert
         if not (float(v).is_integer() and -C_INT_MAX - 1 <= v <= C_INT_MAX):
             raise OptionError(f"{name}.{k}", f"expected an integer from {-C_INT_MAX - 1} to {C_INT_MAX} ({solver}'s "
                                              f"int), got {show(v)}")
@@ -196,8 +186,7 @@ def _check_raw_option(solver: str, k: str, v, name: str) -> None:
 
 
 def _unwritable(path: str) -> str:
-    """Why ``path`` cannot be opened for writing ('' if it can): an existing file is checked for
-    access, a new one is created and removed again (so nothing is left behind)."""
+    """Why ``path`` cannot be opened for writing ('' if it can); a new file is created and removed again."""
     if os.path.isdir(path):
         return "it is a directory"
     try:
@@ -213,8 +202,8 @@ def _unwritable(path: str) -> str:
 
 @lru_cache(maxsize=4096)
 def _option_kind(solver: str, k: str) -> str:
-    """'int', 'float' or 'other': the type the solver declares for option ``k``, asked by giving it a
-    word (CasADi then names the type it expected: is_int / is_double; milliseconds, once per option)."""
+    """'int', 'float' or 'other': the type the solver declares for option ``k`` (given a word, CasADi names the
+    type it expected: is_int / is_double)."""
     import contextlib
     import io
 
@@ -275,18 +264,8 @@ class DirectOptions(Options):
     initial_guess: str = _opt("auto", "choice", choices=("auto", "rollout", "interpolate", "orbit"),
                               doc="rollout: free motion of the scheme; interpolate: the SE(3) screw motion to the target; "
                                   "orbit: that screw motion in the frame turning with the orbit (a central body); "
-                                  "auto: the rollout if it ends within one characteristic scale of the target, else the "
-                                  "interpolation whose path needs less effort to fly (at most 200 iterations), then the "
-                                  "other starts; the fuel objective from the homotopy "
-                                  "(effort, then a smoothed fuel objective) beside the rollout and the interpolation (at most "
-                                  "600 each) on a coarse grid (N // 4 recursively, down to 25 steps), the best finished on N "
-                                  "steps (on N steps themselves when the coarse grid's free motion ends beyond the force's "
-                                  "reach of the fine grid's); a bounded "
-                                  "or path-constrained effort problem first from the solution without its bounds and "
-                                  "constraints; the time objective from three interpolations with symmetry-breaking "
-                                  "controls, the fastest kept, solved on a coarser grid (N // 4, at least 25 steps) and finished "
-                                  "on N steps; every guess tried is reported in the message and Solution.attempts "
-                                  "(see transcription.strategy.plan.guess_plan)")
+                                  "auto: the objective's strategy of starts (docs/mathematics.md §10, Initial guesses); "
+                                  "every guess tried is reported in the message and the trace")
     options: Mapping = _opt({}, "mapping", doc="raw IPOPT options, checked before anything runs")
     cayley_variables: bool = _opt(True, "bool", doc="the Cayley vectors as unknowns (every defect explicit)")
     terminal_tol: float = _opt(1e-6, "float", lo=0.0, doc="re-simulated terminal error above which a solve is not converged")
@@ -322,8 +301,8 @@ class IndirectOptions(Options):
                                       "the interpreter without a compiler)")
 
 
-#: the environment variable that switches the default continuous check off (``0``, ``false``, ``no``, ``off``):
-#: for test runs of code that does not test the check; an explicit ``continuous_check`` always wins
+#: the environment variable that switches the default continuous check off (``0``, ``false``, ``no``, ``off``; for
+#: test runs); an explicit ``continuous_check`` always wins
 CHECK_ENV = "SE3OCP_CONTINUOUS_CHECK"
 
 
@@ -334,7 +313,7 @@ def _default_check() -> bool:
 @dataclass(frozen=True)
 class AccuracyOptions(Options):
     """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...): the continuous
-    check and refinement to a tolerance (transcription/accuracy.py, issue 26)."""
+    check and refinement to a tolerance (transcription/strategy/refine.py)."""
 
     KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "max_N", "max_levels", "refinement")
 

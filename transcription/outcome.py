@@ -97,20 +97,14 @@ def result_of_solver_status(status: str) -> Result:
 class Iterate:
     """One progress record, the same for every method (history entries and progress callbacks).
 
-    iteration: outer iteration (NLP iteration, Newton step); trial: 0 for the iterate itself,
-    1, 2, ... for the line-search trials of a Newton step; residual: the 2-norm of the shooting
-    residual (Newton) or the primal infeasibility (NLP); residual_inf: its max-norm where known;
-    cost: the objective (NLP; nan for Newton); dual: the dual infeasibility (NLP); step: the
-    line-search step (Newton: c; IPOPT: alpha_pr); accepted: whether the trial became the next
-    iterate; aux: the largest relative Cayley residual of the trial's rollout (Newton);
-    phase: which solve of a multi-phase solve the record belongs to (e.g. 'nlp'; the direct method's
-    progress records: the start or step, nested solves under their own, 'coarse N=25 / effort / rollout');
-    elapsed_s: seconds since the solve started (the records ``solve`` passes to ``progress``: since that
-    top-level call); budget: the most iterations this phase may take (an NLP's max_iter; 0: not known;
-    the records of an NLP number its solver's calls back, and IPOPT's restoration phase calls back a few
-    times more than it counts iterations, so iteration may pass budget by those);
-    method: the method that produced it (set by ``solve`` on the records it passes to ``progress``; '' in
-    a Solution's history, which knows its method).  Absent values are nan.
+    iteration: outer iteration (NLP iteration, Newton step); trial: 0 for the iterate, 1, 2, ... for a Newton
+    step's line-search trials; residual: the shooting residual's 2-norm (Newton) or the primal infeasibility (NLP);
+    residual_inf: its max-norm where known; cost: the objective (NLP); dual: the dual infeasibility (NLP); step: the
+    line-search step (Newton c; IPOPT alpha_pr); accepted: the trial became the next iterate; aux: the largest
+    relative Cayley residual of the trial's rollout (Newton); phase: which solve of a multi-phase solve, nested
+    ('coarse N=25 / effort / rollout'); elapsed_s: seconds since the top-level ``solve``; budget: the most
+    iterations this phase may take (0: not known; IPOPT's restoration may call back a few times more); method: set
+    by ``solve`` on the records it passes to ``progress`` ('' in a history).  Absent values are nan.
     """
 
     iteration: int
@@ -149,9 +143,8 @@ class Iterate:
         return "  ".join(parts)
 
     def progress_line(self) -> str:
-        """The line progress printers show: :meth:`line` after the method and the seconds since the solve
-        started, where known: '[direct 123 s] iter   45  cost ...  (eps 1e-01; <= 500 it)' (the phase, and the
-        most iterations it may take)."""
+        """:meth:`line` after the method and the seconds since the solve started, where known:
+        '[direct 123 s] iter   45  cost ...  (eps 1e-01; <= 500 it)'."""
         head = " ".join(p for p in (self.method, f"{self.elapsed_s:.0f} s" if math.isfinite(self.elapsed_s) else "")
                         if p)
         return f"[{head}] {self.line()}" if head else self.line()

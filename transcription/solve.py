@@ -1,12 +1,9 @@
 """The one entry point of the numerical core: ``solve(problem, method)``, plus ``simulate`` and ``compare``.
 
-Every front end -- the Python API (``se3ocp.solve``), the CLI, sweeps, scripts -- calls :func:`solve`.  It picks the
-method's implementation for the problem's kind of control (:data:`METHODS`; which methods solve which problems is
-decided in one place, :func:`not_covered`), composes its solves by a strategy -- the objective's default
-(``Objective.strategy``), or the one the caller gives -- and returns a frozen Solution: checks (the continuous flight,
-refinement's mesh history) add to it by :func:`dataclasses.replace`.  For ``method='both'`` it runs both on the same
-discretization and compares them; the direct solution starts the indirect method when ``initial_costate:
-from_direct`` (as it does for 'indirect' alone).
+Every front end calls :func:`solve`.  It picks the method's implementation for the problem's kind of control
+(:data:`METHODS`; which methods solve which problems: :func:`not_covered`), composes its solves by a strategy (the
+objective's default, ``Objective.strategy``, or the caller's) and returns a frozen Solution; checks add to it by
+:func:`dataclasses.replace`.  ``method='both'`` runs both on the same discretization and compares them.
 """
 from __future__ import annotations
 
@@ -39,23 +36,20 @@ from .strategy.refine import AccuracyOptions, attach_checks, each, out_of_reach,
 
 #: the registry: each method name and its implementations (one per kind of control)
 METHODS = {"direct": {"smooth": Direct, "impulsive": Impulsive}, "indirect": {"smooth": Indirect}}
-#: the implementations (method name, kind of control) that take a non-uniform mesh, step k with its own h_k
-#: (issue 26, docs/mathematics.md §16); the others refuse one in :func:`not_covered`
+#: the implementations (method, kind of control) that take a non-uniform mesh (docs/mathematics.md §16)
 ON_A_MESH = {("direct", "smooth"), ("indirect", "smooth")}
 #: what ``solve`` accepts: a method name, or 'both'
 METHOD_NAMES = ("direct", "indirect", "both")
 #: relative cost difference above which compare reports different extremals
 MISMATCH_COST_RTOL = 1e-6
-#: IPOPT's tol of the direct method's re-solve (from its own solution, primal and dual) before 'both' declares
-#: a mismatch: a solution at a looser tol can sit inside an active bound by ~sqrt(tol) and cost more
-#: (:func:`reconcile`)
+#: IPOPT's tol of the direct re-solve before 'both' declares a mismatch (:func:`reconcile`): a solution at a looser
+#: tol can sit inside an active bound by ~sqrt(tol) and cost more
 RETIGHTEN_TOL = 1e-12
 
 
 class NotCovered(ValueError):
-    """:func:`solve`'s refusal of a method that cannot run on the problem at all: :func:`not_covered`'s sentence.
-    A ValueError, so that whoever catches ValueError still does; a front end that tells bad input from a defect
-    catches this class (the CLI: one line naming the file's field, exit 2)."""
+    """:func:`solve`'s refusal of a method that cannot run on the problem at all (:func:`not_covered`'s sentence);
+    a ValueError, and a class of its own for front ends that tell bad input from a defect."""
 
 
 class OutOfReach(ValueError):
@@ -67,9 +61,8 @@ class OutOfReach(ValueError):
 class Comparison:
     """Both methods on one problem: their Solutions and how far they agree.
 
-    cost_relative_difference = |J_d - J_i| / max(|J_d|, |J_i|); control_max_difference_relative =
-    max |U_d - U_i| / max |U_d|; same_extremal: both converged and the costs agree to
-    MISMATCH_COST_RTOL; verdict: a sentence (which one is lower if they differ)."""
+    cost_relative_difference = |J_d - J_i| / max(|J_d|, |J_i|); control_max_difference_relative = max |U_d - U_i| /
+    max |U_d|; same_extremal: both converged and the costs agree to MISMATCH_COST_RTOL; verdict: a sentence."""
 
     direct: Solution
     indirect: Solution
@@ -142,10 +135,8 @@ def _tolerances(d: Solution, i: Solution) -> str:
 
 
 def _retightened(d: Solution, direct: DirectOptions, progress: Progress | None, why: str, **stats) -> Solution:
-    """The direct Solution ``d`` re-solved at tol RETIGHTEN_TOL from its own solution (primal and dual), for
-    :func:`reconcile` and :func:`fuel_retighten`; when it converges, it carries ``d``'s attempts and itself as the
-    last (their iterations and times), ``stats['retightened_from_tol']`` and ``stats``, and a verdict that says
-    ``why``."""
+    """The direct Solution ``d`` re-solved at tol RETIGHTEN_TOL from its own solution (primal and dual); when it
+    converges, with ``d``'s attempts before its own, ``stats['retightened_from_tol']``, ``stats`` and ``why``."""
     tight = Direct(direct.replace(tol=RETIGHTEN_TOL)).solve(d.problem, d.warm, _tagged(progress, "direct", "retightened"),
                                                           f"its solution at tol {RETIGHTEN_TOL:.0e}")
     if not tight.converged:
@@ -156,13 +147,11 @@ def _retightened(d: Solution, direct: DirectOptions, progress: Progress | None, 
 
 
 def reconcile(cmp: Comparison, direct: DirectOptions, progress: Progress | None = None) -> Comparison:
-    """``cmp`` again after the direct method was re-solved at tol RETIGHTEN_TOL from its own solution (primal and
-    dual), when both converged but their costs differ by more than MISMATCH_COST_RTOL and the direct tol was
-    looser: a difference that the direct method's tolerance explains is not a mismatch.  The re-solve's
-    iterations and time are added to the direct Solution; its stats say what it was re-solved from
-    (``retightened_from_tol``, ``cost_difference_before_retightening``) and the verdict names the tolerances.
-    Unchanged when there is nothing to re-solve or the re-solve does not converge (then ``stats['retighten']``
-    of the direct Solution says so)."""
+    """``cmp`` again after the direct method was re-solved at tol RETIGHTEN_TOL from its own solution, when both
+    converged but their costs differ by more than MISMATCH_COST_RTOL at a looser direct tol: a difference the
+    tolerance explains is not a mismatch.  The direct Solution carries the re-solve (``retightened_from_tol``,
+    ``cost_difference_before_retightening``).  Unchanged when there is nothing to re-solve, or the re-solve fails
+    (``stats['retighten']`` says so)."""
     d = cmp.direct
     if cmp.same_extremal or not cmp.converged or d.solver != "ipopt" or direct.tol <= RETIGHTEN_TOL or d.warm is None:
         return cmp
@@ -186,12 +175,9 @@ def implementation(problem: Problem, name: str, direct: DirectOptions | None = N
 
 
 def not_covered(problem: Problem, method: str) -> str:
-    """Why ``method`` ('direct', 'indirect' or 'both') cannot be run on ``problem`` at all, in one sentence
-    ('' when it can): the one place that says which methods solve which problems (impulsive maneuvers: the
-    direct method only; a motion without control: none).  ``solve`` raises NotCovered with it; the CLI and
-    the sweeps report it as bad input (and the CLI narrows 'both' to the method that applies).  What a method does
-    not cover *within* a problem it solves (the indirect method and path constraints) is not decided here: that
-    method's Solution says so (Result.not_applicable)."""
+    """Why ``method`` ('direct', 'indirect' or 'both') cannot run on ``problem`` at all, in one sentence ('' when it
+    can): the one place that says which methods solve which problems; ``solve`` raises NotCovered with it.  What a
+    method does not cover *within* a problem is its Solution's Result.not_applicable."""
     if method not in METHOD_NAMES:
         return f"method must be one of {', '.join(METHOD_NAMES)}, got {method!r}"
     if problem.kind is None:
@@ -215,10 +201,9 @@ def _tagged(progress: Progress | None, name: str, phase: str = "") -> Progress |
 # ---------------------------------------------------------------------------- one method
 def solve_direct(problem: Problem, options: DirectOptions | None = None, progress: Progress | None = None,
                  warm: Start | None = None, strategy=None) -> Solution:
-    """The direct method on ``problem``: impulsive control by its one solve; smooth control by ``strategy`` (default:
-    the objective's, ``Objective.strategy``) -- from ``warm`` when given (fitted to the grid; what was reused said in
-    the message and ``stats['warm_start*']``), fatrop first when ``options.solver`` is 'fatrop' (IPOPT the fallback)
-    -- with what to try next when it fails from its own starts (:func:`~transcription.strategy.hints.failure_hint`)."""
+    """The direct method on ``problem``: impulsive control by its one solve; smooth control by ``strategy`` (default
+    the objective's) from ``warm`` when given, fatrop first when ``options.solver`` is 'fatrop' (IPOPT the fallback),
+    with what to try next when it fails from its own starts (:func:`~transcription.strategy.hints.failure_hint`)."""
     options = options or DirectOptions()
     ctx = Context(implementation(problem, "direct", options), progress)
     if problem.kind == "impulsive":
@@ -237,9 +222,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
 
 
 def _warm_notes(problem: Problem, sol: Solution, warm: Start, options: DirectOptions) -> Solution:
-    """``sol``, solved from the warm start ``warm``, with what became of it in the message and stats: ``warm_start``
-    (where it came from), ``warm_start_resampled``, ``warm_start_notes`` (what was resampled, what was not
-    reused)."""
+    """``sol`` with what became of the warm start in its message and stats (``warm_start``, ``warm_start_resampled``,
+    ``warm_start_notes``)."""
     fitted, notes = warm.fit(problem.N, problem.scheme, problem.fractions)
     said = list(notes)
     key = transcription(problem, options)[0].nlp.key
@@ -282,20 +266,18 @@ NO_FALLBACK = (Result.not_applicable, Result.interrupted)
 
 
 def needs_fallback(sol: Solution, options: IndirectOptions, warm: Start | None, *, retry_warm: bool = False) -> bool:
-    """Whether the indirect solve ``sol``, started from ``options.initial_costate`` or from the warm start ``warm``,
-    failed and is to be started again from the direct solution (``options.fallback``, :func:`with_fallback`).  A
-    failed warm start is retried only with ``retry_warm``: when the direct solution of this very grid is at hand
-    ('both': the warm start came from elsewhere, e.g. refinement's previous level)."""
+    """Whether the indirect solve ``sol`` failed and is to be started again from the direct solution
+    (``options.fallback``, :func:`with_fallback`); a failed warm start only with ``retry_warm`` (the direct solution
+    of this very grid is at hand)."""
     return (bool(options.fallback) and (warm is None or retry_warm) and options.initial_costate != "from_direct"
             and not sol.result.successful and sol.result not in NO_FALLBACK)
 
 
 def with_fallback(cold: Solution, retry: Solution | None, dsol: Solution, direct_s: float | None) -> Solution:
     """The Solution of an indirect solve whose start from ``initial_costate`` (``cold``) failed and that was started
-    again from the direct solution ``dsol`` (``retry``; None when the direct method did not converge, so that there
-    was nothing to start from).  The successful one is returned (else the cold one, whose failure is the reason), its
-    trace the two starts (with ``direct_s``, the direct solve run for the second: its time, as the second's part), its
-    message saying which start succeeded; ``stats['fallback']``."""
+    again from the direct solution ``dsol`` (``retry``; None when the direct method did not converge): the successful
+    one (else ``cold``), its trace the two starts (``direct_s``: the direct solve's time, as the second's part), its
+    message saying which succeeded; ``stats['fallback']``."""
     spec = cold.stats.get("initial_costate", "zero")
     first = (replace(cold.trace[0], label=f"initial_costate {spec}"),) if cold.trace else ()
     what = "from_direct (the direct solution's costates" + (f", its T = {dsol.warm.T:.10g})" if
@@ -320,10 +302,8 @@ def with_fallback(cold: Solution, retry: Solution | None, dsol: Solution, direct
 def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect: IndirectOptions,
               progress: Progress | None, warm: Start | None, dsol: Solution | None) -> Solution:
     """``isol`` if it succeeded or needs no fallback (:func:`needs_fallback`), else the indirect method started again
-    from the direct solution ``dsol`` (solved here when None) -- the cold start's failure and the fallback in its
-    trace and message (:func:`with_fallback`).  A warm start is retried too when ``dsol`` is given ('both': the warm
-    start came from elsewhere, e.g. refinement's previous level resampled onto this mesh, where the fuel raise's
-    indirect start failed and this grid's direct solution converges in 2 iterations, docs/mathematics.md §19)."""
+    from the direct solution ``dsol`` (solved here when None; :func:`with_fallback`).  A failed warm start is retried
+    too when ``dsol`` is given (docs/mathematics.md §19)."""
     if not needs_fallback(isol, indirect, warm, retry_warm=dsol is not None):
         return isol
     direct_s = None
@@ -338,13 +318,10 @@ def _fallback(problem: Problem, isol: Solution, direct: DirectOptions, indirect:
 
 def fuel_retighten(cmp: Comparison, direct: DirectOptions, indirect: IndirectOptions,
                    progress: Progress | None) -> Comparison:
-    """When the direct method converged and the indirect one did not (from its own start and from the direct
-    solution) on a problem whose indirect law starts from the direct solution's switching structure (the fuel
-    objective): the direct method re-solved at tol RETIGHTEN_TOL from its solution and the indirect one started again
-    from that (docs/mathematics.md §19: at IPOPT's default tol the fuel raise's switching structure is scattered, its
-    costates contradicting it).  ``cmp`` unchanged otherwise, or when the re-solve does not converge; the re-solve's
-    iterations and time are the direct Solution's (``stats['retightened_from_tol']``), the indirect Solution's
-    message says it was restarted."""
+    """When the direct method converged and the indirect one did not on a problem whose indirect law starts from the
+    direct solution's switching structure (the fuel objective): the direct method re-solved at tol RETIGHTEN_TOL and
+    the indirect one restarted from that (docs/mathematics.md §19: at a looser tol the switching structure is
+    scattered).  ``cmp`` unchanged otherwise, or when the re-solve does not converge."""
     d, i = cmp.direct, cmp.indirect
     law = getattr(d.problem.control, "objective", None)
     if (d.problem.kind != "smooth" or not getattr(law.indirect, "from_structure", False) or not d.converged
@@ -369,20 +346,16 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
           accuracy: AccuracyOptions | None = None, strategy=None) -> Solution | Comparison:
     """Solve ``problem`` by ``method`` ('direct', 'indirect' or 'both').
 
-    direct, indirect: the options of each method (defaults if None).  strategy: how the direct method composes its
-    solves (:mod:`transcription.strategy`; default: the objective's, ``Objective.strategy``, whose parameters are its
-    fields).  progress: called as progress(Iterate) during the solve, the Iterate naming its method
-    (``Iterate.method``), its solve (``phase``: e.g. the direct method's starts, coarse grids and homotopy levels, a
-    refinement level 'level 1 N=200', 'retightened') and the seconds since this call (``elapsed_s``).  warm_start: a
-    previous Solution (its ``warm``) or a :class:`~transcription.results.start.Start`, of either method and of any N
-    and scheme (it is resampled; the Solution's message and ``stats['warm_start*']`` say what was reused):
-    continuation, refinement, a hand-over between methods.  Returns a Solution, or for 'both' a :class:`Comparison`.
-    Failures are data (``solution.result``); with ``throw=True`` a Solution that is not successful raises
-    :class:`~transcription.results.solution.SolveError`.  A method that cannot solve the problem at all
-    (:func:`not_covered`), or an accuracy out of reach (:func:`~transcription.strategy.refine.out_of_reach`), raises
-    :class:`NotCovered` or :class:`OutOfReach` (ValueErrors) with the one-line answer.  accuracy: the continuous
-    check and refinement to a tolerance (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the
-    check on, N fixed): every successful smooth-control Solution carries its continuous check (``sol.continuous``).
+    direct, indirect: each method's options (defaults if None).  strategy: how the direct method composes its solves
+    (:mod:`transcription.strategy`; default the objective's).  progress: called as progress(Iterate), the Iterate
+    naming its method, its solve (``phase``) and the seconds since this call (``elapsed_s``).  warm_start: a
+    previous Solution or a :class:`~transcription.results.start.Start`, of either method, any N and scheme
+    (resampled).  accuracy: the continuous check and refinement to a tolerance
+    (:class:`~transcription.strategy.refine.AccuracyOptions`; default: the check on, N fixed).  Returns a Solution,
+    or for 'both' a :class:`Comparison`.  Failures are data (``solution.result``); ``throw=True`` raises
+    :class:`~transcription.results.solution.SolveError` for an unsuccessful one.  Raises :class:`NotCovered`
+    (:func:`not_covered`) or :class:`OutOfReach` (:func:`~transcription.strategy.refine.out_of_reach`) before
+    solving.
     """
     reason = not_covered(problem, method)
     if reason:
@@ -468,11 +441,9 @@ def simulate(problem: Problem, controls: np.ndarray | None = None) -> Solution:
     """The motion of ``problem``'s discretization from X0 under ``controls`` (6 x n_controls; None:
     free motion) over its horizon.
 
-    Returns a Solution with method 'simulate': result converged (the motion is a solution of the
-    discrete equations), cayley_failed (a step's Cayley equation was not solved to CAYLEY_TOL: h
-    too large) or non_finite; terminal_error = how far the motion misses the problem's terminal
-    target (nan without one); stats: orthogonality, determinant, relative energy errors, the
-    largest Cayley residual.
+    Returns a Solution with method 'simulate': result converged, cayley_failed (a step's Cayley equation not solved
+    to CAYLEY_TOL: h too large) or non_finite; terminal_error: the miss of the terminal target (nan without one);
+    stats: orthogonality, determinant, relative energy errors, the largest Cayley residual.
     """
     disc, N, h = problem.disc, problem.N, problem.h
     t0 = time.perf_counter()

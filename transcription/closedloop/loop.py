@@ -2,16 +2,14 @@
 CasADi Function, node interval by node interval, so that a whole closed-loop flight is one ``mapaccum`` of
 CVODES intervals (a loop in C) instead of a Python loop asking a law for each interval's command.
 
-The law is the one of :class:`transcription.closedloop.tracking.Tracker` without saturation (an unbounded plan: the
-correction is never limited): at node k, from the flown state X_k,
+The law is :class:`transcription.closedloop.tracking.Tracker`'s without saturation (an unbounded plan): at node k,
+from the flown state X_k,
 
     z_k = [x - x_k; gamma - gamma_k; vee log(R_k^T R); Pi - Pi_k]          (tangent_error, log by atan2),
     r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1}   (r_0 = 0),     du_k = -K_k z_k - L_k r_k / rho_{k-1},
 
-with rho_{k-1} = h_{k-1} / h the relative size of the step that explained r_k (1 on a uniform mesh; the
-disturbance per mean step of transcription.closedloop.tracking.riccati), and the interval's command is the plan's
-(a_k + du_k, b_k + du_k).  The accumulated state of the loop is
-S = [X (18); z_{k-1} (12); du_{k-1} (6)].  Same numbers as the per-interval path to round-off (tested to
+with rho_{k-1} = h_{k-1} / h (1 on a uniform mesh), and the interval's command is (a_k + du_k, b_k + du_k).  The
+accumulated state is S = [X (18); z_{k-1} (12); du_{k-1} (6)].  The same numbers as the per-interval path (tested to
 1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
 """
 from __future__ import annotations

@@ -1,30 +1,15 @@
 """Re-planning (MPC): shrinking-horizon re-plans of a plan from the flown state, each a fixed budget of the
 indirect method's Newton steps warm-started from the previous plan (docs/mathematics.md §12, *Re-planning*).
 
-At node k (every ``replan_every`` steps) the flown state X(t_k) becomes the initial state of the remaining
-problem: the plan's Problem (model, weights, bounds, terminal target) over the N - k remaining steps of the
-same h.  Its unknown is the remaining problem's shooting unknown (lgvi lambda_{k-1}, first order lambda_k),
-warm-started from the current plan's costate there (:meth:`~transcription.results.start.Start.tail`): by
-Bellman's principle the current plan's remainder solves the remaining problem's conditions, so from the
-plan's own node the warm start is already the answer, and from a nearby state one Newton step
-(the exact Jacobian Psi of the shooting residual) is a step of a quadratically convergent iteration --
-the real-time iteration of acados in the indirect method's coordinates: ``iterations`` full steps, no line
-search, the plan re-rolled from the result.  A step whose rollout is not finite, does not solve the
-Cayley equation to ``cayley_tol``, or misses the terminal conditions by more than the warm start did (a
-remaining problem made infeasible by saturated bounds near the end) is rejected and the current plan kept.
-
-As in acados the work is split (:meth:`Replanner.prepare`): the Jacobian is prepared at the current plan's
-node before the flown state is known, and the feedback phase -- from the flown state to the new plan -- is
-one rollout for the residual, a 12 x 12 solve and the final rollout (a chord step; further iterations take
-the exact Jacobian).
-
-Why the indirect method and not IPOPT capped at one or two iterations: the re-plan's unknown is 12 numbers,
-its Jacobian is one rollout of the linearized map (compiled to C), so the feedback phase costs two plain
-rollouts -- 2.4 ms at a 50-step horizon on a quiet machine, 4.1 ms for an exact Newton step
-(scripts/bench_flight.py --case mpc, docs/performance.md) -- where the direct method would rebuild an NLP for every horizon length and IPOPT's own overhead per
-call (scaling, restoration machinery, the KKT factorization of 1000+ variables) is of the same order or
-more.  What the indirect method does not cover (path constraints, other objectives, orbit targets) the
-re-planner refuses with that reason.
+At node k (every ``replan_every`` steps) the flown state X(t_k) is the initial state of the remaining problem: the
+plan's Problem over the N - k remaining steps.  Its shooting unknown (lgvi lambda_{k-1}, first order lambda_k) is
+warm-started from the current plan's costate there (:meth:`~transcription.results.start.Start.tail`; by Bellman's
+principle the answer from the plan's own node), then ``iterations`` full Newton steps with the exact Jacobian, no line
+search: acados' real-time iteration in the indirect method's coordinates, split into a preparation at the plan's
+node (:meth:`Replanner.prepare`) and a feedback phase from the flown state.  A step whose rollout is not finite,
+leaves a Cayley residual above ``cayley_tol``, or misses the target by more than the warm start did is rejected and
+the current plan kept.  Why the indirect method: 12 unknowns and a compiled rollout make the feedback phase a few ms
+(§12, *Why this solver*); what it does not cover the re-planner refuses with that reason.
 
 * :class:`Replanner` -- one Problem's re-plan: ``replan(X, tail) -> (new plan | None, Replan)``;
 * :class:`Replanning` -- the flight engine's control law (transcription.flight.ControlLaw): re-plans at
@@ -53,19 +38,17 @@ from ..results.start import Start
 DEFAULT_REPLAN_EVERY = 10
 #: Newton steps per re-plan (the flight block's ``mpc.iterations``): one, as acados' real-time iteration
 DEFAULT_ITERATIONS = 1
-#: a re-plan is accepted when its own prediction misses the terminal conditions by less than the warm start
-#: did from the flown state, or by less than this (round-off): otherwise the current plan is kept -- near the
-#: end of a plan on its bounds the remaining problem can become infeasible, and a Newton step there is no plan
+#: a re-plan is accepted when its prediction misses the terminal conditions by less than the warm start did, or by
+#: less than this (round-off): near the end of a plan on its bounds the remaining problem can become infeasible
 ACCEPT_BELOW = 1e-9
 
 
 @dataclass(frozen=True)
 class Replan:
-    """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start from the flown state
-    (``residual_before``) and of the re-plan (``residual_after``, the terminal conditions of its own
-    prediction), the wall time from the flown state to the new plan (``solve_s``: the Newton steps and the
-    final rollout; with a prepared Jacobian the feedback phase only) and of the preparation before it
-    (``prepare_s``), ``accepted`` (else the current plan was kept) and why not (``message``)."""
+    """What one re-plan did: at node ``k`` over ``horizon`` steps, |F| of the warm start (``residual_before``) and of
+    the re-plan's own prediction (``residual_after``), the wall time from the flown state to the new plan
+    (``solve_s``) and of the preparation (``prepare_s``), ``accepted`` (else the current plan was kept) and why not
+    (``message``)."""
 
     k: int
     horizon: int
@@ -78,10 +61,9 @@ class Replan:
 
 
 def replan_not_covered(problem) -> str:
-    """What of ``problem`` the re-planner does not cover ('' if nothing): what the indirect method does not cover
-    (:func:`~.methods.indirect.solve.not_covered` with the effort objective only: the time and fuel objectives are
-    named there), and of what it does an orbit target (docs/mathematics.md §19): the re-plan's shooting is the
-    state target's with the effort law."""
+    """What of ``problem`` the re-planner does not cover ('' if nothing): what the indirect method does not cover with
+    the effort law (:func:`~.methods.indirect.solve.not_covered`), and an orbit target (the re-plan's shooting is the
+    state target's)."""
     reasons = [r for r in (not_covered(problem, replan=True),) if r]
     if isinstance(problem.terminal, TargetOrbit):
         reasons.append("an orbit target in a re-plan")
@@ -89,10 +71,9 @@ def replan_not_covered(problem) -> str:
 
 
 class Replanner:
-    """Re-plans of one Problem (a smooth-control effort problem with a state target, the indirect method's
-    coverage) at the (mean) step size h (on a mesh the remaining steps h r_k, :meth:`steps`): ``iterations``
-    Newton steps on the remaining problem's shooting unknown from a warm start, ``jit``: the per-step maps compiled to C (transcription.compile.codegen; interpreter without a
-    compiler).  ValueError for a problem the indirect method does not cover."""
+    """Re-plans of one Problem (smooth-control effort, state target) at the (mean) step size h (on a mesh the
+    remaining steps h r_k, :meth:`steps`): ``iterations`` Newton steps on the remaining problem's shooting unknown
+    from a warm start; ``jit``: the per-step maps compiled to C.  ValueError for a problem not covered."""
 
     def __init__(self, problem, h: float, iterations: int = DEFAULT_ITERATIONS, jit: bool = True,
                  cayley_tol: float = IndirectOptions.cayley_tol):
@@ -116,10 +97,8 @@ class Replanner:
         return shooting_functions(self.problem.disc, int(n), self.jit)
 
     def start(self, plan: Start) -> Start:
-        """``plan`` with its shooting unknown: the plan's own lam0, else mapped from its costates (a direct
-        plan's, from its multipliers: docs/mathematics.md §7; lgvi lambda_{-1} = A_0^T lambda_0 as
-        methods.indirect.solve.lam0_from_costates, at the plan's X_0 and h -- a free final time's h is the
-        plan's, not the Problem's guess).  ValueError without costates."""
+        """``plan`` with its shooting unknown: its own lam0, else from its costates (lgvi lambda_{-1} = A_0^T lambda_0 at
+        the plan's X_0 and h, as methods.indirect.solve.lam0_from_costates).  ValueError without costates."""
         if plan.lam0 is not None:
             return plan
         if plan.costates is None:
@@ -133,21 +112,18 @@ class Replanner:
                          costates=plan.costates, lam0=np.asarray(lam0, float))
 
     def prepare(self, tail: Start) -> tuple[np.ndarray, float]:
-        """The preparation phase of a re-plan (acados' real-time iteration): the Jacobian dF/dlam at the
-        predicted state ``tail.X[0]`` (the current plan's node) and the warm start, computable before the
-        flown state is known; and its wall time (s)."""
+        """The preparation phase of a re-plan: the Jacobian dF/dlam at the predicted state ``tail.X[0]`` and the warm
+        start, before the flown state is known; and its wall time (s)."""
         t0 = time.perf_counter()
         _, J = self._newton_system(self.functions(tail.N), np.asarray(tail.lam0, float).reshape(NZ),
                                    (tail.X[0], self.Xd, self.steps(tail.N), self.Winv, self.bd))
         return J, time.perf_counter() - t0
 
     def replan(self, X, tail: Start, k: int = 0, J0: np.ndarray | None = None) -> tuple[Start | None, Replan]:
-        """The remaining problem from the state X (18,) over ``tail.N`` steps, warm-started from ``tail``
-        (:meth:`Start.tail` of the current plan, its lam0 the remaining problem's unknown): the new plan
-        (node times from 0, the predicted states X_0 = X .. X_n, controls, costates, lam0), or None when
-        the step was rejected; and the :class:`Replan` record (k: the node, for the record).  ``J0``: the
-        prepared Jacobian (:meth:`prepare`) for the first step, whose residual is then one plain rollout from
-        X (the feedback phase); without it every step takes the exact Jacobian at X."""
+        """The remaining problem from the state X (18,) over ``tail.N`` steps, warm-started from ``tail``: the new plan
+        (node times from 0, predicted states X_0 = X .. X_n, controls, costates, lam0), or None when rejected; and the
+        :class:`Replan` record (k: the node).  ``J0``: the prepared Jacobian (:meth:`prepare`) for the first step;
+        without it every step takes the exact Jacobian at X."""
         X, n = np.asarray(X, float).reshape(NX), tail.N
         fns, args = self.functions(n), (X, self.Xd, self.steps(n), self.Winv, self.bd)
         lam, before, msg = np.asarray(tail.lam0, float).reshape(NZ), np.nan, ""
@@ -195,14 +171,11 @@ class Replanner:
 
 class Replanning:
     """The control law of a re-planned flight (transcription.flight.ControlLaw): at nodes k = 0, e, 2e, ...
-    (e = ``every``; none in the last ``min_horizon - 1`` steps) the :class:`Replanner` re-plans the
-    remainder of the current plan from the flown state X(t_k); over every interval the current plan's
-    command as the scheme defines it between nodes (transcription.flight.interval_commands), plus, with
-    ``gains`` (the original plan's tracker, transcription.closedloop.tracking.Gains), the tracker's correction around
-    the current plan (:func:`around`).  ``prepared``: each re-plan's first Newton step takes the Jacobian
-    prepared at the current plan's node (:meth:`Replanner.prepare`, the real-time iteration's preparation
-    phase), so the time from the flown state to the new plan is one rollout, a 12 x 12 solve and the final
-    rollout.  ``replans``: the :class:`Replan` records, in order."""
+    (e = ``every``; none in the last ``min_horizon - 1`` steps) the :class:`Replanner` re-plans the remainder from
+    the flown state X(t_k); over every interval the current plan's command (transcription.flight.interval_commands),
+    plus, with ``gains`` (the original plan's tracking Gains), the tracker's correction around the current plan
+    (:func:`around`).  ``prepared``: the first Newton step takes the prepared Jacobian (:meth:`Replanner.prepare`).
+    ``replans``: the :class:`Replan` records, in order."""
 
     def __init__(self, replanner: Replanner, plan: Start, every: int = DEFAULT_REPLAN_EVERY,
                  min_horizon: int = 1, gains=None, prepared: bool = True):
@@ -260,10 +233,9 @@ class Replanning:
 
 
 def around(gains, k: int, plan: Start):
-    """The tracker ``gains`` (transcription.closedloop.tracking.Gains of the original plan) from node k on, around the
-    re-planned ``plan`` (its nodes X and controls U over the remaining N - k steps): the original gains and
-    linearization, which the re-plan, a nearby trajectory, changes only to first order in its distance; on a
-    non-uniform mesh the steps k..N-1 (the re-plan runs on the same steps, :meth:`Replanner.steps`)."""
+    """The original plan's tracker ``gains`` from node k on, around the re-planned ``plan`` (its X and U over the
+    remaining N - k steps): the original gains and linearization, which a nearby re-plan changes only to first
+    order; on a non-uniform mesh the steps k..N-1."""
     return dataclasses.replace(gains, K=gains.K[k:], L=gains.L[k:], P=gains.P[k:], S=gains.S[k:], A=gains.A[k:],
                                B=gains.B[k:], t=gains.t[k:], X=plan.X, U=plan.U,
                                steps=None if gains.steps is None else gains.steps[k:])

@@ -1,15 +1,12 @@
 """Tracking a plan: a discrete-time, time-varying LQR on the plan's own linearized LGVI maps.
 
-docs/mathematics.md §12.  A plan is a Solution's trajectory X_0..X_N (nodes t_k: k h on a uniform mesh) and its
-controls.
-The tracker measures the error of a state X from the plan's node X_k in the tangent coordinates of the
-variations A_k, B_k (docs/mathematics.md §4, ``Discretization.variation``):
+docs/mathematics.md §12.  A plan is a Solution's trajectory X_0..X_N at nodes t_k and its controls.  The error of a
+state X from the plan's node X_k is in the tangent coordinates of the variations A_k, B_k (§4):
 
     z = [x - x_k; gamma - gamma_k; zeta; Pi - Pi_k] in R^12,   zeta = vee log(R_k^T R)   (body frame),
 
-so the attitude error lives in the Lie algebra (no Euler angles, no quaternion sign).  Its correction
-du_k (6: force inertial, moment body) is held over [t_k, t_{k+1}]; in the discrete model the stage
-control of step k becomes
+so the attitude error lives in the Lie algebra.  The correction du_k (6: force inertial, moment body) is held over
+[t_k, t_{k+1}]; the stage control of step k becomes
 
     lgvi         w_k = [u_k + du_k; u_{k+1} + du_k]   -> z_{k+1} = A_k z_k + B_k [I; I] du_k
     first_order  w_k = u_{k+1} + du_k                 -> z_{k+1} = A_k z_k + B_k du_k
@@ -18,16 +15,10 @@ control of step k becomes
 
     sum_{k<N} h_k (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N
 
-over the linearization with a persisting state disturbance r (:func:`riccati`), r_k estimated as what
-the last step did that the linearization does not explain (:class:`Tracker`).  On a uniform mesh h_k = h; on a
-non-uniform one (adaptive refinement; docs/mathematics.md §12, *Tracking and re-planning on a non-uniform mesh*)
-step k is linearized at its own h_k, weighted by it, and takes the share h_k / h of a disturbance that acts in
-proportion to time.  The default weights
-(:func:`bryson_weights`) are Bryson's rule with the acceptable errors that the characteristic controls
-correct within one closed-loop time constant 1/omega_c.  A control removed by a norm bound of 0 gets no
-feedback.  The correction may use the headroom the plan leaves below the actuators' bounds in every
-direction (with ``bounds_margin`` the plan used a fraction of them, so that the tracker keeps
-authority); the steps where that limited it are counted (the saturated fraction).
+over the linearization with a persisting state disturbance r (:func:`riccati`; r_k estimated by :class:`Tracker`).
+On a non-uniform mesh step k is linearized at its own h_k and weighted by it (§12, *Tracking and re-planning on a
+non-uniform mesh*).  Default weights: Bryson's rule (:func:`bryson_weights`).  A removed control gets no feedback;
+the correction is limited to the plan's headroom below the actuators' bounds (:meth:`Tracker.limit`).
 
 Shapes: K, L (N, 6, 12), P (N+1, 12, 12), S (N, 6, 6), A (N, 12, 12), B (N, 12, nw), X (N+1, 18),
 U (6, n_controls).  NumPy, except the linearization (the plan's CasADi ``variation``, mapped once).
@@ -44,9 +35,8 @@ from ..geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS,
 from ..geometry.so3 import exp_so3, log_so3
 from ..ocp import Actuator, SmoothControl, actuator_bounds
 
-#: the default closed-loop bandwidth: omega_c = min(BANDWIDTH_PER_HORIZON / T, BANDWIDTH_PER_STEP / h)
-#: (rad per time unit): the time constant 1/omega_c is T/60 (errors are corrected well within the
-#: horizon), but never below ~3 steps (the discrete loop stays far from its sampling limit)
+#: the default closed-loop bandwidth omega_c = min(BANDWIDTH_PER_HORIZON / T, BANDWIDTH_PER_STEP / h) (rad per time
+#: unit): time constant T/60, but never below ~3 steps (far from the discrete loop's sampling limit)
 BANDWIDTH_PER_HORIZON = 60.0
 BANDWIDTH_PER_STEP = 0.3
 #: the default terminal acceptable errors are the running ones times this ratio rho (Q_N = 1 / (rho e)^2)
@@ -84,10 +74,8 @@ def retract(Xref, z) -> np.ndarray:
 
 # ------------------------------------------------------------------------------- saturation
 def saturate(u, force_bound=None, moment_bound=None) -> tuple[np.ndarray, np.ndarray]:
-    """Controls u (..., 6) projected onto the actuators (:meth:`~transcription.ocp.actuators.Actuator.project`: a box
-    component by component, a norm by scaling the block into its ball -- the rule of docs/mathematics.md §10, a norm
-    bound of 0 gives 0 --, a body-fixed engine onto its axis with the thrust in [min, max], §14).
-    Returns (projected controls, projected (...) bool: some component was changed)."""
+    """Controls u (..., 6) projected onto the actuators (:meth:`~transcription.ocp.actuators.Actuator.project`;
+    docs/mathematics.md §10, §14).  Returns (projected controls, (...) bool: some component was changed)."""
     u = np.array(u, dtype=float)
     v = u.copy()
     for sl, bound in ((U_FORCE, force_bound), (U_MOMENT, moment_bound)):
@@ -145,10 +133,8 @@ def bryson_weights(control: SmoothControl, U: np.ndarray, mass: float, inertia: 
         position e_x = u_f / (m omega_c^2),   momentum e_gamma = u_f / omega_c,
         attitude e_zeta,i = u_m,i / (J_ii omega_c^2),   angular momentum e_Pi = u_m / omega_c.
 
-    With these a double integrator (position or one attitude axis) closes the loop at natural frequency
-    omega_c with damping sqrt(3)/2.  The blocks a removed control drives (position and momentum without
-    the force, attitude and angular momentum without the moment) get weight 0.  ``given`` overrides any
-    of :data:`SCALE_KEYS` (errors and controls as a number or 3 numbers)."""
+    A double integrator then closes the loop at natural frequency omega_c with damping sqrt(3)/2.  The blocks a
+    removed control drives get weight 0.  ``given`` overrides any of :data:`SCALE_KEYS` (a number or 3)."""
     unknown = set(given) - set(SCALE_KEYS)
     if unknown:
         raise ValueError(f"tracking weights: unknown scales {sorted(unknown)}; expected some of "
@@ -192,10 +178,9 @@ def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np
             active: np.ndarray | None = None,
             rho: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The finite-horizon discrete LQR with a constant state disturbance r (docs/mathematics.md §12):
-    z_{k+1} = A_k z_k + Bu_k du_k + rho_k r, A (N, n, n), Bu (N, n, m), stage weights Q (n, n), R (m, m)
-    (already multiplied by the mean step h), terminal Q_N; ``rho`` (N,): the relative step sizes h_k / h of a
-    non-uniform mesh (None: all 1, a uniform mesh), which weight step k's stage cost rho_k (z^T Q z + du^T R du)
-    and its share rho_k r of a disturbance that acts in proportion to time.  Backward from P_N = Q_N, M_N = 0:
+    z_{k+1} = A_k z_k + Bu_k du_k + rho_k r, A (N, n, n), Bu (N, n, m), stage weights Q (n, n), R (m, m) (times the
+    mean step h), terminal Q_N; ``rho`` (N,): h_k / h of a non-uniform mesh (None: all 1), weighting step k's stage
+    cost and its share of the disturbance.  Backward from P_N = Q_N, M_N = 0:
 
         S_k = rho_k R + Bu_k^T P_{k+1} Bu_k,   K_k = S_k^-1 Bu_k^T P_{k+1} A_k,
         L_k = S_k^-1 Bu_k^T (rho_k P_{k+1} + M_{k+1}),
@@ -230,10 +215,8 @@ def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np
 
 
 def box_qp(S: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_iter: int = 50) -> np.ndarray:
-    """argmin (1/2) x^T S x + g^T x over lo <= x <= hi (S symmetric positive definite, a few variables;
-    infinite limits allowed; lo <= hi): the primal active-set method from the clipped unconstrained
-    minimizer, exact at its end (every free component at its equality-constrained minimizer, every
-    multiplier of an active limit of the right sign)."""
+    """argmin (1/2) x^T S x + g^T x over lo <= x <= hi (S symmetric positive definite, a few variables; infinite
+    limits allowed): the primal active-set method from the clipped unconstrained minimizer, exact at its end."""
     x = np.clip(np.linalg.solve(S, -g), lo, hi)
     act = (x == lo) | (x == hi)
     for _ in range(max_iter):
@@ -267,12 +250,11 @@ class Gains:
     K, L (N, 6, 12): the feedback and the disturbance feedforward gains, du_k = -K_k z_k - L_k r_k.
     P (N+1, 12, 12): the cost-to-go z^T P_k z; S (N, 6, 6) its Hessian in du_k (the commands' metric
     under saturation, :class:`Tracker`).  A (N, 12, 12), B (N, 12, nw): the plan's variations
-    (§4) the gains were computed on; :attr:`Bu` (N, 12, 6) the input matrix of a correction held over a
-    step.  t (N+1,), X (N+1, 18): the plan's nodes; U (6, n_controls): its controls (lgvi u_0..u_N,
-    first_order u_1..u_N); scheme, h (the mean step T/N); steps (N,): the step sizes h_k of a non-uniform
-    mesh (None: every step h; docs/mathematics.md §16).  weights: the :class:`TrackingWeights`.  force_bound,
-    moment_bound: the actuators' bounds the commands are clipped to (the plan's widened by its
-    bounds_margin); removed: (force, moment) removed by a norm bound of 0 (no feedback).
+    (§4) the gains were computed on; :attr:`Bu` (N, 12, 6) the input matrix of a correction held over a step.
+    t (N+1,), X (N+1, 18): the plan's nodes; U (6, n_controls): its controls (lgvi u_0..u_N, first_order u_1..u_N);
+    scheme, h (the mean step T/N); steps (N,): the h_k of a non-uniform mesh (None: uniform; §16).  force_bound,
+    moment_bound: the bounds the commands are clipped to (the plan's widened by its bounds_margin); removed:
+    (force, moment) removed by a norm bound of 0 (no feedback).
     """
 
     K: np.ndarray
@@ -337,20 +319,15 @@ class Tracker:
         du_k = -K_k z_k - L_k r_k,   commands = the plan's rows of step k + du_k
     (on a non-uniform mesh r_k / rho_{k-1}: the disturbance of a step of the mean size, :meth:`Gains.per_mean_step`).
 
-    r_k is what the last step did that the linearization does not explain (unmodelled forces, actuator
-    errors, the linearization's own error), taken as persisting (certainty equivalence: the LQR of
-    :func:`riccati` with a constant disturbance r = r_k); it uses the commands actually issued.  ``r0``: an
-    estimate handed over for step 0 (the tracker of a re-planned trajectory, :meth:`unexplained`).
+    r_k is what the last step did that the linearization does not explain, taken as persisting (certainty
+    equivalence), from the commands actually issued.  ``r0``: an estimate handed over for step 0 (a re-planned
+    trajectory's tracker, :meth:`unexplained`).
 
-    Saturation: the correction may use the headroom the plan leaves in *every* direction (:meth:`limit`):
-    |du_i| <= b_i - max |u_i| over the rows of the step for a box, |du_f| <= b - max |u_f| for a norm.  A
-    linear feedback that could push one way only (a plan on its bound) makes things worse than no feedback
-    (it corrects with what it has now, counting on authority it will not have later); the symmetric limit
-    keeps the correction consistent, and the plan + correction within the actuators' bounds.  A box
-    limit is met by the minimizer of the cost-to-go (du - du_k)^T S_k (du - du_k) over the box
-    (:func:`box_qp`: the free components compensate in the LQR's own metric), a norm limit by scaling.
-    feedback False: the plan's controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps``
-    counts the steps whose correction was limited."""
+    Saturation (:meth:`limit`): the correction may use the headroom the plan leaves in *every* direction,
+    |du_i| <= b_i - max |u_i| over the step's rows for a box, |du_f| <= b - max |u_f| for a norm -- symmetric, since
+    a feedback that can push one way only does worse than none.  A box limit is met by the minimizer of
+    (du - du_k)^T S_k (du - du_k) over the box (:func:`box_qp`), a norm limit by scaling.  feedback False: the plan's
+    controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps`` counts the limited steps."""
 
     def __init__(self, gains: Gains, feedback: bool = True, disturbance: bool = True, r0: np.ndarray | None = None):
         self.gains, self.feedback, self.disturbance = gains, bool(feedback), bool(disturbance)
@@ -387,10 +364,8 @@ class Tracker:
         return du
 
     def unexplained(self, k: int, X) -> np.ndarray | None:
-        """r_k (12,) for the state X at t_k, the next step, without taking it: what the last step did that the
-        linearization does not explain (None before the first step or without the disturbance estimate), per
-        step of the mean size h (:meth:`Gains.per_mean_step`) -- handed to the tracker of a re-planned trajectory
-        (transcription.closedloop.mpc)."""
+        """r_k (12,) for the state X at t_k, without taking the step (None before the first step or without the
+        disturbance estimate), per step of the mean size h: handed to a re-planned trajectory's tracker (mpc)."""
         g = self.gains
         if not (self.feedback and self.disturbance) or self.k < 0 or k != self.k + 1 or k >= g.N:
             return None
@@ -446,11 +421,9 @@ def box_limits(force_bound, moment_bound) -> np.ndarray:
 def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gains:
     """The time-varying LQR around the plan of ``sol`` (a Solution with smooth controls and its Problem).
 
-    weights: None (the defaults of :func:`bryson_weights`), a mapping of Bryson scales overriding some
-    of them (:data:`SCALE_KEYS`), or :class:`TrackingWeights`.  The linearization is the plan's own:
-    ``Discretization.variation`` at the plan's nodes and stage controls (docs/mathematics.md §4).  On a
-    non-uniform mesh (the plan's node times unequally spaced, e.g. adaptive refinement) step k is linearized
-    at its own h_k and weighted by it in the Riccati recursion (:func:`riccati` with rho_k = h_k / h)."""
+    weights: None (:func:`bryson_weights`' defaults), a mapping of Bryson scales overriding some
+    (:data:`SCALE_KEYS`), or :class:`TrackingWeights`.  The linearization is the plan's own (:func:`linearization`);
+    on a non-uniform mesh :func:`riccati` weights step k by rho_k = h_k / h."""
     prob = sol.problem
     control = getattr(prob, "control", None)
     if not isinstance(control, SmoothControl) or sol.controls is None:
@@ -476,10 +449,9 @@ def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gai
 def sub_stepped(sol, h_max: float | None = None):
     """The plan of ``sol`` with the long steps of a non-uniform mesh split, for a tracker that corrects inside them
     (docs/mathematics.md §12): each step k longer than h_max (default the mean step h) becomes m_k = ceil(h_k / h_max)
-    sub-steps of the scheme from X_k under the plan's controls as the scheme applies them between nodes (lgvi:
-    linear from u_k to u_{k+1}, first order: u_{k+1} held), its last sub-node X_{k+1} itself (so every node of the plan
-    is a node of the result, at the same time).  A Solution (node times, states, controls; the plan's Problem);
-    ``sol`` itself when no step is longer (a uniform plan)."""
+    sub-steps of the scheme from X_k under the plan's controls between nodes (lgvi: linear from u_k to u_{k+1}, first
+    order: u_{k+1} held), its last sub-node X_{k+1} itself.  A Solution on the plan's Problem; ``sol`` itself when no
+    step is longer."""
     from ..results.solution import Solution
     from ..dynamics.trajectory import Trajectory
 

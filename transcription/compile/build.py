@@ -45,8 +45,7 @@ def compiler() -> str | None:
 
 
 def start_compiler(cc: str, c: Path, flags: list[str], out: Path, log=subprocess.DEVNULL) -> subprocess.Popen:
-    """Start the compiler ``cc`` (each caller's :func:`compiler`) on the C file ``c``: ``[cc, *flags, c, -o, out,
-    -lm]``, its output and errors to ``log`` (an open file, or discarded): the one command line of both builders
+    """Start ``[cc, *flags, c, -o, out, -lm]``, output and errors to ``log``: the one command line of both builders
     (:func:`_compile` here, the in-process ``codegen._build``)."""
     return subprocess.Popen([cc, *flags, str(c), "-o", str(out), "-lm"], stdout=log, stderr=subprocess.STDOUT)
 
@@ -75,11 +74,10 @@ _WRITE = re.compile(r"if \(res\[(\d+)\]!=0\) res\[\1\]\[(\d+)\]=")
 def lean_io(source: str) -> str:
     """The generated C with every input and output pointer tested once per call instead of once per element.
 
-    CasADi's straight-line code reads each input element as ``arg[i]? arg[i][k] : 0`` and writes each output
-    element under ``if (res[i]!=0)``: hundreds of branches in one huge function, which cost gcc a third of
-    its time on the linearized map.  Here a null input reads from a zero array and a null output writes to
-    a scratch array on the stack, with the same values: ``ci0 = arg[0] ? arg[0] : zeros`` then ``ci0[k]``.
-    Function bodies in which anything else refers to arg or res are left unchanged.
+    CasADi reads each input element as ``arg[i]? arg[i][k] : 0`` and writes each output under ``if (res[i]!=0)``:
+    hundreds of branches that slow gcc.  Here a null input reads from a zero array and a null output writes to a
+    scratch array (``ci0 = arg[0] ? arg[0] : zeros`` then ``ci0[k]``).  Bodies that use arg or res otherwise are
+    left unchanged.
     """
     def body(m: re.Match) -> str:
         head, text, tail = m.groups()
@@ -110,11 +108,9 @@ BACKGROUND_TIMEOUT = 1800.0
 
 def spawn(builds: list, notify: Callable[[str], None] | None = None) -> None:
     """Start one detached process (:func:`_background`) that compiles each library of ``builds`` (library, stages,
-    waited: whether a solve runs interpreted until its first stage lands, or already has a build of it) with each
-    stage's flags into its path in turn (the quick flags first, then the library's own), the libraries in the order
-    given, except those under way elsewhere (a lock file beside the last path, ``.building``, holding the builder's
-    process id, :func:`_alive`).  One process for all: one interpreter start, not one per library, beside the solve
-    it is for.  Tells ``notify`` of each library it builds."""
+    waited: whether a solve waits for its first stage) stage by stage (quick flags first, then the library's own), in
+    the order given, skipping those under way elsewhere (a ``.building`` lock beside the last path holding the
+    builder's pid, :func:`_alive`).  One process for all libraries: one interpreter start.  Tells ``notify`` of each."""
     builds = [b for b in builds if b[1]]   # (library: a codegen.Library)
     if not builds:
         return
@@ -174,9 +170,8 @@ def stop(cache: Path | None = None, timeout: float = 10.0) -> int:
     stopped: set[Path] = set()
     t = time.monotonic()
     while time.monotonic() - t < timeout:
-        # listed again each time: a build whose lock did not yet hold its process id when it was first seen, or
-        # one that started since, is stopped too (on a loaded machine one outlived a single listing,
-        # test_new_numbers_in_a_known_structure_compile_nothing)
+        # listed again each time: a build whose lock had no pid yet when first seen, or one started since, is
+        # stopped too
         locks = building(cache)
         if not locks:
             break
@@ -212,21 +207,15 @@ def _slot(first: bool) -> int | None:
         time.sleep(0.2)
 
 
-#: the niceness of a background build's first stages (what a running solve waits for) and of its later ones.  A
-#: compromise between a short solve, which ends before its libraries land and only pays the builder's share of a
-#: shared core, and a long one, which runs on them.  Measured with one builder (one compiler at a time),
-#: alternating first solves, indirect: at load 4-5 the bounded E3 4.8, 3.4, 5.9, 5.0 s at nice 0 against 6.2, 6.8,
-#: 8.6, 8.8 s at nice 5, E3 1.99 against 1.79 s (medians of 8); at load 2.7 E3 2.06, 2.39, 2.29 s at nice 0 against
-#: 1.68, 1.72, 1.85 s at nice 5, the bounded E3 4.10, 3.79 against 4.74, 4.49 s; at load 2-2.7, in triples, E3
-#: 1.44, 1.64, 1.56 / 1.64, 1.52, 1.21 / 2.10, 1.75, 1.35 s and the bounded E3 2.68, 2.61 / 2.47, 2.38 / 2.59, 2.39 s
-#: at nice 5 / 2 / 0.  On an idle machine the builder has the second core whatever its niceness.
+#: the niceness of a background build's first stages (what a running solve waits for) and of its later ones: a
+#: compromise between a short solve, which only pays the builder's share of a core, and a long one, which runs on
+#: the libraries (measurements: docs/bench_notes.md, issue 27)
 FIRST_NICE, LATER_NICE = 2, 10
 
 
 def _lower_priority(level: int) -> None:
-    """Niceness ``level`` for this process and, where the kernel groups the processes of a session for scheduling
-    (Linux autogroups: a process nices only against its own session, and :func:`spawn` starts a new one), for its
-    session's group too -- without it a niced build took a full share from the solve that started it."""
+    """Niceness ``level`` for this process and, under Linux autogroups (nice orders only a session's own processes;
+    :func:`spawn` starts a new session), for its session's group too."""
     os.nice(max(level - os.nice(0), 0))
     if os.getsid(0) != os.getpid():   # not the leader of a session of its own: the group is the caller's too
         return
@@ -237,15 +226,11 @@ def _lower_priority(level: int) -> None:
 
 
 def _background(job: Path) -> None:
-    """The background build of :func:`spawn` (``python -m <this module> JOB``); each stage's library arrives in the
-    cache atomically, or not at all; each library's lock goes when its last stage has arrived, every lock at the end
-    (also when ended by SIGTERM, :func:`stop`).  The first stages at :data:`FIRST_NICE` (one compiler at a time beside
-    the solve, which runs on, interpreted; when each library had a builder of its own, at the caller's priority they
-    slowed a short first solve 1.6x at load 7, and at nice 10 under load 4 the -O0 build of a 15k-line map took
-    longer than the 7 s solve it was for), later ones at :data:`LATER_NICE`.  The libraries' first stages in the order
-    given, one compiler at a time (:data:`PARALLEL` on a machine with more cores), the next library's C generated
-    while the compiler works (:func:`_first_stages`); then the later stages, one at a time.  Each compile waits for a
-    slot (:func:`_slot`): a cold test suite starts dozens of builds."""
+    """The background build of :func:`spawn` (``python -m <this module> JOB``).  Each stage's library arrives in the
+    cache atomically or not at all; a library's lock goes when its last stage has arrived, every lock at the end (also
+    on SIGTERM, :func:`stop`).  First stages at :data:`FIRST_NICE`, up to :data:`PARALLEL` compilers, the next C
+    generated meanwhile (:func:`_first_stages`); then the later stages one at a time at :data:`LATER_NICE`.  Each
+    compile waits for a slot (:func:`_slot`): a cold test suite starts dozens of builds."""
     spec = json.loads((job / "job.json").read_text())
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     try:
@@ -269,9 +254,9 @@ PARALLEL = max(1, (os.cpu_count() or 1) - 1)
 
 
 def _first_stages(spec: list[dict], job: Path) -> list[Path]:
-    """Generate each library's C and compile it with its first stage's flags if a solve waits for it (``first``; at
-    most :data:`PARALLEL` compilers at once, in the order of ``spec``); each library whose only stage that is loses
-    its lock as it arrives.  The C files, for the later stages (those of a library that has a build already: all)."""
+    """Generate each library's C and, if a solve waits for it (``first``), compile its first stage (at most
+    :data:`PARALLEL` at once, in ``spec`` order; a library with one stage loses its lock as it arrives).  Returns the C
+    files, for the later stages."""
     sources, running = [], []
     for i, entry in enumerate(spec):
         (job / str(i)).mkdir()
@@ -300,9 +285,8 @@ class _Compile:
     lock: Path | None = None
 
     def wait_arrived(self) -> None:
-        """Wait for the compiler, release the slot, move the library into the cache (atomically) and drop the lock
-        (if the library is complete).  A compiler that fails leaves nothing in the cache (that library stays
-        interpreted; the others are built all the same)."""
+        """Wait for the compiler, release the slot, move the library into the cache (atomically), drop the lock if
+        any.  A failed compile leaves nothing in the cache (that library stays interpreted)."""
         try:
             code = self.proc.wait(timeout=BACKGROUND_TIMEOUT)
         except subprocess.TimeoutExpired:

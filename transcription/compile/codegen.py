@@ -1,42 +1,24 @@
 """Optional compilation of hot CasADi Functions to C (CasADi code generation + the system C compiler).
 
-:func:`compiled` turns an SX :class:`casadi.Function` into an equivalent external Function
-loaded from a shared library; :func:`compiled_many` does the same for several Functions with one
-library (one C file, one compiler run, one cache entry).  The library is cached on disk under a name
-that contains the SHA-256 of the serialized Functions, the flags and the CasADi version, so a
-Function is compiled once per machine (the first build pays the compiler; later builds load it in
-milliseconds).  Whenever compilation is not possible (no compiler, compiler error, unwritable cache,
-``SE3OCP_NO_JIT=1``) the original Functions are returned unchanged, so callers never depend on a
-compiler: results are the same, only slower.
+:func:`compiled` turns an SX :class:`casadi.Function` into an equivalent external Function loaded from a shared
+library; :func:`compiled_many` does the same for several Functions with one library.  The library is cached on disk
+under the SHA-256 of the serialized Functions, the flags and the CasADi version: compiled once per machine.  When
+compilation is not possible (no compiler, compiler error, unwritable cache, ``SE3OCP_NO_JIT=1``) the original
+Functions are returned unchanged: the same results, only slower.  Compiled Functions evaluate values only.
 
-Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS`
-(``-O0``, the indirect method's straight-line per-step maps, and every first background stage) and
-:data:`LOOP_CFLAGS` (``-O1``, small MX Functions whose C is loops).  On long straight-line functions
-gcc's time at ``-O1`` goes into register allocation of one huge basic block; ``-O0`` compiles ~5x faster
-(measured 1.0 s against 5.5 s for a 25k-instruction map; ~30 us per line of C on this machine, linear in the
-length) and runs ~1.4x slower, which is what makes a compile on the first use affordable.
-``-ffp-contract=off`` (every flag set) keeps the compiled arithmetic that of CasADi's interpreter (no fused
-multiply-adds on targets that have them), so compiled and interpreted Functions agree bit for bit.
+Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS` (``-O0``, the
+indirect method's straight-line per-step maps and every first background stage; ~5x faster to compile, ~1.4x slower
+to run) and :data:`LOOP_CFLAGS` (``-O1``, small MX Functions whose C is loops).  ``-ffp-contract=off`` everywhere
+keeps the compiled arithmetic the interpreter's (no fused multiply-adds): compiled and interpreted agree bit for bit.
 
-Compiled Functions evaluate values only; request derivatives from the original Function.
+Compile little, once: the model's numbers theta (``BodyModel.parameters``) are data of the direct dynamics block and
+the indirect per-step maps, like step size, scales and weights, so a model of a known structure compiles nothing.
 
-Compile little, once.  The cache key is the serialized Function, so what must not change with a problem's
-numbers must not be a constant of the graph: the direct method's dynamics block and the indirect method's
-per-step maps take the model's numbers (theta = mass, inertia, (2J)^-1, the potential's GM, J2, radius, sizes:
-``BodyModel.parameters``; lgvi.Discretization.parametric / with_theta) as data like the step size, scales,
-weights and bounds, so a model of a known structure (kind of body and gravity, scheme, controls, objective, free
-time) loads its libraries from the cache and compiles nothing.
-
-Interpreted first.  A structure never seen before is not waited for (:func:`compiled_libraries` with ``quick``):
-its Functions come back interpreted while one detached background process (:func:`.codegen_build.spawn`, a
-little niced, more for the -O1 stages, with a ``.building`` lock beside each library that holds its process id;
-one interpreter start for all the libraries of the call) compiles the libraries in the order given, one compiler
-at a time on two cores (:data:`.codegen_build.PARALLEL`: the solve keeps a core), each at the ``quick`` flags
-(-O0, about a second) and then at its own into the cache, each atomically; a compile also waits for one of
-:data:`.codegen_build.SLOTS` slots shared by all builders.  :class:`Switch` (a copy-free Callback) wraps what is
-built from those Functions -- the NLP's mapped block derivatives, the indirect method's N-step maps -- and moves
-each to the compiled code as its library lands, between two evaluations of the same solve; the next build loads
-it directly (:func:`ready`).  :func:`settle` waits for the builds under way, :func:`stop` ends them.
+Interpreted first (:func:`compiled_libraries` with ``quick``): a structure never seen is not waited for; its
+Functions come back interpreted while one detached, niced background process (:func:`.build.spawn`) compiles the
+libraries at the quick flags and then their own into the cache, atomically.  :class:`Switch` moves what is built
+from them (the NLP's mapped derivatives, the indirect N-step maps) to the compiled code as it lands, within a solve.
+:func:`settle` waits for the builds under way, :func:`stop` ends them.  Measurements: docs/performance.md.
 
 Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
 ``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
@@ -62,10 +44,8 @@ __all__ = ["CFLAGS", "QUICK_CFLAGS", "LOOP_CFLAGS", "last_error", "notify", "ava
            "Library", "compiled_libraries", "background", "candidates", "arrived", "load", "Switch", "ready", "settle",
            "last_provisional", "cache_dir", "compiler", "building", "stop", "lean_io"]
 
-#: optimization level: -O1 compiles ~7x faster than -O2 on these straight-line functions
-#: (5.6 s against 38 s for the linearized costate map) and runs within 25 % of it; -ffp-contract=off: the
-#: interpreter's arithmetic (no fused multiply-adds), so that a solve that moves from the interpreter to the
-#: compiled code (:class:`Switch`) gives the same bits wherever the move happens, on every target
+#: -O1: compiles ~7x faster than -O2 on these straight-line functions and runs within 25 % of it;
+#: -ffp-contract=off: the interpreter's arithmetic, so a move to compiled code (:class:`Switch`) changes no bit
 CFLAGS = ["-O1", "-ffp-contract=off", "-fPIC", "-shared"]
 
 #: for Functions compiled on a first use (the indirect method's maps): see the module docstring
@@ -89,12 +69,7 @@ def available() -> bool:
 
 
 def compiled(fn: ca.Function, timeout: float = 600.0, cse: bool = True, cflags: Sequence[str] = CFLAGS) -> ca.Function:
-    """A compiled equivalent of ``fn`` (same name, inputs and outputs), or ``fn`` itself as fallback.
-
-    The cache key is the SHA-256 of ``fn.serialize()`` (cheap: 0.2 s for the 230k-instruction LGVI
-    linearized map, against ~1.5 s for common-subexpression elimination and C generation, which
-    are only done on a cache miss), the flags and the CasADi version.
-    """
+    """A compiled equivalent of ``fn`` (same name, inputs and outputs), or ``fn`` itself as fallback."""
     return compiled_many([fn], fn.name(), timeout=timeout, cse=cse, cflags=cflags)[0]
 
 
@@ -102,19 +77,17 @@ def compiled_many(fns: Sequence[ca.Function], name: str, timeout: float = 600.0,
                   cflags: Sequence[str] = CFLAGS) -> list[ca.Function]:
     """Compiled equivalents of ``fns`` from one shared library ``name``, or ``fns`` unchanged as fallback.
 
-    All or nothing: either every Function is loaded from the library or the originals are returned.
-    ``cse``: common-subexpression elimination of SX Functions before generating C (fewer lines for
-    the compiler and faster code, at the cost of the elimination itself, paid on a cache miss only).
+    All or nothing: every Function is loaded from the library or the originals are returned.  ``cse``:
+    common-subexpression elimination of SX Functions before generating C (paid on a cache miss only).
     """
     return compiled_libraries([Library(name, tuple(fns), cse)], timeout=timeout, cflags=cflags)[0]
 
 
 @dataclass(frozen=True)
 class Library:
-    """One shared library: its name (prefix of the cached file), its Functions, whether SX Functions go through
-    common-subexpression elimination before C generation, its compiler flags (None: the call's), and whether a
-    background build compiles it with the quick flags first (:func:`compiled_libraries`; not for C of loops, which
-    at -O0 runs slower than the interpreter)."""
+    """One shared library: its name (the cached file's prefix), its Functions, ``cse`` (common-subexpression
+    elimination of SX Functions), its flags (None: the call's), and ``quick``: a background build compiles it at the
+    quick flags first (not for C of loops, slower than the interpreter at -O0)."""
 
     name: str
     fns: tuple
@@ -124,8 +97,7 @@ class Library:
 
     @functools.cached_property
     def serialized(self) -> tuple[str, ...]:
-        """The serialized Functions (the cache key's and the background build's; computed once: ~0.1 s for a
-        large map)."""
+        """The serialized Functions (the cache key's and the background build's; computed once)."""
         return tuple(f.serialize() for f in self.fns)
 
     @functools.cached_property
@@ -140,13 +112,12 @@ class Library:
         """The cache key of this library compiled with ``flags``: the serialized Functions, the flags, the CasADi
         version and whether common subexpressions are eliminated."""
         digest = self._digest.copy()
-        # (for one Function with cse, the same key as before compiled_many existed: caches stay valid)
         digest.update(" ".join(flags).encode() + ca.__version__.encode() + (b"" if self.cse else b"nocse"))
         return digest.hexdigest()[:20]
 
 
 def _generate(lib: Library, tmp: str) -> Path:
-    """The C file of ``lib`` in the directory ``tmp`` (:func:`.codegen_build.generate`)."""
+    """The C file of ``lib`` in the directory ``tmp`` (:func:`.build.generate`)."""
     return generate(lib.name, lib.fns, lib.cse, tmp)
 
 
@@ -154,20 +125,12 @@ def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: 
                        quick: Sequence[str] | None = None) -> list[list[ca.Function]]:
     """Compiled equivalents of every library's Functions, or all of them unchanged as fallback.
 
-    Each library is its own C file and compiler process; the cache misses are compiled concurrently
-    (the C of the next library is generated while the compiler works on the previous ones), so the
-    first build takes about the longest single compile on a machine with free cores.  All or nothing
-    over all libraries: callers see either every Function compiled or none (without ``quick``; with it, each
-    library is compiled or interpreted on its own).
-
-    ``quick``: the interpreted-first policy.  A library not in the cache at its own flags is not waited for: it is
-    loaded from its quick build (e.g. :data:`QUICK_CFLAGS`) if that is in the cache, else given back as the
-    interpreted Function, while one background process for all of them (:func:`.codegen_build.spawn`) compiles
-    it -- with the quick flags first (seconds), then with its own -- into the cache, in the order of ``libs`` (the
-    one evaluated most often first).  :data:`last_provisional` says whether any library is not yet
-    at its own flags; :class:`Switch` evaluates a Function built from them and moves to the compiled code as it
-    arrives, even within a solve (:func:`arrived`; same values: ``-ffp-contract=off`` keeps the compiled arithmetic
-    the interpreter's).  ``SE3OCP_JIT_BACKGROUND=0`` compiles at the library's own flags now instead.
+    Each library is its own C file and compiler process; cache misses compile concurrently.  Without ``quick``, all
+    or nothing over all libraries.  With ``quick`` (the interpreted-first policy) each library on its own: one not
+    cached at its own flags is loaded from its quick build if cached, else returned interpreted, while one background
+    process (:func:`.build.spawn`) compiles it at the quick flags, then its own, in the order of ``libs`` (most
+    evaluated first); :data:`last_provisional` says whether any library is not yet at its own flags.
+    ``SE3OCP_JIT_BACKGROUND=0`` compiles at the library's own flags now instead.
     """
     global last_error, last_provisional
     originals = [list(lib.fns) for lib in libs]
@@ -244,21 +207,16 @@ def _external(lib: Library, path: Path) -> list[ca.Function]:
 class Switch(ca.Callback):
     """A Function that evaluates ``fn`` (built from interpreted or quick-compiled Functions) and moves to compiled
     code library by library as it arrives in the cache (:func:`arrived`, checked at every evaluation until all are at
-    their own flags): on every arrival ``make(loaded, paths)`` builds the same Function from ``loaded`` (per library,
-    its compiled Functions, or the interpreted ones while it has none) -- ``paths``, the files they come from (None:
-    interpreted), identifies the build, so that the Switches of one build can share it.  The interpreted-first
-    policy's way to use compiled code as soon as it exists, within a solve (an NLP's derivative Functions, the
-    indirect method's N-step maps inside its shooting Functions: the rollout moves to the compiled costate map
-    before the Jacobian's libraries have arrived).  Values only, like the compiled Functions; the same values bit for
-    bit (-ffp-contract=off), so where the switch happens does not show in the results."""
+    their own flags): on each arrival ``make(loaded, paths)`` rebuilds the Function from ``loaded`` (per library, its
+    compiled or interpreted Functions); ``paths`` (None: interpreted) identifies the build, so Switches of one build
+    can share it.  Values only, the same bits (-ffp-contract=off): where the switch happens does not show."""
 
     def __init__(self, fn: ca.Function, libs: Sequence[Library], make: Callable[[list, tuple], ca.Function],
                  cflags: Sequence[str] = CFLAGS, quick: Sequence[str] = QUICK_CFLAGS):
         ca.Callback.__init__(self)
         self.fn, self.libs, self.make = fn, tuple(libs), make
         self.candidates = candidates(libs, cflags, quick)
-        # fn is taken to be the interpreted one (a caller whose fn already uses a quick build sees it rebuilt from that
-        # build at the first evaluation: the same Function)
+        # fn is taken to be the interpreted one (one already on a quick build is rebuilt from it at the first call)
         self.final, self.paths, self._buffer, self._spares = False, (None,) * len(self.libs), None, {}
         self.construct(f"{fn.name()}_switch", {})
 

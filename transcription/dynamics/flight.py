@@ -1,29 +1,16 @@
-"""The continuous-time flight engine: eqs. (1)-(4) under the controls a scheme defines between its
-nodes, integrated by SUNDIALS CVODES (casadi.integrator) node interval by node interval
-(docs/mathematics.md §11).
+"""The continuous-time flight engine: eqs. (1)-(4) under the controls a scheme defines between its nodes, integrated
+by SUNDIALS CVODES (casadi.integrator) node interval by node interval (docs/mathematics.md §11).
 
-One Function or class per concept:
+* :func:`equations_of_motion` -- eqs. (1)-(4); :class:`Actuators`, :func:`actuator_output` -- commands -> applied
+  controls; :func:`interval_commands` -- a scheme's controls as each node interval's affine command;
+* :class:`OpenLoop`, :class:`ClosedLoop` -- control laws: interval k's command at its two ends from (k, t_k, X_k);
+* :func:`interval_integrator` -- one interval in normalized time s = (t - t_k)/h_k, sampled at s = j/M;
+* :func:`fly` -- a law flown from X0 over a time grid -> :class:`Flight` (dense samples of state and control).
 
-* :func:`equations_of_motion` -- ``flight_eom(X[18], u[6], Jinv[3x3]) -> Xdot[18]``, eqs. (1)-(4) with
-  u = [u_f (inertial); u_m (body)] the control acting on the body;
-* :class:`Actuators` and :func:`actuator_output` -- commands -> applied controls (scale factors and
-  body-fixed misalignment rotations), ``flight_actuators(X, u_cmd[6], q[20]) -> u[6]``;
-* :func:`interval_commands` -- a scheme's controls as the affine command of each node interval
-  (LGVI: from u_k to u_{k+1} linearly; first order: u_{k+1} held), §11;
-* :class:`OpenLoop`, :class:`ClosedLoop` -- control laws: the command of interval k, as its values at
-  the interval's start and end, from (k, t_k, X_k) with X_k the flown state at t_k;
-* :func:`interval_integrator` -- ``flight_interval(X0[18], w[13], p[29]) -> (X1[18], Xs[18 x M])``,
-  one interval in its normalized time s = (t - t_k)/h_k in [0, 1], sampled at s = j/M;
-* :func:`fly` -- a law flown from X0 over a time grid -> :class:`Flight` (dense samples of the truth
-  state and the applied control).
-
-The truth body is any :class:`~transcription.dynamics.model.BodyModel` (its potential gives f and M; its mass
-and inertia are the truth's): the integrator Function is built once per potential (its ``forces``
-Function) and number of samples, with the inverse inertia and the actuator errors as parameters,
-so a Monte Carlo over inertia and actuator errors reuses it.  The attitude is integrated as the nine
-entries of R (not kept on SO(3) by the integrator): its drift, max |R^T R - I|_F, is of the order of
-the tolerance and is reported by the continuous check, which re-projects R onto SO(3) before
-measuring angles (transcription.results.check).
+The truth body is any :class:`~transcription.dynamics.model.BodyModel`; the integrator is built once per potential
+and number of samples, with the inverse inertia and actuator errors as parameters (a Monte Carlo reuses it).  R is
+integrated as nine entries; its drift is reported, and the continuous check re-projects R onto SO(3)
+(transcription.results.check).
 """
 from __future__ import annotations
 
@@ -38,18 +25,14 @@ from ..geometry.so3 import orthogonality_error
 from .model import BodyModel
 from .trajectory import Trajectory
 
-#: CVODES (Adams, functional iteration: the equations are not stiff) relative and absolute tolerances.
-#: CVODES restarts at every node, and each interval adds an error of about RTOL relative: over N
-#: intervals about N RTOL (free motion: energy 1.1e-11 relative over 1000 intervals; 1e-13 costs the
-#: same and gives 1.1e-10); against an independent DOP853 re-flight ~1e-11 (tests/test_flight.py)
+#: CVODES (Adams, functional iteration: not stiff) tolerances; each restart at a node adds about RTOL relative, so
+#: N intervals carry about N RTOL (1e-13 costs the same and gives 10x the error; docs/mathematics.md §11)
 RTOL = 1e-14
 ATOL = 1e-16
-#: the smallest step CVODES may take, as a fraction of the node interval (it integrates in s = (t - t_k)/h):
-#: its steps are some 1e-8 at a restart and larger after; a smaller one means the motion is singular there
-#: (the body at a point mass), and CVODES then fails instead of creeping on in steps of 1e-17
+#: the smallest CVODES step, as a fraction of the node interval: below it the motion is singular (a body at a point
+#: mass) and CVODES fails instead of creeping on
 MIN_STEP = 1e-12
-#: samples of the state per node interval (s = 1/M, ..., 1): path deviations and constraint margins
-#: between the nodes
+#: samples of the state per node interval (s = 1/M, ..., 1): path deviations and constraint margins between nodes
 DEFAULT_SAMPLES = 4
 #: actuator parameters: force scale, moment scale, vec(A_f), vec(A_m), the force command's frame (0 inertial, 1 body)
 N_ACTUATOR = 21
@@ -79,13 +62,9 @@ def equations_of_motion(model: BodyModel) -> ca.Function:
 
 @dataclass(frozen=True)
 class Actuators:
-    """How commands become the controls acting on the body (the nominal actuators: identity).
-
-    force_scale s_f, moment_scale s_m: scale factors; force_misalignment A_f, moment_misalignment A_m:
-    rotations (3x3) fixed in the body.  A commanded force u_f is produced by body-fixed thrusters: applied
-    s_f R A_f R^T u_f for a command in the inertial frame (``force_frame`` 'inertial'), s_f R A_f u_f for one in
-    the body frame ('body': the plan's body-frame force, docs/mathematics.md §14); a commanded moment u_m
-    (body): applied s_m A_m u_m."""
+    """How commands become the controls acting on the body (nominal: identity): scale factors s_f, s_m and body-fixed
+    misalignment rotations A_f, A_m (3x3).  Applied force s_f R A_f R^T u_f for an inertial command (``force_frame``),
+    s_f R A_f u_f for a body-frame one (§14); applied moment (body) s_m A_m u_m."""
 
     force_scale: float = 1.0
     moment_scale: float = 1.0
@@ -111,9 +90,9 @@ class Actuators:
 
 
 def actuator_output() -> ca.Function:
-    """``flight_actuators(X[18], u_cmd[6], q[21]) -> u[6]``: u_f = s_f R A_f u_b with u_b = R^T u_f,cmd for an
-    inertial command, u_b = u_f,cmd for a body-frame one (q[20] = 1); u_m = s_m A_m u_m,cmd (body), with
-    q = :meth:`Actuators.vector` and R the attitude in X (the flown attitude: a body-frame command turns with it)."""
+    """``flight_actuators(X[18], u_cmd[6], q[21]) -> u[6]``: u_f = s_f R A_f u_b with u_b = R^T u_f,cmd (inertial
+    command) or u_f,cmd (body-frame, q[20] = 1); u_m = s_m A_m u_m,cmd; q = :meth:`Actuators.vector`, R the flown
+    attitude in X."""
     X, uc, q = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", N_ACTUATOR)
     _, _, R, _ = split_state(X)
     Af, Am = ca.reshape(q[2:11], 3, 3), ca.reshape(q[11:20], 3, 3)
@@ -124,10 +103,9 @@ def actuator_output() -> ca.Function:
 
 # ----------------------------------------------------------------------------- control laws
 def interval_commands(scheme: str, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The controls U of a scheme as the command of each node interval k, affine in time from
-    ``start[:, k]`` at t_k to ``end[:, k]`` at t_{k+1} (docs/mathematics.md §11): the LGVI's node
-    controls U (6, N+1) interpolated linearly (start = u_k, end = u_{k+1}); the first-order scheme's
-    U (6, N) = u_1..u_N, u_{k+1} held over [t_k, t_{k+1}] (start = end = u_{k+1}).  Returns (6, N) each."""
+    """The controls U of a scheme as the affine command of each node interval k, ``start[:, k]`` at t_k to
+    ``end[:, k]`` at t_{k+1} (§11): LGVI U (6, N+1), start = u_k, end = u_{k+1}; first order U (6, N) = u_1..u_N,
+    start = end = u_{k+1}.  Returns (6, N) each."""
     U = np.asarray(U, dtype=float)
     if scheme == "lgvi":
         return U[:, :-1], U[:, 1:]
@@ -164,10 +142,8 @@ class OpenLoop:
 
 @dataclass(frozen=True, eq=False)
 class ClosedLoop:
-    """The plan's commands plus a correction held over each interval: start + d, end + d with
-    d = correction(k, t_k, X_k) (6,) from the flown state at t_k; ``limit`` (optional) maps each of the
-    two ends into the admissible set -- for a convex set (a box, a norm ball) the affine command
-    between them then stays admissible over the whole interval."""
+    """The plan's commands plus a correction held over each interval: start + d, end + d, d = correction(k, t_k, X_k)
+    (6,); ``limit`` (optional) maps each end into the admissible set (convex: the affine command between stays in)."""
 
     plan: OpenLoop
     correction: Callable[[int, float, np.ndarray], np.ndarray]
@@ -182,9 +158,8 @@ class ClosedLoop:
 
 # ------------------------------------------------------------------------------- integrator
 class BoundedCache:
-    """Functions built once per key and kept, at most ``size`` of them (the oldest evicted first): the flight's
-    integrators and their accumulations, sized by what a process flies, not unbounded.  ``keep``: objects
-    whose ``id`` is part of the key, kept alive with the entry so that the id stays unique."""
+    """Functions built once per key, at most ``size`` kept (oldest evicted first).  ``keep``: objects whose ``id`` is
+    part of the key, kept alive with the entry so the id stays unique."""
 
     def __init__(self, size: int = 32):
         self.size, self.entries = size, {}
@@ -210,9 +185,8 @@ def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: 
         dX/ds = h eom(X, actuators(X, a + s (b - a), q), Jinv),   w = [a (6); b (6); h],
         p = [vec(Jinv) (9, column-major); q (21, Actuators.vector())],
 
-    by CVODES (Adams, functional iteration, ``rtol``/``atol``), restarted at every call, so the
-    command's kinks and jumps at the nodes are never integrated across.  Xs holds the states at
-    s = 1/M, ..., 1 (Xs[:, -1] = X1).  Built once per (model's potential, mass, M, tolerances)."""
+    by CVODES, restarted at every call so the command's kinks and jumps at the nodes are never integrated across.
+    Xs holds the states at s = 1/M, ..., 1 (Xs[:, -1] = X1).  Built once per (potential, mass, M, tolerances)."""
     key = (id(model.forces), float(model.mass), int(samples), float(rtol), float(atol))
     return _INTEGRATORS.get(key, lambda: _interval_integrator(model, samples, rtol, atol), keep=model.forces)
 
@@ -247,13 +221,10 @@ def _open_loop_run(fn: ca.Function, N: int) -> ca.Function:
 class Flight:
     """A flown motion, sampled M = ``samples`` times per node interval.
 
-    t (N M + 1,): sample times, t[k M] = t_k (node k); X (N M + 1, 18): the flown state at t (layout of
-    transcription.geometry.state; R as integrated, not re-projected).  command_start, command_end (N, 6): the
-    law's command of each interval at its two ends ([u_f inertial; u_m body], affine in between).
-    control_t (N, M + 1), control (N, M + 1, 6): the applied control [u_f inertial; u_m body] (the
-    actuators' output on the flown attitude) at s = 0, 1/M, ..., 1 of each interval, so both sides of
-    every node; with the commands and the actuators it defines the applied control at every instant.
-    mass, inertia: the truth body's.
+    t (N M + 1,): sample times, t[k M] = t_k; X (N M + 1, 18): the flown state at t (R as integrated).
+    command_start, command_end (N, 6): the law's command at each interval's ends ([u_f inertial; u_m body], affine
+    in between).  control_t (N, M + 1), control (N, M + 1, 6): the applied control (the actuators' output on the
+    flown attitude) at s = 0, 1/M, ..., 1 of each interval.  mass, inertia: the truth body's.
     """
 
     t: np.ndarray
@@ -283,15 +254,12 @@ class Flight:
 def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | ControlLaw",
         actuators: Actuators | None = None, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
         atol: float = ATOL) -> Flight:
-    """Fly ``law`` from X0 (18,) over the node grid ``times`` (N+1,) (increasing; steps may differ)
-    through eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default: nominal), one node
-    interval at a time (:func:`interval_integrator`), sampled ``samples`` times per interval.
-
-    An :class:`OpenLoop` law is flown in one call (the intervals chained in C), and so is a law with a
-    ``flown(fn, X0, h, p) -> (start, end, Xs)`` method that evaluates itself inside the integrator's
-    Function (transcription.closedloop.loop.TrackingLoop); any other law (e.g. :class:`ClosedLoop`) is asked for
-    each interval's command from the flown state at its start.
-    X0 holds the truth body's momenta (Pi = J_truth Omega).  Raises FlightError if the integrator fails."""
+    """Fly ``law`` from X0 (18,; the truth body's momenta) over the increasing node grid ``times`` (N+1,) through
+    eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default nominal), one node interval at a time
+    (:func:`interval_integrator`), ``samples`` per interval.  An :class:`OpenLoop`, or a law with a
+    ``flown(fn, X0, h, p) -> (start, end, Xs)`` method (transcription.closedloop.loop.TrackingLoop), is flown in one
+    call; any other law is asked for each interval's command from the flown state.  Raises FlightError if the
+    integrator fails."""
     times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
     h = np.diff(times)
     if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):

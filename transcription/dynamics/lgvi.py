@@ -1,36 +1,27 @@
 """Lie group variational integrators on SE(3) as CasADi Functions.
 
-Two discretizations of docs/mathematics.md §2-§3, built once per (model, scheme) as named,
-SX-expanded CasADi Functions:
+Two discretizations of docs/mathematics.md §2-§3, built once per (model, scheme) as named SX Functions:
 
-* ``lgvi``        second-order LGVI, eqs. (7)-(11); controls at both nodes,
-                  stage control w_k = [u_k; u_{k+1}] in R^12.
-* ``first_order`` the paper's modified first-order scheme, eqs. (21)-(25); one
-                  control per step, stage control w_k = u_{k+1} in R^6.
+* ``lgvi``        second-order LGVI, eqs. (7)-(11); stage control w_k = [u_k; u_{k+1}] in R^12.
+* ``first_order`` the paper's modified first-order scheme, eqs. (21)-(25); stage control w_k = u_{k+1} in R^6.
 
-The only implicit part of either step is the Cayley equation (9)/(23),
-``G(c) = g + g x c + (g^T c) c - 2 J c = 0`` whose root gives F_k = cay(c).
-It is solved by a fixed number of Newton iterations unrolled on the graph, so
-derivatives of the solved step are those of the implicit function (the Newton
-map has zero derivative in c at its root) and the step stays a plain SX
-expression (fast, mappable, code-generatable).  The relative residual
-|G(c)|/|g| is an output of every solved step so callers can detect a step too
-large for the solve (reported against :data:`CAYLEY_TOL`).
-
-Functions built (all SX, inputs/outputs named):
+The only implicit part is the Cayley equation (9)/(23), ``G(c) = g + g x c + (g^T c) c - 2 J c = 0``, F_k = cay(c),
+solved by a fixed number of Newton iterations unrolled on the graph: the step stays a plain SX expression (mappable,
+code-generatable) with the implicit function's derivatives.  Every solved step outputs |G(c)|/|g| (checked against
+:data:`CAYLEY_TOL`).
 
     cayley_residual (c[3], g[3])            -> (G[3])
-    cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])
-    step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])       explicit step
-    step            (X[18], w[nw], h)       -> (X1[18], res)         solved step
-    variation       (X[18], w[nw], h)       -> (A[12x12], B[12xnw])  §4 eq. (18)
-    step_seeded     (X, w, h, c0[3])        -> (X1)   two Newton iterations from c0 (derivatives)
-    variation_seeded(X, w, h, c0[3])        -> (A, B) the same from c0; with c0 = the root of
-                                               step X's Cayley equation, equal to variation
+    cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])   K Newton iterations from (2J)^-1 g
+    step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])          explicit step
+    cayley_rhs      (X[18], w[nw], h)       -> (g[3])
+    step            (X[18], w[nw], h)       -> (X1[18], res)           solved step
+    variation       (X[18], w[nw], h)       -> (A[12x12], B[12xnw])    §4 eq. (18)
+    step_seeded     (X, w, h, c0[3])        -> (X1)    two Newton iterations from c0 (derivatives)
+    variation_seeded(X, w, h, c0[3])        -> (A, B)  from c0; with c0 the step's Cayley root, equal to variation
     rollout(N)      (X0[18], W[nw x N], h)  -> (X[18 x N], res[1 x N])  mapaccum
 
-``parametric()`` gives cayley_residual .. step again with the model's numbers theta = ``model.parameters`` as their
-last input instead of constants (what the NLP's compiled dynamics block is built from: one compile per structure).
+``parametric()`` gives them again with the model's numbers theta = ``model.parameters`` as last input (one compile
+per structure).
 """
 from __future__ import annotations
 
@@ -51,13 +42,9 @@ SCHEMES = ("lgvi", "first_order")
 #: the body; the applied inertial force is R u_f at the node the control belongs to, docs/mathematics.md §14)
 FORCE_FRAMES = ("inertial", "body")
 
-#: default number of unrolled Newton iterations in the Cayley solve.  From the
-#: (2J)^-1 g start, s = h|Pi|/lambda_min(J) <= 0.999 needs at most 7 to reach
-#: |G|/|g| <= 1e-12 in every direction (tests/test_lgvi.py); ordinary steps
-#: (h = 1e-3) need 2-3.  At s = 1 along the minor principal axis eq. (9) has a
-#: double root (no real root beyond), Newton turns linear and 8 iterations do not
-#: suffice (~3e-4 of directions at s = 1; more for s > 1); the residual output
-#: reports it.
+#: unrolled Newton iterations in the Cayley solve: from (2J)^-1 g, s = h|Pi|/lambda_min(J) <= 0.999 needs at most 7
+#: to reach |G|/|g| <= 1e-12 in every direction (tests/test_lgvi.py); at s >= 1 (the fold, docs/mathematics.md §2)
+#: the residual output reports the failure
 DEFAULT_NEWTON_ITERS = 8
 
 #: a step whose Cayley equation is left with a relative residual |G|/|g| above this is not a step of
@@ -95,18 +82,9 @@ def per_discretization(build: Callable) -> Callable:
 
 
 class _StepFunctions:
-    """The Cayley solve and the step of one Discretization (docs/mathematics.md §2-§3), built from the model's
-    numbers as constants, or (``parametric``) from a symbol theta = ``model.parameters`` that is then the last input
-    of every Function (names suffixed ``_p``):
-
-        cayley_residual (c[3], g[3])            -> (G[3])   G = g + g x c + (g^T c) c - 2 J c
-        newton_map      (c[3], g[3])            -> c - (dG/dc)^-1 G
-        cayley_solve    (g[3])                  -> (c[3], res_hist[K+1])  K Newton iterations from (2J)^-1 g
-        step_given_c    (X[18], c[3], w[nw], h) -> (X1[18], G[3])
-        cayley_rhs      (X[18], w[nw], h)       -> (g[3])
-        step            (X[18], w[nw], h)       -> (X1[18], res)
-        variation, step_seeded, variation_seeded   (:class:`Discretization`; :meth:`variations`)
-    """
+    """The Cayley solve and the step Functions of one Discretization (module docstring), plus
+    ``newton_map (c, g) -> c - (dG/dc)^-1 G``; from the model's numbers as constants, or (``parametric``) with
+    theta = ``model.parameters`` as every Function's last input (names suffixed ``_p``)."""
 
     def __init__(self, disc: "Discretization", parametric: bool = False):
         model, scheme, sfx = disc.model, disc.scheme, "_p" if parametric else ""
@@ -163,11 +141,8 @@ class _StepFunctions:
         AB = tangent_readback(X1s, dX1)
         self.variation = fn(f"{scheme}_variation", [X, w, h], [AB[:, :NZ], AB[:, NZ:]], ["X", "w", "h"], ["A", "B"])
 
-        # Seeded versions for derivatives (speed): the Cayley root c0 of the *unperturbed* step is an
-        # input and the step uses two Newton iterations from it.  With c0 = the root, N^2(c0, g) agrees
-        # with the implicit function c(g) to O(|dg|^4) (quadratic convergence), so values and first
-        # to third derivatives in X, w are exact, while the graph is ~5x smaller than through the
-        # 8 unrolled iterations of cayley_solve (whose derivatives vanish at the root anyway).
+        # Seeded versions for derivatives: two Newton iterations from the unperturbed step's root c0 agree with
+        # c(g) to O(|dg|^4), so values and first to third derivatives are exact with a ~5x smaller graph
         c0 = ca.SX.sym("c0", 3)
         gvec = self.cayley_rhs(X, w, h, *extra)
         c2 = self.newton_map(self.newton_map(c0, gvec, *extra), gvec, *extra)
@@ -187,13 +162,9 @@ STEP_FUNCTIONS = ("cayley_residual", "cayley_solve", "cayley_rhs", "step_given_c
 
 
 class WithTheta:
-    """A Discretization whose step Functions (:data:`STEP_FUNCTIONS`, called as on the Discretization) are those of
-    ``disc.parametric()`` with the SX symbol ``theta`` as their last input: what a builder of per-step Functions
-    (the indirect method's maps, :mod:`transcription.methods.indirect.conditions`) calls so that the Function it
-    builds takes the model's numbers theta = ``model.parameters`` as data (its last input) and its compiled code
-    serves every model of the same structure -- the mechanism of the direct method's dynamics block.  Everything
-    else (scheme, nw, force_frame, applied_force, model, what :func:`per_discretization` keeps) is the
-    Discretization's own: ``base``."""
+    """A Discretization whose step Functions (:data:`STEP_FUNCTIONS`) are ``disc.parametric()``'s with the SX symbol
+    ``theta`` bound as last input: the indirect method's per-step maps built from it take the model's numbers as
+    data, so their compiled code serves every model of the same structure.  Everything else is ``base``'s."""
 
     def __init__(self, disc: "Discretization", theta):
         self.base, self.theta = disc, theta
@@ -220,19 +191,10 @@ def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = D
 
 
 class Discretization:
-    """One discrete scheme for one body model; every Function is built once here.
-
-    Parameters
-    ----------
-    model : BodyModel
-    scheme : 'lgvi' | 'first_order'
-    newton_iters : unrolled Newton iterations of the Cayley solve.
-    force_frame : 'inertial' | 'body' -- the frame of the force control u_f; with 'body' the applied
-        inertial force of a control at node j is R_j u_{f,j} (:meth:`applied_force`).
-
-    What the methods build for this scheme and model -- NLP blocks, shooting Functions, rollouts of a
-    length -- is built once and kept here (:meth:`cached`), so it lives as long as the Discretization.
-    """
+    """One discrete scheme ('lgvi' | 'first_order') for one body model, ``newton_iters`` unrolled Cayley iterations,
+    ``force_frame`` 'inertial' | 'body' (the applied force of a control at node j is R_j u_{f,j},
+    :meth:`applied_force`).  Every Function is built once here; what the methods build for it (NLP blocks, shooting
+    Functions, rollouts) is kept here too (:meth:`cached`)."""
 
     def __init__(self, model: BodyModel, scheme: str = "lgvi", newton_iters: int = DEFAULT_NEWTON_ITERS,
                  force_frame: str = "inertial"):
@@ -297,10 +259,7 @@ class Discretization:
         return N + 1 if self.scheme == "lgvi" else N
 
     def stage_controls(self, U):
-        """Controls (6 x n_controls(N)) -> stage controls W (nw x N).
-
-        Works for NumPy arrays and CasADi matrices.
-        """
+        """Controls (6 x n_controls(N)) -> stage controls W (nw x N); NumPy or CasADi."""
         if self.scheme == "first_order":
             return U
         if is_symbolic(U):
@@ -314,10 +273,8 @@ class Discretization:
         return WithTheta(self, theta)
 
     def parametric(self) -> "_StepFunctions":
-        """The step Functions with the model's numbers as data: every Function of :class:`_StepFunctions` takes
-        theta = ``model.parameters`` as its last input (equal to this Discretization's Function of the same name
-        given theta, to round-off), so that what is built and compiled from them serves every model of the same
-        structure (transcription.nlp.blocks.dynamics).  Built on first use."""
+        """The step Functions with theta = ``model.parameters`` as last input (equal to this Discretization's to
+        round-off): what is compiled from them serves every model of the same structure.  Built on first use."""
         return self.cached("parametric", lambda: _StepFunctions(self, parametric=True))
 
     # ------------------------------------------------------------------ cache
@@ -356,8 +313,7 @@ class Discretization:
         """Numeric rollout: X0 (18,), U (6 x n_controls(N)) or None for free motion; h one step size, or the N
         step sizes h_k of a non-uniform mesh (step k from node k to k+1 with its own h_k).
 
-        Returns (X (N+1, 18) node-major, res (N,) Cayley residuals).  Long runs are
-        evaluated in chunks so that the mapped Function stays small.
+        Returns (X (N+1, 18) node-major, res (N,) Cayley residuals); evaluated in chunks of ``chunk`` steps.
         """
         hs = np.asarray(h, dtype=float)
         if hs.ndim and hs.size != N:

@@ -1,15 +1,9 @@
 """The rigid-body model seen by the method layer.
 
-The method layer needs only the mass, the inertia matrix and a potential U(x, R) as a CasADi
-Function; force and moment (docs/mathematics.md §1, eqs. 5-6) are derived from U by automatic
-differentiation here, so any potential works.
-
-Model data as parameters (compile once): besides the numeric ``potential`` a model may give the same
-potential as a function of its data, U(x, R, q) with q = ``potential_data`` (GM, J2, radius, sizes, ...).
-:attr:`BodyModel.parameters` is then the vector theta = [m; vec J; vec (2J)^-1; q] of every number the
-dynamics use, and :meth:`BodyModel.parametric_forces` the forces as functions of (x, R, q), so that the
-Functions compiled for one model (the NLP's dynamics block, transcription.nlp.blocks) take theta as data and
-serve every model of the same structure (kind of body and gravity) without a new compile.
+The mass, the inertia and a potential U(x, R) as a CasADi Function; force and moment (docs/mathematics.md §1, eqs.
+5-6) are derived from U by automatic differentiation, so any potential works.  A model may also give U(x, R, q) with
+q = ``potential_data`` (GM, J2, radius, sizes, ...): :attr:`BodyModel.parameters` is then theta = [m; vec J;
+vec (2J)^-1; q], data of the compiled Functions, which serve every model of the same structure without a new compile.
 """
 from __future__ import annotations
 
@@ -53,16 +47,14 @@ class BodyModel:
         used for orbit targets and orbital elements, never by the dynamics (U carries the gravity).
     markers: body-fixed points (k, 3) drawn by the figures (e.g. the dumbbell's spheres); empty:
         the figures draw the principal axes.
-    key: a hashable description of the model (e.g. its kind and parameters), by which a front end may
-        share one model object between equal models (problems.models does), and with it its
-        Discretizations; None: none.
+    key: a hashable description of the model, by which a front end may share one model object (and its
+        Discretizations) between equal models (problems.models does); None: none.
     name: a label for reports.
     parametric_potential: U(x[3], R[3x3], q) with ``potential(x, R) = parametric_potential(x, R, potential_data)``,
         or None (then the potential's numbers are constants of the compiled Functions: one compile per model).
     potential_data: q (nq,), the numbers of ``parametric_potential``.
-    discretizations: the Discretization of each (scheme, Newton iterations) built for this model, kept on it
-        (lgvi.discretization), so that the Functions built and compiled for one are reused by every Problem
-        of the model.
+    discretizations: the Discretization of each (scheme, Newton iterations, force frame) built for this model
+        (lgvi.discretization), shared by every Problem of the model.
     """
 
     mass: float
@@ -99,8 +91,7 @@ class BodyModel:
     @property
     def parameters(self) -> np.ndarray:
         """theta = [m; vec J (9); vec (2J)^-1 (9); q] (column-major): every number of the dynamics, the data of
-        :meth:`parametric_forces` and of the parametric Functions of the Discretization (lgvi.Discretization.parametric).
-        (2J)^-1 is given rather than computed from J on the graph, so that it is the same number as NumPy's."""
+        lgvi.Discretization.parametric.  (2J)^-1 is data, not computed on the graph, so it is NumPy's number."""
         J = self.inertia
         return np.concatenate([[self.mass], J.ravel(order="F"), np.linalg.inv(2 * J).ravel(order="F"),
                                self.potential_data if self.parametric_potential is not None else []])

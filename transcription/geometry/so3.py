@@ -1,17 +1,12 @@
 """Every SO(3) operation of the project, in one place.
 
-SO(3) (symbolic CasADi SX/MX and numeric NumPy alike): hat/vee, the Cayley map and its
-inverse, exp/log (log also at exactly pi, with a chosen sign), the inverse right Jacobian,
-elementary rotations, orthogonality errors, rotation angles, quaternions, geodesic interpolation,
-orthonormalization, unit directions, the Cayley vectors of a sequence of attitudes, and the one NumPy-or-CasADi check
-(:func:`is_symbolic`).  (The charts of the state space, built from these maps, are in
-:mod:`transcription.geometry.state`.)
+The maps accept NumPy arrays (returning NumPy) or CasADi SX/MX/DM (returning the same type), except where a
+docstring says NumPy; :func:`is_symbolic` is the one backend check.  The state-space charts are in
+:mod:`transcription.geometry.state`.
 
-Conventions (docs/mathematics.md §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on
-skew matrices.  The Cayley map is ``cay(c) = (I + S(c)) (I - S(c))^-1``, written in
-closed form ``I + 2/(1 + |c|^2) (S(c) + S(c)^2)`` so that it is exactly the same
-expression whatever the backend.  ``exp``/``log`` handle small angles by computing
-their coefficients from theta^2 behind a branch on theta^2 (jaxlie style), so that
+Conventions (docs/mathematics.md §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on skew matrices.
+cay(c) = (I + S(c)) (I - S(c))^-1 is written in closed form I + 2/(1 + |c|^2) (S(c) + S(c)^2), the same expression
+on every backend.  exp/log take their small-angle coefficients from theta^2 behind a branch (jaxlie style), so
 neither values nor derivatives become NaN at the identity.
 
 Quaternions (:func:`quaternions`, :func:`rotation_of_quaternion`; what exports rely on): q = (w, x, y, z),
@@ -20,17 +15,13 @@ quaternion of an attitude R -- body -> inertial, as everywhere here -- rotates b
 inertial frame, (0, v_inertial) = q (0, v_body) q*, i.e. R = R(q) = (w^2 - |v|^2) I + 2 v v^T + 2 w S(v)
 with v = (x, y, z) (a rotation by theta about the unit axis n: q = (cos theta/2, sin theta/2 n)).  q and -q
 are the same attitude: along a path the sign is chosen continuous (q_k . q_{k-1} >= 0), w >= 0 at the start.
-
-The maps accept either NumPy arrays (returning NumPy) or CasADi SX/MX/DM (returning the same CasADi type),
-except where a docstring says NumPy.
 """
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 
-# Below this theta^2 the Taylor branches are used (their truncation error is
-# O(theta^6) relative, i.e. < 1e-18 here).
+# below this theta^2 the Taylor branches are used (truncation O(theta^6) relative, < 1e-18)
 _SMALL_THETA2 = 1e-6
 
 
@@ -127,15 +118,11 @@ def exp_so3(w):
 def log_so3(R):
     """Logarithm SO(3) -> R^3 for angles in [0, pi], safe at the identity.
 
-    NumPy: theta = atan2(sin, cos) from the skew part and the trace (well
-    conditioned for every angle); near pi (cos theta < -0.9) the axis is read
-    from the symmetric part (R + R^T)/2 - cos(theta) I = (1 - cos theta) n n^T,
-    its sign from the skew part, so the result stays accurate to round-off.
+    NumPy: theta = atan2(sin, cos) from the skew part and the trace; near pi (cos theta < -0.9) the axis from the
+    symmetric part (R + R^T)/2 - cos(theta) I = (1 - cos theta) n n^T, its sign from the skew part.
 
-    CasADi (symbolic, differentiable): theta/(2 sin theta) vee(R - R^T) with a
-    Taylor branch at the identity.  Its derivative is singular at pi, as is the
-    logarithm's; the method layer evaluates it near the identity (terminal
-    attitude error).
+    CasADi (differentiable): theta/(2 sin theta) vee(R - R^T) with a Taylor branch at the identity; its derivative is
+    singular at pi, as the logarithm's.
     """
     if not is_symbolic(R):
         return _log_so3_np(np.asarray(R, dtype=float))
@@ -148,19 +135,16 @@ def log_so3(R):
     t = ca.acos(cos_safe)
     # theta / (2 sin theta); Taylor: 1/2 + theta^2/12 + 7 theta^4/720
     t2 = 2.0 * one_minus
-    # sin(theta) as sqrt((1 - cos)(1 + cos)): 1 - cos is exact near theta = 0, whereas
-    # 1 - cos^2 loses eps/theta^2 (relative 1e-10 just above the switch at theta = 1e-3)
+    # sin(theta) as sqrt((1 - cos)(1 + cos)): 1 - cos^2 would lose eps/theta^2 near theta = 0
     sin_t = ca.sqrt((1.0 - cos_safe) * (1.0 + cos_safe))
     coef = _where(small, 0.5 + t2 / 12.0 + 7.0 * t2 * t2 / 720.0, t / (2.0 * sin_t))
     return coef * vee(R - R.T)
 
 
 def log_so3_small(R):
-    """Logarithm SO(3) -> R^3 for angles well below pi (below ~0.9 pi), by the NumPy branch's formula
-    theta = atan2(|vee(R - R^T)|/2, (tr R - 1)/2), theta/(2 sin theta) vee(R - R^T) (Taylor at the identity),
-    so NumPy and CasADi give the same numbers to round-off, where :func:`log_so3`'s CasADi branch (acos)
-    loses eps/theta^2 relative for small angles.  CasADi: for values only (the norm is not differentiable at
-    the identity); the tracking error of a flight (transcription/flight/loop.py)."""
+    """Logarithm SO(3) -> R^3 for angles below ~0.9 pi by the NumPy branch's formula, theta = atan2(|vee(R - R^T)|/2,
+    (tr R - 1)/2), theta/(2 sin theta) vee(R - R^T): NumPy and CasADi agree to round-off (:func:`log_so3`'s acos loses
+    eps/theta^2).  CasADi: values only (the norm is not differentiable at the identity); the flight's tracking error."""
     if not is_symbolic(R):
         return _log_so3_np(np.asarray(R, dtype=float))
     w2 = vee(R - R.T)
@@ -338,11 +322,8 @@ def orthogonality_error(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def unit_direction(v) -> np.ndarray | None:
     """v / |v| for a direction given as 3 numbers of any magnitude (NumPy), or None if it has none.
 
-    The vector is divided by its largest |component| before the norm is taken, so that neither
-    |v|^2 overflows (components of 1e200 would give |v| = inf and a zero "unit" vector) nor
-    underflows (1e-200 would give |v| = 0): every finite non-zero vector, denormal components
-    included, has its direction.  None: not 3 finite numbers, or exactly zero.  The one place
-    where a direction given by a user (a cone's axes, an orbit's normal, a rotation axis) is read."""
+    v is divided by its largest |component| before the norm, so |v|^2 neither overflows nor underflows: every
+    finite non-zero vector has its direction.  None: not 3 finite numbers, or zero.  Reads every user direction."""
     a = np.asarray(v, dtype=float).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         return None

@@ -10,11 +10,8 @@ Control vector u in R^6: [u_f (3, inertial force); u_m (3, body moment)].
 Tangent (variation) vector z in R^12 (docs/mathematics.md §4): [dx; dgamma; zeta; dPi] with
 dR = R S(zeta).
 
-The left-trivialized chart ``chart`` around a state, its read-back ``tangent_readback`` and the
-tangent basis ``tangent_basis`` (dX = D(X) z) are defined here too, next to the layout they read.
-
-Trajectories are stored node-major as arrays of shape (N+1, 18) on the NumPy side
-and as 18 x (N+1) matrices on the CasADi side (one column per node).
+The chart around a state (``chart``), its read-back (``tangent_readback``) and the tangent basis (``tangent_basis``,
+dX = D(X) z) are here too.  Trajectories are node-major (N+1, 18) in NumPy, 18 x (N+1) in CasADi.
 """
 from __future__ import annotations
 
@@ -91,23 +88,15 @@ def unpack_states(X) -> States:
 
 
 def chart(X, z):
-    """Left-trivialized chart around a state X (18) (docs/mathematics.md §4): additive on x, gamma,
-    Pi; R -> R cay(zeta/2).  CasADi.
-
-    The Cayley map here is (I + S(c))(I - S(c))^-1 = I + 2 S(c) + O(c^2), so the argument is
-    halved to make dR = R S(zeta) to first order (the coordinates read back by
-    :func:`tangent_readback`); with cay(zeta) the zeta-columns of A_k would be twice the
-    left-trivialized Jacobian.
-    """
+    """Left-trivialized chart around a state X (18) (docs/mathematics.md §4): additive on x, gamma, Pi;
+    R -> R cay(zeta/2) (cay(c) = I + 2 S(c) + O(c^2): halved so dR = R S(zeta) to first order).  CasADi."""
     x, gamma, R, Pi = split_state(X)
     return join_state(x + z[Z_POS], gamma + z[Z_MOM], ca.mtimes(R, cayley(0.5 * z[Z_ROT])), Pi + z[Z_ANG])
 
 
 def tangent_readback(Xbar, dX):
-    """Map a differential dX (18 x n) at Xbar to tangent coordinates z (12 x n) (CasADi).
-
-    dzeta = vee(skew(Rbar^T dR)); the other blocks are copied.
-    """
+    """Map a differential dX (18 x n) at Xbar to tangent coordinates z (12 x n) (CasADi): dzeta = vee(skew(Rbar^T
+    dR)); the other blocks are copied."""
     Rbar = ca.reshape(Xbar[X_ROT], 3, 3)
     cols = []
     for j in range(dX.shape[1]):

@@ -1,9 +1,6 @@
 """What every method shares: the Method protocol, the progress callback, and the Solution of a solve that could not
-run.
-
-A method is one solve and nothing else (diffrax's solver classes, rockit's ``ocp.method(MultipleShooting(...))``):
-a frozen object holding its options, with a ``name`` (what its Solutions report as ``method``), the ``kind`` of
-control it solves ('smooth' or 'impulsive'), and
+run.  A method is one solve and nothing else: a frozen object holding its options, with a ``name`` (its Solutions'
+``method``), the ``kind`` of control it solves ('smooth' or 'impulsive'), and
 
     not_covered(problem) -> str               what of ``problem`` it does not cover ('' when it covers all of it)
     solve(problem, start, report) -> Solution one NLP or one Newton solve from ``start`` (a Start, or None)
@@ -29,9 +26,8 @@ Progress = Callable[[Iterate], None]
 
 
 def phased(progress: Progress | None, phase: str) -> Progress | None:
-    """``progress`` with each record's phase under ``phase``: ``phase`` for a record without one, 'phase / its own'
-    for a nested solve's (e.g. 'coarse N=25 / effort / rollout').  None stays None: a solve nobody listens to
-    pays nothing."""
+    """``progress`` with each record's phase under ``phase`` ('phase / its own' for a nested solve's); None stays
+    None."""
     if progress is None or not phase:
         return progress
     return lambda it: progress(replace(it, phase=f"{phase} / {it.phase}" if it.phase else phase))
@@ -69,9 +65,8 @@ class Method(Protocol):
 
 def failed_solution(problem: Problem, method: str, solver: str, result: Result, message: str,
                     label: str = "") -> Solution:
-    """The Solution of a solve that could not run (or does not apply): the free motion from X0 as its
-    trajectory (something to show; never a solution), no controls, cost nan, the free motion's terminal
-    error, no iterations (one attempt, named ``label``, with its result)."""
+    """The Solution of a solve that could not run (or does not apply): the free motion from X0 as its trajectory
+    (never a solution), no controls, cost nan, no iterations (one attempt, named ``label``)."""
     X, _ = problem.disc.simulate(problem.X0, None, problem.steps_of(problem.h), problem.N)
     return Solution(method=method, solver=solver, result=result, verdict=message, trajectory=trajectory(problem, X),
                     cost=float("nan"), terminal_error=terminal_error(X[-1], problem), problem=problem,

@@ -1,21 +1,16 @@
 """The block Functions of the multiple-shooting NLPs (see :mod:`.structured` for what a block is).
 
-Each builder returns an SX Function ``(v, p) -> (cost, rows)`` in *scaled* variables: the
-physical value of a local variable is v * (its scale), rows are divided by their scales and the
-cost by the objective scale, every scale being part of the data p.  Problem data (step size,
-weights, targets) are data too, so one Function -- and its compiled derivatives -- serves every
-problem of the same structure: the builders with only structural arguments return a
-:class:`~.structured.BlockFunction` built once per Discretization and kept on it (its derivatives with it;
-``disc`` is their owner even where the block does not depend on the scheme).
+Each builder returns an SX Function ``(v, p) -> (cost, rows)`` in *scaled* variables: physical = v * scale, rows
+divided by their scales, cost by the objective scale, every scale (and the step size, weights, targets) part of the
+data p.  Builders with only structural arguments return a :class:`~.structured.BlockFunction` kept on the
+Discretization with its compiled derivatives.
 
     dynamics(disc, with_c, controls, free_h)   one step k -> k+1 (docs/mathematics.md §2-§3, §6)
         v = [X_k (18); c_k (3, with_c); w_k (nw, controls); X_{k+1} (18); h / h_scale (1, free_h)]
         p = [h (or h_scale, free_h); sX (18); sC (3, with_c); sW (nw, controls); sG (3, with_c);
              theta (the model's numbers, ``disc.model.parameters``)]
         rows = [(step(X_k, c_k, w_k, h) - X_{k+1}) / sX (18); G(c_k) / sG (3, with_c)]
-        (the step of ``disc.parametric()``: mass, inertia and the potential's numbers are data, so the block and
-        its compiled derivatives serve every model of the same structure -- compiled once); no cost (the
-        objective's blocks carry it: transcription.objectives)
+        (the step of ``disc.parametric()``: the model's numbers are data); no cost (transcription.objectives)
     control_node(disc, norm_f, norm_m, thruster)   one control node j's bounds (docs/mathematics.md §10, §14)
         v = u_j (6); p = [sU (6); b_f; b_m (norm bounds); vec(Q) (9, thruster: the engine frame [a, b, c],
              column-major; b_f its max)]
@@ -83,10 +78,8 @@ def dynamics(disc, with_c: bool, controls: bool, free_h: bool = False) -> BlockF
 
 @per_discretization
 def control_node(disc, norm_f: bool, norm_m: bool, thruster: bool = False) -> BlockFunction:
-    """The bounds of one control node: norm bounds and a body-fixed engine (module docstring).
-
-    The engine's rows are linear in u_f: IPOPT's steps satisfy a linear equality exactly (to the linear
-    solver's round-off), so the off-axis force of the solution is zero to round-off, not merely to the tolerance."""
+    """The bounds of one control node: norm bounds and channel rows (module docstring).  The channel rows are linear
+    in u_f, so IPOPT keeps an engine's off-axis force zero to round-off, not merely to the tolerance."""
     v = ca.SX.sym("v", NU)
     p = ca.SX.sym("p", NU + 2 + (9 if thruster else 0))
     u = v * p[:NU]
@@ -112,18 +105,15 @@ def time_cost(disc) -> BlockFunction:
 
 
 def node_rows(name: str, rows_of, scales: np.ndarray) -> ca.Function:
-    """A block of rows g(X) / scales of one node state (v = X scaled, p = sX): path constraints, or
-    a terminal target given as a function of X_N (an orbit target).  Built per problem."""
+    """Rows g(X) / scales of one node state (v = X scaled, p = sX): a path constraint or an orbit target."""
     v, p = ca.SX.sym("v", NX), ca.SX.sym("p", NX)
     rows = rows_of(v * p) / ca.DM(np.asarray(scales, dtype=float))
     return ca.Function(name, [v, p], [ca.SX(0), rows], ["v", "p"], ["cost", "rows"])
 
 
 def terminal_time_rows(name: str, rows_of, scales: np.ndarray, free_h: bool) -> ca.Function:
-    """A block of rows g(X_N, T) / scales of the final state and the final time T (a rendezvous target, whose
-    point moves with T): v = [X_N scaled (18); h / h_scale (1, free_h)], p = [sX (18); N h_scale (free_h) or T],
-    T = p[18] v[18] (free_h) or p[18].  Built per problem; with a free final time IPOPT gets the exact first
-    and second derivatives in h through the block."""
+    """Rows g(X_N, T) / scales of the final state and time (a rendezvous target): v = [X_N scaled (18); h / h_scale
+    (1, free_h)], p = [sX (18); N h_scale (free_h) or T], T = p[18] v[18] (free_h) or p[18].  Built per problem."""
     v, p = ca.SX.sym("v", NX + (1 if free_h else 0)), ca.SX.sym("p", NX + 1)
     T = p[NX] * v[NX] if free_h else p[NX]
     rows = rows_of(v[:NX] * p[:NX], T) / ca.DM(np.asarray(scales, dtype=float))

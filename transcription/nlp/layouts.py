@@ -13,12 +13,10 @@ class NLPLayout:
     """Order of the NLP decision vector: node-major blocks [X_k, u_k?, s_k?, c_k?], k = 0..N, then
     the global h.
 
-    X_k (18) at every node; u_k (6) and the slacks s_k (``n_slack``: the objective's own variables, e.g. the fuel epigraph's) at the
-    nodes that carry a control (``control_nodes``); c_k (3) at nodes 0..N-1 when ``with_c``; the
-    step size h last when ``free_h``.  :meth:`pack` and :meth:`unpack` are the only routines that
-    know the order.  Shapes: X (18, N+1) (column k = node k), U (6, n_controls), S (n_slack,
-    n_controls), C (3, N).  ``iX``, ``iU``, ``iS``, ``iC`` are the index arrays of those shapes,
-    ``ih`` the index of h (or None); ``iUn`` the node controls the control-node rows use (here iU).
+    X_k (18) at every node; u_k (6) and the objective's own variables s_k (``n_slack``) at the control nodes; c_k (3)
+    at nodes 0..N-1 when ``with_c``; h last when ``free_h``.  Shapes: X (18, N+1), U (6, n_controls), S (n_slack,
+    n_controls), C (3, N); ``iX``, ``iU``, ``iS``, ``iC`` their index arrays, ``ih`` the index of h (or None);
+    ``iUn`` the node controls the control-node rows use (here iU).
     """
 
     def __init__(self, N: int, control_nodes: list[int] | range, with_c: bool, n_slack: int = 0, free_h: bool = False):
@@ -87,13 +85,10 @@ class StageLayout(NLPLayout):
     first_order: state s_k = X_k (18), stage control q_k = [u_{k+1} (6); c_k (3); S_{k+1} (n_slack)].
     lgvi: the step couples u_k and u_{k+1}, so u_k is lifted into the state: s_k = [X_k; v_k]
     (24, v_k = u_k) and q_k = [u'_{k+1}; c_k; S_{k+1}; S_0 (k = 0 only)] with the gap v_{k+1} - u'_{k+1} = 0,
-    i.e. u_{k+1} appears twice (v_{k+1} and its copy u'_{k+1}).  S_j (n_slack, the fuel epigraph's
-    magnitudes and directions of control node j) sits in the stage control beside the copy of u_j that the
-    node's rows use (:attr:`iUn`), so each node's rows are path rows of one stage: node j >= 1 of stage j - 1,
-    node 0 (lgvi) of stage 0.  iU are the node controls (lgvi: the v_j), iUp (lgvi) the copies u'_{k+1},
-    iUn (6, n_controls) the node controls the control-node rows use, iS (n_slack, n_controls); ns, nq the
-    state and stage-control sizes (``nu`` per stage: q_0 carries S_0 too), ``stage_of`` (n,) the stage of
-    each variable.
+    (u_{k+1} appears twice).  S_j (n_slack) sits beside the copy of u_j the node's rows use (:attr:`iUn`), so each
+    node's rows are path rows of one stage (node j >= 1 of stage j - 1, node 0 of stage 0).  iU: the node controls
+    (lgvi: the v_j); iUp (lgvi): the copies u'_{k+1}; iUn (6, n_controls); iS (n_slack, n_controls); ns, nq: state
+    and stage-control sizes (``nu`` per stage: q_0 carries S_0 too); ``stage_of`` (n,): each variable's stage.
     """
 
     def __init__(self, N: int, scheme: str, n_slack: int = 0):

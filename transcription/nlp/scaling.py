@@ -1,12 +1,6 @@
-"""The scales of the direct method's NLP.
-
-Scaling (:func:`characteristic_scales`): every variable is divided by a characteristic magnitude
-(positions by the orbit size, momenta by their boundary values or what the horizon requires,
-controls by momentum change over the horizon, c by h |Omega| / 2), every constraint row by the
-magnitude of its variable, and the objective by its value at the characteristic controls (the objective's own
-rule, :meth:`~transcription.ocp.objective.Objective.scales`: the effort objective also balances the control
-scales).
-"""
+"""The scales of the direct method's NLP (docs/mathematics.md §7, *Scaling*): every variable divided by a
+characteristic magnitude (:func:`characteristic_scales`), every row by its variable's, the objective by its value at
+the characteristic controls (:meth:`~transcription.ocp.objective.Objective.scales`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -12,29 +12,22 @@ from ..options import DirectOptions, raw_solver_value
 from ..outcome import Iterate
 from .structured import StructuredNLP
 
-#: MUMPS settings for this (already scaled, banded) KKT system: AMD ordering, no permuting scaling,
-#: no row/column scaling.  Measured on E3 first_order N = 1000: the IPOPT call fell 1.9 s -> 0.7 s (MUMPS'
-#: automatic ordering and its maximum-transversal scaling cost more than they bring here); the scaling
-#: (``mumps_scaling`` 0 instead of IPOPT's automatic 77), computed at every factorization of a matrix whose
-#: rows and columns are already scaled (:func:`characteristic_scales`), costs ~10 % of the solve on the
-#: small NLPs (the slews and the time objective's 25-step starts) with the same iterations and optima to 10
-#: digits on the 15 maneuvers of configs/ (docs/bench_notes.md).  Raw ``options`` override them.
+#: MUMPS settings for this already scaled, banded KKT system: AMD ordering, no permuting scaling, no row/column
+#: scaling (E3 N = 1000: IPOPT call 1.9 s -> 0.7 s; docs/performance.md, docs/bench_notes.md).  Raw ``options``
+#: override them.
 MUMPS_DEFAULTS: dict[str, Any] = {"mumps_permuting_scaling": 0, "mumps_pivot_order": 0, "mumps_scaling": 0}
 
 
-#: IPOPT's relative objective change per iteration below which an 'acceptable' iterate may end the solve
-#: (IPOPT's default, 1e20, lets 15 acceptable iterates end it however fast the objective still moves)
+#: relative objective change per iteration below which an 'acceptable' iterate may end the solve (IPOPT's default,
+#: 1e20, ends it however fast the objective still moves; docs/everyday.md, phasing_5_orbits)
 ACCEPTABLE_OBJ_CHANGE_TOL = 1e-12
 
 
 def ipopt_options(options: DirectOptions, warm_duals: bool = False) -> dict[str, Any]:
     """IPOPT options of a direct solve: tolerances, the exact Hessian, MUMPS_DEFAULTS, then the raw
-    ``options`` (IPOPT has no booleans: true/false become yes/no).  constr_viol_tol: the defects
-    are what the re-simulation accumulates over N steps, so they are driven well below tol.
-    acceptable_obj_change_tol: IPOPT stops at its 'acceptable' level (not a success here) only once the
-    objective has stopped changing, i.e. at a round-off floor, not while it still converges slowly (the
-    five-orbit phasing, configs/everyday/phasing_5_orbits.yaml: stopped at 85 iterations with the dual
-    infeasibility falling by a third per iteration; Solve_Succeeded at 120)."""
+    ``options`` (true/false become yes/no).  constr_viol_tol: the defects accumulate over N steps of the
+    re-simulation, so they are driven well below tol.  acceptable_obj_change_tol: IPOPT stops at its 'acceptable'
+    level only at a round-off floor, not while it still converges slowly."""
     ipopt = {"tol": float(options.tol), "constr_viol_tol": 1e-2 * float(options.tol), "max_iter": int(options.max_iter),
              "acceptable_obj_change_tol": ACCEPTABLE_OBJ_CHANGE_TOL, "print_level": 0, "sb": "yes",
              "hessian_approximation": "exact", **MUMPS_DEFAULTS}
@@ -47,9 +40,8 @@ def ipopt_options(options: DirectOptions, warm_duals: bool = False) -> dict[str,
 def make_ipopt(name: str, nlp: StructuredNLP, ipopt: dict[str, Any], progress: Callable[[Iterate], None] | None,
                obj_scale: float, phase: str = "") -> ca.Function:
     """An IPOPT nlpsol on a StructuredNLP with its block-assembled derivatives; with ``progress``, one
-    :class:`ProgressCallback` record per iteration, under ``phase``.  (Its linear solver's BLAS, the
-    OpenBLAS CasADi bundles, keeps its own thread count: setting it to one made the bundled LEO engine raise stall,
-    docs/mathematics.md §24.)"""
+    :class:`ProgressCallback` record per iteration, under ``phase``.  (The bundled OpenBLAS keeps its own thread
+    count: docs/mathematics.md §24.)"""
     nlp_opts: dict[str, Any] = {"print_time": False, "ipopt": ipopt, "show_eval_warnings": False,
                                 **nlp.derivative_functions()}
     if progress is not None:
@@ -95,10 +87,8 @@ class ProgressCallback(ca.Callback):
         return ca.Sparsity(0, 0)
 
     def eval(self, arg):
-        # Ctrl-C (a KeyboardInterrupt raised here by the SIGINT handler, or by ``fn``) asks the
-        # solver to stop by returning 1 (IPOPT: User_Requested_Stop): an exception escaping a
-        # callback would make CasADi print a 'KeyboardInterruptException' warning on stderr.  The
-        # caller learns of the interrupt from its own record of the signal (problems/cli.py).
+        # Ctrl-C (KeyboardInterrupt here or from ``fn``) returns 1 (IPOPT: User_Requested_Stop): an exception
+        # escaping a callback would make CasADi warn on stderr; the caller keeps its own record of the signal
         try:
             g = np.array(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = np.maximum(np.maximum(self.lbg - g, g - self.ubg), 0.0) if g.size else np.zeros(0)
@@ -125,11 +115,9 @@ def ipopt_history(stats: dict, obj_scale: float, phase: str = "") -> list[Iterat
 def solve_time_split(stats: dict, solve_s: float) -> dict:
     """Where a solve's wall time went, from CasADi's solver stats (IPOPT and fatrop alike).
 
-    ``evaluations_s`` is the wall time spent in the NLP Functions (objective, constraints, their
-    Jacobian and the Lagrangian Hessian: the ``t_wall_nlp_*`` stats), ``solver_internal_s`` the rest
-    of ``solve_s`` (the solver's own linear algebra, line search and bookkeeping),
-    ``evaluations_by_function`` the split of ``evaluations_s``.  For fatrop also ``fatrop_own_s``:
-    fatrop's own time (its ``time_total`` less its evaluation callbacks).
+    ``evaluations_s``: wall time in the NLP Functions (the ``t_wall_nlp_*`` stats), split in
+    ``evaluations_by_function``; ``solver_internal_s``: the rest of ``solve_s``; for fatrop ``fatrop_own_s``: its
+    ``time_total`` less its evaluation callbacks.
     """
     by = {k[len("t_wall_"):]: float(v) for k, v in stats.items() if k.startswith("t_wall_nlp_")}
     ev = float(sum(by.values()))

@@ -1,25 +1,19 @@
-"""The one NLP builder (the solver set-up is in :mod:`.solvers`, the layouts in :mod:`.layouts`): a structured NLP assembled from small SX block Functions.
+"""The one NLP builder: a structured NLP assembled from small SX block Functions (docs/mathematics.md §7).
 
-Every multiple-shooting NLP of the project (smooth control, the relaxed impulsive problem, the
-fatrop form) is a sum of *blocks*.  A block is one SX Function of a few local variables,
+Every multiple-shooting NLP of the project is a sum of *blocks*: one SX Function of a few local variables,
 
-    fn(v[nv], p[np]) -> (cost (1x1), rows (nr x 1))
+    fn(v[nv], p[np]) -> (cost (1x1), rows (nr x 1)),
 
-instantiated M times (e.g. once per step of the horizon): instance k gathers its local
-variables from the global decision vector by an index map ``idx[:, k]`` and gets its constant
-data ``data[:, k]`` (step size, scales, weights, targets: data, not constants of the graph, so
-that one Function -- and its compiled code -- serves every problem of the same structure).
-The NLP is
+instantiated M times; instance k gathers its variables from the decision vector by ``idx[:, k]`` and gets its data
+``data[:, k]`` (step size, scales, weights, targets: data, so one compiled Function serves every problem of the same
+structure).  The NLP is
 
     min  sum_b sum_k cost_b(v_bk, p_bk)   s.t.  lbg <= rows_b(v_bk, p_bk) <= ubg,  lbx <= w <= ubx.
 
-Instead of SX-expanding the whole NLP and letting CasADi colour its Jacobian and Hessian (build
-time ~10 s at N = 1000), each block's gradient, Jacobian and Hessian of (sigma cost + lam^T rows)
-are formed once on its small SX graph, ``map``-ped over its instances and scattered into the
-global sparse matrices by index maps fixed at build time (duplicates summed).  The result is the
-exact Hessian; build and evaluation are linear in the number of instances.  Blocks marked
-``compile`` get their derivative Functions compiled to C (transcription.compile.codegen, cached on disk).
-
+Each block's gradient, Jacobian and Hessian of (sigma cost + lam^T rows) are formed once on its small graph,
+``map``-ped over its instances and scattered into the global sparse matrices by index maps fixed at build time
+(duplicates summed): the exact Hessian, built and evaluated in time linear in the instances (SX-expanding the whole
+NLP took ~10 s at N = 1000).  Blocks marked ``compile`` get their derivatives compiled to C (transcription.compile).
 Rows are ordered block by block, instance-major inside a block (:meth:`StructuredNLP.rows`).
 """
 from __future__ import annotations
@@ -61,8 +55,7 @@ class _Derivatives:
             self._compile()
 
     def _compile(self):
-        """jac and hess compiled to C (one library each): at -O1 when cached, else interpreted (or at -O0 if that has
-        arrived) while a background process compiles them (codegen's interpreted-first policy), ``provisional``
+        """jac and hess compiled to C (one library each), by codegen's interpreted-first policy; ``provisional``
         until the -O1 build has arrived; ``compiled``: compiled code is in use or on its way."""
         (self.jac,), (self.hess,) = codegen.compiled_libraries(self._libraries, quick=codegen.QUICK_CFLAGS)
         self.provisional = codegen.last_provisional
@@ -88,10 +81,8 @@ class _Derivatives:
 
 
 class BlockFunction:
-    """A block's SX Function and its derivative Functions (:class:`_Derivatives`, one set per jit flag), built
-    on first use and kept here: whoever keeps the BlockFunction keeps its derivatives and their compiled code
-    (the Discretization keeps the blocks of :mod:`.blocks`; a block built for one problem -- a path constraint,
-    an orbit target -- lives with its NLP)."""
+    """A block's SX Function and its derivative Functions (:class:`_Derivatives`, one set per jit flag), built on
+    first use and kept here, with their compiled code (the Discretization keeps the blocks of :mod:`.blocks`)."""
 
     def __init__(self, function: ca.Function):
         self.function = function
@@ -150,11 +141,8 @@ class Block:
 
 
 def assemble(nrow: int, ncol: int, rows, cols, vals):
-    """Sparse (nrow x ncol) MX from triplets (rows, cols, vals (ntrip,) MX); duplicates are summed.
-
-    The sparsity is fixed at build time; the nonzeros are one sparse constant product
-    P @ vals (P: nnz x ntrip, 0/1), linear in the number of triplets.
-    """
+    """Sparse (nrow x ncol) MX from triplets (rows, cols, vals (ntrip,) MX), duplicates summed: the nonzeros are
+    one constant sparse product P @ vals (P: nnz x ntrip, 0/1)."""
     rows = np.asarray(rows, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
     keys, mapping = np.unique(cols * nrow + rows, return_inverse=True)   # column-major = CasADi's nonzero order
@@ -211,9 +199,8 @@ class StructuredNLP:
 
     @property
     def key(self) -> tuple:
-        """The structure of this NLP: its size and, per block, its name, Function, rows per instance and
-        instances.  NLPs with the same key order their variables and constraint rows alike, so that the
-        multipliers of one start the other (a warm start)."""
+        """The structure of this NLP (size; per block name, Function, rows, instances): NLPs with the same key order
+        variables and rows alike, so the multipliers of one warm-start the other."""
         return (self.n, tuple((b.name, b.fn.name(), b.nr, b.M) for b in self.blocks))
 
     def _gather(self, b: Block):

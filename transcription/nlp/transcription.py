@@ -1,15 +1,10 @@
 """The multiple-shooting NLP of a smooth-control Problem (docs/mathematics.md §6-§7, §10).
 
-Decision variables per node k = 0..N (see :class:`~transcription.nlp.layouts.NLPLayout`, the only place that
-knows the order): the state X_k (18), the node control u_k (6; first_order: nodes 1..N, lgvi: nodes 0..N)
-and, with ``cayley_variables`` (default), the Cayley vector c_k (3) of step k = 0..N-1.  With c_k as
-unknowns every defect is explicit: X_{k+1} - step_given_c(X_k, c_k, w_k, h) = 0 (18 rows) and the Cayley
-equation G(c_k; g(X_k, w_k)) = 0 (3 rows); without them the defect uses the Newton-solved step.  The NLP
-is the sum of the blocks of :mod:`transcription.nlp.blocks` (dynamics, the actuators' rows, the terminal target)
-and those of the problem's objective (its cost and rows: :meth:`~transcription.ocp.objective.Objective.blocks`)
-assembled by the one builder, :class:`transcription.nlp.structured.StructuredNLP`; X_0 is fixed by
-its bounds.  IPOPT gets the exact Hessian assembled block by block; ``solver: fatrop`` gets the same blocks
-in stage order.
+Decision variables per node k = 0..N (:class:`~transcription.nlp.layouts.NLPLayout`): the state X_k (18), the node
+control u_k (6; first_order: nodes 1..N, lgvi: 0..N) and, with ``cayley_variables`` (default), the Cayley vector
+c_k (3) of step k.  With c_k as unknowns every defect is explicit: step_given_c(X_k, c_k, w_k, h) - X_{k+1} = 0 (18
+rows) and G(c_k; g(X_k, w_k)) = 0 (3 rows); without them the defect uses the Newton-solved step.  X_0 is fixed by
+its bounds.
 
 Costates (the hand-off to the indirect method, docs/mathematics.md §6)
 ----------------------------------------------------------------------
@@ -44,24 +39,18 @@ NC = blocks.NC
 class SmoothTranscription:
     """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.
 
-    Blocks (transcription.nlp.blocks), in this order: the dynamics of every step, the control nodes' norm bounds
-    and body-fixed engine, the objective's blocks (its cost at the control nodes or of the final time, and its
-    rows: :meth:`~transcription.ocp.objective.Objective.blocks`), one block per path constraint (nodes 1..N; node 0 is given and checked when the file is read), the terminal target (a state
-    target's fixed components, an orbit target, or a rendezvous target, a function of X_N and T = N h).  On a
-    non-uniform mesh (``problem.mesh``) step k has its own size h_k = r_k h in its dynamics block's data (h the
-    mean step, the unknown of a free final time) and the control nodes' weights are those of the steps.  Box
-    bounds on the controls, removed controls (a norm bound of 0), the slacks' signs and the free step size's
-    range are variable bounds (the objective's own variables: :meth:`~transcription.ocp.objective.Objective.
-    slack_bounds`).
+    Blocks (transcription.nlp.blocks), in this order: the dynamics of every step, the control nodes' norm bounds and
+    channel rows, the objective's blocks (:meth:`~transcription.ocp.objective.Objective.blocks`), one block per path
+    constraint (nodes 1..N), the terminal target (state, orbit, or rendezvous: a function of X_N and T = N h).  On a
+    non-uniform mesh step k's dynamics data holds h_k = r_k h (h the mean step, the unknown of a free final time).
+    Box bounds, removed controls, the objective's own variables' bounds and the free step's range are variable
+    bounds.
 
-    ``stage_order``: fatrop's stage-ordered layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0
-    as constraint rows and, for the LGVI, the lifting rows; the fuel epigraph's slacks of node j sit in the
-    stage control beside the copy of u_j its rows use (fixed time, no path constraints; what fatrop is used
-    for: :func:`~transcription.methods.direct.fatrop.covers`).  Attributes: ``layout``, ``scales``, ``nlp``
-    (:class:`~transcription.nlp.structured.StructuredNLP`), ``lbx``/``ubx``, ``w_scale`` (physical w =
-    w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N) rows of
-    the step defects "step - X_{k+1}" in g, ``constraint_rows`` (one row array per path constraint),
-    ``h_scale``.
+    ``stage_order``: fatrop's layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0 and, for the LGVI,
+    the lifting gaps as rows (:func:`~transcription.methods.direct.fatrop.covers`).  Attributes: ``layout``,
+    ``scales``, ``nlp`` (:class:`~transcription.nlp.structured.StructuredNLP`), ``lbx``/``ubx``, ``w_scale``
+    (physical w = w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N)
+    rows of the defects step - X_{k+1} in g, ``constraint_rows`` (per path constraint), ``h_scale``.
     """
 
     def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False):
@@ -87,9 +76,8 @@ class SmoothTranscription:
 
     @property
     def point_key(self) -> tuple:
-        """The identity of this NLP's scaled points: its structure (``nlp.key``) and its variable and row scales --
-        a point of another NLP with the same key means the same physical values here (a homotopy's next level,
-        whose data differ)."""
+        """The identity of this NLP's scaled points: ``nlp.key`` and the variable and row scales (a point of another
+        NLP with the same key means the same physical values here)."""
         return self.nlp.key, hashlib.sha1(self.w_scale.tobytes() + self.g_scale.tobytes()).hexdigest()
 
     @property
@@ -105,8 +93,7 @@ class SmoothTranscription:
 
     @property
     def omega_per_h(self) -> np.ndarray:
-        """omega_j / h at the control nodes, h the (mean) step: the relative weights of the mesh's steps r_k (the
-        quadrature weights at h = 1 on a uniform mesh)."""
+        """omega_j / h at the control nodes, h the (mean) step: the quadrature weights at h = 1 of the mesh."""
         problem = self.problem
         return quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh)
 
@@ -157,9 +144,8 @@ class SmoothTranscription:
         return Block("dynamics", dyn, iV, data, compile=True), np.concatenate([sc.X] + ([sG] if with_c else []))
 
     def _control_block(self):
-        """The control nodes' rows: each part's ball |u|^2 <= radius^2 and an actuator's channel rows
-        Q^T u_f / scale in [lo, hi] / scale (an engine: thrust / max in [min / max, 1], off-axis = 0;
-        :mod:`~transcription.ocp.actuators`); None without either."""
+        """The control nodes' rows: each part's ball |u|^2 <= radius^2 and the force's channel rows Q^T u_f / scale
+        in [lo, hi] / scale (:mod:`~transcription.ocp.actuators`); None without either."""
         problem, sc = self.problem, self.scales
         control: SmoothControl = problem.control
         force, moment = control.force_bound, control.moment_bound
@@ -240,9 +226,8 @@ class SmoothTranscription:
         return lbx, ubx
 
     def initial_point(self, start: Start) -> np.ndarray:
-        """Scaled decision vector of a :class:`~transcription.results.start.Start` on this NLP's grid (its node
-        states, controls, Cayley vectors and mean step size); an actuator with channel rows's force is projected onto its
-        channels' box (an engine's onto its axis and thrust range: the engine's rows then hold)."""
+        """Scaled decision vector of a :class:`~transcription.results.start.Start` on this NLP's grid, clipped to the
+        bounds; a force with channel rows is projected onto its channels' box first (so those rows hold)."""
         U, engine = start.U, self.problem.control.force_bound
         if engine is not None and engine.channel_rows:
             U = U.copy()
@@ -252,18 +237,13 @@ class SmoothTranscription:
         return np.clip(w, self.lbx, self.ubx)
 
     def costates(self, X: np.ndarray, lam_g: np.ndarray, sign: float = 1.0) -> np.ndarray:
-        """lambda_k = D(X_{k+1})^T nu_k (N, 12), nu_k = multiplier of step - X_{k+1} (module docstring).
-
-        The solver's Lagrangian is f_s + lam_g^T g_s with g_s = (step - X_{k+1}) / g_scale and
-        f_s = J / objective scale, so nu = objective_scale * lam_g / g_scale on the defect rows
-        (``sign`` -1 where the solver saw the rows negated).
-        """
+        """lambda_k = D(X_{k+1})^T nu_k (N, 12), nu_k the multiplier of step - X_{k+1} (module docstring), with
+        nu = s_obj lam_g / g_scale on the defect rows (``sign`` -1 where the solver saw the rows negated)."""
         nu = sign * self.scales.objective * lam_g[self.defect_rows] / self.g_scale[self.defect_rows]
         return np.stack([tangent_basis(X[:, k + 1]).T @ nu[:, k] for k in range(self.problem.N)])
 
     def multipliers(self, lam_g: np.ndarray) -> np.ndarray:
-        """The solver's (scaled) constraint multipliers lam_g in physical units, nu = s_obj lam_g / g_scale:
-        what a warm start of an NLP of the same structure but other scales can start from."""
+        """The solver's multipliers lam_g in physical units, nu = s_obj lam_g / g_scale (a warm start across scales)."""
         return self.scales.objective * np.asarray(lam_g, float) / self.g_scale
 
     def scaled_multipliers(self, nu: np.ndarray) -> np.ndarray:

@@ -1,14 +1,10 @@
 """The optimal control problem: physics, boundary conditions and cost -- no method.
 
-A :class:`Problem` is what every method solves (rockit's shape: the problem apart from the
-method; the method and its options are chosen at ``solve`` time).  It carries numbers and a
-:class:`~transcription.dynamics.lgvi.Discretization` (the body model and the scheme: both methods solve
-the *same* discrete problem).  States are 18-vectors in the layout of
-:mod:`transcription.geometry.state` (momenta, not velocities); ``state_from_velocities`` builds them from
-velocities.  The maneuver files (``problems.maneuvers``) build Problems; so can a Python user.
-
-The terminal conditions, the cost and their weights are defined here once and used by every
-method, the re-simulation and the reports (docs/mathematics.md §5-§6):
+A :class:`Problem` is what every method solves (the method is chosen at ``solve`` time): numbers and a
+:class:`~transcription.dynamics.lgvi.Discretization` (body model and scheme: both methods solve the *same* discrete
+problem).  States are 18-vectors (:mod:`transcription.geometry.state`; momenta, not velocities:
+``state_from_velocities``).  The terminal conditions and costs are defined here once for every method, the
+re-simulation and the reports (docs/mathematics.md §5-§6):
 
 * :func:`terminal_residual` -- [x_N - x_d; gamma_N - gamma_d; vee log(R_d^T R_N); Pi_N - Pi_d]
   (the components a target leaves free are dropped), CasADi or NumPy alike;
@@ -17,8 +13,8 @@ method, the re-simulation and the reports (docs/mathematics.md §5-§6):
 * :func:`quadrature_weights` and :func:`effort_cost` -- sum_j omega_j (1/2) u_j^T W u_j;
 * :func:`impulse_cost` -- the sum of the impulse norms.
 
-The package's modules: :mod:`.targets`, :mod:`.actuators`, :mod:`.controls`, :mod:`.constraints`, :mod:`.definition` (the
-Problem), :mod:`.conditions` (terminal conditions), :mod:`.costs`; every name is importable from the package.
+Modules: :mod:`.targets`, :mod:`.actuators`, :mod:`.controls`, :mod:`.constraints`, :mod:`.problem`,
+:mod:`.conditions`, :mod:`.costs`, :mod:`.objective`; every name is importable from the package.
 """
 from __future__ import annotations
 

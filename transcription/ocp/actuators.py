@@ -11,12 +11,10 @@ lo <= T <= hi, and, gimballed, within a ball |u| <= radius:
     ThrusterBound(a, max, min)  Q = [a, a_perp], min <= T_1 <= max, T_2 = T_3 = 0
                                                                 one engine fixed in the body (force_frame body)
 
-What depends on the kind of actuator asks it, here and nowhere else: what it allows (:meth:`Actuator.margin`,
-:meth:`~Actuator.project`, :meth:`~Actuator.active`), its scale, the NLP's variable bounds and rows
-(:meth:`~Actuator.variable_box`, :attr:`~Actuator.channel_rows`), the indirect method's saturation data (its channels),
-the figures' magnitudes, switch times and words.  Fuel: the magnitude of a part whose one free channel is
-one-sided (an engine: T_1 >= min >= 0, the other channels 0) is |u| = T_1 = a^T u, linear in u
-(:attr:`~Actuator.engine_axis`); otherwise the 2-norm (a gimballed actuator's).
+Whatever depends on the kind of actuator asks it, here and nowhere else (:meth:`Actuator.margin`,
+:meth:`~Actuator.project`, :meth:`~Actuator.variable_box`, :attr:`~Actuator.channel_rows`, ...).  Fuel: an engine's
+magnitude (one free one-sided channel, the others 0) is |u| = T_1 = a^T u, linear (:attr:`~Actuator.engine_axis`);
+otherwise the 2-norm.
 """
 from __future__ import annotations
 
@@ -28,8 +26,7 @@ import numpy as np
 from ..geometry.so3 import rotation_with_first_column
 from .errors import ProblemError
 
-#: a control counts as "at its bound" where it is within this fraction of the limit (an interior-point
-#: solution sits a little inside: the fuel-optimal burns of configs/orbit_raise_fuel.yaml at 1 - 4e-5)
+#: a control counts as "at its bound" within this fraction of the limit (an interior-point solution sits inside)
 AT_BOUND_RTOL = 1e-3
 
 

@@ -33,15 +33,13 @@ Bound = Actuator
 class SmoothControl:
     """Controls u_f (inertial force) and u_m (body moment) at the nodes of the scheme.
 
-    objective: an :class:`~transcription.ocp.objective.Objective` (docs/mathematics.md §6, §10; the kinds are the
-      modules of :mod:`transcription.objectives`: effort min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m),
-      time min T, fuel min sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|), ...), which says what it needs of the
-      weights W_f, W_m (symmetric positive definite, given as scalars, diagonals or matrices) and of the bounds.
-    force_bound, moment_bound: a BoxBound, a NormBound or None (unbounded); NormBound(0) removes the
-    control (attitude-only or translation-only maneuvers).
-    bounds_margin: m in [0, 1): the bounds above are the ones the plan respects, a fraction 1 - m of the
-    actuators' (:func:`actuator_bounds`), so that a tracker keeps authority (a maneuver file's
-    ``control.bounds_margin`` shrinks its bounds so).
+    objective: an :class:`~transcription.ocp.objective.Objective` (docs/mathematics.md §6, §10: effort
+      min sum_j omega_j (1/2)(u_f^T W_f u_f + u_m^T W_m u_m), time min T, fuel min sum_j omega_j (w_f |u_f,j| +
+      w_m |u_m,j|), ...), which says what it needs of the weights W_f, W_m (SPD: scalars, diagonals or matrices).
+    force_bound, moment_bound: an :class:`~transcription.ocp.actuators.Actuator` or None (unbounded);
+    NormBound(0) removes the control.
+    bounds_margin: m in [0, 1): the plan respects a fraction 1 - m of the actuators' bounds
+    (:func:`actuator_bounds`), so a tracker keeps authority.
     """
 
     W_f: np.ndarray = field(default_factory=lambda: np.eye(3))

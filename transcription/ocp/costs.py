@@ -49,12 +49,10 @@ def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:
 
 
 def control_activity(control: SmoothControl, U: np.ndarray, weights: np.ndarray, times: np.ndarray) -> dict:
-    """Where the bounded controls sit on their bounds, per control ('force', 'moment'): at_bound_fraction
-    (of the control nodes at the bound, :meth:`~.actuators.Actuator.active`: within AT_BOUND_RTOL), time_at_bound
-    = sum_j omega_j over them (``weights`` the quadrature weights, so that it is the time the controls at the bound
-    act), and switch_times (:meth:`~.actuators.Actuator.switches` at the node ``times``: a box's sign changes per
-    component, an engine's thrust reaching or leaving max or min, a norm bound's entries and exits).
-    Removed and unbounded controls are left out."""
+    """Where the bounded controls sit on their bounds, per control ('force', 'moment'): at_bound_fraction (of the
+    control nodes at the bound, :meth:`~.actuators.Actuator.active`), time_at_bound = sum_j omega_j over them
+    (``weights`` the quadrature weights), and switch_times (:meth:`~.actuators.Actuator.switches` at the node
+    ``times``).  Removed and unbounded controls are left out."""
     U = np.asarray(U, dtype=float)
     t = np.asarray(times, dtype=float)
     out = {}

@@ -11,10 +11,8 @@ from .targets import TargetOrbit, TargetRendezvous, TargetState
 
 
 def _transfer_angle(r0: float, r1: float, mu: float, T: float) -> float:
-    """Angle travelled in time T on the Hohmann-type ellipse from radius r0 towards r1.
-
-    Starts at periapsis (r0 <= r1) or apoapsis; Kepler's equation by Newton.
-    """
+    """Angle travelled in time T on the Hohmann-type ellipse from radius r0 towards r1, from periapsis (r0 <= r1) or
+    apoapsis; Kepler's equation by Newton."""
     a = 0.5 * (r0 + r1)
     e = abs(r1 - r0) / (r1 + r0)
     n = np.sqrt(mu / a**3)
@@ -30,13 +28,10 @@ def _transfer_angle(r0: float, r1: float, mu: float, T: float) -> float:
 
 
 def relaxed_start_target(problem: Problem) -> np.ndarray:
-    """A point of the relaxed terminal set to aim the feasibility TPBVP at (18-vector).
-
-    x_N: on the target orbit, at the Hohmann transfer angle (:func:`_transfer_angle`) from the
-    projection of x_0 onto the orbit plane, turning with the initial orbital motion; R_N: the body
-    axis along +-e_n (the sign closer to R_0 b), another body axis radial.  Momenta: those
-    required after the terminal impulse.
-    """
+    """A point of the relaxed terminal set to aim the feasibility TPBVP at (18-vector): x_N on the target orbit at the
+    Hohmann transfer angle (:func:`_transfer_angle`) from x_0's projection, turning with the initial orbital motion;
+    R_N: the body axis along +-e_n (the sign closer to R_0 b), another body axis radial; the momenta required after
+    the terminal impulse."""
     target: TargetOrbit = problem.terminal
     n, a, _ = target.plane_basis()
     s0 = unpack_states(problem.X0)

@@ -1,9 +1,8 @@
 """Necessary conditions checked before a solve (docs/mathematics.md §13).
 
-A smooth problem whose requirements exceed what any admissible control can achieve in the
-horizon is reported at once -- ``Result.infeasible`` with the reason, no iteration -- instead of
-after minutes of a solver searching for what does not exist.  Each check compares a requirement
-of the target with an upper bound on what the controls can achieve:
+A smooth problem whose requirements exceed what any admissible control can achieve in the horizon is reported at
+once (``Result.infeasible`` with the reason, no iteration).  Each check compares a requirement of the target with an
+upper bound on what the controls can achieve:
 
 * linear momentum:  |gamma_N - gamma_0| <= T F_max;
 * angular momentum (inertial): |R_N Pi_N - R_0 Pi_0| <= T M_max (|Pi_N| - |Pi_0| when R_N is free);
@@ -11,12 +10,9 @@ of the target with an upper bound on what the controls can achieve:
 * attitude:  angle(R_0^T R_N) <= the sum of the largest step angles the moment bound and the
   rate limit allow.
 
-They apply where the body is free of external forces (the force checks) or moments (the
-moment checks) -- decided from the model's force Function, structurally -- with F_max, M_max
-the norm of a norm or box bound.  Every bound is derived for the discrete scheme (on its branch
-of the Cayley equation, steps below 90 degrees, §2) and for the continuous maneuver; a problem is
-reported only when its requirement exceeds *both*, so that a problem feasible in either sense is
-never refused.  Every check costs O(N) arithmetic.
+They apply where the body is structurally free of external forces (force checks) or moments (moment checks), F_max,
+M_max the largest norm a bound allows.  Each bound is derived for the discrete scheme (steps below 90 degrees, §2) and
+for the continuous maneuver; a problem is refused only when its requirement exceeds *both*.  O(N) arithmetic.
 """
 from __future__ import annotations
 
@@ -30,9 +26,8 @@ from . import MaxAngularRate, Problem, SmoothControl, TargetState
 from ..geometry.so3 import rotation_angle
 from ..outcome import Result
 
-#: a requirement is refused only when it exceeds the largest achievable value by more than this
-#: fraction of that value plus SLACK times the size of the quantities compared (a target met to a
-#: solver's tolerance, 1e-6, or to round-off is never refused)
+#: a requirement is refused only when it exceeds the largest achievable value by more than this fraction of it plus
+#: SLACK times the size of the quantities compared (a target met to a solver's tolerance is never refused)
 RTOL, SLACK = 1e-9, 1e-6
 #: the sums over the steps are taken in chunks of this many steps (N may be 10^7)
 _CHUNK = 1_000_000

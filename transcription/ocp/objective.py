@@ -1,7 +1,6 @@
-"""The objective of a smooth-control problem, as a class: what it costs and what it needs of the problem here; each
-objective's module (:mod:`transcription.objectives`) brings the rest -- its cost block of the direct method's NLP, its
-conditions in the indirect method where they exist, its default strategy.  The layers below ask the objective a
-Problem holds (``problem.control.objective``), never its name."""
+"""The objective of a smooth-control problem, as a class; each objective's module (:mod:`transcription.objectives`)
+brings its NLP blocks, indirect conditions and default strategy.  The layers below ask ``problem.control.objective``,
+never its name."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -16,10 +15,9 @@ if TYPE_CHECKING:  # pragma: no cover
 class Objective:
     """The cost of a smooth-control problem (docs/mathematics.md §6, §10).
 
-    ``name``: what files and messages call it; ``free_time``: the final time is what it minimizes (the problem
-    needs time_bounds); ``indirect``: its conditions in the indirect method (None: the method does not cover it).  A subclass is a frozen dataclass (its parameters are fields) implementing the methods below;
-    those of the direct method's NLP are called by :class:`~transcription.nlp.transcription.SmoothTranscription`,
-    the others by the strategy layer and the indirect method."""
+    ``name``: what files and messages call it; ``free_time``: it minimizes the final time (the problem needs
+    time_bounds); ``indirect``: its indirect conditions (None: not covered).  A subclass is a frozen dataclass (its
+    parameters are fields) implementing the methods below."""
 
     name: ClassVar[str] = ""
     free_time: ClassVar[bool] = False

@@ -1,10 +1,8 @@
 """The continuous check of a Solution (docs/mathematics.md §11): how the plan flies in continuous time.
 
-The Solution's controls (impulses: free motion after the initial impulse) are flown from its
-initial state through eqs. (1)-(4) by :func:`~transcription.dynamics.flight.fly`, applied between the
-nodes as its scheme defines them, and compared with the plan's nodes (the re-simulation of the
-discrete equations).  The flown attitude is re-projected onto SO(3) (``lie.nearest_rotation``) before
-any angle is measured; the drift it removes is reported.
+The Solution's controls (impulses: free motion after the initial impulse) are flown from its initial state through
+eqs. (1)-(4) (:func:`~transcription.dynamics.flight.fly`) and compared with the plan's nodes.  The flown attitude is
+re-projected onto SO(3) (:func:`~transcription.geometry.so3.nearest_rotation`) before any angle is measured.
 """
 from __future__ import annotations
 
@@ -27,21 +25,15 @@ if TYPE_CHECKING:  # pragma: no cover
 
 @dataclass(frozen=True, eq=False)
 class ContinuousCheck:
-    """A plan flown in continuous time, against its own nodes (units of the problem; angles in rad,
-    rates in rad per time unit).
+    """A plan flown in continuous time, against its own nodes (the problem's units; angles in rad).
 
-    terminal_position |x(T) - x_N| (inertial), terminal_velocity |v(T) - v_N| (inertial),
-    terminal_attitude angle(R_N^T R(T)), terminal_rate |Omega(T) - Omega_N| (body): where the flight
-    ends against where the plan ends; terminal_error: the largest of the four (``continuous_terminal_error``;
-    in the normalized orbit units of §1 the position is relative to the reference orbit's radius).
-    target_error: the Solution's own terminal-error measure (docs/mathematics.md §8) at the flown final
-    state (nan without a target).  max_position_deviation, max_attitude_deviation: the largest
-    deviation from the plan over its nodes; t, position_deviation, attitude_deviation (N+1,): the
-    deviation at each node.  min_margins: every path constraint's smallest margin over all the samples
-    (nodes and between), keyed as in summary.json (``min_margin_<kind>``, ``_2``, ... for repeats).
-    orthogonality_drift: max |R^T R - I|_F of the flown attitude before re-projection.  samples: per
-    node interval.  elapsed_s: the check's wall time.  message: '' or why the flight failed (then the
-    numbers are nan).
+    terminal_position |x(T) - x_N|, terminal_velocity |v(T) - v_N| (inertial), terminal_attitude angle(R_N^T R(T)),
+    terminal_rate |Omega(T) - Omega_N| (body); terminal_error: the largest of the four.  target_error: the
+    Solution's terminal-error measure (docs/mathematics.md §8) at the flown final state (nan without a target).
+    max_position_deviation, max_attitude_deviation over the nodes; t, position_deviation, attitude_deviation (N+1,).
+    min_margins: each path constraint's smallest margin over all samples (``min_margin_<kind>``, ``_2``, ...).
+    orthogonality_drift: max |R^T R - I|_F before re-projection.  samples: per node interval.  elapsed_s: wall
+    time.  message: '' or why the flight failed (then the numbers are nan).
     """
 
     terminal_position: float

@@ -1,11 +1,9 @@
 """What every method returns: one result code, one progress record, one Solution.
 
-A :class:`Solution` is data: a failed solve is a Solution whose ``result`` says why (and whose
-``message`` says it in words), never an exception -- unless the caller of ``solve`` asks for one
-(``throw=True`` raises :class:`SolveError` carrying the Solution).  Its trajectory is the
-**re-simulation** of the discrete equations from the initial state with the returned controls or
-impulses (docs/mathematics.md §8), so it lies on SO(3) to round-off and ``terminal_error`` is
-measured on what a user would fly.
+A :class:`Solution` is data: a failed solve is a Solution whose ``result`` says why, never an exception unless the
+caller asks (``throw=True`` raises :class:`SolveError`).  Its trajectory is the **re-simulation** of the discrete
+equations with the returned controls or impulses (docs/mathematics.md §8): ``terminal_error`` is measured on what a
+user would fly.
 """
 from __future__ import annotations
 
@@ -38,8 +36,7 @@ class SolveError(RuntimeError):
 
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """Outcome of one solve (or one simulation): data, made once and never changed -- a check that adds to it (the
-    continuous flight, the clearance of the central body, refinement's mesh history) makes a new one
+    """Outcome of one solve (or one simulation), never changed: a check that adds to it makes a new one
     (:func:`dataclasses.replace`, :meth:`with_notes`).
 
     method: 'direct' | 'indirect' | 'simulate'; solver: 'ipopt', 'fatrop', 'newton-armijo', ...
@@ -55,10 +52,9 @@ class Solution:
     problem: the :class:`~transcription.ocp.Problem` solved (for figures and reports).
     warm: what the next solve can start from (:class:`~transcription.results.start.Start`; None when there is
     nothing usable): ``solve(problem, method, warm_start=solution)``.
-    Derived: N, T, h (the mean step T/N), steps (N,) (the step sizes h_k = t_{k+1} - t_k of its mesh), ``scheme``
-    ('lgvi' or 'first_order'), control_times, u_f (n, 3) (in the problem's force frame, ``force_frame``: 'inertial'
-    or 'body'), u_m (n, 3) (body), f_inertial (n, 3): the inertial force each control applies, R_j u_f,j at its
-    node j for a body-frame force, u_f itself for an inertial one (docs/mathematics.md §14).
+    Derived: N, T, h (the mean step T/N), steps (N,) (h_k = t_{k+1} - t_k), ``scheme``, control_times, u_f (n, 3)
+    (in ``force_frame``), u_m (n, 3) (body), f_inertial (n, 3): the applied inertial force, R_j u_f,j for a
+    body-frame force, else u_f (docs/mathematics.md §14).
     """
 
     method: str
@@ -77,8 +73,8 @@ class Solution:
     trace: tuple[Attempt, ...] = ()
     notes: tuple[str, ...] = ()
     warm: Start | None = field(default=None, repr=False)
-    #: the continuous check (transcription.results.check.ContinuousCheck; issue 26): the plan flown through the
-    #: continuous equations, on by default for successful smooth-control solves (None: not flown)
+    #: the continuous check (transcription.results.check.ContinuousCheck): the plan flown through the continuous
+    #: equations (None: not flown)
     continuous: Any = field(default=None, repr=False)
     #: refinement to ``solver.accuracy`` (transcription/strategy/refine.py): one record per mesh level (level, N,
     #: miss, iterations, time, ...); empty without refinement
@@ -157,30 +153,23 @@ class Solution:
 
     @property
     def uniform(self) -> bool:
-        """Its node times are equally spaced (to round-off): a uniform mesh (also when read back from a results
-        directory, whose Problem is the file's)."""
+        """Its node times are equally spaced (to round-off): a uniform mesh."""
         d = self.steps
         return bool(d.size == 0 or np.all(np.abs(d - self.h) <= 1e-9 * abs(self.h)))
 
     @property
     def continuous_miss(self) -> float | None:
-        """The continuous check's terminal miss as ``solver.accuracy`` judges it, shown as "continuous miss"
-        (:func:`transcription.miss.scaled_miss`, the one formula): the largest of the position miss relative to
-        the characteristic length L, the velocity miss relative to V (with a central body the orbit radius |x_0|
-        and the circular speed: dimensionless; without one L = V = 1, the file's units), the attitude miss (rad)
-        and the rate miss (rad per time unit).  None when not flown (or without a Problem), nan when the flight
-        failed.  The raw components are ``continuous.terminal_*``; ``continuous.terminal_error`` is their
-        unscaled largest, in mixed units."""
+        """The continuous check's terminal miss as ``solver.accuracy`` judges it
+        (:func:`~transcription.results.check.scaled_miss`).  None when not flown (or without a Problem), nan when the
+        flight failed; the raw components are ``continuous.terminal_*``."""
         if self.continuous is None or self.problem is None:
             return None
         return scaled_miss(self.continuous, self.problem)
 
     # ------------------------------------------------------------------ display
     def display(self) -> dict[str, str]:
-        """What a notebook shows of this Solution, as text (scalars only, never an array): method, status,
-        cost, terminal error, continuous miss (:attr:`continuous_miss`: the continuous check's scaled terminal
-        miss, the number ``solver.accuracy`` bounds; '-' when not flown), max |R^T R - I|, iterations, build and
-        solve seconds, N, T, scheme."""
+        """What a notebook shows of this Solution, as text (scalars only): method, status, cost, terminal error,
+        continuous miss ('-' when not flown), max |R^T R - I|, iterations, build and solve seconds, N, T, scheme."""
         def num(x, fmt):
             return "-" if x is None or not np.isfinite(x) else format(float(x), fmt)
 
@@ -286,16 +275,12 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m);
     angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
     weights of the scheme (transcription.ocp.quadrature_weights) at h = T/N (at the steps h_k of a mesh);
-    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; engine_on_time (and, for a body-fixed
-    engine, engine_off_axis_relative) of transcription.ocp.engine_figures; with a bound, force_time_at_bound /
-    moment_time_at_bound = the time_at_bound of transcription.ocp.control_activity (sum of
-    omega_j over the controls at the bound; not for a control a norm bound of 0 removes, which is
-    never "at its bound" but absent); with a state target that fixes the attitude,
-    terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints, min_margin_<kind>
-    (``_2``, ... for repeated kinds) = min_k margin_k in the constraint's unit (< 0: violated).
-    Fields that do not apply are left out; a method that does not apply to the problem
-    (Result.not_applicable) has none: its trajectory is no solution, only the initial state's free
-    motion.  Pure: reads the Solution, changes nothing."""
+    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; engine_on_time (and engine_off_axis_relative) of
+    transcription.ocp.engine_figures; with a bound (not a removed control), force_time_at_bound /
+    moment_time_at_bound = sum of omega_j over the controls at the bound (transcription.ocp.control_activity); with a
+    state target fixing the attitude, terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints,
+    min_margin_<kind> (``_2``, ... for repeats) = min_k margin_k in the constraint's unit (< 0: violated).  Fields
+    that do not apply are left out; a Result.not_applicable Solution has none.  Pure."""
     out: dict[str, Any] = {}
     if sol.result is Result.not_applicable:
         return out

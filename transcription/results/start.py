@@ -1,23 +1,15 @@
 """Where a solve starts: one :class:`Start` -- node states, controls, their times, and what a solver can reuse of a
-previous solve (NLP multipliers, costates, the shooting unknown) -- passed explicitly from solve to solve (a sweep's
-continuation, a finer grid, the other method, a strategy's next step), and its resampling onto another grid on the
-Lie group.
+previous solve (NLP multipliers, costates, the shooting unknown) -- and its resampling onto another grid on SE(3).
 
-Every Solution carries the Start of its solution (``sol.warm``; None when there is nothing usable: no controls, or
-non-finite values); ``solve(problem, method, warm_start=sol)`` (or ``warm_start=sol.warm``) accepts it whatever
-method produced it and whatever its N and scheme: :meth:`Start.fit` maps it onto the problem's grid and says what it
-did, and each method says in its Solution what it used and what it did not.  The starts a strategy makes itself (the
-free motion, the screw interpolation, ...: :mod:`transcription.strategy.starts`) are Starts too, their ``origin``
-saying which.
+Every Solution carries its Start (``sol.warm``; None when nothing is usable); ``solve(..., warm_start=sol)`` accepts it
+whatever method, N and scheme produced it: :meth:`Start.fit` maps it onto the problem's grid and says what it did.
+The starts a strategy makes (:mod:`transcription.strategy.starts`) are Starts too, their ``origin`` saying which.
 
-Resampling (:meth:`Start.fit`, docs/mathematics.md §4) is in normalized time: node k of N steps is at s = k/N of the
-horizon, whatever T, so a start of another horizon (a sweep along T) keeps its shape.  Positions and momenta are
-interpolated linearly, attitudes along the geodesic of SO(3) between neighbouring nodes (R_a exp(s log(R_a^T R_b)),
-:func:`~transcription.geometry.so3.geodesic_interpolation`: the result stays on SO(3) to round-off), controls at the
-new control times (LGVI: the nodes; first order: u_{k+1} belongs to step k and is placed at its midpoint), costates
-lambda_k (the multipliers of step k) at the step midpoints likewise.  The NLP multipliers are reused only by an NLP
-of the identical structure (``nlp_key``), the exact primal-dual point only by the identical NLP (``point``), and the
-indirect method's shooting unknown ``lam0`` only on the same grid: elsewhere they are dropped and the notes say so.
+Resampling (docs/mathematics.md §4) is in normalized time s = k/N of the horizon: positions and momenta linear,
+attitudes along the geodesic R_a exp(s log(R_a^T R_b)) (:func:`~transcription.geometry.so3.geodesic_interpolation`),
+controls at the new control times (LGVI: nodes; first order: step midpoints), costates at the step midpoints.  The NLP
+multipliers are reused only by an NLP of the same structure (``nlp_key``), the exact point only by the same NLP
+(``point``), ``lam0`` only on the same grid; elsewhere they are dropped and the notes say so.
 """
 from __future__ import annotations
 
@@ -42,9 +34,8 @@ class Origin(Code):
 
 @dataclass(frozen=True)
 class Point:
-    """The exact point of one NLP: x and the multipliers lam_g, lam_x (None: not given) scaled as that NLP's, and
-    ``key``, the NLP's identity (structure and scales): an NLP with the same key starts from it as it is (a
-    continuation's next level, a structured finish's next round)."""
+    """The exact point of one NLP: x and the multipliers lam_g, lam_x (None: not given) in its scaling, and ``key``,
+    its identity (structure and scales): an NLP with the same key starts from it as it is."""
 
     key: tuple
     x: np.ndarray
@@ -109,10 +100,9 @@ class Start:
         return f"the {what} (N = {self.N}, {self.scheme})"
 
     def fit(self, N: int, scheme: str, s: np.ndarray | None = None) -> tuple["Start", tuple[str, ...]]:
-        """This start on a grid of N steps of ``scheme`` over its own T (module docstring), and notes (sentences) on
-        what was resampled and what was dropped.  ``s``: the normalized node times (N+1,) in [0, 1] of a non-uniform
-        mesh (Problem.fractions; None: uniform).  Unchanged (the same object, no notes) when N, the scheme and the
-        node times agree."""
+        """This start on N steps of ``scheme`` over its own T (module docstring), and notes on what was resampled and
+        dropped.  ``s``: normalized node times (N+1,) of a non-uniform mesh (None: uniform).  The same object, no
+        notes, when N, scheme and node times agree."""
         own = self.s
         sf = np.linspace(0.0, 1.0, N + 1) if s is None else np.asarray(s, dtype=float)
         if N == self.N and scheme == self.scheme and (s is None and self.uniform or
@@ -146,12 +136,9 @@ class Start:
         return np.linspace(0.0, 1.0, self.N + 1) if self.uniform else self.t / self.T
 
     def tail(self, k: int) -> "Start":
-        """The remaining horizon from node k (0 <= k < N) as a start of its own, shifted to start at t = 0
-        (shrinking-horizon re-plans, docs/mathematics.md §12): states X_k..X_N, the controls of steps k..N-1
-        (lgvi u_k..u_N, first_order u_{k+1}..u_N), costates lambda_k..lambda_{N-1}, and the shooting unknown of
-        the remaining problem: lambda_{k-1} (lgvi; for k = 0 this start's own lam0) or lambda_k (first
-        order); None where the parts are absent.  The NLP multipliers are dropped (they belong to the whole
-        horizon's NLP)."""
+        """The remaining horizon from node k (0 <= k < N), shifted to t = 0 (re-plans, docs/mathematics.md §12):
+        X_k..X_N, the controls of steps k..N-1, lambda_k..lambda_{N-1}, and the remaining problem's shooting unknown
+        lambda_{k-1} (lgvi; k = 0: own lam0) or lambda_k (first order).  The NLP multipliers are dropped."""
         if not 0 <= k < self.N:
             raise ValueError(f"tail: expected a node 0 <= k < {self.N}, got {k}")
         lam = self.costates
@@ -180,11 +167,9 @@ def start_of(t: np.ndarray, X: np.ndarray, U: np.ndarray | None, scheme: str, so
 
 
 def secant(w0: Start, w1: Start, r: float) -> Start | None:
-    """The secant predictor of a continuation: w1 + r (w1 - w0) for starts w0, w1 of one grid (the solutions at
-    parameter values p0, p1, extrapolated to p1 + r (p1 - p0)), on SE(3): node times, positions, momenta, controls,
-    costates, lambda_0 and the multipliers (of one NLP structure) linearly, attitudes along the geodesic
-    R_1 Exp(r Log(R_0^T R_1)).  None when their grids or schemes differ; a part only one of them carries is left
-    out."""
+    """The secant predictor of a continuation, w1 + r (w1 - w0) for starts of one grid, on SE(3): attitudes
+    R_1 Exp(r Log(R_0^T R_1)), everything else (multipliers only of one NLP structure) linearly.  None when their
+    grids or schemes differ; a part only one carries is left out."""
     if (w0.N, w0.scheme, w0.U.shape) != (w1.N, w1.scheme, w1.U.shape):
         return None
 

@@ -18,18 +18,15 @@ from ..base import failed_solution
 from .solution import nlp_solution
 from ...nlp.transcription import SmoothTranscription
 
-#: why fatrop is not used for a problem it does not cover (IPOPT solves it); an objective says its own reason
-#: (``Objective.fatrop``)
+#: why fatrop is not used for a problem it does not cover (IPOPT solves it; an objective says its own reason)
 NOT_COVERED = ("fatrop is used for fixed-time effort problems to a state or orbit target without bounds or path "
                "constraints")
 
 
 def not_covered(problem: Problem) -> str:
     """Why fatrop's stage-ordered NLP is not used for ``problem`` ("" if it is): its objective's reason
-    (``Objective.fatrop``: the fuel objective's, docs/mathematics.md §20), :data:`NOT_COVERED`.  The stage form itself takes the control bounds' rows and the fuel epigraph too
-    (:func:`stage_rows`), but with an active bound fatrop stalls short of IPOPT's tolerance (e3_bounded.yaml,
-    N = 40: the dual infeasibility at 1.2e-10 against tol 1e-10, the Hessian regularized at every iteration),
-    so bounded effort problems stay with IPOPT."""
+    (``Objective.fatrop``, docs/mathematics.md §20), else :data:`NOT_COVERED`.  The stage form takes bounds' rows
+    too, but fatrop stalls on an active bound (docs/mathematics.md §10, *The direct method*)."""
     c = problem.control
     if c.objective.fatrop:
         return c.objective.fatrop

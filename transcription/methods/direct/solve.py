@@ -1,6 +1,5 @@
-"""The direct method's solve: one NLP (the problem's multiple-shooting transcription, built once per Problem and
-options) solved by IPOPT -- or fatrop's stage-ordered form, ``solver: fatrop`` -- from one Start.  Which starts to
-try, and what to do after a failure, is the strategy's (:mod:`transcription.strategy`)."""
+"""The direct method's solve: one NLP (built once per Problem and options) solved by IPOPT -- or fatrop's stage-ordered
+form -- from one Start; which starts to try is the strategy's (:mod:`transcription.strategy`)."""
 from __future__ import annotations
 
 import time
@@ -25,9 +24,8 @@ from .solution import nlp_solution
 
 def transcription(problem: Problem, options: DirectOptions,
                   stage_order: bool = False) -> tuple[SmoothTranscription, float]:
-    """The NLP of ``problem`` for ``options`` (built once per Problem and the options it depends on, kept with the
-    Problem: :meth:`~transcription.ocp.Problem.memo`) and the seconds building it took now (0 when it was built
-    before)."""
+    """The NLP of ``problem`` for ``options`` (built once, kept with the Problem:
+    :meth:`~transcription.ocp.Problem.memo`) and the seconds building it took now (0 when built before)."""
     made = []
 
     def build():
@@ -82,15 +80,12 @@ def on_grid(problem: Problem, start: Start | None) -> Start:
 
 @dataclass(frozen=True)
 class Direct:
-    """The direct method: the discrete equations stacked into a multiple-shooting NLP (docs/mathematics.md §6-§7),
-    one IPOPT solve (``options.solver: fatrop``: one fatrop solve) from one Start.
-
-    ``options``: :class:`~transcription.options.DirectOptions` (its ``max_iter`` is the solve's budget);
-    ``ipopt``: IPOPT options of this solve beyond those of ``options`` (a strategy's presets -- a warm start's
-    small barrier, a phase 1 --, never overriding the raw ``options.options`` a user gave).  A start carrying a
-    point of this very NLP (:class:`~transcription.results.start.Point`: the same structure and scales) starts IPOPT
-    at its x (clipped to the bounds), and at its multipliers when the solve is asked to warm start (``ipopt`` has
-    ``warm_start_init_point: yes``); otherwise multipliers of an NLP of the same structure start its duals."""
+    """The direct method (module docstring): one IPOPT solve (``options.solver: fatrop``: one fatrop solve) from one
+    Start.  ``options``: :class:`~transcription.options.DirectOptions` (``max_iter`` the budget); ``ipopt``: a
+    strategy's IPOPT presets for this solve, never overriding the user's raw ``options.options``.  A start carrying a
+    :class:`~transcription.results.start.Point` of this very NLP starts IPOPT at its x (clipped to the bounds) and,
+    with ``warm_start_init_point: yes``, its multipliers; otherwise multipliers of an NLP of the same structure
+    start its duals."""
 
     options: DirectOptions = field(default_factory=DirectOptions)
     ipopt: Mapping[str, Any] = field(default_factory=dict)
