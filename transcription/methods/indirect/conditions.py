@@ -26,14 +26,9 @@ def terminal_residual_function() -> ca.Function:
 
 
 def orthonormalized(X):
-    """X with R replaced by :func:`~transcription.geometry.so3.orthonormalize` (R) = R (3 I - R^T R) / 2.
-
-    Used only for the argument of A_k: the readback vee(skew(Rbar^T dR))
-    of docs/mathematics.md §4 is sensitive to R^T R != I, and the round-off drift of R^T R, which
-    persists from step to step, would otherwise dominate the round-off floor of the
-    shooting residual (measured on E3, N = 100: 1-ulp per-step perturbations of R normal
-    to SO(3) moved z_N 4x more than tangent ones).
-    """
+    """X with R replaced by :func:`~transcription.geometry.so3.orthonormalize` (R) = R (3 I - R^T R) / 2: the argument
+    of A_k, whose read-back (docs/mathematics.md §4) is sensitive to the round-off drift of R^T R, which would
+    otherwise set the round-off floor of the shooting residual (§6)."""
     x, gamma, R, Pi = split_state(X)
     return join_state(x, gamma, orthonormalize(R), Pi)
 
@@ -67,23 +62,16 @@ def node_law(disc: Discretization, h, Winv, bd) -> Callable:
 
 
 def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
-    """One step of the forward map of the necessary conditions, as SX expressions.
+    """One step of the forward map of the necessary conditions, as SX expressions: the step's Cayley equation solved
+    once (its right-hand side does not depend on u_{k+1}), A_k = ``disc.variation`` at orthonormalized(X), forward AD
+    through the unrolled Newton iterations (``disc.variation_seeded`` would be a smaller graph, but its rounding
+    changes the iteration counts at the round-off floor that tests pin).
 
-    The Cayley equation of step k is solved once (``disc.cayley_solve``; its right-hand side does
-    not depend on u_{k+1}) for the step (``disc.step_given_c``: X1 and res are those of ``disc.step``).
-    A_k = ``disc.variation`` at orthonormalized(X) (forward AD through the unrolled Newton iterations).
-    ``disc.variation_seeded`` (two Newton iterations from the root) would be a smaller graph, equally
-    accurate, but its different rounding changes the iteration counts at the round-off floor that tests
-    pin; the costate map gives the same values as before, bit for bit.
-
-    With a body-fixed force (docs/mathematics.md §15) A_k is taken without the next control (Abar_k, the step's
-    Jacobian up to the end kick K_z), mu = Abar_k^-T lambda_{k-1}, u_{k+1} from R_{k+1}^T mu_gamma (R_{k+1} =
-    R_k cay(c) is known before u_{k+1}) and lambda_k = :func:`.coordinates.kicked_costate` (mu): explicit, in
-    tangent coordinates.  For the linearization it also gives A = A'_k = T(Y) Abar_k T(X_k)^-1 and lamp =
-    lambda'_k = T(X_{k+1})^-T lambda_k in body-momentum coordinates (:mod:`.coordinates`), where the recursion
-    has the inertial form; without a body-fixed force A = A_k and lamp = lam.
-    Returns a dict with c (the Cayley root), A, Abar, mu, lam, lamp, u (u_{k+1}), D (its saturation Jacobian), X1,
-    res and law ((lambda, R) -> (u, D)).
+    With a body-fixed force (docs/mathematics.md §15): Abar_k = A_k without the end kick K_z, mu = Abar_k^-T
+    lambda_{k-1}, u_{k+1} from R_{k+1}^T mu_gamma (R_{k+1} = R_k cay(c)), lambda_k = :func:`.coordinates.kicked_costate`
+    (mu); for the linearization A = T(Y) Abar_k T(X_k)^-1 (Y: the step without u_{k+1}) and lamp = T(X_{k+1})^-T
+    lambda_k (:mod:`.coordinates`).  Otherwise A = A_k and lamp = lam.  Returns a dict: c (the Cayley root), A, Abar,
+    mu, lam, lamp, u (u_{k+1}), D (its saturation Jacobian), X1, res, law ((lambda, R) -> (u, D)).
     """
     law = node_law(disc, h, Winv, bd)
     zero = ca.DM.zeros(NU)
@@ -112,29 +100,18 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
 
 @per_discretization
 def costate_functions(disc: Discretization, parametric: bool = False) -> tuple[ca.Function, ca.Function | None]:
-    """The forward map of the necessary conditions for ``disc``; ``parametric``: with the model's numbers theta =
-    ``model.parameters`` as the last input of both Functions (:func:`theta_symbol`; the shooting's maps, compiled once
-    per structure), else as constants.
-
-    Returns (costate_map, first_step); both built from the step and its variation A_k
-    (:func:`_forward_step`; B_k from :func:`control_matrix`).
-
-    first_order (module docstring):
+    """(costate_map, first_step): the forward map of the necessary conditions for ``disc`` (:func:`_forward_step`).
+    ``parametric``: the model's numbers theta = ``model.parameters`` the last input of both (:func:`theta_symbol`;
+    the shooting's maps, compiled once per structure), else constants.
 
     * costate_map (X[18], lam_prev[12], h, Winv[6x6], bd[NB]) -> (X1[18], lam[12], u[6], res, lam_res, A[12x12],
-      c[3], D[6x6], lamp[12]): X = X_k, lam_prev = lambda_{k-1}; lam = lambda_k = A_k^-T lambda_{k-1} (28);
-      u = u_{k+1} = sat(-(1/h) Winv B_k^T lambda_k) (26)-(27), saturated to the bounds bd
-      (:func:`saturate`; D its Jacobian); X1 = X_{k+1} = step(X_k, u_{k+1});
-      res the Cayley residual of the step; lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf;
-      A = A_k and c the root of the step's Cayley equation, for the linearization
-      (:func:`linearization_functions`) along the same rollout; lamp = lam (with a body-fixed force: A, lamp
-      in body-momentum coordinates, lam_res of the solve for mu, see :func:`_forward_step`).
-    * first_step (X0[18], lam0[12], h, Winv, bd) -> (X1[18], u[6], res): the k = 0 step,
-      where lambda_0 is the unknown itself.
-
-    lgvi (see :data:`LGVI_CONDITIONS`): costate_map has the same signature with
-    u = u_{k+1}; it also computes u_k = -(2/h) Winv B^b^T lambda_{k-1} and
-    A_k = A(X_k, u_k).  first_step is None (the map is applied N times from lambda_{-1}).
+      c[3], D[6x6], lamp[12]); first_order: lam = lambda_k = A_k^-T lambda_{k-1} (28), u = u_{k+1} =
+      sat(-(1/h) Winv B_k^T lambda_k) (26)-(27) (D its Jacobian, :func:`~.control.saturate`), X1 = step(X_k, u_{k+1}),
+      res its Cayley residual, lam_res = |A_k^T lam - lam_prev|_inf / |lam_prev|_inf, A = A_k and c the Cayley root
+      for the linearization, lamp = lam (body-fixed force: :func:`_forward_step`); lgvi (:data:`LGVI_CONDITIONS`):
+      the same with u_k = -(2/h) Winv B^b^T lambda_{k-1} and A_k = A(X_k, u_k).
+    * first_step (X0[18], lam0[12], h, Winv, bd) -> (X1[18], u[6], res): first_order's k = 0 step from the unknown
+      lambda_0; None for lgvi (the map is applied N times from lambda_{-1}).
     """
     X = ca.SX.sym("X", NX)
     lam_prev = ca.SX.sym("lam_prev", NZ)

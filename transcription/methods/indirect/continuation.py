@@ -10,12 +10,10 @@ from ...geometry.state import NU, U_FORCE, U_MOMENT
 from .control import NB, NO_NORM, THRUSTER
 
 def bound_continuation(newton, lam, bd, fns, args, law) -> tuple[Any, list[str]]:
-    """Newton from lambda_0 = 0 on the unbounded problem (removed controls stay removed), then on the
-    bounded one from its solution; if that fails, along law.continuation_stages bounds (:mod:`.laws`) shrinking
-    geometrically from the unbounded controls' peaks to bd (:func:`stage_bounds`; an engine keeps its
-    axis throughout, its T_max shrinks from the free force's peak).  A semismooth Newton method converges
-    locally; this brings it there.  Returns the last stage's NewtonResult (its history and iteration
-    count those of all stages) and a line per stage."""
+    """Newton from lambda_0 = 0 on the unbounded problem (removed controls stay removed), then on the bounded one
+    from its solution; if that fails, along law.continuation_stages bounds shrinking geometrically from the unbounded
+    controls' peaks to bd (:func:`stage_bounds`): semismooth Newton converges only locally.  Returns the last stage's
+    NewtonResult (history and iterations of all stages) and a line per stage."""
     free_bd = np.r_[np.where(bd[:NU] == 0, 0.0, np.inf), NO_NORM, NO_NORM, np.zeros(NB - NU - 2)]  # no engine
     first = newton(lam, free_bd, "unbounded")
     history, iters, stages = list(first.history), first.iterations, [f"unbounded: {first.result.value} in "
@@ -58,14 +56,11 @@ def stage_bounds(bd: np.ndarray, peak: np.ndarray, t: float) -> np.ndarray:
 
 
 def free_final_time(solve_at, dL_dh, lam, h, lo, hi, N, law) -> tuple[Any, float, dict]:
-    """The free-final-time condition: the step size h in [lo, hi] with dJ*/dh = dL/dh = 0 (or at a bound
-    with dL/dh pointing out of the interval), by a safeguarded secant iteration on the scalar g(h) = dL/dh,
-    each g from a fixed-h shooting solved from the previous lambda_0.
-
-    Secant steps keep inside the bracket of a sign change once one is known (bisection when a secant step
-    leaves it); before that they are clipped to [lo, hi], and a bound where g keeps its sign is the
-    answer.  Stops when the step is below law.free_time_rtol h, or fails after law.free_time_max_outer.  Returns
-    (the NewtonResult at the final h -- its history and iterations those of every inner solve --, h, a summary)."""
+    """The free final time: h in [lo, hi] with dJ*/dh = dL/dh = 0 (or at a bound with dL/dh pointing out), by a
+    safeguarded secant iteration on g(h) = dL/dh, each g from a fixed-h shooting from the previous lambda_0: inside a
+    sign-change bracket once one is known (bisection when a step leaves it), clipped to [lo, hi] before.  Stops when
+    the step is below law.free_time_rtol h, fails after law.free_time_max_outer.  Returns (the NewtonResult at the
+    final h, with the history and iterations of every inner solve; h; a summary)."""
     history, iters, evals = [], 0, []
 
     def at(h, lam, first=False):

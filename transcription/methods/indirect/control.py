@@ -12,10 +12,9 @@ from ...dynamics.lgvi import Discretization, discretization, per_discretization
 from ...ocp import Problem
 from .switching import on_off
 
-#: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf where a
-#: component has no box, 0 where a norm bound of 0 removes the control), the squared norm bounds
-#: (2: force, moment; NO_NORM where a block has no norm bound), a body-fixed engine (:data:`THRUSTER`, 9), and the
-#: fuel objective's homotopy parameter eps (:data:`FUEL_EPS`)
+#: length of the bound data ``bd`` of the per-step Functions: the box half-widths b (6; inf: no box, 0: removed), the
+#: squared norm bounds (force, moment; NO_NORM: none), a body-fixed engine (:data:`THRUSTER`, 9) and the fuel
+#: objective's homotopy parameter eps (:data:`FUEL_EPS`)
 NB = 18
 NO_NORM = 1e300
 #: the engine's part of ``bd`` (:class:`~transcription.ocp.ThrusterBound`, docs/mathematics.md §15): the unit
@@ -27,21 +26,19 @@ FUEL_EPS = 17
 
 
 def saturate(v, bd):
-    """u = the minimizer of (1/2) u^T W u - u^T W v over the control bounds, for the unconstrained minimizer v
-    (6; docs/mathematics.md §10, §15): each component clipped to its box, then each block scaled into its norm ball,
+    """u = the minimizer of (1/2) u^T W u - u^T W v over the control bounds, v (6) the unconstrained minimizer
+    (docs/mathematics.md §10, §15): each component clipped to its box, then each block scaled into its norm ball,
 
-        u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2)),
+        u_i = min(max(v_i, -b_i), b_i),   u_blk <- u_blk sqrt(n_blk^2 / max(|u_blk|^2, n_blk^2));
 
-    or, for the fuel objective (``bd[FUEL_EPS]`` = eps > 0), the on/off law of :func:`.switching.on_off` on each
-    norm-bounded block (the fuel objective's bounds are norms, docs/mathematics.md §19), or, for a force with one
-    body-fixed engine (axis a, min <= T <= max), the W_f-projection onto that segment,
+    for the fuel objective (``bd[FUEL_EPS]`` = eps > 0) the on/off law :func:`.switching.on_off` on each norm-bounded
+    block (§19); for a force with one body-fixed engine (axis a) the W_f-projection onto its segment,
 
         u_f = T a,   T = min(max(q^T v_f, T_min), T_max),   q = W_f a / (a^T W_f a).
 
-    Exact for the weights the indirect method accepts (a box with a diagonal block of W, a norm with an
-    isotropic one, see :func:`~transcription.methods.indirect.solve.not_covered`; an engine with any; a block
-    has one kind of bound).  Without bounds (b = inf, n^2 = NO_NORM, no engine) u = v bit for bit.  The squared
-    form keeps the derivative finite at u = 0.
+    Exact for the weights the indirect method accepts (:func:`~.solve.not_covered`: a box with a diagonal block of W,
+    a norm with an isotropic one, an engine with any).  Without bounds u = v bit for bit; the squared form keeps the
+    derivative finite at u = 0.
     """
     u = ca.fmin(ca.fmax(v, -bd[:NU]), bd[:NU])
     blocks = []
@@ -94,18 +91,12 @@ def bounded(bd: np.ndarray) -> bool:
 
 @per_discretization
 def control_matrix(disc: Discretization) -> ca.Function:
-    """``{scheme}_control_matrix`` (h) -> B_c[12x6]: the tangent-coordinate derivative of X_{k+1} by the
-    control that the costate lambda_k determines (first_order: B_k w.r.t. u_{k+1}; lgvi: B^b).
-
-    Taken from the graph (``disc.variation_seeded``) and checked, when built, to be constant (no
-    dependence on X_k or the stage control), and the Cayley right-hand side g_k to be independent of
-    that control: the assumptions of the forward costate recursion.  The controls are
-    u = -(s/h) Winv B_c^T lambda with s = 1 (first_order) or 2 (lgvi, see LGVI_CONDITIONS).
-
-    With a body-fixed force the costates are in the body-momentum coordinates (:mod:`.coordinates`), where
-    B'_c = T(X_{k+1}) B_c is the inertial scheme's constant matrix (R^T R = I, which the graph does not
-    simplify symbolically): the inertial scheme's, built and checked there (docs/mathematics.md §15;
-    tests/test_indirect_body.py checks T B_c against it numerically).
+    """``{scheme}_control_matrix`` (h) -> B_c[12x6]: the tangent-coordinate derivative of X_{k+1} by the control the
+    costate lambda_k determines (first_order: B_k by u_{k+1}; lgvi: B^b), u = -(s/h) Winv B_c^T lambda.  Taken from
+    the graph (``disc.variation_seeded``) and checked, when built, to be constant and A_k and the Cayley right-hand
+    side to be independent of that control: the assumptions of the forward costate recursion.  With a body-fixed
+    force: the inertial scheme's, B'_c = T(X_{k+1}) B_c in body-momentum coordinates (docs/mathematics.md §15; the
+    graph does not simplify R^T R = I, so it is built and checked there).
     """
     if disc.force_frame != "inertial":
         return control_matrix(discretization(disc.model, disc.scheme, disc.newton_iters))

@@ -1,28 +1,19 @@
 """The body-fixed force in the indirect method (docs/mathematics.md §15): the costate of the end kick, the control
 law's body-frame costate, and the body-momentum coordinates of the linearization.
 
-With an inertial force (the paper's case) the costates live in the tangent coordinates of §4,
-z = [dx; dgamma; zeta; dPi], and nothing here applies.  With a body-fixed force the control at node j
-applies R_j u_{f,j}: in z its control matrix carries R_j, and A_k = d step / d z_k depends on the next
-control through the term -kick R_{k+1} S(u_{f,k+1}) of the rotation column (the end kick's Jacobian K_z).
-The forward recursion nevertheless stays explicit: K_z^T changes only the zeta block and the control reads
-only the gamma and Pi blocks (:func:`kicked_costate`, :func:`rotated`); the values are computed so, in z.
+With an inertial force the costates live in the tangent coordinates z = [dx; dgamma; zeta; dPi] of §4 and nothing
+here applies.  With a body-fixed force node j applies R_j u_{f,j}, and A_k depends on the next control through the
+term -kick R_{k+1} S(u_{f,k+1}) of its rotation column (the end kick's Jacobian K_z); the forward recursion stays
+explicit, in z, because K_z^T changes only the zeta block and the control reads only the gamma and Pi blocks
+(:func:`kicked_costate`, :func:`rotated`).  In the coordinates of the body-frame momentum p = R^T gamma,
 
-Carried with the body, the linear momentum p = R^T gamma takes the body-frame force additively (p += kick u_f),
-and in the coordinates
-
-    z' = T(X) z = [dx; dp; zeta; dPi],   dp = R^T dgamma + S(p) zeta   (the variation of p = R^T gamma),
-
+    z' = T(X) z = [dx; dp; zeta; dPi],   dp = R^T dgamma + S(p) zeta,
     T(X) = [[I, 0, 0, 0], [0, R^T, S(p), 0], [0, 0, I, 0], [0, 0, 0, I]],
     T(X)^-1 = [[I, 0, 0, 0], [0, R, -R S(p), 0], [0, 0, I, 0], [0, 0, 0, I]],
 
-the step's Jacobian A'_k = T(X_{k+1}) A_k T(X_k)^-1 no longer depends on u_{k+1} and the control matrix
-T(X_{k+1}) B_k is the inertial scheme's constant one: lambda' = T^-T lambda satisfies the inertial recursion.
-The linearization (Psi) runs in z' and so reuses the inertial code; the values do not, because
-lambda'_zeta = lambda_zeta + p x lambda'_p carries a large term that cancels, and its rounding raised the
-round-off floor ~300x on E3.
-
-Everything is SX (numbers through the Functions).
+A'_k = T(X_{k+1}) A_k T(X_k)^-1 does not depend on u_{k+1} and T(X_{k+1}) B_k is the inertial constant matrix, so
+the linearization (Psi) runs in z' on the inertial code.  The values do not: lambda'_zeta = lambda_zeta + p x
+lambda'_p carries a large cancelling term whose rounding raises the round-off floor (§15).  All SX.
 """
 from __future__ import annotations
 
@@ -102,9 +93,8 @@ def rotated(lam, R):
 
 
 def kicked_costate(mu, R1, u_f, kick):
-    """lambda_k = K_z^-T mu_k from mu_k = Abar_k^-T lambda_{k-1} (docs/mathematics.md §15; SX): the end kick
-    gamma += kick R_{k+1} u_f has the tangent Jacobian K_z = I with -kick R_{k+1} S(u_f) in the (gamma, zeta) block,
-    and K_z^T changes only the zeta block, by kick u_f x (R^T lambda_gamma) with lambda_gamma = mu_gamma; so
-    lambda_zeta = mu_zeta - kick u_f x (R_{k+1}^T mu_gamma), the other blocks those of mu."""
+    """lambda_k = K_z^-T mu_k from mu_k = Abar_k^-T lambda_{k-1} (docs/mathematics.md §15; SX): K_z, the Jacobian of
+    the end kick gamma += kick R_{k+1} u_f, is I with -kick R_{k+1} S(u_f) in the (gamma, zeta) block, so only the
+    zeta block changes: lambda_zeta = mu_zeta - kick u_f x (R_{k+1}^T mu_gamma)."""
     corr = kick * ca.cross(u_f, ca.mtimes(R1.T, mu[Z_MOM]))
     return ca.vertcat(mu[:6], mu[Z_ROT] - corr, mu[9:])

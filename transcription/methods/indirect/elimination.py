@@ -6,18 +6,11 @@ import casadi as ca
 
 
 def solve_unpivoted(M, b):
-    """Solve M Y = b (SX, M n x n dense, b n x m) by Gaussian elimination without pivoting.
-
-    Used for lambda_k = A_k^-T lambda_{k-1} (and, with 12 columns, for its linearization).  A_k is
-    close to a block-triangular matrix with identity diagonal blocks (x, gamma, Pi) and the
-    rotation block F_k^T (zeta), so the pivots stay away from 0 while the rotation per step is
-    well below a right angle, and elimination without pivoting is accurate: on E3 its error is
-    ~1 ulp per component (against an exact rational solve), as good as LAPACK LU,
-    whereas CasADi's symbolic QR (``ca.solve`` on SX) erred by ~1e-11 on |lambda| ~ 1e2
-    and raised the round-off floor of z_N to ~1e-10 (E3, N = 100).  The caller
-    reports the relative residual |M y - b|_inf / |b|_inf (lam_res) so a breakdown
-    would be visible.  The columns of b share one elimination; each column goes through the same
-    operations as a single right-hand side.
+    """Solve M Y = b (SX, M n x n dense, b n x m) by Gaussian elimination without pivoting: lambda_k = A_k^-T
+    lambda_{k-1} and, with 12 columns sharing one elimination, its linearization.  A_k is near block-triangular
+    (identity blocks for x, gamma, Pi; F_k^T for zeta), so the pivots stay away from 0 while the rotation per step is
+    well below a right angle: ~1 ulp per component, where a symbolic QR (``ca.solve`` on SX) raised the round-off
+    floor of z_N (docs/mathematics.md §6).  The caller reports the relative residual (lam_res), so a breakdown shows.
     """
     return unpivoted_substitution(unpivoted_elimination(M), b)
 

@@ -34,14 +34,12 @@ def with_eps(bd: np.ndarray, eps: float) -> np.ndarray:
 
 def fuel_homotopy(stage: Callable[[np.ndarray, float, bool], NewtonResult], cost: Callable[[np.ndarray, float], float],
                   lam: np.ndarray, cold: bool, law) -> tuple[NewtonResult, float, dict]:
-    """eps from law.eps_cold (``cold``: from lambda_0 = 0) or law.eps_warm down to law.eps_end by the factor
-    law.eps_factor per stage (after a failed stage from the last solution by the factor's square root, until it
-    exceeds law.eps_factor_max), or until, at eps <= law.eps_settle, the fuel cost's estimated change to eps = 0
-    (:func:`remaining`) is at most law.cost_rtol relative (``law`` a :class:`~.laws.FuelLaw`);
-    ``stage(lam, eps, first)`` the Newton solve at eps (first: the first stage), ``cost(lam, eps)`` the fuel cost
-    of its solution.
-    Returns (the last successful stage's NewtonResult, its history and iterations those of all stages -- or the
-    first stage's failure --, its eps, a summary for the stats)."""
+    """eps from law.eps_cold (``cold``: from lambda_0 = 0) or law.eps_warm down to law.eps_end by law.eps_factor per
+    stage (after a failed stage from the last solution by the factor's square root, up to law.eps_factor_max), or
+    until, at eps <= law.eps_settle, the fuel cost's estimated change to eps = 0 (:func:`remaining`) is at most
+    law.cost_rtol relative (``law``: a :class:`~.laws.FuelLaw`).  ``stage(lam, eps, first)``: the Newton solve at eps;
+    ``cost(lam, eps)``: its solution's fuel cost.  Returns (the last successful stage's NewtonResult with the history
+    and iterations of all stages, or the first stage's failure; its eps; a summary for the stats)."""
     eps, factor, good = (law.eps_cold if cold else law.eps_warm), law.eps_factor, None
     history, iters, stages, costs = [], 0, [], []
     x = np.asarray(lam, dtype=float)
@@ -94,12 +92,11 @@ def warm_controls(problem: Problem, warm) -> np.ndarray | None:
 
 def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: float, law,
                       h: float | None = None) -> tuple[NewtonResult | None, dict]:
-    """The conditions at eps = 0 with the switching structure of the controls U fixed (:mod:`.structured`) from
-    lambda_0 = lam: (the NewtonResult with x = lambda_0 when it converged and its solution is consistent with the
-    structure, else None; a summary for the stats, with the rollout's controls and costates when it succeeded).  An
-    inconsistent solution is repaired up to law.structure_repairs times (the offending nodes partial, an active-set
-    step) and solved again from it (``law`` a :class:`~.laws.FuelLaw`: also partial_rtol, structured_max_iter).
-    h: the (mean) step size (default the problem's; on a non-uniform mesh step k runs at h_k = r_k h)."""
+    """The conditions at eps = 0 on the switching structure of the controls U (:mod:`.structured`) from lambda_0 =
+    lam: (the NewtonResult, x = lambda_0, when it converged consistent with the structure, else None; a summary for
+    the stats, with the rollout's controls and costates on success).  An inconsistent solution is repaired (an
+    active-set step) up to law.structure_repairs times (``law``: a :class:`~.laws.FuelLaw`).  h: the (mean) step size
+    (default the problem's; step k at h_k = r_k h on a non-uniform mesh)."""
     if problem.disc.force_frame != "inertial":
         return None, {"skipped": "a body-fixed force (the structured conditions are written for an inertial one)"}
     modes, x, out = node_modes(problem, U, law.partial_rtol), np.asarray(lam, float), {"repairs": 0, "iterations": 0}
@@ -126,13 +123,11 @@ def structured_finish(problem: Problem, lam: np.ndarray, U: np.ndarray, tol: flo
 
 
 def solve_fuel(shooting, lam, h: float, first: bool, phase: str, law) -> NewtonResult:
-    """The fuel objective at the step size h (``shooting`` the method's :class:`~.solve._Shooting`): from a solution
-    (``shooting.warm_U``), first the structured conditions at eps = 0 with its switching structure; otherwise, or when
-    that fails or is inconsistent, the homotopy in eps (:func:`fuel_homotopy`) and then the structured finish from
-    its last converged stage's controls (also when a later stage failed: a consistent exact solution is the answer).
-    The exact (eps = 0) solution, when found, is ``shooting.structured`` (U, costates),
-    the Solution's controls and costates; the stats ``fuel_homotopy`` and ``fuel_structured``; ``law`` the
-    :class:`~.laws.FuelLaw` (their parameters)."""
+    """The fuel objective at the step size h (``shooting``: the method's :class:`~.solve._Shooting`): from a solution
+    (``shooting.warm_U``) first the structured conditions at eps = 0 on its switching structure; otherwise, or when
+    that fails, the homotopy in eps (:func:`fuel_homotopy`), then the structured finish from its last converged
+    stage's controls (also after a later stage failed).  The exact solution, when found, is ``shooting.structured``
+    (U, costates); stats ``fuel_homotopy`` and ``fuel_structured``; ``law``: the :class:`~.laws.FuelLaw`."""
     opts, stats = shooting.options, shooting.stats
     U0 = getattr(shooting, "warm_U", None)
     if first and U0 is not None:

@@ -66,21 +66,19 @@ class TimeLaw(EffortLaw):
     """The time objective's conditions (module docstring); fields: its homotopy (:func:`.objectives.solve_time`)."""
 
     replannable: ClassVar[bool] = False
-    #: when the structure start is not available or fails: the first eps; when that first stage fails (too few nodes
-    #: inside the switching bands for a regular Jacobian: a coarse grid) it is tried again from the start at eps times
-    #: start_raise, up to start_tries times
+    #: without (or after a failed) structure start: the first eps, raised by start_raise up to start_tries times when
+    #: that stage fails (too few nodes in the switching bands for a regular Jacobian: a coarse grid)
     eps_start: float = 1e-2
     start_raise: float = 4.0
     start_tries: int = 3
-    #: the factor on eps per stage (its square root after a failed stage, given up above eps_factor_max), Newton
-    #: iterations per stage after the first, and the smallest eps
+    #: eps per stage times eps_factor (its square root after a failed stage, up to eps_factor_max), Newton iterations
+    #: per stage after the first, and the smallest eps
     eps_factor: float = 0.5
     eps_factor_max: float = 0.9
     stage_iterations: int = 20
     eps_end: float = 1e-8
     max_stages: int = 12        # the most stages of one solve (a bound on its time; the structure start settles in 2)
-    #: two consecutive stages whose T agree to this (relative) end the homotopy: every switch has its one interior
-    #: node, and T and the controls are exactly those of eps = 0 (docs/mathematics.md §18)
+    #: two stages whose T agree to this (relative) end the homotopy: T is eps = 0's (docs/mathematics.md §18)
     t_rtol: float = 1e-12
 
     def not_covered(self, problem: Problem) -> list[str]:
@@ -104,11 +102,9 @@ class FuelLaw(EffortLaw):
     eps: ClassVar[float] = 1.0
     replannable: ClassVar[bool] = False
     from_structure: ClassVar[bool] = True
-    #: the homotopy: the first eps from lambda_0 = 0 (the bounded problem with the effort-like cost |u|^2 / (2 b)) and
-    #: from a solution's costates (a fuel optimum's, e.g. the direct method's: the switching nodes sit at S ~ 0), the
-    #: factor per stage (its square root after a failed stage, up to eps_factor_max), and the last eps.  The fuel
-    #: cost of the eps-problem's optimum exceeds the fuel optimum by at most eps/2 relative (§19); measured on the
-    #: bundled raise it is O(eps^2).
+    #: the homotopy: the first eps from lambda_0 = 0 (eps = 1: an effort-like cost) and from a solution's costates,
+    #: the factor per stage (its square root after a failed stage, up to eps_factor_max), and the last eps (the
+    #: eps-problem's optimum is within eps/2 relative of the fuel optimum, docs/mathematics.md §19)
     eps_cold: float = 1.0
     eps_warm: float = 1e-2
     eps_factor: float = 0.1
@@ -120,12 +116,10 @@ class FuelLaw(EffortLaw):
     cost_rtol: float = 1e-9
     #: active-set repairs of an inconsistent switching structure (:meth:`.structured.StructuredShooting.repaired`)
     structure_repairs: int = 3
-    #: a control node counts as partial when its magnitude is within this fraction of b from neither 0 nor b (an
-    #: interior-point solution sits inside its bounds: the fuel raise's burns at 1 - 4e-5 of b)
+    #: a node is partial when its magnitude is further than this fraction of b from 0 and from b (loose: an
+    #: interior-point solution sits inside its bounds)
     partial_rtol: float = 1e-3
-    #: Newton iterations of the structured conditions: from a consistent structure they converge in 1-3 (the bundled
-    #: raise from the tight direct solution: 1); from a wrong one (the raise's default-tol direct solution) they
-    #: wander, 11 iterations at N = 100 to magnitudes outside (0, b), at ~8 s per Jacobian
+    #: Newton iterations of the structured conditions (1-3 from a consistent structure; from a wrong one they wander)
     structured_max_iter: int = 8
 
     def not_covered(self, problem: Problem) -> list[str]:

@@ -16,15 +16,11 @@ from .elimination import unpivoted_elimination, unpivoted_substitution
 @per_discretization
 def adjoint_variation_jacobian(disc: Discretization, parametric: bool = False) -> ca.Function:
     """``{scheme}_adjoint_variation_jacobian`` (X, w, lam, h, c0[, theta]) -> H[12x12] = d/dz [A(chart(X, z), w)^T lam]
-    at z = 0 (``parametric``: the model's numbers theta the last input, :func:`.conditions.theta_symbol`).
-
-    The derivative of the costate back-solve's matrix along a state variation, contracted with the
-    costate first: A^T lam is the gradient in z of lam^T readback(step(chart(X, z))) (one reverse
-    sweep; the readback is linear), and H its Jacobian in the chart coordinates of X (12 forward
-    directions), instead of 12 forward directions through all 144 entries of A.  The step is the
-    seeded one (two Newton iterations from the root c0 of step X's Cayley equation: exact up to
-    third derivatives there), so H is exact.  With a body-fixed force chart and readback are those of the
-    body-momentum coordinates (:func:`.coordinates.costate_chart`): H' of A'(X) = T(X_{k+1}) A(X) T(X)^-1.
+    at z = 0 (``parametric``: theta the last input, :func:`.conditions.theta_symbol`).  A^T lam is the gradient in z
+    of lam^T readback(step(chart(X, z))) (one reverse sweep; the readback is linear) and H its Jacobian (12 forward
+    directions), cheaper than 12 directions through the 144 entries of A.  The step is the seeded one (two Newton
+    iterations from the Cayley root c0: exact to third derivatives), so H is exact.  With a body-fixed force: in the
+    body-momentum coordinates (:func:`.coordinates.costate_chart`), H' of A'(X) = T(X_{k+1}) A(X) T(X)^-1.
     """
     X = ca.SX.sym("X", NX)
     w = ca.SX.sym("w", disc.nw)
@@ -46,42 +42,32 @@ def adjoint_variation_jacobian(disc: Discretization, parametric: bool = False) -
 
 
 def linearization_functions(disc: Discretization) -> tuple[ca.Function, ca.Function]:
-    """The linearization of the costate forward map (docs/mathematics.md §6 (29)-(31)) along a rollout of the costate map.
+    """(costate_hessian, linearized_map): the linearization of the costate forward map (docs/mathematics.md §6
+    (29)-(31)) along the rollout of ``costate_functions(disc, parametric=True)``.
 
-    Returns (costate_hessian, linearized_map), the maps of ``costate_functions(disc, parametric=True)``'s rollout:
-
-    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB], theta) -> H[12x12]  (theta the model's
-        numbers, ``model.parameters``: data, so the Function serves every model of the structure)
+    costate_hessian (X[18], lam_prev[12], lam[12], c[3], h, Winv[6x6], bd[NB], theta) -> H[12x12]  (theta =
+        ``model.parameters`` as data: one Function for every model of the structure)
         H_k = d/dz [A(chart(X_k, z), w_k)^T lambda_k] at z = 0 (:func:`adjoint_variation_jacobian` at
-        orthonormalized(X_k), as A_k), w_k the stage control A_k is taken at (lgvi: u_k from lam_prev),
-        seeded with the step's Cayley root c (an output of the costate map).  With a body-fixed force lam is
-        lambda'_k (the costate map's lamp) and H, A, dZ, dlam are in body-momentum coordinates
-        (docs/mathematics.md §15); lam_prev stays the tangent-coordinate costate the control u_k is read from.
-    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], Dk[6x6], D1[6x6], h, Winv[6x6])
-            -> (dZ1[12x12], dlam1[12x12])
-        dZ, dlam: the derivatives of z_k (tangent coordinates of X_k, docs/mathematics.md §4) and of lambda_{k-1} by
-        the shooting unknown; (dZ1, dlam1) those of z_{k+1} and lambda_k.  Starting from the first step's
-        and iterating (``mapaccum``) gives dz_N/dlambda_0, hence Psi_12.
+        orthonormalized(X_k), as A_k; w_k its stage control, lgvi: u_k from lam_prev; seeded with the costate map's
+        Cayley root c).  With a body-fixed force lam is lambda'_k (the map's lamp) and H, A, dZ, dlam are in
+        body-momentum coordinates (§15); lam_prev stays the tangent-coordinate costate u_k is read from.
+    linearized_map (dZ[12x12], dlam[12x12], A[12x12], H[12x12], Dk[6x6], D1[6x6], h, Winv[6x6]) -> (dZ1, dlam1)
+        the derivatives of z_k (tangent coordinates, §4) and lambda_{k-1} by the shooting unknown to those of
+        z_{k+1} and lambda_k; iterated (``mapaccum``) from the first step's: dz_N/dlambda_0 = Psi_12.
 
     Differentiating lambda_{k-1} = A_k^T lambda_k and z_{k+1} = A_k z_k + B du_{k+1}:
 
         dlambda_k = A_k^-T (dlambda_{k-1} - H_k dz~_k)
         dz_{k+1}  = A_k dz~_k + B_c du_{k+1},     du_{k+1} = -(s/h) D_{k+1} Winv B_c^T dlambda_k
 
-    (D_{k+1} the Jacobian of the saturation at u_{k+1}, an output of the costate map; the identity
-    without bounds) with dz~_k = dz_k (first_order) or dz_k + B^b du_k, du_k = -(s/h) D_k Winv B_c^T
-    dlambda_{k-1} (lgvi: u_k enters as the momentum kick B^b u_k,
-    so A(X_k, u_k + du) = A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; see LGVI_CONDITIONS).  The 12
-    right-hand sides share one elimination (:func:`unpivoted_elimination` of A_k^T, then
-    :func:`unpivoted_substitution` per column, the operations of :func:`solve_unpivoted`).
+    (D_{k+1} the saturation's Jacobian at u_{k+1}; I without bounds), dz~_k = dz_k (first_order) or dz_k + B^b du_k,
+    du_k = -(s/h) D_k Winv B_c^T dlambda_{k-1} (lgvi: u_k is the momentum kick B^b u_k, so A(X_k, u_k + du) =
+    A(chart(X_k, B^b du), u_k) and B^a_k = A_k B^b; LGVI_CONDITIONS).  The 12 right-hand sides share one elimination
+    (:func:`unpivoted_elimination` of A_k^T, :func:`unpivoted_substitution` per column).
 
-    Three per-step Functions (costate map, H, this update), each evaluated along the rollout, instead of
-    one: each is smaller to compile, the three compile concurrently, and the values (X_k, lambda_k, A_k)
-    are those of the residual's costate map, computed once.  First order: H 15k SX instructions
-    (LGVI 25k), the costate map 10k (23k); the update is an MX Function (matrix products, a map of the
-    column substitution) whose C is 1.5k lines of loops.  The previous construction (forward AD of the
-    18-state step in 12 directions) took 111k instructions per step (228k).  Psi equals forward AD
-    through the rollout (tests/test_perf_structure.py).
+    Three per-step Functions (costate map, H, this update) rather than one: each smaller to compile, compiled
+    concurrently, and X_k, lambda_k, A_k those of the residual's own rollout (their sizes: docs/mathematics.md §6).
+    Psi equals forward AD through the rollout (tests/test_perf_structure.py).
     """
     hessian = _costate_hessian_function(disc)
     return hessian, _linearized_map_function(disc, hessian.sparsity_out("H"))

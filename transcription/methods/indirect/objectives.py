@@ -1,25 +1,20 @@
-"""The indirect method for objectives linear in the control: the switching function, the control that minimizes
-the discrete Hamiltonian over the bounds (bang-bang; bang-off-bang with a threshold), and the time objective's
-solve -- a homotopy min T + eps (effort) with the saturated law, solved jointly with the free-final-time condition,
-eps -> 0 (docs/mathematics.md, "The indirect method for the time objective").
+"""The indirect method for objectives linear in the control: the switching function, and the time objective's solve
+-- a homotopy min T + eps (effort) with the saturated law, jointly with the free-final-time condition, eps -> 0
+(docs/mathematics.md §18).
 
 The switching function of control node j (per unit quadrature weight omega_j) is
 
     sigma_j = (s/h) B_c^T lambda_{j-1}        (6; s, B_c of :func:`~.control.control_law`),
 
-the coefficient of u_j in the Lagrangian: stationarity of the effort objective reads W u_j + sigma_j = 0, and a
-cost linear in u_j (time: none; fuel: w |u_j|) has u_j minimizing w |u_j| + sigma_j^T u_j over the bounds (bang-bang;
-bang-off-bang): the limits of the one law of the shooting, control.saturate (the eps-law below as e -> 0; the fuel
-objective's switching.on_off as eps -> 0).  For the time objective the shooting solves the eps-problem
+the coefficient of u_j in the Lagrangian: the effort objective's stationarity reads W u_j + sigma_j = 0, and a cost
+linear in u_j (time: none; fuel: w |u_j|) has u_j minimizing w |u_j| + sigma_j^T u_j over the bounds (bang-bang,
+bang-off-bang): the limits of control.saturate (the eps-law below as e -> 0, switching.on_off as eps -> 0).  For the
+time objective the shooting solves the eps-problem
 
     min  N h + eps * sum_j omega_j u_j^T W u_j / u_max^2        (u_max^2 = :func:`saturated_effort_rate`),
 
-whose law is the effort law with W scaled by e = 2 eps / u_max^2 (u = sat(-W^-1 sigma / e): the existing
-saturated law with Winv / e), and the free final time dL/dh = N + e J_effort / h + sum_k g_k = 0 (on a non-uniform
-mesh h is the mean step, h_k = r_k h, and the steps' terms are sum_k r_k g_k: docs/mathematics.md §18).
-
-With the effort law's unconstrained control v = -W^-1 sigma and a fuel weight W = w I, the fuel objective's switching
-function |v| - 1 is |sigma| / w - 1: thrust where |sigma| > w.
+whose law is the saturated effort law with Winv / e, e = 2 eps / u_max^2, and whose free final time is
+dL/dh = N + e J_effort / h + sum_k g_k = 0 (on a non-uniform mesh sum_k r_k g_k, h the mean step: §18).
 """
 from __future__ import annotations
 
@@ -75,11 +70,9 @@ def saturated_effort_rate(problem: Problem) -> float:
 
 
 def lean_rollout(disc: Discretization, N: int, lam0, X0, h, Winv, bd) -> tuple:
-    """(X (18 x N) nodes 1..N, lams (12 x N) lambda_0..lambda_{N-1}, U) of the shooting's rollout
-    (:class:`~.shooting.ShootingFunctions`; h: the step sizes h_k, 1 x N) as MX expressions, by per-step Functions
-    that keep only these outputs:
-    the costate map's Cayley residual (a norm, whose derivative at 0 is infinite) is left out, so that reverse-mode
-    AD through the rollout stays finite (0 x inf = nan otherwise)."""
+    """(X (18 x N) nodes 1..N, lams (12 x N) lambda_0..lambda_{N-1}, U) of the shooting's rollout (h: the step sizes,
+    1 x N) as MX expressions, by per-step Functions without the Cayley residual (a norm, infinite derivative at 0),
+    so that reverse-mode AD through the rollout stays finite."""
     cm, fs = costate_functions(disc)
     X, lp, hs, Ws, bs = (ca.SX.sym(n, *sp) for n, sp in (("X", (NX, 1)), ("lam_prev", (NZ, 1)), ("h", (1, 1)),
                                                          ("Winv", (NU, NU)), ("bd", (NB, 1))))
@@ -139,9 +132,8 @@ def differentiable_bounds(problem: Problem, bd: np.ndarray) -> np.ndarray:
 
 def residual_rows(problem: Problem, free: np.ndarray) -> np.ndarray:
     """Boolean (12): the rows of z_N replaced by lambda_{N-1} -- the free terminal components and, with the force
-    removed (a norm bound of 0), position and linear momentum: no control moves them, so their terminal
-    conditions hold or fail whatever lambda_0 is (:func:`solve_time` checks they hold) and their multipliers
-    are arbitrary (taken 0)."""
+    removed, position and linear momentum: no control moves them, so they hold or fail whatever lambda_0 is
+    (:func:`solve_time` checks) and their multipliers are arbitrary (taken 0)."""
     rows = np.array(free, dtype=bool)
     if problem.control.removed[0]:
         rows[:6] = True
@@ -149,11 +141,10 @@ def residual_rows(problem: Problem, free: np.ndarray) -> np.ndarray:
 
 
 class TimeShooting:
-    """The time objective's shooting: at a given eps, Newton-Armijo on x = [lambda_0; h / h0] (13) with the
-    residual F = [z_N (lambda_{N-1} on :func:`residual_rows`); g / N], g = dL/dh of the eps-problem (the
-    free-final-time condition, :func:`time_condition_function`), and its Jacobian [[Psi, dz_N/dh h0],
-    [dg/dlambda_0 / N, dg/dh h0 / N]] (Psi from the compiled shooting, the rest by AD through the rollout).
-    ``shooting`` is the method's :class:`~.solve._Shooting` (its Functions, data, options and progress)."""
+    """The time objective's shooting at a given eps: Newton-Armijo on x = [lambda_0; h / h0] (13), residual
+    F = [z_N (lambda_{N-1} on :func:`residual_rows`); g / N], g = dL/dh of the eps-problem
+    (:func:`time_condition_function`), Jacobian [[Psi, dz_N/dh h0], [dg/dlambda_0 / N, dg/dh h0 / N]] (Psi from
+    the compiled shooting, the rest by AD).  ``shooting``: the method's :class:`~.solve._Shooting`."""
 
     def __init__(self, shooting, h0: float):
         p = shooting.problem
@@ -235,11 +226,9 @@ class TimeShooting:
 
 
 def costate_transfer(problem: Problem, X: np.ndarray, U: np.ndarray, h: float) -> list[np.ndarray]:
-    """[M_0, ..., M_{N-1}] (12 x 12 each): lambda_k = M_k y along the fixed trajectory (X (N+1, 18), U) of a
-    solution, y the shooting unknown (first_order lambda_0; lgvi lambda_{-1}), by the costate recursion
-    lambda_k = A_k^-T lambda_{k-1} with A_k as the shooting takes it (first_order at (X_k, 0), lgvi at
-    (X_k, [u_k; 0]), at its step size h_k, docs/mathematics.md §17): the costates are linear in y once the primal is
-    fixed."""
+    """[M_0, ..., M_{N-1}] (12 x 12 each): lambda_k = M_k y along a solution's fixed trajectory (X (N+1, 18), U), y
+    the shooting unknown (first_order lambda_0; lgvi lambda_{-1}), by lambda_k = A_k^-T lambda_{k-1} with A_k as the
+    shooting takes it (first_order at (X_k, 0), lgvi at (X_k, [u_k; 0]), step size h_k, docs/mathematics.md §17)."""
     disc, N, Ms = problem.disc, problem.N, []
     hk = np.broadcast_to(problem.steps_of(h), (N,))
     M = np.eye(NZ)
@@ -311,18 +300,14 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
 
 
 def solve_time(shooting, lam, h: float, law, primal: tuple | None = None) -> tuple[NewtonResult, float, dict, tuple]:
-    """The time objective from (lambda_0, h) (the direct solution's, :func:`~.solve.initial_costate`) and, when
-    given, that solution's ``primal`` (X (N+1, 18), U), by ``law`` (a :class:`~.laws.TimeLaw`): the first stage from
-    :func:`structure_start` (eps small, the direct solution's switching structure), else -- or when it fails -- the
-    homotopy in eps from law.eps_start (raised by law.start_raise when that fails) from (lambda_0, h).  Then stages
-    with eps multiplied by law.eps_factor (by its square root after a failed stage), each a :class:`TimeShooting`
-    Newton iteration from the previous solution moved along the path's tangent (:meth:`TimeShooting.predictor`),
-    until two consecutive stages give the same T to law.t_rtol: every switch then has its one interior node, and T
-    and the controls are those of eps = 0 (docs/mathematics.md), or eps reaches law.eps_end.
-    Returns (the last good stage's NewtonResult -- x its lambda_0, its history and iterations those of every
-    stage --, h, a summary for the stats (the final eps and e, eps and T per stage, whether T settled, a
-    message), the (Winv, bd) of the final eps-law for the rollout of the Solution).  The terminal conditions no
-    control moves (:func:`residual_rows`) are checked at the end: when they do not hold the result is
+    """The time objective from (lambda_0, h) (:func:`~.solve.initial_costate`) and, when given, the direct solution's
+    ``primal`` (X (N+1, 18), U), by ``law`` (a :class:`~.laws.TimeLaw`): the first stage from :func:`structure_start`,
+    else (or when it fails) from (lambda_0, h) at law.eps_start, raised by law.start_raise on failure; then stages at
+    eps times law.eps_factor (its square root after a failure), each from the previous solution moved along the
+    path's tangent (:meth:`TimeShooting.predictor`), until two stages give the same T to law.t_rtol (T and the
+    controls are then eps = 0's, docs/mathematics.md §18) or eps reaches law.eps_end.  Returns (the last good stage's
+    NewtonResult, x its lambda_0, with every stage's history and iterations; h; a summary for the stats; the final
+    eps-law's (Winv, bd)).  Terminal conditions no control moves (:func:`residual_rows`) that fail make it
     ``infeasible``."""
     ts, N = TimeShooting(shooting, h), shooting.problem.N
     x0 = np.r_[np.asarray(lam, dtype=float), 1.0]

@@ -15,41 +15,32 @@ from .control import NB, control_matrix
 from .coordinates import body_coordinates, initial_costate_function, terminal_costate_function
 from .linearization import linearization_functions, terminal_residual_jacobian
 
-#: nesting base of CasADi's mapaccum (default 10): the same evaluation, but with base 10 building the Function
-#: took 0.04-0.18 s at N = 1000 (a single chain element N = 10^3), with base 4 0.004-0.014 s
+#: nesting base of CasADi's mapaccum (default 10): the same evaluation, built ~10x faster at N = 1000
 MAPACCUM_OPTS = {"base": 4}
 
 
 class ShootingFunctions:
     """Shooting residual and its Jacobian for one (Discretization, N), built once.
 
-    The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, see LGVI_CONDITIONS); bd the
-    bound data of the controls (:func:`~.control.bound_data`; no bounds: u = v bit for bit).  With a body-fixed
-    force the unknown and the recursion are in the body-momentum coordinates of :mod:`.coordinates`; the outputs
-    lam, lamN, dlamN and Psi are in tangent coordinates z all the same (docs/mathematics.md §15).
-
-    h[1 x N] are the step sizes h_k, k = 0..N-1 (docs/mathematics.md §17; a scalar is broadcast: a uniform mesh);
-    step k of the rollout and of its linearization runs at h_k, and the first control's law at h_0.
+    The unknown ``lam0`` is lambda_0 (first_order) or lambda_{-1} (lgvi, LGVI_CONDITIONS); bd the bound data
+    (:func:`~.control.bound_data`; no bounds: u = v bit for bit); h[1 x N] the step sizes h_k (a scalar is broadcast:
+    a uniform mesh; docs/mathematics.md §17), step k at h_k, the first control's law at h_0.  With a body-fixed force
+    the recursion runs in the body-momentum coordinates of :mod:`.coordinates`, the outputs in z all the same (§15).
 
     shoot(lam0[12], X0[18], Xd[18], h[1 x N], Winv[6x6], bd[NB])
         -> (zN[12], X[18 x N] nodes 1..N, lam[12 x N] lambda_0..lambda_{N-1},
             U[6 x n_controls] (first_order u_1..u_N; lgvi u_0..u_N), res[1 x N] Cayley residuals,
             lam_res[1 x N] relative residuals of the costate solves, 0 for k = 0 in first_order)
-    residual(lam0, X0, Xd, h, Winv, bd) -> (zN[12], lamN[12], res_max)  (line-search trials; lamN =
-        lambda_{N-1}, the multiplier of the last step, for the transversality conditions of free
-        terminal components; res_max = max relative Cayley residual over the steps: a rollout with
-        res_max > cayley_tol is not a solution of the discrete equations and is rejected)
-    shoot_jac(lam0, X0, Xd, h, Winv, bd) -> (zN[12], Psi[12 x 12], dlamN[12 x 12]),  Psi = dzN/dlam0 and
-        dlamN = dlambda_{N-1}/dlam0 by the linearized recursion (:func:`~.linearization.linearization_functions`) along the
-        mapaccum'ed rollout; equal to forward-mode AD through it (with bounds: the generalized derivative
-        of the saturation, for the semismooth Newton method).
-    terminal(lam0, X0, Xd, h, Winv, bd) -> (XN[18], lamN[12], res_max) and
-    terminal_jac(lam0, X0, Xd, h, Winv, bd) -> (XN, lamN, dZ[12 x 12], dlamN[12 x 12]), dZ = dz_N/dlam0 (tangent
-        coordinates at X_N): for terminal conditions other than a state's (:mod:`.orbit`); Xd is not read.
-    rollout(lam0, X0, Xd, h, Winv, bd) -> (zN, lamN, res_max, S...) and jac_given(lam0, X0, Xd, h, Winv, bd, S...)
-        -> (zN, Psi, dlamN): residual and shoot_jac, the same values bit for bit, sharing the rollout's outputs S
-        that the linearization reads (:meth:`RolloutCache`): the Jacobian at an accepted point without a second
-        rollout.
+    residual(lam0, X0, Xd, h, Winv, bd) -> (zN[12], lamN[12], res_max)  (line-search trials; lamN = lambda_{N-1} for
+        the transversality conditions of free components; res_max the largest relative Cayley residual: a rollout
+        above cayley_tol does not solve the discrete equations and is rejected)
+    shoot_jac(lam0, X0, Xd, h, Winv, bd) -> (zN[12], Psi[12 x 12], dlamN[12 x 12]): Psi = dzN/dlam0 and dlamN =
+        dlambda_{N-1}/dlam0 by the linearized recursion (:func:`~.linearization.linearization_functions`), equal to
+        forward AD through the rollout (with bounds: the saturation's generalized derivative, semismooth Newton)
+    terminal(...) -> (XN[18], lamN[12], res_max) and terminal_jac(...) -> (XN, lamN, dZ[12 x 12], dlamN[12 x 12]),
+        dZ = dz_N/dlam0 at X_N: for terminal conditions other than a state's (:mod:`.orbit`); Xd is not read.
+    rollout(...) -> (zN, lamN, res_max, S...) and jac_given(..., S...) -> (zN, Psi, dlamN): residual and shoot_jac,
+        bit for bit, sharing the rollout's outputs S (:class:`RolloutCache`): no second rollout for the Jacobian.
     """
 
     def __init__(self, disc: Discretization, N: int, jit: bool = False):
@@ -61,11 +52,9 @@ class ShootingFunctions:
         self.costate_map, self.first_step = costate_functions(disc, True)
         self.costate_hessian, self.linearized_map = linearization_functions(disc)
         self.terminal_residual = terminal_residual_function()
-        # the per-step Functions evaluated along every rollout; with jit compiled to C (values only), three
-        # libraries, one set per scheme and structure, independent of N, of the data and of the model's numbers;
-        # a set not yet in the cache is interpreted while a background process compiles it (codegen's
-        # interpreted-first policy), and each of the N-step Functions built from them moves to the compiled code as
-        # its library arrives (a codegen.Switch inside the shooting Functions, which are built once)
+        # with jit the three per-step Functions are compiled to C, one set per scheme and structure (independent of N,
+        # the data and the model's numbers); a set not yet cached is interpreted while a background process compiles
+        # it, and the N-step Functions move to it as it arrives (a codegen.Switch inside the shooting Functions)
         maps = (self.costate_map, self.costate_hessian, self.linearized_map)
         provisional, self.libraries, self.switches = False, [], []
         if self.jit:
@@ -174,11 +163,10 @@ class ShootingFunctions:
                 "terminal_jac": terminal_jac, "rollout": rollout, "jac_given": jac_given}
 
     def _linearization(self, hess_n, lin_acc, args, Xstart, D_first, steps, n):
-        """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates): Psi = dzN/dlam0 by the linearized
-        coupled recursion along the rollout (see linearization_functions), the same derivative as forward AD
-        through it, cheaper.  With a body-fixed force the recursion runs in body-momentum coordinates
-        (docs/mathematics.md §15): started from dlambda' = T^-T (+ Qi dz'_1 in first_order, where the unknown
-        sits at X_1), and mapped back at X_N, dlambda_{N-1} = T^T dlambda' + Q dz'_N, dz_N = T^-1 dz'_N."""
+        """(dz_N, dlambda_{N-1}) by lam0 (12 x 12 each, tangent coordinates) by the linearized recursion along the
+        rollout (:func:`~.linearization.linearization_functions`).  With a body-fixed force it runs in body-momentum
+        coordinates (docs/mathematics.md §15): from dlambda' = T^-T (+ Qi dz'_1 in first_order, the unknown at X_1),
+        mapped back at X_N by dlambda_{N-1} = T^T dlambda' + Q dz'_N, dz_N = T^-1 dz'_N."""
         disc, sch = self.disc, self.disc.scheme
         lam0, X0, _, h, Winv, bd = args
         h0, hr = h[0, 0], h[0, self.N - n:]   # step 0's size (the first control's law); the mapped steps'
@@ -214,11 +202,9 @@ class ShootingFunctions:
 
 
 class RolloutCache:
-    """residual(lam0) and jacobian(lam0) of the Newton iteration on one ShootingFunctions' rollout and linearization
-    (args: X0, Xd, h, Winv, bd): the Jacobian at the point of the last residual reuses its rollout (``jac_given``),
-    which the Newton-Armijo iteration asks for at every accepted step -- one rollout per iteration instead of two,
-    with the same values.  ``seed``: (lam0, outputs) of a rollout already done with these args (the start's check),
-    not done again."""
+    """residual(lam0) and jacobian(lam0) of the Newton iteration on one ShootingFunctions (args: X0, Xd, h, Winv, bd):
+    the Jacobian at the last residual's point reuses its rollout (``jac_given``): one rollout per accepted step, not
+    two.  ``seed``: (lam0, outputs) of a rollout already done with these args (the start's check)."""
 
     def __init__(self, fns: ShootingFunctions, args: tuple, seed: tuple | None = None):
         self.fns, self.args, self.last, self.seed = fns, args, None, seed
@@ -243,15 +229,13 @@ def shooting_functions(disc: Discretization, N: int, jit: bool = False) -> Shoot
 
 @per_discretization
 def time_gradient_function(disc: Discretization, N: int) -> ca.Function:
-    """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h[1 x N]) -> g[1 x N]: the
-    derivative of each step's constraint term of the Lagrangian by its step size h_k at fixed states, controls and
-    multipliers (h: the step sizes h_k, or one scalar for all),
+    """``{scheme}_step_time_derivative{N}`` (X[18 x N], W[nw x N], lam[12 x N], h[1 x N]) -> g[1 x N]: the derivative
+    of each step's constraint term of the Lagrangian by its step size at fixed states, controls and multipliers,
 
-        g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h_k) / dh_k),
+        g_k = lambda_k^T readback_{X_{k+1}}(d step(X_k, w_k, h_k) / dh_k)
 
-    X_k the node states 0..N-1, w_k the stage controls, lambda_k the multiplier of step k (the free-final-
-    time condition, docs/mathematics.md §10; on a mesh h_k = r_k h and dL/dh = J/h + sum_k r_k g_k, §17).  Forward
-    AD through the step (its unrolled Cayley Newton iterations, converged to round-off)."""
+    (X_k nodes 0..N-1, w_k the stage controls, lambda_k step k's multiplier; h: the h_k or one scalar), for the free
+    final time (docs/mathematics.md §10; on a mesh dL/dh = J/h + sum_k r_k g_k, §17).  Forward AD through the step."""
     X, w, lam, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("lam", NZ), ca.SX.sym("h")
     X1 = disc.step(X, w, h)[0]
     g = ca.dot(lam, tangent_readback(X1, ca.jacobian(X1, h)))

@@ -28,13 +28,11 @@ from .shooting import RolloutCache, shooting_functions, time_gradient_function
 
 
 def not_covered(problem: Problem, replan: bool = False) -> str:
-    """What of ``problem`` the indirect method does not cover ('' if nothing): impulsive control, and within
-    smooth control what its necessary conditions do not cover -- those its objective brings (``Objective.indirect``,
-    :mod:`.laws`: the effort objective's saturated law to a state target (free components by transversality) or to an
-    orbit target (its transversality conditions, :mod:`.orbit`), with box or norm bounds whose saturation is the
-    Hamiltonian's minimizer -- a box on a block with a diagonal weight, a norm bound on one with an isotropic weight
-    --, the time and fuel objectives' laws).  ``replan``: count only the laws a re-plan's fixed-h Newton step covers
-    (MPC, transcription.closedloop.mpc)."""
+    """What of ``problem`` the indirect method does not cover, in words ('' if nothing): impulsive control, and what
+    its objective's law (``Objective.indirect``, :mod:`.laws`) does not: the effort law covers a state or orbit target
+    (:mod:`.orbit`) with box bounds on blocks with a diagonal weight and norm bounds on blocks with an isotropic one
+    (where the saturation is the Hamiltonian's minimizer).  ``replan``: only the laws a re-plan's fixed-h Newton step
+    covers (transcription.closedloop.mpc)."""
     if problem.kind != "smooth":
         return "the indirect method applies to smooth maneuvers; impulsive maneuvers are solved by the direct method"
     c = problem.control
@@ -76,11 +74,10 @@ def free_rows(target: TargetState) -> np.ndarray:
 
 def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: float | None = None,
                        u1: np.ndarray | None = None) -> np.ndarray:
-    """The shooting unknown from the costate lambda_0 (12) of a solution (docs/mathematics.md §6, §15): first_order
-    lambda_0 itself; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0, u_0 the solution's first control, at the size
-    of step 0 for the (mean) step size h (default the problem's): h_0 = r_0 h on a non-uniform mesh (§17).  With a
-    body-fixed force A_0 depends on the next control too (the end kick R_1 u_{f,1}): lambda_{-1} = A_0(X_0, [u_0;
-    u_1])^T lambda_0, u_1 the second control (required)."""
+    """The shooting unknown from a solution's costate lambda_0 (12) (docs/mathematics.md §6, §15): first_order
+    lambda_0; lgvi lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0 (u_0 the first control) at step 0's size h_0 = r_0 h (h:
+    the mean step, default the problem's; §17).  With a body-fixed force A_0 depends on the end kick R_1 u_{f,1}:
+    lambda_{-1} = A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
     if problem.scheme == "lgvi":
         body = body_coordinates(problem.disc)
@@ -93,11 +90,11 @@ def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: flo
 
 
 def initial_costate(problem: Problem, options: IndirectOptions, warm: Start | None) -> tuple[np.ndarray, str, list]:
-    """(lambda_0, its source, notes) from ``warm`` -- fitted to the problem's grid
-    (:meth:`~transcription.results.start.Start.fit`): its lambda_0 on the same grid ('warm_start'), else from its
-    costates (:func:`lam0_from_costates`; 'from_direct' for a direct solution, whose costates are mapped from
-    its multipliers) -- or from ``options.initial_costate``: 'zero', 12 numbers ('explicit'), 'from_direct'
-    (needs the direct solution as ``warm``).  Raises ValueError when none is usable."""
+    """(lambda_0, its source, notes) from ``warm`` fitted to the problem's grid
+    (:meth:`~transcription.results.start.Start.fit`): its lambda_0 ('warm_start'), else from its costates
+    (:func:`lam0_from_costates`; 'from_direct' for a direct solution's, mapped from its multipliers); or from
+    ``options.initial_costate``: 'zero', 12 numbers ('explicit'), 'from_direct' (needs the direct solution as
+    ``warm``).  Raises ValueError when none is usable."""
     notes: list[str] = []
     if warm is not None:
         origin = warm.describe()
@@ -123,11 +120,9 @@ def initial_costate(problem: Problem, options: IndirectOptions, warm: Start | No
 
 
 class _Shooting:
-    """The shooting of one problem: its Functions and data, the Newton iteration on lambda_0 at a step size h
-    (from lambda_0 = 0 with bounds, by the bound continuation), dL/dh for a free final time, and the Solution
-    of the final lambda_0.  ``stats`` collects what the Solution reports.  h is the mean step T/N: the Functions
-    get the problem's step sizes for it, ``problem.steps_of(h)`` (h itself on a uniform mesh, h r_k on a
-    non-uniform one, docs/mathematics.md §16)."""
+    """The shooting of one problem: its Functions and data, the Newton iteration on lambda_0 at the mean step h
+    (the Functions get ``problem.steps_of(h)``: h r_k on a non-uniform mesh, docs/mathematics.md §16), dL/dh for a
+    free final time, and the Solution of the final lambda_0; ``stats``: what the Solution reports."""
 
     def __init__(self, problem: Problem, options: IndirectOptions, progress: Progress | None, source: str):
         self.problem, self.options, self.progress, self.source = problem, options, progress, source
@@ -281,31 +276,19 @@ class _Shooting:
 
 def solve_indirect(problem: Problem, options: IndirectOptions | None = None, progress: Progress | None = None,
                    warm: Start | None = None, label: str = "") -> Solution:
-    """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6, §10) for a smooth-control effort
-    problem with a state target ('first_order' or 'lgvi'; for 'lgvi' the unknown is lambda_{-1}, see
-    LGVI_CONDITIONS); problems it does not cover (:func:`not_covered`) return Result.not_applicable.
+    """Newton-Armijo shooting on lambda_0 (docs/mathematics.md §6, §10) for a smooth-control problem ('first_order' or
+    'lgvi', whose unknown is lambda_{-1}: LGVI_CONDITIONS); problems it does not cover (:func:`not_covered`) return
+    Result.not_applicable.  Beyond the paper: control bounds (semismooth Newton through :func:`~.control.saturate`,
+    from lambda_0 = 0 by :func:`~.continuation.bound_continuation`), free terminal components (:func:`free_rows`), a
+    free final time (:func:`~.continuation.free_final_time`), and the time (§18) and fuel (§19) objectives' laws.
 
-    Beyond the paper: control bounds (the control minimizes the discrete Hamiltonian over them,
-    :func:`~.control.saturate`; Newton differentiates through the saturation -- a semismooth Newton
-    method -- and from lambda_0 = 0 it first solves the unbounded problem,
-    :func:`~.continuation.bound_continuation`); free terminal components (lambda_{N-1} = 0 on them,
-    :func:`free_rows`); a free final time (the condition dL/dh = 0 by a secant iteration over fixed-T
-    shootings, :func:`~.continuation.free_final_time`).  The time objective (docs/mathematics.md §18): min T + eps
-    (effort) with the saturated law, Newton on (lambda_0, h) with dL/dh = 0, from a solution's switching structure
-    (:func:`~.objectives.solve_time`; without a warm start it returns Result.invalid_option and the fallback runs).
+    The initial costate comes from ``warm`` (:func:`initial_costate`) or ``options.initial_costate``; the iteration is
+    :func:`~transcription.methods.newton.newton_armijo` on z_N(lambda_0) with the exact Jacobian Psi, round-off floor
+    detection (``floor_factor``, ``floor_accept``) and trials whose rollout misses ``cayley_tol`` rejected.
 
-    The initial costate comes from ``warm`` (:func:`initial_costate`: an indirect solution's lambda_0, or
-    the costates of a direct solution, mapped from its multipliers; resampled from another N or scheme) or
-    from ``options.initial_costate`` ('from_direct': the direct solution is the warm start,
-    :func:`transcription.solve.solve` runs it first).  The iteration is
-    :func:`~transcription.methods.newton.newton_armijo` on z_N(lambda_0) with the exact Jacobian Psi, the
-    round-off floor detection (``floor_factor``, ``floor_accept``) and trials whose rollout does
-    not solve the Cayley equation to ``cayley_tol`` rejected.
-
-    The Solution (method 'indirect', solver 'newton-armijo') has the controls (6 x N, u_1..u_N;
-    lgvi 6 x N+1, u_0..u_N) from the lambda_k, the costates (N, 12) lambda_0..lambda_{N-1}, the
-    trajectory re-simulated from those controls, the terminal error measured on it, the cost, and
-    the history (the initial rollout and every line-search trial).
+    The Solution (method 'indirect', solver 'newton-armijo'): the controls (first_order 6 x N, u_1..u_N; lgvi
+    6 x N+1, u_0..u_N) from the lambda_k, the costates (N, 12) lambda_0..lambda_{N-1}, the trajectory re-simulated
+    from those controls with its terminal error, the cost, and the history (the initial rollout and every trial).
     """
     options = options or IndirectOptions()
     if problem.kind != "smooth":
