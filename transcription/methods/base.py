@@ -12,7 +12,7 @@ Strategies (:mod:`transcription.strategy`) compose solves; the registry that pic
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Callable, Protocol
 
 from ..dynamics.trajectory import trajectory
@@ -61,6 +61,15 @@ class Method(Protocol):
     def replace(self, **options) -> "Method":
         """This method with some of its options changed."""
         ...
+
+
+@dataclass(frozen=True)
+class WithOptions:
+    """A method whose whole configuration is its ``options`` dataclass (Impulsive, Indirect): ``replace`` changes
+    some of them (a strategy's IPOPT presets, ``ipopt``, do not apply to it)."""
+
+    def replace(self, ipopt=None, **options):
+        return replace(self, options=self.options.replace(**options) if options else self.options)
 
 
 def failed_solution(problem: Problem, method: str, solver: str, result: Result, message: str,

@@ -177,4 +177,4 @@ class MaxAngularRate(_PositiveLimit):
 PATH_CONSTRAINTS = (MinRadius, KeepOut, KeepIn, MaxAngularRate)
 #: the dimension of each path constraint's margin, by kind ('length', 'angle' in degrees, 'angular_rate'):
 #: the unit labels come from problems.units (normalized orbit units only with a central body)
-MARGIN_DIMENSION = {c.kind: c.dimension for c in (MinRadius, KeepOut, KeepIn, MaxAngularRate)}
+MARGIN_DIMENSION = {c.kind: c.dimension for c in PATH_CONSTRAINTS}

@@ -18,7 +18,7 @@ from ...results.solution import Solution
 from ...dynamics.trajectory import trajectory
 from ...results.start import Start
 from ...results.trace import Attempt
-from ..base import Progress
+from ..base import Progress, WithOptions
 from .reduced import relaxed_reduced
 from .relaxed import relaxed_nlp, relaxed_start
 from .sensitivity import with_momenta
@@ -161,7 +161,7 @@ def solve_impulsive(problem: Problem, options: DirectOptions | None = None, prog
 
 
 @dataclass(frozen=True)
-class Impulsive:
+class Impulsive(WithOptions):
     """The direct method on impulsive control (package docstring): one solve of the impulsive problem (a TPBVP for a
     state target, the relaxed problem for an orbit target) with the direct method's ``options``."""
 
@@ -172,9 +172,6 @@ class Impulsive:
 
     def not_covered(self, problem: Problem) -> str:
         return not_covered(problem)
-
-    def replace(self, ipopt=None, **options) -> "Impulsive":
-        return replace(self, options=self.options.replace(**options) if options else self.options)
 
     def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
               label: str = "") -> Solution:

@@ -19,7 +19,7 @@ from ...outcome import Iterate, Result
 from ...dynamics.trajectory import trajectory
 from ...results.start import Start, start_of
 from ...results.trace import Attempt
-from ..base import Progress, failed_solution
+from ..base import Progress, WithOptions, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
@@ -339,7 +339,7 @@ def initial_step(problem: Problem, warm: Start | None) -> float:
 
 
 @dataclass(frozen=True)
-class Indirect:
+class Indirect(WithOptions):
     """The indirect method (package docstring): one solve of the discrete necessary conditions by Newton-Armijo
     shooting on the initial costate (with the objective's law: its continuations and homotopies inside) from a
     start's costates or ``options.initial_costate``."""
@@ -350,9 +350,6 @@ class Indirect:
 
     def not_covered(self, problem: Problem) -> str:
         return not_covered(problem)
-
-    def replace(self, ipopt=None, **options) -> "Indirect":
-        return Indirect(self.options.replace(**options) if options else self.options)
 
     def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
               label: str = "") -> Solution:
