@@ -1,15 +1,13 @@
 """Re-planning (MPC): shrinking-horizon re-plans of a plan from the flown state, each a fixed budget of the
 indirect method's Newton steps warm-started from the previous plan (docs/mathematics.md §12, *Re-planning*).
 
-At node k (every ``replan_every`` steps) the flown state X(t_k) is the initial state of the remaining problem: the
-plan's Problem over the N - k remaining steps.  Its shooting unknown (lgvi lambda_{k-1}, first order lambda_k) is
-warm-started from the current plan's costate there (:meth:`~transcription.results.start.Start.tail`; by Bellman's
-principle the answer from the plan's own node), then ``iterations`` full Newton steps with the exact Jacobian, no line
-search: acados' real-time iteration in the indirect method's coordinates, split into a preparation at the plan's
-node (:meth:`Replanner.prepare`) and a feedback phase from the flown state.  A step whose rollout is not finite,
-leaves a Cayley residual above ``cayley_tol``, or misses the target by more than the warm start did is rejected and
-the current plan kept.  Why the indirect method: 12 unknowns and a compiled rollout make the feedback phase a few ms
-(§12, *Why this solver*); what it does not cover the re-planner refuses with that reason.
+At node k (every ``replan_every`` steps) the flown state X(t_k) starts the remaining problem (the plan's Problem over
+the N - k remaining steps).  Its shooting unknown (lgvi lambda_{k-1}, first order lambda_k) is warm-started from the
+current plan's costate there (:meth:`~transcription.results.start.Start.tail`), then ``iterations`` full Newton steps
+with the exact Jacobian, no line search (a real-time iteration: a preparation at the plan's node,
+:meth:`Replanner.prepare`, and a feedback phase from the flown state).  A step whose rollout is not finite, leaves a
+Cayley residual above ``cayley_tol``, or misses the target by more than the warm start did is rejected and the current
+plan kept.  Why the indirect method: §12, *Why this solver*; what it does not cover the re-planner refuses.
 
 * :class:`Replanner` -- one Problem's re-plan: ``replan(X, tail) -> (new plan | None, Replan)``;
 * :class:`Replanning` -- the flight engine's control law (transcription.flight.ControlLaw): re-plans at

@@ -1,27 +1,16 @@
-"""Tracking a plan: a discrete-time, time-varying LQR on the plan's own linearized LGVI maps.
+"""Tracking a plan: a discrete-time, time-varying LQR on the plan's own linearized maps (docs/mathematics.md §12).
 
-docs/mathematics.md §12.  A plan is a Solution's trajectory X_0..X_N at nodes t_k and its controls.  The error of a
-state X from the plan's node X_k is in the tangent coordinates of the variations A_k, B_k (§4):
+The error of a state X from the plan's node X_k is z = [x - x_k; gamma - gamma_k; vee log(R_k^T R); Pi - Pi_k] in
+R^12, the tangent coordinates of A_k, B_k (§4; attitude error in the body frame).  A correction du_k (6: force
+inertial, moment body) is held over [t_k, t_{k+1}]: z_{k+1} = A_k z_k + Bu_k du_k, Bu_k = B_k [I; I] for the lgvi
+(w_k = [u_k + du_k; u_{k+1} + du_k]), B_k for first_order (w_k = u_{k+1} + du_k) (:func:`held`).  du_k = -K_k z_k -
+L_k r_k minimizes sum_{k<N} h_k (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N with a persisting disturbance r
+(:func:`riccati`; r_k estimated by :class:`Tracker`); step k is linearized at its own h_k.  Default weights: Bryson's
+rule (:func:`bryson_weights`).  A removed control gets no feedback; the correction is limited to the plan's headroom
+below the actuators' bounds (:meth:`Tracker.limit`).
 
-    z = [x - x_k; gamma - gamma_k; zeta; Pi - Pi_k] in R^12,   zeta = vee log(R_k^T R)   (body frame),
-
-so the attitude error lives in the Lie algebra.  The correction du_k (6: force inertial, moment body) is held over
-[t_k, t_{k+1}]; the stage control of step k becomes
-
-    lgvi         w_k = [u_k + du_k; u_{k+1} + du_k]   -> z_{k+1} = A_k z_k + B_k [I; I] du_k
-    first_order  w_k = u_{k+1} + du_k                 -> z_{k+1} = A_k z_k + B_k du_k
-
-(``Bu_k``: B_k [I; I] or B_k, 12 x 6, :func:`held`).  du_k = -K_k z_k - L_k r_k minimizes
-
-    sum_{k<N} h_k (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N
-
-over the linearization with a persisting state disturbance r (:func:`riccati`; r_k estimated by :class:`Tracker`).
-On a non-uniform mesh step k is linearized at its own h_k and weighted by it (§12, *Tracking and re-planning on a
-non-uniform mesh*).  Default weights: Bryson's rule (:func:`bryson_weights`).  A removed control gets no feedback;
-the correction is limited to the plan's headroom below the actuators' bounds (:meth:`Tracker.limit`).
-
-Shapes: K, L (N, 6, 12), P (N+1, 12, 12), S (N, 6, 6), A (N, 12, 12), B (N, 12, nw), X (N+1, 18),
-U (6, n_controls).  NumPy, except the linearization (the plan's CasADi ``variation``, mapped once).
+Shapes: K, L (N, 6, 12), P (N+1, 12, 12), S (N, 6, 6), A (N, 12, 12), B (N, 12, nw), X (N+1, 18), U (6, n_controls).
+NumPy, except the linearization (the plan's CasADi ``variation``, mapped once).
 """
 from __future__ import annotations
 
@@ -122,19 +111,14 @@ def characteristic_controls(control: SmoothControl, U: np.ndarray, mass: float, 
 
 def bryson_weights(control: SmoothControl, U: np.ndarray, mass: float, inertia: np.ndarray, T: float, h: float,
                    **given) -> TrackingWeights:
-    """The default tracking weights (docs/mathematics.md §12): Bryson's rule
+    """The default tracking weights (docs/mathematics.md §12), Bryson's rule:
 
-        Q = diag(1 / (T e_i^2)),  R = diag(1 / (T u_i^2)),  Q_N = diag(1 / (rho e_i)^2)
+        Q = diag(1 / (T e_i^2)),  R = diag(1 / (T u_i^2)),  Q_N = diag(1 / (rho e_i)^2),
+        e_x = u_f / (m omega_c^2),  e_gamma = u_f / omega_c,  e_zeta,i = u_m,i / (J_ii omega_c^2),  e_Pi = u_m / omega_c
 
-    with characteristic controls u (:func:`characteristic_controls`), bandwidth omega_c =
-    min(BANDWIDTH_PER_HORIZON / T, BANDWIDTH_PER_STEP / h), terminal ratio rho = TERMINAL_RATIO, and the
-    acceptable errors that the characteristic controls correct in one time constant 1/omega_c:
-
-        position e_x = u_f / (m omega_c^2),   momentum e_gamma = u_f / omega_c,
-        attitude e_zeta,i = u_m,i / (J_ii omega_c^2),   angular momentum e_Pi = u_m / omega_c.
-
-    A double integrator then closes the loop at natural frequency omega_c with damping sqrt(3)/2.  The blocks a
-    removed control drives get weight 0.  ``given`` overrides any of :data:`SCALE_KEYS` (a number or 3)."""
+    with characteristic controls u (:func:`characteristic_controls`), omega_c = min(BANDWIDTH_PER_HORIZON / T,
+    BANDWIDTH_PER_STEP / h) and rho = TERMINAL_RATIO: the acceptable errors e are what u corrects in 1/omega_c.  The
+    blocks a removed control drives get weight 0.  ``given`` overrides any of :data:`SCALE_KEYS` (a number or 3)."""
     unknown = set(given) - set(SCALE_KEYS)
     if unknown:
         raise ValueError(f"tracking weights: unknown scales {sorted(unknown)}; expected some of "
@@ -179,17 +163,16 @@ def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np
             rho: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The finite-horizon discrete LQR with a constant state disturbance r (docs/mathematics.md §12):
     z_{k+1} = A_k z_k + Bu_k du_k + rho_k r, A (N, n, n), Bu (N, n, m), stage weights Q (n, n), R (m, m) (times the
-    mean step h), terminal Q_N; ``rho`` (N,): h_k / h of a non-uniform mesh (None: all 1), weighting step k's stage
-    cost and its share of the disturbance.  Backward from P_N = Q_N, M_N = 0:
+    mean step h), terminal Q_N; ``rho`` (N,): h_k / h of a non-uniform mesh (None: all 1).  From P_N = Q_N, M_N = 0:
 
         S_k = rho_k R + Bu_k^T P_{k+1} Bu_k,   K_k = S_k^-1 Bu_k^T P_{k+1} A_k,
         L_k = S_k^-1 Bu_k^T (rho_k P_{k+1} + M_{k+1}),
         P_k = rho_k Q + K_k^T rho_k R K_k + (A_k - Bu_k K_k)^T P_{k+1} (A_k - Bu_k K_k)   (Joseph form: symmetric PSD),
         M_k = (A_k - Bu_k K_k)^T (M_{k+1} + rho_k P_{k+1}),
 
-    so that du_k = -K_k z_k - L_k r minimizes the cost-to-go z^T P_k z + 2 z^T M_k r + const, which is
-    (du - du_k)^T S_k (du - du_k) + const in du.  ``active`` (m,) bool: the inputs that exist (the others
-    get K = L = 0, and S the identity there).  Returns K, L (N, m, n), P (N+1, n, n), S (N, m, m)."""
+    so du_k = -K_k z_k - L_k r minimizes the cost-to-go z^T P_k z + 2 z^T M_k r + const, (du - du_k)^T S_k (du - du_k)
+    + const in du.  ``active`` (m,) bool: the inputs that exist (the others get K = L = 0, S = I there).
+    Returns K, L (N, m, n), P (N+1, n, n), S (N, m, m)."""
     N, n, m = Bu.shape
     act = np.ones(m, bool) if active is None else np.asarray(active, bool)
     K, L = np.zeros((N, m, n)), np.zeros((N, m, n))
@@ -215,8 +198,8 @@ def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np
 
 
 def box_qp(S: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_iter: int = 50) -> np.ndarray:
-    """argmin (1/2) x^T S x + g^T x over lo <= x <= hi (S symmetric positive definite, a few variables; infinite
-    limits allowed): the primal active-set method from the clipped unconstrained minimizer, exact at its end."""
+    """argmin (1/2) x^T S x + g^T x over lo <= x <= hi (S symmetric positive definite, infinite limits allowed):
+    a primal active-set method from the clipped unconstrained minimizer, exact at its end."""
     x = np.clip(np.linalg.solve(S, -g), lo, hi)
     act = (x == lo) | (x == hi)
     for _ in range(max_iter):
@@ -247,14 +230,11 @@ def box_qp(S: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_ite
 class Gains:
     """The tracker of one plan (docs/mathematics.md §12); NumPy data (picklable).
 
-    K, L (N, 6, 12): the feedback and the disturbance feedforward gains, du_k = -K_k z_k - L_k r_k.
-    P (N+1, 12, 12): the cost-to-go z^T P_k z; S (N, 6, 6) its Hessian in du_k (the commands' metric
-    under saturation, :class:`Tracker`).  A (N, 12, 12), B (N, 12, nw): the plan's variations
-    (§4) the gains were computed on; :attr:`Bu` (N, 12, 6) the input matrix of a correction held over a step.
-    t (N+1,), X (N+1, 18): the plan's nodes; U (6, n_controls): its controls (lgvi u_0..u_N, first_order u_1..u_N);
-    scheme, h (the mean step T/N); steps (N,): the h_k of a non-uniform mesh (None: uniform; §16).  force_bound,
-    moment_bound: the bounds the commands are clipped to (the plan's widened by its bounds_margin); removed:
-    (force, moment) removed by a norm bound of 0 (no feedback).
+    K, L (N, 6, 12): du_k = -K_k z_k - L_k r_k.  P (N+1, 12, 12): the cost-to-go z^T P_k z; S (N, 6, 6) its Hessian
+    in du_k (the metric under saturation).  A (N, 12, 12), B (N, 12, nw): the plan's variations (§4).  t (N+1,),
+    X (N+1, 18): the plan's nodes; U (6, n_controls): its controls (lgvi u_0..u_N, first_order u_1..u_N); h: the mean
+    step T/N; steps (N,): the h_k of a non-uniform mesh (None: uniform; §16).  force_bound, moment_bound: the bounds
+    the commands are clipped to (the plan's widened by its bounds_margin); removed: (force, moment) removed.
     """
 
     K: np.ndarray
@@ -280,8 +260,7 @@ class Gains:
 
     @cached_property
     def rho(self) -> np.ndarray | None:
-        """(N,) the relative step sizes h_k / h of a non-uniform mesh (the weights of :func:`riccati`, and what
-        :meth:`per_mean_step` divides by), None on a uniform one; computed once."""
+        """(N,) h_k / h of a non-uniform mesh (:func:`riccati`'s weights), None on a uniform one."""
         return None if self.steps is None else self.steps / self.h
 
     def step(self, k: int) -> float:
@@ -315,19 +294,14 @@ class Tracker:
     """The feedback law of one flight (docs/mathematics.md §12), called once per step, k = 0, 1, ..., N-1:
 
         z_k = tangent_error(X, X_k),
-        r_k = z_k - A_{k-1} z_{k-1} - B_{k-1} (w_{k-1} - w_{k-1}^plan)   (r_0 = 0),
-        du_k = -K_k z_k - L_k r_k,   commands = the plan's rows of step k + du_k
-    (on a non-uniform mesh r_k / rho_{k-1}: the disturbance of a step of the mean size, :meth:`Gains.per_mean_step`).
+        r_k = z_k - A_{k-1} z_{k-1} - B_{k-1} (w_{k-1} - w_{k-1}^plan)   (r_0 = 0; per mean step on a mesh),
+        du_k = -K_k z_k - L_k r_k,   commands = the plan's rows of step k + du_k,
 
-    r_k is what the last step did that the linearization does not explain, taken as persisting (certainty
-    equivalence), from the commands actually issued.  ``r0``: an estimate handed over for step 0 (a re-planned
-    trajectory's tracker, :meth:`unexplained`).
-
-    Saturation (:meth:`limit`): the correction may use the headroom the plan leaves in *every* direction,
-    |du_i| <= b_i - max |u_i| over the step's rows for a box, |du_f| <= b - max |u_f| for a norm -- symmetric, since
-    a feedback that can push one way only does worse than none.  A box limit is met by the minimizer of
-    (du - du_k)^T S_k (du - du_k) over the box (:func:`box_qp`), a norm limit by scaling.  feedback False: the plan's
-    controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps`` counts the limited steps."""
+    w_{k-1} the commands issued: r_k is what the last step did that the linearization does not explain, taken as
+    persisting.  ``r0``: an estimate handed over for step 0 (:meth:`unexplained`).  The correction is limited to the
+    plan's symmetric headroom (:meth:`limit`: a box by :func:`box_qp` in the metric S_k, a norm by scaling).  feedback
+    False: the plan's controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps`` counts the limited
+    steps."""
 
     def __init__(self, gains: Gains, feedback: bool = True, disturbance: bool = True, r0: np.ndarray | None = None):
         self.gains, self.feedback, self.disturbance = gains, bool(feedback), bool(disturbance)
@@ -447,11 +421,10 @@ def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gai
 
 
 def sub_stepped(sol, h_max: float | None = None):
-    """The plan of ``sol`` with the long steps of a non-uniform mesh split, for a tracker that corrects inside them
-    (docs/mathematics.md §12): each step k longer than h_max (default the mean step h) becomes m_k = ceil(h_k / h_max)
-    sub-steps of the scheme from X_k under the plan's controls between nodes (lgvi: linear from u_k to u_{k+1}, first
-    order: u_{k+1} held), its last sub-node X_{k+1} itself.  A Solution on the plan's Problem; ``sol`` itself when no
-    step is longer."""
+    """The plan of ``sol`` (a Solution on the plan's Problem) with each step longer than h_max (default the mean step)
+    split into m_k = ceil(h_k / h_max) sub-steps of the scheme under the plan's controls between nodes (lgvi: linear
+    u_k -> u_{k+1}; first order: u_{k+1} held), the last sub-node X_{k+1} itself (docs/mathematics.md §12); ``sol``
+    itself if no step is longer."""
     from ..results.solution import Solution
     from ..dynamics.trajectory import Trajectory
 
@@ -514,10 +487,8 @@ class DiscreteFlight:
 
 def fly_discrete(gains: Gains, disc, X0, *, feedback: bool = True, disturbance: bool = True,
                  actuator: Callable[[np.ndarray], np.ndarray] | None = None) -> DiscreteFlight:
-    """Fly the plan of ``gains`` on the discrete model ``disc`` (the plan's own, or another body model
-    with the same scheme) from X0 (18,) under the :class:`Tracker` (``feedback``, ``disturbance``).
-    ``actuator``: what the actuators deliver for the commands (rows, 6) (e.g. a thrust scale), default
-    exactly the commands.  Step k applies w_k = the commands stacked ([u_k'; u_{k+1}'] for the lgvi)."""
+    """Fly the plan of ``gains`` on the discrete model ``disc`` (same scheme) from X0 (18,) under the
+    :class:`Tracker`.  ``actuator``: what the actuators deliver for the commands (rows, 6), default the commands."""
     if disc.scheme != gains.scheme:
         raise ValueError(f"fly_discrete: the model's scheme {disc.scheme!r} is not the plan's {gains.scheme!r}")
     N = gains.N

@@ -1,28 +1,19 @@
 """Optional compilation of hot CasADi Functions to C (CasADi code generation + the system C compiler).
 
-:func:`compiled` turns an SX :class:`casadi.Function` into an equivalent external Function loaded from a shared
-library; :func:`compiled_many` does the same for several Functions with one library.  The library is cached on disk
-under the SHA-256 of the serialized Functions, the flags and the CasADi version: compiled once per machine.  When
-compilation is not possible (no compiler, compiler error, unwritable cache, ``SE3OCP_NO_JIT=1``) the original
-Functions are returned unchanged: the same results, only slower.  Compiled Functions evaluate values only.
+:func:`compiled` / :func:`compiled_many` turn SX Functions into equivalent external Functions loaded from one shared
+library, cached on disk under the SHA-256 of the serialized Functions, the flags and the CasADi version (compiled once
+per machine).  When compilation is not possible (no compiler, compiler error, unwritable cache, ``SE3OCP_NO_JIT=1``)
+the original Functions are returned unchanged.  Compiled Functions evaluate values only.  Flag sets: :data:`CFLAGS`,
+:data:`QUICK_CFLAGS`, :data:`LOOP_CFLAGS`; ``-ffp-contract=off`` everywhere keeps the compiled arithmetic the
+interpreter's bit for bit.  The model's numbers are data of the compiled blocks, so a known structure compiles nothing.
 
-Flag sets: :data:`CFLAGS` (``-O1``, the direct method's stage derivatives), :data:`QUICK_CFLAGS` (``-O0``, the
-indirect method's straight-line per-step maps and every first background stage; ~5x faster to compile, ~1.4x slower
-to run) and :data:`LOOP_CFLAGS` (``-O1``, small MX Functions whose C is loops).  ``-ffp-contract=off`` everywhere
-keeps the compiled arithmetic the interpreter's (no fused multiply-adds): compiled and interpreted agree bit for bit.
+Interpreted first (:func:`compiled_libraries` with ``quick``): a structure never seen comes back interpreted while a
+detached background process (:func:`.build.spawn`) compiles it at the quick flags, then its own, into the cache;
+:class:`Switch` moves what is built from them to the compiled code as it lands.  :func:`settle` waits for the builds
+under way, :func:`stop` ends them.  Measurements: docs/performance.md.
 
-Compile little, once: the model's numbers theta (``BodyModel.parameters``) are data of the direct dynamics block and
-the indirect per-step maps, like step size, scales and weights, so a model of a known structure compiles nothing.
-
-Interpreted first (:func:`compiled_libraries` with ``quick``): a structure never seen is not waited for; its
-Functions come back interpreted while one detached, niced background process (:func:`.build.spawn`) compiles the
-libraries at the quick flags and then their own into the cache, atomically.  :class:`Switch` moves what is built
-from them (the NLP's mapped derivatives, the indirect N-step maps) to the compiled code as it lands, within a solve.
-:func:`settle` waits for the builds under way, :func:`stop` ends them.  Measurements: docs/performance.md.
-
-Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``),
-``CC`` (compiler, default ``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile
-at the library's own flags at once instead of interpreting first and compiling in the background).
+Environment: ``SE3OCP_CACHE`` (cache directory, default ``~/.cache/se3ocp/codegen``), ``CC`` (compiler, default
+``gcc`` then ``cc``), ``SE3OCP_NO_JIT`` (disable), ``SE3OCP_JIT_BACKGROUND=0`` (compile at once, in the foreground).
 """
 from __future__ import annotations
 
@@ -44,11 +35,10 @@ __all__ = ["CFLAGS", "QUICK_CFLAGS", "LOOP_CFLAGS", "last_error", "notify", "ava
            "Library", "compiled_libraries", "background", "candidates", "arrived", "load", "Switch", "ready", "settle",
            "last_provisional", "cache_dir", "compiler", "building", "stop", "lean_io"]
 
-#: -O1: compiles ~7x faster than -O2 on these straight-line functions and runs within 25 % of it;
-#: -ffp-contract=off: the interpreter's arithmetic, so a move to compiled code (:class:`Switch`) changes no bit
+#: -O1 (the direct method's stage derivatives; docs/performance.md); -ffp-contract=off: the interpreter's arithmetic
 CFLAGS = ["-O1", "-ffp-contract=off", "-fPIC", "-shared"]
 
-#: for Functions compiled on a first use (the indirect method's maps): see the module docstring
+#: -O0 for the indirect method's straight-line per-step maps and every first background stage (quicker to compile)
 QUICK_CFLAGS = ["-O0", "-ffp-contract=off", "-fPIC", "-shared"]
 
 #: for small MX Functions whose C is loops (matrix products, maps): cheap to compile at -O1, and at -O0
@@ -75,11 +65,8 @@ def compiled(fn: ca.Function, timeout: float = 600.0, cse: bool = True, cflags: 
 
 def compiled_many(fns: Sequence[ca.Function], name: str, timeout: float = 600.0, cse: bool = True,
                   cflags: Sequence[str] = CFLAGS) -> list[ca.Function]:
-    """Compiled equivalents of ``fns`` from one shared library ``name``, or ``fns`` unchanged as fallback.
-
-    All or nothing: every Function is loaded from the library or the originals are returned.  ``cse``:
-    common-subexpression elimination of SX Functions before generating C (paid on a cache miss only).
-    """
+    """Compiled equivalents of ``fns`` from one shared library ``name``, or ``fns`` unchanged as fallback (all or
+    nothing).  ``cse``: common-subexpression elimination of SX Functions before generating C."""
     return compiled_libraries([Library(name, tuple(fns), cse)], timeout=timeout, cflags=cflags)[0]
 
 
@@ -123,15 +110,11 @@ def _generate(lib: Library, tmp: str) -> Path:
 
 def compiled_libraries(libs: Sequence[Library], timeout: float = 600.0, cflags: Sequence[str] = CFLAGS,
                        quick: Sequence[str] | None = None) -> list[list[ca.Function]]:
-    """Compiled equivalents of every library's Functions, or all of them unchanged as fallback.
-
-    Each library is its own C file and compiler process; cache misses compile concurrently.  Without ``quick``, all
-    or nothing over all libraries.  With ``quick`` (the interpreted-first policy) each library on its own: one not
-    cached at its own flags is loaded from its quick build if cached, else returned interpreted, while one background
-    process (:func:`.build.spawn`) compiles it at the quick flags, then its own, in the order of ``libs`` (most
-    evaluated first); :data:`last_provisional` says whether any library is not yet at its own flags.
-    ``SE3OCP_JIT_BACKGROUND=0`` compiles at the library's own flags now instead.
-    """
+    """Compiled equivalents of every library's Functions, or all of them unchanged as fallback.  Each library is its
+    own C file and compiler process; cache misses compile concurrently.  Without ``quick``, all or nothing.  With
+    ``quick`` (interpreted first) each library on its own: one not cached at its own flags is loaded from its quick
+    build if cached, else returned interpreted while the background compiles it (quick flags, then its own, in the
+    order of ``libs``); :data:`last_provisional` says whether any library is not yet at its own flags."""
     global last_error, last_provisional
     originals = [list(lib.fns) for lib in libs]
     last_provisional = False

@@ -8,9 +8,8 @@ by SUNDIALS CVODES (casadi.integrator) node interval by node interval (docs/math
 * :func:`fly` -- a law flown from X0 over a time grid -> :class:`Flight` (dense samples of state and control).
 
 The truth body is any :class:`~transcription.dynamics.model.BodyModel`; the integrator is built once per potential
-and number of samples, with the inverse inertia and actuator errors as parameters (a Monte Carlo reuses it).  R is
-integrated as nine entries; its drift is reported, and the continuous check re-projects R onto SO(3)
-(transcription.results.check).
+and number of samples (inverse inertia and actuator errors are parameters).  R is integrated as nine entries; the
+continuous check re-projects it onto SO(3) (transcription.results.check).
 """
 from __future__ import annotations
 
@@ -26,7 +25,7 @@ from .model import BodyModel
 from .trajectory import Trajectory
 
 #: CVODES (Adams, functional iteration: not stiff) tolerances; each restart at a node adds about RTOL relative, so
-#: N intervals carry about N RTOL (1e-13 costs the same and gives 10x the error; docs/mathematics.md §11)
+#: N intervals carry about N RTOL (docs/mathematics.md §11)
 RTOL = 1e-14
 ATOL = 1e-16
 #: the smallest CVODES step, as a fraction of the node interval: below it the motion is singular (a body at a point
@@ -219,13 +218,10 @@ def _open_loop_run(fn: ca.Function, N: int) -> ca.Function:
 # ------------------------------------------------------------------------------------ flight
 @dataclass(frozen=True, eq=False)
 class Flight:
-    """A flown motion, sampled M = ``samples`` times per node interval.
-
-    t (N M + 1,): sample times, t[k M] = t_k; X (N M + 1, 18): the flown state at t (R as integrated).
-    command_start, command_end (N, 6): the law's command at each interval's ends ([u_f inertial; u_m body], affine
-    in between).  control_t (N, M + 1), control (N, M + 1, 6): the applied control (the actuators' output on the
-    flown attitude) at s = 0, 1/M, ..., 1 of each interval.  mass, inertia: the truth body's.
-    """
+    """A flown motion, sampled M = ``samples`` times per node interval: t (N M + 1,) sample times, t[k M] = t_k;
+    X (N M + 1, 18) the flown state (R as integrated); command_start, command_end (N, 6) the law's command at each
+    interval's ends ([u_f inertial; u_m body], affine in between); control_t (N, M + 1), control (N, M + 1, 6) the
+    applied control (the actuators' output) at s = 0, 1/M, ..., 1 of each interval; mass, inertia: the truth body's."""
 
     t: np.ndarray
     X: np.ndarray
@@ -256,10 +252,9 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
         atol: float = ATOL) -> Flight:
     """Fly ``law`` from X0 (18,; the truth body's momenta) over the increasing node grid ``times`` (N+1,) through
     eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default nominal), one node interval at a time
-    (:func:`interval_integrator`), ``samples`` per interval.  An :class:`OpenLoop`, or a law with a
-    ``flown(fn, X0, h, p) -> (start, end, Xs)`` method (transcription.closedloop.loop.TrackingLoop), is flown in one
-    call; any other law is asked for each interval's command from the flown state.  Raises FlightError if the
-    integrator fails."""
+    (:func:`interval_integrator`), ``samples`` per interval.  An :class:`OpenLoop`, or a law with a ``flown(fn, X0, h,
+    p) -> (start, end, Xs)`` method, is flown in one call; any other law is asked for each interval's command from the
+    flown state.  Raises FlightError if the integrator fails."""
     times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
     h = np.diff(times)
     if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):

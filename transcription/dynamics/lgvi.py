@@ -1,6 +1,5 @@
-"""Lie group variational integrators on SE(3) as CasADi Functions.
-
-Two discretizations of docs/mathematics.md §2-§3, built once per (model, scheme) as named SX Functions:
+"""Lie group variational integrators on SE(3): the two discretizations of docs/mathematics.md §2-§3, built once per
+(model, scheme) as named CasADi SX Functions:
 
 * ``lgvi``        second-order LGVI, eqs. (7)-(11); stage control w_k = [u_k; u_{k+1}] in R^12.
 * ``first_order`` the paper's modified first-order scheme, eqs. (21)-(25); stage control w_k = u_{k+1} in R^6.
@@ -20,8 +19,8 @@ code-generatable) with the implicit function's derivatives.  Every solved step o
     variation_seeded(X, w, h, c0[3])        -> (A, B)  from c0; with c0 the step's Cayley root, equal to variation
     rollout(N)      (X0[18], W[nw x N], h)  -> (X[18 x N], res[1 x N])  mapaccum
 
-``parametric()`` gives them again with the model's numbers theta = ``model.parameters`` as last input (one compile
-per structure).
+``parametric()`` gives them with the model's numbers theta = ``model.parameters`` as last input (one compile per
+structure).
 """
 from __future__ import annotations
 

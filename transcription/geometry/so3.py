@@ -1,20 +1,14 @@
-"""Every SO(3) operation of the project, in one place.
+"""Every SO(3) operation of the project, in one place (conventions: docs/mathematics.md §1).
 
 The maps accept NumPy arrays (returning NumPy) or CasADi SX/MX/DM (returning the same type), except where a
 docstring says NumPy; :func:`is_symbolic` is the one backend check.  The state-space charts are in
-:mod:`transcription.geometry.state`.
+:mod:`transcription.geometry.state`.  ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse.  exp/log take their
+small-angle coefficients from theta^2 behind a branch, so neither values nor derivatives become NaN at the identity.
 
-Conventions (docs/mathematics.md §1): ``hat(a) @ b == cross(a, b)``; ``vee`` is its inverse on skew matrices.
-cay(c) = (I + S(c)) (I - S(c))^-1 is written in closed form I + 2/(1 + |c|^2) (S(c) + S(c)^2), the same expression
-on every backend.  exp/log take their small-angle coefficients from theta^2 behind a branch (jaxlie style), so
-neither values nor derivatives become NaN at the identity.
-
-Quaternions (:func:`quaternions`, :func:`rotation_of_quaternion`; what exports rely on): q = (w, x, y, z),
-scalar first, unit, in Hamilton's convention (i j = k, products by :func:`quaternion_product`).  The
-quaternion of an attitude R -- body -> inertial, as everywhere here -- rotates body vectors into the
-inertial frame, (0, v_inertial) = q (0, v_body) q*, i.e. R = R(q) = (w^2 - |v|^2) I + 2 v v^T + 2 w S(v)
-with v = (x, y, z) (a rotation by theta about the unit axis n: q = (cos theta/2, sin theta/2 n)).  q and -q
-are the same attitude: along a path the sign is chosen continuous (q_k . q_{k-1} >= 0), w >= 0 at the start.
+Quaternions q = (w, x, y, z): scalar first, unit, Hamilton's convention (i j = k); the quaternion of an attitude R
+(body -> inertial) rotates body vectors into the inertial frame, (0, v_inertial) = q (0, v_body) q*, i.e.
+R(q) = (w^2 - |v|^2) I + 2 v v^T + 2 w S(v), v = (x, y, z).  Along a path the sign is continuous (q_k . q_{k-1} >= 0),
+w >= 0 at the start.
 """
 from __future__ import annotations
 
@@ -76,19 +70,15 @@ def mtimes(A, B):
 
 
 def cayley(c):
-    """Cayley map R^3 -> SO(3): ``(I + S(c))(I - S(c))^-1`` (docs/mathematics.md §2).
-
-    Exactly orthogonal in exact arithmetic for every c; rotation angle 2 atan|c|.
-    """
+    """Cayley map R^3 -> SO(3): (I + S(c))(I - S(c))^-1 = I + 2/(1 + |c|^2) (S(c) + S(c)^2) (docs/mathematics.md §2);
+    rotation angle 2 atan|c|."""
     S = hat(c)
     return _eye(c) + (2.0 / (1.0 + _dot(c, c))) * (S + mtimes(S, S))
 
 
 def cayley_inv(F):
-    """Inverse Cayley map SO(3) -> R^3 (F must not be a rotation by pi).
-
-    cay^-1(F) = vee(F - F^T) / (1 + tr F).  NumPy: F may be a stack (..., 3, 3) -> (..., 3).
-    """
+    """Inverse Cayley map cay^-1(F) = vee(F - F^T) / (1 + tr F) (F not a rotation by pi); NumPy: F may be a stack
+    (..., 3, 3) -> (..., 3)."""
     if not is_symbolic(F) and np.ndim(F) > 2:
         F = np.asarray(F, dtype=float)
         A = F - np.swapaxes(F, -1, -2)
@@ -116,14 +106,9 @@ def exp_so3(w):
 
 
 def log_so3(R):
-    """Logarithm SO(3) -> R^3 for angles in [0, pi], safe at the identity.
-
-    NumPy: theta = atan2(sin, cos) from the skew part and the trace; near pi (cos theta < -0.9) the axis from the
-    symmetric part (R + R^T)/2 - cos(theta) I = (1 - cos theta) n n^T, its sign from the skew part.
-
-    CasADi (differentiable): theta/(2 sin theta) vee(R - R^T) with a Taylor branch at the identity; its derivative is
-    singular at pi, as the logarithm's.
-    """
+    """Logarithm SO(3) -> R^3 for angles in [0, pi], safe at the identity.  NumPy: theta = atan2(sin, cos); near pi
+    (cos theta < -0.9) the axis from (R + R^T)/2 - cos(theta) I = (1 - cos theta) n n^T, its sign from the skew part.
+    CasADi (differentiable): theta/(2 sin theta) vee(R - R^T), a Taylor branch at the identity; singular at pi."""
     if not is_symbolic(R):
         return _log_so3_np(np.asarray(R, dtype=float))
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -264,10 +249,8 @@ def quaternion_product(p, q) -> np.ndarray:
 
 
 def orthonormalize(R):
-    """R (3 I - R^T R) / 2: one Newton-Schulz step towards the polar factor of R (CasADi or NumPy).
-
-    The identity on SO(3), and its derivative the identity on tangent vectors R S(zeta), so it changes
-    nothing in exact arithmetic; off the manifold by E = R^T R - I it leaves O(E^2)."""
+    """R (3 I - R^T R) / 2: one Newton-Schulz step towards the polar factor of R (CasADi or NumPy): the identity on
+    SO(3) (and on its tangent vectors); off the manifold by E = R^T R - I it leaves O(E^2)."""
     return 0.5 * mtimes(R, 3 * _eye(R) - mtimes(R.T, R))
 
 
@@ -320,10 +303,8 @@ def orthogonality_error(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def unit_direction(v) -> np.ndarray | None:
-    """v / |v| for a direction given as 3 numbers of any magnitude (NumPy), or None if it has none.
-
-    v is divided by its largest |component| before the norm, so |v|^2 neither overflows nor underflows: every
-    finite non-zero vector has its direction.  None: not 3 finite numbers, or zero.  Reads every user direction."""
+    """v / |v| for a direction given as 3 numbers of any magnitude (NumPy; scaled by its largest |component| first,
+    so |v|^2 neither overflows nor underflows), or None if not 3 finite numbers or zero.  Reads every user direction."""
     a = np.asarray(v, dtype=float).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         return None
@@ -346,10 +327,8 @@ def nearest_rotation(R: np.ndarray) -> np.ndarray:
 
 
 def rotation_with_first_column(a) -> np.ndarray:
-    """A rotation Q = [a, b, c] (3x3, NumPy) whose first column is the unit vector a (3,): b is a unit vector
-    perpendicular to a (from the coordinate axis least aligned with a, so the construction is well
-    conditioned), c = a x b.  The frame of a body-fixed engine: a^T u is its thrust, b^T u and c^T u the
-    off-axis force it cannot give."""
+    """A rotation Q = [a, b, c] (3x3, NumPy) whose first column is the unit vector a (3,): b perpendicular to a (from
+    the coordinate axis least aligned with a), c = a x b.  The frame of a body-fixed engine: a^T u is its thrust."""
     a = np.asarray(a, dtype=float).reshape(3)
     a = a / np.linalg.norm(a)
     e = np.zeros(3)

@@ -6,15 +6,11 @@ c_k (3) of step k.  With c_k as unknowns every defect is explicit: step_given_c(
 rows) and G(c_k; g(X_k, w_k)) = 0 (3 rows); without them the defect uses the Newton-solved step.  X_0 is fixed by
 its bounds.
 
-Costates (the hand-off to the indirect method, docs/mathematics.md §6)
-----------------------------------------------------------------------
-Write the Lagrangian of the unscaled NLP as L = J + sum_k nu_k^T (step(X_k, w_k, h) - X_{k+1}) + ...,
-nu_k in R^18 the multiplier of the step-k defect *written as step minus next state*.
-``Solution.costates[k]`` (k = 0..N-1, shape (N, 12)) is lambda_k = D(X_{k+1})^T nu_k, where
-D(X) = :func:`~transcription.geometry.state.tangent_basis` maps tangent coordinates z = [dx; dgamma; zeta; dPi]
-to dX.  With this sign the discrete necessary conditions read lambda_{k-1} = A_k^T lambda_k (eq. 28)
-and, for the first-order scheme, u_{k+1} = -W^-1 B_k^T lambda_k / h (eqs. 26-27); both are tested.
-With Cayley unknowns their rows carry their own multipliers; eliminating those gives the same nu_k.
+Costates (the hand-off to the indirect method, §6): with L = J + sum_k nu_k^T (step(X_k, w_k, h) - X_{k+1}) + ...
+(the defect written as step minus next state), ``Solution.costates[k]`` (N, 12) is lambda_k = D(X_{k+1})^T nu_k,
+D(X) = :func:`~transcription.geometry.state.tangent_basis`; then lambda_{k-1} = A_k^T lambda_k (eq. 28) and, for the
+first-order scheme, u_{k+1} = -W^-1 B_k^T lambda_k / h (eqs. 26-27).  Eliminating the Cayley rows' own multipliers
+gives the same nu_k.
 """
 from __future__ import annotations
 
@@ -37,20 +33,18 @@ NC = blocks.NC
 
 
 class SmoothTranscription:
-    """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.
+    """The multiple-shooting NLP of a smooth-control Problem: layout, scales, blocks, bounds.  Blocks
+    (transcription.nlp.blocks), in this order: the dynamics of every step, the control nodes' norm bounds and channel
+    rows, the objective's blocks (:meth:`~transcription.ocp.objective.Objective.blocks`), one block per path constraint
+    (nodes 1..N), the terminal target (state, orbit, or rendezvous: a function of X_N and T = N h).  On a non-uniform
+    mesh step k's dynamics data holds h_k = r_k h (h the mean step, the unknown of a free final time).  Box bounds,
+    removed controls, the objective's own variables' bounds and the free step's range are variable bounds.
 
-    Blocks (transcription.nlp.blocks), in this order: the dynamics of every step, the control nodes' norm bounds and
-    channel rows, the objective's blocks (:meth:`~transcription.ocp.objective.Objective.blocks`), one block per path
-    constraint (nodes 1..N), the terminal target (state, orbit, or rendezvous: a function of X_N and T = N h).  On a
-    non-uniform mesh step k's dynamics data holds h_k = r_k h (h the mean step, the unknown of a free final time).
-    Box bounds, removed controls, the objective's own variables' bounds and the free step's range are variable
-    bounds.
-
-    ``stage_order``: fatrop's layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0 and, for the LGVI,
-    the lifting gaps as rows (:func:`~transcription.methods.direct.fatrop.covers`).  Attributes: ``layout``,
-    ``scales``, ``nlp`` (:class:`~transcription.nlp.structured.StructuredNLP`), ``lbx``/``ubx``, ``w_scale``
-    (physical w = w_scale * scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N)
-    rows of the defects step - X_{k+1} in g, ``constraint_rows`` (per path constraint), ``h_scale``.
+    ``stage_order``: fatrop's layout (:class:`~transcription.nlp.layouts.StageLayout`) with X_0 and, for the LGVI, the
+    lifting gaps as rows (:func:`~transcription.methods.direct.fatrop.covers`).  Attributes: ``layout``, ``scales``,
+    ``nlp`` (:class:`~transcription.nlp.structured.StructuredNLP`), ``lbx``/``ubx``, ``w_scale`` (physical w = w_scale *
+    scaled w), ``g_scale`` (physical row = g_scale * scaled row), ``defect_rows`` (18, N) rows of the defects step -
+    X_{k+1} in g, ``constraint_rows`` (per path constraint), ``h_scale``.
     """
 
     def __init__(self, problem: Problem, options: DirectOptions, stage_order: bool = False):

@@ -39,22 +39,17 @@ class Solution:
     """Outcome of one solve (or one simulation), never changed: a check that adds to it makes a new one
     (:func:`dataclasses.replace`, :meth:`with_notes`).
 
-    method: 'direct' | 'indirect' | 'simulate'; solver: 'ipopt', 'fatrop', 'newton-armijo', ...
-    result: a :class:`Result`; verdict: the method's sentence on its last solve (with numbers); trace: the method
-    solves the strategy made (:class:`~transcription.results.trace.Attempt`), from which iterations, build_s and
-    solve_s are summed; notes: what strategies and checks added, in words; ``message`` renders the three.
-    trajectory: the re-simulation (:class:`Trajectory`).
-    controls: (6, n_controls) [u_f (inertial); u_m (body)] at ``control_times`` or None.
-    impulses: impulsive maneuvers: {dgamma0, dPi0 (at t = 0), dgammaN, dPiN (at t = T)} (3,) each.
-    costates: (N, 12) discrete costates lambda_k (indirect; for the direct method mapped from the
-    NLP multipliers) or None.  history: the :class:`Iterate` records of the last solve.
-    stats: method-specific numbers (the solver's own status, split times, residuals, ...), read-only.
-    problem: the :class:`~transcription.ocp.Problem` solved (for figures and reports).
-    warm: what the next solve can start from (:class:`~transcription.results.start.Start`; None when there is
-    nothing usable): ``solve(problem, method, warm_start=solution)``.
-    Derived: N, T, h (the mean step T/N), steps (N,) (h_k = t_{k+1} - t_k), ``scheme``, control_times, u_f (n, 3)
-    (in ``force_frame``), u_m (n, 3) (body), f_inertial (n, 3): the applied inertial force, R_j u_f,j for a
-    body-frame force, else u_f (docs/mathematics.md §14).
+    method: 'direct' | 'indirect' | 'simulate'; solver: 'ipopt', 'fatrop', 'newton-armijo', ...; result: a
+    :class:`Result`; verdict: the method's sentence on its last solve; trace: the method solves the strategy made
+    (:class:`~transcription.results.trace.Attempt`), from which iterations, build_s and solve_s are summed; notes:
+    what strategies and checks added, in words (``message`` renders the three).  trajectory: the re-simulation.
+    controls: (6, n_controls) [u_f (inertial); u_m (body)] at ``control_times`` or None.  impulses: {dgamma0, dPi0
+    (at t = 0), dgammaN, dPiN (at t = T)} (3,) each.  costates: (N, 12) lambda_k (indirect; the direct method's mapped
+    from the NLP multipliers) or None.  history: the :class:`Iterate` records of the last solve.  stats:
+    method-specific numbers, read-only.  problem: the :class:`~transcription.ocp.Problem` solved.  warm: what the next
+    solve can start from (:class:`~transcription.results.start.Start` or None).  Derived: N, T, h (the mean step T/N),
+    steps (N,) (h_k), ``scheme``, control_times, u_f (n, 3) (in ``force_frame``), u_m (n, 3) (body), f_inertial
+    (n, 3): the applied inertial force, R_j u_f,j for a body-frame force, else u_f (docs/mathematics.md §14).
     """
 
     method: str
@@ -222,7 +217,7 @@ class Solution:
         if self.trace:                      # the solves tried (what a failure tried), in words
             out["guesses_tried"] = [a.line() for a in self.trace]
         out.update(figures_of_merit(self))
-        if self.continuous is not None:     # the continuous check (issue 26): continuous_* keys
+        if self.continuous is not None:     # the continuous check: continuous_* keys
             out.update(self.continuous.summary())
             out["continuous_miss"] = self.continuous_miss     # the scaled miss shown and bounded by accuracy
         if self.mesh:                       # refinement to solver.accuracy: the mesh history
@@ -270,17 +265,16 @@ def html_table(solutions: list[Solution], caption: str = "", footer: str = "") -
 
 
 def figures_of_merit(sol: "Solution") -> dict[str, Any]:
-    """What an engineer reads off a maneuver, computed once (summary.json, the report, sweeps).
-
-    delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m);
-    angular_impulse = sum_j omega_j |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature
-    weights of the scheme (transcription.ocp.quadrature_weights) at h = T/N (at the steps h_k of a mesh);
-    peak_force, peak_moment = max_j |u_f,j|, max_j |u_m,j|; engine_on_time (and engine_off_axis_relative) of
-    transcription.ocp.engine_figures; with a bound (not a removed control), force_time_at_bound /
-    moment_time_at_bound = sum of omega_j over the controls at the bound (transcription.ocp.control_activity); with a
-    state target fixing the attitude, terminal_attitude_error_deg = angle(R_d^T R_N); with path constraints,
-    min_margin_<kind> (``_2``, ... for repeats) = min_k margin_k in the constraint's unit (< 0: violated).  Fields
-    that do not apply are left out; a Result.not_applicable Solution has none.  Pure."""
+    """What an engineer reads off a maneuver (docs/mathematics.md §8), computed once (summary.json, the report, sweeps):
+    delta_v = sum_j omega_j |u_f,j| / m (impulsive: (|dgamma_0| + |dgamma_N|) / m); angular_impulse = sum_j omega_j
+    |u_m,j| (impulsive: |dPi_0| + |dPi_N|), omega_j the quadrature weights of the scheme
+    (transcription.ocp.quadrature_weights) at h = T/N (at the steps h_k of a mesh); peak_force, peak_moment = max_j
+    |u_f,j|, max_j |u_m,j|; engine_on_time (and engine_off_axis_relative) of transcription.ocp.engine_figures; with a
+    bound (not a removed control), force_time_at_bound / moment_time_at_bound = sum of omega_j over the controls at the
+    bound (transcription.ocp.control_activity); with a state target fixing the attitude, terminal_attitude_error_deg =
+    angle(R_d^T R_N); with path constraints, min_margin_<kind> (``_2``, ... for repeats) = min_k margin_k in the
+    constraint's unit (< 0: violated).  Fields that do not apply are left out; a Result.not_applicable Solution has
+    none.  Pure."""
     out: dict[str, Any] = {}
     if sol.result is Result.not_applicable:
         return out

@@ -2,14 +2,13 @@
 previous solve (NLP multipliers, costates, the shooting unknown) -- and its resampling onto another grid on SE(3).
 
 Every Solution carries its Start (``sol.warm``; None when nothing is usable); ``solve(..., warm_start=sol)`` accepts it
-whatever method, N and scheme produced it: :meth:`Start.fit` maps it onto the problem's grid and says what it did.
-The starts a strategy makes (:mod:`transcription.strategy.starts`) are Starts too, their ``origin`` saying which.
-
-Resampling (docs/mathematics.md §4) is in normalized time s = k/N of the horizon: positions and momenta linear,
-attitudes along the geodesic R_a exp(s log(R_a^T R_b)) (:func:`~transcription.geometry.so3.geodesic_interpolation`),
-controls at the new control times (LGVI: nodes; first order: step midpoints), costates at the step midpoints.  The NLP
-multipliers are reused only by an NLP of the same structure (``nlp_key``), the exact point only by the same NLP
-(``point``), ``lam0`` only on the same grid; elsewhere they are dropped and the notes say so.
+whatever method, N and scheme produced it (:meth:`Start.fit` maps it onto the problem's grid).  The starts a strategy
+makes (:mod:`transcription.strategy.starts`) are Starts too, their ``origin`` saying which.  Resampling
+(docs/mathematics.md §4) is in normalized time s = k/N of the horizon: positions and momenta linear, attitudes along the
+geodesic R_a exp(s log(R_a^T R_b)) (:func:`~transcription.geometry.so3.geodesic_interpolation`), controls at the new
+control times (LGVI: nodes; first order: step midpoints), costates at the step midpoints.  The NLP multipliers are
+reused only by an NLP of the same structure (``nlp_key``), the exact point only by the same NLP (``point``), ``lam0``
+only on the same grid; elsewhere they are dropped and the notes say so.
 """
 from __future__ import annotations
 
@@ -45,15 +44,13 @@ class Point:
 
 @dataclass(frozen=True, eq=False)
 class Start:
-    """Where a solve starts.
-
-    Primal: ``t`` (N+1,) node times, ``X`` (N+1, 18) node states (layout of transcription.geometry.state), ``U``
-    (6, n_controls) controls at the scheme's control nodes (lgvi u_0..u_N, first_order u_1..u_N), ``scheme``;
-    T = t[-1], the mean step h = T / N (a free final time starts there).  ``origin`` (:class:`Origin`) and ``source``
-    (the method that solved it, '' for a made start).  Dual: ``multipliers``, the direct method's NLP constraint
-    multipliers in physical units, with ``nlp_key``, the structure of the NLP they belong to; ``point``, the exact
-    primal-dual point of its NLP (:class:`Point`); ``costates`` (N, 12) lambda_0..lambda_{N-1}; ``lam0`` (12,), the
-    indirect method's shooting unknown (lambda_0; lgvi lambda_{-1}).  Absent parts are None.
+    """Where a solve starts.  Primal: ``t`` (N+1,) node times, ``X`` (N+1, 18) node states (layout of
+    transcription.geometry.state), ``U`` (6, n_controls) controls at the scheme's control nodes (lgvi u_0..u_N,
+    first_order u_1..u_N), ``scheme``; T = t[-1], the mean step h = T / N (a free final time starts there).  ``origin``
+    (:class:`Origin`) and ``source`` (the method that solved it, '' for a made start).  Dual: ``multipliers``, the
+    direct method's NLP constraint multipliers in physical units, with ``nlp_key``, the structure of their NLP;
+    ``point``, the exact primal-dual point of its NLP (:class:`Point`); ``costates`` (N, 12) lambda_0..lambda_{N-1};
+    ``lam0`` (12,), the indirect method's shooting unknown (lambda_0; lgvi lambda_{-1}).  Absent parts are None.
     """
 
     t: np.ndarray

@@ -1,15 +1,10 @@
 """Strategies: small typed combinators over one method solve (diffrax's step-size controllers apart from its solvers).
 
-A strategy is a frozen dataclass whose fields are its parameters (tests and callers set them; there are no module
-globals to patch) with one method,
-
-    run(problem, start, ctx) -> Solution
-
-that makes method solves through its :class:`Context` (``ctx.solve``: one solve of ``ctx.method``, the method with
-its options) and returns a Solution whose trace holds every attempt it made (:mod:`transcription.results.trace`).
-The combinators here are generic (any method, any objective): :class:`Solve` (one solve from a start the problem
-gives), :class:`FirstOf`, :class:`BestOf`, :class:`CoarseToFine` and :class:`Continuation`; each objective composes
-its default strategy from them (:mod:`transcription.objectives`).
+A strategy is a frozen dataclass whose fields are its parameters, with one method ``run(problem, start, ctx) ->
+Solution`` that solves through its :class:`Context` (``ctx.solve``: one solve of ``ctx.method``) and returns a Solution
+whose trace holds every attempt it made (:mod:`transcription.results.trace`).  The generic combinators here:
+:class:`Solve`, :class:`FirstOf`, :class:`BestOf`, :class:`CoarseToFine` and :class:`Continuation`; each objective
+composes its default strategy from them (:mod:`transcription.objectives`).
 """
 from __future__ import annotations
 
@@ -177,11 +172,10 @@ class BestOf:
 
 
 def spread(costs: list[float], N: int, rtol: float, false: list[float] = ()) -> dict:
-    """The spread of a multistart's converged costs on a grid of N steps, as Solution stats: ``multistart_starts``,
-    ``multistart_optima`` (distinct optima: costs within ``rtol`` of one another counted once), ``multistart_spread``
-    = (max - min) / min, ``multistart_grid`` = N, ``multistart`` (the sentence of the message), and with ``false``
-    (the costs of converged starts that are false minima of the NLP) ``multistart_false_minima``; {} with fewer than
-    two."""
+    """The spread of a multistart's converged costs on N steps, as Solution stats: ``multistart_starts``,
+    ``multistart_optima`` (costs within ``rtol`` counted once), ``multistart_spread`` = (max - min) / min,
+    ``multistart_grid`` = N, ``multistart`` (the sentence), and with ``false`` (the costs of false minima of the NLP)
+    ``multistart_false_minima``; {} with fewer than two."""
     costs = sorted(c for c in costs if np.isfinite(c))
     if len(costs) < 2:
         return {}
@@ -242,9 +236,8 @@ class Continuation:
     """A path of problems solved in turn, each from the last one's solution: ``path(problem, history)`` gives the next
     (phase, problem) from the history of ((problem, solution), ...) solved so far (None: the path is done), each
     solved by ``step``.  The Solution is the last one's, its attempt named ``label`` with every step's solves as its
-    parts and ``stats['continuation_steps']`` one line per step; None when the path is empty (nothing was solved).
-    The parameter the path moves (a smoothing eps, the weights, the bounds, a sweep's axis) is the path's; the
-    mechanism is this one.  A step that does not converge ends the path (its Solution says so)."""
+    parts and ``stats['continuation_steps']`` one line per step; None when the path is empty.  The path moves the
+    parameter (a smoothing eps, the weights, the bounds, a sweep's axis); a step that does not converge ends it."""
 
     path: Callable[[Problem, tuple], tuple[str, Problem] | None]
     step: Strategy

@@ -1,20 +1,14 @@
-"""Adaptive (non-uniform) meshes for refinement to a tolerance (issue 26, docs/mathematics.md §16).
+"""Adaptive (non-uniform) meshes for refinement to a tolerance (docs/mathematics.md §16), used by
+:func:`transcription.strategy.refine.refine`.
 
-Two pieces, used by :func:`transcription.strategy.refine.refine`:
-
-* :func:`step_errors` -- the local error of every step of a plan, by step doubling with the plan's own scheme:
-  step k from the plan's node X_k is taken again as two half steps of size h_k / 2 with the controls the
-  continuous flight applies (the LGVI's node controls interpolated linearly, u_{k+1/2} = (u_k + u_{k+1}) / 2;
-  the first-order control u_{k+1} held), and the difference to the plan's X_{k+1} is measured in the units of
-  the continuous miss (position / L, velocity / V, attitude angle, rate).  With a local error C_k h_k^{p+1}
-  (p the scheme's order) that difference is C_k h_k^{p+1} (1 - 2^-p), so e_k = difference / (1 - 2^-p).
-* :func:`equidistributed_steps` -- the new step sizes: with the error density C(t) = e_k / h_k^{p+1} piecewise
-  constant over the old steps, sum_k C_k h_k^{p+1} is least for a given number of steps when the steps are
-  h(t) = a C(t)^(-1/p), i.e. when every step's error per unit time is the same (equidistribution); then
-  sum_k e_k = a^p T, and a is chosen for the sum asked.  The node density 1/h(t) is bounded per level to at
-  most split times the old one and at least 1/merge of it (a step may be split into up to split, and up to
-  merge steps merged: :class:`Refinement`), and each step's density is the largest of its own and its neighbours' (a
-  margin where the error changes fast).
+* :func:`local_errors` -- step doubling with the plan's own scheme: step k from X_k taken again as two half steps
+  (the LGVI's node controls interpolated, u_{k+1/2} = (u_k + u_{k+1}) / 2; the first-order u_{k+1} held); a local
+  error C_k h_k^{p+1} (p the scheme's order) makes the difference to X_{k+1} C_k h_k^{p+1} (1 - 2^-p), so
+  e_k = difference / (1 - 2^-p), in the units of the continuous miss (position / L, velocity / V, angle, rate).
+* :func:`equidistributed_steps` -- with C(t) = e_k / h_k^{p+1} piecewise constant, sum_k C_k h_k^{p+1} is least for
+  a given number of steps at h(t) = a C(t)^(-1/p) (equidistribution), where sum_k e_k = a^p T; a is chosen for the
+  sum asked.  The node density 1/h(t) per level stays within [1/merge, split] times the old one (:class:`Refinement`)
+  and each step's is the largest of its own and its neighbours'.
 """
 from __future__ import annotations
 
@@ -33,8 +27,7 @@ class Refinement:
     #: N of the next level = safety N (miss / tol)^(1/p), at least twice N and at most growth N
     safety: float = 1.2
     growth: int = 32
-    #: the most an adaptive mesh is credited with over a uniform one of the same order: steps / adaptive_gain (measured
-    #: savings over the ideal uniform mesh: 27 % on the slew at 1e-6, 8-11 % on E3 and E4, docs/mathematics.md §16)
+    #: the most an adaptive mesh is credited with over a uniform one of the same order: steps / adaptive_gain (§16)
     adaptive_gain: float = 2.0
     #: per level, a step is split into at most split steps and at most merge steps are merged into one
     split: float = 32.0
@@ -155,12 +148,11 @@ def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
 
 def interval_margins(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, scales, samples: int,
                      restart: bool) -> np.ndarray:
-    """The margins (n_constraints, N, samples) of every path constraint at the samples s = 1/M, ..., 1 of each node
-    interval (M = ``samples``), times its scale
-    (``scales``: the units of transcription.strategy.refine.path_violation), on the plan's controls flown in continuous
-    time (transcription.dynamics.flight, ``samples`` per interval, as the continuous check): ``restart`` False --
-    one flight from X_0 (what the check measures); True -- each interval flown from the plan's own node X_k (the
-    chord between two nodes alone, without the drift accumulated before t_k).  Raises FlightError if a flight fails."""
+    """The margins (n_constraints, N, M) of every path constraint, times ``scales`` (the units of
+    transcription.strategy.refine.path_violation), at s = 1/M, ..., 1 of each node interval (M = ``samples``) of the
+    plan's controls flown in continuous time (transcription.dynamics.flight): ``restart`` False -- one flight from X_0
+    (as the continuous check); True -- each interval from the plan's node X_k (the chord alone, without the drift
+    before t_k).  Raises FlightError if a flight fails."""
     from ..dynamics.flight import Actuators, FlightError, OpenLoop, fly, interval_integrator
     from ..dynamics.trajectory import Trajectory
 
@@ -214,21 +206,16 @@ def drift_shares(A: np.ndarray, z: np.ndarray, nodes: np.ndarray, w: np.ndarray)
 
 def path_density(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int, tol: float, scales,
                  samples: int, rules: Refinement = Refinement()) -> np.ndarray | None:
-    """The node density (N,) (nodes per unit time on each old step; 0 where the path constraints ask nothing) that
-    aims the flown path's violation of the path constraints between the nodes at ``tol``; None when the flight
-    leaves no constraint by more than tol (docs/mathematics.md §16, "Path constraints between the nodes").
+    """The node density (N,) (nodes per unit time on each old step; 0 where nothing is asked) that aims the flown
+    path's violation of the path constraints between the nodes at ``tol``; None when no constraint is left by more
+    than tol (docs/mathematics.md §16, "Path constraints between the nodes").
 
-    Measured on interval k: v_k (the flight from X_0, as the continuous check) and its chord c_k (the interval flown
-    from the plan's own node X_k).  Both parts are O(h^2): the chord in the interval's own step, the drift
-    d_k = v_k - c_k in the steps before it (their local errors propagated to node k+1 along the constraint's
-    gradient, :func:`drift_shares`).  The tolerance is shared: tol_c for the chords, tol_d = tol - tol_c for the drift,
-    split where the two rules need the fewest steps together (:func:`chord_share`).
-    Every step whose chord -- near a contact at least its sagitta (:func:`contact_sagitta`), the chord it has when
-    the re-solved plan's contact falls inside it -- is over its share gets h_k sqrt(tol_c / c_k); before each
-    violated interval whose drift is over tol_d (the max_targets worst), the steps equidistribute their drift shares
-    with their sum aimed at tol_d D / d (D their sum now; calibrated by the flight as the terminal rule is: on the
-    LGVI D / d is 1.0-1.1, on the first-order scheme the shares alternate in sign and D / d reaches 60).  The largest
-    density of the rules is kept, on each step and its two neighbours, at most split times the old one."""
+    On interval k: v_k (the flight from X_0) = the chord c_k (flown from X_k) + the drift d_k = v_k - c_k of the steps
+    before it (:func:`drift_shares`); tol = tol_c + tol_d split by :func:`chord_share`.  A step whose chord (near a
+    contact at least its :func:`contact_sagitta`) is over tol_c gets h_k sqrt(tol_c / c_k); before each violated
+    interval whose drift is over tol_d (the max_targets worst) the steps equidistribute their drift shares, their sum
+    D aimed at tol_d D / d.  The largest density of the rules is kept, on each step and its two neighbours, at most
+    split times the old one."""
     h = np.asarray(steps, float)
     gi = interval_margins(problem, X, U, h, scales, samples, restart=False).min(axis=2)
     v, worst = np.maximum(-gi.min(axis=0), 0.0), np.argmin(gi, axis=0)
@@ -271,14 +258,11 @@ def chord_share(steps: np.ndarray, chord: np.ndarray, shares: np.ndarray, order:
 
 
 def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarray:
-    """sigma_k (N,): the chord violation a step near a contact may have when the re-solved plan's contact falls inside
-    it -- the sagitta max_s [(1 - s) g_k + s g_{k+1} - g(s)] of each constraint's margin g over step k flown from
-    the plan's node (``gs`` (n_constraints, N, M) of :func:`interval_margins` with restart, at s = 1/M, ..., 1;
-    g_k the plan's node margins), counted where the step is that close to the boundary (min(g_k, g_{k+1}) <= the
-    sagitta), and at most as large as a neighbouring step's; 0 elsewhere.  Near a touch point g(t) ~ a (t - t_c)^2
-    the sagitta is a h_k^2 / 4, and a contact inside the step pushes both its nodes onto the boundary, so the path
-    dips by that much between them (measured: the keep-out slew).  A contact is two-sided: at an arc's end one
-    neighbour is the arc, whose chord is small, and the margin leaving the arc does not dip -- hence the neighbour."""
+    """sigma_k (N,): the chord violation a step may have when the re-solved plan's contact falls inside it -- the
+    sagitta max_s [(1 - s) g_k + s g_{k+1} - g(s)] of each constraint's margin g over step k flown from the plan's
+    node (``gs`` (n_constraints, N, M) of :func:`interval_margins` with restart; g_k the node margins), where
+    min(g_k, g_{k+1}) <= the sagitta, at most a neighbouring step's (a contact is two-sided); 0 elsewhere.  Near a
+    touch point g(t) ~ a (t - t_c)^2 it is a h_k^2 / 4 (§16)."""
     from ..dynamics.trajectory import Trajectory
 
     M = gs.shape[2]
@@ -293,8 +277,8 @@ def contact_sagitta(problem, X: np.ndarray, gs: np.ndarray, scales) -> np.ndarra
 
 
 def _with_neighbours(dens: np.ndarray, h: np.ndarray, split: float) -> np.ndarray:
-    """Each step's density the largest of its own and its two neighbours' (the re-solved plan's contact moves by
-    about a step: an arc's end must not land in a step left coarse), at most split / h_k."""
+    """Each step's density the largest of its own and its two neighbours' (a contact moves by about a step when
+    re-solved), at most split / h_k."""
     return np.minimum(np.max(np.stack([dens, np.r_[dens[:1], dens[:-1]], np.r_[dens[1:], dens[-1:]]]), axis=0),
                       split / h)
 

@@ -1,11 +1,9 @@
-"""Accuracy on demand (issue 26, docs/mathematics.md §11): every smooth-control Solution of ``solve`` is flown
-in continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined
-until that flight lands within the tolerance.
-
-:class:`AccuracyOptions` (transcription/options.py, with the other options) are the ``solver`` block's own
-keys (beside ``direct`` and ``indirect``): ``continuous_check`` (default true), ``accuracy`` (absent or null:
-today's fixed N), ``max_N`` and ``max_levels``.  :func:`attach_checks` stores a :class:`~transcription.results.check.ContinuousCheck` on every
-successful smooth-control Solution (``sol.continuous``); failed solves skip it.
+"""Accuracy on demand (docs/mathematics.md §11, §16): every smooth-control Solution of ``solve`` is flown in
+continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined until that
+flight lands within the tolerance.  :class:`AccuracyOptions` (transcription/options.py) are the ``solver`` block's
+keys ``continuous_check``, ``accuracy`` (null: a fixed N), ``max_N`` and ``max_levels``.  :func:`attach_checks`
+stores a :class:`~transcription.results.check.ContinuousCheck` on every successful smooth-control Solution
+(``sol.continuous``).
 """
 from __future__ import annotations
 
@@ -58,9 +56,8 @@ def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
 # ---------------------------------------------------------------------------- refinement to a tolerance
 #: the order of each scheme's global error in h (docs/mathematics.md §2, §3; measured slopes 2.00 and 1.04)
 ORDER = {"lgvi": 2, "first_order": 1}
-#: the most favourable order a level's miss may fall with: the best of the schemes' (the LGVI's 2).  The first-order
-#: scheme can reach it too -- on the rest-to-rest time-optimal slew its miss falls from 3.9e-4 at N = 200 to 4.9e-7 at
-#: N = 6400, slope 1.93 -- so its nominal ORDER of 1 would wrongly refuse a tolerance it reaches
+#: the most favourable order a level's miss may fall with: the best of the schemes' (the first-order scheme's miss can
+#: fall at O(h^2) too, so its nominal ORDER would wrongly refuse a tolerance it reaches; §16)
 BEST_ORDER = max(ORDER.values())
 
 
@@ -112,14 +109,12 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
     (docs/mathematics.md §11, "Refinement to a tolerance"; §16, the adaptive mesh).
 
     run(problem, warm) -> Solution | Comparison is one solve on the problem's own grid.  Level 0 solves on the given
-    N (from ``warm`` if any); each following level on the mesh of :func:`next_mesh` -- ``adaptive`` (the methods
-    take a non-uniform mesh and ``opts.refinement`` is 'adaptive'): steps equidistributing the estimated error
-    (transcription.strategy.mesh); else :func:`next_N` uniform steps -- warm-started from the previous level's solution
-    (resampled on SE(3) by the methods, transcription.results.start).  It stops when the miss and the path violation are
-    within the tolerance, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.  The last
-    level's result is returned, its Solutions carrying the mesh history (``sol.mesh``: level, N, mesh, h_min,
-    h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']`` and a
-    sentence in the message.  ``rules``: how each next level is chosen (:class:`~.mesh.Refinement`)."""
+    N (from ``warm`` if any); each following level, warm-started from the previous one, on :func:`next_mesh`
+    (``adaptive``: the estimated error equidistributed) or :func:`next_N` uniform steps.  It stops when the miss and
+    the path violation are within the tolerance, when a level fails, or before a level beyond ``max_N`` or
+    ``max_levels``.  Returns the last level's result, its Solutions carrying the mesh history (``sol.mesh``: level,
+    N, mesh, h_min, h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status),
+    ``stats['accuracy_met']`` and a sentence in the message.  ``rules``: :class:`~.mesh.Refinement`."""
     tol, levels, prob = float(opts.accuracy), [], problem
     while True:
         t0 = time.perf_counter()
@@ -172,14 +167,10 @@ def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive:
 def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float,
               rules: Refinement) -> tuple[np.ndarray, float]:
     """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
-    §16): the local error of every step by step doubling, propagated to the final node (transcription.strategy.mesh); the
-    steps equidistribute it with the sum of the shares e_k aimed at tol / safety times the measured miss's share of
-    that sum (the estimate calibrated by the flight).  When the flown path leaves a path constraint between the
-    nodes by more than tol, :func:`path_mesh` refines also where that violation is made: the steps before it, whose
-    local errors drift the flown path off the plan there (the keep-out slew's contact at t = 5 s: 98 % of its
-    9.9e-5 rad at N = 100 is that drift, 1.7e-6 the chord between the nodes -- why splitting only the steps where the
-    cone is left moved it from 9.7e-5 to 8.9e-5 rad in 8 levels), and the steps about a contact.  If that rule
-    finds nothing, the mesh is subdivided in its own density by the uniform factor of :func:`next_N`."""
+    §16): each step's local error (step doubling) propagated to the final node (transcription.strategy.mesh),
+    equidistributed with the sum of the shares e_k aimed at tol / safety times the measured miss's share of that sum.
+    A path violation over tol is refined by :func:`path_mesh` (the steps whose local errors drift the path off, and
+    those about a contact); if that finds nothing, the mesh is subdivided by the uniform factor of :func:`next_N`."""
     p = ORDER[problem.scheme]
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
@@ -196,11 +187,9 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float,
 
 def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rules: Refinement) -> np.ndarray | None:
     """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
-    (docs/mathematics.md §16, "Path constraints between the nodes"): the node density of the terminal miss's rule
-    (:func:`next_mesh`; 1 / h_k, the mesh kept, when there is no miss to aim at) and that of
-    transcription.strategy.mesh.path_density (the steps about a contact and the steps whose local errors drift the path to a
-    violation, aimed at tol / safety), the larger of the two on every step.  None when the path rule finds nothing
-    over the tolerance (the caller subdivides)."""
+    (docs/mathematics.md §16): on every step the larger of the terminal miss's node density (:func:`next_mesh`;
+    1 / h_k when there is no miss) and transcription.strategy.mesh.path_density's (aimed at tol / safety).  None when
+    the path rule finds nothing over the tolerance (the caller subdivides)."""
     from ..dynamics.flight import DEFAULT_SAMPLES, FlightError
 
     p, h = ORDER[problem.scheme], best.steps
@@ -255,11 +244,8 @@ def _finish(out, levels: list[dict], met: bool, sentence: str):
 
 # ---------------------------------------------------------------------------- the answer before solving
 def free_motion_miss(problem, scheme: str | None = None) -> float:
-    """The a-priori error estimate of a scheme on ``problem``'s grid: :func:`scaled_miss` of its free motion (the
-    discrete motion without control, ``simulate``) against the same motion flown in continuous time.  Measured on
-    E3 and E4 (N = 100, 400), it is within a factor 1/2..16 of the converged plans' own miss (the controls add
-    their part), so the N it predicts is the right order of magnitude (docs/mathematics.md §11).  nan when the
-    free motion cannot be flown."""
+    """The a-priori error estimate of a scheme on ``problem``'s grid (docs/mathematics.md §11): :func:`scaled_miss`
+    of its free motion (``simulate``) against the same motion flown in continuous time; nan if it cannot be flown."""
     from ..results.check import continuous_check
     from ..dynamics.lgvi import discretization
 

@@ -1,28 +1,20 @@
-"""Initial guesses for the direct method (node states, controls, Cayley vectors).
+"""Initial guesses for the direct method (node states, controls, Cayley vectors; docs/mathematics.md §7, §10).
 
-Starts made from the problem's data (a :class:`~transcription.results.start.Start` whose ``origin`` says
-which), selected by :attr:`~transcription.options.DirectOptions.initial_guess` (``'auto'``, the default, lets the
-objective's strategy try them in its order):
+Starts made from the problem's data (a :class:`~transcription.results.start.Start` whose ``origin`` says which),
+selected by :attr:`~transcription.options.DirectOptions.initial_guess` (``'auto'``, the default, lets the objective's
+strategy try them in its order):
 
-* ``'rollout'``: free motion (all controls zero) of the problem's own
-  discretization from X0.  Every node then satisfies the discrete dynamics exactly,
-  so only the terminal conditions are violated at the start.
-* ``'interpolate'``: the geodesic (screw motion) of SE(3) between the initial and
-  the desired configuration, g(s) = exp(s log(g_d g_0^-1)) g_0 with s = t/T,
-  i.e. R(s) = Exp(s w) R_0 and x(s) = q + Exp(s w)(x_0 - q) + s d n about the
-  screw axis (unit n = w/|w| through q, pitch d = n^T p).  For a half orbit
-  (x_0 = -x_d, R_d = Rz(180) R_0) this is the circular arc, not the straight chord
-  through the attracting centre.  Momenta are the kinematic ones of that motion,
-  gamma = m dx/dt (inertial) and Pi = J R^T w / T (body), plus a linear blend of
-  the endpoint mismatches so that they equal the given momenta at s = 0 and s = 1.
-  Controls are zero.  At a rotation by exactly pi the sign of the axis is
-  ambiguous; the one turning with the initial orbital angular momentum
-  x_0 x gamma_0 (or, failing that, with Pi_0 in the inertial frame) is chosen.
+* ``'rollout'``: free motion (zero controls) of the problem's discretization from X0; only the terminal conditions
+  are violated.
+* ``'interpolate'``: the SE(3) geodesic (screw motion) g(s) = exp(s log(g_d g_0^-1)) g_0, s = t/T: R(s) = Exp(s w)
+  R_0, x(s) = q + Exp(s w)(x_0 - q) + s d n about the screw axis (unit n = w/|w| through q, pitch d = n^T p).
+  Momenta: gamma = m dx/dt (inertial), Pi = J R^T w / T (body), plus a linear blend of the endpoint mismatches.
+  Zero controls.  At a rotation by exactly pi the axis turns with x_0 x gamma_0 (else with Pi_0, inertial).
+* ``'orbit'``: the screw interpolation in a frame turning with the orbit (:func:`orbit_interpolation`).
 
-For the time objective :func:`perturbed` adds symmetry-breaking controls; for a body-fixed engine :func:`aimed`
-turns the body to aim another start's force.  For an orbit target, which has no single terminal state,
-:func:`~transcription.ocp.estimate.target_estimate` stands for it (a point of the orbit reached by a Hohmann-like
-transfer): the scales of the direct method, its starts and the impulsive method's feasible start aim at it.
+:func:`perturbed` adds symmetry-breaking controls (time objective); :func:`aimed` turns the body to aim another
+start's force (a body-fixed engine).  An orbit target is stood for by
+:func:`~transcription.ocp.estimate.target_estimate` (a point of the orbit reached by a Hohmann-like transfer).
 """
 from __future__ import annotations
 
@@ -53,13 +45,11 @@ def rollout(problem: Problem) -> Start:
 
 def aimed(problem: Problem, start: Start, axis: np.ndarray, thrust_range: tuple[float, float], *,
           fraction: float) -> Start:
-    """A body-fixed engine's start from a guess whose force points anywhere (the problem's solution without the
-    engine): its inertial force f_j = applied_force(R_j, u_f,j) kept, the attitude turned by the smallest
-    rotation taking the engine axis R_j a onto f_j / |f_j| (by a fraction min(1, |f_j| / (``fraction`` max |f|))
-    of its angle, so that a vanishing force leaves the attitude as it was), the force then T_j a with T_j = |f_j|
-    clipped to ``thrust_range``; Pi from the new attitudes (Pi_k = J Log(R_k^T R_{k+1}) / h, the last node's
-    kept).  A control at node j of the first-order scheme belongs to node j = 1..N.  The dynamics' defects are
-    not zero: the solver closes them.  (The steps are the problem's: ``start`` is on its grid.)"""
+    """A body-fixed engine's start from ``start`` (on the problem's grid) whose force points anywhere
+    (docs/mathematics.md §14): the attitude turned by min(1, |f_j| / (``fraction`` max |f|)) of the smallest rotation
+    taking the engine axis R_j a onto the inertial force f_j = applied_force(R_j, u_f,j); the force then T_j a,
+    T_j = |f_j| clipped to ``thrust_range``; Pi_k = J Log(R_k^T R_{k+1}) / h_k (the last node's kept).  The defects
+    are left to the solver."""
     disc, h = problem.disc, problem.steps
     X, U = start.X.copy(), start.U.copy()
     s = unpack_states(X)
@@ -85,10 +75,7 @@ def aimed(problem: Problem, start: Start, axis: np.ndarray, thrust_range: tuple[
 
 
 def screw_path(X0: np.ndarray, Xd: np.ndarray, s: np.ndarray, mass: float, J: np.ndarray, T: float) -> np.ndarray:
-    """SE(3) geodesic between the configurations of X0 and Xd at parameters s in [0, 1].
-
-    Returns node states (len(s), 18): see the module docstring for the momenta.
-    """
+    """SE(3) geodesic between the configurations of X0 and Xd at s in [0, 1] (module docstring): states (len(s), 18)."""
     a, d = unpack_states(X0), unpack_states(Xd)
     x0, xd, R0, Rd = a.x[0], d.x[0], a.R[0], d.R[0]
     Rrel = Rd @ R0.T                       # inertial-frame relative rotation
@@ -156,14 +143,11 @@ def orbit_turn(X0: np.ndarray, Xd: np.ndarray, T: float, mu: float) -> float | N
 
 
 def orbit_interpolation(problem: Problem) -> Start | None:
-    """The screw interpolation (:func:`screw_path`) taken in the frame Q(phi) turning about the orbit normal n
-    with the orbit, then turned back: x = Q x', R = Q R', gamma = Q (gamma' + m phi' n x x'), Pi = Pi' + J R'^T n
-    phi', where the primed path runs from X0 to Q(Phi)^T X_d (momenta relative to the turning frame) and phi
-    advances at the circular mean motion sqrt(mu / |x'|^3), scaled to the total turn Phi (:func:`orbit_turn`);
-    zero controls.  Why: over several revolutions the screw interpolation between the end configurations turns
-    once at most (the five-orbit phasing: a quarter turn in five periods, held against gravity), while this
-    path follows the orbits -- for a transfer between near-circular orbits a spiral.  ``s``: the normalized node
-    times of ``problem``'s grid.  None without a central body or an orbit normal."""
+    """The screw interpolation (:func:`screw_path`) in the frame Q(phi) turning about the orbit normal n, turned back
+    (docs/mathematics.md §10): x = Q x', R = Q R', gamma = Q (gamma' + m phi' n x x'), Pi = Pi' + J R'^T n phi', the
+    primed path from X0 to Q(Phi)^T X_d (momenta relative to the frame), phi advancing at the circular mean motion
+    sqrt(mu / |x'|^3) scaled to the total turn Phi (:func:`orbit_turn`); zero controls.  It follows the orbits over
+    several revolutions.  None without a central body or an orbit normal."""
     disc, X0, Xd, T = problem.disc, problem.X0, target_estimate(problem), problem.T
     Phi = orbit_turn(X0, Xd, T, disc.model.mu)
     if Phi is None:
@@ -191,15 +175,12 @@ def orbit_interpolation(problem: Problem) -> Start | None:
 
 
 def implied_effort(disc, X: np.ndarray, h, W: np.ndarray) -> tuple[float, float]:
-    """The efforts sum_k h_k (1/2) u^T W u of the force and of the moment (W: 6x6, force then moment; each part
-    with its own block) that fly the path of node states X (N+1, 18) in the continuous equations, by finite
-    differences of the path's own motion (h: the step size, or the N step sizes h_k of a mesh): node velocities
-    v_k = (x_{k+1} - x_{k-1}) / (h_{k-1} + h_k) and body rates Omega_k = (Log(R_{k-1}^T R_k) / h_{k-1} +
-    Log(R_k^T R_{k+1}) / h_k) / 2, the given ones gamma / m and J^-1 Pi at the two ends; at the step midpoints
-    u_f = m dv/dt + m mu x / |x|^3 (the point-mass attraction; no J2) and u_m = J dOmega/dt - J Omega x Omega
-    (no gravity-gradient torque).  A cheap judge of interpolated starts that all meet the target (a rollout
-    needs no control and misses it instead): the start a solver has least to change; the ends count, so a path
-    that does not move as the body moves at its ends pays for the jump."""
+    """The efforts sum_k h_k (1/2) u^T W u of the force and of the moment (W: 6x6, force then moment) that fly the
+    path X (N+1, 18) in the continuous equations, by finite differences (h: the step size or the N h_k;
+    docs/mathematics.md §10): node velocities v_k = (x_{k+1} - x_{k-1}) / (h_{k-1} + h_k) and body rates Omega_k =
+    (Log(R_{k-1}^T R_k) / h_{k-1} + Log(R_k^T R_{k+1}) / h_k) / 2 (gamma / m and J^-1 Pi at the ends); at the step
+    midpoints u_f = m dv/dt + m mu x / |x|^3 (no J2) and u_m = J dOmega/dt - J Omega x Omega (no gravity-gradient
+    torque).  A cheap judge of interpolated starts that all meet the target."""
     st = unpack_states(X)
     m, J, mu = disc.model.mass, np.asarray(disc.J, float), disc.model.mu or 0.0
     hk = np.broadcast_to(np.asarray(h, float), (X.shape[0] - 1,))
@@ -219,14 +200,8 @@ def implied_effort(disc, X: np.ndarray, h, W: np.ndarray) -> tuple[float, float]
 
 def perturbed(problem: Problem, size: np.ndarray, seed: int = 0, T: float | None = None) -> Start:
     """The screw interpolation (over the horizon T, the problem's by default) with controls drawn (seeded, normal)
-    at the size ``size`` (6,) of each control component (their bounds; 0 for a removed control).
-
-    Why (time-optimal slews): the eigenaxis maneuver -- the screw motion driven about one axis --
-    is a stationary point of the time-optimal problem whatever its optimality, because every
-    off-axis control has zero gradient there; an exactly symmetric start stays on it (measured:
-    the asymmetric slew of configs/slew_time_optimal.yaml ends at the eigenaxis time 34.31 from
-    the plain interpolation, at 28.625 from this start for 8 of 8 seeds at N = 100).
-    """
+    at the size ``size`` (6,) of each control component (their bounds; 0 for a removed control).  It breaks the
+    symmetry of the eigenaxis maneuver, a stationary point of the time-optimal problem (docs/mathematics.md §10)."""
     g = interpolation(problem, T)
     rng = np.random.default_rng(seed)
     size = np.asarray(size, float)[:, None]

@@ -31,11 +31,9 @@ def _free_step_derivatives(disc, jit: bool) -> tuple:
     ``free_adj``  (mu[18], X[18], c0[3], h)  -> dF/dX^T mu        (adjoint)
     ``free_hess`` (X[18], c0[3], h, mu[18], S[18x6]) -> S^T d2(mu^T F)/dX2 S (6 x 6)
 
-    All differentiate ``disc.step_seeded`` seeded with the step's Cayley root c0, whose first to
-    third derivatives equal those of the solved step (lgvi.py).  The rollout X_N(p) = F o ... o F
-    (X_0(p)) is a composition of maps R^18 -> R^18 with X_0 affine in p, so the chain rule in
-    ambient coordinates is exact and needs no chart.  jit: compiled to C (codegen.compiled_libraries, which
-    falls back to the interpreter; a first use runs interpreted while the background builds them).  Returns
+    All differentiate ``disc.step_seeded`` at the step's Cayley root c0 (its first to third derivatives are the
+    solved step's, lgvi.py); X_N(p) = F o ... o F (X_0(p)) with X_0 affine in p, so the ambient chain rule is exact.
+    jit: compiled to C (codegen.compiled_libraries; interpreted while the background builds them).  Returns
     (fwd, adj, hess, the libraries still being built or None).
     """
     X, c0, h = ca.SX.sym("X", NX), ca.SX.sym("c0", 3), ca.SX.sym("h")
@@ -61,7 +59,6 @@ def _rollout_derivatives(disc, N: int, jit: bool) -> tuple[ca.Function, ca.Funct
     ``sens`` (X, roots, h, S0[18x6]) -> S_N = dX_N/dX_0 S0
     ``hess`` (X, roots, h, S0, muN[18]) -> sum_k S_k^T d2(mu_{k+1}^T F)/dX2 S_k, with S_{k+1} = A_k S_k
              and mu_k = A_k^T mu_{k+1} (A_k = dF/dX at node k), mu_N = muN.
-    Only small arrays cross into Python (the per-step matrices stay inside CasADi).
     """
     fwd, adj, hess, pending = _free_step_derivatives(disc, jit)
     sens, hfn = _sweeps(disc, N, fwd, adj, hess)
@@ -99,10 +96,9 @@ class ReducedRelaxed:
     """The relaxed problem in the six unknowns p only (single shooting), in scaled variables y = p / s_y.
 
     f(y) = (|p_gamma - gamma_0| + |p_Pi - Pi_0| + |gamma_N^+(x_N) - gamma_N| + |Pi_N|) / s_f,
-    c(y) = C(X_N(p)) / (r_d, r_d, 1, 1), X_N(p) the free rollout from X_0^+.  Exact first and second
-    derivatives: S_k = dX_k/dy (18 x 6, ambient) by S_{k+1} = A_k S_k, S_0 = the momentum columns;
-    S_N read back to tangent coordinates is Phi[:, (gamma_0, Pi_0)] diag(s_y) (the tests check it
-    against :func:`sensitivity`).  The Hessian of L = f + lam^T c is the second-order adjoint
+    c(y) = C(X_N(p)) / (r_d, r_d, 1, 1), X_N(p) the free rollout from X_0^+.  Exact derivatives: S_k = dX_k/dy
+    (18 x 6, ambient) by S_{k+1} = A_k S_k, S_0 = the momentum columns (S_N in tangent coordinates is
+    Phi[:, (gamma_0, Pi_0)] diag(s_y)).  The Hessian of L = f + lam^T c is the second-order adjoint
     S_N^T d2l/dX_N2 S_N + sum_k S_k^T d2(mu_{k+1}^T F)/dX2 S_k + d2f_0/dy2 with mu_N = dl/dX_N
     and mu_k = A_k^T mu_{k+1} (l = the X_N-dependent part of L; f_0 the initial-impulse part).
     """
@@ -188,10 +184,8 @@ class _Point:
 
 
 def _project(pt: _Point, tol: float, max_iter: int, damped: bool) -> tuple[_Point, int, bool]:
-    """Minimum-norm Newton onto c(y) = 0: y <- y - Jc^T (Jc Jc^T)^-1 c(y), Jc fresh at every iterate.
-
-    damped: Armijo backtracking on |c|_2 (to reach the constraint set from afar); otherwise an
-    iterate must halve |c|_2 or the projection fails (a line-search trial is then shortened).
+    """Minimum-norm Newton onto c(y) = 0: y <- y - Jc^T (Jc Jc^T)^-1 c(y), Jc fresh at every iterate.  damped:
+    Armijo backtracking on |c|_2 (from afar); otherwise an iterate must halve |c|_2 or the projection fails.
     Returns (point, rollouts, success)."""
     n = 0
     for _ in range(max_iter + 1):
@@ -263,23 +257,14 @@ def _line_search(red: ReducedRelaxed, pt: _Point, d: np.ndarray, lam: np.ndarray
 
 def relaxed_reduced(problem: Problem, p0: np.ndarray, options: DirectOptions, progress,
                     s: ImpulsiveSettings) -> ReducedResult:
-    """Single shooting of the relaxed case in the six unknowns p, started from p0.
+    """Single shooting of the relaxed case in the six unknowns p from p0: Newton's method on the constraint manifold
+    c(y) = 0 (a feasible-point SQP; the terminal conditions are too curved in p for a plain l1-merit SQP).
 
-    Newton's method on the constraint manifold c(y) = 0 (a feasible-point SQP, as in the
-    generalized reduced gradient method): at a feasible y the step is the SQP step with c = 0,
-    d = -Z (Z^T H Z)^-1 Z^T g, Z an orthonormal basis of null(Jc), H the exact Hessian of the
-    Lagrangian at the least-squares multipliers (:class:`ReducedRelaxed`); a trial y + alpha d is
-    projected back onto c = 0 (:func:`_project`) and accepted when the cost decreases (Armijo on
-    g^T d), else alpha is halved.  Z^T H Z is shifted to positive definite if it is not; steps are
-    capped at s.max_step (scaled units).  A start off the constraint set is projected
-    first.  Converged when |g + Jc^T lambda|_inf <= tol (the reduced gradient, scaled) at a point
-    with |c|_inf <= 1e-12.
-
-    Why not a plain SQP: the terminal conditions are strongly curved in p (a tangent step of
-    scaled length 0.5 leaves |c| ~ 1e-2), so an l1-merit line search with a second-order
-    correction crawled at steps 1/128 (N = 100: 3000 iterations at cost 2.5004 against 2.4767).
-
-    Returns a :class:`ReducedResult`.
+    At a feasible y: d = -Z (Z^T H Z)^-1 Z^T g, Z an orthonormal basis of null(Jc), H the exact Hessian of the
+    Lagrangian at the least-squares multipliers (:class:`ReducedRelaxed`; shifted to positive definite if it is not),
+    capped at s.max_step (scaled); a trial y + alpha d is projected back onto c = 0 (:func:`_project`) and accepted
+    by Armijo on g^T d, else alpha is halved.  A start off the constraint set is projected first.  Converged when
+    |g + Jc^T lambda|_inf <= tol (the scaled reduced gradient) at |c|_inf <= 1e-12.  Returns a :class:`ReducedResult`.
     """
     t_build = time.perf_counter()
     red = ReducedRelaxed(problem, jit=bool(options.jit))

@@ -1,26 +1,13 @@
-"""The fuel KKT guard and the escape from a false minimum of the fuel NLP (docs/mathematics.md, "The fuel KKT guard").
+"""The fuel KKT guard and the escape from a false minimum of the fuel NLP (docs/mathematics.md §22).
 
-The direct method's fuel objective is the epigraph u = s d, |d|^2 <= 1, s >= 0 with the cost
-sum_j omega_j (w_f s_f,j + w_m s_m,j) (:mod:`.nlp`).  With mu_j (3) the multiplier of the row u_j - s_j d_j = 0 of one
-part (force or moment) at node j (physical units: the NLP's Lagrangian is J + mu_j^T (u_j - s_j d_j) + ..., so
-mu_j = -(the gradient in u_j of the rest of the Lagrangian)), the NLP's stationarity in s_j on a coast node (s_j = 0)
-only asks
-
-    mu_j^T d_j <= w omega_j                    (for the direction d_j the solver happens to hold),
-
-whereas the L1 problem's (the subdifferential of w omega_j |u| at u = 0 is the ball of radius w omega_j) asks
+With mu_j (3, physical) the multiplier of the epigraph row u_j - s_j d_j = 0 (:mod:`.nlp`) of one part at node j,
+the NLP's stationarity on a coast node (s_j = 0) only asks mu_j^T d_j <= w omega_j, whereas the L1 problem's asks
 
     |mu_j| <= w omega_j,   i.e.   sigma_j = |mu_j| / (w omega_j) - 1 <= 0   (the switching function).
 
-A KKT point of the NLP with sigma_j > 0 on a coast node is not a minimum of the L1 problem: thrust along
-mu_j / |mu_j| (the primer direction) lowers the cost at the rate (|mu_j| - w omega_j) per unit of s_j.
-:func:`switching` computes sigma on the coast nodes of a converged solve from its own multipliers, :class:`Guarded`
-reports it and, when it exceeds the tolerance, escapes: d_j re-aimed along mu_j / |mu_j| on the offending nodes and
-the same NLP re-solved warm from there, at most ``escapes`` times while the cost falls.
-
-A part whose magnitude is linear -- an engine's force, |u_f| = T = a^T u_f on its rows (:mod:`.nlp`) -- has no
-epigraph and no false minimum: the NLP's own KKT conditions there are the fuel problem's, and it is not checked
-(:func:`checked_parts`); nor is a part with weight 0 or removed (a norm bound of 0).
+:func:`switching` computes sigma on the coast nodes of a converged solve from its own multipliers; :class:`Guarded`
+reports it and, where it exceeds the tolerance, re-aims d_j along the primer mu_j / |mu_j| and re-solves warm.  A part
+whose magnitude is linear (an engine's force), with weight 0 or removed is not checked (:func:`checked_parts`).
 """
 from __future__ import annotations
 
@@ -78,11 +65,10 @@ def switching(tr, point: Point, coast_rtol: float) -> dict:
     """The switching values of a point of the fuel NLP ``tr`` (a SmoothTranscription of the fuel epigraph):
     ``point`` its scaled primal point and constraint multipliers.
 
-    Returns {'sigma': (2, nU) sigma_j = |mu_j| / (w omega_j) - 1 on the coast nodes (magnitude s below ``coast_rtol``
-    times the part's magnitude scale; nan elsewhere and on parts not checked; 'value': the same on every node),
-    'mu': (2, 3, nU) the multipliers mu_j (physical), 'primer': (2, 3, nU) the unit direction thrust would take
-    (mu_j / |mu_j|), 'nodes': the node index of each control node (first order 1..N, LGVI 0..N), 'checked': (2,)
-    bool}.  omega_j = omega_j/h * h (h the point's own with a free final time)."""
+    Returns {'sigma': (2, nU) sigma_j = |mu_j| / (w omega_j) - 1 on the coast nodes (s below ``coast_rtol`` x the
+    part's magnitude scale; nan elsewhere and on parts not checked), 'value': sigma on every node, 'mu': (2, 3, nU)
+    physical, 'primer': (2, 3, nU) mu_j / |mu_j|, 'nodes': the node index of each control node (first order 1..N,
+    LGVI 0..N), 'checked': (2,) bool}; omega_j uses the point's own h with a free final time."""
     w = np.asarray(point.x, float) * tr.w_scale
     rows = tr.nlp.rows("fuel")      # (8, nU) or, an engine's force, (5, nU): fuel_rows
     nu = tr.multipliers(point.lam_g)
@@ -133,13 +119,11 @@ def _said(v: dict) -> str:
 @dataclass(frozen=True)
 class Guarded:
     """``inner``, then the fuel KKT guard on its converged epigraph solution and the escape from a false minimum
-    (module docstring): the offending coast nodes' directions re-aimed -- and, when that does not lower the cost,
-    their magnitudes set to ``kick`` times their scale (a coast node with |d| < 1 is a KKT point too) -- and the same
-    NLP re-solved warm (``warm`` IPOPT options) within ``budget`` iterations, at most ``escapes`` times while the cost
-    falls.  ``tol``: the guard fails where sigma exceeds it on a coast node (partial nodes hold sigma = 0 to ~1e-9;
-    the fuel raise's optima have their largest coast sigma at -8e-4 to -1.8e-3, its false minima at +7e-4 to +1.3e-2,
-    docs/mathematics.md, "The fuel KKT guard").  ``coast_rtol``: a coast node's magnitude is below this times the
-    part's scale.  Stats: :func:`verdict`'s and ``fuel_escape`` (one line per escape)."""
+    (docs/mathematics.md §22): the offending coast nodes' directions re-aimed -- and, when that does not lower the
+    cost, their magnitudes set to ``kick`` times their scale -- and the same NLP re-solved warm (``warm`` IPOPT
+    options) within ``budget`` iterations, at most ``escapes`` times while the cost falls.  ``tol``: the guard fails
+    where sigma exceeds it on a coast node.  ``coast_rtol``: a coast node's magnitude is below this times the part's
+    scale.  Stats: :func:`verdict`'s and ``fuel_escape`` (one line per escape)."""
 
     inner: object
     warm: Mapping = field(default_factory=lambda: {"warm_start_init_point": "yes", "mu_init": 1e-9,

@@ -1,13 +1,7 @@
-"""The fuel objective by homotopy (docs/mathematics.md, "The fuel homotopy"): the start of a fuel problem's solve on
-its coarsest grid.
-
-The L1 objective sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) has bang-off-bang minimizers that IPOPT reaches slowly
-from the free motion or the screw interpolation.  :class:`Homotopy` reaches it through smooth problems instead: the
-effort problem (the same maneuver with objective effort, :meth:`Homotopy.effort_problem`), then the fuel NLP itself
-(eps = 0) from the effort optimum, cold (the jump, on grids of at most ``jump_max_n`` steps); without the jump or
-when it does not converge the fuel NLP with the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref) for
-eps = ``first``, first / factor, ... down to ``last``, each level from the last one's primal point, and the fuel NLP
-from the last level, warm.  The measurements behind the jump and the levels: docs/mathematics.md, "The fuel homotopy".
+"""The fuel objective by homotopy (docs/mathematics.md §20-§21): the start of a fuel problem's solve on its coarsest
+grid.  The L1 objective sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) is reached from the effort optimum either directly
+(the jump: the fuel NLP, eps = 0, cold) or through the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 s_ref)
+at decreasing eps, then the fuel NLP from the last level, warm (:class:`Homotopy`).
 """
 from __future__ import annotations
 
@@ -29,11 +23,9 @@ from .guard import counted_parts
 def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
     """The references (r_f, r_m) of phi_eps(s) = (1 - eps) s + eps s^2 / (2 r), physical units: a bounded part's
     bound (its magnitude's scale, :meth:`SmoothTranscription.magnitude_scales`); an unbounded part's largest
-    magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part).  (The
-    structured finish's roundings are fractions of the same references, :mod:`.structure`.)  Why: an unbounded
-    part's scale is a guess from the boundary data, and where the magnitudes are far from r the levels are no
-    homotopy; with these references phi_eps'(s) = 1 - eps + eps s / r is in [1 - eps, 1] on the effort optimum's
-    magnitudes at every level (docs/mathematics.md, "LEO fuel raises")."""
+    magnitude in the effort optimum's controls U (6, n), or its scale where that vanishes (a removed part); so
+    phi_eps'(s) is in [1 - eps, 1] on the effort optimum's magnitudes (docs/mathematics.md §21).  The structured
+    finish's roundings are fractions of the same references (:mod:`.structure`)."""
     c = problem.control
     mags = np.array([np.linalg.norm(U[sl], axis=0).max(initial=0.0) for sl in (U_FORCE, U_MOMENT)])
     unbounded = np.array([b is None or b.removed for b in (c.force_bound, c.moment_bound)])
@@ -42,21 +34,20 @@ def smoothing_reference(problem: Problem, U: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Homotopy:
-    """The homotopy of the module docstring, run on the problem's own grid: the effort optimum, the jump or the
-    smoothed levels, then the fuel NLP from the last point; its Solution's attempt (named ``label``) carries the
-    effort solves and the levels as its parts, ``stats['homotopy_levels']`` says which path was taken.
+    """The homotopy on the problem's own grid: the effort optimum, the jump or the smoothed levels, then the fuel NLP
+    from the last point (docs/mathematics.md §20); its attempt (named ``label``) carries the effort solves and the
+    levels as its parts, ``stats['homotopy_levels']`` says which path was taken.
 
     ``jump``, ``jump_budget``, ``jump_max_n``: the first step from the effort optimum is the fuel NLP itself (eps = 0,
     cold, within jump_budget iterations) on grids of at most jump_max_n steps, the levels only when that does not
     converge.  ``first``, ``factor``, ``last``: the levels eps = first, first / factor, ... >= last, each within
-    ``level_budget`` iterations, from the last level's primal point with IPOPT's own barrier start (a level is another
-    problem: from the barrier mu = 1e-9 of a warm start far from its optimum IPOPT crawls); the fuel NLP after the
-    last level starts warm (``warm``, the guard's IPOPT options, :class:`.guard.Guarded`).  ``structure_from_budget``:
-    a level after the first that reaches its budget ends the homotopy with its last point, which then starts the
-    structured finish (``finish``) as a coarser grid's optimum would (it is near the switching structure already).
-    ``effort_rollout``, ``effort_rollout_budget``: the effort problem, when its plan would start from the relaxed
-    problem and the force is no body-fixed engine, is first solved from the free motion within that budget.
-    ``effort_level_ratio``: :meth:`effort_problem`.  Measurements: docs/mathematics.md §21, "The fuel homotopy"."""
+    ``level_budget`` iterations, from the last level's primal point with IPOPT's own barrier start; the fuel NLP after
+    the last level starts warm (``warm``, the guard's IPOPT options, :class:`.guard.Guarded`).
+    ``structure_from_budget``: a level after the first that reaches its budget ends the homotopy with its last point,
+    which then starts the structured finish (``finish``) as a coarser grid's optimum would (it is near the switching
+    structure already).  ``effort_rollout``, ``effort_rollout_budget``: the effort problem, when its plan would start
+    from the relaxed problem and the force is no body-fixed engine, is first solved from the free motion within that
+    budget.  ``effort_level_ratio``: :meth:`effort_problem`."""
 
     finish: object
     warm: Mapping | None = None
@@ -83,10 +74,7 @@ class Homotopy:
         sum_j omega_j (1/2)(u_f^T W_f' u_f + u_m^T W_m' u_m), where W_i' = w_i / r_i I (w_i the fuel weights, r_i the
         parts' magnitude scales: their bounds) when every part whose fuel counts is bounded and the bounds differ by
         more than ``effort_level_ratio``; otherwise W_i' = w_i I (an unbounded part's reference is the effort
-        optimum's own magnitude).  This effort problem is the first level's, phi_1(s) = s^2 / (2 r): its optimum is
-        the level's.  Why: the fuel weights price |u| and the effort weights |u|^2, so the same numbers weigh the
-        parts in the ratio of their magnitudes differently (configs/leo_engine_fuel.yaml's moment, 1e-10 of the
-        force, was free in the file's effort problem; docs/mathematics.md §21)."""
+        optimum's own magnitude): the first level's problem, phi_1(s) = s^2 / (2 r) (docs/mathematics.md §21)."""
         c = problem.control
         counted = [b for b, k in zip((c.force_bound, c.moment_bound), counted_parts(problem)) if k]
         r = SmoothTranscription.magnitude_scales(problem)
@@ -96,7 +84,7 @@ class Homotopy:
         return problem.replace(control=replace(c, objective=Effort(), W_f=c.W_f / r[0], W_m=c.W_m / r[1]))
 
     def effort(self, problem: Problem, ctx: Context) -> tuple[Solution, str]:
-        """The effort optimum of the effort problem ``problem`` (module docstring) -- with control bounds or path
+        """The effort optimum of the effort problem ``problem`` -- with control bounds or path
         constraints and no body-fixed engine, first from the free motion within ``effort_rollout_budget``; otherwise,
         or when that does not converge, by the effort strategy; its trace holds every solve -- and how it was reached,
         in words."""

@@ -1,39 +1,17 @@
-"""The structured fuel finish (docs/mathematics.md §23): a fuel problem on a finer grid finished from its coarser
-grid's optimum on that optimum's switching structure.
+"""The structured fuel finish (docs/mathematics.md §23-§24): a fuel problem on a finer grid finished from its coarser
+grid's optimum on that optimum's switching structure B (per part, force and moment: the burn nodes).
 
-On the fine grid the epigraph u = s d of the fuel NLP (:mod:`.nlp`) is what makes IPOPT slow: the (s, d) block of the
-Hessian of the Lagrangian is [[0, -mu^T], [-mu, s w omega I]], indefinite wherever mu is not along d, and IPOPT
-regularizes it at most iterations.  A fuel-optimal control is bang-off-bang, and the coarser optimum says where it is
-off.  So the fine grid is solved on a switching structure B (per part, force and moment: the burn nodes), the
-objective :meth:`Fuel.structured <transcription.objectives.fuel.Fuel.structured>` (the NLP's ``l1`` block): on a
-coast node u_j = 0 and s_j = 0 (their bounds); on a burn node
+The objective :meth:`Fuel.structured <transcription.objectives.fuel.Fuel.structured>` (the NLP's ``l1`` block), in
+place of the epigraph u = s d (:mod:`.nlp`) whose indefinite Hessian slows IPOPT: on a coast node u_j = 0 and s_j = 0
+(their bounds); on a burn node
 
     rho_delta(u_j) = sqrt(|u_j|^2 + delta^2) - delta <= s_j,   s_j >= 0,   cost sum_j omega_j (w_f s_f,j + w_m s_m,j),
 
-delta a fraction of the part's magnitude scale: the row's gradient never vanishes and its Hessian is positive
-semidefinite.
-
-The switching function (:func:`switching_l1`): on a coast node of B, mu_j is the multiplier of the bound that fixes
-u_j = 0 (the same -(gradient in u_j of the rest of the Lagrangian) as the epigraph's mu_j, :mod:`.guard`); on a
-burn node mu_j = nu_j u_j / sqrt(|u_j|^2 + delta^2), nu_j <= w omega_j the row's multiplier, so a burn node the
-optimum switched off (|u_j| ~ delta) has sigma_j < 0.  A point with sigma_j <= the guard's tol on every coast node is
-a KKT point of the L1 problem, and of the epigraph NLP too (s = |u|, d = u / |u| on the burn nodes; s = 0,
-d = mu / (w omega) on the coast ones).
-
-:class:`StructuredFinish`: B = the coarse optimum's burn nodes widened by ``dilate`` nodes on each side; the rough
-solve (delta = ``rough`` x the scale, IPOPT's own start with the ``cold`` options); the burn nodes it switched off
-(below ``prune`` x the scale) pruned; the solve with delta = ``exact`` x the scale from there, warm; the guard.  Coast
-nodes with sigma_j > tol join B (their control started at the guard's kick x the scale along mu_j / |mu_j|) and the
-NLP is solved again, warm, and pruned again: at most ``rounds`` solves.  A warm solve that fails is solved once more
-from the same primal point with IPOPT's own barrier start (``cold``).  From an adaptive level's optimum that resolves
-the switching times (``resolved``) the finish is one exact solve on the resampled burn nodes, neither widened, rough
-nor pruned, with the objective scaled by N / ``resolved_nodes``.  When the finish does not converge or pass the
-guard, the epigraph NLP is solved from the same start (``fallback``).
-
-The roundings, the pruning threshold and the widening's kick are fractions of each part's reference r
-(:func:`.homotopy.smoothing_reference`: its bound, or without one the start's largest magnitude).  An engine's force
-has the magnitude a^T u_f = T, linear and exact on the engine's rows: its row is a^T u_f - s_f <= 0 on every node (no
-rounding, never pruned; T = 0 is the engine row's bound).  Measurements: docs/mathematics.md §16, §23, §24.
+delta a fraction of the part's reference r (:func:`.homotopy.smoothing_reference`).  An engine's force has the linear
+row a^T u_f - s_f <= 0 on every node (no rounding, never pruned).  The switching function (:func:`switching_l1`):
+mu_j is the multiplier of the bound u_j = 0 on a coast node, nu_j u_j / sqrt(|u_j|^2 + delta^2) on a burn node; a
+point with sigma_j <= the guard's tol on every coast node is a KKT point of the L1 problem and of the epigraph NLP.
+:class:`StructuredFinish`: widen, rough solve, prune, exact solve, guard, widen where sigma_j > tol, repeat.
 """
 from __future__ import annotations
 
@@ -104,8 +82,7 @@ def _nodes(burn: np.ndarray) -> str:
 @dataclass(frozen=True)
 class StructuredFinish:
     """The fuel problem from a start near its optimum (a coarser grid's optimum resampled, a level's point, a
-    continuation's optimum) on its switching structure (module docstring; the values' reasons: docs/mathematics.md
-    §23-§24); ``label`` names it in the trace.
+    continuation's optimum) on its switching structure (docs/mathematics.md §23-§24); ``label`` names it in the trace.
 
     ``dilate``: the start's burn nodes (magnitude > ``burn_rtol`` x the part's scale) widened by this many nodes on
     each side (the fine grid resolves the switching times the coarse one rounds to its nodes).  ``rough``: the rough
@@ -116,7 +93,8 @@ class StructuredFinish:
     refinement), its objective scaled by N / ``resolved_nodes``.  ``fallback``: the epigraph NLP from the same start
     with these IPOPT options (a small barrier, the point pushed off its bounds as little as possible), within
     ``fallback_budget`` iterations (None: max_iter); None: no fallback.  ``guard``: the guard's tolerances and kick
-    (:class:`.guard.Guarded`)."""
+    (:class:`.guard.Guarded`; a coast node with sigma_j > tol joins B, its control started at kick x r along mu_j).
+    A warm solve that fails is solved once more from its primal point with the ``cold`` options."""
 
     guard: Guarded
     label: str = "structured finish"
@@ -146,7 +124,7 @@ class StructuredFinish:
         return replace(fb, trace=tried + fb.trace).with_notes(fuel_structure=said)
 
     def finish(self, problem: Problem, start: Start, ctx: Context) -> tuple[Solution, dict]:
-        """The rounds of the module docstring: the last Solution (converged or not; on the structured problem) with
+        """The rounds: the last Solution (converged or not; on the structured problem) with
         the trace of every solve, and stats: :func:`~.guard.verdict`'s of its switching values, ``fuel_structure``
         (one line per round), ``fuel_structure_rounds``."""
         ref = smoothing_reference(problem, start.U)      # the parts' bounds, an unbounded part's largest magnitude
@@ -203,7 +181,7 @@ class StructuredFinish:
                                                                                           lam_x=None))
         tries.append((None, self.cold, "from IPOPT's own start: " if tries else ""))
         said = []
-        for warm, options, prefix in tries:      # a failed warm solve: again, cold (module docstring)
+        for warm, options, prefix in tries:      # a failed warm solve: again, cold (class docstring)
             s = first if warm is None else replace(start.primal(), point=warm)
             sol = ctx.solve(p, s, f"structured {phase}{' cold' if prefix else ''}", ipopt={**extra, **options},
                             max_iter=budget)
