@@ -12,7 +12,7 @@ Strategies (:mod:`transcription.strategy`) compose solves; the registry that pic
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Callable, Protocol
 
 from ..dynamics.trajectory import trajectory
@@ -64,9 +64,24 @@ class Method(Protocol):
 
 
 @dataclass(frozen=True)
-class WithOptions:
-    """A method whose whole configuration is its ``options`` dataclass (Impulsive, Indirect): ``replace`` changes
-    some of them (a strategy's IPOPT presets, ``ipopt``, do not apply to it)."""
+class OneFunction:
+    """A method that is one function ``run(problem, options, report, start, label, **rest)`` and its fields
+    (``options``, a dataclass, and the ``rest`` of the function's keyword arguments), named in its class line with
+    ``covers(problem) -> str`` (what it does not cover): ``class Indirect(OneFunction, name="indirect",
+    kind="smooth", run=solve_indirect, covers=not_covered)``.  ``replace`` changes some options (a strategy's IPOPT
+    presets, ``ipopt``, do not apply to it)."""
+
+    def __init_subclass__(cls, name: str, kind: str, run: Callable, covers: Callable[[Problem], str], **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.name, cls.kind, cls.run, cls.covers = name, kind, staticmethod(run), staticmethod(covers)
+
+    def not_covered(self, problem: Problem) -> str:
+        return self.covers(problem)
+
+    def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
+              label: str = "") -> Solution:
+        rest = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "options"}
+        return self.run(problem, self.options, report, start, label, **rest)
 
     def replace(self, ipopt=None, **options):
         return replace(self, options=self.options.replace(**options) if options else self.options)

@@ -16,30 +16,45 @@ from ..geometry.so3 import is_symbolic, mtimes
 from .errors import ProblemError, positive, unit
 
 
-class _PositiveLimit:
-    """A path constraint given by one positive number (its only field), checked on construction."""
+#: the state vectors a norm limit may bound: name -> (v(X, inertia) (CasADi or NumPy), its Trajectory attribute)
+NORM_VECTORS = {"position": (lambda X, inertia: split_state(X)[0], "x"),
+                "angular_velocity": (lambda X, inertia: mtimes(np.linalg.inv(inertia), split_state(X)[3]), "Omega")}
+
+
+class _NormLimit:
+    """A limit on the norm of the state vector ``of`` (a key of NORM_VECTORS) at every node, given by one positive
+    number (its only field, checked on construction): ``lower``: |v| >= limit, smooth form |v| - limit >= 0; else
+    |v| <= limit, smooth form limit^2 - |v|^2 >= 0 (smooth at v = 0).  A subclass names its ``kind``, the
+    ``dimension`` of its margin, ``of`` and ``lower`` in its class line."""
+
+    def __init_subclass__(cls, kind: str, dimension: str, of: str, lower: bool, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.kind, cls.dimension, cls.needs, cls.lower = kind, dimension, (of,), lower
 
     def __post_init__(self):
         name = fields(self)[0].name
         positive(getattr(self, name), f"constraints.{self.kind}.{name}")
 
-
-@dataclass(frozen=True)
-class MinRadius(_PositiveLimit):
-    """|x_k| >= radius at every node (stay above a sphere about the central body's centre)."""
-
-    radius: float
-    kind = "min_radius"
-    dimension = "length"
-    needs = ("position",)
+    @property
+    def limit(self) -> float:
+        return getattr(self, fields(self)[0].name)
 
     def expression(self, X, inertia):
-        """g(X) >= 0 (CasADi or NumPy): |x| - r (in length units; the margin)."""
-        x, _, _, _ = split_state(X)
-        return (ca.norm_2(x) if is_symbolic(X) else np.linalg.norm(x)) - self.radius
+        v = NORM_VECTORS[self.needs[0]][0](X, inertia)
+        if self.lower:
+            return (ca.norm_2(v) if is_symbolic(X) else np.linalg.norm(v)) - self.limit
+        return self.limit**2 - (ca.dot(v, v) if is_symbolic(X) else v @ v)
 
     def margin(self, traj) -> np.ndarray:
-        return np.linalg.norm(traj.x, axis=1) - self.radius
+        n = np.linalg.norm(getattr(traj, NORM_VECTORS[self.needs[0]][1]), axis=1)
+        return n - self.limit if self.lower else self.limit - n
+
+
+@dataclass(frozen=True)
+class MinRadius(_NormLimit, kind="min_radius", dimension="length", of="position", lower=True):
+    """|x_k| >= radius at every node (stay above a sphere about the central body's centre); margin in length units."""
+
+    radius: float
 
 
 #: the directions a cone may follow besides a fixed inertial one: the nadir -x/|x| and the direction of
@@ -156,21 +171,11 @@ class KeepIn(_Cone):
 
 
 @dataclass(frozen=True)
-class MaxAngularRate(_PositiveLimit):
-    """|Omega_k| <= value at every node (Omega = J^-1 Pi, body frame).  Smooth form: value^2 - |Omega|^2 >= 0."""
+class MaxAngularRate(_NormLimit, kind="max_angular_rate", dimension="angular_rate", of="angular_velocity",
+                     lower=False):
+    """|Omega_k| <= value at every node (Omega = J^-1 Pi, body frame)."""
 
     value: float
-    kind = "max_angular_rate"
-    dimension = "angular_rate"
-    needs = ("angular_velocity",)
-
-    def expression(self, X, inertia):
-        _, _, _, Pi = split_state(X)
-        Om = mtimes(np.linalg.inv(inertia), Pi)
-        return self.value**2 - (ca.dot(Om, Om) if is_symbolic(X) else Om @ Om)
-
-    def margin(self, traj) -> np.ndarray:
-        return self.value - np.linalg.norm(traj.Omega, axis=1)
 
 
 #: the path constraints a Problem accepts

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import ClassVar
 
 import numpy as np
 
@@ -18,7 +17,7 @@ from ...results.solution import Solution
 from ...dynamics.trajectory import trajectory
 from ...results.start import Start
 from ...results.trace import Attempt
-from ..base import Progress, WithOptions
+from ..base import OneFunction, Progress
 from .reduced import relaxed_reduced
 from .relaxed import relaxed_nlp, relaxed_start
 from .sensitivity import with_momenta
@@ -161,18 +160,9 @@ def solve_impulsive(problem: Problem, options: DirectOptions | None = None, prog
 
 
 @dataclass(frozen=True)
-class Impulsive(WithOptions):
+class Impulsive(OneFunction, name="direct", kind="impulsive", run=solve_impulsive, covers=not_covered):
     """The direct method on impulsive control (package docstring): one solve of the impulsive problem (a TPBVP for a
     state target, the relaxed problem for an orbit target) with the direct method's ``options``."""
 
     options: DirectOptions = field(default_factory=DirectOptions)
     settings: ImpulsiveSettings = ImpulsiveSettings()     # the numerical parameters of its solves
-    name: ClassVar[str] = "direct"
-    kind: ClassVar[str] = "impulsive"
-
-    def not_covered(self, problem: Problem) -> str:
-        return not_covered(problem)
-
-    def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
-              label: str = "") -> Solution:
-        return solve_impulsive(problem, self.options, report, start, label, self.settings)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from typing import ClassVar
 
 import numpy as np
 
@@ -19,7 +18,7 @@ from ...outcome import Iterate, Result
 from ...dynamics.trajectory import trajectory
 from ...results.start import Start, start_of
 from ...results.trace import Attempt
-from ..base import Progress, WithOptions, failed_solution
+from ..base import OneFunction, Progress, failed_solution
 from .continuation import bound_continuation, free_final_time
 from .control import bound_data, bounded, control_cost, weight_inverse
 from .coordinates import body_coordinates
@@ -339,21 +338,12 @@ def initial_step(problem: Problem, warm: Start | None) -> float:
 
 
 @dataclass(frozen=True)
-class Indirect(WithOptions):
+class Indirect(OneFunction, name="indirect", kind="smooth", run=solve_indirect, covers=not_covered):
     """The indirect method (package docstring): one solve of the discrete necessary conditions by Newton-Armijo
     shooting on the initial costate (with the objective's law: its continuations and homotopies inside) from a
     start's costates or ``options.initial_costate``."""
 
     options: IndirectOptions = field(default_factory=IndirectOptions)
-    name: ClassVar[str] = "indirect"
-    kind: ClassVar[str] = "smooth"
-
-    def not_covered(self, problem: Problem) -> str:
-        return not_covered(problem)
-
-    def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
-              label: str = "") -> Solution:
-        return solve_indirect(problem, self.options, report, start, label)
 
 
 def outer_errors(history: list[Iterate]) -> np.ndarray:
