@@ -37,7 +37,8 @@ _EXPORTS = {
     "Solution": "transcription.results.solution", "Trajectory": "transcription.dynamics.trajectory", "Result": "transcription.outcome",
     "Iterate": "transcription.outcome", "SolveError": "transcription.results.solution", "Attempt": "transcription.results.trace",
     "Start": "transcription.results.start", "Effort": "transcription.objectives", "Time": "transcription.objectives",
-    "Fuel": "transcription.objectives",
+    "Fuel": "transcription.objectives", "EffortTime": "transcription.objectives",
+    "BoxBound": "transcription.ocp", "NormBound": "transcription.ocp", "ThrusterBound": "transcription.ocp",
     "Comparison": "transcription.solve", "compare": "transcription.solve",
     "tracking_gains": "transcription.closedloop.tracking", "fly": "problems.flight",
 }
@@ -69,7 +70,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .transcription.outcome import Iterate, Result
     from .transcription.dynamics.trajectory import Trajectory  # noqa: F401
     from .transcription.results.start import Start  # noqa: F401
-    from .transcription.objectives import Effort, Fuel, Time  # noqa: F401
+    from .transcription.objectives import Effort, EffortTime, Fuel, Time  # noqa: F401
+    from .transcription.ocp import BoxBound, NormBound, ThrusterBound  # noqa: F401
     from .transcription.solve import Comparison, compare  # noqa: F401
     from .transcription.closedloop.tracking import tracking_gains  # noqa: F401
     from .problems.flight import fly  # noqa: F401
