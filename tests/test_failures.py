@@ -170,7 +170,7 @@ TIMING_DEPENDENT = {
     "sigint_newton": ("Ctrl-C during the Newton-Armijo iteration is lost about 1 run in 3: the signal arrives inside a "
                       "CasADi Function evaluation, CasADi consumes the KeyboardInterrupt, the solve runs to "
                       "convergence and the CLI exits 0.",
-                      [("line", "[indirect] iter    1", 0.0)] * 16),  # lost in ~1/3 of runs at this point
+                      [("line", ("[indirect ", "] iter    1"), 0.0)] * 16),  # lost in ~1/3 of runs at this point
 }
 
 

@@ -132,21 +132,21 @@ def test_the_guard_flags_a_false_minimum_and_the_escape_leaves_it():
 
 @pytest.mark.slow
 def test_the_false_minimum_on_the_mesh_is_left_and_the_indirect_method_agrees():
-    """The known case (issue 26): the raise on the mesh r_k = 1.5 + sin 2.3k, LGVI, N = 40. The epigraph NLP's finish
+    """The known case (issue 26): the raise on the mesh r_k = 1.5 + sin 2.3k, LGVI, N = 40.  The epigraph NLP's finish
     from the 25-step optimum of the smoothed levels (the plan's fallback and the homotopy before its jump, forced
-    here) stops at the false minimum 0.8153924 (coasting on nodes
-    3 and 4 with sigma +3.5e-4, +7.4e-4); the guard fails there and one escape reaches 0.8150812452 with the guard
-    passed.  The default plan's finish on the switching structure (docs §23) reaches that optimum directly (measured
-    0.8150812438, no escape); the indirect method, started from it, converges with a consistent exact switching
-    structure and agrees to 1e-8 (measured 1e-11), no costlier.  About 25 s at load 1."""
+    here) stopped at the false minimum 0.8153924 (coasting on nodes 3 and 4 with sigma +3.5e-4, +7.4e-4) while the
+    levels were solved warm (mu_init 1e-9); with the levels started at IPOPT's own barrier it reaches 0.8150812452
+    with the guard passed, below the false minimum by more than 3e-4 (the guard's escape from a false minimum:
+    test_the_guard_flags_a_false_minimum_and_the_escape_leaves_it).  The default plan's finish on the switching
+    structure (docs §23) reaches that optimum (measured 0.8150812438, no escape); the indirect method, started from
+    it, converges with a consistent exact switching structure and agrees to 1e-8 (measured 1e-11), no costlier."""
     from se3ocp.transcription.objectives.fuel.homotopy import Homotopy
 
     p = raise_on_mesh(40, "lgvi")
     old = solve_direct(p, strategy=FuelStrategy(structure=Epigraph(None),
                                                 homotopy=Homotopy(None, jump=False, effort_rollout=False)))
-    assert old.converged and old.trace[-2].cost > 0.81539243, old.message
-    assert old.stats["fuel_escape"][0].startswith("1: d re-aimed at force 3, 4")
-    assert old.stats["fuel_guard"] == "passed" and old.cost < 0.8153924316 * (1 - 3e-4)
+    assert old.converged and old.stats["fuel_guard"] == "passed", old.message
+    assert old.cost < 0.8153924316 * (1 - 3e-4)
     c = se3ocp.solve(p, "both")
     d, i = c.direct, c.indirect
     assert d.converged and i.converged, (d.message, i.message)

@@ -140,7 +140,7 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     import se3ocp
     from se3ocp.transcription.results.check import continuous_check
     from se3ocp.transcription.ocp import quadrature_weights
-    from se3ocp.transcription.ocp.controls import AT_BOUND_RTOL
+    from se3ocp.transcription.ocp import AT_BOUND_RTOL
 
     man = maneuver("leo_engine_fuel")
     p = man.problem
