@@ -108,6 +108,51 @@ def test_an_added_bound_is_raised_while_the_optimum_touches_it():
     assert fc.raised(s, p, _effort_controls(p.N + 1, ENGINE, 0.99 * b)) is None
 
 
+class _Tried:
+    """A step's Solution as the path reads it: converged or not, and its controls (warm.U)."""
+
+    def __init__(self, converged: bool, U: np.ndarray):
+        self.converged, self.warm = converged, (type("W", (), {"U": U})() if converged else None)
+
+
+def test_a_step_that_fails_is_halved_in_the_logarithm_then_the_path_ends():
+    """path: the weight steps in turn; after a step that did not converge, the geometric mean of the last converged
+    problem's weights and the failed one's (1e6 -> 1e7 failed: 10^6.5, then 10^6.25), at most ``shorter`` times in a
+    row, then the path ends; a converged shorter step resumes the nominal steps (the next above it: 1e7); with the
+    weights at the file's, the added bound is raised while the controls touch it, each raise (10x) or shorter raise
+    counting towards bound_steps by its factor."""
+    p = problem("leo_body_engine", 10, None, FUEL)
+    s = start_problem(p, _effort_controls(p.N + 1, 0.7 * ENGINE, PEAK_M))
+    nxt, n = fc.path(s, p), p.N + 1
+    b = s.control.moment_bound.b
+    ok, bad = _Tried(True, _effort_controls(n, ENGINE, 0.5 * b)), _Tried(False, None)
+    wm = lambda step: step[1].control.W_m[0, 0]     # noqa: E731
+    first = nxt(p, ())
+    assert wm(first) == pytest.approx(1e6, rel=1e-12)
+    h = ((first[1], ok),)
+    second = nxt(p, h)
+    assert wm(second) == pytest.approx(1e7, rel=1e-12)
+    h += ((second[1], bad),)
+    half = nxt(p, h)
+    assert wm(half) == pytest.approx(10 ** 6.5, rel=1e-12) and half[0].endswith("(shorter)")
+    assert half[1].control.moment_bound.b == pytest.approx(b, rel=1e-15)
+    quarter = nxt(p, h + ((half[1], bad),))
+    assert wm(quarter) == pytest.approx(10 ** 6.25, rel=1e-12)
+    h3 = h + ((half[1], bad), (quarter[1], bad))
+    assert wm(nxt(p, h3)) == pytest.approx(10 ** 6.125, rel=1e-12)
+    assert nxt(p, h3 + ((nxt(p, h3)[1], bad),)) is None              # shorter = 3 halvings in a row
+    resumed = nxt(p, h + ((half[1], ok),))
+    assert wm(resumed) == pytest.approx(1e7, rel=1e-12)
+    # the weights at the file's: the bound raised while touched, until raised bound_factor^bound_steps in all
+    last = fc.weight_steps(s, p)[-1]
+    touch = _Tried(True, _effort_controls(n, ENGINE, b))
+    raised = nxt(p, ((last, touch),))
+    assert raised[1].control.moment_bound.b == pytest.approx(10 * b, rel=1e-15)
+    assert nxt(p, ((last, _Tried(True, _effort_controls(n, ENGINE, 0.5 * b))),)) is None
+    top = raised[1].replace(control=replace(raised[1].control, moment_bound=NormBound(b * 10 ** fc.bound_steps)))
+    assert nxt(p, ((top, _Tried(True, _effort_controls(n, ENGINE, b * 10 ** fc.bound_steps))),)) is None
+
+
 @pytest.mark.slow
 def test_the_engine_raise_with_the_fuel_objective_converges():
     """configs/leo_body_engine.yaml with control.objective=fuel (the moment unbounded, w_m = 1e10), default options,

@@ -233,27 +233,28 @@ class CoarseToFine:
 
 @dataclass(frozen=True)
 class Continuation:
-    """A path of problems solved in turn, each from the last one's solution: ``path(problem, history)`` gives the next
-    (phase, problem) from the history of ((problem, solution), ...) solved so far (None: the path is done), each
-    solved by ``step``.  The Solution is the last one's, its attempt named ``label`` with every step's solves as its
-    parts and ``stats['continuation_steps']`` one line per step; None when the path is empty.  The path moves the
-    parameter (a smoothing eps, the weights, the bounds, a sweep's axis); a step that does not converge ends it."""
+    """A path of problems solved in turn, each from the last converged one's solution: ``path(problem, history)``
+    gives the next (phase, problem) from the history of ((problem, solution), ...) tried so far, failures included
+    (None: the path is done), each solved by ``step``.  The path moves the parameter (a smoothing eps, the weights, the
+    bounds, a sweep's axis) and is its own step-size controller: after a step that did not converge it may try a
+    shorter one, or end.  The Solution is the last one tried, its attempt named ``label`` with every step's solves as
+    its parts and ``stats['continuation_steps']`` one line per step; None when the path is empty."""
 
     path: Callable[[Problem, tuple], tuple[str, Problem] | None]
     step: Strategy
     label: str = "continuation"
 
     def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution | None:
-        history, parts, lines, sol = (), [], [], None
+        history, parts, lines, sol, warm = (), [], [], None, start
         while (nxt := self.path(problem, history)) is not None:
             phase, p = nxt
-            sol = self.step.run(p, start if sol is None else sol.warm, ctx.under(phase))
+            sol = self.step.run(p, warm, ctx.under(phase))
             parts += sol.trace
             lines.append(f"{phase}: {sol.result.value} in {sol.iterations} iterations"
                          + (f", cost {sol.cost:.10g}" if sol.converged else ""))
             history += ((p, sol),)
-            if not sol.converged or sol.warm is None:
-                break
+            if sol.converged and sol.warm is not None:
+                warm = sol.warm
         if sol is None:
             return None
         last = replace(parts[-1], label=self.label).prepared(tuple(parts[:-1]), "the continuation")

@@ -21,8 +21,10 @@ one's optimum (a :class:`~transcription.strategy.core.Continuation` along the pa
    not touch leaves it a KKT point of the problem without it), at most ``bound_steps`` times;
 3. the problem itself, from that optimum, by the structured finish and the fuel KKT guard.
 
-Steps 1 and 2 are each a structured finish from the last optimum (``step``); a step need not pass the guard (only
-the last solve is the answer), but it must converge.  Measurements: docs/mathematics.md §25.
+Steps 1 and 2 are each a structured finish from the last converged optimum (``step``); a step need not pass the guard
+(only the last solve is the answer), but it must converge: one that does not is halved (the geometric mean of the last
+converged step's weights and bounds and its own), at most ``shorter`` times in a row.  Measurements:
+docs/mathematics.md §25.
 """
 from __future__ import annotations
 
@@ -72,7 +74,8 @@ def _line(what: str, sol: Solution) -> str:
 class ContinuationStart:
     """Steps 0-3 of the module docstring: ``first`` solves the start problem (the fuel strategy), ``step`` each step
     of the path (a structured finish without fallback, more rounds than the problem's own), ``finish`` the problem
-    itself.  ``margin``, ``weight_factor``, ``bound_factor``, ``bound_steps``: module docstring."""
+    itself.  ``margin``, ``weight_factor``, ``bound_factor``, ``bound_steps``: module docstring; ``shorter``: how many
+    times in a row a step that did not converge is halved (:meth:`path`)."""
 
     first: object
     step: object
@@ -81,6 +84,7 @@ class ContinuationStart:
     weight_factor: float = 10.0
     bound_factor: float = 10.0
     bound_steps: int = 6
+    shorter: int = 3
     label: str = "the fuel homotopy from the effort optimum (or its continuation from a bounded problem)"
 
     def start_problem(self, problem: Problem, U: np.ndarray, ratio: float) -> Problem | None:
@@ -126,17 +130,39 @@ class ContinuationStart:
                 bounds[i], raised = NormBound(bounds[i].b * self.bound_factor), True
         return step.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1])) if raised else None
 
+    def between(self, a: Problem, b: Problem, free: np.ndarray) -> Problem:
+        """The shorter step from ``a`` (converged) towards ``b`` (not): weights and added bounds (the ``free`` parts'),
+        each the geometric mean of a's and b's."""
+        ca_, cb = a.control, b.control
+        w = [np.sqrt(x[0, 0] * y[0, 0]) * np.eye(3) for x, y in ((ca_.W_f, cb.W_f), (ca_.W_m, cb.W_m))]
+        bounds = [NormBound(np.sqrt(x.b * y.b)) if f else x for f, x, y in
+                  zip(free, (ca_.force_bound, ca_.moment_bound), (cb.force_bound, cb.moment_bound))]
+        return a.replace(control=replace(ca_, W_f=w[0], W_m=w[1], force_bound=bounds[0], moment_bound=bounds[1]))
+
     def path(self, start: Problem, problem: Problem):
-        """The path of steps 1-2 as the Continuation asks for it: (phase, problem) after the ``history`` solved."""
+        """The path of steps 1-2 as the Continuation asks for it: (phase, problem) after the ``history`` tried.  After a
+        step that did not converge, the step from the last converged problem is halved (in the logarithm of the
+        weights and bounds, :meth:`between`) at most ``shorter`` times in a row, then the path ends."""
         weights, free = self.weight_steps(start, problem), counted_unbounded(problem)
+        b0 = [b.b for f, b in zip(free, (start.control.force_bound, start.control.moment_bound)) if f]
 
         def nxt(_, history):
-            if len(history) < len(weights):
-                step = weights[len(history)]
-                return f"continuation {_weights(step)}", step
-            last, sol = history[-1] if history else (start, None)
-            raises = len(history) - len(weights)
-            step = None if sol is None or raises >= self.bound_steps else self.raised(last, problem, sol.warm.U)
+            ok = [i for i, (_p, sol) in enumerate(history) if sol.converged and sol.warm is not None]
+            last, sol = history[ok[-1]] if ok else (start, None)
+            failed = len(history) - (ok[-1] + 1 if ok else 0)
+            if failed:
+                if failed > self.shorter:
+                    return None
+                step = self.between(last, history[-1][0], free)
+                return f"continuation {_weights(step)}, {_bounds(step, free)} (shorter)", step
+            w = np.array([last.control.W_f[0, 0], last.control.W_m[0, 0]])
+            ahead = [p for p in weights if np.max(np.array([p.control.W_f[0, 0], p.control.W_m[0, 0]]) / w) > 1 + 1e-9]
+            if ahead:
+                return f"continuation {_weights(ahead[0])}", ahead[0]
+            b = [x.b for f, x in zip(free, (last.control.force_bound, last.control.moment_bound)) if f]
+            raises = np.log(max(bi / b0i for bi, b0i in zip(b, b0))) / np.log(self.bound_factor)
+            step = None if sol is None or raises >= self.bound_steps - 1e-9 else self.raised(last, problem,
+                                                                                              sol.warm.U)
             return None if step is None else (f"continuation {_bounds(step, free)}", step)
 
         return nxt
