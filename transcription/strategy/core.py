@@ -231,6 +231,12 @@ class CoarseToFine:
         return sol.with_notes(said, **stats)
 
 
+def step_line(what: str, sol: Solution) -> str:
+    """A continuation step's line: what was solved, how it ended, its iterations and (converged) its cost."""
+    return f"{what}: {sol.result.value} in {sol.iterations} iterations" + (
+        f", cost {sol.cost:.10g}" if sol.converged else "")
+
+
 @dataclass(frozen=True)
 class Continuation:
     """A path of problems solved in turn, each from the last converged one's solution: ``path(problem, history)``
@@ -250,8 +256,7 @@ class Continuation:
             phase, p = nxt
             sol = self.step.run(p, warm, ctx.under(phase))
             parts += sol.trace
-            lines.append(f"{phase}: {sol.result.value} in {sol.iterations} iterations"
-                         + (f", cost {sol.cost:.10g}" if sol.converged else ""))
+            lines.append(step_line(phase, sol))
             history += ((p, sol),)
             if sol.converged and sol.warm is not None:
                 warm = sol.warm
@@ -262,4 +267,4 @@ class Continuation:
 
 
 __all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "Solve", "Strategy", "chosen",
-           "collapsed", "labelled", "not_made", "spread"]
+           "collapsed", "labelled", "not_made", "spread", "step_line"]

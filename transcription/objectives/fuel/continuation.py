@@ -35,7 +35,7 @@ import numpy as np
 from ...geometry.state import U_FORCE, U_MOMENT
 from ...ocp import AT_BOUND_RTOL, NormBound, Problem
 from ...results.solution import Solution
-from ...strategy.core import Context, Continuation, labelled, not_made
+from ...strategy.core import Context, Continuation, labelled, not_made, step_line
 from .guard import counted_parts
 from .homotopy import smoothing_reference
 
@@ -53,21 +53,25 @@ def significant(x: np.ndarray) -> np.ndarray:
     return np.ceil(x / e * (1 - 1e-12)) * e
 
 
-def _weights(problem: Problem) -> str:
+def diagonal_weights(problem: Problem) -> np.ndarray:
+    """(2,) the fuel weights (w_f, w_m) of ``problem`` (its weights are w I)."""
     c = problem.control
-    return f"w_f {c.W_f[0, 0]:.3g}, w_m {c.W_m[0, 0]:.3g}"
+    return np.array([c.W_f[0, 0], c.W_m[0, 0]])
+
+
+def added_bounds(problem: Problem, free: np.ndarray) -> list[float]:
+    """The radii of ``problem``'s bounds on the ``free`` parts (force, moment): those the continuation added."""
+    c = problem.control
+    return [b.b for f, b in zip(free, (c.force_bound, c.moment_bound)) if f]
+
+
+def _weights(problem: Problem) -> str:
+    w_f, w_m = diagonal_weights(problem)
+    return f"w_f {w_f:.3g}, w_m {w_m:.3g}"
 
 
 def _bounds(problem: Problem, free: np.ndarray) -> str:
-    c = problem.control
-    parts = (("f", c.force_bound, free[0]), ("m", c.moment_bound, free[1]))
-    return ", ".join(f"|u_{n}| <= {b.b:.3g}" for n, b, f in parts if f)
-
-
-def _line(what: str, sol: Solution) -> str:
-    """A step's line of ``stats['fuel_continuation']``: what was solved, how it ended, its iterations and cost."""
-    return f"{what}: {sol.result.value} in {sol.iterations} iterations" + (
-        f", cost {sol.cost:.10g}" if sol.converged else "")
+    return ", ".join(f"|u_{n}| <= {b:.3g}" for n, b in zip(np.array(["f", "m"])[free], added_bounds(problem, free)))
 
 
 @dataclass(frozen=True)
@@ -110,9 +114,8 @@ class ContinuationStart:
         """Step 1: ``start`` with its weights raised geometrically to ``problem``'s in n steps of about
         ``weight_factor`` (n = the largest ratio's rounded number of factors, at least 1 where a weight differs), its
         bounds kept."""
-        c0, c1 = start.control, problem.control
-        w0 = np.array([c0.W_f[0, 0], c0.W_m[0, 0]])
-        w1 = np.array([c1.W_f[0, 0], c1.W_m[0, 0]])
+        c0 = start.control
+        w0, w1 = diagonal_weights(start), diagonal_weights(problem)
         ratio = np.where(w0 > 0, w1 / np.where(w0 > 0, w0, 1.0), 1.0)
         n = int(max(np.round(np.log(ratio.max()) / np.log(self.weight_factor)), 1)) if ratio.max() > 1.0 else 0
         return [start.replace(control=replace(c0, W_f=np.eye(3) * w[0], W_m=np.eye(3) * w[1]))
@@ -134,17 +137,18 @@ class ContinuationStart:
         """The shorter step from ``a`` (converged) towards ``b`` (not): weights and added bounds (the ``free`` parts'),
         each the geometric mean of a's and b's."""
         ca_, cb = a.control, b.control
-        w = [np.sqrt(x[0, 0] * y[0, 0]) * np.eye(3) for x, y in ((ca_.W_f, cb.W_f), (ca_.W_m, cb.W_m))]
+        w = np.sqrt(diagonal_weights(a) * diagonal_weights(b))
         bounds = [NormBound(np.sqrt(x.b * y.b)) if f else x for f, x, y in
                   zip(free, (ca_.force_bound, ca_.moment_bound), (cb.force_bound, cb.moment_bound))]
-        return a.replace(control=replace(ca_, W_f=w[0], W_m=w[1], force_bound=bounds[0], moment_bound=bounds[1]))
+        return a.replace(control=replace(ca_, W_f=w[0] * np.eye(3), W_m=w[1] * np.eye(3), force_bound=bounds[0],
+                                         moment_bound=bounds[1]))
 
     def path(self, start: Problem, problem: Problem):
         """The path of steps 1-2 as the Continuation asks for it: (phase, problem) after the ``history`` tried.  After a
         step that did not converge, the step from the last converged problem is halved (in the logarithm of the
         weights and bounds, :meth:`between`) at most ``shorter`` times in a row, then the path ends."""
         weights, free = self.weight_steps(start, problem), counted_unbounded(problem)
-        b0 = [b.b for f, b in zip(free, (start.control.force_bound, start.control.moment_bound)) if f]
+        b0 = added_bounds(start, free)
 
         def nxt(_, history):
             ok = [i for i, (_p, sol) in enumerate(history) if sol.converged and sol.warm is not None]
@@ -155,12 +159,11 @@ class ContinuationStart:
                     return None
                 step = self.between(last, history[-1][0], free)
                 return f"continuation {_weights(step)}, {_bounds(step, free)} (shorter)", step
-            w = np.array([last.control.W_f[0, 0], last.control.W_m[0, 0]])
-            ahead = [p for p in weights if np.max(np.array([p.control.W_f[0, 0], p.control.W_m[0, 0]]) / w) > 1 + 1e-9]
+            w = diagonal_weights(last)
+            ahead = [p for p in weights if np.max(diagonal_weights(p) / w) > 1 + 1e-9]
             if ahead:
                 return f"continuation {_weights(ahead[0])}", ahead[0]
-            b = [x.b for f, x in zip(free, (last.control.force_bound, last.control.moment_bound)) if f]
-            raises = np.log(max(bi / b0i for bi, b0i in zip(b, b0))) / np.log(self.bound_factor)
+            raises = np.log(max(b / b_0 for b, b_0 in zip(added_bounds(last, free), b0))) / np.log(self.bound_factor)
             step = None if sol is None or raises >= self.bound_steps - 1e-9 else self.raised(last, problem,
                                                                                               sol.warm.U)
             return None if step is None else (f"continuation {_bounds(step, free)}", step)
@@ -170,7 +173,7 @@ class ContinuationStart:
     def run(self, problem: Problem, start_problem: Problem, ctx: Context) -> Solution:
         free = counted_unbounded(problem)
         first = self.first.run(start_problem, None, ctx.under("continuation start"))
-        lines = [_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
+        lines = [step_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
         last = first if first.converged and first.warm is not None else None
         stepped = None
         if last is not None:
