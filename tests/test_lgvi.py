@@ -73,7 +73,7 @@ def model(db):
 
 @pytest.fixture(scope="module")
 def disc(model):
-    return {s: Discretization(model, s) for s in SCHEMES}
+    return {s: Discretization(model, s) for s in SCHEMES + ("lgvi_kepler",)}
 
 
 # ------------------------------------------------------------- Cayley solve
@@ -251,7 +251,7 @@ def reference(db, model):
     return X0, sol.y
 
 
-@pytest.mark.parametrize("scheme, lo, hi", [("lgvi", 1.9, 2.1), ("first_order", 0.9, 1.1)])
+@pytest.mark.parametrize("scheme, lo, hi", [("lgvi", 1.9, 2.1), ("lgvi_kepler", 1.9, 2.1), ("first_order", 0.9, 1.1)])
 def test_convergence_order(disc, reference, scheme, lo, hi):
     """Global error over T = 0.5 (half an orbit, about 1.5 tumbles) at N = 100..800
     (h = 5e-3 .. 6.25e-4): fitted log-log slope of max(|dx|, |dgamma|, |dPi|, |log R_ref^T R|)

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from ...transcription.dynamics.lgvi import two_point
 from ...transcription.dynamics.flight import ClosedLoop, FlightError, OpenLoop, fly
 from ...transcription.results.check import margin_keys
 from ...transcription.closedloop.loop import TrackingLoop
@@ -73,7 +74,7 @@ def plan_usage(gains, samples: int) -> tuple[float, float]:
     """(delta-v, angular impulse) of the plan's commands with exact actuators, by the quadrature of :func:`impulse`
     on ``samples`` samples per interval (so that a flight's overhead compares like with like)."""
     a, b = gains.U[:, :-1].T, gains.U[:, 1:].T
-    if gains.scheme != "lgvi":
+    if not two_point(gains.scheme):
         a = b = gains.U.T
     s = np.arange(samples + 1) / samples
     u = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]

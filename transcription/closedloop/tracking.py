@@ -20,6 +20,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from ..dynamics.lgvi import two_point
 from ..geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, X_ANG, X_MOM, X_POS, X_ROT, Z_ANG, Z_MOM, Z_POS, Z_ROT
 from ..geometry.so3 import exp_so3, log_so3
 from ..ocp import Actuator, SmoothControl, actuator_bounds
@@ -283,7 +284,7 @@ class Gains:
 
     def plan_stage(self, k: int) -> np.ndarray:
         """The plan's node controls of step k as rows: lgvi (2, 6) [u_k; u_{k+1}], first_order (1, 6) [u_{k+1}]."""
-        return self.U[:, k:k + 2].T if self.scheme == "lgvi" else self.U[:, k:k + 1].T
+        return self.U[:, k:k + 2].T if two_point(self.scheme) else self.U[:, k:k + 1].T
 
     def tracker(self, feedback: bool = True, disturbance: bool = True, r0: np.ndarray | None = None) -> "Tracker":
         """A fresh feedback law for one flight (:class:`Tracker`; r0: a disturbance estimate handed over)."""
@@ -333,7 +334,7 @@ class Tracker:
             if self.bounded:
                 du, limited = self.limit(k, du, g.plan_stage(k))
                 self.saturated_steps += limited
-        self.dw = np.tile(du, 2 if g.scheme == "lgvi" else 1)
+        self.dw = np.tile(du, 2 if two_point(g.scheme) else 1)
         self.k = k
         return du
 
@@ -435,7 +436,7 @@ def sub_stepped(sol, h_max: float | None = None):
         return sol
     s = [np.arange(1, mk + 1) / mk for mk in m]                       # sub-node fractions of each step, ending at 1
     tt = np.concatenate([[t[0]]] + [np.r_[t[k] + hk[k] * s[k][:-1], t[k + 1]] for k in range(len(hk))])
-    if disc.scheme == "lgvi":
+    if two_point(disc.scheme):
         Ut = np.column_stack([U[:, 0]] + [np.c_[U[:, [k]] + s[k][None, :-1] * (U[:, [k + 1]] - U[:, [k]]), U[:, k + 1]]
                                           for k in range(len(hk))])
     else:
@@ -469,7 +470,7 @@ def linearization(disc, X: np.ndarray, U: np.ndarray, h: float | np.ndarray) -> 
 def held(B: np.ndarray, scheme: str) -> np.ndarray:
     """Bu (N, 12, 6) of a correction du_k held over step k from B (N, 12, nw): lgvi B_k [I; I] (du_k enters
     both node controls of the stage control w_k = [u_k; u_{k+1}]), first_order B_k (w_k = u_{k+1})."""
-    return B[:, :, :NU] + B[:, :, NU:] if scheme == "lgvi" else B
+    return B[:, :, :NU] + B[:, :, NU:] if two_point(scheme) else B
 
 
 # ------------------------------------------------------------------------------- the discrete loop
@@ -494,7 +495,7 @@ def fly_discrete(gains: Gains, disc, X0, *, feedback: bool = True, disturbance: 
     N = gains.N
     X = np.zeros((N + 1, NX))
     X[0] = np.asarray(X0, float).reshape(NX)
-    rows = 2 if gains.scheme == "lgvi" else 1
+    rows = 2 if two_point(gains.scheme) else 1
     cmds = np.zeros((N, rows, NU))
     law = gains.tracker(feedback, disturbance)
     for k in range(N):

@@ -19,6 +19,7 @@ from typing import Callable, Protocol
 import casadi as ca
 import numpy as np
 
+from .lgvi import SCHEMES, two_point
 from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, join_state, split_state
 from ..geometry.so3 import orthogonality_error
 from .model import BodyModel
@@ -106,11 +107,9 @@ def interval_commands(scheme: str, U: np.ndarray) -> tuple[np.ndarray, np.ndarra
     ``end[:, k]`` at t_{k+1} (§11): LGVI U (6, N+1), start = u_k, end = u_{k+1}; first order U (6, N) = u_1..u_N,
     start = end = u_{k+1}.  Returns (6, N) each."""
     U = np.asarray(U, dtype=float)
-    if scheme == "lgvi":
-        return U[:, :-1], U[:, 1:]
-    if scheme == "first_order":
-        return U, U
-    raise ValueError(f"scheme must be 'lgvi' or 'first_order', got {scheme!r}")
+    if scheme not in SCHEMES:
+        raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+    return (U[:, :-1], U[:, 1:]) if two_point(scheme) else (U, U)
 
 
 class ControlLaw(Protocol):

@@ -2,6 +2,10 @@
 (model, scheme) as named CasADi SX Functions:
 
 * ``lgvi``        second-order LGVI, eqs. (7)-(11); stage control w_k = [u_k; u_{k+1}] in R^12.
+* ``lgvi_kepler`` the second-order LGVI with the central body's Kepler motion flown exactly (§2a): kick by the
+                  force less the point-mass term, the exact two-body drift (:mod:`.kepler`), kick; the attitude part
+                  is the LGVI's.  Its error scales with the perturbation (thrust, J2, attitude coupling), not with
+                  the orbit; stage control as ``lgvi``.  Needs the model's central body (``model.mu``).
 * ``first_order`` the paper's modified first-order scheme, eqs. (21)-(25); stage control w_k = u_{k+1} in R^6.
 
 The only implicit part is the Cayley equation (9)/(23), ``G(c) = g + g x c + (g^T c) c - 2 J c = 0``, F_k = cay(c),
@@ -33,9 +37,19 @@ import numpy as np
 
 from ..geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, chart, join_state, split_state, tangent_readback
 from ..geometry.so3 import cayley, hat, is_symbolic
+from .kepler import kepler_drift, kepler_force
 from .model import BodyModel
 
-SCHEMES = ("lgvi", "first_order")
+SCHEMES = ("lgvi", "lgvi_kepler", "first_order")
+
+#: the order of each scheme's global error in h (the refinement's model, strategy.refine)
+ORDER = {"lgvi": 2, "lgvi_kepler": 2, "first_order": 1}
+
+
+def two_point(scheme: str) -> bool:
+    """Whether the scheme's stage control is w_k = [u_k; u_{k+1}] (controls at the N+1 nodes: the LGVIs) rather
+    than u_{k+1} alone (first_order)."""
+    return scheme != "first_order"
 
 #: the frame the force control u_f is given in: 'inertial' (the paper's case) or 'body' (engines fixed in
 #: the body; the applied inertial force is R u_f at the node the control belongs to, docs/mathematics.md §14)
@@ -114,13 +128,15 @@ class _StepFunctions:
         self.cayley_solve = fn("cayley_solve", [g], [ck, ca.vertcat(*hist)], ["g"], ["c", "res_hist"])
 
         X, w, h = ca.SX.sym("X", NX), ca.SX.sym("w", disc.nw), ca.SX.sym("h")
-        X1, gvec = disc._step_expr(X, c, w, h, m, forces)
+        X1, gvec, kres = disc._step_expr(X, c, w, h, m, forces)
         self.step_given_c = fn(f"{scheme}_step_given_c", [X, c, w, h], [X1, self.cayley_residual(c, gvec, *extra)],
                                ["X", "c", "w", "h"], ["X1", "G"])
         self.cayley_rhs = fn(f"{scheme}_cayley_rhs", [X, w, h], [gvec], ["X", "w", "h"], ["g"])
         csol, hist = self.cayley_solve(gvec, *extra)
         X1s, _ = self.step_given_c(X, csol, w, h, *extra)
-        self.step = fn(f"{scheme}_step", [X, w, h], [X1s, hist[-1]], ["X", "w", "h"], ["X1", "res"])
+        # res: the Cayley residual, and the Kepler equation's where the drift solves one (lgvi_kepler)
+        res = hist[-1] if kres is None else ca.fmax(hist[-1], kres)
+        self.step = fn(f"{scheme}_step", [X, w, h], [X1s, res], ["X", "w", "h"], ["X1", "res"])
         self._later = (disc, fn, extra)
         if not parametric:
             self.variations()
@@ -190,7 +206,7 @@ def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = D
 
 
 class Discretization:
-    """One discrete scheme ('lgvi' | 'first_order') for one body model, ``newton_iters`` unrolled Cayley iterations,
+    """One discrete scheme ('lgvi' | 'lgvi_kepler' | 'first_order') for one body model, ``newton_iters`` unrolled Cayley iterations,
     ``force_frame`` 'inertial' | 'body' (the applied force of a control at node j is R_j u_{f,j},
     :meth:`applied_force`).  Every Function is built once here; what the methods build for it (NLP blocks, shooting
     Functions, rollouts) is kept here too (:meth:`cached`)."""
@@ -207,7 +223,10 @@ class Discretization:
         self.newton_iters = int(newton_iters)
         self._built: dict[Hashable, Any] = {}
         #: stage control dimension
-        self.nw = 2 * NU if scheme == "lgvi" else NU
+        self.nw = 2 * NU if two_point(scheme) else NU
+        if scheme == "lgvi_kepler" and not model.mu:
+            raise ValueError("the lgvi_kepler scheme flies a central body's Kepler motion exactly: the model needs "
+                             "its gravitational parameter mu")
         J = model.inertia
         self.J = J
         self.Jd = 0.5 * np.trace(J) * np.eye(3) - J
@@ -219,19 +238,34 @@ class Discretization:
 
     # ------------------------------------------------------------------ steps
     def _step_expr(self, X, c, w, h, m, forces):
-        """Symbolic step given the Cayley vector c, the mass m and forces(x, R) -> (f, M); returns (X_{k+1}, g_k)."""
+        """Symbolic step given the Cayley vector c, the mass m and forces(x, R) -> (f, M); returns (X_{k+1}, g_k,
+        the Kepler residual or None).  The LGVIs' translation is kick, drift, kick: gamma+ = gamma + (h/2) F_k',
+        (x_{k+1}, gamma-) = drift_h(x_k, gamma+), gamma_{k+1} = gamma- + (h/2) F_{k+1}', where lgvi drifts freely
+        (x + h gamma+/m, eq. 7-8) with F' = F, and lgvi_kepler flies the two-body flow exactly with F' = F less the
+        point-mass force it already contains (§2a)."""
         x, gamma, R, Pi = split_state(X)
         F = cayley(c)
-        if self.scheme == "lgvi":
+        kres = None
+        if two_point(self.scheme):
             uk, uk1 = w[0:NU], w[NU:]
+            if self.scheme == "lgvi_kepler":
+                mu = float(self.model.mu)
+                pert = lambda x_: -kepler_force(mu, m, x_)                    # noqa: E731
+            else:
+                pert = lambda x_: 0                                            # noqa: E731
             f0, M0 = forces(x, R)
             Fk0 = f0 + self.applied_force(R, uk[U_FORCE])
             Mk0 = M0 + uk[U_MOMENT]
             g = h * (Pi + (h / 2) * Mk0)                                       # (9)
-            x1 = x + (h / m) * gamma + (h**2 / (2 * m)) * Fk0                  # (7)
+            gp = gamma + (h / 2) * (Fk0 + pert(x))
+            if self.scheme == "lgvi_kepler":
+                x1, v1, kres = kepler_drift(mu)(x, gp / m, h)                  # (§2a)
+                gm = m * v1
+            else:
+                x1, gm = x + (h / m) * gp, gp                                  # (7)
             R1 = ca.mtimes(R, F)                                               # (10)
             f1, M1 = forces(x1, R1)
-            gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]))  # (8)
+            gamma1 = gm + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]) + pert(x1))  # (8)
             Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[U_MOMENT])  # (11)
         else:
             u1 = w
@@ -241,7 +275,7 @@ class Discretization:
             f1, M1 = forces(x1, R1)
             gamma1 = gamma + h * f1 + h * self.applied_force(R1, u1[U_FORCE])      # (22)
             Pi1 = ca.mtimes(F.T, Pi) + h * M1 + h * u1[U_MOMENT]                    # (25)
-        return join_state(x1, gamma1, R1, Pi1), g
+        return join_state(x1, gamma1, R1, Pi1), g, kres
 
     def applied_force(self, R, u_f):
         """The inertial force (3) a force control u_f (3) applies at a node of attitude R (3x3): u_f itself
@@ -255,11 +289,11 @@ class Discretization:
     # --------------------------------------------------------------- controls
     def n_controls(self, N: int) -> int:
         """Number of control vectors over N steps: N+1 (lgvi, nodes 0..N) or N (first_order, u_1..u_N)."""
-        return N + 1 if self.scheme == "lgvi" else N
+        return N + 1 if two_point(self.scheme) else N
 
     def stage_controls(self, U):
         """Controls (6 x n_controls(N)) -> stage controls W (nw x N); NumPy or CasADi."""
-        if self.scheme == "first_order":
+        if not two_point(self.scheme):
             return U
         if is_symbolic(U):
             return ca.vertcat(U[:, :-1], U[:, 1:])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dynamics.lgvi import two_point
 from ..geometry.state import NU, NX
 from .blocks import NC
 
@@ -93,7 +94,7 @@ class StageLayout(NLPLayout):
 
     def __init__(self, N: int, scheme: str, n_slack: int = 0):
         self.N, self.scheme, self.with_c, self.n_slack, self.ih = int(N), scheme, True, int(n_slack), None
-        lift = scheme == "lgvi"
+        lift = two_point(scheme)
         self.ns, self.nq = NX + (NU if lift else 0), NU + NC + self.n_slack
         self.control_nodes = list(range(N + 1)) if lift else list(range(1, N + 1))
         iX = np.zeros((NX, N + 1), dtype=int)
@@ -146,4 +147,4 @@ class StageLayout(NLPLayout):
 
 def control_nodes(disc, N: int) -> range:
     """Nodes carrying a control: 0..N (lgvi) or 1..N (first_order)."""
-    return range(0, N + 1) if disc.scheme == "lgvi" else range(1, N + 1)
+    return range(0, N + 1) if two_point(disc.scheme) else range(1, N + 1)

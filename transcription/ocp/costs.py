@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dynamics.lgvi import two_point
 from ..geometry.state import U_FORCE, U_MOMENT
 from .controls import SmoothControl
 from .problem import Problem
@@ -19,10 +20,10 @@ def quadrature_weights(scheme: str, N: int, h) -> np.ndarray:
     if hs.ndim:
         if hs.shape != (N,):
             raise ValueError(f"quadrature_weights: expected one step size or {N}, got shape {hs.shape}")
-        if scheme == "lgvi":
+        if two_point(scheme):
             return 0.5 * (np.r_[hs, 0.0] + np.r_[0.0, hs])
         return hs.copy()
-    if scheme == "lgvi":
+    if two_point(scheme):
         om = np.full(N + 1, float(h))
         om[[0, -1]] = 0.5 * h
         return om

@@ -21,6 +21,7 @@ import math
 import casadi as ca
 import numpy as np
 
+from ..dynamics.lgvi import two_point
 from ..geometry.state import X_ANG, split_state
 from . import MaxAngularRate, Problem, SmoothControl, TargetState
 from ..geometry.so3 import rotation_angle
@@ -85,7 +86,7 @@ def necessary_conditions(problem: Problem) -> str | None:
     T = problem.time_bounds[1] if problem.free_time else problem.T
     N = problem.N
     h = T / N
-    offset = 0.5 if problem.scheme == "lgvi" else 0.0
+    offset = 0.5 if two_point(problem.scheme) else 0.0
     no_force, no_moment = _free_of(model)
     x0, g0, R0, P0 = split_state(problem.X0)
     xd, gd, Rd, Pd = split_state(target.X)

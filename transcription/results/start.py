@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..dynamics.lgvi import two_point
 from ..geometry.so3 import exp_so3, geodesic_interpolation, log_so3_any
 from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, cayley_vectors, pack_state, unpack_states
 from ..outcome import Code
@@ -139,7 +140,7 @@ class Start:
         if not 0 <= k < self.N:
             raise ValueError(f"tail: expected a node 0 <= k < {self.N}, got {k}")
         lam = self.costates
-        if self.scheme == "lgvi":
+        if two_point(self.scheme):
             lam0 = self.lam0 if k == 0 else (None if lam is None else lam[k - 1])
         else:
             lam0 = self.lam0 if k == 0 and self.lam0 is not None else (None if lam is None else lam[k])
@@ -228,10 +229,10 @@ def resample_controls(U: np.ndarray, scheme: str, new_scheme: str, N: int, sc: n
     """Controls U (6, n) of ``scheme`` at the control times of N steps of ``new_scheme``: linear in time
     between the control times (LGVI: nodes; first order: step midpoints), held beyond the first and last
     (``sc``, ``sf`` as in :func:`resample_states`)."""
-    M = U.shape[1] - 1 if scheme == "lgvi" else U.shape[1]
+    M = U.shape[1] - 1 if two_point(scheme) else U.shape[1]
     sc, sf = _nodes(M, sc), _nodes(N, sf)
-    uc = sc if scheme == "lgvi" else _midpoints(sc)
-    uf = sf if new_scheme == "lgvi" else _midpoints(sf)
+    uc = sc if two_point(scheme) else _midpoints(sc)
+    uf = sf if two_point(new_scheme) else _midpoints(sf)
     return np.vstack([np.interp(uf, uc, U[i]) for i in range(NU)])
 
 

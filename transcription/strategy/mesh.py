@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..dynamics.lgvi import two_point
 from ..geometry.state import NZ, unpack_states
 from ..geometry.so3 import log_so3_batch
 
@@ -43,7 +44,7 @@ def local_errors(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order
     X_{k+1} (transcription.geometry.state.tangent_basis): two half steps minus the plan's step, over (1 - 2^-p)."""
     disc, N = problem.disc, len(steps)
     W = np.asarray(disc.stage_controls(U), dtype=float)
-    if disc.scheme == "lgvi":
+    if two_point(disc.scheme):
         nu = W.shape[0] // 2
         mid = 0.5 * (W[:nu] + W[nu:])
         Wa, Wb = np.vstack([W[:nu], mid]), np.vstack([mid, W[nu:]])

@@ -19,6 +19,7 @@ from ..results.check import characteristic_length as _length, scaled_miss
 from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
+from ..dynamics.lgvi import ORDER
 from .mesh import (Refinement, density_steps, equidistributed_density, equidistributed_steps, error_estimate,
                    path_density, subdivided_steps)
 
@@ -54,8 +55,6 @@ def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
 
 
 # ---------------------------------------------------------------------------- refinement to a tolerance
-#: the order of each scheme's global error in h (docs/mathematics.md §2, §3; measured slopes 2.00 and 1.04)
-ORDER = {"lgvi": 2, "first_order": 1}
 #: the most favourable order a level's miss may fall with: the best of the schemes' (the first-order scheme's miss can
 #: fall at O(h^2) too, so its nominal ORDER would wrongly refuse a tolerance it reaches; §16)
 BEST_ORDER = max(ORDER.values())

@@ -7,6 +7,7 @@ from typing import Callable
 
 import casadi as ca
 
+from ...dynamics.lgvi import two_point
 from ...geometry.state import NU, NX, NZ, U_FORCE, join_state, split_state
 from ...dynamics.lgvi import Discretization, per_discretization
 from ...geometry.so3 import cayley, orthonormalize
@@ -91,7 +92,7 @@ def _forward_step(disc: Discretization, X, lam_prev, h, Winv, bd) -> dict:
     out = {"c": c, "A": A, "Abar": A, "mu": mu, "lam": mu, "lamp": mu, "u": u, "D": D, "X1": X1, "res": hist[-1],
            "law": law}
     if body_coordinates(disc):
-        kick = 0.5 * h if disc.scheme == "lgvi" else h
+        kick = 0.5 * h if two_point(disc.scheme) else h
         lam = kicked_costate(mu, R1, u[U_FORCE], kick)
         Ap = ca.mtimes(frame(disc.step_given_c(Xo, c, wA, h)[0]), ca.mtimes(A, frame_inverse(Xo)))
         out.update(lam=lam, A=Ap, lamp=ca.mtimes(frame_inverse(X1).T, lam))

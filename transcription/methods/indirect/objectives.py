@@ -23,6 +23,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
+from ...dynamics.lgvi import two_point
 from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, split_state
 from ...dynamics.lgvi import Discretization, per_discretization
 from ..newton import NewtonResult, newton_armijo
@@ -254,7 +255,7 @@ def structure_start(ts: TimeShooting, X: np.ndarray, U: np.ndarray, h: float) ->
     every bang node keeps |sigma_i| >= e W_ii b_i (box) or |sigma| >= e w b (norm)."""
     p, disc, N, c = ts.p, ts.p.disc, ts.p.N, ts.p.control
     Ms = costate_transfer(p, X, U, h)
-    Ls = ([np.eye(NZ)] if disc.scheme == "lgvi" else []) + Ms           # the costate each control is read from
+    Ls = ([np.eye(NZ)] if two_point(disc.scheme) else []) + Ms           # the costate each control is read from
     hn = np.broadcast_to(node_steps(p, h), (len(Ls),))                  # each node's step size (h: uniform)
     S = [node_matrix(disc, hj).T @ L for hj, L in zip(hn, Ls)]          # sigma_j = S_j y
     rows, rhs0, rhs1, bang, bang_u = [], [], [], [], []

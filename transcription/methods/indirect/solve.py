@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...dynamics.lgvi import two_point
 from ...geometry.state import NU, NZ
 from ..newton import NewtonResult, newton_armijo
 from ...options import IndirectOptions
@@ -78,7 +79,7 @@ def lam0_from_costates(problem: Problem, lam: np.ndarray, u0: np.ndarray, h: flo
     the mean step, default the problem's; §17).  With a body-fixed force A_0 depends on the end kick R_1 u_{f,1}:
     lambda_{-1} = A_0(X_0, [u_0; u_1])^T lambda_0, u_1 the second control (required)."""
     lam = np.asarray(lam, dtype=float).reshape(NZ)
-    if problem.scheme == "lgvi":
+    if two_point(problem.scheme):
         body = body_coordinates(problem.disc)
         if body and u1 is None:
             raise ValueError("lam0_from_costates: a body-fixed force with the LGVI needs the second control u_1")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ...dynamics.lgvi import SCHEMES, two_point
 from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT
 from ..newton import NewtonResult, newton_armijo
 from ...ocp import STATE_COMPONENTS, Problem, TargetOrbit
@@ -63,7 +64,7 @@ class StructuredShooting:
     lambda_{N-1})) of x = [lambda_0 (the method's shooting unknown); m (the partial nodes' magnitudes)]."""
 
     def __init__(self, problem: Problem, modes: np.ndarray, h: float | None = None):
-        if problem.scheme != "lgvi" and problem.scheme != "first_order":
+        if problem.scheme not in SCHEMES:
             raise ValueError(problem.scheme)
         self.problem, self.modes = problem, np.asarray(modes, float)
         # the step sizes h_k (docs/mathematics.md §19, on a non-uniform mesh): h_k = r_k h, h the mean step
@@ -81,11 +82,11 @@ class StructuredShooting:
         # at the size h_0 of step 0
         u, v = self._first(lam0, mags[0])
         Us, Vs = [u], [v]
-        if p.scheme == "lgvi":
+        if two_point(p.scheme):
             u_prev, ks, shift = u, range(N), 1
         else:
             X, u_prev, ks, shift = p.disc.step(X, u, hk[0])[0], ca.MX.zeros(NU), range(1, N), 0
-        lam_prev, lams = lam0, ([] if p.scheme == "lgvi" else [lam0])
+        lam_prev, lams = lam0, ([] if two_point(p.scheme) else [lam0])
         for k in ks:
             j = k + shift                   # the control index of the control lambda_k determines
             X, lam, u_prev, v = step(X, lam_prev, u_prev, self.modes[:, j], ca.vertcat(*mags[j]), hk[k])
