@@ -8,7 +8,7 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
          | {kind: rigid_body, mass: 1.0, inertia: [3] | 3x3, mu: 39.478..., central_body_radius: 0.0}
     gravity: {kind: point_mass}          # none | point_mass (default) | gravity_gradient | j2 (with J2, radius)
     horizon: {N: 500, T: 0.5}            # or T: {free: true, guess: 30.0, min: 1.0, max: 100.0}
-    discretization: lgvi | first_order   # default lgvi
+    discretization: lgvi_kepler | lgvi | first_order   # default lgvi_kepler with a central body, else lgvi
     initial: {position: [3], velocity: [3], attitude: ATT, angular_velocity: [3]}
     terminal: {position, velocity, attitude, angular_velocity}   # smooth control: any left out is free
             | {orbit: {radius: r, normal: [3], body_axis: [3], angular_velocity: [3]}}
@@ -203,7 +203,8 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     body, central_radius, resolved["model"], resolved["gravity"] = _body(v, doc.get("model", {"kind": "dumbbell"}),
                                                                          doc.get("gravity", {"kind": "point_mass"}))
     N, T, time_bounds, resolved["horizon"] = _horizon(v, doc["horizon"])
-    disc = v.choice(doc.get("discretization", "lgvi"), "discretization", SCHEMES)
+    # a central body's orbit is flown exactly by the Kepler-split LGVI (docs/mathematics.md §2a): the default there
+    disc = v.choice(doc.get("discretization", "lgvi_kepler" if body.central_mu else "lgvi"), "discretization", SCHEMES)
     resolved["discretization"] = disc
     extent = clearance(central_radius, body)
     initial = _state(v, doc["initial"], "initial", body, extent, all_required=True)

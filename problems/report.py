@@ -52,6 +52,15 @@ ROWS = (
 
 #: rows of the continuous check's table (issue 26; docs/mathematics.md §11), as ROWS: summary key, label, unit, format
 CONTINUOUS_ROWS = (
+    ("continuous_maneuver_fraction", "flown miss as a fraction of the maneuver: largest of the terminal misses "
+                                     "below over what the maneuver changes (> 1 %: the plan does not fly as planned)",
+     "", "{:.2%}"),
+    ("continuous_change_position", "the maneuver's position change (smallest of: free motion to target, radius)",
+     "length", "{:.4g}"),
+    ("continuous_change_velocity", "the maneuver's velocity change (smallest of: free motion to target, delta-v)",
+     "velocity", "{:.4g}"),
+    ("continuous_change_attitude_rad", "the maneuver's attitude change (smallest of: free motion to target, slew)",
+     "rad", "{:.4g}"),
     ("continuous_miss", "continuous miss: max(position / L, velocity / V, attitude, rate), as solver.accuracy "
                         "judges it (L, V: orbit radius and circular speed; 1 without a central body)", "", "{:.2e}"),
     ("continuous_terminal_error", "terminal miss (largest of the four below, each in its own unit)", "", "{:.2e}"),

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import math
 import weakref
+
+import numpy as np
 from dataclasses import dataclass
 
 from ..transcription.ocp import MARGIN_DIMENSION
@@ -65,6 +67,22 @@ class Units:
 
     def factor(self, quantity: str) -> float:
         return self.system.display(quantity)[1] if self.system is not None else 1.0
+
+    def amount(self, x: float, quantity: str) -> str:
+        """A length, velocity or angle (rad) as a person reads it, three digits: physical lengths in m below 1 km,
+        else km; physical velocities in m/s; angles in deg; otherwise the number with its :meth:`unit` (none when
+        the unit would only name the dimension)."""
+        if not np.isfinite(x):
+            return "-"
+        if quantity == "angle":
+            return f"{math.degrees(x):.3g} deg"
+        if self.system is not None and quantity in ("length", "velocity"):
+            si = x * self.system.si(quantity)
+            if quantity == "velocity":
+                return f"{si:.3g} m/s"
+            return f"{si / 1000:.3g} km" if abs(si) >= 1000 else f"{si:.3g} m"
+        u = self.unit(quantity)
+        return f"{x:.3g}" + (f" {u}" if u and u != DIMENSIONS[quantity] else "")
 
     def label(self, text: str, quantity: str) -> str:
         u = self.unit(quantity)

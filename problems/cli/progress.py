@@ -63,26 +63,74 @@ class Progress:
 def table(sols) -> list[str]:
     """The side-by-side table; the text columns are as wide as their widest entry (a status is
     never cut, however long).  ``cont. miss``: Solution.continuous_miss, the continuous check's scaled terminal
-    miss (position / L, velocity / V, rad, rad per time unit; the number solver.accuracy bounds)."""
+    miss (position / L, velocity / V, rad, rad per time unit; the number solver.accuracy bounds).  ``flown
+    miss``: the same flight's terminal miss as a percentage of what the maneuver changes
+    (ContinuousCheck.maneuver_fraction), with '!' above :data:`FLOWN_MISS_TOL`; then a line per flown
+    method in the file's units (:func:`miss_lines`)."""
     from ...transcription.outcome import Result
 
     sols = list(sols)
     mw = max([len("method")] + [len(s.method) for s in sols])
     sw = max([len("status")] + [len(str(s.result.value)) for s in sols])
-    head = (f"{'method':<{mw}} {'status':<{sw}} {'cost':>14} {'term. err':>10} {'cont. miss':>10} {'orth. err':>10} "
-            f"{'iters':>6} {'build s':>8} {'solve s':>8}")
+    head = (f"{'method':<{mw}} {'status':<{sw}} {'cost':>14} {'term. err':>10} {'cont. miss':>10} {'flown miss':>10} "
+            f"{'orth. err':>10} {'iters':>6} {'build s':>8} {'solve s':>8}")
     rows = [head, "-" * len(head)]
     for s in sols:
         if s.result is Result.not_applicable:
-            rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {'-':>14} {'-':>10} {'-':>10} {'-':>10} {'-':>6} "
-                        f"{'-':>8} {'-':>8}")
+            rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {'-':>14} {'-':>10} {'-':>10} {'-':>10} {'-':>10} "
+                        f"{'-':>6} {'-':>8} {'-':>8}")
             continue
         o = s.trajectory.orthogonality()["max_orthogonality_error"]
         miss = getattr(s, "continuous_miss", None)   # the scaled miss solver.accuracy judges; "-" if not flown
         miss = f"{miss:>10.2e}" if miss is not None else f"{'-':>10}"
-        rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {miss} {o:>10.2e} "
-                    f"{s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
-    return rows
+        rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {miss} "
+                    f"{_percent(s):>10} {o:>10.2e} {s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
+    return rows + miss_lines(sols)
+
+
+def _percent(sol) -> str:
+    from ...transcription.results.check import FLOWN_MISS_TOL
+    f = math.nan if sol.continuous is None else sol.continuous.maneuver_fraction
+    if not math.isfinite(f):
+        return "-"
+    return f"{100 * f:.2g} %" + ("!" if f > FLOWN_MISS_TOL else "")
+
+
+def miss_lines(sols) -> list[str]:
+    """One line per flown method: its terminal miss flown in continuous time, in the file's units, against what
+    the maneuver changes; a 'warning:' line naming the miss and the cure when it exceeds
+    :data:`FLOWN_MISS_TOL` of the maneuver."""
+    from ...transcription.results.check import FLOWN_MISS_TOL
+    from ..units import units
+
+    out = []
+    for s in sols:
+        c = s.continuous
+        if c is None or not c.ok or not math.isfinite(c.maneuver_fraction):
+            continue
+        u = units(s.problem)
+        if math.isfinite(c.change_position) or math.isfinite(c.change_velocity) or math.isfinite(c.change_attitude):
+            parts = [(c.terminal_position, c.change_position, "length"), (c.terminal_velocity, c.change_velocity,
+                     "velocity"), (c.terminal_attitude, c.change_attitude, "angle")]
+            parts = [p for p in parts if math.isfinite(p[1])]
+            miss = ", ".join(u.amount(m, q) for m, _, q in parts)
+            of = ", ".join(u.amount(ch, q) for _, ch, q in parts)
+        else:
+            miss, of = f"terminal error {c.target_error:.3g}", f"{c.change_target:.3g} from the free motion"
+        pct = f"{100 * c.maneuver_fraction:.2g} %"
+        out.append(f"{s.method}: flown in continuous time it ends {miss} off its target: {pct} of the maneuver "
+                   f"({of})")
+        if c.maneuver_fraction > FLOWN_MISS_TOL:
+            out.append(f"warning: {s.method}'s plan misses by {pct} of its maneuver, above "
+                       f"{100 * FLOWN_MISS_TOL:g} %: the {s.scheme} scheme's error at N = {s.N}; "
+                       + _cure(s))
+    return out
+
+
+def _cure(sol) -> str:
+    if sol.scheme == "lgvi" and sol.problem is not None and sol.problem.model.mu:
+        return "discretization: lgvi_kepler flies the orbit exactly, or raise horizon.N or set solver.accuracy"
+    return "raise horizon.N or set solver.accuracy"
 
 
 class ProgressBar:

@@ -20,7 +20,7 @@ from ..dynamics.trajectory import Trajectory
 from ..geometry.state import U_FORCE, U_MOMENT, split_state
 from ..geometry.so3 import rotation_angle
 from ..outcome import Iterate, Result
-from .check import scaled_miss
+from .check import delta_v, scaled_miss
 from ..ocp import Problem, SmoothControl, TargetState, control_activity, engine_figures, quadrature_weights
 from .start import Start
 from .trace import Attempt, totals
@@ -173,6 +173,8 @@ class Solution:
         return {"method": self.method, "status": self.result.value, "cost": num(math.nan if na else self.cost, ".10g"),
                 "terminal error": num(math.nan if na else self.terminal_error, ".1e"),
                 "continuous miss": num(self.continuous_miss, ".1e"),
+                "flown miss": "-" if self.continuous is None or not np.isfinite(self.continuous.maneuver_fraction)
+                else f"{100 * self.continuous.maneuver_fraction:.2g} % of the maneuver",
                 "max |R^T R - I|": num(math.nan if na else orth, ".1e"), "iterations": str(self.iterations),
                 "build s": num(self.build_s, ".2f"), "solve s": num(self.solve_s, ".2f"), "N": str(self.N),
                 "T": num(self.T, ".6g"), "scheme": self.scheme or "-"}
@@ -180,7 +182,7 @@ class Solution:
     def __repr__(self) -> str:
         d = self.display()
         return (f"Solution({d['method']} {d['status']}: cost {d['cost']}, terminal error {d['terminal error']}, "
-                f"continuous miss {d['continuous miss']}, "
+                f"continuous miss {d['continuous miss']}, flown miss {d['flown miss']}, "
                 f"max |R^T R - I| {d['max |R^T R - I|']}, {d['iterations']} iterations, build {d['build s']} s, "
                 f"solve {d['solve s']} s; N = {d['N']}, T = {d['T']}, {d['scheme']})")
 
@@ -285,7 +287,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         n, N = uf.shape[0], sol.N
         om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if sol.uniform else sol.steps)
         nf, nm = np.linalg.norm(uf, axis=1), np.linalg.norm(um, axis=1)
-        out.update(delta_v=float(om @ nf / mass), angular_impulse=float(om @ nm),
+        out.update(delta_v=delta_v(sol), angular_impulse=float(om @ nm),
                    peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))
         ctrl = getattr(prob, "control", None)
         if isinstance(ctrl, SmoothControl):
@@ -294,8 +296,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         out.update(engine_figures(uf, om, getattr(ctrl, "force_bound", None)))
     elif sol.impulses is not None:
         imp = sol.impulses
-        out.update(delta_v=float((np.linalg.norm(imp["dgamma0"]) + np.linalg.norm(imp["dgammaN"])) / mass),
-                   angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
+        out.update(delta_v=delta_v(sol), angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
     term = getattr(prob, "terminal", None)
     if isinstance(term, TargetState) and "attitude" in term.fixed and np.all(np.isfinite(sol.trajectory.X[-1])):
         Rd = split_state(term.X)[2]

@@ -48,7 +48,9 @@ def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
     def checked(s: Solution) -> Solution:
         if s.continuous is None and s.converged and s.problem is not None and s.problem.kind == "smooth" \
                 and s.controls is not None:
-            return dataclasses.replace(s, continuous=continuous_check(s))
+            check = continuous_check(s)
+            s = dataclasses.replace(s, continuous=check)
+            return s.with_notes(check.miss_note()) if check is not None and check.miss_note() else s
         return s
 
     return each(out, checked)
