@@ -281,7 +281,6 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     if sol.result is Result.not_applicable:
         return out
     prob = sol.problem
-    mass = sol.trajectory.mass
     if sol.controls is not None:
         uf, um = sol.u_f, sol.u_m
         n, N = uf.shape[0], sol.N
