@@ -90,7 +90,8 @@ def table(sols) -> list[str]:
 
 def _percent(sol) -> str:
     from ...transcription.results.check import FLOWN_MISS_TOL
-    f = math.nan if sol.continuous is None else sol.continuous.maneuver_fraction
+    c = getattr(sol, "continuous", None)
+    f = math.nan if c is None else c.maneuver_fraction
     if not math.isfinite(f):
         return "-"
     return f"{100 * f:.2g} %" + ("!" if f > FLOWN_MISS_TOL else "")
@@ -105,7 +106,7 @@ def miss_lines(sols) -> list[str]:
 
     out = []
     for s in sols:
-        c = s.continuous
+        c = getattr(s, "continuous", None)
         if c is None or not c.ok or not math.isfinite(c.maneuver_fraction):
             continue
         u = units(s.problem)

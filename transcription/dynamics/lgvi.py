@@ -239,33 +239,27 @@ class Discretization:
     # ------------------------------------------------------------------ steps
     def _step_expr(self, X, c, w, h, m, forces):
         """Symbolic step given the Cayley vector c, the mass m and forces(x, R) -> (f, M); returns (X_{k+1}, g_k,
-        the Kepler residual or None).  The LGVIs' translation is kick, drift, kick: gamma+ = gamma + (h/2) F_k',
-        (x_{k+1}, gamma-) = drift_h(x_k, gamma+), gamma_{k+1} = gamma- + (h/2) F_{k+1}', where lgvi drifts freely
-        (x + h gamma+/m, eq. 7-8) with F' = F, and lgvi_kepler flies the two-body flow exactly with F' = F less the
-        point-mass force it already contains (§2a)."""
+        the Kepler residual or None).  The LGVIs' translation is kick, drift, kick: lgvi drifts freely (eq. 7-8),
+        lgvi_kepler flies the two-body flow exactly between kicks by the force less its point-mass part (§2a, 7a)."""
         x, gamma, R, Pi = split_state(X)
         F = cayley(c)
         kres = None
         if two_point(self.scheme):
             uk, uk1 = w[0:NU], w[NU:]
-            if self.scheme == "lgvi_kepler":
-                mu = float(self.model.mu)
-                pert = lambda x_: -kepler_force(mu, m, x_)                    # noqa: E731
-            else:
-                pert = lambda x_: 0                                            # noqa: E731
             f0, M0 = forces(x, R)
             Fk0 = f0 + self.applied_force(R, uk[U_FORCE])
             Mk0 = M0 + uk[U_MOMENT]
             g = h * (Pi + (h / 2) * Mk0)                                       # (9)
-            gp = gamma + (h / 2) * (Fk0 + pert(x))
-            if self.scheme == "lgvi_kepler":
-                x1, v1, kres = kepler_drift(mu)(x, gp / m, h)                  # (§2a)
-                gm = m * v1
-            else:
-                x1, gm = x + (h / m) * gp, gp                                  # (7)
             R1 = ca.mtimes(R, F)                                               # (10)
-            f1, M1 = forces(x1, R1)
-            gamma1 = gm + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]) + pert(x1))  # (8)
+            if self.scheme == "lgvi_kepler":                                   # (7a)
+                mu = float(self.model.mu)
+                x1, v1, kres = kepler_drift(mu)(x, (gamma + (h / 2) * (Fk0 - kepler_force(mu, m, x))) / m, h)
+                f1, M1 = forces(x1, R1)
+                gamma1 = m * v1 + (h / 2) * (f1 - kepler_force(mu, m, x1) + self.applied_force(R1, uk1[U_FORCE]))
+            else:   # written as the paper's (7)-(8), not as kick-drift-kick: the same numbers to the last bit
+                x1 = x + (h / m) * gamma + (h**2 / (2 * m)) * Fk0                  # (7)
+                f1, M1 = forces(x1, R1)
+                gamma1 = gamma + (h / 2) * Fk0 + (h / 2) * (f1 + self.applied_force(R1, uk1[U_FORCE]))  # (8)
             Pi1 = ca.mtimes(F.T, Pi + (h / 2) * Mk0) + (h / 2) * (M1 + uk1[U_MOMENT])  # (11)
         else:
             u1 = w
