@@ -139,3 +139,40 @@ def test_published_minimum_times_are_never_refused(name, published):
     assert hi < published
     if name == "slew_time_optimal_symmetric":
         assert hi == pytest.approx(math.sqrt(4 * math.pi / math.sqrt(3)), rel=1e-3)
+
+
+# ------------------------------------------------------------------------------ the orbit's delta-v
+def _hohmann_vis_viva(mu, r1, r2):
+    """Hohmann's delta-v written from the vis-viva equation v^2 = mu (2/r - 1/a), independently of the module."""
+    a = 0.5 * (r1 + r2)
+    dv1 = abs(math.sqrt(mu * (2 / r1 - 1 / a)) - math.sqrt(mu / r1))
+    dv2 = abs(math.sqrt(mu / r2) - math.sqrt(mu * (2 / r2 - 1 / a)))
+    return dv1 + dv2
+
+
+def test_orbit_delta_v_is_hohmann_or_the_bielliptic_limit():
+    from se3ocp.transcription.ocp.feasibility import orbit_delta_v
+    mu = 398600.4418
+    for r1, r2 in ((6778.137, 6788.137), (6788.137, 6778.137), (7000.0, 42164.0)):
+        assert orbit_delta_v(mu, r1, r2) == pytest.approx(_hohmann_vis_viva(mu, r1, r2), rel=1e-12)
+    # beyond r2/r1 = 11.94 the bi-elliptic limit (sqrt 2 - 1)(v1 + v2) is smaller: at 15 it is the bound
+    v1, v2 = math.sqrt(mu / 7000.0), math.sqrt(mu / 105000.0)
+    assert orbit_delta_v(mu, 7000.0, 105000.0) == pytest.approx((math.sqrt(2) - 1) * (v1 + v2), rel=1e-12)
+    assert orbit_delta_v(mu, 7000.0, 105000.0) < _hohmann_vis_viva(mu, 7000.0, 105000.0)
+
+
+@pytest.mark.parametrize("fraction, refused", [(0.02, True), (0.95, True), (1.02, False), (2.0, False)])
+def test_an_engine_too_weak_for_the_raise_is_refused_before_solving(fraction, refused):
+    """configs/leo_body_engine.yaml (+10 km in one orbit, 500 kg) with an engine that can give ``fraction`` of the
+    Hohmann delta-v in T: below it (a 0.01 N engine: 2 %), infeasible at once with the numbers, no iteration; at or
+    above it (1 %: the perturbations' allowance) the check lets it through (it is necessary, not sufficient)."""
+    from se3ocp.transcription.ocp.feasibility import orbit_delta_v
+    mu, T, m = 398600.4418, 5560.0, 500.0
+    F = fraction * orbit_delta_v(mu, 6778.137, 6788.137) * m / T
+    man = se3ocp.load(config("leo_body_engine"), [f"control.bounds.force.thruster.max={F!r}"])
+    reason = necessary_conditions(man.problem)
+    assert (reason is not None) == refused, reason
+    if refused:
+        assert "needs a delta-v of at least 0.005651" in reason and "Hohmann" in reason
+        sol = se3ocp.solve(man)
+        assert sol.result is Result.infeasible and sol.iterations == 0

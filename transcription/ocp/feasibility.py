@@ -8,7 +8,9 @@ upper bound on what the controls can achieve:
 * angular momentum (inertial): |R_N Pi_N - R_0 Pi_0| <= T M_max (|Pi_N| - |Pi_0| when R_N is free);
 * position:  |x_N - x_0| <= (1/m) sum or integral of the largest |gamma| the force allows;
 * attitude:  angle(R_0^T R_N) <= the sum of the largest step angles the moment bound and the
-  rate limit allow.
+  rate limit allow;
+* orbit (a central body, circular orbits at both ends): the least impulsive delta-v between them
+  (:func:`orbit_delta_v`) <= T F_max / m, the most the engine can give.
 
 They apply where the body is structurally free of external forces (force checks) or moments (moment checks), F_max,
 M_max the largest norm a bound allows.  Each bound is derived for the discrete scheme (steps below 90 degrees, §2) and
@@ -23,7 +25,7 @@ import numpy as np
 
 from ..dynamics.lgvi import two_point
 from ..geometry.state import X_ANG, split_state
-from . import MaxAngularRate, Problem, SmoothControl, TargetState
+from . import MaxAngularRate, Problem, SmoothControl, TargetOrbit, TargetState
 from ..geometry.so3 import rotation_angle
 from ..outcome import Result
 
@@ -76,14 +78,66 @@ def _refuse(need: float, bounds: list[float], scale: float) -> bool:
     return need > max(bounds) * (1.0 + RTOL) + SLACK * scale
 
 
+#: the orbit check refuses only a delta-v above the engine's capacity by more than this fraction: the point-mass
+#: estimate ignores the perturbations of the field (the Earth's J2 = 1.1e-3 changes circular speeds by about that)
+ORBIT_RTOL = 1e-2
+#: an orbit is circular for the orbit check when its eccentricity is below this (elements with e = 0 give ~1e-16)
+CIRCULAR_E = 1e-6
+
+
+def orbit_delta_v(mu: float, r1: float, r2: float) -> float:
+    """The least impulsive delta-v between coplanar circular orbits of radii r1 and r2 about GM ``mu``: Hohmann's
+    two impulses, or the bi-elliptic limit (sqrt 2 - 1)(v1 + v2) where smaller (r2 / r1 beyond 11.94); a plane change
+    or a fixed phase only adds to it, and a continuous burn needs at least the impulsive optimum."""
+    a, b = min(r1, r2), max(r1, r2)
+    va, vb = math.sqrt(mu / a), math.sqrt(mu / b)
+    hohmann = va * (math.sqrt(2 * b / (a + b)) - 1) + vb * (1 - math.sqrt(2 * a / (a + b)))
+    return min(hohmann, (math.sqrt(2) - 1) * (va + vb))
+
+
+def _circular_radius(mu: float, x: np.ndarray, v: np.ndarray) -> float | None:
+    """|x| if (x, v) is a circular orbit about mu (eccentricity below CIRCULAR_E), else None."""
+    r = float(np.linalg.norm(x))
+    e = (np.dot(v, v) / mu - 1 / r) * x - np.dot(x, v) / mu * v
+    return r if r > 0 and np.linalg.norm(e) < CIRCULAR_E else None
+
+
+def _orbit_capacity(problem: Problem, T: float, Tw: str) -> str | None:
+    """The orbit check of the module docstring: None when it holds or does not apply."""
+    mu, m, target, F = problem.model.mu, problem.model.mass, problem.terminal, _limit(problem.control.force_bound)
+    if not mu or not math.isfinite(F):
+        return None
+    x0, g0, _, _ = split_state(problem.X0)
+    r0 = _circular_radius(mu, x0, g0 / m)
+    if isinstance(target, TargetOrbit):
+        r1 = float(target.radius)
+    elif isinstance(target, TargetState) and {"position", "velocity"} <= set(target.fixed):
+        xd, gd, _, _ = split_state(target.X)
+        r1 = _circular_radius(mu, xd, gd / m)
+    else:
+        return None
+    if r0 is None or r1 is None:
+        return None
+    need, can = orbit_delta_v(mu, r0, r1), T * F / m
+    if need > can * (1 + ORBIT_RTOL):
+        return (f"the orbit change from radius {r0:.8g} to {r1:.8g} needs a delta-v of at least {need:.4g} (Hohmann), "
+                f"more than the force bound |u_f| <= {F:.4g} can give the mass {m:.6g} in {Tw}: at most T |u_f| / m = "
+                f"{can:.4g}")
+    return None
+
+
 def necessary_conditions(problem: Problem) -> str | None:
     """The reason ``problem`` has no solution, or None if every necessary condition holds (or none
-    applies: impulsive control, an orbit target, external forces and moments)."""
+    applies: impulsive control, external forces and moments)."""
     ctrl, target = problem.control, problem.terminal
-    if not isinstance(ctrl, SmoothControl) or not isinstance(target, TargetState):
+    if not isinstance(ctrl, SmoothControl):
         return None
-    model = problem.model
     T = problem.time_bounds[1] if problem.free_time else problem.T
+    Tw = f"T = {T:g}" + (" (the largest free final time)" if problem.free_time else "")
+    orbit = _orbit_capacity(problem, T, Tw)
+    if orbit or not isinstance(target, TargetState):
+        return orbit
+    model = problem.model
     N = problem.N
     h = T / N
     offset = 0.5 if two_point(problem.scheme) else 0.0
@@ -91,7 +145,6 @@ def necessary_conditions(problem: Problem) -> str | None:
     x0, g0, R0, P0 = split_state(problem.X0)
     xd, gd, Rd, Pd = split_state(target.X)
     fixed = set(target.fixed)
-    Tw = f"T = {T:g}" + (" (the largest free final time)" if problem.free_time else "")
     F, M = _limit(ctrl.force_bound), _limit(ctrl.moment_bound)
     if no_force and math.isfinite(F):
         if "velocity" in fixed:
