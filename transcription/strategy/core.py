@@ -13,6 +13,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from ..dynamics.lgvi import discretization
 from ..methods.base import Method, Progress, failed_solution, phased
 from ..ocp import Problem
 from ..outcome import Result
@@ -231,6 +232,38 @@ class CoarseToFine:
         return sol.with_notes(said, **stats)
 
 
+@dataclass(frozen=True)
+class FromScheme:
+    """The problem first solved on another ``scheme`` of the same grid and control layout (its own objective's
+    strategy), that optimum resampled onto this problem's scheme and finished by ``finish`` (named
+    'from the <scheme> optimum', the first solves its attempt's parts); when the first solve fails, a Solution
+    saying so (a FirstOf then tries the next strategy).
+
+    How the Kepler-split LGVI is reached (docs/mathematics.md §2a): its exact two-body drift is strongly nonlinear
+    in the state far from an orbit, where a solver's first iterates are, while the LGVI's drift is polynomial; their
+    optima differ by the LGVI's orbit error (3.5 km in a LEO orbit at N = 400), a few iterations apart."""
+
+    finish: Strategy
+    scheme: str = "lgvi"
+
+    @property
+    def label(self) -> str:
+        return f"from the {self.scheme} optimum"
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        d = problem.disc
+        other = replace(problem, disc=discretization(d.model, self.scheme, d.newton_iters, force_frame=d.force_frame))
+        first = other.control.objective.strategy(other, ctx.options)
+        c = first.run(other, start, ctx.under(self.scheme))
+        on = f"the {self.scheme} scheme"
+        if not c.converged or c.warm is None:
+            return not_made(problem, ctx, self.label, f"not available (the {self.scheme} problem did not converge)",
+                            c.trace, on)
+        fitted = c.warm.fit(problem.N, problem.scheme, problem.fractions)[0]
+        return labelled(self.finish.run(problem, fitted, ctx), self.label, c.trace, on,
+                        getattr(self.finish, "label", ""))
+
+
 def step_line(what: str, sol: Solution) -> str:
     """A continuation step's line: what was solved, how it ended, its iterations and (converged) its cost."""
     return f"{what}: {sol.result.value} in {sol.iterations} iterations" + (
@@ -266,5 +299,5 @@ class Continuation:
         return replace(sol, trace=(last,)).with_notes(continuation_steps=lines)
 
 
-__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "Solve", "Strategy", "chosen",
+__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromScheme", "Solve", "Strategy", "chosen",
            "collapsed", "labelled", "not_made", "spread", "step_line"]
