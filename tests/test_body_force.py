@@ -239,7 +239,7 @@ def _along_track_angle(sol) -> np.ndarray:
 
 @pytest.mark.slow
 def test_the_leo_engine_raise_converges_and_aims_its_burns():
-    """configs/leo_body_engine.yaml with its default settings (N = 400): converged, the re-simulated terminal
+    """configs/leo_body_engine.yaml on the LGVI with its default settings (N = 400): converged, the re-simulated terminal
     error <= 1e-6 (km, km/s, rad), the force along the engine axis to 1e-10 of max, 0 <= T <= max to the solver's
     tolerance (1e-8 of max), and the attitude aims the burns: from 1000 s to 4500 s the force lies within 15 deg
     of the along-track direction (the raise's efficient direction; measured 10.2), and at least 93 % of the
@@ -248,7 +248,7 @@ def test_the_leo_engine_raise_converges_and_aims_its_burns():
     import se3ocp
     from se3ocp.transcription.ocp import quadrature_weights
 
-    man = maneuver("leo_body_engine")
+    man = maneuver("leo_body_engine", None, "lgvi")   # the figures below are the LGVI's
     sol = se3ocp.solve(man)
     b = man.problem.control.force_bound
     assert sol.converged and sol.terminal_error <= 1e-6, sol.message

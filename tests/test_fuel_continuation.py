@@ -155,8 +155,8 @@ def test_a_step_that_fails_is_halved_in_the_logarithm_then_the_path_ends():
 
 @pytest.mark.slow
 def test_the_engine_raise_with_the_fuel_objective_converges():
-    """configs/leo_body_engine.yaml with control.objective=fuel (the moment unbounded, w_m = 1e10), default options,
-    N = 400 (issue 27, strictest reading of "the LEO fuel raise of the spacecraft issue converges"): converged by the
+    """configs/leo_body_engine.yaml on the LGVI with control.objective=fuel (the moment unbounded, w_m = 1e10), default
+    options, N = 400 (issue 27, strictest reading of "the LEO fuel raise of the spacecraft issue converges"): converged by the
     continuation, the fuel KKT guard passed on the problem itself (not on a bounded step: its switching values on the
     coast nodes <= Guarded(None).tol), the re-simulated terminal error <= 1e-6, the thrust along the engine axis (off-axis
     force <= 1e-10 of the bound) with 0 <= T <= max.  The continuation's last bounded step had its bound inactive,
@@ -174,7 +174,7 @@ def test_the_engine_raise_with_the_fuel_objective_converges():
     from se3ocp.transcription.results.check import continuous_check
     from se3ocp.transcription.objectives.fuel.guard import Guarded
 
-    man = maneuver("leo_body_engine", None, None, FUEL)
+    man = maneuver("leo_body_engine", None, "lgvi", FUEL)   # the figures below are the LGVI's
     p = man.problem
     sol = se3ocp.solve(man)
     lines = sol.stats.get("fuel_continuation")

@@ -167,20 +167,23 @@ def test_the_raise_on_200_steps_is_an_extremal_of_the_indirect_method():
 
 
 def test_a_coarse_grid_whose_orbit_the_force_cannot_reach_is_skipped():
-    """The LEO body-engine raise with the fuel objective (configs/leo_body_engine.yaml, N = 400): the free motion on
-    100 steps ends 53 km from that on 400 steps, beyond half of what the 1 N engine moves 500 kg in T (31 km), so the
+    """The LEO body-engine raise with the fuel objective (configs/leo_body_engine.yaml on the LGVI, N = 400): the free
+    motion on 100 steps ends 53 km from that on 400 steps, beyond half of what the 1 N engine moves 500 kg in T (31 km), so the
     strategy starts with the homotopy on the 400 steps themselves ('first'; its moment unbounded, the continuation
     where it applies); the fuel raise keeps its coarse grid (gap 0.0044 against a reach of 9.8).  A 10 N engine
-    (reach 309 km) brings the coarse grid back.  Composing solves nothing."""
+    (reach 309 km) brings the coarse grid back, and so does the file's own scheme, lgvi_kepler, which flies the orbit
+    exactly on either grid.  Composing solves nothing."""
     from se3ocp.transcription.objectives.fuel.plan import coarse_resolves
 
-    leo = problem("leo_body_engine", 400, None, "control.objective=fuel")
+    assert coarse_resolves(problem("leo_body_engine", 400, None, "control.objective=fuel"), 100,
+                           FuelStrategy().coarse_reach)
+    leo = problem("leo_body_engine", 400, "lgvi", "control.objective=fuel")
     plan = FuelStrategy().compose(leo, se3ocp.DirectOptions()).inner
     assert isinstance(plan, FirstOf) and [e.label for e in plan.strategies] == [
         "the fuel homotopy from the effort optimum (or its continuation from a bounded problem)", "rollout",
         "interpolate"]
     assert not coarse_resolves(leo, 100, FuelStrategy().coarse_reach)
-    strong = problem("leo_body_engine", 400, None, "control.objective=fuel",
+    strong = problem("leo_body_engine", 400, "lgvi", "control.objective=fuel",
                      "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 1.0e-2, min: 0.0}}}")
     assert coarse_resolves(strong, 100, FuelStrategy().coarse_reach)
     plan = FuelStrategy().compose(problem("orbit_raise_fuel", 400), se3ocp.DirectOptions()).inner

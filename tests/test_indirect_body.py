@@ -284,7 +284,8 @@ def test_engine_psi_equals_forward_ad(scheme, engine_solutions):
 
 @pytest.mark.slow
 def test_leo_body_engine_direct_equals_indirect():
-    """configs/leo_body_engine.yaml (LGVI, N = 400, one engine along body +x, 0 <= T <= 1 N, km) with the moment
+    """configs/leo_body_engine.yaml (its lgvi_kepler scheme, N = 400, one engine along body +x, 0 <= T <= 1 N, km;
+    measured on it: cost 8.0e-10, controls 1.6e-6, 2 iterations, direct 103 iterations in 8 s) with the moment
     weight 1e13 (the config's 1e10 lets the attitude swing so far that single shooting from the direct solution
     does not converge: 50 iterations, |z_N| 9e-2 km): the direct method, then the indirect method from its
     multipliers (from_direct), reach the same optimum: cost to 1e-6 (measured 1.1e-9), controls to 2e-5 of the

@@ -87,12 +87,14 @@ def test_the_smoothed_cost_uses_the_given_references():
 
 
 def test_a_coarse_grid_without_a_force_bound_must_be_the_same_maneuver():
-    """leo_raise_slew (no bound) on 400 steps: the 100-step free motion ends 53 km from the 400-step one, the
-    maneuver needs 47 km (the 400-step free motion's miss): not resolved, so its fuel plan runs on 400 steps (before:
-    always resolved without a bound, and its 25-step problem needed 20 kN of thrust).  The fuel raise's coarse grids
-    still resolve (bounded: gap 0.0044 against a reach of 9.8), and so does an unbounded fuel raise (its force bound
-    lifted: gap 0.0044 against a miss of 1.4)."""
-    assert not coarse_resolves(problem("leo_raise_slew", 400, None, FUEL), 100, REACH)
+    """leo_raise_slew (no bound) on 400 steps of the LGVI: the 100-step free motion ends 53 km from the 400-step one,
+    the maneuver needs 47 km (the 400-step free motion's miss): not resolved, so its fuel plan runs on 400 steps
+    (before: always resolved without a bound, and its 25-step problem needed 20 kN of thrust).  On its own scheme,
+    lgvi_kepler, the orbit is flown exactly on either grid: resolved.  The fuel raise's coarse grids still resolve
+    (bounded: gap 0.0044 against a reach of 9.8), and so does an unbounded fuel raise (its force bound lifted: gap
+    0.0044 against a miss of 1.4)."""
+    assert not coarse_resolves(problem("leo_raise_slew", 400, "lgvi", FUEL), 100, REACH)
+    assert coarse_resolves(problem("leo_raise_slew", 400, None, FUEL), 100, REACH)
     assert coarse_resolves(problem("orbit_raise_fuel", 400), 100, REACH)
     assert coarse_resolves(problem("orbit_raise_fuel", 400, None, "control.bounds={moment: {norm: 1.0}}"), 100, REACH)
 
@@ -127,7 +129,7 @@ def test_the_homotopys_effort_problem_is_its_first_level():
 
 @pytest.mark.slow
 def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
-    """configs/leo_engine_fuel.yaml with the default options (N = 400): converged, the fuel KKT guard passed, the
+    """configs/leo_engine_fuel.yaml on the LGVI with the default options (N = 400): converged, the fuel KKT guard passed, the
     re-simulated terminal error <= 1e-6 (km, km/s, rad; measured 1.3e-10).  The thrust T = a^T u_f is at 0 or at its
     maximum (within AT_BOUND_RTOL = 1e-3 of the maximum, where an interior point sits) on at least 98 % of the nodes
     (measured 99.0 %: four switches, a partial node at each), and the wheels' moment within its bound
@@ -142,7 +144,7 @@ def test_the_bundled_leo_fuel_raise_converges_bang_off_bang():
     from se3ocp.transcription.ocp import quadrature_weights
     from se3ocp.transcription.ocp import AT_BOUND_RTOL
 
-    man = maneuver("leo_engine_fuel")
+    man = maneuver("leo_engine_fuel", None, "lgvi")   # the figures below are the LGVI's
     p = man.problem
     sol = se3ocp.solve(man)
     assert sol.converged and sol.stats["fuel_guard"] == "passed", sol.message

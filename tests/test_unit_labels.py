@@ -23,7 +23,7 @@ from support import CONFIGS  # noqa: E402
 def leo():
     """The LEO example at N = 60 under a smooth control of about 0.5 N and 1e-4 N·m (file units kN,
     kN·km), simulated: the figures' units, not the optimum, are under test."""
-    man = se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=60"])
+    man = se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=60", "discretization=lgvi"])
     p = man.problem
     n = p.disc.n_controls(p.N)
     s = np.linspace(0, 2 * np.pi, n)

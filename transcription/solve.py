@@ -30,7 +30,7 @@ from .results.solution import SolveError, Solution, html_table
 from .results.start import Start, as_start
 from .results.trace import Attempt
 from .objectives.effort import first_start
-from .strategy.core import Context, FirstOf, FromScheme
+from .strategy.core import Context, FromScheme
 from .strategy.hints import failure_hint
 from .strategy.refine import AccuracyOptions, attach_checks, each, out_of_reach, refine
 
@@ -213,7 +213,7 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
     if strategy is None:
         strategy = problem.control.objective.strategy(problem, options)
         if problem.scheme == "lgvi_kepler" and warm is None:    # reached from the LGVI's optimum (FromScheme)
-            strategy = FirstOf((FromScheme(strategy), strategy))
+            strategy = FromScheme(strategy)
     if options.solver == "fatrop":
         sol = _fatrop_first(problem, strategy, ctx, warm)
     else:

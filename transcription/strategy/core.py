@@ -237,7 +237,7 @@ class FromScheme:
     """The problem first solved on another ``scheme`` of the same grid and control layout (its own objective's
     strategy), that optimum resampled onto this problem's scheme and finished by ``finish`` (named
     'from the <scheme> optimum', the first solves its attempt's parts); when the first solve fails, a Solution
-    saying so (a FirstOf then tries the next strategy).
+    saying so (its trace: what the other scheme tried).
 
     How the Kepler-split LGVI is reached (docs/mathematics.md §2a): its exact two-body drift is strongly nonlinear
     in the state far from an orbit, where a solver's first iterates are, while the LGVI's drift is polynomial; their
