@@ -226,3 +226,26 @@ def unit_system(man) -> UnitSystem | None:
 
 
 __all__ = ["KEYS", "Physical", "check_radians", "check_units", "declare", "expand", "radians_hint", "unit_system"]
+
+
+#: the force bound is suspected of a N-for-kN slip when the engine could give this many times the delta-v its orbit
+#: change needs: the factor of the slip itself (1 kN = 1000 N)
+THRUST_SLIP_RATIO = 1e3
+
+
+def thrust_warning(man) -> str:
+    """'' or one line: in a file whose lengths are km (forces in kN), the force bound gives at least
+    THRUST_SLIP_RATIO times the least delta-v the orbit change needs (transcription.ocp.feasibility.orbit_capacity)
+    -- a bound in newtons written as kN passes every check but plans with a thousand times the engine."""
+    from ..transcription.ocp.feasibility import orbit_capacity
+
+    phys = man.physical
+    if phys is None or phys.units is None or phys.units.length != "km" or man.problem.kind != "smooth":
+        return ""
+    cap = orbit_capacity(man.problem)
+    if cap is None or not cap[2] > 0 or cap[3] < THRUST_SLIP_RATIO * cap[2]:
+        return ""
+    _, _, need, can = cap
+    return (f"control.bounds.force lets the engine give {can * 1e3:.4g} m/s in T, {can / need:.3g} times the "
+            f"{need * 1e3:.4g} m/s this orbit change needs at least (Hohmann): forces in this km file are kN "
+            f"(1 N = 1e-3 kN) -- a bound meant in newtons?")

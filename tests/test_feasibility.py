@@ -176,3 +176,24 @@ def test_an_engine_too_weak_for_the_raise_is_refused_before_solving(fraction, re
         assert "needs a delta-v of at least 0.005651" in reason and "Hohmann" in reason
         sol = se3ocp.solve(man)
         assert sol.result is Result.infeasible and sol.iterations == 0
+
+
+def test_a_thrust_bound_in_newtons_in_a_km_file_is_named():
+    """leo_body_engine's 1 N engine written as 1.0 (1 kN in a km file): 1.97e3 times the Hohmann delta-v, above the
+    slip factor 1e3 -> a warning naming the unit, on validate's 'but' line; the file's own 1e-3 kN (2x) and a
+    normalized file (no km) get none."""
+    import io
+    from contextlib import redirect_stdout
+
+    from se3ocp.problems.cli import main
+    from se3ocp.problems.physical import thrust_warning
+
+    slip = se3ocp.load(config("leo_body_engine"), ["control.bounds.force.thruster.max=1.0"])
+    said = thrust_warning(slip)
+    assert "1.97e+03 times the 5.651 m/s" in said and "1 N = 1e-3 kN" in said, said
+    assert thrust_warning(se3ocp.load(config("leo_body_engine"))) == ""
+    assert thrust_warning(se3ocp.load(config("orbit_raise_fuel"))) == ""
+    out = io.StringIO()
+    with redirect_stdout(out):
+        rc = main(["validate", str(config("leo_body_engine")), "--set", "control.bounds.force.thruster.max=1.0"])
+    assert rc == 0 and "  but control.bounds.force lets the engine give" in out.getvalue()

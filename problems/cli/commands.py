@@ -30,6 +30,7 @@ def cmd_validate(args) -> int:
     line beginning 'but' (a warning, still exit 0: the input is well-formed, the request is the problem)."""
     from ...transcription.strategy.refine import out_of_reach
     from ...transcription.ocp.feasibility import necessary_conditions
+    from ..physical import thrust_warning
 
     man = _load(args)
     infeasible = necessary_conditions(man.problem)  # valid, but provably without a solution: said now
@@ -43,6 +44,9 @@ def cmd_validate(args) -> int:
         say(args, f"  but provably infeasible (solve will say so without iterating): {infeasible}")
     if unreachable:
         say(args, f"  but solver.accuracy is out of reach (solve refuses it, exit 2): {unreachable}")
+    slip = thrust_warning(man)
+    if slip:
+        say(args, f"  but {slip}")
     emit_summary(args, summary)
     return 0
 
@@ -77,6 +81,7 @@ def cmd_solve(args) -> int:
     0 if every method that applies converged, 1 if not (the run is still written and flagged)."""
     from ...transcription.outcome import Result
     from .. import store
+    from ..physical import thrust_warning
 
     man = _load(args)
     if man.control_kind is None:
@@ -85,6 +90,9 @@ def cmd_solve(args) -> int:
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
+        slip = thrust_warning(man)
+        if slip:
+            say(args, f"warning: {slip}")
         result = _solved(args, man, args.method)
         Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols = store.solutions_of(result)

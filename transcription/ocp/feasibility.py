@@ -102,11 +102,15 @@ def _circular_radius(mu: float, x: np.ndarray, v: np.ndarray) -> float | None:
     return r if r > 0 and np.linalg.norm(e) < CIRCULAR_E else None
 
 
-def _orbit_capacity(problem: Problem, T: float, Tw: str) -> str | None:
-    """The orbit check of the module docstring: None when it holds or does not apply."""
+def orbit_capacity(problem: Problem) -> tuple[float, float, float, float] | None:
+    """(r0, r1, need, can) of the orbit check (module docstring): the radii of the circular orbits at both ends, the
+    least impulsive delta-v between them and the most the force bound gives in the horizon, T F_max / m; None where
+    the check does not apply (no central body, no force bound, an end not on a circular orbit, no position and
+    velocity or orbit target)."""
     mu, m, target, F = problem.model.mu, problem.model.mass, problem.terminal, _limit(problem.control.force_bound)
     if not mu or not math.isfinite(F):
         return None
+    T = problem.time_bounds[1] if problem.free_time else problem.T
     x0, g0, _, _ = split_state(problem.X0)
     r0 = _circular_radius(mu, x0, g0 / m)
     if isinstance(target, TargetOrbit):
@@ -118,8 +122,17 @@ def _orbit_capacity(problem: Problem, T: float, Tw: str) -> str | None:
         return None
     if r0 is None or r1 is None:
         return None
-    need, can = orbit_delta_v(mu, r0, r1), T * F / m
+    return r0, r1, orbit_delta_v(mu, r0, r1), T * F / m
+
+
+def _orbit_capacity(problem: Problem, Tw: str) -> str | None:
+    """The orbit check's refusal, or None when it holds or does not apply."""
+    cap = orbit_capacity(problem)
+    if cap is None:
+        return None
+    r0, r1, need, can = cap
     if need > can * (1 + ORBIT_RTOL):
+        F, m = _limit(problem.control.force_bound), problem.model.mass
         return (f"the orbit change from radius {r0:.8g} to {r1:.8g} needs a delta-v of at least {need:.4g} (Hohmann), "
                 f"more than the force bound |u_f| <= {F:.4g} can give the mass {m:.6g} in {Tw}: at most T |u_f| / m = "
                 f"{can:.4g}")
@@ -134,7 +147,7 @@ def necessary_conditions(problem: Problem) -> str | None:
         return None
     T = problem.time_bounds[1] if problem.free_time else problem.T
     Tw = f"T = {T:g}" + (" (the largest free final time)" if problem.free_time else "")
-    orbit = _orbit_capacity(problem, T, Tw)
+    orbit = _orbit_capacity(problem, Tw)
     if orbit or not isinstance(target, TargetState):
         return orbit
     model = problem.model
