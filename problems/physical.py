@@ -225,9 +225,6 @@ def unit_system(man) -> UnitSystem | None:
     return phys.units if phys is not None else None
 
 
-__all__ = ["KEYS", "Physical", "check_radians", "check_units", "declare", "expand", "radians_hint", "unit_system"]
-
-
 #: the force bound is suspected of a N-for-kN slip when the engine could give this many times the delta-v its orbit
 #: change needs: the factor of the slip itself (1 kN = 1000 N)
 THRUST_SLIP_RATIO = 1e3
@@ -249,3 +246,8 @@ def thrust_warning(man) -> str:
     return (f"control.bounds.force lets the engine give {can * 1e3:.4g} m/s in T, {can / need:.3g} times the "
             f"{need * 1e3:.4g} m/s this orbit change needs at least (Hohmann): forces in this km file are kN "
             f"(1 N = 1e-3 kN) -- a bound meant in newtons?")
+
+
+__all__ = ["KEYS", "THRUST_SLIP_RATIO", "Physical", "check_radians", "check_units", "declare", "expand", "radians_hint",
+           "thrust_warning", "unit_system"]
+

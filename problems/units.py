@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import math
 import weakref
-
-import numpy as np
 from dataclasses import dataclass
 
 from ..transcription.ocp import MARGIN_DIMENSION
@@ -72,7 +70,7 @@ class Units:
         """A length, velocity or angle (rad) as a person reads it, three digits: physical lengths in m below 1 km,
         else km; physical velocities in m/s; angles in deg; otherwise the number with its :meth:`unit` (none when
         the unit would only name the dimension)."""
-        if not np.isfinite(x):
+        if not math.isfinite(x):
             return "-"
         if quantity == "angle":
             return f"{math.degrees(x):.3g} deg"

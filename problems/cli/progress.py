@@ -109,13 +109,11 @@ def miss_lines(sols) -> list[str]:
         c = getattr(s, "continuous", None)
         if c is None or not c.ok or not math.isfinite(c.maneuver_fraction):
             continue
-        u = units(s.problem)
-        if math.isfinite(c.change_position) or math.isfinite(c.change_velocity) or math.isfinite(c.change_attitude):
-            parts = [(c.terminal_position, c.change_position, "length"), (c.terminal_velocity, c.change_velocity,
-                     "velocity"), (c.terminal_attitude, c.change_attitude, "angle")]
-            parts = [p for p in parts if math.isfinite(p[1])]
-            miss = ", ".join(u.amount(m, q) for m, _, q in parts)
-            of = ", ".join(u.amount(ch, q) for _, ch, q in parts)
+        u, parts = units(s.problem), c.maneuver_parts()
+        if parts:
+            quantity = {"position": "length", "velocity": "velocity", "attitude": "angle"}
+            miss = ", ".join(u.amount(m, quantity[n]) for n, m, _ in parts)
+            of = ", ".join(u.amount(ch, quantity[n]) for n, _, ch in parts)
         else:
             miss, of = f"terminal error {c.target_error:.3g}", f"{c.change_target:.3g} from the free motion"
         pct = f"{100 * c.maneuver_fraction:.2g} %"

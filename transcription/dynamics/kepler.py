@@ -12,8 +12,9 @@ with the Stumpff functions C(z) = sum_k (-z)^k / (2k+2)!, S(z) = sum_k (-z)^k / 
 branch and no cancellation of 1 - cos at small z.  Kepler's equation is solved by :data:`NEWTON_ITERS` Newton
 iterations (F'(chi) = r) unrolled on the graph from its second-order series root, so the flow stays a plain SX
 expression with the implicit function's derivatives; its relative residual |F(chi)| / (sqrt(mu) |h|) is an output
-(the step reports it beside the Cayley residual), or |z| / Z_MAX > 1 for a step past the series' range.  Valid for |z| <= :data:`Z_MAX` (a step of at most ~3 rad of
-eccentric anomaly: three steps per orbit), where the truncated series are exact to round-off.
+(the step reports it beside the Cayley residual), or |z| / Z_MAX > 1 for a step past the series' range.  Valid for
+|z| <= :data:`Z_MAX` (a step of at most ~3 rad of eccentric anomaly: three steps per orbit), where the truncated
+series are exact to round-off.
 
     kepler_drift(mu) (x[3], v[3], h) -> (x1[3], v1[3], res)
 """

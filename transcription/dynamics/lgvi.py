@@ -206,8 +206,8 @@ def discretization(model: BodyModel, scheme: str = "lgvi", newton_iters: int = D
 
 
 class Discretization:
-    """One discrete scheme ('lgvi' | 'lgvi_kepler' | 'first_order') for one body model, ``newton_iters`` unrolled Cayley iterations,
-    ``force_frame`` 'inertial' | 'body' (the applied force of a control at node j is R_j u_{f,j},
+    """One discrete scheme ('lgvi' | 'lgvi_kepler' | 'first_order') for one body model, ``newton_iters`` unrolled
+    Cayley iterations, ``force_frame`` 'inertial' | 'body' (the applied force of a control at node j is R_j u_{f,j},
     :meth:`applied_force`).  Every Function is built once here; what the methods build for it (NLP blocks, shooting
     Functions, rollouts) is kept here too (:meth:`cached`)."""
 

@@ -41,10 +41,10 @@ class ContinuousCheck:
     time.  message: '' or why the flight failed (then the numbers are nan).
 
     What the maneuver changes (:func:`maneuver_change`; nan where it does not apply): change_position,
-    change_velocity, change_attitude (rad) -- for a state target, each fixed component's distance between the target
-    and where the free motion from the initial state ends; change_target -- for any target, the terminal-error
-    measure of that free motion (what the controls must remove).  :attr:`maneuver_fraction` is the flown miss
-    relative to it.
+    change_velocity, change_attitude (rad) -- for a state target, each changed component's smallest measure (the
+    radius change or the free motion's distance to the target; the plan's delta-v or the free motion's velocity
+    distance; the slew or the free motion's angle); change_target -- for any target, the terminal-error measure of
+    the free motion (what the controls must remove).  :attr:`maneuver_fraction` is the flown miss relative to it.
     """
 
     terminal_position: float
@@ -78,11 +78,8 @@ class ContinuousCheck:
         f = self.maneuver_fraction
         if not f > FLOWN_MISS_TOL:
             return ""
-        parts = [(n, m, c) for n, m, c in (("position", self.terminal_position, self.change_position),
-                                           ("velocity", self.terminal_velocity, self.change_velocity),
-                                           ("attitude (deg)", np.degrees(self.terminal_attitude),
-                                            np.degrees(self.change_attitude))) if np.isfinite(c)]
-        what = ", ".join(f"{n} {m:.3g} of {c:.3g}" for n, m, c in parts) or \
+        what = ", ".join(f"attitude (deg) {np.degrees(m):.3g} of {np.degrees(c):.3g}" if n == "attitude" else
+                         f"{n} {m:.3g} of {c:.3g}" for n, m, c in self.maneuver_parts()) or \
             f"terminal error {self.target_error:.3g} of {self.change_target:.3g}"
         return (f"flown in continuous time the plan misses its target by {100 * f:.2g} % of the maneuver ({what}), "
                 f"above {100 * FLOWN_MISS_TOL:g} %: the scheme's error at this N")
@@ -94,12 +91,18 @@ class ContinuousCheck:
         change_attitude over the components the maneuver changes (a change above a millionth of its scale,
         :func:`maneuver_change`); otherwise target_error / change_target.  nan when nothing is changed or the
         flight failed."""
-        parts = [(self.terminal_position, self.change_position), (self.terminal_velocity, self.change_velocity),
-                 (self.terminal_attitude, self.change_attitude)]
-        fr = [m / c for m, c in parts if np.isfinite(c) and c > 0]
+        fr = [m / c for _, m, c in self.maneuver_parts()]
         if not fr and np.isfinite(self.change_target) and self.change_target > 0:
             fr = [self.target_error / self.change_target]
         return float(max(fr)) if fr else float("nan")
+
+    def maneuver_parts(self) -> list[tuple[str, float, float]]:
+        """(component, terminal miss, change) of each component the maneuver changes: 'position', 'velocity',
+        'attitude' (rad); [] for other targets (then the target-error measure applies)."""
+        parts = (("position", self.terminal_position, self.change_position),
+                 ("velocity", self.terminal_velocity, self.change_velocity),
+                 ("attitude", self.terminal_attitude, self.change_attitude))
+        return [(n, float(m), float(c)) for n, m, c in parts if np.isfinite(c) and c > 0]
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready scalars, named for summary.json (``continuous_...``)."""

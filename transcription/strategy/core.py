@@ -299,5 +299,5 @@ class Continuation:
         return replace(sol, trace=(last,)).with_notes(continuation_steps=lines)
 
 
-__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromScheme", "Solve", "Strategy", "chosen",
-           "collapsed", "labelled", "not_made", "spread", "step_line"]
+__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromScheme", "Solve", "Strategy",
+           "chosen", "collapsed", "labelled", "not_made", "spread", "step_line"]

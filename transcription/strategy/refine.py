@@ -19,7 +19,7 @@ from ..results.check import characteristic_length as _length, scaled_miss
 from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
-from ..dynamics.lgvi import ORDER
+from ..dynamics.lgvi import ORDER, discretization
 from .mesh import (Refinement, density_steps, equidistributed_density, equidistributed_steps, error_estimate,
                    path_density, subdivided_steps)
 
@@ -248,7 +248,6 @@ def free_motion_miss(problem, scheme: str | None = None) -> float:
     """The a-priori error estimate of a scheme on ``problem``'s grid (docs/mathematics.md §11): :func:`scaled_miss`
     of its free motion (``simulate``) against the same motion flown in continuous time; nan if it cannot be flown."""
     from ..results.check import continuous_check
-    from ..dynamics.lgvi import discretization
 
     scheme = scheme or problem.scheme
     d = problem.disc

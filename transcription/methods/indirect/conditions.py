@@ -7,9 +7,8 @@ from typing import Callable
 
 import casadi as ca
 
-from ...dynamics.lgvi import two_point
 from ...geometry.state import NU, NX, NZ, U_FORCE, join_state, split_state
-from ...dynamics.lgvi import Discretization, per_discretization
+from ...dynamics.lgvi import Discretization, per_discretization, two_point
 from ...geometry.so3 import cayley, orthonormalize
 from ...ocp import state_residual
 from .control import NB, control_law

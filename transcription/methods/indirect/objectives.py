@@ -23,9 +23,8 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from ...dynamics.lgvi import two_point
 from ...geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, split_state
-from ...dynamics.lgvi import Discretization, per_discretization
+from ...dynamics.lgvi import Discretization, per_discretization, two_point
 from ..newton import NewtonResult, newton_armijo
 from ...outcome import Result
 from ...ocp import Problem, quadrature_weights
