@@ -22,31 +22,48 @@ class Scales:
     objective: float
 
 
-def characteristic_scales(problem: Problem) -> Scales:
-    """Magnitudes of the unknowns from the boundary data, the horizon, the body and the bounds.
-
-    (max-norms throughout) positions L = max(|x0|, |xd|, |xd - x0|) (1 if all vanish: attitude-only
-    maneuvers); linear momenta max(|gamma0|, |gammad|, m L / T); angular momenta max(|Pi0|, |Pid|,
-    lambda_max(J) / T); forces and moments: momentum scale / T, or their bounds; attitude entries
-    1; Cayley vector h |Omega| / 2 with |Omega| the angular-momentum scale / lambda_min(J).  The
-    objective's scale (and, for the effort objective, the control scales balanced):
-    :meth:`~transcription.ocp.objective.Objective.scales`.
-    """
+def _state_magnitudes(problem: Problem) -> tuple[float, float, float, np.ndarray]:
+    """(L, sg, sP, eigenvalues of J): the position, linear and angular momentum scales of
+    :func:`characteristic_scales`."""
     a, d = unpack_states(problem.X0), unpack_states(target_estimate(problem))
-    m, J, T, h = problem.model.mass, problem.disc.J, problem.T, problem.h
-    control: SmoothControl = problem.control
+    m, J, T = problem.model.mass, problem.disc.J, problem.T
     ev = np.linalg.eigvalsh(J)
     L = max(np.abs(a.x).max(), np.abs(d.x).max(), np.abs(d.x - a.x).max())
     L = L if L > 0 else 1.0
     sg = max(np.abs(a.gamma).max(), np.abs(d.gamma).max(), m * L / T)
     sP = max(np.abs(a.Pi).max(), np.abs(d.Pi).max(), ev[-1] / T)
-    sX = np.concatenate([np.full(3, L), np.full(3, sg), np.ones(9), np.full(3, sP)])
-    sU = np.concatenate([np.full(3, sg / T), np.full(3, sP / T)])
+    return L, sg, sP, ev
+
+
+def control_magnitudes(problem: Problem) -> np.ndarray:
+    """The characteristic control magnitudes (6,) before the objective balances them: the bounds' sizes where a
+    control is bounded; else the momentum scales / T (:func:`characteristic_scales`), at most the problem's
+    ``control_scales`` (the sizes of the bounds a relaxation dropped)."""
+    L, sg, sP, _ = _state_magnitudes(problem)
+    sU = np.concatenate([np.full(3, sg / problem.T), np.full(3, sP / problem.T)])
+    if problem.control_scales is not None:
+        sU = np.minimum(sU, problem.control_scales)
+    control: SmoothControl = problem.control
     for sl, bound in ((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound)):
         if bound is not None and not bound.removed:
             sU[sl] = bound.sizes()
-    sC = np.full(3, 0.5 * h * sP / ev[0])
-    sU, obj = control.objective.scales(problem, sU)
+    return sU
+
+
+def characteristic_scales(problem: Problem) -> Scales:
+    """Magnitudes of the unknowns from the boundary data, the horizon, the body and the bounds.
+
+    (max-norms throughout) positions L = max(|x0|, |xd|, |xd - x0|) (1 if all vanish: attitude-only
+    maneuvers); linear momenta max(|gamma0|, |gammad|, m L / T); angular momenta max(|Pi0|, |Pid|,
+    lambda_max(J) / T); forces and moments: :func:`control_magnitudes` (their bounds, or the scales a
+    relaxation kept, or the momentum scale / T); attitude entries 1; Cayley vector h |Omega| / 2 with
+    |Omega| the angular-momentum scale / lambda_min(J).  The objective's scale (and, for the effort
+    objective, the control scales balanced): :meth:`~transcription.ocp.objective.Objective.scales`.
+    """
+    L, sg, sP, ev = _state_magnitudes(problem)
+    sX = np.concatenate([np.full(3, L), np.full(3, sg), np.ones(9), np.full(3, sP)])
+    sC = np.full(3, 0.5 * problem.h * sP / ev[0])
+    sU, obj = problem.control.objective.scales(problem, control_magnitudes(problem))
     return Scales(X=sX, U=sU, C=sC, objective=obj)
 
 

@@ -5,7 +5,7 @@ import dataclasses
 
 import numpy as np
 
-from ..geometry.state import NX, pack_state
+from ..geometry.state import NU, NX, pack_state
 from ..dynamics.lgvi import Discretization
 from .constraints import PATH_CONSTRAINTS
 from .controls import Control, ImpulsiveControl, SmoothControl
@@ -36,6 +36,10 @@ class Problem:
     time_bounds: tuple[float, float] | None = None
     constraints: tuple = ()
     mesh: np.ndarray | None = None
+    #: caps (6,) on the characteristic control magnitudes where this problem has no bound to give them: the sizes
+    #: of the bounds of the problem it relaxes (objectives.effort.relaxation); None: from this problem's boundary
+    #: data and bounds alone (nlp.scaling.control_magnitudes)
+    control_scales: tuple | None = None
     #: what methods build from this (immutable) Problem and keep with it (its NLP, by the options it depends on):
     #: :meth:`memo`
     _memo: dict = dataclasses.field(default_factory=dict, init=False, repr=False, compare=False)
@@ -81,6 +85,11 @@ class Problem:
             uniform = bool(np.all(r == r[0]))      # all equal: uniform, whatever the round-off of their mean
             r = r / r.mean()
             object.__setattr__(self, "mesh", None if uniform or np.all(r == 1.0) else r)
+        if self.control_scales is not None:
+            cs = np.asarray(self.control_scales, dtype=float).reshape(-1)
+            if cs.shape != (NU,) or not np.all(np.isfinite(cs) & (cs > 0)):
+                raise ProblemError("control_scales", f"expected {NU} positive finite control magnitudes")
+            object.__setattr__(self, "control_scales", tuple(float(v) for v in cs))
         object.__setattr__(self, "constraints", tuple(self.constraints))
         for c in self.constraints:
             if not isinstance(c, PATH_CONSTRAINTS):

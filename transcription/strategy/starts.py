@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dynamics.lgvi import Discretization
 from ..geometry.so3 import exp_so3, log_so3_any, rotation_between
 from ..geometry.state import NU, U_FORCE, U_MOMENT, X_ANG, X_ROT, pack_state, unpack_states
 from ..ocp import Problem
@@ -44,17 +45,18 @@ def rollout(problem: Problem) -> Start:
 
 
 def aimed(problem: Problem, start: Start, axis: np.ndarray, thrust_range: tuple[float, float], *,
-          fraction: float) -> Start:
+          fraction: float, frame: Discretization | None = None) -> Start:
     """A body-fixed engine's start from ``start`` (on the problem's grid) whose force points anywhere
     (docs/mathematics.md §14): the attitude turned by min(1, |f_j| / (``fraction`` max |f|)) of the smallest rotation
-    taking the engine axis R_j a onto the inertial force f_j = applied_force(R_j, u_f,j); the force then T_j a,
+    taking the engine axis R_j a onto the inertial force f_j = applied_force(R_j, u_f,j) of ``frame`` (the
+    discretization ``start`` was solved on: its force frame; the problem's by default); the force then T_j a,
     T_j = |f_j| clipped to ``thrust_range``; Pi_k = J Log(R_k^T R_{k+1}) / h_k (the last node's kept).  The defects
     are left to the solver."""
     disc, h = problem.disc, problem.steps
     X, U = start.X.copy(), start.U.copy()
     s = unpack_states(X)
     nodes = np.arange(X.shape[0]) if U.shape[1] == X.shape[0] else np.arange(1, X.shape[0])
-    f = np.asarray(disc.applied_force(s.R[nodes], U[U_FORCE].T), dtype=float)
+    f = np.asarray((frame or disc).applied_force(s.R[nodes], U[U_FORCE].T), dtype=float)
     nf = np.linalg.norm(f, axis=1)
     if not nf.max(initial=0.0) > 0:
         return start
