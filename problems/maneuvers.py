@@ -58,7 +58,7 @@ Every error is a :class:`ConfigError` whose text is one line ``FILE: FIELD: what
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +69,7 @@ from ..transcription.dynamics.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
 from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, spd_weight)
 from ..transcription.dynamics.trajectory import Trajectory
+from ..transcription.ocp.estimate import control_sizes
 from ..transcription.objectives import OBJECTIVES, named
 
 from . import moving as _moving
@@ -255,10 +256,26 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                           constraints=constraints)
     except ProblemError as e:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1], also=_PROBLEM_ALSO.get(e.field, ()))
+    if resolved_control is not None and "weights" not in (doc.get("control") or {}):
+        problem = _weights_in_actuator_terms(problem, resolved_control)
     _physical.declare(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
                     central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved,
                     physical=phys, accuracy=accuracy)
+
+
+def _weights_in_actuator_terms(problem: Problem, resolved_control: dict) -> Problem:
+    """A smooth orbit maneuver whose file gives no weights and bounds its force: each control measured in units of its
+    size (:func:`~transcription.ocp.estimate.control_sizes`, the objective's ``unit_weights``), and the resolved file
+    says the numbers.  Otherwise the problem as it is (weights force 1, moment 1e4: the normalized examples')."""
+    c = problem.control
+    sizes = control_sizes(problem) if isinstance(c, SmoothControl) else None
+    W = None if sizes is None else c.objective.unit_weights(*sizes)
+    if W is None:
+        return problem
+    control = replace(c, W_f=W[0], W_m=W[1])
+    resolved_control["weights"] = {"force": float(W[0][0, 0]), "moment": float(W[1][0, 0])}
+    return problem.replace(control=replace(control, objective=control.objective.with_weights(control)))
 
 
 def _body(v: Validator, mdoc, gdoc):

@@ -133,8 +133,8 @@ def test_direct_equals_indirect_on_the_kepler_scheme():
 
 
 def fly_plan(sol):
-    """The plan's node controls, linear between the nodes (the LGVI's control model), flown through eqs. (1)-(4) by
-    DOP853 (rtol 1e-12): the final (x, v, R)."""
+    """The plan's node controls, linear between the nodes (the LGVI's control model; a body-frame force applied as
+    R(t) u_f(t)), flown through eqs. (1)-(4) by DOP853 (rtol 1e-12): the final (x, v, R)."""
     p, tr = sol.problem, sol.trajectory
     model, t, U = p.model, tr.t, np.asarray(sol.controls, float)
     Jinv = np.linalg.inv(model.inertia)
@@ -144,7 +144,8 @@ def fly_plan(sol):
         u = np.array([np.interp(s, t, U[i]) for i in range(6)])
         f, M = model.forces(x, R)
         omega = Jinv @ Pi
-        return np.concatenate([gamma / model.mass, np.array(f).ravel() + u[:3], (R @ hat(omega)).ravel(),
+        thrust = R @ u[:3] if p.disc.force_frame == "body" else u[:3]      # a body-fixed engine turns with the body
+        return np.concatenate([gamma / model.mass, np.array(f).ravel() + thrust, (R @ hat(omega)).ravel(),
                                np.cross(Pi, omega) + np.array(M).ravel() + u[3:]])
 
     y0 = np.concatenate([tr.x[0], tr.gamma[0], tr.R[0].ravel(), tr.Pi[0]])

@@ -58,6 +58,10 @@ class Effort(Objective):
     def value(self, problem: Problem, U: np.ndarray, h: float) -> float:
         return effort_cost(U, problem.control, quadrature_weights(problem.scheme, problem.N, problem.steps_of(h)))
 
+    def unit_weights(self, force: float, moment: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """I / force^2, I / moment^2: the effort of controls in units of their sizes."""
+        return np.eye(3) / force**2, np.eye(3) / moment**2
+
     def scales(self, problem: Problem, sU: np.ndarray) -> tuple[np.ndarray, float]:
         Wdiag = np.diag(problem.control.W)
         cw = Wdiag * sU**2

@@ -33,6 +33,10 @@ class EffortTime(Effort):
     def value(self, problem: Problem, U: np.ndarray, h: float) -> float:
         return super().value(problem, U, h) + self.rho * problem.N * h
 
+    def unit_weights(self, force: float, moment: float) -> None:
+        """None: rho prices time against the given weights."""
+        return None
+
     def scales(self, problem: Problem, sU: np.ndarray) -> tuple[np.ndarray, float]:
         sU, effort = super().scales(problem, sU)
         return sU, effort + self.rho * problem.T

@@ -65,3 +65,21 @@ def target_estimate(problem: Problem) -> np.ndarray:
     if isinstance(problem.terminal, TargetRendezvous):
         return rendezvous_state(problem.terminal, problem.T, problem.model.mass, problem.model.mu, problem.X0)
     return relaxed_start_target(problem)
+
+
+def control_sizes(problem: Problem) -> tuple[float, float] | None:
+    """(F_c, M_c): the size of a force and of a moment for this spacecraft, in the problem's units (docs/mathematics.md
+    §6, *Weights in the actuators' terms*): F_c the force bound's largest size; M_c the moment bound's largest size or,
+    without one, the moment that turns the body half a revolution rest to rest in the orbit's time unit 1/n,
+    4 pi lambda_max(J) n^2 with n = sqrt(mu / |x_0|^3) (aiming an engine follows the orbit's turning, one radian per
+    1/n).  None without a force bound, with a removed force, or without a central body."""
+    c, mu = problem.control, problem.model.mu
+    f, m = c.force_bound, c.moment_bound
+    if f is None or f.removed or not mu:
+        return None
+    F = float(np.max(f.sizes()))
+    if m is not None and not m.removed:
+        return F, float(np.max(m.sizes()))
+    r0 = float(np.linalg.norm(unpack_states(problem.X0).x[0]))
+    return F, float(4.0 * np.pi * np.linalg.eigvalsh(problem.disc.J)[-1] * mu / r0**3)
+

@@ -37,6 +37,12 @@ class Objective:
         """The cost of controls U (6, n_controls) on ``problem``'s grid at the (mean) step size h."""
         raise NotImplementedError
 
+    def unit_weights(self, force: float, moment: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(W_f, W_m) that measure each control in units of its size ``force``, ``moment`` (a file's default weights
+        in the actuators' terms: :func:`~transcription.ocp.estimate.control_sizes`); None: this objective keeps the
+        given weights."""
+        return None
+
     def with_weights(self, control: "SmoothControl") -> "Objective":
         """This objective for ``control``'s weights (an objective keeping derived data of them refreshes it)."""
         return self

@@ -44,6 +44,11 @@ class Fuel(Objective):
         if self.burn is not None and not np.all(np.asarray(self.rounding, float) > 0):
             raise ProblemError("control.objective", "a switching structure (burn) needs its magnitudes' rounding > 0")
 
+    def unit_weights(self, force: float, moment: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """I / force, I / moment: the impulses in units of the controls' sizes (the engine's burn time at full
+        thrust, the wheels' at full torque)."""
+        return np.eye(3) / force, np.eye(3) / moment
+
     def __eq__(self, other) -> bool:
         same = lambda a, b: a is b or (a is not None and b is not None and np.array_equal(a, b))
         return (type(other) is type(self) and (self.smoothing, self.reference, self.rounding)
