@@ -69,7 +69,7 @@ def target_estimate(problem: Problem) -> np.ndarray:
 
 def control_sizes(problem: Problem) -> tuple[float, float] | None:
     """(F_c, M_c): the size of a force and of a moment for this spacecraft, in the problem's units (docs/mathematics.md
-    §6, *Weights in the actuators' terms*): F_c the force bound's largest size; M_c the moment bound's largest size or,
+    §7, *Weights in the actuators' terms*): F_c the force bound's largest size; M_c the moment bound's largest size or,
     without one, the moment that turns the body half a revolution rest to rest in the orbit's time unit 1/n,
     4 pi lambda_max(J) n^2 with n = sqrt(mu / |x_0|^3) (aiming an engine follows the orbit's turning, one radian per
     1/n).  None without a force bound, with a removed force, or without a central body."""
