@@ -73,13 +73,21 @@ def control_sizes(problem: Problem) -> tuple[float, float] | None:
     without one, the moment that turns the body half a revolution rest to rest in the orbit's time unit 1/n,
     4 pi lambda_max(J) n^2 with n = sqrt(mu / |x_0|^3) (aiming an engine follows the orbit's turning, one radian per
     1/n).  None without a force bound, with a removed force, or without a central body."""
-    c, mu = problem.control, problem.model.mu
-    f, m = c.force_bound, c.moment_bound
-    if f is None or f.removed or not mu:
+    f = problem.control.force_bound
+    M = moment_size(problem)
+    if f is None or f.removed or M is None or not problem.model.mu:
         return None
-    F = float(np.max(f.sizes()))
+    return float(np.max(f.sizes())), M
+
+
+def moment_size(problem: Problem) -> float | None:
+    """The size M_c of a moment for this spacecraft (:func:`control_sizes`): the moment bound's largest size, or around
+    a central body 4 pi lambda_max(J) n^2; None otherwise (an unbounded moment without an orbit to measure it by)."""
+    m, mu = problem.control.moment_bound, problem.model.mu
     if m is not None and not m.removed:
-        return F, float(np.max(m.sizes()))
+        return float(np.max(m.sizes()))
+    if not mu:
+        return None
     r0 = float(np.linalg.norm(unpack_states(problem.X0).x[0]))
-    return F, float(4.0 * np.pi * np.linalg.eigvalsh(problem.disc.J)[-1] * mu / r0**3)
+    return float(4.0 * np.pi * np.linalg.eigvalsh(problem.disc.J)[-1] * mu / r0**3)
 

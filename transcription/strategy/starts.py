@@ -44,14 +44,42 @@ def rollout(problem: Problem) -> Start:
     return _start(problem, X, None, Origin.rollout)
 
 
+def _rest_to_rest(x: np.ndarray) -> np.ndarray:
+    """The fraction of a rest-to-rest turn at constant |acceleration| done at x = t / tau in [0, 1]: 2 x^2, then
+    1 - 2 (1 - x)^2."""
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.5, 2.0 * x**2, 1.0 - 2.0 * (1.0 - x) ** 2)
+
+
+def _turned_in(problem: Problem, R: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """The attitudes R (N+1, 3, 3) (R[0] the initial one, the others aimed) with the first nodes replaced by the
+    rest-to-rest turn from R[0] to the aimed attitude at the turn's end, at angular acceleration ``alpha``: the turn
+    takes tau = 2 sqrt(theta / alpha) for its angle theta (found from the aim at node 1, then at tau).  Returns the
+    attitudes and the mask of the nodes turning."""
+    t = problem.times
+    R = R.copy()
+    tau = 0.0
+    for _ in range(2):
+        k = min(int(np.searchsorted(t, tau)), len(t) - 1) if tau > 0 else 1
+        w = log_so3_any(R[k] @ R[0].T)
+        tau = 2.0 * np.sqrt(np.linalg.norm(w) / alpha)
+    turning = t < tau
+    turning[0] = False
+    sigma = _rest_to_rest(t[turning] / tau)
+    R[turning] = np.array([exp_so3(c * w) @ R[0] for c in sigma])
+    return R, turning
+
+
 def aimed(problem: Problem, start: Start, axis: np.ndarray, thrust_range: tuple[float, float], *,
-          fraction: float, frame: Discretization | None = None) -> Start:
+          fraction: float, frame: Discretization | None = None, alpha: float | None = None) -> Start:
     """A body-fixed engine's start from ``start`` (on the problem's grid) whose force points anywhere
     (docs/mathematics.md §14): the attitude turned by min(1, |f_j| / (``fraction`` max |f|)) of the smallest rotation
     taking the engine axis R_j a onto the inertial force f_j = applied_force(R_j, u_f,j) of ``frame`` (the
     discretization ``start`` was solved on: its force frame; the problem's by default); the force then T_j a,
-    T_j = |f_j| clipped to ``thrust_range``; Pi_k = J Log(R_k^T R_{k+1}) / h_k (the last node's kept).  The defects
-    are left to the solver."""
+    T_j = |f_j| clipped to ``thrust_range``; Pi_k = J Log(R_k^T R_{k+1}) / h_k (the last node's kept).  With
+    ``alpha`` (the angular acceleration the moment's size gives), the body does not jump from its initial attitude
+    to the aim: it turns there rest to rest at that acceleration (:func:`_turned_in`), thrusting meanwhile only the
+    part of f_j along its engine, T_j = max(0, (R_j a)^T f_j).  The defects are left to the solver."""
     disc, h = problem.disc, problem.steps
     X, U = start.X.copy(), start.U.copy()
     s = unpack_states(X)
@@ -68,11 +96,17 @@ def aimed(problem: Problem, start: Start, axis: np.ndarray, thrust_range: tuple[
     partial = np.array([exp_so3(w * c) for w, c in zip(np.array([log_so3_any(Q) for Q in turn]), share)])
     R = s.R.copy()
     R[nodes] = np.einsum("nij,njk->nik", partial, s.R[nodes])
+    thrust = nf
+    if alpha is not None and alpha > 0:
+        R[0] = s.R[0]
+        R, turning = _turned_in(problem, R, alpha)
+        along = np.einsum("nij,j,ni->n", R[nodes], a, f)
+        thrust = np.where(turning[nodes], np.maximum(along, 0.0), nf)
     hs = np.broadcast_to(np.asarray(h, dtype=float), (len(R) - 1,))     # one step size, or a mesh's h_k
     Omega = np.array([log_so3_any(R[k].T @ R[k + 1]) / hs[k] for k in range(len(R) - 1)])
     X[:, X_ROT] = np.swapaxes(R, 1, 2).reshape(len(R), 9)
     X[:-1, X_ANG] = Omega @ np.asarray(disc.J).T
-    U[U_FORCE] = np.outer(a, np.clip(nf, *thrust_range))
+    U[U_FORCE] = np.outer(a, np.clip(thrust, *thrust_range))
     return Start(t=start.t, X=X, U=U, scheme=start.scheme, origin=Origin.aimed, source=start.source)
 
 
