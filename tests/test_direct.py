@@ -168,6 +168,22 @@ def test_progress_records_and_history():
     assert len(s.history) == s.iterations + 1 and s.history[-1].residual <= 1e-9
 
 
+def test_a_kept_solver_keeps_its_progress_callback():
+    """Two solvers on one NLP (the same Problem, IPOPT options that differ), then the first reused: every solve
+    converges to the same cost (1e-12 relative) and reports each of its iterations.  Each solver's callback is kept
+    with the NLP: when one attribute held it, the second solver's replaced the first's, and the first, reused, stopped
+    at its first iteration ("Callback object has been deleted")."""
+    p = maneuver("e3", 20, "lgvi").problem
+    runs = []
+    for tol in (1e-10, 1e-9, 1e-10):
+        recs = []
+        s = se3ocp.solve(p, tol=tol, progress=recs.append)
+        assert s.converged, s.message
+        assert len(recs) >= s.iterations > 5
+        runs.append(s.cost)
+    assert max(runs) - min(runs) <= 1e-12 * abs(runs[0])
+
+
 def test_failure_is_data():
     s = solved("e3", 20, "lgvi", max_iter=2)
     assert s.result is se3ocp.Result.max_iterations and not s.converged

@@ -45,10 +45,13 @@ def make_ipopt(name: str, nlp: StructuredNLP, ipopt: dict[str, Any], progress: C
     nlp_opts: dict[str, Any] = {"print_time": False, "ipopt": ipopt, "show_eval_warnings": False,
                                 **nlp.derivative_functions()}
     if progress is not None:
-        # the callback must outlive the solver call: it is kept on the NLP object
-        nlp.callback = ProgressCallback(nlp.n, nlp.ng, progress, obj_scale, nlp.lbg, nlp.ubg, phase,
-                                        int(ipopt.get("max_iter", 0)))
-        nlp_opts["iteration_callback"] = nlp.callback
+        # the callback must outlive every solver made with it: each is kept on the NLP object (a solver kept and
+        # reused after another was made on the same NLP lost its callback when one attribute held them, and IPOPT
+        # stopped at its first iteration: "Callback object has been deleted")
+        callback = ProgressCallback(nlp.n, nlp.ng, progress, obj_scale, nlp.lbg, nlp.ubg, phase,
+                                    int(ipopt.get("max_iter", 0)))
+        nlp.__dict__.setdefault("callbacks", []).append(callback)
+        nlp_opts["iteration_callback"] = callback
     return ca.nlpsol(name, "ipopt", {"x": nlp.w, "f": nlp.f, "g": nlp.g}, nlp_opts)
 
 
