@@ -87,13 +87,11 @@ def relaxation(problem: Problem) -> Problem | None:
     """The problem without its control bounds (a removed control stays removed) and path constraints, whose solution
     starts the solve of the full one (None if there is nothing to relax).  The bounds stay as caps on the relaxed
     problem's control scales (``Problem.control_scales``): the boundary data's m L / T^2 can exceed them by far (a
-    LEO orbit's: 700 times a 1 N engine; leo_body_engine's relaxed objective was scaled to 3e-7 and its solve crawled
-    55 iterations at 0.35 s each, against 10 at the bound's scale), and the full problem's controls stay within them.
-    A body-fixed force (an engine) is relaxed
-    to a force free to point anywhere in the inertial frame: the translation no longer depends on the attitude, and
-    the relaxed problem is the translational problem beside the slew.  (Relaxed in the body frame instead, the body's
-    attitude and the force's direction trade against each other at equal force effort -- a direction the effort
-    does not see -- and IPOPT creeps along it: leo_body_engine's relaxed solve took 55 iterations at 0.35 s each.)"""
+    LEO orbit's: 600 times a 1 N engine), and the full problem's controls stay within them.  A body-fixed force (an
+    engine) is relaxed to a force free to point anywhere in the inertial frame: the translation no longer depends on
+    the attitude.  (Relaxed in the body frame and scaled by the orbit, the body's attitude and the force's direction
+    trade at equal force effort -- a direction the effort does not see -- and IPOPT crept along it:
+    leo_body_engine's relaxed solve took 55 iterations at 0.35 s each, against 10 now; docs/mathematics.md §7.)"""
     c = problem.control
     removed = c.removed
     bounds = [b for b, r in zip((c.force_bound, c.moment_bound), removed) if b is not None and not r]
@@ -160,8 +158,8 @@ def first_start(problem: Problem) -> tuple[str, Start]:
 class RelaxedStart:
     """The solve from the solution of ``relaxed`` (the problem without its bounds and path constraints, solved by
     ``inner``): with a body-fixed engine the body turned to aim its force (:func:`~.starts.aimed`, ``aim_fraction``);
-    within ``budget`` iterations (None: the solver's max_iter), IPOPT options ``ipopt``.  ``phase1``: its solve starts in IPOPT's restoration
-    phase; one that ends locally infeasible ends the strategy (:meth:`ends`)."""
+    within ``budget`` iterations (None: the solver's max_iter), IPOPT options ``ipopt``.  ``phase1``: its solve
+    starts in IPOPT's restoration phase; one that ends locally infeasible ends the strategy (:meth:`ends`)."""
 
     inner: object
     relaxed: Problem
@@ -179,9 +177,10 @@ class RelaxedStart:
         first = sub.warm.primal()
         engine = problem.control.force_bound
         if engine is not None and engine.engine_axis is not None:
-            M = moment_size(problem)
+            M = moment_size(problem)            # the body turns in at the angular acceleration M / lambda_max(J)
+            alpha = None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1]
             first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction,
-                          frame=self.relaxed.disc, alpha=None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1])
+                          frame=self.relaxed.disc, alpha=alpha)
         budget = int(ctx.options.max_iter) if self.budget is None else min(int(ctx.options.max_iter), self.budget)
         sol = ctx.solve(problem, first, "from relaxed", ipopt=self.ipopt, max_iter=budget)
         return labelled(sol, self.label, sub.trace, "the relaxed problem")
@@ -210,8 +209,9 @@ class EffortStrategy(Composed):
     thrust bounded by 10, N = 500: infeasible in 54 iterations, against 200 + 3000 + 3000 without either option).
     Neither for a body-fixed engine, whose start is the aimed relaxed solution, within the solver's whole max_iter:
     the free motion and the interpolation know nothing of the engine (a raise with a 3 N engine: converged from the
-    aimed start in 240 iterations, failed from it at 200 and then from the others after 3404).  ``aim_fraction``: the engine's aimed
-    start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j |f_j|."""
+    aimed start in 240 iterations, failed from it at 200 and then from the others after 3404).  ``aim_fraction``:
+    the engine's aimed start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j
+    |f_j|."""
 
     first_budget: int = 200
     rollout_first_miss: float = 1.0

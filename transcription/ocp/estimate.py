@@ -90,4 +90,3 @@ def moment_size(problem: Problem) -> float | None:
         return None
     r0 = float(np.linalg.norm(unpack_states(problem.X0).x[0]))
     return float(4.0 * np.pi * np.linalg.eigvalsh(problem.disc.J)[-1] * mu / r0**3)
-
