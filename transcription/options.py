@@ -315,7 +315,8 @@ class AccuracyOptions(Options):
     """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...): the continuous
     check and refinement to a tolerance (transcription/strategy/refine.py)."""
 
-    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "max_N", "max_levels", "refinement")
+    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "maneuver_accuracy", "max_N", "max_levels",
+                                       "refinement")
 
     continuous_check: bool = _opt(True, "bool", doc="fly every successful smooth-control Solution through the continuous "
                                                      "equations and report how it lands (Solution.continuous)")
@@ -323,6 +324,12 @@ class AccuracyOptions(Options):
         **_opt(1.0, "float", lo=0.0, doc="refine the mesh until the continuous-time terminal miss (scaled_miss) and the "
                                           "path constraints' violation between the nodes are at most this; absent or "
                                           "null: the given N, no refinement").metadata, "optional": True})
+    maneuver_accuracy: float | None = field(default=None, metadata={
+        **_opt(0.5, "float", lo=0.0, hi=1.0, doc="refine the mesh until the continuous-time terminal miss as a fraction "
+                                                  "of what the maneuver changes (ContinuousCheck.maneuver_fraction: "
+                                                  "0.01 = 1 %) and the path constraints' violation between the nodes "
+                                                  "are at most this; not with accuracy; absent or null: no "
+                                                  "refinement").metadata, "optional": True})
     max_N: int = _opt(50000, "int", lo=1, doc="the largest N refinement may solve on; an accuracy that needs more is "
                                                "refused before solving (or the refinement stops) with the N it needs")
     max_levels: int = _opt(8, "int", lo=1, hi=50, doc="the most mesh levels (solves) of one refinement")
@@ -335,6 +342,26 @@ class AccuracyOptions(Options):
             v = getattr(self, f.name)
             if not (f.metadata.get("optional") and v is None):
                 object.__setattr__(self, f.name, _check(f.name, f.metadata, v))
+        if self.accuracy is not None and self.maneuver_accuracy is not None:
+            raise OptionError("maneuver_accuracy", f"expected either accuracy (a scaled miss) or maneuver_accuracy (a "
+                                                   f"fraction of the maneuver), not both: got accuracy "
+                                                   f"{self.accuracy:g} and maneuver_accuracy "
+                                                   f"{self.maneuver_accuracy:g}")
+
+    @property
+    def tolerance(self) -> float | None:
+        """What refinement drives the miss below: ``accuracy`` or ``maneuver_accuracy`` (None: no refinement)."""
+        return self.accuracy if self.accuracy is not None else self.maneuver_accuracy
+
+    @property
+    def of_maneuver(self) -> bool:
+        """True when the miss refined is the flown miss as a fraction of the maneuver (``maneuver_accuracy``)."""
+        return self.maneuver_accuracy is not None
+
+    @property
+    def tolerance_key(self) -> str:
+        """The ``solver`` key that gave :attr:`tolerance` (for messages naming the field)."""
+        return "maneuver_accuracy" if self.of_maneuver else "accuracy"
 
     @classmethod
     def from_mapping(cls, d=None) -> "AccuracyOptions":

@@ -43,7 +43,8 @@ def cmd_validate(args) -> int:
     if infeasible:
         say(args, f"  but provably infeasible (solve will say so without iterating): {infeasible}")
     if unreachable:
-        say(args, f"  but solver.accuracy is out of reach (solve refuses it, exit 2): {unreachable}")
+        verb = "is out of reach" if "out of reach" in unreachable else "cannot apply"
+        say(args, f"  but solver.{man.accuracy.tolerance_key} {verb} (solve refuses it, exit 2): {unreachable}")
     slip = thrust_warning(man)
     if slip:
         say(args, f"  but {slip}")
@@ -87,6 +88,7 @@ def cmd_solve(args) -> int:
     if man.control_kind is None:
         raise ConfigError(man.source, "control/terminal",
                           "solving needs a 'control' block (kind smooth or impulsive) and a 'terminal' block")
+    miss = "flown miss (of the maneuver)" if man.accuracy.of_maneuver else "continuous miss"
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
@@ -94,7 +96,9 @@ def cmd_solve(args) -> int:
         if slip:
             say(args, f"warning: {slip}")
         result = _solved(args, man, args.method)
-        Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
+        kept = _kept_level(result)
+        if not kept:
+            Interrupt.check()  # a solver may have swallowed Ctrl-C and returned
         sols = store.solutions_of(result)
         for m, sol in sols.items():
             if sol.result is Result.not_applicable:
@@ -104,12 +108,15 @@ def cmd_solve(args) -> int:
                        f"{sol.terminal_error:.2e}, {sol.iterations} iterations, build {sol.build_s:.2f} s, "
                        f"solve {sol.solve_s:.2f} s")
             for rec in sol.mesh:    # refinement to solver.accuracy: one line per mesh level
-                say(args, f"    mesh level {rec['level']}: N = {rec['N']}, continuous miss {rec['miss']:.2e}, path "
+                say(args, f"    mesh level {rec['level']}: N = {rec['N']}, {miss} {rec['miss']:.2e}, path "
                           f"violation {rec['path_violation']:.1e}, {rec['iterations']} iterations, solve "
                           f"{rec['solve_s']:.2f} s, check {rec['check_s']:.2f} s ({rec['status']})"
                           + (f"; {rec['mesh']} mesh, steps {rec['h_min']:.3g} to {rec['h_max']:.3g}" if "mesh" in rec
                              else ""))
-        _write(args, tx.path, store.held_run(man, result))
+        _write(args, tx.path, store.held_run(man, result), figures=not kept)
+        if kept:        # Ctrl-C during a refinement: its best level, a complete run, committed marked INCOMPLETE
+            tx.commit(incomplete=kept)
+            raise KeyboardInterrupt
         Interrupt.check()  # a Ctrl-C that a library swallowed (see _Interrupt): do not commit
     out = tx.target
     for line in table(sols.values()):
@@ -126,6 +133,25 @@ def cmd_solve(args) -> int:
         print(" ".join(f"se3ocp: {man.name}: not converged: {' | '.join(failed) or 'no method applies'}; results in {out}/".split()),
               file=sys.stderr)
     return 1
+
+
+def _kept_level(result) -> str:
+    """'' or, when Ctrl-C stopped a refinement to solver.accuracy after a level was solved (Interrupt.flag, and
+    transcription.strategy.refine.refine returned its best level: ``stats['accuracy_interrupted']`` on Solutions that
+    converged), the reason the results directory of that level is committed with: a complete run of the level
+    returned, marked INCOMPLETE because the refinement did not finish (as a sweep keeps its finished rows)."""
+    from ...transcription.outcome import Result
+    from .. import store
+
+    if not Interrupt.flag:
+        return ""
+    sols = [s for s in store.solutions_of(result).values() if s.result is not Result.not_applicable]
+    if not sols or not all(s.stats.get("accuracy_interrupted") and s.converged for s in sols):
+        return ""
+    s = sols[0]
+    return (f"interrupted (Ctrl-C) during refinement to a tolerance: this is level {s.stats.get('accuracy_level')} "
+            f"(N = {s.N}), the best level solved of {s.stats.get('accuracy_levels')}; the tolerance was not reached "
+            f"(figures not drawn: se3ocp plot DIR)")
 
 
 def _solved(args, man: Maneuver, method: str):
@@ -147,23 +173,23 @@ def _solved(args, man: Maneuver, method: str):
         raise ConfigError(man.source, "control.kind", str(e)) from None
     except OutOfReach as e:  # the N it needs: named where it was given, the file or --set (of the accuracy,
         # the scheme, N or the cap)
-        raise blame_overrides(ConfigError(man.source, "solver.accuracy", str(e),
+        raise blame_overrides(ConfigError(man.source, f"solver.{man.accuracy.tolerance_key}", str(e),
                                           also=("discretization", "horizon.N", "solver.max_N")),
                               [o.split("=", 1)[0].strip() for o in args.overrides or ()]) from None
 
 
-def _write(args, out: Path, run) -> None:
+def _write(args, out: Path, run, figures: bool = True) -> None:
     """After simulate/solve/compare: write ``run`` (a :class:`problems.store.Run` held in memory:
     store.held_run) into ``out`` once -- the resolved configuration, the .npz files and summary.json, then the
-    figures (unless --no-figures), the animation (--animate) and report.html (always; with the figures just
-    drawn embedded), all drawn from what the command holds: nothing is read back."""
+    figures (unless --no-figures or not ``figures``), the animation (--animate) and report.html (always; with the
+    figures just drawn embedded), all drawn from what the command holds: nothing is read back."""
     from .. import store
     from ..plots import draw_run, write_animation
     from ..report import write_run_report
 
     store.save_run(out, run)
     drawn: dict[str, bytes] = {}
-    if not args.no_figures:
+    if figures and not args.no_figures:
         drawn = draw_run(out, run)
         if args.animate:
             write_animation(run.result, out / "maneuver.gif", frames=args.frames, fps=args.fps)

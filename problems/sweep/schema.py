@@ -272,7 +272,7 @@ def sweep_from_doc(doc: Any, source: str, progress: Callable[[int, int], None] |
         raise ConfigError(source, "methods", f"{reason} (methods: [direct])")
     reason = out_of_reach(base_man.problem, base_man.accuracy)   # solver.accuracy: the N it needs, said at once
     if reason:
-        raise ConfigError(source, "base", f"solver.accuracy: {reason}")
+        raise ConfigError(source, "base", f"solver.{base_man.accuracy.tolerance_key}: {reason}")
     base_doc = read_yaml_file(sw.base) or {}
     points = sw.points()
     last = time.monotonic()

@@ -25,7 +25,8 @@ from ..geometry.so3 import log_so3_batch
 class Refinement:
     """The parameters of refinement to a tolerance: each level's N (:mod:`.refine`) and adaptive mesh (this module)."""
 
-    #: N of the next level = safety N (miss / tol)^(1/p), at least twice N and at most growth N
+    #: N of the next level = safety N (miss / tol)^(1/p), at least twice N and at most growth N -- every level, the
+    #: adaptive ones too (an adaptive mesh with more steps is coarsened to growth N in its own density, §16)
     safety: float = 1.2
     growth: int = 32
     #: the most an adaptive mesh is credited with over a uniform one of the same order: steps / adaptive_gain (§16)
@@ -82,22 +83,26 @@ def variations(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray) -> np.n
     return np.asarray(A.full()).reshape(NZ, N, NZ).transpose(1, 0, 2)   # [k, i, j] = A_k[i, j]
 
 
-def tangent_norms(c: np.ndarray, problem, L: float, V: float) -> np.ndarray:
-    """max(|dx| / L, |dgamma| / (m V), |zeta|, |J^-1 dPi|) of tangent vectors c (M, 12) -> (M,): the units of the
-    continuous miss (transcription.strategy.refine.scaled_miss)."""
+def tangent_norms(c: np.ndarray, problem, L: float, V: float, angle: float = 1.0, rate: float = 1.0) -> np.ndarray:
+    """max(|dx| / L, |dgamma| / (m V), |zeta| / angle, |J^-1 dPi| / rate) of tangent vectors c (M, 12) -> (M,): the
+    units of the continuous miss (transcription.strategy.refine.scaled_miss: angle = rate = 1), or with the
+    maneuver's changes as L, V and angle (and rate = inf: not counted) those of its fraction of the maneuver
+    (refine.miss_units)."""
     c = np.atleast_2d(c)
     Jinv = np.linalg.inv(problem.model.inertia)
     return np.max(np.stack([np.linalg.norm(c[:, 0:3], axis=1) / L,
                             np.linalg.norm(c[:, 3:6], axis=1) / (problem.model.mass * V),
-                            np.linalg.norm(c[:, 6:9], axis=1), np.linalg.norm(c[:, 9:12] @ Jinv.T, axis=1)]), axis=0)
+                            np.linalg.norm(c[:, 6:9], axis=1) / angle,
+                            np.linalg.norm(c[:, 9:12] @ Jinv.T, axis=1) / rate]), axis=0)
 
 
 def error_estimate(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int, L: float,
-                   V: float) -> tuple[np.ndarray, float]:
+                   V: float, angle: float = 1.0, rate: float = 1.0) -> tuple[np.ndarray, float]:
     """(e (N,), predicted): each step's share e_k = |c_k| of the terminal error (:func:`propagated_errors`, in the
     units of :func:`tangent_norms`) and the predicted terminal miss |sum_k c_k|."""
     c = propagated_errors(problem, X, U, steps, local_errors(problem, X, U, steps, order))
-    return tangent_norms(c, problem, L, V), float(tangent_norms(c.sum(axis=0), problem, L, V)[0])
+    return (tangent_norms(c, problem, L, V, angle, rate),
+            float(tangent_norms(c.sum(axis=0), problem, L, V, angle, rate)[0]))
 
 
 def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, total: float,

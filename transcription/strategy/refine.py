@@ -1,7 +1,8 @@
 """Accuracy on demand (docs/mathematics.md §11, §16): every smooth-control Solution of ``solve`` is flown in
 continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined until that
 flight lands within the tolerance.  :class:`AccuracyOptions` (transcription/options.py) are the ``solver`` block's
-keys ``continuous_check``, ``accuracy`` (null: a fixed N), ``max_N`` and ``max_levels``.  :func:`attach_checks`
+keys ``continuous_check``, ``accuracy`` (null: a fixed N) or ``maneuver_accuracy`` (the same as a fraction of the
+maneuver), ``max_N`` and ``max_levels``.  :func:`attach_checks`
 stores a :class:`~transcription.results.check.ContinuousCheck` on every successful smooth-control Solution
 (``sol.continuous``).
 """
@@ -15,7 +16,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..options import CHECK_ENV, AccuracyOptions
-from ..results.check import characteristic_length as _length, scaled_miss
+from ..results.check import ContinuousCheck, characteristic_length as _length, scaled_miss
 from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
@@ -26,7 +27,8 @@ from .mesh import (Refinement, density_steps, equidistributed_density, equidistr
 if TYPE_CHECKING:  # pragma: no cover
     from ..solve import Comparison
 
-__all__ = ["CHECK_ENV", "AccuracyOptions", "Refinement", "attach_checks", "out_of_reach", "refine", "scaled_miss"]
+__all__ = ["CHECK_ENV", "AccuracyOptions", "Refinement", "attach_checks", "level_miss", "out_of_reach", "refine",
+           "scaled_miss"]
 
 def _solutions(out: "Solution | Comparison") -> list[Solution]:
     return list(out.solutions.values()) if hasattr(out, "solutions") else [out]
@@ -85,8 +87,8 @@ def margin_scales(problem) -> list[float]:
 
 def next_N(N: int, ratio: float, order: float, max_N: int, rules: Refinement = Refinement()) -> int:
     """The N of the next level from this level's error ratio (miss / tol, > 1) and the scheme's observed order:
-    safety N ratio^(1/order), at least 2 N (uniform doubling at least), at most growth N; not capped at max_N
-    (the caller refuses a level beyond it)."""
+    safety N ratio^(1/order), at least 2 N (uniform doubling at least), at most growth N (the bound every level
+    keeps, the adaptive ones too: :func:`capped_mesh`); not capped at max_N (the caller refuses a level beyond it)."""
     want = rules.safety * N * ratio ** (1.0 / order) if np.isfinite(ratio) else 2 * N
     return int(min(max(np.ceil(want), 2 * N), rules.growth * N))
 
@@ -106,43 +108,154 @@ def observed_order(levels: list[dict], scheme: str) -> float:
 
 def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: bool = False,
            rules: Refinement = Refinement()) -> "Solution | Comparison":
-    """Solve ``problem`` on refined meshes until the continuous check lands within ``opts.accuracy``
+    """Solve ``problem`` on refined meshes until the continuous check lands within ``opts.tolerance``
     (docs/mathematics.md §11, "Refinement to a tolerance"; §16, the adaptive mesh).
 
     run(problem, warm) -> Solution | Comparison is one solve on the problem's own grid.  Level 0 solves on the given
     N (from ``warm`` if any); each following level, warm-started from the previous one, on :func:`next_mesh`
-    (``adaptive``: the estimated error equidistributed) or :func:`next_N` uniform steps.  It stops when the miss and
-    the path violation are within the tolerance, when a level fails, or before a level beyond ``max_N`` or
-    ``max_levels``.  Returns the last level's result, its Solutions carrying the mesh history (``sol.mesh``: level,
-    N, mesh, h_min, h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status),
-    ``stats['accuracy_met']`` and a sentence in the message.  ``rules``: :class:`~.mesh.Refinement`."""
-    tol, levels, prob = float(opts.accuracy), [], problem
+    (``adaptive``: the estimated error equidistributed) or :func:`next_N` uniform steps.  The miss of a level is
+    :func:`level_miss`: the scaled miss (``solver.accuracy``) or the flown miss as a fraction of the maneuver
+    (``solver.maneuver_accuracy``); a level is accepted when it and the path violation are within the tolerance.
+
+    **Bounded growth.** No level has more than ``rules.growth`` times the previous level's steps: the uniform N of
+    :func:`next_N` is capped so, and an adaptive mesh with more steps is coarsened to that count in its own density
+    (:func:`capped_mesh`), so a large miss is approached in several levels instead of one jump.
+
+    **The best level is kept.** Every level that converged and was flown is kept.  When a later level fails (no
+    method converged and was flown, or its miss cannot be measured) or is interrupted (a Solution with
+    Result.interrupted, or KeyboardInterrupt out of ``run`` -- Ctrl-C), the best level so far (lowest
+    max(miss, path_violation)) is returned, with the whole mesh history, ``accuracy_met`` False and a sentence
+    naming the level that failed, how, and the level returned (N, miss); the same when the refinement stops short
+    (``max_N``, ``max_levels``) and an earlier level was better than the last.  A failure or interrupt at level 0
+    returns (or raises) as the solve did.
+
+    Stops when the tolerance is met, when a level fails, or before a level beyond ``max_N`` or ``max_levels``.
+    Returns the Solutions of the level met or kept, carrying the mesh history (``sol.mesh``: level, N, mesh, h_min,
+    h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']``,
+    ``stats['accuracy_level']`` (the level returned), ``stats['accuracy_interrupted']`` and a sentence in the
+    message.  ``rules``: :class:`~.mesh.Refinement`."""
+    tol, levels, prob, kept = float(opts.tolerance), [], problem, []
+    name = tolerance_name(opts)
     while True:
         t0 = time.perf_counter()
-        out = attach_checks(run(prob, warm))
-        rec, best = _record(out, prob, len(levels), time.perf_counter() - t0)
+        try:
+            out = attach_checks(run(prob, warm))
+        except KeyboardInterrupt:
+            if not kept:
+                raise
+            levels.append(_interrupted_record(prob, len(levels), time.perf_counter() - t0))
+            return _best(kept, levels, f"refinement level {len(levels) - 1} (N = {prob.N}) was interrupted "
+                                       f"(Ctrl-C) before it finished", name, tol, interrupted=True)
+        rec, best = _record(out, prob, len(levels), time.perf_counter() - t0, opts)
         levels.append(rec)
-        if best is None:
+        stopped = any(s.result is Result.interrupted for s in _solutions(out))
+        if stopped or best is None or not np.isfinite(rec["miss"]):
+            why = (f"was interrupted ({_first_message(out, Result.interrupted)})" if stopped else
+                   f"failed: {_failure(out, best, opts)}")
+            if kept:
+                return _best(kept, levels, f"refinement level {rec['level']} (N = {prob.N}) {why}", name, tol,
+                             interrupted=stopped)
             return _finish(out, levels, False, f"refinement stopped at level {rec['level']} (N = {prob.N}): "
-                                                f"{rec['status']}")
+                                                f"{rec['status']}" + ("" if best is None else f"; {why}"),
+                           level=rec["level"], interrupted=stopped)
+        kept.append((max(rec["miss"], rec["path_violation"]), rec["level"], out))
         worst = max(rec["miss"], rec["path_violation"]) / tol
         if not worst > 1.0:
-            return _finish(out, levels, True, f"refined to accuracy {tol:.3g}: continuous miss {rec['miss']:.2e} at "
-                                              f"N = {prob.N} after {len(levels)} level(s)")
+            return _finish(out, levels, True, f"refined to {name} {tol:.3g}: {miss_name(opts)} {rec['miss']:.2e} "
+                                              f"at N = {prob.N} after {len(levels)} level(s)", level=rec["level"])
         least = least_N(prob.N, worst, adaptive, rules)
         if least > opts.max_N:    # even the most favourable order cannot land within max_N: no further level
-            return _finish(out, levels, False, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N,
-                                                                     rules))
+            return _best(kept, levels, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N, rules,
+                                                             opts), name, tol)
         p = observed_order(levels, prob.scheme)
-        mesh = next_mesh(prob, best, rec, tol, p, rules) if adaptive else None
+        mesh = next_mesh(prob, best, rec, tol, p, rules, miss_units(best, prob, opts)) if adaptive else None
         if mesh is not None:      # the miss this level's error estimate predicts (its calibration)
             rec["predicted"] = float(mesh[1])
-        N = next_N(prob.N, worst, p, opts.max_N, rules) if mesh is None else len(mesh[0])
+            mesh = capped_mesh(mesh[0], rules.growth * prob.N)
+        N = next_N(prob.N, worst, p, opts.max_N, rules) if mesh is None else len(mesh)
         if N > opts.max_N or len(levels) >= opts.max_levels:
             limit = f"solver.max_N = {opts.max_N}" if N > opts.max_N else f"solver.max_levels = {opts.max_levels}"
-            return _finish(out, levels, False, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit))
+            return _best(kept, levels, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit, opts), name,
+                         tol)
         T = min(max(best.T, prob.time_bounds[0]), prob.time_bounds[1]) if prob.free_time else prob.T
-        prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=None if mesh is None else mesh[0]), best.warm
+        prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=mesh), best.warm
+
+
+def capped_mesh(steps: np.ndarray, most: int) -> np.ndarray:
+    """An adaptive level's mesh (relative steps, N') with at most ``most`` steps (growth times the previous N,
+    docs/mathematics.md §16): unchanged when N' <= most, else coarsened to ``most`` steps keeping its density shape
+    (:func:`~.mesh.subdivided_steps` by the factor most / N' < 1: each of its steps' share of the new nodes kept)."""
+    n = len(steps)
+    return steps if n <= most else subdivided_steps(steps, (most - 0.5) / n)
+
+
+def tolerance_name(opts: AccuracyOptions) -> str:
+    """'accuracy' or 'maneuver accuracy': the tolerance in the sentences of a refinement."""
+    return "maneuver accuracy" if opts.of_maneuver else "accuracy"
+
+
+def miss_name(opts: AccuracyOptions) -> str:
+    """What a level's miss is, in the sentences of a refinement."""
+    return "flown miss (fraction of the maneuver)" if opts.of_maneuver else "continuous miss"
+
+
+def level_miss(check: ContinuousCheck, problem, opts: AccuracyOptions) -> float:
+    """The miss a refinement level is judged by: the check's flown miss as a fraction of what the maneuver changes
+    (``ContinuousCheck.maneuver_fraction``) with ``solver.maneuver_accuracy``, else :func:`scaled_miss`."""
+    return float(check.maneuver_fraction) if opts.of_maneuver else scaled_miss(check, problem)
+
+
+def miss_units(best: Solution, problem, opts: AccuracyOptions) -> tuple[float, float, float, float]:
+    """The divisors (position, velocity, angle, rate) that put a terminal error into the units of
+    :func:`level_miss`, for the error estimate of an adaptive level (transcription.strategy.mesh.tangent_norms):
+    (L, V, 1, 1) of :func:`scaled_miss`; with ``maneuver_accuracy`` what the maneuver changes (inf for what it does
+    not: the rate never counts), or (L, V, 1, 1) when it changes no component (an orbit target: the fraction is of
+    the target-error measure, and the estimate's calibration by the flown miss takes care of the units)."""
+    L = _length(problem)
+    V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
+    chk = best.continuous
+    if opts.of_maneuver and chk is not None and chk.maneuver_parts():
+        def of(c):
+            return float(c) if np.isfinite(c) and c > 0 else math.inf
+        return of(chk.change_position), of(chk.change_velocity), of(chk.change_attitude), math.inf
+    return L, V, 1.0, 1.0
+
+
+def _first_message(out, result: Result) -> str:
+    s = next((s for s in _solutions(out) if s.result is result), None)
+    return f"{s.method}: {s.message}" if s is not None else str(result)
+
+
+def _failure(out, best, opts: AccuracyOptions) -> str:
+    """How a level failed, in words: the methods' results and messages, or why its miss cannot be measured."""
+    if best is None:
+        flown = [s for s in _solutions(out) if s.converged and s.continuous is not None and not s.continuous.ok]
+        if flown:
+            return "; ".join(f"{s.method} converged but cannot be flown ({s.continuous.message})" for s in flown)
+        return "; ".join(f"{s.method} {s.result.value} ({s.message})" for s in _solutions(out)
+                         if s.result is not Result.not_applicable)
+    return (f"its {miss_name(opts)} is not defined (what the maneuver changes was not measured)" if opts.of_maneuver
+            else "its continuous miss is not finite")
+
+
+def _interrupted_record(problem, level: int, wall: float) -> dict:
+    """The mesh-history record of a level stopped by KeyboardInterrupt (nothing solved to record)."""
+    steps = problem.steps
+    return {"level": level, "N": int(problem.N), "mesh": "uniform" if problem.uniform else "adaptive",
+            "h_min": float(steps.min()), "h_max": float(steps.max()), "miss": math.nan, "path_violation": math.nan,
+            "iterations": 0, "solve_s": float(wall), "check_s": 0.0, "status": "interrupted (Ctrl-C)"}
+
+
+def _best(kept: list, levels: list[dict], what: str, name: str, tol: float, interrupted: bool = False):
+    """The refinement's answer when it ends without meeting the tolerance: the kept level (converged and flown) with
+    the lowest max(miss, path violation) -- the later of equal ones -- with the whole history and the sentence
+    ``what``, naming the level returned when it is not the last one solved."""
+    _, j, out = min(kept, key=lambda k: (k[0], -k[1]))
+    rec = levels[j]
+    if j != levels[-1]["level"] or interrupted:
+        what += (f"; returned level {j} (N = {rec['N']}, miss {rec['miss']:.2e}, path violation "
+                 f"{rec['path_violation']:.1e}), the best level solved: {name} {tol:.3g} not reached")
+    return _finish(out, levels, False, what, level=j, interrupted=interrupted)
 
 
 def least_N(N: int, ratio: float, adaptive: bool, rules: Refinement = Refinement()) -> float:
@@ -154,28 +267,32 @@ def least_N(N: int, ratio: float, adaptive: bool, rules: Refinement = Refinement
 
 
 def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int,
-                          rules: Refinement) -> str:
+                          rules: Refinement, opts: AccuracyOptions | None = None) -> str:
     """'accuracy 1e-09 not reached: the continuous miss 6.01e-04 at N = 200 would need N ≈ 7.8e+04 even if it
     fell at O(h^2), ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
-    what = (f"the continuous miss {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
+    opts = opts or AccuracyOptions(accuracy=tol)
+    what = (f"the {miss_name(opts)} {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
             f"the path violation {rec['path_violation']:.2e}")
     gain = f", with an adaptive mesh credited with {rules.adaptive_gain:g} times fewer steps" if adaptive else ""
-    return (f"accuracy {tol:.3g} not reached: {what} at N = {N} would need N ≈ {least:.2g} even if it fell at "
-            f"O(h^{BEST_ORDER}), the best order of either scheme{gain}, above solver.max_N = {max_N}, so no further "
-            f"level was solved: raise solver.max_N to at least {least:.2g} or loosen solver.accuracy")
+    return (f"{tolerance_name(opts)} {tol:.3g} not reached: {what} at N = {N} would need N ≈ {least:.2g} even if it "
+            f"fell at O(h^{BEST_ORDER}), the best order of either scheme{gain}, above solver.max_N = {max_N}, so no "
+            f"further level was solved: raise solver.max_N to at least {least:.2g} or loosen "
+            f"solver.{opts.tolerance_key}")
 
 
-def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float,
-              rules: Refinement) -> tuple[np.ndarray, float]:
+def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float, rules: Refinement,
+              units: tuple[float, float, float, float] | None = None) -> tuple[np.ndarray, float]:
     """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
     §16): each step's local error (step doubling) propagated to the final node (transcription.strategy.mesh),
     equidistributed with the sum of the shares e_k aimed at tol / safety times the measured miss's share of that sum.
     A path violation over tol is refined by :func:`path_mesh` (the steps whose local errors drift the path off, and
-    those about a contact); if that finds nothing, the mesh is subdivided by the uniform factor of :func:`next_N`."""
+    those about a contact); if that finds nothing, the mesh is subdivided by the uniform factor of :func:`next_N`.
+    ``units``: the divisors of :func:`miss_units` (default those of :func:`scaled_miss`).  The mesh may have more
+    than growth N steps: the caller caps it (:func:`capped_mesh`)."""
     p = ORDER[problem.scheme]
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
-    e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, L, V)
+    e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, *(units or (L, V)))
     if rec["path_violation"] > tol:
         mesh = path_mesh(problem, best, e, rec, tol, rules)
         if mesh is not None:
@@ -208,12 +325,14 @@ def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rul
     return density_steps(h, dens)
 
 
-def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str) -> str:
+def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str,
+                   opts: AccuracyOptions | None = None) -> str:
     """'accuracy 1e-06 not reached: ... would need N ~ 1.6e+07 (first_order, error O(h^1)), above ...; the lgvi
     scheme (O(h^2)) would need N ~ ...' -- the one line of a tolerance out of reach."""
+    opts = opts or AccuracyOptions(accuracy=tol)
     need = N * (miss / tol) ** (1.0 / order)
-    out = (f"accuracy {tol:.3g} not reached: the continuous miss {miss:.2e} at N = {N} would need N ≈ {need:.2g} "
-           f"({scheme}, error O(h^{order:g})), above {limit}")
+    out = (f"{tolerance_name(opts)} {tol:.3g} not reached: the {miss_name(opts)} {miss:.2e} at N = {N} would need "
+           f"N ≈ {need:.2g} ({scheme}, error O(h^{order:g})), above {limit}")
     if scheme != "lgvi":
         # the second-order scheme's error constant is about the first-order one's (E3, E4: within a factor 10)
         lg = N * (miss / tol) ** 0.5
@@ -221,12 +340,14 @@ def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, l
     return out
 
 
-def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | None]:
+def _record(out, problem, level: int, wall: float,
+            opts: AccuracyOptions | None = None) -> tuple[dict, Solution | None]:
     """The mesh-history record of one level and the Solution to continue from (the direct one if flown; None
-    when no method converged and was flown)."""
+    when no method converged and was flown).  Its miss is :func:`level_miss` (the worst method's)."""
+    opts = opts or AccuracyOptions(accuracy=1.0)
     sols = [s for s in _solutions(out) if s.continuous is not None and s.continuous.ok]
     check_s = sum(s.continuous.elapsed_s for s in sols)
-    miss = max((scaled_miss(s.continuous, problem) for s in sols), default=math.nan)
+    miss = max((level_miss(s.continuous, problem, opts) for s in sols), default=math.nan)
     viol = max((path_violation(s.continuous, problem) for s in sols), default=math.nan)
     steps = problem.steps
     rec = {"level": level, "N": int(problem.N), "mesh": "uniform" if problem.uniform else "adaptive",
@@ -237,16 +358,19 @@ def _record(out, problem, level: int, wall: float) -> tuple[dict, Solution | Non
     return rec, best
 
 
-def _finish(out, levels: list[dict], met: bool, sentence: str):
-    """The mesh history, the verdict and its sentence on every Solution of the last level."""
+def _finish(out, levels: list[dict], met: bool, sentence: str, level: int | None = None, interrupted: bool = False):
+    """The mesh history, the verdict and its sentence on every Solution of the level returned (``level``: its
+    number, default the last)."""
+    level = levels[-1]["level"] if level is None else level
     return each(out, lambda s: dataclasses.replace(s, mesh=tuple(dict(r) for r in levels)).with_notes(
-        sentence, accuracy_met=bool(met), accuracy_levels=len(levels)))
+        sentence, accuracy_met=bool(met), accuracy_levels=len(levels), accuracy_level=int(level),
+        accuracy_interrupted=bool(interrupted)))
 
 
 # ---------------------------------------------------------------------------- the answer before solving
-def free_motion_miss(problem, scheme: str | None = None) -> float:
-    """The a-priori error estimate of a scheme on ``problem``'s grid (docs/mathematics.md §11): :func:`scaled_miss`
-    of its free motion (``simulate``) against the same motion flown in continuous time; nan if it cannot be flown."""
+def free_motion_check(problem, scheme: str | None = None) -> ContinuousCheck | None:
+    """The continuous check of a scheme's free motion on ``problem``'s grid (``simulate``, no control) -- what the
+    a-priori estimate of :func:`out_of_reach` flies; None if there is nothing to fly."""
     from ..results.check import continuous_check
 
     scheme = scheme or problem.scheme
@@ -257,32 +381,65 @@ def free_motion_miss(problem, scheme: str | None = None) -> float:
     X, _ = problem.disc.simulate(problem.X0, None, problem.h, problem.N)
     free = Solution(method="simulate", solver=scheme, result=Result.converged, verdict="free motion",
                     trajectory=trajectory(problem, X), cost=math.nan, terminal_error=math.nan, problem=problem)
-    check = continuous_check(free)
-    return scaled_miss(check, problem) if check is not None and check.ok else math.nan
+    return continuous_check(free)
+
+
+def free_motion_miss(problem, scheme: str | None = None, opts: AccuracyOptions | None = None) -> float:
+    """The a-priori error estimate of a scheme on ``problem``'s grid (docs/mathematics.md §11): :func:`level_miss`
+    (default :func:`scaled_miss`) of its free motion (``simulate``) against the same motion flown in continuous
+    time; nan if it cannot be flown."""
+    check = free_motion_check(problem, scheme)
+    if check is None or not check.ok:
+        return math.nan
+    return level_miss(check, problem, opts) if opts is not None else scaled_miss(check, problem)
+
+
+def undefined_maneuver(problem) -> str:
+    """'' or why ``solver.maneuver_accuracy`` cannot apply to ``problem``: the flown miss as a fraction of the
+    maneuver (ContinuousCheck.maneuver_fraction) needs a change to measure it against -- a terminal target and a
+    component the maneuver changes (or a target the free motion misses), measured on the free motion."""
+    if problem.terminal is None:
+        return "the problem has no terminal target to measure the maneuver by"
+    check = free_motion_check(problem)
+    if check is None or not check.ok or not np.isfinite(check.change_target):
+        why = check.message if check is not None and check.message else "its free motion cannot be flown"
+        return f"what the maneuver changes cannot be measured ({why})"
+    if check.maneuver_parts() or check.change_target > 0:
+        return ""
+    return ("the maneuver changes nothing measurable: no component of its target differs from the initial state or "
+            "the free motion's end by a millionth of its scale, and the free motion already meets the target "
+            f"(terminal error {check.change_target:.2e})")
 
 
 def out_of_reach(problem, opts: AccuracyOptions) -> str:
-    """The one-line answer before solving ('' when there is none): ``opts.accuracy`` needs more than ``opts.max_N``
+    """The one-line answer before solving ('' when there is none): ``opts.tolerance`` needs more than ``opts.max_N``
     steps of the problem's scheme by the a-priori estimate (:func:`free_motion_miss` extrapolated with the scheme's
-    order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the LGVI would need."""
-    if opts.accuracy is None or problem.kind is None:
+    order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the LGVI would need.  With
+    ``maneuver_accuracy``, also a maneuver whose change cannot be measured (:func:`undefined_maneuver`)."""
+    if opts.tolerance is None or problem.kind is None:
         return ""
+    key = f"solver.{opts.tolerance_key}"
     if problem.kind != "smooth":
         return ("refinement to an accuracy applies to smooth control (an impulsive plan coasts between its impulses "
-                "on the scheme's free motion): remove solver.accuracy")
-    tol, scheme, N = float(opts.accuracy), problem.scheme, problem.N
-    miss = free_motion_miss(problem)
+                f"on the scheme's free motion): remove {key}")
+    if opts.of_maneuver:
+        why = undefined_maneuver(problem)
+        if why:
+            return (f"maneuver accuracy {opts.tolerance:.3g} (a fraction of the maneuver) cannot apply: {why}; give "
+                    f"solver.accuracy (the miss in the problem's scaled units) instead; nothing was solved")
+    tol, scheme, N, name = float(opts.tolerance), problem.scheme, problem.N, tolerance_name(opts)
+    miss = free_motion_miss(problem, opts=opts)
     need = N * (miss / tol) ** (1.0 / ORDER[scheme]) if miss > tol else 0.0
     if not need > opts.max_N:
         return ""
-    out = (f"accuracy {tol:.3g} is out of reach of the {scheme} scheme within solver.max_N = {opts.max_N}: it would "
+    out = (f"{name} {tol:.3g} is out of reach of the {scheme} scheme within solver.max_N = {opts.max_N}: it would "
            f"need N ≈ {need:.2g} steps (error O(h^{ORDER[scheme]}); its free motion at N = {N} misses the continuous "
-           f"flight by {miss:.2e}); nothing was solved")
+           f"flight by {miss:.2e}{' of the maneuver' if opts.of_maneuver else ''}); nothing was solved")
     if scheme != "lgvi":
-        lg = free_motion_miss(problem, "lgvi")
+        lg = free_motion_miss(problem, "lgvi", opts)
         need_lg = N * (lg / tol) ** 0.5 if lg > tol else N
         out += (f"; the lgvi scheme (O(h²)) would need N ≈ {need_lg:.2g}" +
                 (": use discretization: lgvi" if need_lg <= opts.max_N else ", also above the cap"))
     if "also above" in out or scheme == "lgvi":
-        out += ": loosen solver.accuracy or raise solver.max_N"
+        out += f": loosen {key} or raise solver.max_N"
     return out
