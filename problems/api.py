@@ -74,7 +74,9 @@ def resolve(problem: Maneuver | Problem, method: str = "direct", direct=None, in
 def accuracy_options(problem: Maneuver | Problem, options: dict[str, Any]) -> AccuracyOptions:
     """The continuous check and accuracy options of a solve (transcription.strategy.refine.AccuracyOptions): a
     Maneuver's ``solver`` block (or the defaults), changed by the keywords among ``options`` that name them
-    (``continuous_check=False``, ``accuracy=1e-6``, ...), which are removed from ``options``."""
+    (``continuous_check=False``, ``accuracy=1e-6`` or ``maneuver_accuracy=0.01``, ...), which are removed from
+    ``options``.  ``accuracy`` and ``maneuver_accuracy`` exclude each other (OptionError, a ValueError): to change
+    a file's one for the other, give the file's as None."""
     base = problem.accuracy if isinstance(problem, Maneuver) else AccuracyOptions.default()
     names = [f.name for f in dataclasses.fields(AccuracyOptions)]
     changes = {k: options.pop(k) for k in list(options) if k in names}
@@ -126,7 +128,8 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     them (a DirectOptions/IndirectOptions, or a mapping of changes, e.g. ``direct={"tol": 1e-8}``);
     keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
     initial_costate="from_direct")``), except the solver block's own keys (``continuous_check=False``,
-    ``accuracy=1e-6``, ``max_N``, ...: :class:`~se3ocp.transcription.strategy.refine.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
+    ``accuracy=1e-6``, ``maneuver_accuracy=0.01`` -- the flown miss at most 1 % of what the maneuver changes --,
+    ``max_N``, ...: :class:`~se3ocp.transcription.strategy.refine.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
     or a callable(Iterate) (``Iterate.method`` names the method, ``phase`` the solve within it, ``elapsed_s``
     the seconds since the call).  ``warm_start``: a previous Solution (or
     its ``warm``, a Start) of either method and any N or scheme: it is resampled onto this problem's grid
