@@ -515,14 +515,21 @@ def test_ctrl_c_at_level_0_is_not_swallowed():
         refine(_leo().problem, run, AccuracyOptions(accuracy=1e-5), adaptive=True)
 
 
-def test_ctrl_c_during_refinement_in_the_cli_writes_the_best_level_marked_incomplete(tmp_path, monkeypatch, capsys):
-    """``se3ocp solve`` with solver.accuracy, Ctrl-C during level 1 (the CLI's handler: Interrupt.flag set and
-    KeyboardInterrupt raised inside the solve): exit 130, and the results directory is one complete run of level 0
-    (N = 50: its .npz, summary.json with the two-level mesh history and accuracy_met false, config.resolved.yaml,
-    report.html), committed with INCOMPLETE saying so -- as a sweep keeps its finished rows; no figures drawn."""
+@pytest.mark.parametrize("how", ["raised", "solver_failed"])
+def test_ctrl_c_during_refinement_in_the_cli_writes_the_best_level_marked_incomplete(how, tmp_path, monkeypatch,
+                                                                                     capsys):
+    """``se3ocp solve`` with solver.accuracy, Ctrl-C during level 1 -- the CLI's handler sets Interrupt.flag and
+    raises KeyboardInterrupt inside the solve, which either leaves it ('raised') or, raised inside a CasADi
+    evaluation, ends IPOPT as NonIpopt_Exception_Thrown ('solver_failed': seen through the real CLI with SIGINT):
+    exit 130, and the results directory is one complete run of level 0 (N = 50: its .npz, summary.json with the
+    two-level mesh history and accuracy_met false, config.resolved.yaml, report.html), committed with INCOMPLETE
+    saying so -- as a sweep keeps its finished rows; no figures drawn.  Before issue 41 nothing was written."""
+    import dataclasses
+
     from se3ocp.problems.cli import main
     from se3ocp.problems.cli.signals import Interrupt
     from se3ocp.transcription import solve as solve_module
+    from se3ocp.transcription.outcome import Result
 
     real, calls = solve_module._dispatch, []
 
@@ -530,7 +537,11 @@ def test_ctrl_c_during_refinement_in_the_cli_writes_the_best_level_marked_incomp
         calls.append(a[0].N)
         if len(calls) == 2:           # level 1: what Interrupt.handler does on SIGINT
             Interrupt.flag = True
-            raise KeyboardInterrupt
+            if how == "raised":
+                raise KeyboardInterrupt
+            sol = real(*a, **k)
+            return dataclasses.replace(sol, result=Result.solver_failed,
+                                       verdict="IPOPT did not converge: NonIpopt_Exception_Thrown (stand-in)")
         return real(*a, **k)
 
     monkeypatch.setattr(Interrupt, "flag", False)
@@ -541,13 +552,15 @@ def test_ctrl_c_during_refinement_in_the_cli_writes_the_best_level_marked_incomp
     err = capsys.readouterr().err
     assert rc == 130 and len(calls) == 2 and calls[0] == 50
     assert f"se3ocp: interrupted; {out}/ holds the part finished before the interrupt, marked INCOMPLETE" in err
-    reason = (out / "INCOMPLETE").read_text()
-    assert reason.startswith("interrupted (Ctrl-C) during refinement to a tolerance: this is level 0 (N = 50), the "
-                             "best level solved of 2"), reason
+    ended = "interrupted (Ctrl-C)" if how == "raised" else "direct solver_failed"
+    assert (out / "INCOMPLETE").read_text() == (
+        f"interrupted (Ctrl-C) during refinement to a tolerance: this is level 0 (N = 50), the best level solved of "
+        f"2 (level 1, N = {calls[1]}, ended {ended}); the tolerance was not reached (figures not drawn: se3ocp plot "
+        f"DIR)\n")
     summ = json.loads((out / "summary.json").read_text())
     d = summ["methods"]["direct"]
     assert d["converged"] is True and d["N"] == 50 and d["accuracy_met"] is False and d["accuracy_level"] == 0
-    assert [h["N"] for h in d["mesh_history"]] == [50, calls[1]] and d["mesh_history"][1]["status"] == "interrupted (Ctrl-C)"
+    assert [h["N"] for h in d["mesh_history"]] == [50, calls[1]] and d["mesh_history"][1]["status"] == ended
     assert "refinement level 1" in d["message"] and "returned level 0 (N = 50" in d["message"]
     with np.load(out / "direct.npz") as z:
         assert z["t"].shape == (51,)

@@ -136,22 +136,25 @@ def cmd_solve(args) -> int:
 
 
 def _kept_level(result) -> str:
-    """'' or, when Ctrl-C stopped a refinement to solver.accuracy after a level was solved (Interrupt.flag, and
-    transcription.strategy.refine.refine returned its best level: ``stats['accuracy_interrupted']`` on Solutions that
-    converged), the reason the results directory of that level is committed with: a complete run of the level
-    returned, marked INCOMPLETE because the refinement did not finish (as a sweep keeps its finished rows)."""
+    """'' or, when Ctrl-C came while a refinement to solver.accuracy ran (Interrupt.flag) and it returned a level
+    that converged short of the tolerance (``stats['accuracy_met']`` false on every applicable Solution:
+    transcription.strategy.refine.refine keeps the best level solved when a later one is interrupted or fails --
+    a Ctrl-C inside a CasADi evaluation ends IPOPT as solver_failed, not interrupted), the reason the results
+    directory of that level is committed with: a complete run of the level returned, marked INCOMPLETE because the
+    refinement did not finish (as a sweep keeps its finished rows)."""
     from ...transcription.outcome import Result
     from .. import store
 
     if not Interrupt.flag:
         return ""
     sols = [s for s in store.solutions_of(result).values() if s.result is not Result.not_applicable]
-    if not sols or not all(s.stats.get("accuracy_interrupted") and s.converged for s in sols):
+    if not sols or not all(s.converged and s.mesh and s.stats.get("accuracy_met") is False for s in sols):
         return ""
     s = sols[0]
+    last = s.mesh[-1]
     return (f"interrupted (Ctrl-C) during refinement to a tolerance: this is level {s.stats.get('accuracy_level')} "
-            f"(N = {s.N}), the best level solved of {s.stats.get('accuracy_levels')}; the tolerance was not reached "
-            f"(figures not drawn: se3ocp plot DIR)")
+            f"(N = {s.N}), the best level solved of {len(s.mesh)} (level {last['level']}, N = {last['N']}, ended "
+            f"{last['status']}); the tolerance was not reached (figures not drawn: se3ocp plot DIR)")
 
 
 def _solved(args, man: Maneuver, method: str):
