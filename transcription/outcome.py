@@ -100,7 +100,10 @@ class Iterate:
     iteration: outer iteration (NLP iteration, Newton step); trial: 0 for the iterate, 1, 2, ... for a Newton
     step's line-search trials; residual: the shooting residual's 2-norm (Newton) or the primal infeasibility (NLP);
     residual_inf: its max-norm where known; cost: the objective (NLP); dual: the dual infeasibility (NLP); step: the
-    line-search step (Newton c; IPOPT alpha_pr); accepted: the trial became the next iterate; aux: the largest
+    line-search step (Newton c; IPOPT alpha_pr); regularization: the multiple of the identity IPOPT added to the
+    Lagrangian's Hessian for the step's KKT matrix to have the inertia of a minimum (0: none; > 0 at a converged
+    point: the Hessian on the active constraints' tangent space is not positive definite there, a saddle or a
+    degenerate minimum of the NLP -- :mod:`transcription.nlp.curvature`); accepted: the trial became the next iterate; aux: the largest
     relative Cayley residual of the trial's rollout (Newton); phase: which solve of a multi-phase solve, nested
     ('coarse N=25 / effort / rollout'); elapsed_s: seconds since the top-level ``solve``; budget: the most
     iterations this phase may take (0: not known; IPOPT's restoration may call back a few times more); method: set
@@ -113,6 +116,7 @@ class Iterate:
     cost: float = math.nan
     dual: float = math.nan
     step: float = math.nan
+    regularization: float = math.nan
     trial: int = 0
     accepted: bool = True
     aux: float = math.nan

@@ -107,12 +107,12 @@ class ProgressCallback(ca.Callback):
 def ipopt_history(stats: dict, obj_scale: float, phase: str = "") -> list[Iterate]:
     """The IPOPT (or fatrop) iterations recorded in a solver's stats as Iterates."""
     it = stats.get("iterations", {}) or {}
-    keys = ("obj", "inf_pr", "inf_du", "alpha_pr")
+    keys = ("obj", "inf_pr", "inf_du", "alpha_pr", "regularization_size")
     cols = [it.get(k, []) for k in keys]
     n = max((len(c) for c in cols), default=0)
     cols = [list(c) + [float("nan")] * (n - len(c)) for c in cols]
-    return [Iterate(iteration=i, cost=float(o) * obj_scale, residual=float(p), dual=float(d), step=float(a), phase=phase)
-            for i, (o, p, d, a) in enumerate(zip(*cols))]
+    return [Iterate(iteration=i, cost=float(o) * obj_scale, residual=float(p), dual=float(d), step=float(a),
+                    regularization=float(r), phase=phase) for i, (o, p, d, a, r) in enumerate(zip(*cols))]
 
 
 def solve_time_split(stats: dict, solve_s: float) -> dict:
