@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 
 from ...geometry.state import NU
+from ...nlp.curvature import Curvature, least_curvature
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...nlp.transcription import SmoothTranscription
 from ...ocp import Problem
@@ -101,6 +102,18 @@ class Direct:
         to this solve's."""
         return Direct(self.options.replace(**options) if options else self.options,
                       {**self.ipopt, **(ipopt or {})})
+
+    def curvature(self, problem: Problem, solution: Solution) -> Curvature | None:
+        """The least curvature of the Lagrangian of ``problem``'s NLP on the active constraints' tangent space at
+        ``solution``'s exact point (:func:`~transcription.nlp.curvature.least_curvature`; its direction in the
+        NLP's scaled variables); None when the solution carries no point of this NLP (fatrop's, another grid's)."""
+        point = solution.warm.point if solution.warm is not None else None
+        if self.options.solver != "ipopt" or point is None or point.lam_g is None:
+            return None
+        tr, _ = transcription(problem, self.options)
+        if point.key != tr.point_key:
+            return None
+        return least_curvature(tr.nlp, tr.lbx, tr.ubx, point.x, point.lam_g)
 
     def solve(self, problem: Problem, start: Start | None = None, report: Progress | None = None,
               label: str = "") -> Solution:
