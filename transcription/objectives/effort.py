@@ -21,6 +21,7 @@ from ..ocp.estimate import moment_size
 from ..outcome import Result
 from ..results.start import Start
 from ..strategy import starts
+from ..strategy.saddle import Escape
 from ..strategy.core import Composed, Context, FirstOf, Solve, chosen, labelled, not_made
 from ..strategy.starts import aimed, implied_effort
 
@@ -211,21 +212,23 @@ class EffortStrategy(Composed):
     the free motion and the interpolation know nothing of the engine (a raise with a 3 N engine: converged from the
     aimed start in 240 iterations, failed from it at 200 and then from the others after 3404).  ``aim_fraction``:
     the engine's aimed start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j
-    |f_j|."""
+    |f_j|.  ``escape``: the fields of the :class:`~transcription.strategy.saddle.Escape` that checks each start's
+    solve for a saddle of the NLP (docs/mathematics.md §10) before the next start is tried."""
 
     first_budget: int = 200
     rollout_first_miss: float = 1.0
     infeasibility_detection: Mapping = field(default_factory=lambda: {"expect_infeasible_problem": "yes"})
     phase1: Mapping = field(default_factory=lambda: {"start_with_resto": "yes"})
     aim_fraction: float = 0.1
+    escape: Mapping = field(default_factory=dict)
     not_tried: str = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally "
                       "infeasible; solver.direct.initial_guess=rollout or interpolate tries this start)")
 
     def compose(self, problem: Problem, options, start: Start | None = None):
         if start is not None:
-            return Solve(label="warm start")
+            return Escape(Solve(label="warm start"), **self.escape)
         if (one := chosen(problem, options)) is not None:
-            return one
+            return Escape(one, **self.escape)
         relaxed = relaxation(problem)
         c = problem.control
         engine = c.force_bound is not None and c.force_bound.engine_axis is not None
@@ -239,7 +242,7 @@ class EffortStrategy(Composed):
         (l0, s0, st0), (l1, s1, st1) = ordered_starts(problem, self.rollout_first_miss)
         entries += [Solve(partial(_given, s0), l0, self.first_budget, extra or None, st0),
                     Solve(partial(_given, s1), l1, None, extra or None, st1)]
-        return FirstOf(tuple(entries), self.not_tried)
+        return FirstOf(tuple(Escape(e, **self.escape) for e in entries), self.not_tried)
 
 
 def _given(start: Start, problem: Problem) -> Start:
