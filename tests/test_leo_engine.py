@@ -131,3 +131,29 @@ def test_the_phasing_written_with_default_weights_converges_and_flies_within_one
     print(dx, dv, c.change_position, c.change_velocity, frac, c.maneuver_fraction)
     assert frac <= 0.01
     assert c.maneuver_fraction == pytest.approx(frac, rel=0.1)
+
+
+def test_a_file_in_metres_gives_the_plan_of_the_file_in_kilometres(tmp_path):
+    """The NLP reaches IPOPT in the problem's own units (its scaling: docs/mathematics.md §7), not in the file's:
+    configs/leo_body_engine.yaml rewritten in metres (the preset's units m; the elements' a, the inertia, the
+    thrust bound and the weights converted: kg km^2 = 1e6 kg m^2, kN = 1e3 N, kN km = 1e6 N m) converges to the
+    same plan -- cost to 1e-9, the positions to 1e-12 of the orbit's radius -- and within 10 % of the iterations."""
+    from se3ocp.problems.yamlfile import yaml_dump, yaml_load
+
+    doc = yaml_load(open("configs/leo_body_engine.yaml").read())
+    km = load("configs/leo_body_engine.yaml")
+    doc["central_body"]["units"] = "m"
+    for end in ("initial", "terminal"):
+        doc[end]["elements"]["a"] *= 1e3
+    doc["model"]["inertia"] = [1e6 * j for j in doc["model"]["inertia"]]
+    c = doc["control"]
+    c["bounds"]["force"]["thruster"]["max"] *= 1e3
+    c["weights"] = {"force": c["weights"]["force"] * 1e-6, "moment": c["weights"]["moment"] * 1e-12}
+    path = tmp_path / "leo_body_engine_m.yaml"
+    path.write_text(yaml_dump(doc))
+    a, b = solve(km, continuous_check=False), solve(load(path), continuous_check=False)
+    assert a.converged and b.converged
+    assert b.cost == pytest.approx(a.cost, rel=1e-9)
+    r = np.linalg.norm(a.trajectory.x[0]) * 1e3
+    assert np.abs(a.trajectory.x * 1e3 - b.trajectory.x).max() <= 1e-12 * r
+    assert abs(a.iterations - b.iterations) <= 0.1 * a.iterations
