@@ -271,6 +271,20 @@ def test_the_cap_stops_refinement_and_says_what_it_needs():
         se3ocp.solve(maneuver("e3", 40, "lgvi"), accuracy=1e-6, max_N=100)
 
 
+def test_around_a_central_body_the_answer_before_solving_names_the_kepler_split_lgvi():
+    """leo_raise_slew on the LGVI to 1e-6 of the maneuver: its free motion misses by 35 % of the maneuver at N = 400,
+    so the LGVI would need N ≈ 2.4e5 (refused before solving); the sentence names lgvi_kepler, whose free motion is
+    the two-body orbit, within solver.max_N (N ≈ 4.1e3 by its a-priori estimate)."""
+    man = se3ocp.load("configs/leo_raise_slew.yaml", ["discretization=lgvi"])
+    with pytest.raises(ValueError) as e:
+        se3ocp.solve(man, maneuver_accuracy=1e-6)
+    said = str(e.value)
+    assert "out of reach of the lgvi scheme" in said and "use discretization: lgvi_kepler" in said, said
+    need = float(said.split("the lgvi_kepler scheme (O(h^2)) would need N ≈ ")[1].split(":")[0])
+    lgvi = float(said.split("it would need N ≈ ")[1].split(" ")[0])
+    assert lgvi > 50000 and need <= 50000 and need < lgvi / 50, said
+
+
 def test_a_path_constraint_violated_between_nodes_triggers_refinement(monkeypatch):
     """The keep-out slew at N = 100 enters its cone between the nodes by 0.0057 deg (9.9e-5 rad); with the terminal
     miss taken as met (scaled_miss patched to 0), accuracy 5e-5 refines on the violation alone until the flown

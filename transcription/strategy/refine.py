@@ -414,7 +414,8 @@ def undefined_maneuver(problem) -> str:
 def out_of_reach(problem, opts: AccuracyOptions) -> str:
     """The one-line answer before solving ('' when there is none): ``opts.tolerance`` needs more than ``opts.max_N``
     steps of the problem's scheme by the a-priori estimate (:func:`free_motion_miss` extrapolated with the scheme's
-    order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the LGVI would need.  With
+    order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the other scheme would need (around a
+    central body the Kepler-split LGVI, whose free motion is the two-body orbit; else the LGVI).  With
     ``maneuver_accuracy``, also a maneuver whose change cannot be measured (:func:`undefined_maneuver`)."""
     if opts.tolerance is None or problem.kind is None:
         return ""
@@ -435,11 +436,12 @@ def out_of_reach(problem, opts: AccuracyOptions) -> str:
     out = (f"{name} {tol:.3g} is out of reach of the {scheme} scheme within solver.max_N = {opts.max_N}: it would "
            f"need N ≈ {need:.2g} steps (error O(h^{ORDER[scheme]}); its free motion at N = {N} misses the continuous "
            f"flight by {miss:.2e}{' of the maneuver' if opts.of_maneuver else ''}); nothing was solved")
-    if scheme != "lgvi":
-        lg = free_motion_miss(problem, "lgvi", opts)
-        need_lg = N * (lg / tol) ** 0.5 if lg > tol else N
-        out += (f"; the lgvi scheme (O(h²)) would need N ≈ {need_lg:.2g}" +
-                (": use discretization: lgvi" if need_lg <= opts.max_N else ", also above the cap"))
-    if "also above" in out or scheme == "lgvi":
+    alt = "lgvi_kepler" if problem.model.mu and scheme != "lgvi_kepler" else "lgvi"
+    if scheme != alt:
+        lg = free_motion_miss(problem, alt, opts)
+        need_lg = N * (lg / tol) ** (1.0 / ORDER[alt]) if lg > tol else N
+        out += (f"; the {alt} scheme (O(h^{ORDER[alt]})) would need N ≈ {need_lg:.2g}" +
+                (f": use discretization: {alt}" if need_lg <= opts.max_N else ", also above the cap"))
+    if "also above" in out or scheme == alt:
         out += f": loosen {key} or raise solver.max_N"
     return out
