@@ -38,8 +38,7 @@ class Curvature:
 
 def _sparse(m) -> sp.csc_matrix:
     """A CasADi DM as a scipy CSC matrix."""
-    m = m.tocsc() if hasattr(m, "tocsc") else m.sparse().tocsc() if hasattr(m, "sparse") else None
-    return sp.csc_matrix(m)
+    return sp.csc_matrix(m.sparse())
 
 
 def _near(v: np.ndarray, bound: np.ndarray, tol: float) -> np.ndarray:
@@ -66,7 +65,7 @@ def least_curvature(nlp: StructuredNLP, lbx: np.ndarray, ubx: np.ndarray, x: np.
     Hu = _sparse(fns["hess_lag"](x, [], 1.0, np.asarray(lam_g, float)))
     H = (Hu + sp.triu(Hu, 1).T).tocsr()
     lbg, ubg = np.asarray(nlp.lbg, float), np.asarray(nlp.ubg, float)
-    rows = _near(g, lbg, active_tol) | _near(g, ubg, active_tol)
+    rows = (lbg == ubg) | _near(g, lbg, active_tol) | _near(g, ubg, active_tol)
     at_bound = _near(x, lbx, active_tol) | _near(x, ubx, active_tol)
     free = np.flatnonzero(~at_bound)
     A = J[np.flatnonzero(rows)][:, free].tocsr()

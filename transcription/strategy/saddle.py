@@ -28,7 +28,8 @@ def regularized(sol: Solution) -> bool:
 
 def nudged(sol: Solution, direction: np.ndarray, step: float) -> Start:
     """``sol``'s warm start moved to its NLP point + ``step`` * ``direction`` / max |direction| (scaled variables:
-    no variable moves by more than ``step`` of its scale); the primal only, the multipliers left to the solve."""
+    no variable moves by more than ``step`` of its scale); its constraint multipliers, kept on the Start, start the
+    solve's duals (the same NLP)."""
     p = sol.warm.point
     d = np.asarray(direction, float) / max(np.abs(direction).max(), 1e-300)
     return replace(sol.warm, point=Point(p.key, p.x + step * d))
