@@ -35,8 +35,9 @@ from typing import Any, Callable, Hashable
 import casadi as ca
 import numpy as np
 
-from ..geometry.state import NU, NX, NZ, U_FORCE, U_MOMENT, chart, join_state, split_state, tangent_readback
-from ..geometry.so3 import cayley, hat, is_symbolic
+from ..geometry.state import (NU, NX, NZ, U_FORCE, U_MOMENT, chart, join_state, split_state, tangent_readback,
+                              unpack_states)
+from ..geometry.so3 import cayley, cayley_inv, hat, is_symbolic
 from .kepler import kepler_drift, kepler_force
 from .model import BodyModel
 
@@ -335,6 +336,29 @@ class Discretization:
             return ca.Function(f"{self.scheme}_rollout_steps{N}", [X0, W, H], [Xs, res], ["X0", "W", "H"],
                                ["X", "res"])
         return self.cached(("rollout_steps", int(N)), build)
+
+    def implied_momenta(self, X: np.ndarray, U: np.ndarray, h) -> np.ndarray:
+        """The angular momenta Pi_k (N, 3), k < N, that the attitudes of node states X (N+1, 18) imply on steps h (one
+        size or N sizes) under the LGVIs' Cayley equation (9): with c_k = cay^-1(R_k^T R_{k+1}), G(c) = 0 is linear
+        in g, (I - c^ + c c^T) g = 2 J c, and g = h (Pi_k + (h/2) M_k) with M_k = M(x_k, R_k) + u_{m,k}.  A start
+        resampled onto another grid (its attitudes along geodesics, its momenta linear in time) is made to satisfy
+        the Cayley rows of the NLP exactly with these (docs/mathematics.md §11, "The next mesh").  Two-point schemes
+        only."""
+        if not two_point(self.scheme):
+            raise ValueError("implied_momenta: the LGVIs' Cayley equation (9) only")
+        s = unpack_states(X)
+        x, R = s.x, s.R
+        c = cayley_inv(np.einsum("kji,kjl->kil", R[:-1], R[1:]))
+        N = len(c)
+        hk = np.broadcast_to(np.asarray(h, dtype=float), (N,))
+        J = np.asarray(self.J, dtype=float)
+        Pi = np.empty((N, 3))
+        for k in range(N):
+            ck = c[k]
+            g = np.linalg.solve(np.eye(3) - hat(ck) + np.outer(ck, ck), 2.0 * J @ ck)
+            M = np.asarray(self.model.forces(x[k], R[k])[1], dtype=float).ravel() + U[U_MOMENT, k]
+            Pi[k] = g / hk[k] - (hk[k] / 2.0) * M
+        return Pi
 
     def simulate(self, X0, U, h, N: int, chunk: int = 2000):
         """Numeric rollout: X0 (18,), U (6 x n_controls(N)) or None for free motion; h one step size, or the N

@@ -9,7 +9,8 @@ from typing import Any, ClassVar, Mapping
 import casadi as ca
 import numpy as np
 
-from ...geometry.state import NU
+from ...dynamics.lgvi import two_point
+from ...geometry.state import NU, X_ANG
 from ...nlp.curvature import Curvature, least_curvature
 from ...nlp.solvers import ipopt_options, make_ipopt
 from ...nlp.transcription import SmoothTranscription
@@ -73,10 +74,18 @@ def rollout_start(problem: Problem) -> Start:
 
 
 def on_grid(problem: Problem, start: Start | None) -> Start:
-    """``start`` on ``problem``'s grid (resampled if it is not; the free motion when None)."""
+    """``start`` on ``problem``'s grid (resampled if it is not; the free motion when None).  Resampled onto another
+    number of steps of an LGVI, its angular momenta are those its attitudes imply (Discretization.implied_momenta):
+    interpolated linearly they broke the Cayley rows by up to 0.1 (scaled) where the body turns fast, and a
+    refinement level of an engine raise started at a residual of 1.9 and failed (docs/mathematics.md §11)."""
     if start is None:
         return rollout_start(problem)
-    return start.fit(problem.N, problem.scheme, problem.fractions)[0]
+    fitted = start.fit(problem.N, problem.scheme, problem.fractions)[0]
+    if fitted is start or start.N == problem.N or not two_point(problem.scheme):
+        return fitted
+    X = fitted.X.copy()
+    X[:-1, X_ANG] = problem.disc.implied_momenta(X, fitted.U, problem.steps)
+    return replace(fitted, X=X) if np.all(np.isfinite(X)) else fitted
 
 
 @dataclass(frozen=True)
