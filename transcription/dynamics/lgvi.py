@@ -37,7 +37,7 @@ import numpy as np
 
 from ..geometry.state import (NU, NX, NZ, U_FORCE, U_MOMENT, chart, join_state, split_state, tangent_readback,
                               unpack_states)
-from ..geometry.so3 import cayley, cayley_inv, hat, is_symbolic
+from ..geometry.so3 import cayley, hat, is_symbolic, step_cayley_vectors
 from .kepler import kepler_drift, kepler_force
 from .model import BodyModel
 
@@ -348,7 +348,7 @@ class Discretization:
             raise ValueError("implied_momenta: the LGVIs' Cayley equation (9) only")
         s = unpack_states(X)
         x, R = s.x, s.R
-        c = cayley_inv(np.einsum("kji,kjl->kil", R[:-1], R[1:]))
+        c = step_cayley_vectors(R)
         N = len(c)
         hk = np.broadcast_to(np.asarray(h, dtype=float), (N,))
         J = np.asarray(self.J, dtype=float)
