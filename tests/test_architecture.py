@@ -269,3 +269,14 @@ def test_no_module_level_tuning_constant(package):
     found = [f"{name}.{c}" for name, path in modules(f"transcription/{package}").items()
              for c in module_constants(path) if c not in NOT_TUNING.get(name[len(prefix):], set())]
     assert not found, found
+
+
+def test_every_package_is_installed():
+    """pyproject.toml lists the packages a non-editable install copies (the root is the package se3ocp): every
+    directory of the two layers with an __init__.py is in the list (transcription/objectives was missing from it, so
+    `pip install .` gave a se3ocp that could not import its objectives), and nothing else."""
+    tomllib = pytest.importorskip("tomllib")
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {PACKAGE} | {".".join((PACKAGE,) + init.parent.relative_to(ROOT).parts)
+                         for layer in LAYERS for init in (ROOT / layer).rglob("__init__.py")}
+    assert listed == found, (sorted(found - listed), sorted(listed - found))
