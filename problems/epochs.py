@@ -11,6 +11,11 @@ last printed digit.  UTC here counts 86400 s a day: a span that contains a leap 
 second of a day before a date in :data:`LEAP_SECONDS`) cannot be labelled that way, and
 :func:`check_no_leap_second` refuses it rather than shift every later epoch by one second.
 
+Time systems (:data:`TIME_SYSTEMS`): an export may label its epochs in TAI, TT or GPS instead of UTC.  The
+elapsed times t are physical seconds, so every label is the start's label + t; the start's is UTC + (TAI - UTC
+on its date) for TAI, TAI + 32.184 s for TT, TAI - 19 s for GPS (:func:`offset_from_utc`).  Those three count
+no leap seconds, so a span over one is refused only in UTC.
+
 Frames: ``frame:`` names the inertial frame of the file's positions and velocities, as CCSDS writes
 it (:data:`FRAMES`; default EME2000).  The dynamics do not depend on it: it is a label for
 downstream tools, which must agree with how the initial state was obtained.
@@ -39,6 +44,10 @@ LEAP_SECONDS = (
 )
 #: TT - TAI in seconds (exact by definition)
 TT_MINUS_TAI = Decimal("32.184")
+#: GPS - TAI in seconds (GPS time was UTC at 1980-01-06, when TAI - UTC was 19 s; it counts no leap seconds)
+GPS_MINUS_TAI = Decimal(-19)
+#: the time systems an export may label its epochs in (CCSDS TIME_SYSTEM names)
+TIME_SYSTEMS = ("UTC", "TAI", "TT", "GPS")
 #: J2000.0 (2000-01-01T12:00:00 TT) in UTC; tests check it against :func:`j2000_utc`
 J2000_UTC = "2000-01-01T11:58:55.816"
 
@@ -117,6 +126,18 @@ def tai_minus_utc(day: _dt.date) -> int:
     return out
 
 
+def offset_from_utc(system: str, start: Epoch) -> Decimal:
+    """Seconds to add to the UTC instant ``start`` to label it in ``system`` (:data:`TIME_SYSTEMS`): 0 (UTC),
+    TAI - UTC on its date (TAI), that + 32.184 (TT), that - 19 (GPS).  Later instants start + t take the same
+    offset in TAI, TT and GPS, which count no leap seconds."""
+    if system not in TIME_SYSTEMS:
+        raise EpochError(f"expected a time system among {', '.join(TIME_SYSTEMS)}, got {system!r}")
+    if system == "UTC":
+        return Decimal(0)
+    tai = Decimal(tai_minus_utc(start.day))
+    return tai + {"TAI": Decimal(0), "TT": TT_MINUS_TAI, "GPS": GPS_MINUS_TAI}[system]
+
+
 def j2000_utc() -> Epoch:
     """J2000.0 = 2000-01-01T12:00:00 TT in UTC, from TT - TAI and the leap-second table."""
     day = _dt.date(2000, 1, 1)
@@ -146,5 +167,6 @@ def second_digits(duration_s: float) -> int:
     return d
 
 
-__all__ = ["DEFAULT_FRAME", "Epoch", "EpochError", "FRAMES", "J2000_UTC", "LEAP_SECONDS", "check_no_leap_second",
-           "default_epoch", "j2000_utc", "second_digits", "tai_minus_utc"]
+__all__ = ["DEFAULT_FRAME", "Epoch", "EpochError", "FRAMES", "GPS_MINUS_TAI", "J2000_UTC", "LEAP_SECONDS", "TIME_SYSTEMS",
+           "TT_MINUS_TAI", "check_no_leap_second", "default_epoch", "j2000_utc", "offset_from_utc", "second_digits",
+           "tai_minus_utc"]
