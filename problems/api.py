@@ -118,6 +118,14 @@ def check_clearance(maneuver: Maneuver, result: Solution | Comparison) -> Soluti
     return compare(out.direct, out.indirect) if isinstance(out, Comparison) else out
 
 
+def with_physical(maneuver: Maneuver, result: Solution | Comparison) -> Solution | Comparison:
+    """Every Solution of ``result`` carrying the maneuver file's epoch, frame, units and central body
+    (``Solution.physical``), so that ``se3ocp.export(sol, "oem")`` finds them without ``maneuver=``."""
+    if maneuver.physical is None:
+        return result
+    return each(result, lambda s: dataclasses.replace(s, physical=maneuver.physical))
+
+
 def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: DirectOptions | Mapping | None = None,
           indirect: IndirectOptions | Mapping | None = None,
           progress: bool | Callable[[Iterate], None] | None = None, warm_start: Solution | Start | None = None,
@@ -147,7 +155,7 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, accuracy=acc,
                        strategy=strategy)
     if isinstance(problem, Maneuver):
-        out = check_clearance(problem, out)
+        out = with_physical(problem, check_clearance(problem, out))
     return _solve.raise_unconverged(out) if throw else out
 
 
@@ -157,7 +165,7 @@ def simulate(problem: Maneuver | Problem, controls=None) -> Solution:
     the miss distance to its terminal target (``terminal_error``)."""
     prob = problem.problem if isinstance(problem, Maneuver) else problem
     sol = _solve.simulate(prob, controls)
-    return check_clearance(problem, sol) if isinstance(problem, Maneuver) else sol
+    return with_physical(problem, check_clearance(problem, sol)) if isinstance(problem, Maneuver) else sol
 
 
 def plot(result: Solution | Comparison, which: tuple[str, ...] | None = None) -> dict:

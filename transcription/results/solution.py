@@ -74,6 +74,10 @@ class Solution:
     #: refinement to ``solver.accuracy`` (transcription/strategy/refine.py): one record per mesh level (level, N,
     #: miss, iterations, time, ...); empty without refinement
     mesh: tuple = field(default=(), repr=False)
+    #: what the application layer knows of the physical world the problem lives in (problems/: the maneuver file's
+    #: epoch, frame, units and central body, a problems.physical.Physical), carried so that exports of this Solution
+    #: need not be told them; None for a Problem built in Python.  Set by the caller, never read by the core.
+    physical: Any = field(default=None, repr=False)
 
     # derived, computed once: the horizon, the scheme, the controls' times and components
     N: int = field(init=False, repr=False)
