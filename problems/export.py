@@ -1,9 +1,13 @@
-"""Plans other tools can read: CCSDS OEM 2.0 and AEM 1.0 (KVN) and a CSV (``se3ocp export``, ``se3ocp.export``).
+"""Plans other tools can read: CCSDS OEM 2.0 and AEM 1.0 (KVN), a CSV, and GMAT's thrust history with a script that
+replays it (problems/gmat.py) (``se3ocp export``, ``se3ocp.export``).
 
 What is written (the nodes of the discrete solution, nothing interpolated):
 
 * **OEM** (CCSDS 502.0-B-2, KVN, version 2.0): epoch, position (km), velocity (km/s) of the centre of
-  mass in REF_FRAME (the maneuver's ``frame:``, default EME2000) about CENTER_NAME, TIME_SYSTEM UTC.
+  mass in REF_FRAME (the maneuver's ``frame:``, default EME2000) about CENTER_NAME, TIME_SYSTEM UTC (or TAI, TT,
+  GPS), INTERPOLATION HERMITE of INTERPOLATION_DEGREE 3 (:data:`INTERPOLATION`, why there).  CCSDS 502.0 gives the
+  OEM no mass keyword (MASS is an OPM spacecraft parameter, not an OEM metadata or data item), so the body's mass
+  is a COMMENT at the start of the data: ``MASS = 500 [kg], constant over the plan ...``.
 * **AEM** (CCSDS 504.0-B-1, KVN, version 1.0): epoch and attitude quaternion, ATTITUDE_TYPE
   QUATERNION, QUATERNION_TYPE LAST (Q1 Q2 Q3 QC: vector part first, scalar last), REF_FRAME_A the
   inertial frame, REF_FRAME_B = SC_BODY_1 (the body axes e1, e2, e3 of the maneuver file),
@@ -13,18 +17,20 @@ What is written (the nodes of the discrete solution, nothing interpolated):
   (it turns the inertial axes onto the body axes).  Signs are continuous (consecutive quaternions
   have a positive dot product, so interpolation never crosses q -> -q); QC >= 0 at the first epoch
   (the standard recommends QC >= 0, which a continuous sequence cannot always keep).
-* **CSV**: one row per node: t, the UTC epoch (when times are seconds), position, velocity,
-  quaternion (as in the AEM), body angular velocity, thrust (inertial force) and torque (body); a
-  header row names every column's unit.  Controls sit on the row of their time: LGVI controls u_k at
-  node k; first-order controls u_k (k = 1..N) at t_k, applied over the step (t_{k-1}, t_k] (the row
-  t_0 has none).  Impulsive maneuvers have no thrust columns; their four impulses are comment lines.
+* **CSV**: one row per node: t, the epoch (UTC or the time system asked, when times are seconds), position,
+  velocity, quaternion (as in the AEM), body angular velocity, mass, thrust (inertial force), torque (body),
+  thrust in the body frame (fb = R^T f, R the row's attitude) and, for a bounded force, the throttle (|u_f| over
+  the bound, :class:`~problems.plan.Plan`); a header row names every column's unit.  Controls sit on the row of
+  their time: LGVI controls u_k at node k; first-order controls u_k (k = 1..N) at t_k, applied over the step
+  (t_{k-1}, t_k] (the row t_0 has none).  Impulsive maneuvers have no thrust columns; their four impulses are comment lines.
 
 Units: OEM and AEM need lengths in km and times in s, so the maneuver must name its units
 (``units:`` or ``central_body:``, problems/bodies.py).  Normalized orbit units (GM = 4π², no physical
 unit) are read physically only when asked: ``reference_radius`` (km) places the reference circular
 orbit about a preset body (``body``, default earth), which fixes the length unit (that radius) and the
 time unit (its period); without it OEM/AEM are refused and the CSV is written in the normalized units,
-named so in its header.  Epochs are UTC = epoch + t (problems/epochs.py), printed with enough decimals
+named so in its header.  Epochs are UTC = epoch + t (problems/epochs.py), or that instant labelled in TAI (UTC +
+TAI-UTC of the epoch's date: 37 s since 2017), TT (TAI + 32.184 s) or GPS (TAI - 19 s), printed with enough decimals
 that each is within 1e-13 of the horizon of its exact value; numbers are printed with 17 significant
 digits, so a reader recovers the arrays to one rounding of the unit conversion.  Every failure is an
 :class:`ExportError` (one line; the CLI exits 2).
@@ -33,140 +39,36 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .bodies import PRESETS, Scale
-from .epochs import Epoch, EpochError, check_no_leap_second, default_epoch, second_digits, DEFAULT_FRAME
+from .bodies import Scale
+from .epochs import TIME_SYSTEMS, EpochError, check_no_leap_second, offset_from_utc, second_digits
+from .plan import ExportError, Plan, csv_units, need_scale, num, oem_state, plan_of
 
-FORMATS = ("oem", "aem", "csv")
+FORMATS = ("oem", "aem", "csv", "thf", "gmat")
 ORIGINATOR = "se3ocp"
 BODY_FRAME = "SC_BODY_1"
-#: relative agreement of GM with 4π² for a file to count as normalized (as problems.units does)
-_NORMALIZED_TOL = 1e-9
 
 
-class ExportError(ValueError):
-    """An export that cannot be written; ``str(e)`` is one line ``SOURCE: what is wrong and what to do``."""
-
-
-@dataclass(frozen=True)
-class Plan:
-    """What an export writes: a converged Solution's node arrays (file units) and its context; ``u_f`` is the
-    applied inertial force (``Solution.f_inertial``: R_j u_f,j for a body-frame force)."""
-
-    name: str
-    source: str
-    method: str
-    scheme: str
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray
-    R: np.ndarray
-    Omega: np.ndarray
-    t_u: np.ndarray | None
-    u_f: np.ndarray | None
-    u_m: np.ndarray | None
-    impulses: dict | None
-    epoch: Epoch
-    frame: str
-    mu: float | None
-    scale: Scale | None
-
-    @property
-    def quaternions(self) -> np.ndarray:
-        """(N+1, 4) scalar-first Hamilton quaternions of R, continuous in sign (plots.quaternions)."""
-        from .plots import quaternions
-
-        return quaternions(self.R)
-
-
-def plan_of(source, *, maneuver=None, method: str | None = None, reference_radius: float | None = None,
-            body: str = "earth", mass_kg: float | None = None, center: str | None = None) -> Plan:
-    """The :class:`Plan` of a results directory (a path), a :class:`~problems.store.Run`, a Solution or a
-    Comparison (with ``maneuver`` for its epoch, frame and units; without one: J2000.0, EME2000,
-    unnamed units).  ``method``: which solution (default: direct, else the only one)."""
-    from .store import Run, applicable, read_run
-
-    where = str(source) if isinstance(source, (str, Path)) else getattr(maneuver, "source", "<solution>")
-    if isinstance(source, (str, Path)):
-        source = read_run(Path(source))
-    if isinstance(source, Run):
-        maneuver, where, source = source.maneuver, str(getattr(source, "directory", where)), source.result
-    sols = applicable(source)
-    if method is None:
-        method = "direct" if "direct" in sols else next(iter(sols), None)
-    if method not in sols:
-        raise ExportError(f"{where}: no {method} solution to export (have: {', '.join(sols) or 'none'})")
-    sol = sols[method]
-    if not sol.converged:
-        raise ExportError(f"{where}: the {method} solution did not converge ({sol.result.value}): a plan that was not "
-                          f"found is not exported")
-    phys = getattr(maneuver, "physical", None)
-    problem = sol.problem if sol.problem is not None else getattr(maneuver, "problem", None)
-    mu = getattr(getattr(problem, "model", None), "mu", None)
-    scale = _scale(where, phys, mu, reference_radius, body, mass_kg, center)
-    tr = sol.trajectory
-    return Plan(name=getattr(maneuver, "name", None) or getattr(problem, "name", "") or "se3ocp", source=where,
-                method=method, scheme=sol.scheme, t=np.asarray(tr.t, float), x=tr.x, v=tr.v, R=tr.R,
-                Omega=tr.Omega, t_u=sol.control_times, u_f=sol.f_inertial, u_m=sol.u_m, impulses=sol.impulses,
-                epoch=phys.epoch if phys else default_epoch(), frame=phys.frame if phys else DEFAULT_FRAME, mu=mu,
-                scale=scale)
-
-
-def _scale(where, phys, mu, reference_radius, body, mass_kg, center) -> Scale | None:
-    """The physical reading of the file's numbers, or None (see the module docstring)."""
-    units = getattr(phys, "units", None)
-    normalized = mu is not None and math.isclose(mu, 4.0 * math.pi**2, rel_tol=_NORMALIZED_TOL)
-    if reference_radius is not None:
-        if units is not None or not normalized:
-            raise ExportError(f"{where}: a reference radius reads normalized orbit units (GM = 4π²); this maneuver "
-                              f"{'names its units' if units is not None else 'is not in normalized units'}")
-        if body not in PRESETS:
-            raise ExportError(f"{where}: unknown central body {body!r} (known: {', '.join(PRESETS)})")
-        if not (isinstance(reference_radius, (int, float)) and reference_radius > 0 and math.isfinite(reference_radius)):
-            raise ExportError(f"{where}: expected a positive reference radius in km, got {reference_radius!r}")
-        s = Scale.reference_orbit(body, float(reference_radius), mu)
-    elif units is not None:
-        s = Scale.of_units(units, getattr(phys, "center", None))
-    else:
-        return None
-    if mass_kg is not None:
-        if units is not None:
-            raise ExportError(f"{where}: the maneuver names its mass unit ({units.mass}); a mass scale applies to "
-                              f"normalized units only")
-        s = Scale(s.length_m, s.time_s, float(mass_kg), s.center, s.origin + f", 1 mass unit = {float(mass_kg):.10g} kg")
-    if center is not None:
-        s = Scale(s.length_m, s.time_s, s.mass_kg, str(center).upper(), s.origin)
-    return s
-
-
-def _need_scale(plan: Plan, fmt: str) -> Scale:
-    if plan.scale is not None:
-        return plan.scale
-    if plan.mu is not None and math.isclose(plan.mu, 4.0 * math.pi**2, rel_tol=_NORMALIZED_TOL):
-        why = ("is in normalized orbit units (GM = 4π², no physical unit); give a reference radius in km "
-               "(--reference-radius, the radius of the reference orbit about --central-body, default earth)")
-    else:
-        why = "does not name its units; give units: {length: km | m, mass: kg, time: s} (or central_body:) in the maneuver"
-    raise ExportError(f"{plan.source}: CCSDS {fmt.upper()} needs km and s, but the maneuver {why}, or export --format csv")
-
-
-def _epochs(plan: Plan, scale: Scale) -> list[str]:
+def _epochs(plan: Plan, scale: Scale, system: str = "UTC") -> list[str]:
+    """The node epochs in ``system`` (:data:`~problems.epochs.TIME_SYSTEMS`): the start's label
+    (problems.epochs.offset_from_utc) + t, in days of 86400 s; a span over a leap second is refused in UTC only."""
+    if system not in TIME_SYSTEMS:
+        raise ExportError(f"time system: expected one of {', '.join(TIME_SYSTEMS)}, got {system!r}")
     seconds = plan.t * scale.time_s
+    if system == "UTC":
+        try:
+            check_no_leap_second(plan.epoch, float(seconds[-1]))
+        except EpochError as e:
+            raise ExportError(f"{plan.source}: {e}") from None
     try:
-        check_no_leap_second(plan.epoch, float(seconds[-1]))
+        start = plan.epoch.plus(offset_from_utc(system, plan.epoch))
     except EpochError as e:
-        raise ExportError(f"{plan.source}: {e}") from None
+        raise ExportError(f"{plan.source}: epoch: {e}") from None
     d = second_digits(float(seconds[-1] - seconds[0]))
-    return [plan.epoch.plus(float(s)).iso(d) for s in seconds]
-
-
-def _num(a) -> str:
-    """Numbers with 17 significant digits (exact round trip of a double)."""
-    return " ".join(f"{float(x):.16e}" for x in np.ravel(a))
+    return [start.plus(float(s)).iso(d) for s in seconds]
 
 
 def _header(kind: str, version: str, plan: Plan, comments: list[str], created: str | None) -> list[str]:
@@ -175,32 +77,58 @@ def _header(kind: str, version: str, plan: Plan, comments: list[str], created: s
             [f"CREATION_DATE = {created}", f"ORIGINATOR = {ORIGINATOR}", ""])
 
 
-def _context(plan: Plan, scale: Scale) -> list[str]:
+def _context(plan: Plan, scale: Scale, system: str = "UTC") -> list[str]:
+    label = "" if system == "UTC" else f", labelled in {system} ({_offset_words(system)})"
     out = [f"se3ocp plan {plan.name}: the {plan.method} solution ({plan.scheme} scheme, {len(plan.t) - 1} steps) "
            f"at its nodes, nothing interpolated",
-           f"epochs: UTC = {plan.epoch.iso(6)} + t, t in s; units: {scale.origin}"]
+           f"epochs: UTC = {plan.epoch.iso(6)} + t, t in s{label}; units: {scale.origin}"]
     if plan.impulses is not None:
         out.append("impulsive maneuver: velocities are those after the impulse at the first epoch and before the "
                    "impulse at the last")
     return out
 
 
-def oem(plan: Plan, created: str | None = None) -> str:
-    """The CCSDS OEM 2.0 KVN text of a plan (km, km/s)."""
-    scale = _need_scale(plan, "oem")
+def _offset_words(system: str) -> str:
+    return {"TAI": "TAI = UTC + TAI-UTC, 37 s since 2017-01-01", "TT": "TT = TAI + 32.184 s",
+            "GPS": "GPS = TAI - 19 s"}[system]
+
+
+#: the OEM's interpolation: Hermite on position and velocity over 2 nodes, a cubic (degree 3) per interval.  The
+#: nodes are those of a second-order scheme (first order for first_order): their error is O(h^2) and the
+#: velocities agree with the positions' derivative to O(h^2).  The cubic Hermite interpolant's own error,
+#: h^4 max|x^(4)| / 384, is two orders below that, so a higher degree adds nothing the nodes contain; and over
+#: more nodes (a Lagrange of degree 7 or 9, usual for propagated ephemerides) it would span up to 8 steps of a
+#: plan whose thrust can switch on and off between them, and oscillate there.
+INTERPOLATION, INTERPOLATION_DEGREE = "HERMITE", 3
+
+
+def oem(plan: Plan, created: str | None = None, time_system: str = "UTC") -> str:
+    """The CCSDS OEM 2.0 KVN text of a plan (km, km/s; epochs in ``time_system``); INTERPOLATION HERMITE of degree
+    3 (:data:`INTERPOLATION`); the body's mass, which the OEM has no keyword for, is a COMMENT of the data."""
+    scale = need_scale(plan, "oem")
     if plan.mu is None or scale.center is None:
         raise ExportError(f"{plan.source}: an OEM's positions need the central body they are relative to "
                           f"(CENTER_NAME): give central_body: in the maneuver (or --center NAME), or export "
                           f"--format aem for the attitude")
-    ep = _epochs(plan, scale)
-    km, kms = scale.length_m / 1000.0, scale.length_m / scale.time_s / 1000.0
-    lines = _header("OEM", "2.0", plan, _context(plan, scale) + [
+    ep = _epochs(plan, scale, time_system)
+    lines = _header("OEM", "2.0", plan, _context(plan, scale, time_system) + [
         f"positions in km and velocities in km/s, inertial, in {plan.frame} about {scale.center}"], created)
     lines += ["META_START", f"OBJECT_NAME = {plan.name}", f"OBJECT_ID = {plan.name}", f"CENTER_NAME = {scale.center}",
-              f"REF_FRAME = {plan.frame}", "TIME_SYSTEM = UTC", f"START_TIME = {ep[0]}", f"STOP_TIME = {ep[-1]}",
-              "META_STOP", ""]
-    lines += [f"{e} {_num(x * km)} {_num(v * kms)}" for e, x, v in zip(ep, plan.x, plan.v)]
+              f"REF_FRAME = {plan.frame}", f"TIME_SYSTEM = {time_system}", f"START_TIME = {ep[0]}",
+              f"STOP_TIME = {ep[-1]}", f"INTERPOLATION = {INTERPOLATION}",
+              f"INTERPOLATION_DEGREE = {INTERPOLATION_DEGREE}", "META_STOP", ""]
+    lines += [f"COMMENT {c}" for c in _mass_comment(plan, scale)]
+    lines += [f"{e} {num(oem_state(plan, scale, k))}" for k, e in enumerate(ep)]
     return "\n".join(lines) + "\n"
+
+
+def _mass_comment(plan: Plan, scale: Scale) -> list[str]:
+    """The mass as a comment (CCSDS 502.0 gives the OEM no mass keyword; the OPM's MASS is not allowed in it)."""
+    if not math.isfinite(plan.mass):
+        return []
+    value, unit = (plan.mass * scale.mass_kg, "kg") if scale.mass_kg is not None else (plan.mass, "mass units")
+    return [f"MASS = {value:.17g} [{unit}], constant over the plan (a rigid body of constant mass); the OEM has no "
+            f"mass keyword"]
 
 
 QUATERNION_CONVENTION = [
@@ -211,68 +139,65 @@ QUATERNION_CONVENTION = [
 ]
 
 
-def aem(plan: Plan, created: str | None = None) -> str:
-    """The CCSDS AEM 1.0 KVN text of a plan (quaternions, the convention in its comments)."""
-    scale = _need_scale(plan, "aem")
-    ep = _epochs(plan, scale)
+def aem(plan: Plan, created: str | None = None, time_system: str = "UTC") -> str:
+    """The CCSDS AEM 1.0 KVN text of a plan (quaternions, the convention in its comments; epochs in ``time_system``)."""
+    scale = need_scale(plan, "aem")
+    ep = _epochs(plan, scale, time_system)
     q = plan.quaternions
-    lines = _header("AEM", "1.0", plan, _context(plan, scale) + QUATERNION_CONVENTION, created)
+    lines = _header("AEM", "1.0", plan, _context(plan, scale, time_system) + QUATERNION_CONVENTION, created)
     meta = ["META_START", f"OBJECT_NAME = {plan.name}", f"OBJECT_ID = {plan.name}"]
     if scale.center is not None:
         meta.append(f"CENTER_NAME = {scale.center}")
-    meta += [f"REF_FRAME_A = {plan.frame}", f"REF_FRAME_B = {BODY_FRAME}", "ATTITUDE_DIR = A2B", "TIME_SYSTEM = UTC",
+    meta += [f"REF_FRAME_A = {plan.frame}", f"REF_FRAME_B = {BODY_FRAME}", "ATTITUDE_DIR = A2B",
+             f"TIME_SYSTEM = {time_system}",
              f"START_TIME = {ep[0]}", f"STOP_TIME = {ep[-1]}", "ATTITUDE_TYPE = QUATERNION", "QUATERNION_TYPE = LAST",
              "META_STOP", "", "DATA_START"]
-    lines += meta + [f"{e} {_num(qk[[1, 2, 3, 0]])}" for e, qk in zip(ep, q)] + ["DATA_STOP"]
+    lines += meta + [f"{e} {num(qk[[1, 2, 3, 0]])}" for e, qk in zip(ep, q)] + ["DATA_STOP"]
     return "\n".join(lines) + "\n"
 
 
-def csv_units(plan: Plan) -> dict[str, tuple[str, float]]:
-    """{quantity: (unit label, factor)} of the CSV: value written = factor * file value."""
-    s = plan.scale
-    if s is None:
-        from .units import units_for
-
-        u = units_for(plan.mu)
-        return {q: (_ascii(u.unit(q)) or "1", 1.0) for q in ("time", "length", "velocity", "force", "moment")} | \
-            {"angular_rate": (_ascii(u.unit("angular_rate")), 1.0)}
-    L, T, M = s.length_m, s.time_s, s.mass_kg
-    force = ("N", M * L / T**2) if M is not None else ("mass_unit*km/s^2", L / 1000.0 / T**2)
-    moment = ("N*m", M * L**2 / T**2) if M is not None else ("mass_unit*km^2/s^2", (L / 1000.0) ** 2 / T**2)
-    return {"time": ("s", T), "length": ("km", L / 1000.0), "velocity": ("km/s", L / 1000.0 / T),
-            "angular_rate": ("rad/s", 1.0 / T), "force": force, "moment": moment}
+def _control_columns(plan: Plan, u) -> tuple[list[str], list[np.ndarray]]:
+    """(header names, (n_controls, k) blocks in CSV units) of the control columns: thrust (inertial), torque
+    (body), thrust in the body frame, throttle (when the force is bounded)."""
+    f, m = u["force"], u["moment"]
+    names = [f"{c} [{f[0]}]" for c in ("fx", "fy", "fz")] + [f"{c} [{m[0]}]" for c in ("mx", "my", "mz")]
+    names += [f"{c} [{f[0]}]" for c in ("fbx", "fby", "fbz")]
+    blocks = [plan.u_f * f[1], plan.u_m * m[1], plan.f_body * f[1]]
+    if plan.throttle is not None:
+        names.append(f"throttle [{u['ratio'][0]}]")
+        blocks.append(plan.throttle[:, None])
+    return names, blocks
 
 
-def _ascii(unit: str) -> str:
-    return unit.replace("·", "*").replace("²", "^2").replace("³", "^3")
-
-
-def csv(plan: Plan) -> str:
+def csv(plan: Plan, time_system: str = "UTC") -> str:
     """The CSV text of a plan (module docstring); '#' lines first, then the header row."""
     u = csv_units(plan)
     cols = [f"t [{u['time'][0]}]"]
     seconds = plan.scale is not None
     if seconds:
-        cols.append("epoch [UTC]")
-        ep = _epochs(plan, plan.scale)
+        cols.append(f"epoch [{time_system}]")
+        ep = _epochs(plan, plan.scale, time_system)
     cols += [f"{c} [{u['length'][0]}]" for c in ("x", "y", "z")] + [f"{c} [{u['velocity'][0]}]" for c in ("vx", "vy", "vz")]
     cols += ["q1", "q2", "q3", "qc"] + [f"{c} [{u['angular_rate'][0]}]" for c in ("wx", "wy", "wz")]
+    cols.append(f"mass [{u['mass'][0]}]")
     controls = plan.u_f is not None
-    if controls:
-        cols += [f"{c} [{u['force'][0]}]" for c in ("fx", "fy", "fz")] + [f"{c} [{u['moment'][0]}]" for c in ("mx", "my", "mz")]
-    lines = [f"# {c}" for c in _csv_comments(plan, u)] + [",".join(cols)]
-    q = plan.quaternions
     row_u = {}
     if controls:
+        names, blocks = _control_columns(plan, u)
+        cols += names
+        values = np.hstack(blocks)
         for k, tk in enumerate(plan.t_u):
-            row_u[int(np.searchsorted(plan.t, tk))] = (plan.u_f[k], plan.u_m[k])
+            row_u[int(np.searchsorted(plan.t, tk))] = values[k]
+    lines = [f"# {c}" for c in _csv_comments(plan, u)] + [",".join(cols)]
+    q = plan.quaternions
     for k in range(len(plan.t)):
-        row = [_num(plan.t[k] * u["time"][1])] + ([ep[k]] if seconds else [])
-        row += [_num(c) for c in plan.x[k] * u["length"][1]] + [_num(c) for c in plan.v[k] * u["velocity"][1]]
-        row += [_num(c) for c in q[k][[1, 2, 3, 0]]] + [_num(c) for c in plan.Omega[k] * u["angular_rate"][1]]
+        row = [num(plan.t[k] * u["time"][1])] + ([ep[k]] if seconds else [])
+        row += [num(c) for c in plan.x[k] * u["length"][1]] + [num(c) for c in plan.v[k] * u["velocity"][1]]
+        row += [num(c) for c in q[k][[1, 2, 3, 0]]] + [num(c) for c in plan.Omega[k] * u["angular_rate"][1]]
+        row.append(num(plan.mass * u["mass"][1]))
         if controls:
-            f, m = row_u.get(k, (None, None))
-            row += [""] * 6 if f is None else [_num(c) for c in f * u["force"][1]] + [_num(c) for c in m * u["moment"][1]]
+            vals = row_u.get(k)
+            row += [""] * len(names) if vals is None else [num(c) for c in vals]
         lines.append(",".join(row))
     return "\n".join(lines) + "\n"
 
@@ -284,7 +209,9 @@ def _csv_comments(plan: Plan, u) -> list[str]:
            f"units: {s.origin}" if s is not None else
            f"units: those of the maneuver file ({u['length'][0]}, {u['time'][0]}), not physical: no epoch column",
            "quaternion q1 q2 q3 qc (scalar last): " + QUATERNION_CONVENTION[1].split(": ", 1)[1] + "; signs continuous",
-           "angular velocity w: body frame; thrust f: inertial frame; torque m: body frame"]
+           "angular velocity w: body frame; thrust f: inertial frame; torque m: body frame; fb: the thrust in the body "
+           "frame, R^T f with R the attitude of the row; throttle: |u_f| / its bound (an engine's or a ball's; a box: "
+           "the largest component over the largest limit); mass: constant (a rigid body of constant mass)"]
     if plan.u_f is not None and plan.t_u is not None and len(plan.t_u) == len(plan.t) - 1:
         out.append("first-order scheme: the control on row t_k (k >= 1) is applied over (t_{k-1}, t_k]; row t_0 has none")
     if plan.impulses is not None:
@@ -293,28 +220,49 @@ def _csv_comments(plan: Plan, u) -> list[str]:
         unit_i, fac_i = f"{f[0]}*{u['time'][0]}", f[1] * u["time"][1]
         unit_a, fac_a = f"{m[0]}*{u['time'][0]}", m[1] * u["time"][1]
         for k in ("dgamma0", "dgammaN"):
-            out.append(f"impulse {k} (linear, inertial) [{unit_i}]: {_num(imp[k] * fac_i)}")
+            out.append(f"impulse {k} (linear, inertial) [{unit_i}]: {num(imp[k] * fac_i)}")
         for k in ("dPi0", "dPiN"):
-            out.append(f"impulse {k} (angular, body) [{unit_a}]: {_num(imp[k] * fac_a)}")
+            out.append(f"impulse {k} (angular, body) [{unit_a}]: {num(imp[k] * fac_a)}")
     return out
+
+
+def files(plan: Plan, format: str, stem: str, created: str | None = None,
+          time_system: str = "UTC") -> dict[str, str]:
+    """{file name: text} of an export of ``plan`` named ``stem`` + suffix: one file (``stem.<format>``), or for
+    'gmat' the script ``stem.script`` and the thrust history ``stem.thf`` it replays (problems/gmat.py)."""
+    from . import gmat
+
+    if format not in FORMATS:
+        raise ExportError(f"format: expected one of {', '.join(FORMATS)}, got {format!r}")
+    if format == "gmat":
+        thf_name = f"{Path(stem).name}.thf"
+        return {f"{stem}.script": gmat.script(plan, thf_name), f"{stem}.thf": gmat.thf(plan)}
+    text = {"oem": lambda: oem(plan, created, time_system), "aem": lambda: aem(plan, created, time_system),
+            "csv": lambda: csv(plan, time_system), "thf": lambda: gmat.thf(plan)}[format]()
+    return {f"{stem}.{format}": text}
 
 
 def export(source, format: str = "oem", out: str | Path | None = None, *, maneuver=None, method: str | None = None,
            reference_radius: float | None = None, body: str = "earth", mass_kg: float | None = None,
-           center: str | None = None, created: str | None = None) -> str:
-    """Export a plan (module docstring) as ``format`` ('oem', 'aem' or 'csv'); returns the text and, with
-    ``out``, writes it to that file (atomically).  ``source``: a results directory, a Run, a Solution or a
-    Comparison (then ``maneuver`` gives epoch, frame and units).  Raises :class:`ExportError`."""
+           center: str | None = None, created: str | None = None, time_system: str = "UTC") -> str:
+    """Export a plan (module docstring) as ``format`` (:data:`FORMATS`), its epochs in ``time_system`` ('UTC',
+    'TAI', 'TT' or 'GPS'); returns the text (for 'gmat': the script) and, with ``out``, writes it to that file
+    (atomically; for 'gmat' also the thrust history beside it, ``out`` with suffix .thf, which the script names).
+    ``source``: a results directory, a Run, a Solution (which carries its maneuver's epoch, frame and units when
+    solved from a file) or a Comparison; ``maneuver`` gives them otherwise.  Raises :class:`ExportError`."""
     if format not in FORMATS:
         raise ExportError(f"format: expected one of {', '.join(FORMATS)}, got {format!r}")
     plan = plan_of(source, maneuver=maneuver, method=method, reference_radius=reference_radius, body=body,
                    mass_kg=mass_kg, center=center)
-    text = {"oem": lambda: oem(plan, created), "aem": lambda: aem(plan, created), "csv": lambda: csv(plan)}[format]()
+    stem = str(Path(out).with_suffix("")) if out is not None else "plan"
+    texts = files(plan, format, stem, created, time_system)
+    main, *others = texts                           # the file asked for first, then what it names
     if out is not None:
         from .io import atomic_write_bytes
 
-        atomic_write_bytes(Path(out), text.encode("utf-8"))
-    return text
+        for path, name in [(Path(out), main)] + [(Path(n), n) for n in others]:
+            atomic_write_bytes(path, texts[name].encode("utf-8"))
+    return texts[main]
 
 
-__all__ = ["ExportError", "FORMATS", "Plan", "aem", "csv", "csv_units", "export", "oem", "plan_of"]
+__all__ = ["ExportError", "FORMATS", "Plan", "aem", "csv", "csv_units", "export", "files", "oem", "plan_of"]

@@ -169,6 +169,11 @@ def check_oem(msg, a, man, L, Tu, start):
     (seg,) = msg.body.segment
     md = seg.metadata
     assert (md.object_name, md.center_name, md.ref_frame, str(md.time_system)) == (man.name, "EARTH", "EME2000", "UTC")
+    assert (md.interpolation, int(md.interpolation_degree)) == ("HERMITE", 3)
+    mass_kg = man.problem.model.mass * (1.0 if man.physical.units is not None else math.nan)
+    (comment,) = [c for c in seg.data.comment if c.startswith("MASS = ")]
+    if math.isfinite(mass_kg):
+        assert float(comment.split()[2]) == mass_kg and comment.split()[3] == "[kg],"
     sv = seg.data.state_vector
     assert len(sv) == len(a["t"]) and md.start_time == sv[0].epoch and md.stop_time == sv[-1].epoch
     check_epochs([s.epoch for s in sv], a["t"], Tu, start)
@@ -225,6 +230,7 @@ def check_csv(text, a, man, L, Tu, start):
     assert rel(num(["vx", "vy", "vz"]), a["v"] * l_scale / t_scale) <= 1e-12
     assert rel(num(["wx", "wy", "wz"]), a["Omega"] / t_scale) <= 1e-12
     check_quaternions(num(["q1", "q2", "q3", "qc"]), a["R"])
+    assert np.all(num(["mass"])[:, 0] == man.problem.model.mass)          # kg per file mass unit: 1 (or normalized)
     if "u_f" not in a:
         assert "fx" not in col
         return
@@ -319,3 +325,127 @@ def test_cli_export_into_the_results_directory(root, capsys):
     assert capsys.readouterr().out.strip() == f'["{run}/plan.aem"]'
     assert ndm.NdmIo().from_path(run / "plan.aem").body.segment[0].metadata.object_name == "leo_raise_slew"
     assert (run / "summary.json").read_bytes() == before and not list(run.glob(".*.tmp"))
+
+
+# ------------------------------------------------------------------------------------------ time systems
+#: published offsets: TAI - UTC from IERS Bulletin C (37 s since 2017-01-01, 34 s from 2009-01-01 to 2012-07-01),
+#: TT - TAI = 32.184 s (IAU 1991), GPS - UTC = TAI - UTC - 19 s (GPS time = UTC at 1980-01-06)
+PUBLISHED = {"2026-03-20T12:00:00": {"UTC": 0, "TAI": 37, "TT": Decimal("69.184"), "GPS": 18},
+             "2010-06-01T00:00:00": {"UTC": 0, "TAI": 34, "TT": Decimal("66.184"), "GPS": 15}}
+
+
+@pytest.mark.parametrize("epoch", sorted(PUBLISHED))
+@pytest.mark.parametrize("system", ["UTC", "TAI", "TT", "GPS"])
+def test_time_systems_against_published_offsets(epoch, system):
+    """OEM, AEM and CSV epochs in each time system, read back (ccsds-ndm for OEM and AEM): TIME_SYSTEM names it and
+    every epoch is the UTC one plus the published offset of that system, exactly (to 1e-12 of the horizon)."""
+    man = se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=20", f"epoch={epoch}"])
+    sim = se3ocp.simulate(man)
+    shift = Decimal(PUBLISHED[epoch][system])
+    t = np.asarray(sim.trajectory.t, float)
+    for fmt in ("oem", "aem"):
+        seg = ndm.NdmIo().from_string(export(sim, fmt, created=CREATED, time_system=system)).body.segment[0]
+        assert str(getattr(seg.metadata.time_system, "value", seg.metadata.time_system)) == system
+        epochs = ([s.epoch for s in seg.data.state_vector] if fmt == "oem" else
+                  [s.quaternion_state.epoch for s in seg.data.attitude_state])
+        assert seconds_since(epochs[0], epoch) == shift
+        got = np.array([float(seconds_since(e, epoch) - shift) for e in epochs])
+        assert np.max(np.abs(got - t)) <= 1e-12 * t[-1]
+    rows = [r for r in _csv.reader(io.StringIO(export(sim, "csv", time_system=system))) if r and r[0][0] != "#"]
+    col = rows[0].index(f"epoch [{system}]")
+    assert seconds_since(rows[1][col], epoch) == shift
+
+
+def test_a_leap_second_is_refused_in_utc_only():
+    """The span over the leap second at the end of 2016 cannot be labelled in UTC (days of 86400 s), but TAI counts
+    none: its epochs are start (TAI - UTC = 36 s before 2017) + t, continuous across it."""
+    man = se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=20", "epoch=2016-12-31T23:00:00"])
+    sim = se3ocp.simulate(man)
+    with pytest.raises(ExportError, match="leap second"):
+        export(sim, "oem")
+    seg = ndm.NdmIo().from_string(export(sim, "oem", time_system="TAI")).body.segment[0]
+    epochs = [s.epoch for s in seg.data.state_vector]
+    assert epochs[0].startswith("2016-12-31T23:00:36.000")
+    check_epochs(epochs, np.asarray(sim.trajectory.t, float), 1.0, "2016-12-31T23:00:36")
+    with pytest.raises(ExportError, match="time system: expected one of UTC, TAI, TT, GPS"):
+        export(sim, "oem", time_system="TDB")
+
+
+def test_cli_time_system(root, tmp_path, capsys):
+    """``se3ocp export --time-system TT`` writes TIME_SYSTEM = TT, the start 69.184 s after the UTC epoch (2026)."""
+    run = run_of(CONFIGS / "leo_raise_slew.yaml", root)
+    from se3ocp.problems.cli import main
+
+    assert main(["export", str(run), "--format", "oem", "--time-system", "TT", "--out", str(tmp_path / "p.oem"),
+                 "--quiet"]) == 0
+    md = ndm.NdmIo().from_path(tmp_path / "p.oem").body.segment[0].metadata
+    assert str(md.time_system) == "TT" and seconds_since(md.start_time, "2026-03-20T12:00:00") == Decimal("69.184")
+
+
+# ------------------------------------------------------------------------------- the API finds the units
+def test_api_export_finds_the_units_of_the_maneuver_file():
+    """A Solution of se3ocp.solve / se3ocp.simulate of a file carries the file's epoch, frame and units
+    (Solution.physical): export(sol, "oem") without maneuver= is the export with it, byte for byte.  A Problem built
+    in Python (no file) still has no units to find, and says so."""
+    man = se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=20"])
+    sim = se3ocp.simulate(man)
+    assert sim.physical is man.physical and sim.with_notes("a note").physical is man.physical
+    for fmt in ("oem", "aem", "csv"):
+        assert export(sim, fmt, created=CREATED) == export(sim, fmt, maneuver=man, created=CREATED)
+    sol = se3ocp.solve(se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=30"]))
+    assert sol.converged and sol.physical is not None
+    md = ndm.NdmIo().from_string(export(sol, "oem")).body.segment[0].metadata
+    assert md.start_time.startswith("2026-03-20T12:00:00.000") and md.center_name == "EARTH"
+    with pytest.raises(ExportError, match="does not name its units"):
+        export(se3ocp.simulate(man.problem), "oem")
+
+
+# ------------------------------------------------------------------- body-frame thrust, throttle and mass
+ENGINE_AXIS = np.array([1.0, 0.0, 0.0])      # configs/leo_body_engine.yaml: thruster along body +x, 0..1 N
+
+
+def engine_columns(text: str) -> dict[str, np.ndarray]:
+    """The CSV's columns (header names without units -> float arrays over the rows that have controls)."""
+    rows = [r for r in _csv.reader(io.StringIO(text)) if r and not r[0].startswith("#")]
+    head, body = rows[0], [r for r in rows[1:] if r[rows[0].index("fx [N]")] != ""]
+    return {h.split(" [")[0]: np.array([float(r[i]) for r in body]) for i, h in enumerate(head) if h != "epoch [UTC]"}
+
+
+def check_engine_csv(text: str) -> None:
+    """fb = A(q) f with A the CCSDS matrix of the row's quaternion (this file's formula, not the exporter's), along
+    the engine axis to round-off, throttle = fb . axis / 1 N, mass 500 kg, units in the header."""
+    head = next(r for r in _csv.reader(io.StringIO(text)) if r and not r[0].startswith("#"))
+    assert {"fbx [N]", "fby [N]", "fbz [N]", "throttle [1]", "mass [kg]"} <= set(head)
+    c = engine_columns(text)
+    f = np.c_[c["fx"], c["fy"], c["fz"]]
+    fb = np.c_[c["fbx"], c["fby"], c["fbz"]]
+    A = np.array([ccsds_dcm(*q) for q in np.c_[c["q1"], c["q2"], c["q3"], c["qc"]]])
+    big = np.max(np.linalg.norm(f, axis=1))
+    assert 0.1 < big <= 1.0 + 1e-9                                   # newtons, an engine of at most 1 N
+    assert np.max(np.abs(np.einsum("nij,nj->ni", A, f) - fb)) <= 1e-12 * big
+    assert np.max(np.linalg.norm(fb - np.outer(fb @ ENGINE_AXIS, ENGINE_AXIS), axis=1)) <= 1e-12 * big
+    assert np.max(np.abs(c["throttle"] - fb @ ENGINE_AXIS / 1.0)) <= 1e-12
+    assert np.all(c["mass"] == 500.0)
+
+
+def test_csv_body_thrust_of_an_engine_plan():
+    """configs/leo_body_engine.yaml flown under an engine profile T(t) e1 (0 <= T <= 1 N, LGVI and first order): the
+    CSV's body-frame thrust is the inertial thrust rotated by its row's attitude, along the engine axis."""
+    for scheme in ("lgvi", "first_order"):
+        man = se3ocp.load(CONFIGS / "leo_body_engine.yaml", ["horizon.N=200", f"discretization={scheme}"])
+        n = man.problem.disc.n_controls(man.problem.N)
+        T = 1e-3 * (0.5 + 0.5 * np.sin(np.linspace(0.0, 3.0, n)))      # kN
+        U = np.vstack([np.outer(ENGINE_AXIS, T), np.full((3, n), 1e-10)])
+        check_engine_csv(export(se3ocp.simulate(man, U), "csv"))
+
+
+@pytest.mark.slow
+def test_csv_body_thrust_of_the_solved_engine_plan():
+    """The same of leo_body_engine solved (direct, N = 200, about 11 s: slow): the optimum's thrust in the body frame
+    is along the engine, its throttle within [0, 1]."""
+    man = se3ocp.load(CONFIGS / "leo_body_engine.yaml", ["horizon.N=200", "solver.continuous_check=false"])
+    sol = se3ocp.solve(man)
+    assert sol.converged, sol.message
+    text = export(sol, "csv")
+    check_engine_csv(text)
+    assert np.all((engine_columns(text)["throttle"] >= -1e-9) & (engine_columns(text)["throttle"] <= 1 + 1e-9))
