@@ -250,36 +250,44 @@ def cmd_plot(args) -> int:
 
 
 def cmd_export(args) -> int:
-    """The plan of a results directory as CCSDS OEM/AEM or CSV (problems/export.py): into
-    DIR/plan.<format> (the directory updated as a whole, as ``plot`` does), --out FILE, or --out - (stdout).
+    """The plan of a results directory as CCSDS OEM/AEM, CSV, a GMAT thrust history (thf) or a GMAT script with
+    its thrust history (gmat) (problems/export.py): into DIR/plan.<format> (the directory updated as a whole, as
+    ``plot`` does), --out FILE (gmat: FILE and FILE's stem + .thf), or --out - (stdout: the first file).
     Everything is checked before anything is written; what cannot be exported is one line, exit 2."""
-    from ..export import ExportError, export
+    from ..export import ExportError, files, plan_of
     from ..io import atomic_write_bytes
 
     d = Path(args.results)
     if _results_dir(d):
         return 2
+    out = None if args.out in (None, "-") else Path(args.out)
     try:
-        text = export(d, args.format, method=args.method, reference_radius=args.reference_radius,
-                      body=args.central_body, mass_kg=args.mass, center=args.center)
+        plan = plan_of(d, method=args.method, reference_radius=args.reference_radius, body=args.central_body,
+                       mass_kg=args.mass, center=args.center)
+        texts = files(plan, args.format, str(out.with_suffix("")) if out is not None else "plan",
+                      time_system=args.time_system)
     except ExportError as e:
         print(f"se3ocp: error: {e}", file=sys.stderr)
         return 2
+    main, *others = texts
     if args.out == "-":
-        sys.stdout.write(text)
+        sys.stdout.write(texts[main])
         return 0
-    if args.out is not None:
-        atomic_write_bytes(Path(args.out), text.encode("utf-8"))
-        say(args, f"wrote {args.out}")
+    if out is not None:
+        written = [str(out)] + others
+        for path, name in zip(written, texts):
+            atomic_write_bytes(Path(path), texts[name].encode("utf-8"))
+        say(args, f"wrote {', '.join(written)}")
         if args.json:
-            print(json.dumps([args.out]))
+            print(json.dumps(written))
         return 0
 
     def write(path: Path) -> list[str]:
-        atomic_write_bytes(path / f"plan.{args.format}", text.encode("utf-8"))
-        return [f"plan.{args.format}"]
+        for name, text in texts.items():
+            atomic_write_bytes(path / name, text.encode("utf-8"))
+        return list(texts)
 
-    return _update_results(args, write, lambda _d, written: f"wrote {written[0]}")
+    return _update_results(args, write, lambda _d, written: f"wrote {', '.join(written)}")
 
 
 def cmd_report(args) -> int:

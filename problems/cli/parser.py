@@ -144,17 +144,27 @@ def _report_parser(sub) -> None:
 
 def _export_parser(sub) -> None:
     """The `export` subcommand."""
-    p = sub.add_parser("export", help="the plan of a results directory as CCSDS OEM/AEM (GMAT, STK, Orekit) or CSV",
-                       description="OEM 2.0 (position km, velocity km/s), AEM 1.0 (quaternions: QUATERNION_TYPE LAST, "
-                                   "ATTITUDE_DIR A2B from the inertial frame to the body), CSV (t, epoch, r, v, q, Ω, "
-                                   "thrust, torque; units in the header).  Epochs: UTC = the maneuver's epoch (default "
-                                   "J2000.0) + t.  A maneuver in normalized units needs --reference-radius for OEM/AEM.",
+    p = sub.add_parser("export", help="the plan of a results directory as CCSDS OEM/AEM (GMAT, STK, Orekit), CSV or a "
+                                      "GMAT thrust history",
+                       description="OEM 2.0 (position km, velocity km/s, Hermite interpolation of degree 3, the mass in "
+                                   "a comment), AEM 1.0 (quaternions: QUATERNION_TYPE LAST, ATTITUDE_DIR A2B from the "
+                                   "inertial frame to the body), CSV (t, epoch, r, v, q, Ω, mass, thrust, torque, thrust "
+                                   "in the body frame, throttle; units in the header), thf (a GMAT thrust history file), "
+                                   "gmat (a GMAT script replaying plan.thf from the OEM's first epoch, and plan.thf).  "
+                                   "Epochs: UTC = the maneuver's epoch (default J2000.0) + t, or in --time-system.  A "
+                                   "maneuver in normalized units needs --reference-radius for OEM/AEM/thf/gmat.",
                        epilog="examples:\n  se3ocp export results/leo_raise_slew --format oem\n"
                               "  se3ocp export results/e3_inclination_change --format aem --reference-radius 6778.137\n"
-                              "  se3ocp export results/leo_raise_slew --format csv --out leo.csv",
+                              "  se3ocp export results/leo_raise_slew --format csv --out leo.csv\n"
+                              "  se3ocp export results/leo_raise_slew --format oem --time-system TAI\n"
+                              "  se3ocp export results/leo_body_engine --format gmat   # plan.script + plan.thf",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("results", help="a results directory written by simulate, solve or compare")
-    p.add_argument("--format", required=True, choices=("oem", "aem", "csv"), help="oem, aem or csv")
+    p.add_argument("--format", required=True, choices=("oem", "aem", "csv", "thf", "gmat"),
+                   help="oem, aem, csv, thf (GMAT thrust history) or gmat (GMAT script + thrust history)")
+    p.add_argument("--time-system", choices=("UTC", "TAI", "TT", "GPS"), default="UTC",
+                   help="the epochs' time system (OEM, AEM, CSV): UTC (default), TAI, TT = TAI + 32.184 s, "
+                        "GPS = TAI - 19 s")
     p.add_argument("--out", default=None, metavar="FILE",
                    help="where to write (default DIR/plan.<format>; - for standard output)")
     p.add_argument("--method", choices=("direct", "indirect", "simulate"), default=None,
