@@ -229,3 +229,18 @@ def test_the_replay_ends_where_the_oem_ends():
         miss.append(np.linalg.norm(y[:3] - last))
         moved = np.linalg.norm(last - se3ocp.simulate(man).trajectory.x[-1])      # km the thrust moves it
     assert 3.5 <= miss[0] / miss[1] <= 4.5 and miss[1] <= 5e-5 * moved, (miss, moved)
+
+
+def test_normalized_units_give_accelerations():
+    """E3 (normalized orbit units: no mass unit) read as a 6778.137 km orbit about the Earth: the history gives the
+    acceleration f / m in m/s^2 (ModelAccelAndMassRate), length unit L = 6778.137 km, time unit T its period."""
+    e3 = se3ocp.load(CONFIGS / "e3_inclination_change.yaml", ["horizon.N=20"])
+    n = e3.problem.disc.n_controls(e3.problem.N)
+    sim = se3ocp.simulate(e3, np.vstack([np.full((3, n), 0.3), np.zeros((3, n))]))
+    (seg,) = parse_thf(export(sim, "thf", maneuver=e3, reference_radius=6778.137))
+    L = 6778.137e3
+    T = 2 * np.pi * np.sqrt(L**3 / 3.986004418e14)
+    assert seg["model"] == "ModelAccelAndMassRate" and seg["start"] == dt.datetime(2000, 1, 1, 11, 58, 55, 816000)
+    np.testing.assert_allclose(seg["data"][:, 0], np.asarray(sim.trajectory.t) * T, rtol=1e-15, atol=0)
+    f = seg["data"][:len(sim.f_inertial), 1:4]          # first order: the last row repeats u_N
+    assert rel(f, sim.f_inertial / e3.problem.model.mass * L / T**2) <= 1e-12
