@@ -205,7 +205,7 @@ def test_the_leo_engine_raise_with_an_isp_end_to_end(tmp_path, capsys):
     """Acceptance (issue 44; slow: one default solve of configs/leo_body_engine.yaml, N = 400, ~10 s): `se3ocp solve`
     with an isp of 220 s prints the burn table in m/s, N and kg; summary.json's burns give the delta-v integrated
     from the plan's thrust (np.trapezoid of |u_f| on the node times, to 1e-12) and the propellant m dv / (Isp g0)
-    (Tsiolkovsky to x^2/2); report.html shows the table."""
+    (Tsiolkovsky to x^2/2); report.html shows the table; the flights' controls figure draws the engine in N."""
     from se3ocp.problems.cli import main
 
     out = tmp_path / "run"
@@ -225,3 +225,17 @@ def test_the_leo_engine_raise_with_an_isp_end_to_end(tmp_path, capsys):
     assert "Δv (m/s)" in text and "propellant (kg)" in text and f"{1e3 * dv:.4g}" in text
     html = (out / "report.html").read_text()
     assert 'id="burns-direct"' in html and f"{summ['propellant']:.4g}" in html
+    # the flights' controls figure of that plan (issue 44: the engine force was drawn in kN): in N, under 1 N
+    from se3ocp.problems.flight import parse_flight
+    from se3ocp.problems.flight.figures import _controls
+    from se3ocp.problems.flight.run import run_flights
+    from se3ocp.problems.store import read_run
+    from se3ocp.problems.sweep.executors import SerialExecutor
+
+    run = read_run(out)
+    res = run_flights(run.maneuver, run.solutions["direct"], parse_flight({"runs": 1, "feedback": "lqr"}),
+                      executor=SerialExecutor())
+    force = _controls(res).axes[0]
+    assert force.get_ylabel().endswith("(N)") and "actuators' bound" in force.get_title()
+    peak = max(np.max(line.get_ydata()) for line in force.get_lines() if len(line.get_ydata()) > 2)
+    assert 0.5 < peak <= 1.0 + 1e-6          # the plan's peak thrust 0.85 N, in N (0.00085 in kN)
