@@ -29,10 +29,11 @@ COLUMNS = (("start", "start", "time"), ("stop", "stop", "time"), ("duration", "d
 
 
 def burn_section(sol) -> dict[str, Any] | None:
-    """The burn table of a Solution with smooth controls and a force (None otherwise): {columns: [header (unit)],
-    rows: [[text]], total: [text] (the plan's delta-v and propellant), notes: [sentences], warning: '' or a
-    sentence}.  The propellant column only for an engine with an isp."""
-    if sol.controls is None or sol.u_f is None or not len(sol.u_f) or sol.problem is None:
+    """The burn table of a converged Solution with smooth controls and a force (None otherwise: a failed plan's
+    burns are in its summary.json only): {columns: [header (unit)], rows: [[text]], total: [text] (the plan's
+    delta-v and propellant), notes: [sentences], warning: '' or a sentence}.  The propellant column only for an
+    engine with an isp."""
+    if getattr(sol, "controls", None) is None or not len(sol.u_f) or sol.problem is None or not sol.converged:
         return None
     un = units(sol.problem)
     bound = getattr(sol.problem.control, "force_bound", None)
@@ -55,7 +56,7 @@ def burn_section(sol) -> dict[str, Any] | None:
              f"stop are the edges of its first and last controls' quadrature cells"]
     rest = sol.delta_v - sum(b.delta_v for b in sol.burns)
     if sol.burns and abs(rest) > 0:
-        notes.append(f"Δv between the burns (|u_f| below the threshold): {shown(rest, 'velocity')} "
+        notes.append(f"Δv outside the burns (|u_f| at or below the threshold): {shown(rest, 'velocity')} "
                      f"{un.shown('velocity')[0]}".rstrip())
     warning = ""
     if c is not None:
