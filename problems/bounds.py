@@ -62,11 +62,11 @@ def control_bound(v: Validator, d, where, thruster: bool = False, units: UnitSys
 
 
 def engine_bound(v: Validator, d, w: str, units: UnitSystem | None = None):
-    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0), isp: seconds > 0
-    (optional)} -> (ThrusterBound, resolved): one engine fixed in the body, u_f = T axis with min <= T <= max, and
-    with an isp the exhaust velocity c = isp g0 in the file's velocity unit (``units``: a file without units cannot
-    read seconds, and is refused)."""
-    v.mapping(d, w, ("axis", "max", "min", "isp"), required=("axis", "max"))
+    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0), and optionally
+    isp: seconds > 0 or exhaust_velocity: c > 0 in the file's velocity unit} -> (ThrusterBound, resolved): one engine
+    fixed in the body, u_f = T axis with min <= T <= max, of exhaust velocity c = isp g0 converted to the file's
+    velocity unit (``units``: a file without units cannot read seconds; it gives exhaust_velocity instead)."""
+    v.mapping(d, w, ("axis", "max", "min", "isp", "exhaust_velocity"), required=("axis", "max"))
     axis = v.unit_vector(d["axis"], f"{w}.axis", "expected a non-zero engine axis (body frame; it is normalized)")
     hi = v.number(d["max"], f"{w}.max", positive=True)
     magnitude(v, hi, f"{w}.max", "a thrust limit")
@@ -75,12 +75,18 @@ def engine_bound(v: Validator, d, w: str, units: UnitSystem | None = None):
         v.fail(f"{w}.min", f"expected min < max (the engine's thrust range), got min {lo:g} >= max {hi:g}", also=(f"{w}.max",))
     resolved = {"axis": axis.tolist(), "max": hi, "min": lo}
     c = None
+    if "isp" in d and "exhaust_velocity" in d:
+        v.fail(f"{w}.isp", "expected isp or exhaust_velocity (c = isp g0), not both", also=(f"{w}.exhaust_velocity",))
+    if "exhaust_velocity" in d:
+        c = v.number(d["exhaust_velocity"], f"{w}.exhaust_velocity", positive=True)
+        magnitude(v, c, f"{w}.exhaust_velocity", "an exhaust velocity")
+        resolved["exhaust_velocity"] = c
     if "isp" in d:
         isp = v.number(d["isp"], f"{w}.isp", positive=True)
         magnitude(v, isp, f"{w}.isp", "a specific impulse in seconds")
         if units is None:
             v.fail(f"{w}.isp", "a specific impulse in seconds needs the file's units (units: or central_body:), "
-                               "and this file names none")
+                               "and this file names none: give exhaust_velocity in its velocity unit instead")
         c, resolved["isp"] = isp * G0 / units.si("velocity"), isp
     return ThrusterBound(axis, hi, lo, c), {"thruster": resolved}
 

@@ -63,9 +63,9 @@ def burn_section(sol) -> dict[str, Any] | None:
         m, mu, mf = sol.trajectory.mass, *un.shown("mass")
         frac = sol.propellant / m
         vu, vf = un.shown("velocity")
-        notes.append(f"propellant = impulse / (Isp g0), exhaust velocity {vf * c:.5g} {vu}; the dynamics keep the mass "
-                     f"constant: the propellant is {100 * frac:.3g} % of the {mf * m:.4g}{' ' + mu if mu else ''} "
-                     f"spacecraft")
+        notes.append(f"propellant = impulse / c, the exhaust velocity c = Isp g0 = {vf * c:.5g}"
+                     f"{' ' + vu if vu else ''}; the dynamics keep the mass constant: the propellant is "
+                     f"{100 * frac:.3g} % of the {mf * m:.4g}{' ' + mu if mu else ''} spacecraft")
         if frac > PROPELLANT_FRACTION_WARN:
             warning = (f"the propellant is {100 * frac:.3g} % of the mass, above {100 * PROPELLANT_FRACTION_WARN:g} %: "
                        f"the constant-mass dynamics under-state what the thrust gives by about {50 * frac:.2g} % of "
@@ -85,7 +85,7 @@ def burn_lines(sols) -> list[str]:
         table = [sec["columns"]] + sec["rows"] + [sec["total"]]
         widths = [max(len(r[i]) for r in table) for i in range(len(sec["columns"]))]
         out.append(f"{s.method}: {len(sec['rows'])} burn{'s' if len(sec['rows']) != 1 else ''}")
-        out += ["  " + "  ".join(f"{x:>{w}}" for x, w in zip(r, widths)) for r in table]
+        out += [("  " + "  ".join(f"{x:>{w}}" for x, w in zip(r, widths))).rstrip() for r in table]
         out += [f"  {n}" for n in sec["notes"]]
         if sec["warning"]:
             out.append(f"warning: {s.method}: {sec['warning']}")

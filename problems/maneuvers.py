@@ -21,7 +21,8 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
       force_frame: inertial | body       # the frame of u_f (default inertial); body: engines fixed in the body
       bounds: {force: {box: [3]} | {norm: b} | {thruster: {axis: [3], max: F, min: 0, isp: s}}, moment: ...}
-                                         # norm 0 removes the control; thruster: force_frame body only
+                                         # norm 0 removes the control; thruster: force_frame body only;
+                                         # isp (s; or exhaust_velocity in the file's unit) optional
       bounds_margin: 0.1                 # plan with 90 % of each bound (the actuators' are the bounds
                                          # above), so that a tracker keeps authority; default 0
     constraints:                         # path constraints at every node (smooth control)

@@ -75,6 +75,29 @@ def test_an_isp_needs_the_file_s_units(capsys):
     assert "control.bounds.force.thruster.isp" in err and "units: or central_body:" in err
 
 
+E3_ENGINE = "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 10, exhaust_velocity: 50}}}"
+
+
+def test_a_normalized_file_gives_its_engine_s_exhaust_velocity():
+    """e3 (normalized units) with an engine of exhaust velocity 50 radii/period: kept as given, and the propellant
+    of a constant 5-unit thrust over the horizon is m dv / 50 = 5 T / 50 (m = 1); the table keeps the file's units
+    (mass, radii/period).  isp and exhaust_velocity together are refused (one line, exit 2)."""
+    from se3ocp.problems.burns import burn_section
+    from se3ocp.problems.cli import main
+
+    man = maneuver("e3", 20, None, "control.force_frame=body", E3_ENGINE)
+    assert man.problem.control.force_bound.exhaust_velocity == 50.0
+    U = np.zeros((6, man.problem.disc.n_controls(man.problem.N)))
+    U[0] = 5.0
+    sol = se3ocp.simulate(man, U)
+    assert sol.propellant == pytest.approx(5.0 * man.problem.T / 50.0, rel=1e-13)
+    sec = burn_section(sol)
+    assert "propellant (mass)" in sec["columns"] and "Δv (radii/period)" in sec["columns"]
+    rc = main(["validate", str(config("e3")), "--set", "control.force_frame=body", "--set",
+               "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 10, exhaust_velocity: 50, isp: 300}}}"])
+    assert rc == 2
+
+
 # ---------------------------------------------------------------------------------------------- the burns
 def test_burns_of_a_known_thrust_history():
     """Three burns of constant thrust on nodes a..b of the LGVI (h = T/N): each control holds over the cell
