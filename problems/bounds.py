@@ -1,11 +1,15 @@
 """Control bounds in a maneuver file: ``control.bounds.{force,moment}`` as {box}, {norm} or (force only) one
-body-fixed engine {thruster: {axis, max, min}}, and ``control.bounds_margin`` (docs/mathematics.md §10, §14)."""
+body-fixed engine {thruster: {axis, max, min, isp}}, and ``control.bounds_margin`` (docs/mathematics.md §10, §14)."""
 from __future__ import annotations
 
 import numpy as np
 
+from .bodies import UnitSystem
 from .schema import Validator, describe
 from ..transcription.ocp import BoxBound, NormBound, ThrusterBound
+
+#: standard gravity g0 (m/s^2, exact by definition, 3rd CGPM 1901): an engine's exhaust velocity is Isp g0
+G0 = 9.80665
 
 #: positive limits whose squares enter the equations (control bounds, a rate limit, principal moments
 #: of inertia) must lie in [MIN_MAGNITUDE, MAX_MAGNITUDE], so that their squares and inverse squares are
@@ -30,9 +34,9 @@ def bounds_margin(v: Validator, c, bounds: dict) -> float:
     return m
 
 
-def control_bound(v: Validator, d, where, thruster: bool = False):
-    """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min}}) -> (BoxBound |
-    NormBound | ThrusterBound, resolved)."""
+def control_bound(v: Validator, d, where, thruster: bool = False, units: UnitSystem | None = None):
+    """{box: [3 positive]} or {norm: b >= 0} (or, ``thruster``, {thruster: {axis, max, min, isp}}) -> (BoxBound |
+    NormBound | ThrusterBound, resolved); ``units``: the file's (None: normalized or unnamed), for an isp."""
     forms = ("box", "norm") + (("thruster",) if thruster else ())
     if not thruster and isinstance(d, dict) and "thruster" in d:
         v.fail(where, "a thruster is an engine: it bounds the force (control.bounds.force); the moment takes "
@@ -43,7 +47,7 @@ def control_bound(v: Validator, d, where, thruster: bool = False):
     (form, val), = d.items()
     w = f"{where}.{form}"
     if form == "thruster":
-        return engine_bound(v, val, w)
+        return engine_bound(v, val, w, units)
     if form == "box":
         b = v.vec3(val, w)
         for i, x in enumerate(b):
@@ -57,17 +61,34 @@ def control_bound(v: Validator, d, where, thruster: bool = False):
     return NormBound(b), {"norm": b}
 
 
-def engine_bound(v: Validator, d, w: str):
-    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0)} -> (ThrusterBound,
-    resolved): one engine fixed in the body, u_f = T axis with min <= T <= max."""
-    v.mapping(d, w, ("axis", "max", "min"), required=("axis", "max"))
+def engine_bound(v: Validator, d, w: str, units: UnitSystem | None = None):
+    """{axis: [3] (body frame, non-zero; normalized), max: F > 0, min: 0 <= min < max (default 0), and optionally
+    isp: seconds > 0 or exhaust_velocity: c > 0 in the file's velocity unit} -> (ThrusterBound, resolved): one engine
+    fixed in the body, u_f = T axis with min <= T <= max, of exhaust velocity c = isp g0 converted to the file's
+    velocity unit (``units``: a file without units cannot read seconds; it gives exhaust_velocity instead)."""
+    v.mapping(d, w, ("axis", "max", "min", "isp", "exhaust_velocity"), required=("axis", "max"))
     axis = v.unit_vector(d["axis"], f"{w}.axis", "expected a non-zero engine axis (body frame; it is normalized)")
     hi = v.number(d["max"], f"{w}.max", positive=True)
     magnitude(v, hi, f"{w}.max", "a thrust limit")
     lo = v.number(d.get("min", 0.0), f"{w}.min", nonneg=True)
     if not lo < hi:
         v.fail(f"{w}.min", f"expected min < max (the engine's thrust range), got min {lo:g} >= max {hi:g}", also=(f"{w}.max",))
-    return ThrusterBound(axis, hi, lo), {"thruster": {"axis": axis.tolist(), "max": hi, "min": lo}}
+    resolved = {"axis": axis.tolist(), "max": hi, "min": lo}
+    c = None
+    if "isp" in d and "exhaust_velocity" in d:
+        v.fail(f"{w}.isp", "expected isp or exhaust_velocity (c = isp g0), not both", also=(f"{w}.exhaust_velocity",))
+    if "exhaust_velocity" in d:
+        c = v.number(d["exhaust_velocity"], f"{w}.exhaust_velocity", positive=True)
+        magnitude(v, c, f"{w}.exhaust_velocity", "an exhaust velocity")
+        resolved["exhaust_velocity"] = c
+    if "isp" in d:
+        isp = v.number(d["isp"], f"{w}.isp", positive=True)
+        magnitude(v, isp, f"{w}.isp", "a specific impulse in seconds")
+        if units is None:
+            v.fail(f"{w}.isp", "a specific impulse in seconds needs the file's units (units: or central_body:), "
+                               "and this file names none: give exhaust_velocity in its velocity unit instead")
+        c, resolved["isp"] = isp * G0 / units.si("velocity"), isp
+    return ThrusterBound(axis, hi, lo, c), {"thruster": resolved}
 
 
 def magnitude(v: Validator, x: float, where: str, what: str) -> None:

@@ -20,8 +20,9 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
                                          # (effort, time, fuel, ...) or {kind: name, <its parameters>}
       weights: {force: W, moment: W}     # W: scalar | [3] | 3x3 SPD (fuel: scalars)
       force_frame: inertial | body       # the frame of u_f (default inertial); body: engines fixed in the body
-      bounds: {force: {box: [3]} | {norm: b} | {thruster: {axis: [3], max: F, min: 0}}, moment: ...}
-                                         # norm 0 removes the control; thruster: force_frame body only
+      bounds: {force: {box: [3]} | {norm: b} | {thruster: {axis: [3], max: F, min: 0, isp: s}}, moment: ...}
+                                         # norm 0 removes the control; thruster: force_frame body only;
+                                         # isp (s; or exhaust_velocity in the file's unit) optional
       bounds_margin: 0.1                 # plan with 90 % of each bound (the actuators' are the bounds
                                          # above), so that a tracker keeps authority; default 0
     constraints:                         # path constraints at every node (smooth control)
@@ -211,7 +212,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
     initial = _state(v, doc["initial"], "initial", body, extent, all_required=True)
     _physical.check_units(v, phys, body.central_mu, initial.position, initial.velocity, T)
 
-    control_kind, control, resolved_control = _control(v, doc.get("control"))
+    control_kind, control, resolved_control = _control(v, doc.get("control"), phys.units)
     if resolved_control is not None:
         resolved["control"] = resolved_control
 
@@ -380,8 +381,9 @@ def _objective(v: Validator, given) -> tuple:
     return objective, ({"kind": name, **params} if params else name)
 
 
-def _control(v: Validator, c):
-    """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None)."""
+def _control(v: Validator, c, units=None):
+    """(kind, SmoothControl | ImpulsiveControl | None, resolved control block or None); ``units``: the file's
+    UnitSystem (None: normalized or unnamed), for an engine's isp."""
     if c is None:
         return None, None, None
     c = v.mapping(c, "control", ("kind", "objective", "weights", "bounds", "bounds_margin", "force_frame"),
@@ -407,7 +409,8 @@ def _control(v: Validator, c):
         bd = v.mapping(c["bounds"], "control.bounds", ("force", "moment"))
         for k in ("force", "moment"):
             if k in bd:
-                bounds[k], bounds_doc[k] = control_bound(v, bd[k], f"control.bounds.{k}", thruster=k == "force")
+                bounds[k], bounds_doc[k] = control_bound(v, bd[k], f"control.bounds.{k}", thruster=k == "force",
+                                                           units=units)
         if getattr(bounds.get("force"), "body_fixed", False) and frame != "body":
             v.fail("control.bounds.force.thruster", "a thruster is fixed in the body: it needs control.force_frame: "
                                                     f"body (got {frame})", also=("control.force_frame",))

@@ -21,6 +21,7 @@ from typing import Any
 
 from ..transcription.outcome import Result
 from ..transcription.results.solution import Solution
+from .burns import burn_section
 from .io import atomic_write_bytes
 from .units import DIMENSIONS, MARGIN_DIMENSION, Units, units
 
@@ -91,7 +92,7 @@ def continuous_section(sols: dict[str, Solution]) -> dict[str, Any] | None:
                                                           MARGIN_DIMENSION.get(k[len('continuous_min_margin_'):]
                                                                                .rstrip('_0123456789'), "none"), "{:.4g}")
                                                          for k in extra):
-        f = un.factor(unit) if unit in DIMENSIONS else 1.0
+        f = un.shown(unit)[1] if unit in DIMENSIONS else 1.0
         cells = [_fmt(d.get(key) * f if isinstance(d.get(key), float) else d.get(key), fmt) for d in summ.values()]
         rows.append({"label": label, "unit": _unit(un, unit), "cells": cells})
     meshes = [{"method": m, "rows": [[_cell(r.get(c)) for c in MESH_COLUMNS] for r in s.mesh]}
@@ -106,7 +107,8 @@ MESH_COLUMNS = ("level", "N", "mesh", "h_min", "h_max", "miss", "predicted", "pa
 
 
 def _unit(un: Units, u: str) -> str:
-    return un.unit(u) if u in DIMENSIONS else u
+    """The unit a table shows a quantity in (:meth:`Units.shown`: a km file's velocities in m/s), or the literal u."""
+    return un.shown(u)[0] if u in DIMENSIONS else u
 
 
 def _fmt(value: Any, fmt: str) -> str:
@@ -140,14 +142,14 @@ def merit_rows(sols: dict[str, Solution], tol: float | None = None) -> list[dict
             kind = key[len("min_margin_"):].rstrip("_0123456789")
             label, fmt = f"minimum margin: {key[len('min_margin_'):].replace('_', ' ')}", "{:.4g}"
             unit_key = MARGIN_DIMENSION.get(kind, "none")
-            unit = un.unit(unit_key)
+            unit = _unit(un, unit_key)
         else:
             _, label, unit_key, fmt = next(r for r in ROWS if r[0] == key)
             unit = _unit(un, unit_key)
         if not any(key in s for s in summ.values()):
             continue
         cells = []
-        factor = un.factor(unit_key) if unit_key in DIMENSIONS else 1.0  # a km file's kN shown in N
+        factor = un.shown(unit_key)[1] if unit_key in DIMENSIONS else 1.0  # a km file's kN in N, km/s in m/s
         for s in summ.values():
             v = s.get(key)
             bad = key.startswith("min_margin_") and isinstance(v, (int, float)) and v < -tol
@@ -275,7 +277,8 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
         bounds=_bounds(problem), constraints=[_describe(c) for c in problem.constraints],
         figures=[{"name": n, "caption": caption(n, problem), "data": base64.b64encode(b).decode("ascii"),
                   "wide": w} for (n, b), w in zip(images, _wide(images))],
-        history=history, config=config_text, continuous=continuous_section(sols))
+        history=history, config=config_text, continuous=continuous_section(sols),
+        burns=[{"method": m, **sec} for m, sec in ((m, burn_section(s)) for m, s in sols.items()) if sec is not None])
 
 
 def _status_cards(sols: dict[str, Solution], summ: dict) -> list[dict[str, Any]]:

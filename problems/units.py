@@ -30,7 +30,7 @@ from .models import GM_NORMALIZED
 DIMENSIONS = {
     "time": "time", "length": "length", "velocity": "length/time", "force": "mass·length/time²",
     "moment": "mass·length²/time²", "angular_impulse": "mass·length²/time", "angular_rate": "rad/time",
-    "angle": "deg", "none": "",
+    "angle": "deg", "mass": "mass", "none": "",
 }
 #: the normalized spelling of each base dimension (mass stays "mass": the body's mass as given)
 _NORMALIZED = {"length": "radii", "time": "period"}
@@ -65,6 +65,16 @@ class Units:
 
     def factor(self, quantity: str) -> float:
         return self.system.display(quantity)[1] if self.system is not None else 1.0
+
+    def shown(self, quantity: str) -> tuple[str, float]:
+        """(unit, factor) of a quantity in a table (the CLI's, report.html's): a physical file's velocities in m/s and
+        masses in kg, its forces and moments in N and N·m (as the figures draw them), the rest in the file's units;
+        normalized and unnamed units as :meth:`unit`.  Shown value = factor * file value."""
+        if self.system is None:
+            return self.unit(quantity), 1.0
+        if quantity in ("velocity", "mass"):
+            return {"velocity": "m/s", "mass": "kg"}[quantity], self.system.si(quantity)
+        return self.system.display(quantity)
 
     def amount(self, x: float, quantity: str) -> str:
         """A length, velocity or angle (rad) as a person reads it, three digits: physical lengths in m below 1 km,
@@ -104,7 +114,7 @@ class Units:
         if self.system is not None:
             s = self.system
             return (f"physical, as the configuration file names them: lengths in {s.length}, masses in {s.mass}, "
-                    f"times in {s.time}; forces shown in N and moments in N·m")
+                    f"times in {s.time}; forces shown in N and moments in N·m, and in tables velocities in m/s")
         if self.normalized:
             return ("normalized orbit units: length in radii of the reference orbit, time in its periods "
                     "(GM = 4π²), mass as in the file")

@@ -92,7 +92,8 @@ def test_report_names_the_units(leo):
     peak = rows["peak |u_f|"]
     assert peak["unit"] == "N" and float(peak["cells"][0]["text"]) == pytest.approx(
         1e3 * np.linalg.norm(sol.u_f, axis=1).max(), rel=1e-5)
-    assert rows["Δv = Σ ω |u_f| / m"]["unit"] == "km/s"
+    dv = rows["Δv = Σ ω |u_f| / m"]       # a table's velocity in m/s (issue 44: 4.497 m/s, not 0.00449749 km/s)
+    assert dv["unit"] == "m/s" and float(dv["cells"][0]["text"]) == pytest.approx(1e3 * sol.delta_v, rel=1e-5)
     bounded = se3ocp.load(CONFIGS / "leo_raise_slew.yaml", ["horizon.N=10", "control.bounds={force: {norm: 1.0e-3}}"])
     assert _bounds(bounded.problem) == ["force: |u| ≤ 1 N"]
     other = units(se3ocp.load(CONFIGS / "e3_inclination_change.yaml", ["model.mu=39.0"]).problem)

@@ -66,8 +66,10 @@ def table(sols) -> list[str]:
     miss (position / L, velocity / V, rad, rad per time unit; the number solver.accuracy bounds).  ``flown
     miss``: the same flight's terminal miss as a percentage of what the maneuver changes
     (ContinuousCheck.maneuver_fraction), with '!' above :data:`FLOWN_MISS_TOL`; then a line per flown
-    method in the file's units (:func:`miss_lines`)."""
+    method in the file's units (:func:`miss_lines`), and the burns of each plan with a force
+    (:func:`problems.burns.burn_lines`)."""
     from ...transcription.outcome import Result
+    from ..burns import burn_lines
 
     sols = list(sols)
     mw = max([len("method")] + [len(s.method) for s in sols])
@@ -85,7 +87,7 @@ def table(sols) -> list[str]:
         miss = f"{miss:>10.2e}" if miss is not None else f"{'-':>10}"
         rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {miss} "
                     f"{_percent(s):>10} {o:>10.2e} {s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
-    return rows + miss_lines(sols)
+    return rows + miss_lines(sols) + burn_lines(sols)
 
 
 def _percent(sol) -> str:

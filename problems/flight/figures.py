@@ -138,21 +138,23 @@ def _controls(result: FlightResult) -> Figure | None:
     control = result.maneuver.problem.control
     mode = result.spec.modes[-1]
     fig = Figure(figsize=(10.0, 4.0))
+    un = units(result.maneuver.problem)
     for j, (name, sl, act, planned) in enumerate((("force", slice(0, 3), g.force_bound, control.force_bound),
                                                   ("moment", slice(3, 6), g.moment_bound, control.moment_bound))):
         ax = fig.add_subplot(1, 2, j + 1)
+        f = un.factor(name)     # a km file's kN drawn in N, its kN·km in N·m
         for i, run in sorted(result.tracks.items()):
             tr = run.get(mode)
             if tr is None:
                 continue
             tt, uu = tr["control_t"].ravel(), tr["control"][..., sl].reshape(-1, 3)
             y = act.magnitude(uu) if act is not None else np.linalg.norm(uu, axis=1)
-            ax.plot(tt, y, color=MODE_COLORS[mode], lw=0.6, alpha=0.6)
+            ax.plot(tt, f * y, color=MODE_COLORS[mode], lw=0.6, alpha=0.6)
         for b, style in ((act, "-"), (planned, "--")):
             if b is not None and b.scale() > 0:
-                ax.axhline(b.scale(), color="#444444", ls=style, lw=1.0)
-        ax.set_xlabel(units(result.maneuver.problem).time_label)
-        ax.set_ylabel(f"{act.magnitude_label if act is not None else '|u|'} ({name})")
+                ax.axhline(f * b.scale(), color="#444444", ls=style, lw=1.0)
+        ax.set_xlabel(un.time_label)
+        ax.set_ylabel(un.label(f"{name} {act.magnitude_label if act is not None else '|u|'}", name))
         bounded = act is not None
         ax.set_title(f"{name}: {MODE_LABELS[mode]}" + (", actuators' bound solid, plan's dashed" if bounded
                                                        else " (unbounded)"), fontsize=9)

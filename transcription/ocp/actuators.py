@@ -41,6 +41,9 @@ class Actuator:
     noun: ClassVar[str] = ""
     #: whether it exists only in the body frame (an engine fixed in the body: force_frame body)
     body_fixed: ClassVar[bool] = False
+    #: the exhaust velocity c = Isp g0 of an engine, in the problem's velocity units (None: not given; the burns'
+    #: propellant, transcription.results.burns, needs it); the dynamics keep the mass constant
+    exhaust_velocity: float | None = None
 
     @property
     def channels(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -287,11 +290,13 @@ class NormBound(Actuator):
 @dataclass(frozen=True)
 class ThrusterBound(Actuator):
     """One engine fixed in the body (force_frame 'body' only): u_f = T a, a the unit engine axis (body frame,
-    normalized here) and min <= T <= max (0 <= min < max, finite).  Off-axis force is not available."""
+    normalized here) and min <= T <= max (0 <= min < max, finite).  Off-axis force is not available.
+    exhaust_velocity: c = Isp g0 > 0 in the problem's velocity units, or None (:attr:`Actuator.exhaust_velocity`)."""
 
     axis: np.ndarray
     max: float
     min: float = 0.0
+    exhaust_velocity: float | None = None
     kind: ClassVar[str] = "thruster"
     noun: ClassVar[str] = "an engine"
     body_fixed: ClassVar[bool] = True
@@ -303,6 +308,9 @@ class ThrusterBound(Actuator):
         lo, hi = float(self.min), float(self.max)
         if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 <= lo < hi):
             raise ProblemError("bounds.thruster", f"expected 0 <= min < max, finite, got min {lo!r}, max {hi!r}")
+        c = self.exhaust_velocity
+        if c is not None and not (np.isfinite(c) and c > 0):
+            raise ProblemError("bounds.thruster.exhaust_velocity", f"expected a positive finite number, got {c!r}")
         object.__setattr__(self, "axis", a / np.linalg.norm(a))
         object.__setattr__(self, "max", hi)
         object.__setattr__(self, "min", lo)
@@ -322,8 +330,9 @@ class ThrusterBound(Actuator):
         return self.unavailable(u)
 
     def scaled(self, s: float) -> "ThrusterBound":
-        """The engine with its largest thrust times s > 0 (the least thrust, an engine's minimum, kept)."""
-        return ThrusterBound(self.axis, self.max * s, self.min)
+        """The engine with its largest thrust times s > 0 (the least thrust, an engine's minimum, and its exhaust
+        velocity kept)."""
+        return ThrusterBound(self.axis, self.max * s, self.min, self.exhaust_velocity)
 
     def switches(self, u: np.ndarray, t: np.ndarray) -> list[float]:
         """The times the thrust reaches or leaves max or min (midpoints)."""

@@ -243,13 +243,19 @@ def delta_v(sol: "Solution") -> float:
     nan with neither."""
     mass = sol.trajectory.mass
     if sol.controls is not None:
-        uf, N = sol.u_f, sol.N
-        om = quadrature_weights("lgvi" if uf.shape[0] == N + 1 else "first_order", N, sol.h if sol.uniform else sol.steps)
-        return float(om @ np.linalg.norm(uf, axis=1) / mass)
+        return float(control_weights(sol) @ np.linalg.norm(sol.u_f, axis=1) / mass)
     if sol.impulses is not None:
         imp = sol.impulses
         return float((np.linalg.norm(imp["dgamma0"]) + np.linalg.norm(imp["dgammaN"])) / mass)
     return float("nan")
+
+
+def control_weights(sol: "Solution") -> np.ndarray:
+    """omega_j (n,) of a plan's controls (n of them): the scheme's quadrature weights
+    (transcription.ocp.quadrature_weights) at h = T/N, or at the steps h_k of a mesh -- those of its delta-v, its
+    burns and its figures of merit."""
+    n, N = sol.controls.shape[1], sol.N
+    return quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if sol.uniform else sol.steps)
 
 
 def _target_error(sol: "Solution", XN: np.ndarray) -> float:

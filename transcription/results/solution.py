@@ -11,6 +11,7 @@ import enum
 import html
 import math
 from dataclasses import asdict, dataclass, field, replace
+from functools import cached_property
 from types import MappingProxyType
 from typing import Any, Mapping
 
@@ -20,8 +21,10 @@ from ..dynamics.trajectory import Trajectory
 from ..geometry.state import U_FORCE, U_MOMENT, split_state
 from ..geometry.so3 import rotation_angle
 from ..outcome import Iterate, Result
-from .check import delta_v, scaled_miss
-from ..ocp import Problem, SmoothControl, TargetState, control_activity, engine_figures, quadrature_weights
+from . import check
+from .burns import Burn, burns
+from .check import control_weights, scaled_miss
+from ..ocp import Problem, SmoothControl, TargetState, control_activity, engine_figures
 from .start import Start
 from .trace import Attempt, totals
 
@@ -50,6 +53,7 @@ class Solution:
     solve can start from (:class:`~transcription.results.start.Start` or None).  Derived: N, T, h (the mean step T/N),
     steps (N,) (h_k), ``scheme``, control_times, u_f (n, 3) (in ``force_frame``), u_m (n, 3) (body), f_inertial
     (n, 3): the applied inertial force, R_j u_f,j for a body-frame force, else u_f (docs/mathematics.md §14).
+    Computed once when asked: delta_v, burns (:mod:`~transcription.results.burns`), propellant.
     """
 
     method: str
@@ -118,6 +122,31 @@ class Solution:
             nodes = np.searchsorted(t, self.control_times)     # the node each control belongs to
             f = np.asarray(disc.applied_force(self.trajectory.R[nodes], self.u_f), dtype=float)
         put("f_inertial", f)
+
+    # ------------------------------------------------------------------ the force's use, computed once when asked
+    @cached_property
+    def delta_v(self) -> float:
+        """sum_j omega_j |u_f,j| / m (impulses: (|dgamma_0| + |dgamma_N|) / m; nan with neither), in the problem's
+        velocity unit (:func:`~transcription.results.check.delta_v`)."""
+        return check.delta_v(self)
+
+    @cached_property
+    def burns(self) -> tuple[Burn, ...]:
+        """The burns of the force controls above 1e-3 of the force bound (of the peak |u_f| without one): a tuple of
+        :class:`~transcription.results.burns.Burn` (() without smooth controls).  Another threshold:
+        ``transcription.results.burns.burns(sol, threshold)``."""
+        return burns(self)
+
+    @cached_property
+    def propellant(self) -> float:
+        """m delta_v / c, the propellant of the plan's impulse for an engine of exhaust velocity c (nan without
+        one, or without smooth controls): the dynamics keep the mass constant, so this is the rocket equation's
+        m (1 - exp(-delta_v / c)) to first order in delta_v / c (transcription.results.burns)."""
+        bound = getattr(getattr(self.problem, "control", None), "force_bound", None)
+        c = None if bound is None else bound.exhaust_velocity
+        if c is None or self.controls is None:
+            return float("nan")
+        return float(self.trajectory.mass * self.delta_v / c)
 
     # ------------------------------------------------------------------ derived from the trace
     @property
@@ -217,6 +246,7 @@ class Solution:
             out.update(h_min=float(self.steps.min()), h_max=float(self.steps.max()))
         if self.controls is not None:
             out["force_frame"] = self.force_frame
+            out.update(burn_summary(self))
         # scalars, and lists of words
         out.update({k: v for k, v in self.stats.items() if isinstance(v, (int, float, str, bool, type(None))) or
                     (isinstance(v, list) and all(isinstance(x, str) for x in v))})
@@ -287,10 +317,9 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
     prob = sol.problem
     if sol.controls is not None:
         uf, um = sol.u_f, sol.u_m
-        n, N = uf.shape[0], sol.N
-        om = quadrature_weights("lgvi" if n == N + 1 else "first_order", N, sol.h if sol.uniform else sol.steps)
+        om = control_weights(sol)
         nf, nm = np.linalg.norm(uf, axis=1), np.linalg.norm(um, axis=1)
-        out.update(delta_v=delta_v(sol), angular_impulse=float(om @ nm),
+        out.update(delta_v=sol.delta_v, angular_impulse=float(om @ nm),
                    peak_force=float(nf.max(initial=0.0)), peak_moment=float(nm.max(initial=0.0)))
         ctrl = getattr(prob, "control", None)
         if isinstance(ctrl, SmoothControl):
@@ -299,7 +328,7 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         out.update(engine_figures(uf, om, getattr(ctrl, "force_bound", None)))
     elif sol.impulses is not None:
         imp = sol.impulses
-        out.update(delta_v=delta_v(sol), angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
+        out.update(delta_v=sol.delta_v, angular_impulse=float(np.linalg.norm(imp["dPi0"]) + np.linalg.norm(imp["dPiN"])))
     term = getattr(prob, "terminal", None)
     if isinstance(term, TargetState) and "attitude" in term.fixed and np.all(np.isfinite(sol.trajectory.X[-1])):
         Rd = split_state(term.X)[2]
@@ -309,6 +338,24 @@ def figures_of_merit(sol: "Solution") -> dict[str, Any]:
         seen[c.kind] = seen.get(c.kind, 0) + 1
         key = f"min_margin_{c.kind}" + (f"_{seen[c.kind]}" if seen[c.kind] > 1 else "")
         out[key] = float(np.min(c.margin(sol.trajectory)))
+    return out
+
+
+def burn_summary(sol: "Solution") -> dict[str, Any]:
+    """summary.json's record of the force's use, in the problem's units: ``burns`` (a list of the
+    :class:`~transcription.results.burns.Burn` s as objects), ``switch_times`` ({force, moment}: the times each bounded
+    control enters or leaves its bound, :func:`~transcription.ocp.control_activity`) and, for an engine with an
+    exhaust velocity, ``exhaust_velocity``, ``propellant`` (m delta_v / c, the mass constant in the dynamics) and
+    ``propellant_fraction`` (of the mass)."""
+    out: dict[str, Any] = {"burns": [asdict(b) for b in sol.burns]}
+    ctrl = getattr(sol.problem, "control", None)
+    if isinstance(ctrl, SmoothControl):
+        act = control_activity(ctrl, sol.controls, control_weights(sol), sol.control_times)
+        out["switch_times"] = {name: a["switch_times"] for name, a in act.items()}
+        c = ctrl.force_bound.exhaust_velocity if ctrl.force_bound is not None else None
+        if c is not None:
+            out.update(exhaust_velocity=c, propellant=sol.propellant,
+                       propellant_fraction=sol.propellant / sol.trajectory.mass)
     return out
 
 
