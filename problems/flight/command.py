@@ -13,6 +13,7 @@ from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
 from . import _spec, check_feedback, check_plan, load_flight, spec_source, with_changes
+from .task import ELEMENT_METRICS
 
 
 def _flight_spec(args, man):
@@ -118,16 +119,28 @@ def cmd_fly(args) -> int:
     return 1 if res.failed else 0
 
 
+#: the figures of the command's table, in its order (those the flight has; report.ROWS gives their quantities)
+TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ELEMENT_METRICS, "delta_v_overhead",
+              "saturated_fraction")
+
+
 def table(res) -> list[str]:
-    """p95 (and mean) of the headline figures, one column per feedback mode."""
+    """p95 (and mean) of the headline figures with their units (problems.flight.report.shown: m/s and deg for a km
+    file), one column per feedback mode."""
+    from ..units import units
+    from .report import ROWS, shown
+
     stats = res.statistics()
+    un, quantity = units(res.maneuver.problem), {k: q for k, _, q, _ in ROWS}
     modes = list(stats)
-    rows = [f"{'p95 (mean)':<22}" + "".join(f"{m:>26}" for m in modes)]
-    for key in ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", "delta_v_overhead",
-                "saturated_fraction"):
+    rows = [f"{'p95 (mean)':<22}{'unit':<9}" + "".join(f"{m:>26}" for m in modes)]
+    for key in TABLE_KEYS:
+        if key not in res.metrics:
+            continue
+        unit, factor = shown(un, quantity[key])
         cells = []
         for m in modes:
             d = stats[m][key]
-            cells.append(f"{'-':>26}" if d["n"] == 0 else f"{d['p95']:>13.3e} ({d['mean']:.2e})")
-        rows.append(f"{key:<22}" + "".join(cells))
+            cells.append(f"{'-':>26}" if d["n"] == 0 else f"{factor * d['p95']:>13.3e} ({factor * d['mean']:.2e})")
+        rows.append(f"{key:<22}{unit:<9}" + "".join(cells))
     return rows

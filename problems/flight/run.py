@@ -8,12 +8,11 @@ from typing import Callable
 
 import numpy as np
 
-from ...transcription.results.check import margin_keys
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload
 from .schema import FlightSpec
-from .task import METRICS, fly_runs, gains_of, miss_frame, plan_usage
+from .task import fly_runs, gains_of, metric_keys, miss_frame, plan_usage
 
 #: the percentiles of summary.json (p99.7: the 3-sigma level of a Gaussian)
 PERCENTILES = {"p50": 50.0, "p95": 95.0, "p99_7": 99.7}
@@ -44,7 +43,7 @@ class FlightResult:
 
     @property
     def metrics(self) -> tuple:
-        return METRICS + tuple(margin_keys(self.maneuver.problem.constraints))
+        return metric_keys(self.maneuver.problem)
 
     @property
     def finished_runs(self) -> int:
