@@ -11,6 +11,9 @@ Every claim with its tolerance:
   the node line, written here) to 1e-9 (km, deg).
 * The command's table and the report give units: km, m/s, deg for a km file; the velocity miss in m/s is 1000 times
   its km/s value.
+* A j2 truth on an Earth-preset maneuver (configs/leo_raise_slew.yaml) without numbers takes the preset's J2 and
+  radius (IERS 2010, km); an explicit J2 wins; the output names those taken.  The open-loop node miss is the
+  first-order J2 regression of the node -3/2 n J2 (R/a)^2 cos i T to 1 % (measured 0.2 %; with J2 = 2e-3, 0.4 %).
 """
 from __future__ import annotations
 
@@ -136,3 +139,52 @@ def test_no_element_misses_without_a_central_body():
 
     assert not set(ELEMENT_METRICS) & set(metric_keys(maneuver("slew_time_optimal", 20).problem))
     assert set(ELEMENT_METRICS) <= set(metric_keys(maneuver("e3", 20).problem))
+
+
+# ------------------------------------------------------------------------------ the truth's J2 from the preset
+def nodal_regression_deg(a, i_deg, J2, R, T, mu=MU):
+    """The secular drift of Ω over T under J2 (deg): -3/2 n J2 (R/a)^2 cos i T, circular orbit."""
+    n = math.sqrt(mu / a**3)
+    return math.degrees(-1.5 * n * J2 * (R / a) ** 2 * math.cos(math.radians(i_deg)) * T)
+
+
+def test_a_j2_truth_takes_the_earth_presets_numbers_and_an_explicit_one_wins():
+    man = maneuver("leo_raise_slew", 40)
+    sol = se3ocp.solve(man, "direct")
+    open_loop = {"feedback": "none", "runs": 1}
+    res = se3ocp.fly(sol, {"truth": {"gravity": {"kind": "j2"}}, **open_loop}, maneuver=man)
+    assert res.spec.gravity == {"kind": "j2", "J2": 1.0826359e-3, "radius": 6378.1366}     # IERS 2010, in km
+    assert res.summary()["truth_from_preset"]["values"] == {"J2": 1.0826359e-3, "radius": 6378.1366}
+    # the open-loop node miss is the J2 regression of the node over the ~1 orbit flown (the plan has none): to 1 %
+    a = 0.5 * (6778.137 + 6788.137)
+    want = nodal_regression_deg(a, 51.6, 1.0826359e-3, 6378.1366, man.T)
+    assert res.rows[0]["miss_raan_deg"] == pytest.approx(want, rel=1e-2)
+    # J2 given: it wins, the radius still the preset's, and the output says which
+    res2 = se3ocp.fly(sol, {"truth": {"gravity": {"kind": "j2", "J2": 2e-3}}, **open_loop}, maneuver=man)
+    assert res2.spec.gravity["J2"] == 2e-3 and res2.summary()["truth_from_preset"]["values"] == {"radius": 6378.1366}
+    assert res2.rows[0]["miss_raan_deg"] == pytest.approx(want * 2e-3 / 1.0826359e-3, rel=1e-2)
+
+
+def test_the_maneuvers_own_flight_block_and_the_command_take_the_preset(tmp_path, capsys):
+    from se3ocp.problems.cli import main
+
+    man = se3ocp.load("configs/leo_raise_slew.yaml", ["horizon.N=40", "flight={truth: {gravity: {kind: j2}}}"])
+    assert man.resolved["flight"]["truth"]["gravity"] == {"kind": "j2", "J2": 1.0826359e-3, "radius": 6378.1366}
+    f = tmp_path / "flight.yaml"
+    f.write_text("flight: {truth: {gravity: {kind: j2, radius: 6400.0}}, feedback: none, runs: 1}\n")
+    assert main(["fly", "configs/leo_raise_slew.yaml", "--set", "horizon.N=40", "--flight", str(f), "--workers", "1",
+                 "--out", str(tmp_path / "o"), "--no-figures"]) == 0
+    out = capsys.readouterr().out
+    assert "the truth's J2 = 0.0010826359 is the earth preset's (IERS Conventions (2010), Table 1.1)" in out
+    assert "J2 = 0.0010826359 is the earth preset" in (tmp_path / "o" / "report.html").read_text()
+
+
+def test_a_j2_truth_without_a_preset_needs_its_numbers():
+    from se3ocp.problems.flight.schema import parse_flight
+    from se3ocp.problems.schema import ConfigError
+
+    man = maneuver("e3", 20)
+    with pytest.raises(ConfigError, match=r"flight.truth.gravity.J2: missing required key .*central_body: earth"):
+        se3ocp.fly(se3ocp.solve(man, "direct"), {"truth": {"gravity": {"kind": "j2"}}}, maneuver=man)
+    with pytest.raises(ConfigError, match=r"flight.truth.gravity.radius: missing"):
+        parse_flight({"truth": {"gravity": {"kind": "j2", "J2": 1e-3}}})

@@ -31,20 +31,21 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .run import FlightResult, run_flights
-from .schema import FlightSpec, parse_flight, with_changes
+from .schema import FlightSpec, parse_flight, preset_gravity, with_changes
 
 __all__ = ["FlightResult", "FlightSpec", "fly", "load_flight", "parse_flight", "run_flights", "with_changes"]
 
 
-def load_flight(path: str | Path) -> FlightSpec:
+def load_flight(path: str | Path, maneuver=None) -> FlightSpec:
     """The flight block of a YAML file holding ``{flight: {...}}`` (a maneuver file with one, or a file of
-    its own); ConfigError naming the file and field."""
+    its own) for ``maneuver`` (its central-body preset fills a j2 truth's J2 and radius); ConfigError naming the
+    file and field."""
     from ..schema import Validator, read_yaml_file
 
     doc = read_yaml_file(path)
     if not isinstance(doc, dict) or "flight" not in doc:
         Validator(str(path)).fail("flight", "missing: the file must hold a mapping with a 'flight' block")
-    return parse_flight(doc["flight"], str(path))
+    return parse_flight(doc["flight"], str(path), preset=preset_gravity(getattr(maneuver, "physical", None)))
 
 
 def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuver=None, runs: int | None = None,
@@ -100,7 +101,7 @@ def _spec(flight: Any, maneuver) -> FlightSpec:
     if isinstance(flight, FlightSpec):
         return flight
     if isinstance(flight, (str, Path)):
-        return load_flight(flight)
+        return load_flight(flight, maneuver)
     if flight is None:
         flight = maneuver.resolved.get("flight", {})
-    return parse_flight(dict(flight), maneuver.source)
+    return parse_flight(dict(flight), maneuver.source, preset=preset_gravity(maneuver.physical))

@@ -20,7 +20,7 @@ def _flight_spec(args, man):
     """The flight block flown: --flight FILE, else the maneuver's own, with --runs and --feedback; ConfigError
     when it cannot be flown (MPC for a plan the re-planner does not cover)."""
     flight = args.flight
-    spec = load_flight(flight) if flight else _spec(None, man)
+    spec = load_flight(flight, man) if flight else _spec(None, man)
     spec = with_changes(spec, spec_source(flight, man), runs=args.runs, feedback=args.feedback)
     check_feedback(man, spec, spec_source(flight, man))
     return spec
@@ -81,8 +81,10 @@ class FlightProgress:
 def cmd_fly(args) -> int:
     from ..cli.signals import Interrupt
     from ..sweep.executors import make_executor
+    from ..units import units
     from .output import write_flights
-    from .run import run_flights
+    from .run import FlightResult, run_flights
+    from .schema import preset_text
 
     man, sol, spec = _plan(args)
     try:
@@ -96,6 +98,9 @@ def cmd_fly(args) -> int:
             where = {"serial": "in-process", "local": f"a local pool of {ex.workers} workers",
                      "dask": f"the Dask cluster at {args.scheduler}"}[ex.kind]
             _say(args, f"{man.name}: {spec.runs} runs x {' and '.join(spec.modes)} on {where} -> {tx.target}/")
+            taken = FlightResult(man, spec, {}, None, []).truth_from_preset()
+            if taken:
+                _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
             bar = FlightProgress(quiet=args.quiet)
             try:
                 res = run_flights(man, sol, spec, executor=ex, save_runs=args.save_runs, progress=bar,

@@ -20,6 +20,7 @@ from pathlib import Path
 from ..elements import ELEMENT_DIFFERENCES
 from ..io import atomic_write_bytes
 from ..units import DIMENSIONS, MARGIN_DIMENSION, Units, units
+from .schema import preset_text
 
 #: the page templates (the solve report's and this one)
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
@@ -123,7 +124,7 @@ def render(summary: dict, un: Units, images: list[tuple[str, str, bytes]], fligh
         stats=[label for _, label in STATS], rows=table(summary, un, tol), ratios=ratios, mpc=summary.get("mpc"),
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         figures=[{"name": n, "caption": c, "data": base64.b64encode(b).decode("ascii")} for n, c, b in images],
-        flight=flight_text, config=config_text)
+        flight=flight_text, config=config_text, preset=preset_text(summary.get("truth_from_preset", {}), un.unit("length")))
 
 
 def write_flight_report(d: Path, summary: dict | None = None) -> Path:

@@ -4,7 +4,8 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
 
     flight:
       truth:
-        gravity: {kind: j2, J2: 1.08e-3, radius: 0.9}   # the truth's gravity (default: the plan's)
+        gravity: {kind: j2, J2: 1.08e-3, radius: 0.9}   # the truth's gravity (default: the plan's); J2 and radius
+                                                       # default to the maneuver's central_body preset's
         integrator: cvodes                             # the continuous engine (transcription/flight)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
@@ -32,6 +33,7 @@ from typing import Any
 from ...transcription.dynamics.flight import DEFAULT_SAMPLES
 from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_EVERY
 from ...transcription.closedloop.tracking import SCALE_KEYS
+from ..bodies import PRESETS
 from ..models import parse_gravity
 from ..schema import Validator
 
@@ -81,12 +83,50 @@ def default_errors() -> dict:
     return {"initial": {k: 0.0 for k in INITIAL_KEYS}, **{k: 0.0 for k in ERROR_KEYS if k != "initial"}}
 
 
-def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight") -> FlightSpec:
-    """Validate a flight block (the mapping under ``flight:``); FlightSpec or ConfigError naming ``where.FIELD``."""
+def preset_gravity(physical) -> dict | None:
+    """{name, source, J2, radius} of a maneuver's central-body preset (problems.bodies.PRESETS; radius in the file's
+    length unit) from its ``Maneuver.physical``, or None (no preset)."""
+    if physical is None or physical.preset is None:
+        return None
+    body = PRESETS[physical.preset]
+    values = body.in_units(physical.units.length)
+    return {"name": physical.preset, "source": body.source, "J2": values["J2"], "radius": values["radius"]}
+
+
+def from_preset(gravity: dict | None, preset: dict | None) -> dict:
+    """The truth gravity's J2 and radius that are the preset's (:func:`preset_gravity`), {key: value}: those
+    :func:`parse_flight` took from it (and any typed equal to it); {} without a preset or a j2 truth."""
+    if not gravity or gravity.get("kind") != "j2" or preset is None:
+        return {}
+    return {k: gravity[k] for k in ("J2", "radius") if gravity[k] == preset[k]}
+
+
+def preset_text(taken: dict, length_unit: str) -> str:
+    """One line saying which truth numbers are the preset's, from FlightResult.truth_from_preset ({preset, source,
+    values}): 'the truth's J2 = 0.0010826359 and radius = 6378.1366 km are the earth preset's (IERS ...)'."""
+    if not taken:
+        return ""
+    unit = {"J2": "", "radius": f" {length_unit}" if length_unit else ""}
+    what = " and ".join(f"{k} = {v:.10g}{unit[k]}" for k, v in taken["values"].items())
+    return f"the truth's {what} {'are' if len(taken['values']) > 1 else 'is'} the {taken['preset']} preset's ({taken['source']})"
+
+
+def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", preset: dict | None = None) -> FlightSpec:
+    """Validate a flight block (the mapping under ``flight:``); FlightSpec or ConfigError naming ``where.FIELD``.
+    ``preset``: the maneuver's central-body preset (:func:`preset_gravity`), whose J2 and radius a j2 truth gravity
+    takes where it does not give them (what it gives wins); the resolved block holds the numbers."""
     v = Validator(source)
     d = v.mapping({} if doc is None else doc, where, FLIGHT_KEYS)
     t = v.mapping(d.get("truth", {}), f"{where}.truth", TRUTH_KEYS)
-    gravity = parse_gravity(v, t["gravity"], f"{where}.truth.gravity") if "gravity" in t else None
+    g = t.get("gravity")
+    if isinstance(g, dict) and g.get("kind") == "j2":
+        if preset is not None:
+            g = {**g, "J2": g.get("J2", preset["J2"]), "radius": g.get("radius", preset["radius"])}
+        for k in ("J2", "radius"):
+            if k not in g:
+                v.fail(f"{where}.truth.gravity.{k}", "missing required key (the j2 truth needs J2 and the central "
+                                                     "body's radius; a maneuver with central_body: earth takes its preset's)")
+    gravity = parse_gravity(v, g, f"{where}.truth.gravity") if "gravity" in t else None
     v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
     samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
                        at_most=MAX_SAMPLES)
