@@ -26,7 +26,7 @@ from ..dynamics.flight import interval_commands
 from ..geometry.state import NU, NX, NZ
 from ..methods.indirect.control import bound_data, weight_inverse
 from ..methods.indirect.shooting import shooting_functions
-from ..methods.indirect.solve import free_rows, not_covered
+from ..methods.indirect.solve import free_rows, lam0_from_costates, not_covered
 from ..options import IndirectOptions
 from ..ocp import TargetOrbit
 from .tracking import saturate
@@ -95,17 +95,15 @@ class Replanner:
         return shooting_functions(self.problem.disc, int(n), self.jit)
 
     def start(self, plan: Start) -> Start:
-        """``plan`` with its shooting unknown: its own lam0, else from its costates (lgvi lambda_{-1} = A_0^T lambda_0 at
-        the plan's X_0 and h, as methods.indirect.solve.lam0_from_costates).  ValueError without costates."""
+        """``plan`` with its shooting unknown: its own lam0, else from its costates (methods.indirect.solve.
+        lam0_from_costates at the plan's X_0 and h: the LGVIs' lambda_{-1} = A_0^T lambda_0, lgvi_kepler's too).
+        ValueError without costates."""
         if plan.lam0 is not None:
             return plan
         if plan.costates is None:
             raise ValueError("MPC: the plan carries no costates to warm-start the re-plans from")
-        lam0 = np.asarray(plan.costates[0], float)
-        if plan.scheme == "lgvi":             # lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0 at the plan's own X_0 and h
-            h0 = np.ravel(self.steps(plan.N))[0]   # step 0's size
-            A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], h0)[0])
-            lam0 = A0.T @ lam0
+        lam0 = lam0_from_costates(self.problem.replace(X0=np.asarray(plan.X[0], float)), plan.costates[0],
+                                  plan.U[:, 0], self.h, plan.U[:, 1] if plan.U.shape[1] > 1 else None)
         return Start(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
                          costates=plan.costates, lam0=np.asarray(lam0, float))
 
