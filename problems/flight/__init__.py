@@ -70,6 +70,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     spec = _spec(flight, maneuver)
     spec = with_changes(spec, spec_source(flight, maneuver), runs=runs, feedback=feedback)
     check_feedback(maneuver, spec, spec_source(flight, maneuver))
+    check_replanned_plan(maneuver, plan, spec, spec_source(flight, maneuver))
     return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
 
 
@@ -91,6 +92,19 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
     if reason:
         raise ConfigError(source, "flight.feedback", f"mpc re-plans by the indirect method's Newton step, which "
                           f"does not cover {reason}; fly this plan with none or lqr")
+
+
+def check_replanned_plan(maneuver, plan, spec: FlightSpec, source: str) -> None:
+    """ConfigError (``flight.feedback``) when MPC is asked for a plan that touches a path constraint the re-plans
+    only check (transcription.closedloop.mpc.touching; within the direct method's solver.direct.terminal_tol)."""
+    from ...transcription.closedloop.mpc import touching
+    from ..schema import ConfigError
+
+    tol = maneuver.direct.terminal_tol
+    reason = touching(maneuver.problem, plan.trajectory.X, tol) if "mpc" in spec.modes else ""
+    if reason:
+        raise ConfigError(source, "flight.feedback", f"mpc: {reason}, within solver.direct.terminal_tol {tol:g}: the "
+                          f"re-plans' Newton step leaves out a path constraint that is active; fly this plan with none or lqr")
 
 
 def spec_source(flight: Any, maneuver) -> str:

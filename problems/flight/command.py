@@ -12,7 +12,7 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import _spec, check_feedback, check_plan, load_flight, spec_source, with_changes
+from . import _spec, check_feedback, check_plan, check_replanned_plan, load_flight, spec_source, with_changes
 from .task import ELEMENT_METRICS
 
 
@@ -92,6 +92,7 @@ def cmd_fly(args) -> int:
     except ValueError as e:
         print(f"se3ocp: {man.name}: {e}", file=sys.stderr)
         return 1
+    check_replanned_plan(man, sol, spec, spec_source(args.flight, man))
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
         with results_transaction(args.out, Path("results") / "flights" / safe_name(man.name), args.force) as tx:
