@@ -70,6 +70,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     spec = _spec(flight, maneuver)
     spec = with_changes(spec, spec_source(flight, maneuver), runs=runs, feedback=feedback)
     check_feedback(maneuver, spec, spec_source(flight, maneuver))
+    check_truth(maneuver, spec, spec_source(flight, maneuver))
     check_replanned_plan(maneuver, plan, spec, spec_source(flight, maneuver))
     return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
 
@@ -92,6 +93,16 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
     if reason:
         raise ConfigError(source, "flight.feedback", f"mpc re-plans by the indirect method's Newton step, which "
                           f"does not cover {reason}; fly this plan with none or lqr")
+
+
+def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
+    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces)."""
+    from ..schema import ConfigError
+    from .forces import check_forces
+
+    bad = check_forces(maneuver, spec.resolved["truth"])
+    if bad:
+        raise ConfigError(source, f"flight.{bad[0]}", bad[1])
 
 
 def check_replanned_plan(maneuver, plan, spec: FlightSpec, source: str) -> None:

@@ -12,7 +12,8 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import _spec, check_feedback, check_plan, check_replanned_plan, load_flight, spec_source, with_changes
+from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, load_flight, spec_source,
+               with_changes)
 from .task import ELEMENT_METRICS
 
 
@@ -23,6 +24,7 @@ def _flight_spec(args, man):
     spec = load_flight(flight, man) if flight else _spec(None, man)
     spec = with_changes(spec, spec_source(flight, man), runs=args.runs, feedback=args.feedback)
     check_feedback(man, spec, spec_source(flight, man))
+    check_truth(man, spec, spec_source(flight, man))
     return spec
 
 

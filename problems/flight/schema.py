@@ -6,6 +6,8 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
       truth:
         gravity: {kind: j2, J2: 1.08e-3, radius: 0.9}   # the truth's gravity (default: the plan's); J2 and radius
                                                        # default to the maneuver's central_body preset's
+        drag: {cd: 2.2, area_m2: 4.0}                  # exponential atmosphere (problems.flight.forces); default none
+        srp: {cr: 1.3, area_m2: 4.0}                   # solar radiation pressure, a cannonball; default none
         integrator: cvodes                             # the continuous engine (transcription/flight)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
@@ -35,10 +37,11 @@ from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_E
 from ...transcription.closedloop.tracking import SCALE_KEYS
 from ..bodies import PRESETS
 from ..models import parse_gravity
+from .forces import FORCE_KEYS
 from ..schema import Validator
 
 FLIGHT_KEYS = ("truth", "errors", "feedback", "mpc", "weights", "runs", "seed")
-TRUTH_KEYS = ("gravity", "integrator", "samples")
+TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
@@ -127,6 +130,11 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
                 v.fail(f"{where}.truth.gravity.{k}", "missing required key (the j2 truth needs J2 and the central "
                                                      "body's radius; a maneuver with central_body: earth takes its preset's)")
     gravity = parse_gravity(v, g, f"{where}.truth.gravity") if "gravity" in t else None
+    forces = {}
+    for name, keys in FORCE_KEYS.items():
+        if name in t:
+            block = v.mapping(t[name], f"{where}.truth.{name}", keys, required=keys)
+            forces[name] = {k: v.number(block[k], f"{where}.truth.{name}.{k}", positive=True) for k in keys}
     v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
     samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
                        at_most=MAX_SAMPLES)
@@ -148,7 +156,7 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
     mpc["between"] = v.choice(m.get("between", "lqr"), f"{where}.mpc.between", MPC_BETWEEN)
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
-    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), "integrator": "cvodes", "samples": samples},
+    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, "integrator": "cvodes", "samples": samples},
                 "errors": errors, "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
                       runs=runs, seed=seed, resolved=resolved, mpc=mpc)

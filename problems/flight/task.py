@@ -19,6 +19,7 @@ from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
+from .forces import truth_forces
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
 
@@ -156,10 +157,11 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
     (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
-    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times."""
+    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
+    forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
     if mode == "lqr" and lqr is not None:
         gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
@@ -174,7 +176,8 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None):
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
         if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
             law = TrackingLoop.of_gains(gains)
-    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples)
+    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
+                 disturbance=forces)
     return flight, tracker, law if mode == "mpc" else None
 
 
@@ -202,7 +205,7 @@ def fly_runs(task: dict) -> dict:
     spec = parse_flight(task["flight"], task["source"])
     gains = gains_of(task["plan"], spec.weights)
     lqr = gains_of(task["plan"], spec.weights, sub_steps=True) if "lqr" in spec.modes else None
-    base = truth_body(man, spec)
+    base, forces = truth_body(man, spec), truth_forces(man, spec.resolved["truth"])
     seeds = run_seeds(spec)
     usage = plan_usage(gains, spec.samples)
     rows, tracks, saved, replan_s = [], {}, {}, {}
@@ -215,7 +218,7 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr)
+                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:
