@@ -211,10 +211,12 @@ def test_mpc_flies_an_earth_preset_maneuver_and_keeps_its_clearance(tmp_path):
     for mode in ("none", "mpc"):
         flown = np.linalg.norm(res.saved[0][f"{mode}_X"][:, :3], axis=1).min() - 6378.1366
         assert rows[mode]["min_margin_min_radius"] == pytest.approx(flown, abs=1e-9) and flown > 390.0
+    assert res.summary()["mpc"]["checked_constraints"] == ["min_radius 6378.14"]
     f = tmp_path / "flight.yaml"
     f.write_text(f"flight: {block}\n")
     assert main(["fly", "configs/leo_raise_slew.yaml", "--set", "horizon.N=40", "--flight", str(f), "--feedback", "mpc",
                  "--workers", "1", "--out", str(tmp_path / "o"), "--quiet", "--no-figures"]) == 0
+    assert "The re-plans leave\nmin_radius 6378.14 out of their Newton step" in (tmp_path / "o" / "report.html").read_text()
 
 
 def test_a_replan_whose_prediction_cuts_inside_the_radius_is_rejected():

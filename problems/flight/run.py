@@ -8,6 +8,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...transcription.closedloop.mpc import checked_constraints
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload
@@ -90,11 +91,13 @@ class FlightResult:
     def replan_summary(self) -> dict:
         """The re-planning options and every re-plan's times (ms) pooled over the finished runs -- from the flown
         state to the new plan (``solve_ms``) and the preparation before it (``prepare_ms``): median, p95, max --
-        and how many (summary.json ``mpc``; timings, so not among the statistics)."""
+        and how many (summary.json ``mpc``; timings, so not among the statistics); the path constraints the re-plans
+        check on their predicted nodes (transcription.closedloop.mpc.checked_constraints)."""
         ms = 1e3 * np.array([t for run in sorted(self.replan_s) for t in self.replan_s[run]], float).reshape(-1, 2)
         rejected = sum(int(r.get("replans_rejected", 0)) for r in self.rows if r["feedback"] == "mpc")
+        checked = [f"{c.kind} {c.limit:.6g}" for c in checked_constraints(self.maneuver.problem)]
         return {**self.spec.mpc, "replans": int(ms.shape[0]), "rejected": rejected, "solve_ms": timing(ms[:, 0]),
-                "prepare_ms": timing(ms[:, 1])}
+                "prepare_ms": timing(ms[:, 1]), "checked_constraints": checked}
 
 
 def timing(ms: np.ndarray) -> dict:
