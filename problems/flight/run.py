@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 
-from ...transcription.closedloop.mpc import checked_constraints
+from ...transcription.closedloop.mpc import checked_constraints, polished
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload
@@ -39,6 +39,7 @@ class FlightResult:
     executor: str = "serial"
     workers: int | None = 1
     lqr_gains: object = None      # the LQR flights' tracker when it is not ``gains`` (a non-uniform plan's sub-steps)
+    mpc_warm_start: str = ""      # which costates the re-plans start from (transcription.closedloop.mpc.polished)
     wall_s: float = 0.0
     interrupted: bool = False
 
@@ -97,7 +98,7 @@ class FlightResult:
         rejected = sum(int(r.get("replans_rejected", 0)) for r in self.rows if r["feedback"] == "mpc")
         checked = [f"{c.kind} {c.limit:.6g}" for c in checked_constraints(self.maneuver.problem)]
         return {**self.spec.mpc, "replans": int(ms.shape[0]), "rejected": rejected, "solve_ms": timing(ms[:, 0]),
-                "prepare_ms": timing(ms[:, 1]), "checked_constraints": checked}
+                "prepare_ms": timing(ms[:, 1]), "checked_constraints": checked, "warm_start": self.mpc_warm_start}
 
 
 def timing(ms: np.ndarray) -> dict:
@@ -144,11 +145,13 @@ def run_flights(man: Maneuver, sol, spec: FlightSpec, *, workers: int | None = N
     feedback mode, in tasks of a few runs on the executor (in-process, local pool, Dask).
 
     save_runs: the first runs whose whole flights are kept (runs/NNNN.npz).  progress(done, total) after
-    each task (runs).  On KeyboardInterrupt the workers are stopped and the exception carries the runs
+    each task (runs).  With MPC the re-plans start from the plan's costates polished by the indirect method
+    (transcription.closedloop.mpc.polished).  On KeyboardInterrupt the workers are stopped and the exception carries the runs
     finished so far as ``exc.partial`` (a FlightResult with ``interrupted``)."""
+    sol, warm = polished(sol) if "mpc" in spec.modes else (sol, "")
     payload = plan_payload(man, sol)
     gains = gains_of(payload, spec.weights)
-    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [])
+    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [], mpc_warm_start=warm)
     if "lqr" in spec.modes and gains.steps is not None:
         res.lqr_gains = gains_of(payload, spec.weights, sub_steps=True)
     ex = executor or make_executor(workers, scheduler)

@@ -86,17 +86,38 @@ def touching(problem, X: np.ndarray, tol: float) -> str:
     return ""
 
 
+def replanned_problem(problem):
+    """The problem a re-plan's Newton step solves: ``problem`` without the constraints it checks instead
+    (:func:`checked_constraints`)."""
+    if not checked_constraints(problem):
+        return problem
+    return problem.replace(constraints=tuple(c for c in problem.constraints if c.kind not in CHECKED_CONSTRAINTS))
+
+
 def replan_not_covered(problem) -> str:
     """What of ``problem`` the re-planner does not cover ('' if nothing): what the indirect method does not cover with
-    the effort law (:func:`~.methods.indirect.solve.not_covered`) but the constraints the re-plans check
-    (:func:`checked_constraints`), and an orbit target (the re-plan's shooting is the state target's)."""
-    checked = checked_constraints(problem)
-    rest = problem.replace(constraints=tuple(c for c in problem.constraints if c.kind not in CHECKED_CONSTRAINTS)) \
-        if checked else problem
-    reasons = [r for r in (not_covered(rest, replan=True),) if r]
+    the effort law (:func:`~.methods.indirect.solve.not_covered`) on :func:`replanned_problem`, and an orbit target
+    (the re-plan's shooting is the state target's)."""
+    reasons = [r for r in (not_covered(replanned_problem(problem), replan=True),) if r]
     if isinstance(problem.terminal, TargetOrbit):
         reasons.append("an orbit target in a re-plan")
     return ", ".join(reasons)
+
+
+def polished(plan) -> tuple[object, str]:
+    """(the plan Solution with the warm start the re-plans take, a sentence saying which).  A direct plan's costates
+    are IPOPT's multipliers, accurate to its tolerance, and a re-plan's shooting over a long horizon amplifies their
+    error: the plan's warm start is polished by the indirect method's Newton shooting of :func:`replanned_problem`
+    from the plan itself (one solve, a few iterations), and kept as it is when that does not converge."""
+    from ..solve import solve
+
+    if plan.method == "indirect":
+        return plan, "the indirect plan's own costates"
+    ind = solve(replanned_problem(plan.problem), "indirect", warm_start=plan)
+    if not ind.converged or ind.warm is None:
+        return plan, f"the {plan.method} plan's costates (the indirect method's polish did not converge: {ind.result})"
+    return dataclasses.replace(plan, warm=ind.warm), (f"the {plan.method} plan's costates polished by the indirect "
+                                                      f"method (|z_N| {ind.terminal_error:.1e})")
 
 
 class Replanner:
