@@ -85,8 +85,8 @@ def cmd_fly(args) -> int:
     from ..sweep.executors import make_executor
     from ..units import units
     from .output import write_flights
-    from .run import FlightResult, run_flights
-    from .schema import preset_text
+    from .run import run_flights
+    from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
     try:
@@ -101,7 +101,7 @@ def cmd_fly(args) -> int:
             where = {"serial": "in-process", "local": f"a local pool of {ex.workers} workers",
                      "dask": f"the Dask cluster at {args.scheduler}"}[ex.kind]
             _say(args, f"{man.name}: {spec.runs} runs x {' and '.join(spec.modes)} on {where} -> {tx.target}/")
-            taken = FlightResult(man, spec, {}, None, []).truth_from_preset()
+            taken = truth_from_preset(spec.gravity, man.physical)
             if taken:
                 _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
             bar = FlightProgress(quiet=args.quiet)

@@ -12,7 +12,7 @@ from ...transcription.closedloop.mpc import checked_constraints, polished
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload
-from .schema import FlightSpec, from_preset, preset_gravity
+from .schema import FlightSpec, truth_from_preset
 from .task import fly_runs, gains_of, metric_keys, miss_frame, plan_usage
 
 #: the percentiles of summary.json (p99.7: the 3-sigma level of a Gaussian)
@@ -77,17 +77,10 @@ class FlightResult:
                 out[key] = p95_ratios(stats["none"], stats[mode])
         if "mpc" in stats:
             out["mpc"] = self.replan_summary()
-        taken = self.truth_from_preset()
+        taken = truth_from_preset(self.spec.gravity, self.maneuver.physical)
         if taken:
             out["truth_from_preset"] = taken
         return out
-
-    def truth_from_preset(self) -> dict:
-        """{preset, source, values: {J2, radius}} when the truth's j2 gravity has its central-body preset's numbers
-        (schema.from_preset; summary.json ``truth_from_preset``), else {}."""
-        preset = preset_gravity(self.maneuver.physical)
-        values = from_preset(self.spec.gravity, preset)
-        return {"preset": preset["name"], "source": preset["source"], "values": values} if values else {}
 
     def replan_summary(self) -> dict:
         """The re-planning options and every re-plan's times (ms) pooled over the finished runs -- from the flown

@@ -96,16 +96,19 @@ def preset_gravity(physical) -> dict | None:
     return {"name": physical.preset, "source": body.source, "J2": values["J2"], "radius": values["radius"]}
 
 
-def from_preset(gravity: dict | None, preset: dict | None) -> dict:
-    """The truth gravity's J2 and radius that are the preset's (:func:`preset_gravity`), {key: value}: those
-    :func:`parse_flight` took from it (and any typed equal to it); {} without a preset or a j2 truth."""
+def truth_from_preset(gravity: dict | None, physical) -> dict:
+    """{preset, source, values: {J2, radius}} when the truth's j2 gravity (FlightSpec.gravity) has numbers of the
+    maneuver's central-body preset (:func:`preset_gravity` of its ``physical``): those :func:`parse_flight` took from
+    it (and any typed equal to it); {} without a preset or a j2 truth (summary.json ``truth_from_preset``)."""
+    preset = preset_gravity(physical)
     if not gravity or gravity.get("kind") != "j2" or preset is None:
         return {}
-    return {k: gravity[k] for k in ("J2", "radius") if gravity[k] == preset[k]}
+    values = {k: gravity[k] for k in ("J2", "radius") if gravity[k] == preset[k]}
+    return {"preset": preset["name"], "source": preset["source"], "values": values} if values else {}
 
 
 def preset_text(taken: dict, length_unit: str) -> str:
-    """One line saying which truth numbers are the preset's, from FlightResult.truth_from_preset ({preset, source,
+    """One line saying which truth numbers are the preset's, from :func:`truth_from_preset` ({preset, source,
     values}): 'the truth's J2 = 0.0010826359 and radius = 6378.1366 km are the earth preset's (IERS ...)'."""
     if not taken:
         return ""
