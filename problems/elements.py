@@ -98,4 +98,29 @@ def elements_of(mu: float, x, v) -> dict[str, float]:
             "nu_deg": nu % 360.0}
 
 
-__all__ = ["ELEMENT_KEYS", "ElementsError", "check_elements", "elements_of", "state_of"]
+#: the element differences of :func:`element_differences`: (key, element, quantity of problems.units.DIMENSIONS)
+ELEMENT_DIFFERENCES = (("a", "semi-major axis a", "length"), ("e", "eccentricity e", "none"),
+                       ("i_deg", "inclination i", "angle"), ("raan_deg", "right ascension of the node Ω", "angle"),
+                       ("u_deg", "argument of latitude u = ω + ν", "angle"))
+
+
+def element_differences(mu: float, x, v, x_ref, v_ref) -> dict[str, float]:
+    """Osculating elements of (x, v) minus those of (x_ref, v_ref) about GM = mu (positions (3,) and velocities (3,)
+    inertial, in one set of units): {a (length unit), e, i_deg, raan_deg, u_deg}, the angles wrapped to
+    [-180, 180) deg.  The argument of latitude u = ω + ν (the angle from the node to the position in the orbit
+    plane) stays defined as e -> 0, where ω and ν do not; on an equatorial orbit Ω = 0 and u is the true longitude
+    (from e1), so near i = 0 ΔΩ and Δu trade against each other and only their sum means anything."""
+    el, ref = elements_of(mu, x, v), elements_of(mu, x_ref, v_ref)
+
+    def wrap(d):
+        return (d + 180.0) % 360.0 - 180.0
+
+    def u(e):
+        return e["argp_deg"] + e["nu_deg"]
+
+    return {"a": el["a"] - ref["a"], "e": el["e"] - ref["e"], "i_deg": el["i_deg"] - ref["i_deg"],
+            "raan_deg": wrap(el["raan_deg"] - ref["raan_deg"]), "u_deg": wrap(u(el) - u(ref))}
+
+
+__all__ = ["ELEMENT_DIFFERENCES", "ELEMENT_KEYS", "ElementsError", "check_elements", "element_differences", "elements_of",
+           "state_of"]

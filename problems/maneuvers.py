@@ -240,8 +240,8 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                                                                             "radius": body_constraint.radius}]
 
     if "flight" in doc:  # how the plan is flown (problems/flight): checked here, used by `se3ocp fly`
-        from .flight.schema import parse_flight
-        resolved["flight"] = parse_flight(doc["flight"], source).resolved
+        from .flight.schema import parse_flight, preset_gravity
+        resolved["flight"] = parse_flight(doc["flight"], source, preset=preset_gravity(phys)).resolved
     sdoc = v.mapping(doc.get("solver", {}), "solver", ("direct", "indirect", *AccuracyOptions.KEYS))
     direct = _options(v, DirectOptions, sdoc.get("direct", {}), "solver.direct")
     indirect = _options(v, IndirectOptions, sdoc.get("indirect", {}), "solver.indirect")

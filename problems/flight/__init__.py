@@ -31,20 +31,21 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .run import FlightResult, run_flights
-from .schema import FlightSpec, parse_flight, with_changes
+from .schema import FlightSpec, parse_flight, preset_gravity, with_changes
 
 __all__ = ["FlightResult", "FlightSpec", "fly", "load_flight", "parse_flight", "run_flights", "with_changes"]
 
 
-def load_flight(path: str | Path) -> FlightSpec:
+def load_flight(path: str | Path, maneuver=None) -> FlightSpec:
     """The flight block of a YAML file holding ``{flight: {...}}`` (a maneuver file with one, or a file of
-    its own); ConfigError naming the file and field."""
+    its own) for ``maneuver`` (its central-body preset fills a j2 truth's J2 and radius); ConfigError naming the
+    file and field."""
     from ..schema import Validator, read_yaml_file
 
     doc = read_yaml_file(path)
     if not isinstance(doc, dict) or "flight" not in doc:
         Validator(str(path)).fail("flight", "missing: the file must hold a mapping with a 'flight' block")
-    return parse_flight(doc["flight"], str(path))
+    return parse_flight(doc["flight"], str(path), preset=preset_gravity(getattr(maneuver, "physical", None)))
 
 
 def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuver=None, runs: int | None = None,
@@ -69,6 +70,8 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     spec = _spec(flight, maneuver)
     spec = with_changes(spec, spec_source(flight, maneuver), runs=runs, feedback=feedback)
     check_feedback(maneuver, spec, spec_source(flight, maneuver))
+    check_truth(maneuver, spec, spec_source(flight, maneuver))
+    check_replanned_plan(maneuver, plan, spec, spec_source(flight, maneuver))
     return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
 
 
@@ -92,6 +95,29 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
                           f"does not cover {reason}; fly this plan with none or lqr")
 
 
+def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
+    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces)."""
+    from ..schema import ConfigError
+    from .forces import check_forces
+
+    bad = check_forces(maneuver, spec.resolved["truth"])
+    if bad:
+        raise ConfigError(source, f"flight.{bad[0]}", bad[1])
+
+
+def check_replanned_plan(maneuver, plan, spec: FlightSpec, source: str) -> None:
+    """ConfigError (``flight.feedback``) when MPC is asked for a plan that touches a path constraint the re-plans
+    only check (transcription.closedloop.mpc.touching; within the direct method's solver.direct.terminal_tol)."""
+    from ...transcription.closedloop.mpc import touching
+    from ..schema import ConfigError
+
+    tol = maneuver.direct.terminal_tol
+    reason = touching(maneuver.problem, plan.trajectory.X, tol) if "mpc" in spec.modes else ""
+    if reason:
+        raise ConfigError(source, "flight.feedback", f"mpc: {reason}, within solver.direct.terminal_tol {tol:g}: the "
+                          f"re-plans' Newton step leaves out a path constraint that is active; fly this plan with none or lqr")
+
+
 def spec_source(flight: Any, maneuver) -> str:
     return str(flight) if isinstance(flight, (str, Path)) else maneuver.source
 
@@ -100,7 +126,7 @@ def _spec(flight: Any, maneuver) -> FlightSpec:
     if isinstance(flight, FlightSpec):
         return flight
     if isinstance(flight, (str, Path)):
-        return load_flight(flight)
+        return load_flight(flight, maneuver)
     if flight is None:
         flight = maneuver.resolved.get("flight", {})
-    return parse_flight(dict(flight), maneuver.source)
+    return parse_flight(dict(flight), maneuver.source, preset=preset_gravity(maneuver.physical))

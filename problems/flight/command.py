@@ -12,16 +12,19 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import _spec, check_feedback, check_plan, load_flight, spec_source, with_changes
+from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, load_flight, spec_source,
+               with_changes)
+from .task import ELEMENT_METRICS
 
 
 def _flight_spec(args, man):
     """The flight block flown: --flight FILE, else the maneuver's own, with --runs and --feedback; ConfigError
     when it cannot be flown (MPC for a plan the re-planner does not cover)."""
     flight = args.flight
-    spec = load_flight(flight) if flight else _spec(None, man)
+    spec = load_flight(flight, man) if flight else _spec(None, man)
     spec = with_changes(spec, spec_source(flight, man), runs=args.runs, feedback=args.feedback)
     check_feedback(man, spec, spec_source(flight, man))
+    check_truth(man, spec, spec_source(flight, man))
     return spec
 
 
@@ -80,8 +83,10 @@ class FlightProgress:
 def cmd_fly(args) -> int:
     from ..cli.signals import Interrupt
     from ..sweep.executors import make_executor
+    from ..units import units
     from .output import write_flights
     from .run import run_flights
+    from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
     try:
@@ -89,12 +94,16 @@ def cmd_fly(args) -> int:
     except ValueError as e:
         print(f"se3ocp: {man.name}: {e}", file=sys.stderr)
         return 1
+    check_replanned_plan(man, sol, spec, spec_source(args.flight, man))
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
         with results_transaction(args.out, Path("results") / "flights" / safe_name(man.name), args.force) as tx:
             where = {"serial": "in-process", "local": f"a local pool of {ex.workers} workers",
                      "dask": f"the Dask cluster at {args.scheduler}"}[ex.kind]
             _say(args, f"{man.name}: {spec.runs} runs x {' and '.join(spec.modes)} on {where} -> {tx.target}/")
+            taken = truth_from_preset(spec.gravity, man.physical)
+            if taken:
+                _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
             bar = FlightProgress(quiet=args.quiet)
             try:
                 res = run_flights(man, sol, spec, executor=ex, save_runs=args.save_runs, progress=bar,
@@ -118,16 +127,28 @@ def cmd_fly(args) -> int:
     return 1 if res.failed else 0
 
 
+#: the figures of the command's table, in its order (those the flight has; report.ROWS gives their quantities)
+TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ELEMENT_METRICS, "delta_v_overhead",
+              "saturated_fraction")
+
+
 def table(res) -> list[str]:
-    """p95 (and mean) of the headline figures, one column per feedback mode."""
+    """p95 (and mean) of the headline figures with their units (problems.flight.report.shown: m/s and deg for a km
+    file), one column per feedback mode."""
+    from ..units import units
+    from .report import ROWS, shown
+
     stats = res.statistics()
+    un, quantity = units(res.maneuver.problem), {k: q for k, _, q, _ in ROWS}
     modes = list(stats)
-    rows = [f"{'p95 (mean)':<22}" + "".join(f"{m:>26}" for m in modes)]
-    for key in ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", "delta_v_overhead",
-                "saturated_fraction"):
+    rows = [f"{'p95 (mean)':<22}{'unit':<9}" + "".join(f"{m:>26}" for m in modes)]
+    for key in TABLE_KEYS:
+        if key not in res.metrics:
+            continue
+        unit, factor = shown(un, quantity[key])
         cells = []
         for m in modes:
             d = stats[m][key]
-            cells.append(f"{'-':>26}" if d["n"] == 0 else f"{d['p95']:>13.3e} ({d['mean']:.2e})")
-        rows.append(f"{key:<22}" + "".join(cells))
+            cells.append(f"{'-':>26}" if d["n"] == 0 else f"{factor * d['p95']:>13.3e} ({factor * d['mean']:.2e})")
+        rows.append(f"{key:<22}{unit:<9}" + "".join(cells))
     return rows

@@ -17,8 +17,10 @@ import math
 import re
 from pathlib import Path
 
+from ..elements import ELEMENT_DIFFERENCES
 from ..io import atomic_write_bytes
 from ..units import DIMENSIONS, MARGIN_DIMENSION, Units, units
+from .schema import preset_text
 
 #: the page templates (the solve report's and this one)
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
@@ -37,6 +39,7 @@ ROWS = (
     ("saturated_fraction", "steps whose correction the bounds limited", "%", "{:.2f}"),
     ("max_position_deviation", "largest position deviation from the plan", "length", "{:.3e}"),
     ("max_attitude_deviation_deg", "largest attitude deviation from the plan", "angle", "{:.3e}"),
+    *((f"miss_{k}", f"terminal miss in osculating {name}", q, "{:.3e}") for k, name, q in ELEMENT_DIFFERENCES),
 )
 #: the columns of each feedback mode
 STATS = (("mean", "mean"), ("p95", "p95"), ("p99_7", "p99.7"))
@@ -64,9 +67,22 @@ def stylesheet() -> str:
     return m.group(1) if m else ""
 
 
+def shown(un: Units, q: str) -> tuple[str, float]:
+    """(unit, factor) a flight's tables show a quantity ``q`` in (shown value = factor * value): '%' for a fraction,
+    a physical file's velocities in m/s, forces and moments in N and N·m (problems.units), the others in the file's
+    units (:class:`~problems.units.Units`); ``q`` outside DIMENSIONS is itself the unit."""
+    if q == "%":
+        return "%", 100.0
+    if q not in DIMENSIONS:
+        return q, 1.0
+    if q == "velocity" and un.system is not None:
+        return "m/s", un.system.si("velocity")
+    return un.unit(q), un.factor(q)
+
+
 def table(summary: dict, un: Units, tol: float = 0.0) -> list[dict]:
     """The statistics table: a row per figure of merit any mode has, cells (mean, p95, p99.7) per mode;
-    overheads and fractions in %, forces and moments in the report's units; a margin row ``bad`` where one of
+    units by :func:`shown`; a margin row ``bad`` where one of
     its statistics is below -tol (a path constraint violated by more than round-off)."""
     stats = summary["statistics"]
     rows = list(ROWS)
@@ -77,7 +93,7 @@ def table(summary: dict, un: Units, tol: float = 0.0) -> list[dict]:
     for key, label, q, fmt in rows:
         if not any(stats[m].get(key, {}).get("n") for m in stats):
             continue
-        factor = 100.0 if q == "%" else un.factor(q) if q in DIMENSIONS else 1.0
+        unit, factor = shown(un, q)
         cells = []
         for m in stats:
             d = stats[m].get(key, {})
@@ -85,7 +101,7 @@ def table(summary: dict, un: Units, tol: float = 0.0) -> list[dict]:
                 v = d.get(s)
                 cells.append("—" if v is None or not math.isfinite(v) else fmt.format(factor * v))
         values = [stats[m].get(key, {}).get(st) for m in stats for st, _ in STATS]
-        out.append({"label": label, "unit": q if q == "%" else un.unit(q) if q in DIMENSIONS else q, "cells": cells,
+        out.append({"label": label, "unit": unit, "cells": cells,
                     "bad": key.startswith("min_margin_") and any(v is not None and v < -tol for v in values)})
     return out
 
@@ -108,7 +124,7 @@ def render(summary: dict, un: Units, images: list[tuple[str, str, bytes]], fligh
         stats=[label for _, label in STATS], rows=table(summary, un, tol), ratios=ratios, mpc=summary.get("mpc"),
         generated=_dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         figures=[{"name": n, "caption": c, "data": base64.b64encode(b).decode("ascii")} for n, c, b in images],
-        flight=flight_text, config=config_text)
+        flight=flight_text, config=config_text, preset=preset_text(summary.get("truth_from_preset", {}), un.unit("length")))
 
 
 def write_flight_report(d: Path, summary: dict | None = None) -> Path:

@@ -8,12 +8,12 @@ from typing import Callable
 
 import numpy as np
 
-from ...transcription.results.check import margin_keys
+from ...transcription.closedloop.mpc import checked_constraints, polished
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .plan import plan_payload
-from .schema import FlightSpec
-from .task import METRICS, fly_runs, gains_of, miss_frame, plan_usage
+from .schema import FlightSpec, truth_from_preset
+from .task import fly_runs, gains_of, metric_keys, miss_frame, plan_usage
 
 #: the percentiles of summary.json (p99.7: the 3-sigma level of a Gaussian)
 PERCENTILES = {"p50": 50.0, "p95": 95.0, "p99_7": 99.7}
@@ -39,12 +39,13 @@ class FlightResult:
     executor: str = "serial"
     workers: int | None = 1
     lqr_gains: object = None      # the LQR flights' tracker when it is not ``gains`` (a non-uniform plan's sub-steps)
+    mpc_warm_start: str = ""      # which costates the re-plans start from (transcription.closedloop.mpc.polished)
     wall_s: float = 0.0
     interrupted: bool = False
 
     @property
     def metrics(self) -> tuple:
-        return METRICS + tuple(margin_keys(self.maneuver.problem.constraints))
+        return metric_keys(self.maneuver.problem)
 
     @property
     def finished_runs(self) -> int:
@@ -76,16 +77,21 @@ class FlightResult:
                 out[key] = p95_ratios(stats["none"], stats[mode])
         if "mpc" in stats:
             out["mpc"] = self.replan_summary()
+        taken = truth_from_preset(self.spec.gravity, self.maneuver.physical)
+        if taken:
+            out["truth_from_preset"] = taken
         return out
 
     def replan_summary(self) -> dict:
         """The re-planning options and every re-plan's times (ms) pooled over the finished runs -- from the flown
         state to the new plan (``solve_ms``) and the preparation before it (``prepare_ms``): median, p95, max --
-        and how many (summary.json ``mpc``; timings, so not among the statistics)."""
+        and how many (summary.json ``mpc``; timings, so not among the statistics); the path constraints the re-plans
+        check on their predicted nodes (transcription.closedloop.mpc.checked_constraints)."""
         ms = 1e3 * np.array([t for run in sorted(self.replan_s) for t in self.replan_s[run]], float).reshape(-1, 2)
         rejected = sum(int(r.get("replans_rejected", 0)) for r in self.rows if r["feedback"] == "mpc")
+        checked = [f"{c.kind} {c.limit:.6g}" for c in checked_constraints(self.maneuver.problem)]
         return {**self.spec.mpc, "replans": int(ms.shape[0]), "rejected": rejected, "solve_ms": timing(ms[:, 0]),
-                "prepare_ms": timing(ms[:, 1])}
+                "prepare_ms": timing(ms[:, 1]), "checked_constraints": checked, "warm_start": self.mpc_warm_start}
 
 
 def timing(ms: np.ndarray) -> dict:
@@ -132,11 +138,13 @@ def run_flights(man: Maneuver, sol, spec: FlightSpec, *, workers: int | None = N
     feedback mode, in tasks of a few runs on the executor (in-process, local pool, Dask).
 
     save_runs: the first runs whose whole flights are kept (runs/NNNN.npz).  progress(done, total) after
-    each task (runs).  On KeyboardInterrupt the workers are stopped and the exception carries the runs
+    each task (runs).  With MPC the re-plans start from the plan's costates polished by the indirect method
+    (transcription.closedloop.mpc.polished).  On KeyboardInterrupt the workers are stopped and the exception carries the runs
     finished so far as ``exc.partial`` (a FlightResult with ``interrupted``)."""
+    sol, warm = polished(sol) if "mpc" in spec.modes else (sol, "")
     payload = plan_payload(man, sol)
     gains = gains_of(payload, spec.weights)
-    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [])
+    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [], mpc_warm_start=warm)
     if "lqr" in spec.modes and gains.steps is not None:
         res.lqr_gains = gains_of(payload, spec.weights, sub_steps=True)
     ex = executor or make_executor(workers, scheduler)

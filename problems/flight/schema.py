@@ -4,7 +4,10 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
 
     flight:
       truth:
-        gravity: {kind: j2, J2: 1.08e-3, radius: 0.9}   # the truth's gravity (default: the plan's)
+        gravity: {kind: j2, J2: 1.08e-3, radius: 0.9}   # the truth's gravity (default: the plan's); J2 and radius
+                                                       # default to the maneuver's central_body preset's
+        drag: {cd: 2.2, area_m2: 4.0}                  # exponential atmosphere (problems.flight.forces); default none
+        srp: {cr: 1.3, area_m2: 4.0}                   # solar radiation pressure, a cannonball; default none
         integrator: cvodes                             # the continuous engine (transcription/flight)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
@@ -32,11 +35,13 @@ from typing import Any
 from ...transcription.dynamics.flight import DEFAULT_SAMPLES
 from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_EVERY
 from ...transcription.closedloop.tracking import SCALE_KEYS
+from ..bodies import PRESETS
 from ..models import parse_gravity
+from .forces import FORCE_KEYS
 from ..schema import Validator
 
 FLIGHT_KEYS = ("truth", "errors", "feedback", "mpc", "weights", "runs", "seed")
-TRUTH_KEYS = ("gravity", "integrator", "samples")
+TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
@@ -81,12 +86,58 @@ def default_errors() -> dict:
     return {"initial": {k: 0.0 for k in INITIAL_KEYS}, **{k: 0.0 for k in ERROR_KEYS if k != "initial"}}
 
 
-def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight") -> FlightSpec:
-    """Validate a flight block (the mapping under ``flight:``); FlightSpec or ConfigError naming ``where.FIELD``."""
+def preset_gravity(physical) -> dict | None:
+    """{name, source, J2, radius} of a maneuver's central-body preset (problems.bodies.PRESETS; radius in the file's
+    length unit) from its ``Maneuver.physical``, or None (no preset)."""
+    if physical is None or physical.preset is None:
+        return None
+    body = PRESETS[physical.preset]
+    values = body.in_units(physical.units.length)
+    return {"name": physical.preset, "source": body.source, "J2": values["J2"], "radius": values["radius"]}
+
+
+def truth_from_preset(gravity: dict | None, physical) -> dict:
+    """{preset, source, values: {J2, radius}} when the truth's j2 gravity (FlightSpec.gravity) has numbers of the
+    maneuver's central-body preset (:func:`preset_gravity` of its ``physical``): those :func:`parse_flight` took from
+    it (and any typed equal to it); {} without a preset or a j2 truth (summary.json ``truth_from_preset``)."""
+    preset = preset_gravity(physical)
+    if not gravity or gravity.get("kind") != "j2" or preset is None:
+        return {}
+    values = {k: gravity[k] for k in ("J2", "radius") if gravity[k] == preset[k]}
+    return {"preset": preset["name"], "source": preset["source"], "values": values} if values else {}
+
+
+def preset_text(taken: dict, length_unit: str) -> str:
+    """One line saying which truth numbers are the preset's, from :func:`truth_from_preset` ({preset, source,
+    values}): 'the truth's J2 = 0.0010826359 and radius = 6378.1366 km are the earth preset's (IERS ...)'."""
+    if not taken:
+        return ""
+    unit = {"J2": "", "radius": f" {length_unit}" if length_unit else ""}
+    what = " and ".join(f"{k} = {v:.10g}{unit[k]}" for k, v in taken["values"].items())
+    return f"the truth's {what} {'are' if len(taken['values']) > 1 else 'is'} the {taken['preset']} preset's ({taken['source']})"
+
+
+def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", preset: dict | None = None) -> FlightSpec:
+    """Validate a flight block (the mapping under ``flight:``); FlightSpec or ConfigError naming ``where.FIELD``.
+    ``preset``: the maneuver's central-body preset (:func:`preset_gravity`), whose J2 and radius a j2 truth gravity
+    takes where it does not give them (what it gives wins); the resolved block holds the numbers."""
     v = Validator(source)
     d = v.mapping({} if doc is None else doc, where, FLIGHT_KEYS)
     t = v.mapping(d.get("truth", {}), f"{where}.truth", TRUTH_KEYS)
-    gravity = parse_gravity(v, t["gravity"], f"{where}.truth.gravity") if "gravity" in t else None
+    g = t.get("gravity")
+    if isinstance(g, dict) and g.get("kind") == "j2":
+        if preset is not None:
+            g = {**g, "J2": g.get("J2", preset["J2"]), "radius": g.get("radius", preset["radius"])}
+        for k in ("J2", "radius"):
+            if k not in g:
+                v.fail(f"{where}.truth.gravity.{k}", "missing required key (the j2 truth needs J2 and the central "
+                                                     "body's radius; a maneuver with central_body: earth takes its preset's)")
+    gravity = parse_gravity(v, g, f"{where}.truth.gravity") if "gravity" in t else None
+    forces = {}
+    for name, keys in FORCE_KEYS.items():
+        if name in t:
+            block = v.mapping(t[name], f"{where}.truth.{name}", keys, required=keys)
+            forces[name] = {k: v.number(block[k], f"{where}.truth.{name}.{k}", positive=True) for k in keys}
     v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
     samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
                        at_most=MAX_SAMPLES)
@@ -108,7 +159,7 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight") -> F
     mpc["between"] = v.choice(m.get("between", "lqr"), f"{where}.mpc.between", MPC_BETWEEN)
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
-    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), "integrator": "cvodes", "samples": samples},
+    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, "integrator": "cvodes", "samples": samples},
                 "errors": errors, "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
                       runs=runs, seed=seed, resolved=resolved, mpc=mpc)

@@ -17,7 +17,9 @@ from ...transcription.closedloop.mpc import Replanner, Replanning
 from ...transcription.dynamics.trajectory import Trajectory
 from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
+from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
+from .forces import truth_forces
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
 
@@ -26,6 +28,9 @@ METRICS = ("position_miss", "miss_r", "miss_t", "miss_n", "velocity_miss", "atti
            "attitude_y_deg", "attitude_z_deg", "rate_miss", "delta_v", "delta_v_overhead", "delta_v_commanded",
            "delta_v_commanded_overhead", "angular_impulse", "peak_force", "peak_moment", "saturated_fraction",
            "max_position_deviation", "max_attitude_deviation_deg")
+#: the terminal misses in osculating elements about the central body (flown minus plan; only with a central body):
+#: a (length unit), e, i, Ω, u = ω + ν (deg; problems.elements.element_differences)
+ELEMENT_METRICS = tuple(f"miss_{k}" for k, _, _ in ELEMENT_DIFFERENCES)
 #: an MPC flight's re-plans (flights.csv; timings, so not among the statistics)
 MPC_COLUMNS = ("replans", "replans_rejected", "replan_ms_median", "replan_ms_max", "prepare_ms_median")
 #: the sampled errors reported with each flight (flights.csv)
@@ -64,6 +69,25 @@ def miss_components(X_N: np.ndarray, mass: float, dx: np.ndarray) -> np.ndarray:
     return rtn(X_N[None, X_POS], X_N[None, 3:6] / mass, np.asarray(dx, float)[None, :])[0]
 
 
+def metric_keys(problem) -> tuple:
+    """The figures of merit of a flight of ``problem``'s plan: METRICS, the element misses (ELEMENT_METRICS) with a
+    central body, and the margins of its path constraints."""
+    orbit = ELEMENT_METRICS if problem.model.mu else ()
+    return METRICS + orbit + tuple(margin_keys(problem.constraints))
+
+
+def element_misses(mu: float | None, X_N: np.ndarray, mass: float, x: np.ndarray, v: np.ndarray) -> dict:
+    """ELEMENT_METRICS of a flown terminal position x and velocity v (inertial) against the plan's last state X_N (18)
+    of a body of ``mass``, about GM ``mu``: {} without a central body, NaN where the plan does not move about it
+    (:func:`miss_frame` inertial: no orbit plane)."""
+    if not mu:
+        return {}
+    if miss_frame(X_N, mass) == "inertial":
+        return dict.fromkeys(ELEMENT_METRICS, math.nan)
+    d = element_differences(mu, x, v, X_N[X_POS], X_N[3:6] / mass)
+    return {f"miss_{k}": float(d[k]) for k, _, _ in ELEMENT_DIFFERENCES}
+
+
 def impulse(control_t: np.ndarray, u: np.ndarray) -> float:
     """sum over intervals of the trapezoidal integral of |u| over the samples: control_t (N, M+1), u (N, M+1, 3)."""
     n = np.linalg.norm(u, axis=-1)
@@ -83,12 +107,13 @@ def plan_usage(gains, samples: int) -> tuple[float, float]:
 
 
 def flight_metrics(flight, plan, tracker, usage: tuple, constraints) -> tuple[dict, dict]:
-    """The figures of merit (METRICS and the constraint margins) of one flight against the plan's nodes, and
-    its track (the position and attitude deviation at the nodes).  Misses are against the plan's last node:
-    position and velocity (inertial; the position's components in :func:`miss_frame`), the attitude angle
-    and rotation vector vee log(R_N^T R(T)) (body, deg), the rate |Omega(T) - Omega_N| (the truth's inertia).
-    delta_v: the integral of |u_f|/m applied by the actuators, delta_v_commanded: of the commands (both by
-    :func:`impulse` over the samples), their overheads over the plan's (``usage``)."""
+    """The figures of merit (:func:`metric_keys`) of one flight against the plan's nodes, and its track (the
+    position and attitude deviation at the nodes).  Misses are against the plan's last node: position and
+    velocity (inertial; the position's components in :func:`miss_frame`), the attitude angle and rotation vector
+    vee log(R_N^T R(T)) (body, deg), the rate |Omega(T) - Omega_N| (the truth's inertia), the osculating
+    elements (:func:`element_misses`).  delta_v: the integral of |u_f|/m applied by the actuators,
+    delta_v_commanded: of the commands (both by :func:`impulse` over the samples), their overheads over the
+    plan's (``usage``)."""
     X = flight.X.copy()
     R = nearest_rotation(flight.trajectory().R)
     X[:, X_ROT] = np.swapaxes(R, -1, -2).reshape(-1, 9)
@@ -114,6 +139,7 @@ def flight_metrics(flight, plan, tracker, usage: tuple, constraints) -> tuple[di
                peak_moment=float(np.linalg.norm(flight.control[..., 3:], axis=-1).max()),
                saturated_fraction=tracker.saturated_fraction if tracker is not None else 0.0,
                max_position_deviation=float(np.linalg.norm(dx, axis=1).max()), max_attitude_deviation_deg=float(dR.max()))
+    out.update(element_misses(plan.problem.model.mu, tr.X[-1], tr.mass, flown.x[-1], flown.v[-1]))
     out.update({key: float(np.min(c.margin(flown))) for key, c in zip(margin_keys(constraints), constraints)})
     out = {key: float(v) for key, v in out.items()}
     return out, {"dx": np.linalg.norm(dx, axis=1), "dR_deg": dR}
@@ -131,10 +157,11 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
     (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
-    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times."""
+    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
+    forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
     if mode == "lqr" and lqr is not None:
         gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
@@ -149,7 +176,8 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None):
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
         if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
             law = TrackingLoop.of_gains(gains)
-    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples)
+    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
+                 disturbance=forces)
     return flight, tracker, law if mode == "mpc" else None
 
 
@@ -177,7 +205,7 @@ def fly_runs(task: dict) -> dict:
     spec = parse_flight(task["flight"], task["source"])
     gains = gains_of(task["plan"], spec.weights)
     lqr = gains_of(task["plan"], spec.weights, sub_steps=True) if "lqr" in spec.modes else None
-    base = truth_body(man, spec)
+    base, forces = truth_body(man, spec), truth_forces(man, spec.resolved["truth"])
     seeds = run_seeds(spec)
     usage = plan_usage(gains, spec.samples)
     rows, tracks, saved, replan_s = [], {}, {}, {}
@@ -190,7 +218,7 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr)
+                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:

@@ -9,6 +9,13 @@ with the exact Jacobian, no line search (a real-time iteration: a preparation at
 Cayley residual above ``cayley_tol``, or misses the target by more than the warm start did is rejected and the current
 plan kept.  Why the indirect method: §12, *Why this solver*; what it does not cover the re-planner refuses.
 
+A minimum radius (a central body's clearance, which a preset adds to every maneuver) is carried as a condition of
+acceptance, not in the Newton step's optimality conditions: where it is inactive its multiplier is zero, so the
+conditions without it are the constrained problem's (§12, *Path constraints*); a re-plan whose predicted nodes come
+inside the radius is rejected (the current plan, which kept it, is flown on), and the flight's margins check it
+between the nodes too.  A plan that touches it (:func:`touching`: the constraint active, its multiplier not zero) is
+not re-planned this way.
+
 * :class:`Replanner` -- one Problem's re-plan: ``replan(X, tail) -> (new plan | None, Replan)``;
 * :class:`Replanning` -- the flight engine's control law (transcription.flight.ControlLaw): re-plans at
   k = 0, e, 2e, ... and flies the current plan's interval commands in between, optionally with the LQR
@@ -26,7 +33,7 @@ from ..dynamics.flight import interval_commands
 from ..geometry.state import NU, NX, NZ
 from ..methods.indirect.control import bound_data, weight_inverse
 from ..methods.indirect.shooting import shooting_functions
-from ..methods.indirect.solve import free_rows, not_covered
+from ..methods.indirect.solve import free_rows, lam0_from_costates, not_covered
 from ..options import IndirectOptions
 from ..ocp import TargetOrbit
 from .tracking import saturate
@@ -58,14 +65,59 @@ class Replan:
     prepare_s: float = 0.0
 
 
+#: the path constraints a re-plan carries as a condition of acceptance (module docstring)
+CHECKED_CONSTRAINTS = ("min_radius",)
+
+
+def checked_constraints(problem) -> tuple:
+    """The path constraints of ``problem`` the re-plans check on their predicted nodes (CHECKED_CONSTRAINTS)."""
+    return tuple(c for c in problem.constraints if c.kind in CHECKED_CONSTRAINTS)
+
+
+def touching(problem, X: np.ndarray, tol: float) -> str:
+    """'' unless the plan's nodes X (N+1, 18) come within ``tol`` (the constraint's unit) of a checked constraint's
+    bound (:func:`checked_constraints`), where it may be active and the re-plans' conditions without it are not the
+    problem's; else which, by how much and at which node."""
+    for c in checked_constraints(problem):
+        margins = np.array([float(c.expression(x, problem.model.inertia)) for x in np.asarray(X, float)])
+        k = int(np.argmin(margins))
+        if margins[k] <= tol:
+            return f"the plan touches its {c.kind} {c.limit:.6g} (margin {margins[k]:.3g} at node {k})"
+    return ""
+
+
+def replanned_problem(problem):
+    """The problem a re-plan's Newton step solves: ``problem`` without the constraints it checks instead
+    (:func:`checked_constraints`)."""
+    if not checked_constraints(problem):
+        return problem
+    return problem.replace(constraints=tuple(c for c in problem.constraints if c.kind not in CHECKED_CONSTRAINTS))
+
+
 def replan_not_covered(problem) -> str:
     """What of ``problem`` the re-planner does not cover ('' if nothing): what the indirect method does not cover with
-    the effort law (:func:`~.methods.indirect.solve.not_covered`), and an orbit target (the re-plan's shooting is the
-    state target's)."""
-    reasons = [r for r in (not_covered(problem, replan=True),) if r]
+    the effort law (:func:`~.methods.indirect.solve.not_covered`) on :func:`replanned_problem`, and an orbit target
+    (the re-plan's shooting is the state target's)."""
+    reasons = [r for r in (not_covered(replanned_problem(problem), replan=True),) if r]
     if isinstance(problem.terminal, TargetOrbit):
         reasons.append("an orbit target in a re-plan")
     return ", ".join(reasons)
+
+
+def polished(plan) -> tuple[object, str]:
+    """(the plan Solution with the warm start the re-plans take, a sentence saying which).  A direct plan's costates
+    are IPOPT's multipliers, accurate to its tolerance, and a re-plan's shooting over a long horizon amplifies their
+    error: the plan's warm start is polished by the indirect method's Newton shooting of :func:`replanned_problem`
+    from the plan itself (one solve, a few iterations), and kept as it is when that does not converge."""
+    from ..solve import solve
+
+    if plan.method == "indirect":
+        return plan, "the indirect plan's own costates"
+    ind = solve(replanned_problem(plan.problem), "indirect", warm_start=plan)
+    if not ind.converged or ind.warm is None:
+        return plan, f"the {plan.method} plan's costates (the indirect method's polish did not converge: {ind.result})"
+    return dataclasses.replace(plan, warm=ind.warm), (f"the {plan.method} plan's costates polished by the indirect "
+                                                      f"method (|z_N| {ind.terminal_error:.1e})")
 
 
 class Replanner:
@@ -83,6 +135,7 @@ class Replanner:
         self.problem, self.h, self.iterations, self.jit = problem, float(h), int(iterations), bool(jit)
         self.Xd, self.Winv, self.bd = problem.terminal.X, weight_inverse(problem), bound_data(problem)
         self.free, self.cayley_tol = free_rows(problem.terminal), float(cayley_tol)
+        self.checked = checked_constraints(problem)
 
     def steps(self, n: int) -> float | np.ndarray:
         """The step sizes of the last n steps (a shrinking horizon's remainder): h on a uniform mesh, else h_k =
@@ -95,17 +148,15 @@ class Replanner:
         return shooting_functions(self.problem.disc, int(n), self.jit)
 
     def start(self, plan: Start) -> Start:
-        """``plan`` with its shooting unknown: its own lam0, else from its costates (lgvi lambda_{-1} = A_0^T lambda_0 at
-        the plan's X_0 and h, as methods.indirect.solve.lam0_from_costates).  ValueError without costates."""
+        """``plan`` with its shooting unknown: its own lam0, else from its costates (methods.indirect.solve.
+        lam0_from_costates at the plan's X_0 and h: the LGVIs' lambda_{-1} = A_0^T lambda_0, lgvi_kepler's too).
+        ValueError without costates."""
         if plan.lam0 is not None:
             return plan
         if plan.costates is None:
             raise ValueError("MPC: the plan carries no costates to warm-start the re-plans from")
-        lam0 = np.asarray(plan.costates[0], float)
-        if plan.scheme == "lgvi":             # lambda_{-1} = A_0(X_0, [u_0; 0])^T lambda_0 at the plan's own X_0 and h
-            h0 = np.ravel(self.steps(plan.N))[0]   # step 0's size
-            A0 = np.array(self.problem.disc.variation(plan.X[0], np.r_[plan.U[:, 0], np.zeros(NU)], h0)[0])
-            lam0 = A0.T @ lam0
+        lam0 = lam0_from_costates(self.problem.replace(X0=np.asarray(plan.X[0], float)), plan.costates[0],
+                                  plan.U[:, 0], self.h, plan.U[:, 1] if plan.U.shape[1] > 1 else None)
         return Start(t=plan.t, X=plan.X, U=plan.U, scheme=plan.scheme, source=plan.source,
                          costates=plan.costates, lam0=np.asarray(lam0, float))
 
@@ -142,6 +193,9 @@ class Replanner:
             msg = f"the re-planned rollout is not finite or leaves a Cayley residual {float(np.max(res)):.1e}"
         elif ok and not (after <= before or after <= ACCEPT_BELOW):
             ok, msg = False, f"the re-plan misses its own target by more than the warm start ({after:.1e} > {before:.1e})"
+        elif ok:
+            msg = self.violated(Xs.T)
+            ok = not msg
         rec = Replan(k=int(k), horizon=int(n), residual_before=float(before), residual_after=after, solve_s=solve_s,
                      accepted=bool(ok), message=msg)
         if not ok:
@@ -151,6 +205,16 @@ class Replanner:
         new = Start(t=t, X=np.vstack([X[None, :], Xs.T]), U=U, scheme=tail.scheme,
                         source="mpc", costates=lams.T, lam0=lam)
         return new, rec
+
+    def violated(self, Xs: np.ndarray) -> str:
+        """'' when the predicted nodes Xs (n, 18) keep every checked constraint (:func:`checked_constraints`), else
+        which one they violate and by how much (its margin's unit)."""
+        inertia = self.problem.model.inertia
+        for c in self.checked:
+            worst = min(float(c.expression(x, inertia)) for x in Xs)
+            if worst < 0:
+                return f"the re-plan's prediction violates its {c.kind} {c.limit:.6g} by {-worst:.3g} at a node"
+        return ""
 
     def _residual(self, fns, lam, args) -> np.ndarray:
         """F: the shooting residual (z_N, lambda_{n-1} on free terminal rows) of one rollout."""

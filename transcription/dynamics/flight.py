@@ -45,16 +45,20 @@ class FlightError(RuntimeError):
 
 
 # --------------------------------------------------------------------------- equations of motion
-def equations_of_motion(model: BodyModel) -> ca.Function:
+def equations_of_motion(model: BodyModel, disturbance: ca.Function | None = None) -> ca.Function:
     """``flight_eom(X[18], u[6], Jinv[3x3]) -> Xdot[18]``: eqs. (1)-(4) (docs/mathematics.md §1),
 
-        x' = gamma/m,  gamma' = f(x, R) + u_f,  R' = R S(Omega),  Pi' = Pi x Omega + M(x, R) + u_m,
+        x' = gamma/m,  gamma' = f(x, R) + f_d(X) + u_f,  R' = R S(Omega),  Pi' = Pi x Omega + M(x, R) + u_m,
 
     Omega = Jinv Pi (body), u_f inertial and u_m body as they act on the body, f and M from
-    ``model.forces``; Xdot in the layout of transcription.geometry.state (vec(R') column-major)."""
+    ``model.forces``, f_d the truth's other forces (``disturbance``: X[18] -> f[3] inertial, e.g. drag and solar
+    radiation pressure, problems.flight.forces; none by default); Xdot in the layout of
+    transcription.geometry.state (vec(R') column-major)."""
     X, u, Jinv = ca.SX.sym("X", NX), ca.SX.sym("u", NU), ca.SX.sym("Jinv", 3, 3)
     x, gamma, R, Pi = split_state(X)
     f, M = model.forces(x, R)
+    if disturbance is not None:
+        f = f + disturbance(X)
     Om = ca.mtimes(Jinv, Pi)
     Xdot = join_state(gamma / model.mass, f + u[0:3], ca.mtimes(R, ca.skew(Om)), ca.cross(Pi, Om) + M + u[3:6])
     return ca.Function("flight_eom", [X, u, Jinv], [Xdot], ["X", "u", "Jinv"], ["Xdot"])
@@ -176,7 +180,7 @@ _INTEGRATORS = BoundedCache()
 
 
 def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
-                        atol: float = ATOL) -> ca.Function:
+                        atol: float = ATOL, disturbance: ca.Function | None = None) -> ca.Function:
     """``flight_interval(X0[18], w[13], p[29]) -> (X1[18], Xs[18 x M])`` for M = ``samples``: one node
     interval of length h flown from X0, in normalized time s = (t - t_k)/h in [0, 1],
 
@@ -184,14 +188,17 @@ def interval_integrator(model: BodyModel, samples: int = DEFAULT_SAMPLES, rtol: 
         p = [vec(Jinv) (9, column-major); q (21, Actuators.vector())],
 
     by CVODES, restarted at every call so the command's kinks and jumps at the nodes are never integrated across.
-    Xs holds the states at s = 1/M, ..., 1 (Xs[:, -1] = X1).  Built once per (potential, mass, M, tolerances)."""
-    key = (id(model.forces), float(model.mass), int(samples), float(rtol), float(atol))
-    return _INTEGRATORS.get(key, lambda: _interval_integrator(model, samples, rtol, atol), keep=model.forces)
+    Xs holds the states at s = 1/M, ..., 1 (Xs[:, -1] = X1).  ``disturbance``: the truth's other forces
+    (:func:`equations_of_motion`).  Built once per (potential, disturbance, mass, M, tolerances)."""
+    key = (id(model.forces), id(disturbance), float(model.mass), int(samples), float(rtol), float(atol))
+    return _INTEGRATORS.get(key, lambda: _interval_integrator(model, samples, rtol, atol, disturbance),
+                            keep=(model.forces, disturbance))
 
 
-def _interval_integrator(model: BodyModel, samples: int, rtol: float, atol: float) -> ca.Function:
+def _interval_integrator(model: BodyModel, samples: int, rtol: float, atol: float,
+                         disturbance: ca.Function | None = None) -> ca.Function:
     """The Function of :func:`interval_integrator`, built."""
-    eom, act = equations_of_motion(model), actuator_output()
+    eom, act = equations_of_motion(model, disturbance), actuator_output()
     X, w, p, s = ca.SX.sym("X", NX), ca.SX.sym("w", N_W), ca.SX.sym("p", N_P), ca.SX.sym("s")
     a, b, h = w[0:NU], w[NU:2 * NU], w[2 * NU]
     u = act(X, a + s * (b - a), p[9:])
@@ -248,12 +255,13 @@ class Flight:
 
 def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | ControlLaw",
         actuators: Actuators | None = None, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
-        atol: float = ATOL) -> Flight:
+        atol: float = ATOL, disturbance: ca.Function | None = None) -> Flight:
     """Fly ``law`` from X0 (18,; the truth body's momenta) over the increasing node grid ``times`` (N+1,) through
     eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default nominal), one node interval at a time
     (:func:`interval_integrator`), ``samples`` per interval.  An :class:`OpenLoop`, or a law with a ``flown(fn, X0, h,
     p) -> (start, end, Xs)`` method, is flown in one call; any other law is asked for each interval's command from the
-    flown state.  Raises FlightError if the integrator fails."""
+    flown state.  ``disturbance``: the truth's forces besides gravity (:func:`equations_of_motion`).  Raises
+    FlightError if the integrator fails."""
     times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
     h = np.diff(times)
     if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
@@ -261,7 +269,7 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
     if not np.all(np.isfinite(X0)):
         raise ValueError("X0: expected a finite state of 18 numbers")
     N, M = h.size, int(samples)
-    fn = interval_integrator(model, M, rtol, atol)
+    fn = interval_integrator(model, M, rtol, atol, disturbance)
     p = np.concatenate([np.linalg.inv(model.inertia).ravel(order="F"), (actuators or Actuators()).vector()])
     try:
         if isinstance(law, OpenLoop):
