@@ -98,9 +98,9 @@ class ContinuousCheck:
         bad = self.path_violations()
         if not bad:
             return ""
-        unit = {"angle": " deg", "length": " (length unit)", "angular_rate": " rad per time unit"}
-        what = ", ".join(f"{margin_kind(k)} by {v:.3g}{u} (tolerance {t:.3g}{u})" for k, v, t in bad
-                         for u in [unit.get(MARGIN_DIMENSION.get(margin_kind(k)), "")])
+        unit = {"angle": " deg", "length": " length units", "angular_rate": " rad per time unit"}
+        what = ", ".join(f"{margin_kind(k)} by {v:.3g}{unit.get(MARGIN_DIMENSION.get(margin_kind(k)), '')} "
+                         f"(tolerance {t:.3g})" for k, v, t in bad)
         return (f"flown in continuous time the path leaves its constraints between the nodes: {what}: the scheme's "
                 f"error at this N; {PATH_CURE}")
 
