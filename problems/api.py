@@ -137,6 +137,7 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     keyword ``**options`` change the chosen method's options (``solve(man, "indirect",
     initial_costate="from_direct")``), except the solver block's own keys (``continuous_check=False``,
     ``accuracy=1e-6``, ``maneuver_accuracy=0.01`` -- the flown miss at most 1 % of what the maneuver changes --,
+    ``constraints_tolerance=1e-5`` -- the path constraints' violation between the nodes (rad for a cone) --,
     ``max_N``, ...: :class:`~se3ocp.transcription.strategy.refine.AccuracyOptions`).  ``progress``: True prints one line per iteration on stderr,
     or a callable(Iterate) (``Iterate.method`` names the method, ``phase`` the solve within it, ``elapsed_s``
     the seconds since the call).  ``warm_start``: a previous Solution (or

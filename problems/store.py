@@ -183,9 +183,9 @@ def _check_fields(d, where: str, fields: dict, required: tuple, fail) -> None:
     for k in required:
         if k not in d:
             fail(f"{where}.{k}" if where else k, "missing required key")
+    margins = ("min_margin_", "continuous_min_margin_", "continuous_tolerance_min_margin_")   # and their tolerances
     for k, v in d.items():
-        kind = fields.get(k, "number" if isinstance(k, str) and k.startswith(("min_margin_", "continuous_min_margin_"))
-                          else None)
+        kind = fields.get(k, "number" if isinstance(k, str) and k.startswith(margins) else None)
         if kind is not None and not _fits(v, kind):
             fail(f"{where}.{k}" if where else k, f"expected {_KINDS[kind]}, got {describe(v)}")
 

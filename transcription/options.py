@@ -315,8 +315,8 @@ class AccuracyOptions(Options):
     """The ``solver`` block's own keys (YAML ``solver.continuous_check``, ``solver.accuracy``, ...): the continuous
     check and refinement to a tolerance (transcription/strategy/refine.py)."""
 
-    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "maneuver_accuracy", "max_N", "max_levels",
-                                       "refinement")
+    KEYS: ClassVar[tuple[str, ...]] = ("continuous_check", "accuracy", "maneuver_accuracy", "constraints_tolerance",
+                                       "max_N", "max_levels", "refinement")
 
     continuous_check: bool = _opt(True, "bool", doc="fly every successful smooth-control Solution through the continuous "
                                                      "equations and report how it lands (Solution.continuous)")
@@ -330,6 +330,15 @@ class AccuracyOptions(Options):
                                                   "0.01 = 1 %) and the path constraints' violation between the nodes "
                                                   "are at most this; not with accuracy; absent or null: no "
                                                   "refinement").metadata, "optional": True})
+    constraints_tolerance: float | None = field(default=None, metadata={
+        **_opt(1e-5, "float", lo=0.0, doc="the path constraints' violation between the nodes (the continuous flight's "
+                                           "margins) the status accepts, in the units of accuracy: rad for a cone, a "
+                                           "fraction of the orbit radius L for a radius, rad per time unit for a "
+                                           "rate; given, the mesh is refined until the violation is at most this "
+                                           "(with accuracy: the miss within accuracy too; alone: the violation "
+                                           "only); absent or null: the status judges by "
+                                           "transcription.results.check.PATH_MARGIN_TOL (1e-5) and only accuracy "
+                                           "refines").metadata, "optional": True})
     max_N: int = _opt(50000, "int", lo=1, doc="the largest N refinement may solve on; an accuracy that needs more is "
                                                "refused before solving (or the refinement stops) with the N it needs")
     max_levels: int = _opt(8, "int", lo=1, hi=50, doc="the most mesh levels (solves) of one refinement")
@@ -354,13 +363,27 @@ class AccuracyOptions(Options):
         return self.accuracy if self.accuracy is not None else self.maneuver_accuracy
 
     @property
+    def refines(self) -> bool:
+        """True when a mesh refinement is asked for: ``accuracy``, ``maneuver_accuracy`` or ``constraints_tolerance``."""
+        return self.tolerance is not None or self.constraints_tolerance is not None
+
+    @property
+    def path_tolerance(self) -> float | None:
+        """What refinement drives the path constraints' violation below: ``constraints_tolerance``, else
+        :attr:`tolerance` (None: no refinement)."""
+        return self.constraints_tolerance if self.constraints_tolerance is not None else self.tolerance
+
+    @property
     def of_maneuver(self) -> bool:
         """True when the miss refined is the flown miss as a fraction of the maneuver (``maneuver_accuracy``)."""
         return self.maneuver_accuracy is not None
 
     @property
     def tolerance_key(self) -> str:
-        """The ``solver`` key that gave :attr:`tolerance` (for messages naming the field)."""
+        """The ``solver`` key that gave :attr:`tolerance` (for messages naming the field): ``constraints_tolerance``
+        when it is the only one."""
+        if self.tolerance is None and self.constraints_tolerance is not None:
+            return "constraints_tolerance"
         return "maneuver_accuracy" if self.of_maneuver else "accuracy"
 
     @classmethod

@@ -379,7 +379,7 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     def one(p, w, phase=""):
         return _dispatch(p, method, direct, indirect, progress, w, strategy, phase)
 
-    if accuracy.tolerance is not None and problem.kind == "smooth":   # refinement to a tolerance (refine.py)
+    if accuracy.refines and problem.kind == "smooth":   # refinement to a tolerance (refine.py)
         names = ("direct", "indirect") if method == "both" else (method,)
         adaptive = accuracy.refinement == "adaptive" and all((n, problem.kind) in ON_A_MESH for n in names)
         levels = itertools.count()      # one call a level: numbered as refine's mesh history numbers them
@@ -388,7 +388,7 @@ def solve(problem: Problem, method: str = "direct", *, direct: DirectOptions | N
     else:
         out = one(problem, warm)
     if accuracy.continuous_check:
-        out = attach_checks(out)
+        out = attach_checks(out, accuracy.constraints_tolerance)
     if note:
         out = each(out, lambda s: s.with_notes(note))
     return raise_unconverged(out) if throw else out

@@ -125,7 +125,44 @@ def miss_lines(sols) -> list[str]:
             out.append(f"warning: {s.method}'s plan misses by {pct} of its maneuver, above "
                        f"{100 * FLOWN_MISS_TOL:g} %: the {s.scheme} scheme's error at N = {s.N}; "
                        + _cure(s))
+    return out + path_lines(sols)
+
+
+def path_lines(sols) -> list[str]:
+    """One line per flown method with path constraints: each constraint's smallest margin along the continuous
+    flight (ContinuousCheck.min_margins) in the file's units, with its tolerance; a 'warning:' line naming the
+    constraints violated beyond it and the cure (ContinuousCheck.path_violations)."""
+    from ...transcription.results.check import PATH_CURE, margin_kind
+
+    out = []
+    for s in sols:
+        c = getattr(s, "continuous", None)
+        if c is None or not c.ok or not c.margin_tolerances:
+            continue
+        amount = _margin_amount(s)
+        margins = ", ".join(f"{margin_kind(k)} {amount(k, m)} (allowed down to {amount(k, -c.margin_tolerances[k])})"
+                            for k, m in c.min_margins.items() if k in c.margin_tolerances)
+        out.append(f"{s.method}: flown in continuous time its smallest path margin: {margins}")
+        bad = c.path_violations()
+        if bad:
+            out.append(f"warning: {s.method}'s path leaves its constraints between the nodes: "
+                       + ", ".join(f"{margin_kind(k)} by {amount(k, v)}" for k, v, _ in bad)
+                       + f", beyond the tolerance: the {s.scheme} scheme's error at N = {s.N}; {PATH_CURE}")
     return out
+
+
+def _margin_amount(sol):
+    """(margin key, value in the margin's own unit) -> the value as text in the file's units (deg for a cone)."""
+    from ...transcription.ocp import MARGIN_DIMENSION
+    from ...transcription.results.check import margin_kind
+    from ..units import units
+
+    u = units(sol.problem)
+
+    def amount(key: str, x: float) -> str:
+        dim = MARGIN_DIMENSION.get(margin_kind(key), "none")
+        return f"{x:.3g} deg" if dim == "angle" else u.amount(x, dim)
+    return amount
 
 
 def _cure(sol) -> str:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry.state import X_ANG, X_MOM, X_POS, X_ROT
 from ..geometry.so3 import nearest_rotation, orthogonality_error, rotation_angle
-from ..ocp import STATE_COMPONENTS, TargetState, quadrature_weights, terminal_error
+from ..ocp import MARGIN_DIMENSION, STATE_COMPONENTS, TargetState, quadrature_weights, terminal_error
 from ..outcome import Result
 from ..dynamics.trajectory import Trajectory
 from ..dynamics.flight import DEFAULT_SAMPLES, Actuators, FlightError, OpenLoop, fly
@@ -26,6 +26,14 @@ if TYPE_CHECKING:  # pragma: no cover
 #: a plan flown in continuous time that misses its target by more than this fraction of what its maneuver changes is
 #: said to (its message, the CLI's table): the issue's 1 % of the maneuver
 FLOWN_MISS_TOL = 0.01
+#: a plan whose flown path leaves a path constraint between its nodes by more than this (the units of scaled_miss,
+#: :func:`margin_scales`: rad for a cone -- 5.7e-4 deg --, a fraction of L for a radius, rad per time unit for a rate)
+#: is said to (its message, the CLI's table), unless ``solver.constraints_tolerance`` gives another: issue 42's
+#: "continuous margin >= -1e-3 deg, or a status that says it is not"
+PATH_MARGIN_TOL = 1e-5
+#: the cure a path note names (:meth:`ContinuousCheck.path_note`)
+PATH_CURE = ("set solver.constraints_tolerance (or solver.accuracy) to refine the mesh where the path leaves it, or "
+             "raise horizon.N")
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,6 +53,10 @@ class ContinuousCheck:
     radius change or the free motion's distance to the target; the plan's delta-v or the free motion's velocity
     distance; the slew or the free motion's angle); change_target -- for any target, the terminal-error measure of
     the free motion (what the controls must remove).  :attr:`maneuver_fraction` is the flown miss relative to it.
+
+    margin_tolerances: for each key of min_margins, the violation (margin below 0, in the margin's own unit: deg for
+    a cone, length for a radius, rate) the plan is allowed (:func:`path_tolerances`); a larger one is said by
+    :meth:`path_note` and :meth:`path_violations`.  Empty: not judged.
     """
 
     terminal_position: float
@@ -67,10 +79,30 @@ class ContinuousCheck:
     change_velocity: float = float("nan")
     change_attitude: float = float("nan")
     change_target: float = float("nan")
+    margin_tolerances: dict[str, float] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
         return not self.message
+
+    def path_violations(self) -> list[tuple[str, float, float]]:
+        """(margin key, violation, tolerance) of every path constraint the flown path leaves by more than its
+        tolerance (:attr:`margin_tolerances`), the violation -min_margin > 0 in the margin's own unit."""
+        return [(k, -float(m), float(self.margin_tolerances[k])) for k, m in self.min_margins.items()
+                if k in self.margin_tolerances and -m > self.margin_tolerances[k]]
+
+    def path_note(self) -> str:
+        """'' or, when the flown path leaves a path constraint between the nodes by more than its tolerance, the
+        sentence that says so, naming each constraint and its violation (deg for a cone; the problem's units for a
+        radius or a rate -- the CLI's table repeats it in the file's) and the cure."""
+        bad = self.path_violations()
+        if not bad:
+            return ""
+        unit = {"angle": " deg", "length": " length units", "angular_rate": " rad per time unit"}
+        what = ", ".join(f"{margin_kind(k)} by {v:.3g}{unit.get(MARGIN_DIMENSION.get(margin_kind(k)), '')} "
+                         f"(tolerance {t:.3g})" for k, v, t in bad)
+        return (f"flown in continuous time the path leaves its constraints between the nodes: {what}: the scheme's "
+                f"error at this N; {PATH_CURE}")
 
     def miss_note(self) -> str:
         """'' or, when the flown miss exceeds :data:`FLOWN_MISS_TOL` of the maneuver, the sentence that says so (in
@@ -118,6 +150,7 @@ class ContinuousCheck:
                "continuous_change_attitude_rad": self.change_attitude, "continuous_change_target": self.change_target,
                "continuous_maneuver_fraction": self.maneuver_fraction}
         out.update({f"continuous_{k}": v for k, v in self.min_margins.items()})
+        out.update({f"continuous_tolerance_{k}": v for k, v in self.margin_tolerances.items()})
         if self.message:
             out["continuous_message"] = self.message
         return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in out.items()}
@@ -140,11 +173,13 @@ class ContinuousCheck:
 
         margins = {k[len("continuous_"):]: num(k[len("continuous_"):]) for k in block
                    if k.startswith("continuous_min_margin_")}
+        tols = {k: num(f"tolerance_{k}") for k in margins if f"continuous_tolerance_{k}" in block}
         return cls(*(num(k) for k in _SCALARS), margins, num("orthogonality_drift"), int(block.get("continuous_samples") or 0),
                    num("check_s"), np.asarray(arrays["continuous_t"], float),
                    np.asarray(arrays["continuous_position_deviation"], float),
                    np.asarray(arrays["continuous_attitude_deviation"], float), str(block.get("continuous_message", "")),
-                   *(num(k) for k in ("change_position", "change_velocity", "change_attitude_rad", "change_target")))
+                   *(num(k) for k in ("change_position", "change_velocity", "change_attitude_rad", "change_target")),
+                   tols)
 
 
 #: the summary keys (after ``continuous_``) of the first eight fields of ContinuousCheck, in order
@@ -163,11 +198,35 @@ def margin_keys(constraints) -> list[str]:
     return keys
 
 
-def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> ContinuousCheck | None:
+def margin_kind(key: str) -> str:
+    """The constraint kind of a margin key of :func:`margin_keys` ('min_margin_keep_out_2' -> 'keep_out')."""
+    kind = key.removeprefix("min_margin_")
+    head, _, tail = kind.rpartition("_")
+    return head if tail.isdigit() else kind
+
+
+def margin_scales(problem) -> list[float]:
+    """The factor that takes each path constraint's margin into the units of :func:`scaled_miss`: a cone's (deg)
+    pi / 180, a radius's 1 / L, a rate's 1."""
+    scale = {"angle": np.pi / 180.0, "length": 1.0 / characteristic_length(problem)}
+    return [scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
+
+
+def path_tolerances(problem, tol: float | None = None) -> dict[str, float]:
+    """Each path constraint's allowed violation in its margin's own unit (by :func:`margin_keys`): ``tol`` (the
+    units of scaled_miss; default :data:`PATH_MARGIN_TOL`) divided by its :func:`margin_scales`."""
+    tol = PATH_MARGIN_TOL if tol is None else float(tol)
+    return {k: tol / s for k, s in zip(margin_keys(problem.constraints), margin_scales(problem))}
+
+
+def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES,
+                     path_tol: float | None = None) -> ContinuousCheck | None:
     """Fly ``sol``'s controls (impulsive: free motion from the state after the initial impulse) from its
     initial state over its node times through eqs. (1)-(4), sampled ``samples`` times per interval, and
-    measure the flight against the plan (:class:`ContinuousCheck`).  None where there is nothing to fly:
-    no problem, a method that does not apply, or a plan that is not finite."""
+    measure the flight against the plan (:class:`ContinuousCheck`).  ``path_tol``: the path constraints'
+    allowed violation (:func:`path_tolerances`; ``solver.constraints_tolerance``, default
+    :data:`PATH_MARGIN_TOL`).  None where there is nothing to fly: no problem, a method that does not apply, or a
+    plan that is not finite."""
     prob, traj = sol.problem, sol.trajectory
     if prob is None or sol.result is Result.not_applicable or not np.all(np.isfinite(traj.X)):
         return None
@@ -179,7 +238,8 @@ def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> Continu
     except FlightError as e:
         nan, nodes = float("nan"), np.full(N + 1, np.nan)
         return ContinuousCheck(nan, nan, nan, nan, nan, nan, nan, nan, {k: nan for k in margin_keys(prob.constraints)},
-                               nan, int(samples), time.perf_counter() - t0, traj.t, nodes, nodes, message=str(e))
+                               nan, int(samples), time.perf_counter() - t0, traj.t, nodes, nodes, message=str(e),
+                               margin_tolerances=path_tolerances(prob, path_tol))
     X, R = flight.X.copy(), flight.trajectory().R
     drift = float(orthogonality_error(R)[0].max())
     X[:, X_ROT] = np.swapaxes(nearest_rotation(R), -1, -2).reshape(-1, 9)     # vec(R) column-major
@@ -192,7 +252,8 @@ def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> Continu
     margins = {key: float(np.min(c.margin(flown))) for key, c in zip(margin_keys(prob.constraints), prob.constraints)}
     change = maneuver_change(sol, samples)
     return ContinuousCheck(*end, max(end), _target_error(sol, X[-1]), float(dx.max()), float(dR.max()), margins, drift,
-                           flight.samples, time.perf_counter() - t0, traj.t.copy(), dx, dR, "", *change)
+                           flight.samples, time.perf_counter() - t0, traj.t.copy(), dx, dR, "", *change,
+                           path_tolerances(prob, path_tol))
 
 
 def maneuver_change(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> tuple[float, float, float, float]:

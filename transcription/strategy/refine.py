@@ -2,7 +2,8 @@
 continuous time (the continuous check, on by default), and with ``solver.accuracy`` the mesh is refined until that
 flight lands within the tolerance.  :class:`AccuracyOptions` (transcription/options.py) are the ``solver`` block's
 keys ``continuous_check``, ``accuracy`` (null: a fixed N) or ``maneuver_accuracy`` (the same as a fraction of the
-maneuver), ``max_N`` and ``max_levels``.  :func:`attach_checks`
+maneuver), ``constraints_tolerance`` (the path constraints' violation between the nodes), ``max_N`` and
+``max_levels``.  :func:`attach_checks`
 stores a :class:`~transcription.results.check.ContinuousCheck` on every successful smooth-control Solution
 (``sol.continuous``).
 """
@@ -16,7 +17,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..options import CHECK_ENV, AccuracyOptions
-from ..results.check import ContinuousCheck, characteristic_length as _length, scaled_miss
+from ..results.check import ContinuousCheck, characteristic_length as _length, margin_scales, scaled_miss
 from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
@@ -41,18 +42,20 @@ def each(out: "Solution | Comparison", fn) -> "Solution | Comparison":
     return fn(out)
 
 
-def attach_checks(out: "Solution | Comparison") -> "Solution | Comparison":
+def attach_checks(out: "Solution | Comparison", path_tol: float | None = None) -> "Solution | Comparison":
     """Every successful smooth-control Solution of ``out`` with its continuous check (``continuous``,
-    :func:`~transcription.results.check.continuous_check`; a check already there is kept).  Failed solves,
-    impulsive plans and simulations are left alone."""
+    :func:`~transcription.results.check.continuous_check`; a check already there is kept) and, in its message, the
+    check's notes: a flown miss above 1 % of the maneuver, a path constraint left between the nodes by more than
+    ``path_tol`` (``solver.constraints_tolerance``; None: the default PATH_MARGIN_TOL).  Failed solves, impulsive
+    plans and simulations are left alone."""
     from ..results.check import continuous_check
 
     def checked(s: Solution) -> Solution:
         if s.continuous is None and s.converged and s.problem is not None and s.problem.kind == "smooth" \
                 and s.controls is not None:
-            check = continuous_check(s)
+            check = continuous_check(s, path_tol=path_tol)
             s = dataclasses.replace(s, continuous=check)
-            return s.with_notes(check.miss_note()) if check is not None and check.miss_note() else s
+            return s if check is None else s.with_notes(*(n for n in (check.miss_note(), check.path_note()) if n))
         return s
 
     return each(out, checked)
@@ -74,15 +77,6 @@ def path_violation(check, problem) -> float:
     for key, s in zip(margin_keys(problem.constraints), margin_scales(problem)):
         worst = max(worst, -check.min_margins.get(key, 0.0) * s)
     return float(worst)
-
-
-def margin_scales(problem) -> list[float]:
-    """The factor that takes each path constraint's margin into the units of :func:`scaled_miss`: a cone's (deg)
-    pi / 180, a radius's 1 / L, a rate's 1."""
-    from ..ocp import MARGIN_DIMENSION
-
-    scale = {"angle": np.pi / 180.0, "length": 1.0 / _length(problem)}
-    return [scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
 
 
 def next_N(N: int, ratio: float, order: float, max_N: int, rules: Refinement = Refinement()) -> int:
@@ -134,18 +128,18 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
     h_max, miss, predicted, path_violation, iterations, solve_s, check_s, status), ``stats['accuracy_met']``,
     ``stats['accuracy_level']`` (the level returned), ``stats['accuracy_interrupted']`` and a sentence in the
     message.  ``rules``: :class:`~.mesh.Refinement`."""
-    tol, levels, prob, kept = float(opts.tolerance), [], problem, []
-    name = tolerance_name(opts)
+    levels, prob, kept = [], problem, []
+    name = goal(opts)
     while True:
         t0 = time.perf_counter()
         try:
-            out = attach_checks(run(prob, warm))
+            out = attach_checks(run(prob, warm), opts.constraints_tolerance)
         except KeyboardInterrupt:
             if not kept:
                 raise
             levels.append(_interrupted_record(prob, len(levels), time.perf_counter() - t0))
             return _best(kept, levels, f"refinement level {len(levels) - 1} (N = {prob.N}) was interrupted "
-                                       f"(Ctrl-C) before it finished", name, tol, interrupted=True)
+                                       f"(Ctrl-C) before it finished", name, interrupted=True)
         rec, best = _record(out, prob, len(levels), time.perf_counter() - t0, opts)
         levels.append(rec)
         stopped = any(s.result is Result.interrupted for s in _solutions(out))
@@ -153,30 +147,31 @@ def refine(problem, run: Callable, opts: AccuracyOptions, warm=None, adaptive: b
             why = (f"was interrupted ({_first_message(out, Result.interrupted)})" if stopped else
                    f"failed: {_failure(out, best, opts)}")
             if kept:
-                return _best(kept, levels, f"refinement level {rec['level']} (N = {prob.N}) {why}", name, tol,
+                return _best(kept, levels, f"refinement level {rec['level']} (N = {prob.N}) {why}", name,
                              interrupted=stopped)
             return _finish(out, levels, False, f"refinement stopped at level {rec['level']} (N = {prob.N}): "
                                                 f"{rec['status']}" + ("" if best is None else f"; {why}"),
                            level=rec["level"], interrupted=stopped)
-        kept.append((max(rec["miss"], rec["path_violation"]), rec["level"], out))
-        worst = max(rec["miss"], rec["path_violation"]) / tol
+        worst = level_ratio(rec, opts)
+        kept.append((worst, rec["level"], out))
         if not worst > 1.0:
-            return _finish(out, levels, True, f"refined to {name} {tol:.3g}: {miss_name(opts)} {rec['miss']:.2e} "
+            path = f", path violation {rec['path_violation']:.2e}" if opts.constraints_tolerance is not None else ""
+            return _finish(out, levels, True, f"refined to {name}: {miss_name(opts)} {rec['miss']:.2e}{path} "
                                               f"at N = {prob.N} after {len(levels)} level(s)", level=rec["level"])
         least = least_N(prob.N, worst, adaptive, rules)
         if least > opts.max_N:    # even the most favourable order cannot land within max_N: no further level
-            return _best(kept, levels, beyond_reach_sentence(tol, rec, prob.N, least, adaptive, opts.max_N, rules,
-                                                             opts), name, tol)
+            return _best(kept, levels, beyond_reach_sentence(rec, prob.N, least, adaptive, opts.max_N, rules, opts),
+                         name)
         p = observed_order(levels, prob.scheme)
-        mesh = next_mesh(prob, best, rec, tol, p, rules, miss_units(best, prob, opts)) if adaptive else None
+        mesh = next_mesh(prob, best, rec, opts.tolerance or math.inf, p, rules, miss_units(best, prob, opts),
+                         opts.path_tolerance) if adaptive else None
         if mesh is not None:      # the miss this level's error estimate predicts (its calibration)
             rec["predicted"] = float(mesh[1])
             mesh = capped_mesh(mesh[0], rules.growth * prob.N)
         N = next_N(prob.N, worst, p, opts.max_N, rules) if mesh is None else len(mesh)
         if N > opts.max_N or len(levels) >= opts.max_levels:
             limit = f"solver.max_N = {opts.max_N}" if N > opts.max_N else f"solver.max_levels = {opts.max_levels}"
-            return _best(kept, levels, needs_sentence(tol, rec["miss"], prob.N, prob.scheme, p, limit, opts), name,
-                         tol)
+            return _best(kept, levels, needs_sentence(rec, prob.N, prob.scheme, p, limit, opts), name)
         T = min(max(best.T, prob.time_bounds[0]), prob.time_bounds[1]) if prob.free_time else prob.T
         prob, warm = dataclasses.replace(prob, N=N, T=T, mesh=mesh), best.warm
 
@@ -187,6 +182,33 @@ def capped_mesh(steps: np.ndarray, most: int) -> np.ndarray:
     (:func:`~.mesh.subdivided_steps` by the factor most / N' < 1: each of its steps' share of the new nodes kept)."""
     n = len(steps)
     return steps if n <= most else subdivided_steps(steps, (most - 0.5) / n)
+
+
+def goal(opts: AccuracyOptions) -> str:
+    """What a refinement aims at, in its sentences: 'accuracy 1e-06', 'maneuver accuracy 0.01', 'constraints
+    tolerance 1e-05' or 'accuracy 1e-06 and constraints tolerance 1e-05'."""
+    parts = [] if opts.tolerance is None else [f"{tolerance_name(opts)} {opts.tolerance:.3g}"]
+    if opts.constraints_tolerance is not None:
+        parts.append(f"constraints tolerance {opts.constraints_tolerance:.3g}")
+    return " and ".join(parts)
+
+
+def level_ratio(rec: dict, opts: AccuracyOptions) -> float:
+    """How far a level is from its tolerances (<= 1: accepted): the path violation over ``opts.path_tolerance`` and,
+    with accuracy or maneuver_accuracy, the level's miss over it -- the larger."""
+    _, value, tol = dominant(rec, opts)
+    return float(value / tol)
+
+
+def dominant(rec: dict, opts: AccuracyOptions) -> tuple[str, float, float]:
+    """(name, value, tolerance) of what keeps a level farthest from acceptance: the miss (:func:`miss_name`, against
+    ``opts.tolerance``; not with ``constraints_tolerance`` alone) or the path violation (against
+    ``opts.path_tolerance``)."""
+    path = ("path violation", float(rec["path_violation"]), float(opts.path_tolerance))
+    if opts.tolerance is None:
+        return path
+    miss = (miss_name(opts), float(rec["miss"]), float(opts.tolerance))
+    return miss if miss[1] / miss[2] >= path[1] / path[2] else path
 
 
 def tolerance_name(opts: AccuracyOptions) -> str:
@@ -246,15 +268,15 @@ def _interrupted_record(problem, level: int, wall: float) -> dict:
             "iterations": 0, "solve_s": float(wall), "check_s": 0.0, "status": "interrupted (Ctrl-C)"}
 
 
-def _best(kept: list, levels: list[dict], what: str, name: str, tol: float, interrupted: bool = False):
+def _best(kept: list, levels: list[dict], what: str, name: str, interrupted: bool = False):
     """The refinement's answer when it ends without meeting the tolerance: the kept level (converged and flown) with
-    the lowest max(miss, path violation) -- the later of equal ones -- with the whole history and the sentence
+    the lowest :func:`level_ratio` -- the later of equal ones -- with the whole history and the sentence
     ``what``, naming the level returned when it is not the last one solved."""
     _, j, out = min(kept, key=lambda k: (k[0], -k[1]))
     rec = levels[j]
     if j != levels[-1]["level"] or interrupted:
         what += (f"; returned level {j} (N = {rec['N']}, miss {rec['miss']:.2e}, path violation "
-                 f"{rec['path_violation']:.1e}), the best level solved: {name} {tol:.3g} not reached")
+                 f"{rec['path_violation']:.1e}), the best level solved: {name} not reached")
     return _finish(out, levels, False, what, level=j, interrupted=interrupted)
 
 
@@ -266,48 +288,51 @@ def least_N(N: int, ratio: float, adaptive: bool, rules: Refinement = Refinement
     return N * ratio ** (1.0 / BEST_ORDER) / (rules.adaptive_gain if adaptive else 1.0)
 
 
-def beyond_reach_sentence(tol: float, rec: dict, N: int, least: float, adaptive: bool, max_N: int,
-                          rules: Refinement, opts: AccuracyOptions | None = None) -> str:
+def beyond_reach_sentence(rec: dict, N: int, least: float, adaptive: bool, max_N: int, rules: Refinement,
+                          opts: AccuracyOptions) -> str:
     """'accuracy 1e-09 not reached: the continuous miss 6.01e-04 at N = 200 would need N ≈ 7.8e+04 even if it
     fell at O(h^2), ...' -- the one line of :func:`refine` when :func:`least_N` is above ``max_N`` after a level."""
-    opts = opts or AccuracyOptions(accuracy=tol)
-    what = (f"the {miss_name(opts)} {rec['miss']:.2e}" if rec["miss"] >= rec["path_violation"] else
-            f"the path violation {rec['path_violation']:.2e}")
+    what, value, _ = dominant(rec, opts)
     gain = f", with an adaptive mesh credited with {rules.adaptive_gain:g} times fewer steps" if adaptive else ""
-    return (f"{tolerance_name(opts)} {tol:.3g} not reached: {what} at N = {N} would need N ≈ {least:.2g} even if it "
+    return (f"{goal(opts)} not reached: the {what} {value:.2e} at N = {N} would need N ≈ {least:.2g} even if it "
             f"fell at O(h^{BEST_ORDER}), the best order of either scheme{gain}, above solver.max_N = {max_N}, so no "
             f"further level was solved: raise solver.max_N to at least {least:.2g} or loosen "
             f"solver.{opts.tolerance_key}")
 
 
 def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float, rules: Refinement,
-              units: tuple[float, float, float, float] | None = None) -> tuple[np.ndarray, float]:
+              units: tuple[float, float, float, float] | None = None,
+              path_tol: float | None = None) -> tuple[np.ndarray, float]:
     """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
     §16): each step's local error (step doubling) propagated to the final node (transcription.strategy.mesh),
     equidistributed with the sum of the shares e_k aimed at tol / safety times the measured miss's share of that sum.
-    A path violation over tol is refined by :func:`path_mesh` (the steps whose local errors drift the path off, and
-    those about a contact); if that finds nothing, the mesh is subdivided by the uniform factor of :func:`next_N`.
+    A path violation over ``path_tol`` (default tol) is refined by :func:`path_mesh` (the steps whose local errors
+    drift the path off, and those about a contact); if that finds nothing, the mesh is subdivided by the uniform
+    factor of :func:`next_N`.  tol = inf (``solver.constraints_tolerance`` alone): the miss is not refined.
     ``units``: the divisors of :func:`miss_units` (default those of :func:`scaled_miss`).  The mesh may have more
     than growth N steps: the caller caps it (:func:`capped_mesh`)."""
     p = ORDER[problem.scheme]
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
     e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, *(units or (L, V)))
-    if rec["path_violation"] > tol:
-        mesh = path_mesh(problem, best, e, rec, tol, rules)
+    path_tol = tol if path_tol is None else path_tol
+    if rec["path_violation"] > path_tol:
+        mesh = path_mesh(problem, best, e, rec, path_tol, rules, tol)
         if mesh is not None:
             return mesh, predicted
-    if rec["path_violation"] > rec["miss"] or not (e.sum() > 0 and rec["miss"] > 0):
-        factor = next_N(problem.N, max(rec["miss"], rec["path_violation"]) / tol, order, 0, rules) / problem.N
-        return subdivided_steps(best.steps, factor), predicted
+    ratio = max(rec["miss"] / tol, rec["path_violation"] / path_tol)
+    if rec["path_violation"] / path_tol > rec["miss"] / tol or not (e.sum() > 0 and rec["miss"] > 0):
+        return subdivided_steps(best.steps, next_N(problem.N, ratio, order, 0, rules) / problem.N), predicted
     return equidistributed_steps(best.steps, e, p, tol / rules.safety * e.sum() / rec["miss"], rules), predicted
 
 
-def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rules: Refinement) -> np.ndarray | None:
+def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rules: Refinement,
+              miss_tol: float | None = None) -> np.ndarray | None:
     """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
-    (docs/mathematics.md §16): on every step the larger of the terminal miss's node density (:func:`next_mesh`;
-    1 / h_k when there is no miss) and transcription.strategy.mesh.path_density's (aimed at tol / safety).  None when
-    the path rule finds nothing over the tolerance (the caller subdivides)."""
+    (docs/mathematics.md §16): on every step the larger of the terminal miss's node density (:func:`next_mesh`, aimed
+    at ``miss_tol``, default tol; 1 / h_k when there is no miss or miss_tol is inf) and
+    transcription.strategy.mesh.path_density's (aimed at tol / safety).  None when the path rule finds nothing over
+    the tolerance (the caller subdivides)."""
     from ..dynamics.flight import DEFAULT_SAMPLES, FlightError
 
     p, h = ORDER[problem.scheme], best.steps
@@ -318,20 +343,22 @@ def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rul
         dens = None
     if dens is None:
         return None
-    if e.sum() > 0 and rec["miss"] > 0:
-        dens = np.maximum(dens, equidistributed_density(h, e, p, tol / rules.safety * e.sum() / rec["miss"], rules))
+    miss_tol = tol if miss_tol is None else miss_tol
+    if e.sum() > 0 and rec["miss"] > 0 and np.isfinite(miss_tol):
+        dens = np.maximum(dens, equidistributed_density(h, e, p, miss_tol / rules.safety * e.sum() / rec["miss"],
+                                                        rules))
     else:
         dens = np.maximum(dens, 1.0 / h)
     return density_steps(h, dens)
 
 
-def needs_sentence(tol: float, miss: float, N: int, scheme: str, order: float, limit: str,
-                   opts: AccuracyOptions | None = None) -> str:
+def needs_sentence(rec: dict, N: int, scheme: str, order: float, limit: str, opts: AccuracyOptions) -> str:
     """'accuracy 1e-06 not reached: ... would need N ~ 1.6e+07 (first_order, error O(h^1)), above ...; the lgvi
-    scheme (O(h^2)) would need N ~ ...' -- the one line of a tolerance out of reach."""
-    opts = opts or AccuracyOptions(accuracy=tol)
+    scheme (O(h^2)) would need N ~ ...' -- the one line of a tolerance out of reach (the miss or the path
+    violation, whichever is farther from its tolerance: :func:`dominant`)."""
+    what, miss, tol = dominant(rec, opts)
     need = N * (miss / tol) ** (1.0 / order)
-    out = (f"{tolerance_name(opts)} {tol:.3g} not reached: the {miss_name(opts)} {miss:.2e} at N = {N} would need "
+    out = (f"{goal(opts)} not reached: the {what} {miss:.2e} at N = {N} would need "
            f"N ≈ {need:.2g} ({scheme}, error O(h^{order:g})), above {limit}")
     if scheme != "lgvi":
         # the second-order scheme's error constant is about the first-order one's (E3, E4: within a factor 10)
@@ -417,12 +444,14 @@ def out_of_reach(problem, opts: AccuracyOptions) -> str:
     order, N_need = N (miss / tol)^(1/p)); the sentence names that N and what the other scheme would need (around a
     central body the Kepler-split LGVI, whose free motion is the two-body orbit; else the LGVI).  With
     ``maneuver_accuracy``, also a maneuver whose change cannot be measured (:func:`undefined_maneuver`)."""
-    if opts.tolerance is None or problem.kind is None:
+    if not opts.refines or problem.kind is None:
         return ""
     key = f"solver.{opts.tolerance_key}"
     if problem.kind != "smooth":
         return ("refinement to an accuracy applies to smooth control (an impulsive plan coasts between its impulses "
                 f"on the scheme's free motion): remove {key}")
+    if opts.tolerance is None:      # constraints_tolerance alone: no a-priori estimate of a violation
+        return ""
     if opts.of_maneuver:
         why = undefined_maneuver(problem)
         if why:
