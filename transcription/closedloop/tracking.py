@@ -370,8 +370,7 @@ class Tracker:
         if self.engine is not None:   # channel rows (an engine: along its axis only, within its thrust headroom)
             Q, lo, hi = self.engine.channels
             T = plan[:, U_FORCE] @ Q
-            hn = np.maximum(np.minimum(hi - T.max(axis=0), T.min(axis=0) - lo), 0.0)
-            kept = Q @ np.clip(Q.T @ du[U_FORCE], -hn, hn)
+            kept = Q @ np.clip(Q.T @ du[U_FORCE], np.minimum(lo - T.min(axis=0), 0.0), np.maximum(hi - T.max(axis=0), 0.0))
             limited = limited or bool(np.linalg.norm(du[U_FORCE] - kept) > 1e-9 * self.engine.scale())
             du[U_FORCE] = kept
         return du, limited
@@ -412,13 +411,31 @@ def tracking_gains(sol, weights: TrackingWeights | Mapping | None = None) -> Gai
     if weights is None or isinstance(weights, Mapping):     # on a mesh the bandwidth's step is the mean step h
         weights = bryson_weights(control, U, model.mass, model.inertia, sol.T, h, **dict(weights or {}))
     A, B = linearization(disc, X, U, h if steps is None else steps)
-    active = np.repeat(~np.asarray(control.removed), 3)
-    K, L, P, S = riccati(A, held(B, disc.scheme), h * weights.Q, h * weights.R, weights.Q_N, active,
-                         None if steps is None else steps / h)
     fb, mb = actuator_bounds(control)
+    E, active = input_channels(fb, mb, control.removed)
+    Kc, Lc, P, Sc = riccati(A, held(B, disc.scheme) @ E, h * weights.Q, h * (E.T @ weights.R @ E), weights.Q_N,
+                            active, None if steps is None else steps / h)
+    K, L, S = E @ Kc, E @ Lc, E @ Sc @ E.T           # back to the controls' coordinates (E orthogonal)
     return Gains(K=K, L=L, P=P, S=S, A=A, B=B, t=np.asarray(sol.trajectory.t, float), X=X, U=U, scheme=disc.scheme, h=h,
                  weights=weights, force_bound=fb, moment_bound=mb, removed=tuple(bool(r) for r in control.removed),
                  steps=steps)
+
+
+def input_channels(force_bound, moment_bound, removed=(False, False)) -> tuple[np.ndarray, np.ndarray]:
+    """The tracker's inputs (docs/mathematics.md §12, *Input channels*): E (6, 6) = blockdiag(Q_f, Q_m), the
+    actuators' channel directions (:attr:`~transcription.ocp.actuators.Actuator.channels`; I where unbounded), and
+    ``active`` (6,) bool, the channels that exist: not held fixed (an engine's off-axis force) and not removed.  The
+    LQR's input is the channel vector v = E^T du (an engine: its thrust T along the axis, in the body frame where the
+    force is the body's), so it never asks for a force the actuator cannot give."""
+    E, active = np.eye(NU), np.ones(NU, bool)
+    for sl, bound, gone in ((U_FORCE, force_bound, removed[0]), (U_MOMENT, moment_bound, removed[1])):
+        if gone:
+            active[sl] = False
+        elif bound is not None:
+            Q, lo, hi = bound.channels
+            E[sl, sl] = Q
+            active[sl] = lo < hi
+    return E, active
 
 
 def sub_stepped(sol, h_max: float | None = None):
