@@ -177,7 +177,7 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
         if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
             law = TrackingLoop.of_gains(gains)
     flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
-                 disturbance=forces)
+                 disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
     return flight, tracker, law if mode == "mpc" else None
 
 

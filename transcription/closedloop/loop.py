@@ -5,12 +5,13 @@ CVODES intervals (a loop in C) instead of a Python loop asking a law for each in
 The law is :class:`transcription.closedloop.tracking.Tracker`'s without saturation (an unbounded plan): at node k,
 from the flown state X_k,
 
-    z_k = [x - x_k; gamma - gamma_k; vee log(R_k^T R); Pi - Pi_k]          (tangent_error, log by atan2),
+    z_k = [x - x_k; gamma - gamma_k; vee log(R_k^T R); J_law Omega - Pi_k]    (tangent_error, log by atan2),
     r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1}   (r_0 = 0),     du_k = -K_k z_k - L_k r_k / rho_{k-1},
 
-with rho_{k-1} = h_{k-1} / h (1 on a uniform mesh), and the interval's command is (a_k + du_k, b_k + du_k).  The
-accumulated state is S = [X (18); z_{k-1} (12); du_{k-1} (6)].  The same numbers as the per-interval path (tested to
-1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
+with Omega = J_truth^-1 Pi the measured rate and J_law the inertia the law believes (the plan's: the rate is
+tracked, transcription.dynamics.flight.sensed), rho_{k-1} = h_{k-1} / h (1 on a uniform mesh), and the interval's
+command is (a_k + du_k, b_k + du_k).  The accumulated state is S = [X (18); z_{k-1} (12); du_{k-1} (6)].  The same
+numbers as the per-interval path (tested to 1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
 """
 from __future__ import annotations
 
@@ -62,23 +63,27 @@ class TrackingLoop:
             weight[1:, 0] /= np.asarray(self.rho, float)[:-1]
         return np.hstack([np.asarray(self.Xref, float)[:N], *flat, weight]).T
 
-    def flown(self, fn: ca.Function, X0: np.ndarray, h: np.ndarray, p: np.ndarray):
+    def flown(self, fn: ca.Function, X0: np.ndarray, h: np.ndarray, p: np.ndarray, law_inertia: np.ndarray):
         """Fly the loop with the engine's interval integrator ``fn`` (``flight_interval``) from X0 over steps h
-        (N,) with flight parameters p: (start, end) commands (6, N) each and the samples Xs (N M, 18)."""
+        (N,) with flight parameters p, the law knowing its body by ``law_inertia`` (3x3; the error of the angular
+        momentum is J_law (Omega - Omega_k), Omega = J_truth^-1 Pi the measured rate, transcription.dynamics.flight.
+        sensed): (start, end) commands (6, N) each and the samples Xs (N M, 18)."""
         N = h.size
         run = _loop_run(fn, N)
         W = np.vstack([self.plan.start, self.plan.end, h[None, :]])
         S0 = np.concatenate([X0, np.zeros(NZ + NU)])
-        _, Xs, cmd = run(S0, W, self.data(), np.repeat(p[:, None], N, axis=1))
+        g = np.vstack([self.data(), np.repeat(np.asarray(law_inertia, float).reshape(9, 1, order="F"), N, axis=1)])
+        _, Xs, cmd = run(S0, W, g, np.repeat(p[:, None], N, axis=1))
         cmd = cmd.full()
         return cmd[:NU], cmd[NU:], Xs.full().T
 
 
 def tracking_interval(fn: ca.Function) -> ca.Function:
-    """``flight_tracking_interval(S[36], w[13], g[N_G], p[29]) -> (S1[36], Xs[18 x M], cmd[12])``: one node
+    """``flight_tracking_interval(S[36], w[13], g[N_G + 9], p[29]) -> (S1[36], Xs[18 x M], cmd[12])``: one node
     interval of the loop (module docstring) around the engine's ``flight_interval`` ``fn``: w = [a; b; h] the
-    plan's command, g the law's data of the interval (:meth:`TrackingLoop.data`), cmd = [a + du; b + du]."""
-    S, w, g, p = ca.MX.sym("S", N_S), ca.MX.sym("w", N_W), ca.MX.sym("g", N_G), ca.MX.sym("p", N_P)
+    plan's command, g the law's data of the interval (:meth:`TrackingLoop.data`) and vec(J_law) (column-major),
+    cmd = [a + du; b + du]."""
+    S, w, g, p = ca.MX.sym("S", N_S), ca.MX.sym("w", N_W), ca.MX.sym("g", N_G + 9), ca.MX.sym("p", N_P)
     X, zp, dup = S[0:NX], S[NX:NX + NZ], S[NX + NZ:]
     Xr = g[0:NX]
     o = NX
@@ -86,7 +91,8 @@ def tracking_interval(fn: ca.Function) -> ca.Function:
     o += 2 * NU * NZ
     A, Bu = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), ca.reshape(g[o + NZ * NZ:o + NZ * NZ + NZ * NU], NZ, NU)
     R, Rr = ca.reshape(X[X_ROT], 3, 3), ca.reshape(Xr[X_ROT], 3, 3)
-    z = ca.vertcat(X[X_POS] - Xr[X_POS], X[X_MOM] - Xr[X_MOM], log_so3_small(ca.mtimes(Rr.T, R)), X[X_ANG] - Xr[X_ANG])
+    Pi = ca.mtimes(ca.reshape(g[N_G:], 3, 3), ca.mtimes(ca.reshape(p[0:9], 3, 3), X[X_ANG]))   # J_law Omega (sensed)
+    z = ca.vertcat(X[X_POS] - Xr[X_POS], X[X_MOM] - Xr[X_MOM], log_so3_small(ca.mtimes(Rr.T, R)), Pi - Xr[X_ANG])
     r = z - ca.mtimes(A, zp) - ca.mtimes(Bu, dup)
     du = -ca.mtimes(K, z) - g[N_G - 1] * ca.mtimes(L, r)
     a, b = w[0:NU] + du, w[NU:2 * NU] + du

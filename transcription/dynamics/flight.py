@@ -253,15 +253,26 @@ class Flight:
         return Trajectory(t=self.t, X=self.X, mass=self.mass, inertia=self.inertia)
 
 
+def sensed(X: np.ndarray, J_law: np.ndarray, Jinv_truth: np.ndarray) -> np.ndarray:
+    """The state (18,) a law that knows its body by the inertia ``J_law`` reads from the truth's state X (18,): the
+    rate is measured, Omega = Jinv_truth Pi, and the law's angular momentum is J_law Omega (docs/mathematics.md §12,
+    *The rate tracked*); the rest as flown.  X itself where J_law is the truth's."""
+    out = np.array(X, dtype=float).reshape(NX)
+    out[15:18] = np.asarray(J_law, float) @ (np.asarray(Jinv_truth, float) @ out[15:18])
+    return out
+
+
 def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | ControlLaw",
         actuators: Actuators | None = None, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
-        atol: float = ATOL, disturbance: ca.Function | None = None) -> Flight:
+        atol: float = ATOL, disturbance: ca.Function | None = None,
+        law_inertia: np.ndarray | None = None) -> Flight:
     """Fly ``law`` from X0 (18,; the truth body's momenta) over the increasing node grid ``times`` (N+1,) through
     eqs. (1)-(4) of the truth body ``model`` with ``actuators`` (default nominal), one node interval at a time
     (:func:`interval_integrator`), ``samples`` per interval.  An :class:`OpenLoop`, or a law with a ``flown(fn, X0, h,
-    p) -> (start, end, Xs)`` method, is flown in one call; any other law is asked for each interval's command from the
-    flown state.  ``disturbance``: the truth's forces besides gravity (:func:`equations_of_motion`).  Raises
-    FlightError if the integrator fails."""
+    p, law_inertia) -> (start, end, Xs)`` method, is flown in one call; any other law is asked for each interval's
+    command from the flown state as the law senses it (:func:`sensed`: the measured rate times ``law_inertia``, the
+    inertia the law believes, 3x3; default the truth's: the flown state itself).  ``disturbance``: the truth's forces
+    besides gravity (:func:`equations_of_motion`).  Raises FlightError if the integrator fails."""
     times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
     h = np.diff(times)
     if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
@@ -270,7 +281,9 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
         raise ValueError("X0: expected a finite state of 18 numbers")
     N, M = h.size, int(samples)
     fn = interval_integrator(model, M, rtol, atol, disturbance)
-    p = np.concatenate([np.linalg.inv(model.inertia).ravel(order="F"), (actuators or Actuators()).vector()])
+    Jinv = np.linalg.inv(model.inertia)
+    J_law = np.asarray(model.inertia if law_inertia is None else law_inertia, dtype=float).reshape(3, 3)
+    p = np.concatenate([Jinv.ravel(order="F"), (actuators or Actuators()).vector()])
     try:
         if isinstance(law, OpenLoop):
             A, B = np.asarray(law.start, float), np.asarray(law.end, float)
@@ -279,11 +292,11 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
             _, Xs = _open_loop_run(fn, N)(X0, np.vstack([A, B, h[None, :]]), np.repeat(p[:, None], N, axis=1))
             Xs = Xs.full().T
         elif hasattr(law, "flown"):           # a law flown in one call (transcription.closedloop.loop.TrackingLoop)
-            A, B, Xs = law.flown(fn, X0, h, p)
+            A, B, Xs = law.flown(fn, X0, h, p, J_law)
         else:
             A, B, out, Xk = np.zeros((NU, N)), np.zeros((NU, N)), [], X0
             for k in range(N):
-                A[:, k], B[:, k] = law.commands(k, float(times[k]), Xk.copy())
+                A[:, k], B[:, k] = law.commands(k, float(times[k]), sensed(Xk, J_law, Jinv))
                 X1, Xk_s = fn(Xk, np.concatenate([A[:, k], B[:, k], [h[k]]]), p)
                 out.append(Xk_s.full().T)
                 Xk = X1.full().ravel()
