@@ -6,8 +6,10 @@ inertial, moment body) is held over [t_k, t_{k+1}]: z_{k+1} = A_k z_k + Bu_k du_
 (w_k = [u_k + du_k; u_{k+1} + du_k]), B_k for first_order (w_k = u_{k+1} + du_k) (:func:`held`).  du_k = -K_k z_k -
 L_k r_k minimizes sum_{k<N} h_k (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N with a persisting disturbance r
 (:func:`riccati`; r_k estimated by :class:`Tracker`); step k is linearized at its own h_k.  Default weights: Bryson's
-rule (:func:`bryson_weights`).  A removed control gets no feedback; the correction is limited to the plan's headroom
-below the actuators' bounds (:meth:`Tracker.limit`).
+rule (:func:`bryson_weights`).  The inputs are the actuators' channels (:func:`input_channels`: one body-fixed engine's
+thrust along its axis and the moment; A_k's attitude columns carry d(R u_b)/dR); a removed control gets no feedback;
+the correction is limited to the plan's headroom below the actuators' bounds (:meth:`Tracker.limit`).  The state's
+Pi is the law's J Omega of the measured rate (transcription.dynamics.flight.sensed).
 
 Shapes: K, L (N, 6, 12), P (N+1, 12, 12), S (N, 6, 6), A (N, 12, 12), B (N, 12, nw), X (N+1, 18), U (6, n_controls).
 NumPy, except the linearization (the plan's CasADi ``variation``, mapped once).
@@ -300,7 +302,8 @@ class Tracker:
 
     w_{k-1} the commands issued: r_k is what the last step did that the linearization does not explain, taken as
     persisting.  ``r0``: an estimate handed over for step 0 (:meth:`unexplained`).  The correction is limited to the
-    plan's symmetric headroom (:meth:`limit`: a box by :func:`box_qp` in the metric S_k, a norm by scaling).  feedback
+    plan's symmetric headroom (:meth:`limit`: a box by :func:`box_qp` in the metric S_k, a norm by scaling; an
+    engine's thrust to its own one-sided box).  feedback
     False: the plan's controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps`` counts the limited
     steps."""
 
@@ -355,7 +358,8 @@ class Tracker:
         return cmd
 
     def limit(self, k: int, du: np.ndarray, plan: np.ndarray) -> tuple[np.ndarray, bool]:
-        """du (6,) limited to the symmetric headroom of the plan's rows (rows, 6) of step k; and whether it was."""
+        """du (6,) limited to the symmetric headroom of the plan's rows (rows, 6) of step k (an engine's thrust: to
+        min(lo - T_min, 0) <= dT <= max(hi - T_max, 0) over the rows, docs/mathematics.md §12); and whether it was."""
         hb = np.maximum(self.box - np.abs(plan).max(axis=0), 0.0)
         limited = bool(np.any(np.abs(du) > hb))
         if limited:
