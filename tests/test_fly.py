@@ -34,7 +34,8 @@ from se3ocp.problems.cli import main
 from se3ocp.problems.flight import fly, load_flight, parse_flight
 from se3ocp.problems.flight.output import write_flights
 from se3ocp.problems.flight.plan import run_seeds, sample_errors
-from se3ocp.problems.flight.run import run_flights
+from se3ocp.problems.flight.command import table as fly_table
+from se3ocp.problems.flight.run import run_flights, worse_than_open
 from se3ocp.problems.schema import ConfigError
 from se3ocp.problems.sweep.executors import PoolExecutor, SerialExecutor
 from se3ocp.transcription.results.check import continuous_check
@@ -181,6 +182,21 @@ def test_the_tracker_on_the_continuous_truth(e3_plan):
     st = res.statistics()
     assert res.summary()["closed_over_open"]["position_miss_p95"] <= 1e-2
     assert st["lqr"]["delta_v_overhead"]["max"] <= 0.05 and st["none"]["position_miss"]["p95"] >= 1e-2
+    assert res.summary()["worse_than_open"] == [] and not any(r.startswith("warning") for r in fly_table(res))
+
+
+def test_a_closed_loop_worse_than_open_loop_is_said():
+    """Issue 43: a feedback that ends farther from the plan than open loop (p95 ratio > 1) is said -- in summary.json's
+    ``worse_than_open``, the command's table and the report -- naming each worse miss with its ratio; ratios <= 1 or
+    undefined are not."""
+    summary = {"closed_over_open": {"position_miss_p95": 9.6, "velocity_miss_p95": 0.5, "attitude_miss_deg_p95": None,
+                                    "rate_miss_p95": 1.0},
+               "mpc_over_open": {"position_miss_p95": 1.25, "velocity_miss_p95": 2.0}}
+    lqr, mpc = worse_than_open(summary)
+    assert lqr.startswith("LQR ends farther") and "position_miss x9.6" in lqr and "velocity" not in lqr
+    assert "rate" not in lqr and "attitude" not in lqr
+    assert "position_miss x1.25" in mpc and "velocity_miss x2" in mpc
+    assert worse_than_open({"closed_over_open": {"position_miss_p95": 0.3}}) == [] and worse_than_open({}) == []
 
 
 def test_the_slew_with_a_bound_margin_meets_the_targets_on_the_continuous_truth():

@@ -151,4 +151,4 @@ def table(res) -> list[str]:
             d = stats[m][key]
             cells.append(f"{'-':>26}" if d["n"] == 0 else f"{factor * d['p95']:>13.3e} ({factor * d['mean']:.2e})")
         rows.append(f"{key:<22}{unit:<9}" + "".join(cells))
-    return rows
+    return rows + [f"warning: {w}" for w in res.summary()["worse_than_open"]]

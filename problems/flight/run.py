@@ -75,6 +75,7 @@ class FlightResult:
         for mode, key in (("lqr", "closed_over_open"), ("mpc", "mpc_over_open")):
             if {"none", mode} <= set(stats):
                 out[key] = p95_ratios(stats["none"], stats[mode])
+        out["worse_than_open"] = worse_than_open(out)
         if "mpc" in stats:
             out["mpc"] = self.replan_summary()
         taken = truth_from_preset(self.spec.gravity, self.maneuver.physical)
@@ -108,6 +109,21 @@ def p95_ratios(open_loop: dict, closed: dict) -> dict:
         a, b = open_loop[m]["p95"], closed[m]["p95"]
         ratio[f"{m}_p95"] = b / a if a and math.isfinite(a) and b is not None and math.isfinite(b) else None
     return ratio
+
+
+def worse_than_open(summary: dict) -> list[str]:
+    """The sentences saying where a closed loop ends farther from the plan than open loop (its p95 terminal miss over
+    open loop's > 1, from ``closed_over_open`` / ``mpc_over_open`` of :meth:`Flights.summary`): one per mode, naming
+    the misses and their ratios; [] when feedback helps (or only one mode was flown)."""
+    out = []
+    for mode, key in (("LQR", "closed_over_open"), ("MPC", "mpc_over_open")):
+        worse = {m[:-len("_p95")]: r for m, r in summary.get(key, {}).items() if r is not None and r > 1.0}
+        if worse:
+            said = ", ".join(f"{m} x{r:.3g}" for m, r in worse.items())
+            out.append(f"{mode} ends farther from the plan than open loop (p95 over open loop's: {said}): the feedback "
+                       f"makes these flights worse; check the tracking weights, the actuators' saturation and whether "
+                       f"the truth's forces (J2, drag) are in the plan")
+    return out
 
 
 def describe(a: np.ndarray) -> dict:
