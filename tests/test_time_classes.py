@@ -14,7 +14,7 @@ import pytest
 
 import se3ocp
 from se3ocp.transcription.geometry.state import unpack_states
-from se3ocp.transcription.objectives.time import TimeStrategy, cone_classes, estimate_times, start_sizes
+from se3ocp.transcription.objectives.time import cone_classes, estimate_times, start_sizes
 from se3ocp.transcription.ocp.estimate import eigenaxis_time, transfer_time
 from se3ocp.transcription.solve import solve_direct
 from se3ocp.transcription.strategy import starts
