@@ -123,3 +123,18 @@ def test_plane_change_above_the_impulsive_bound():
     best = min(single("plane_change_time", T) for T in (0.6, 1.0))
     assert sol.converged and wall <= 60.0 and abs(sol.cost - best) <= 0.01 * best
     assert sol.cost >= 2 * 2 * math.pi * math.sin(math.radians(15.0)) / 10.0
+
+
+@pytest.mark.slow
+def test_a_keep_in_cone_is_the_keep_out_cone_it_leaves_out():
+    """Slow (~3 s).  The tracker kept within 140 deg of the anti-Sun direction is the same problem as kept 40 deg
+    from the Sun: the same classes (named keep_in) and the same minimum time as the keep-out slew's independent
+    solve, 26.8125 s (to 1e-6: the NLPs differ only in the sign of the cone's rows)."""
+    sets = ("constraints=[{kind: keep_in, body_axis: [1, 0, 0], direction: [-0.5, -0.8660254037844386, -0.1], "
+            "max_angle_deg: 140}]",)
+    m = maneuver("slew_keep_out_time", None, None, *sets)
+    assert cone_classes(m.problem, 10.0, 4) == [((0, 1),), ((0, -1),)]
+    sol = se3ocp.solve(m)
+    best = single("slew_keep_out_time", 30.0)
+    assert sol.converged and sol.cost == pytest.approx(best, rel=1e-6)
+    assert [r["name"] for r in sol.stats["homotopy_classes"]] == ["keep_in 1 on the near side", "keep_in 1 on the far side"]
