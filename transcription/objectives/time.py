@@ -122,7 +122,9 @@ class TimeStrategy(Composed):
     less) of a fine one and the finish takes few iterations; on the coarsest grid, also starts over the times that
     bracket the guess (:func:`bracketing_times`) and across the problem's own estimate of its minimum time
     (:func:`estimate_times`, ``estimate_factors``), each within ``start_budget`` iterations (a start over
-    T = 0.364 of configs/orbit_raise_time.yaml on 50 steps wandered 1528 iterations, 133 s, and failed).
+    T = 0.364 of configs/orbit_raise_time.yaml on 50 steps wandered 1528 iterations, 133 s, and failed).  The grids
+    halve (``coarse_factor`` 2): that raise at N = 100 finished from 25 steps wandered off (T ~ 1.1, not ended in 10
+    min); by halves it takes 2.4 s.
 
     With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
     per homotopy class of the path round them (:func:`cone_classes`, at most ``max_classes``): its starts routed
@@ -132,7 +134,7 @@ class TimeStrategy(Composed):
     120 deg slew past a 40 deg cone: 28.7 on 25 steps, 39.23 on 200, where 28.89 exists)."""
 
     starts: int = 3
-    coarse_factor: int = 4
+    coarse_factor: int = 2
     coarse_min: int = 25
     estimate_factors: tuple[float, ...] = (1.0, 2.0, 4.0)
     start_budget: int | None = 400
