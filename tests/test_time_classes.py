@@ -86,10 +86,11 @@ def test_keep_out_slew_reaches_the_faster_side():
     best = single("slew_keep_out_time", 30.0)
     assert sol.converged and wall <= 60.0
     assert abs(sol.cost - best) <= 0.01 * best and best < 30.0, (sol.cost, best)
-    rows = sol.stats["homotopy_classes"]
-    assert [r["name"] for r in rows] == ["keep_out 1 on the near side", "keep_out 1 on the far side"]
+    rows = sol.stats["homotopy_classes"]              # 'keep_out 1 on the near side: 26.8125 (332 iterations)'
+    assert [r.split(": ")[0] for r in rows] == ["keep_out 1 on the near side", "keep_out 1 on the far side"]
     assert "homotopy classes tried: keep_out 1 on the near side" in sol.message
-    assert min(r["cost"] for r in rows) == pytest.approx(sol.cost, rel=1e-12) and all(r["iterations"] > 0 for r in rows)
+    assert min(float(r.split(": ")[1].split()[0]) for r in rows) == pytest.approx(sol.cost, rel=1e-5)
+    assert all(int(r.split("(")[1].split()[0]) > 0 for r in rows) and sol.summary()["homotopy_classes"] == rows
 
 
 @pytest.mark.slow
@@ -139,4 +140,5 @@ def test_a_keep_in_cone_is_the_keep_out_cone_it_leaves_out():
     sol = se3ocp.solve(m)
     best = single("slew_keep_out_time", 30.0)
     assert sol.converged and sol.cost == pytest.approx(best, rel=1e-6)
-    assert [r["name"] for r in sol.stats["homotopy_classes"]] == ["keep_in 1 on the near side", "keep_in 1 on the far side"]
+    assert [r.split(": ")[0] for r in sol.stats["homotopy_classes"]] == ["keep_in 1 on the near side",
+                                                                          "keep_in 1 on the far side"]

@@ -182,12 +182,11 @@ class BestOf:
 
 def tried(what: str, names: tuple[str, ...], sols: list[Solution]) -> tuple[str, dict]:
     """The sentence and stats of a :class:`BestOf` whose strategies are named (``names``, one each): what each
-    ended at and the iterations it spent, as ``stats[what]`` (name, result, cost, iterations) and one line."""
-    rows = [{"name": n, "result": s.result.value, "cost": float(s.cost) if s.converged else None,
-             "iterations": int(s.iterations)} for n, s in zip(names, sols)]
-    line = "; ".join(f"{r['name']}: " + (f"{r['cost']:.6g}" if r["cost"] is not None else r["result"]) +
-                     f" ({r['iterations']} iterations)" for r in rows)
-    return f"{what.replace('_', ' ')} tried: {line}; the lowest kept", {what: rows}
+    ended at (its cost to 6 digits, or its result) and the iterations it spent, one line each in ``stats[what]``
+    (words: summary.json keeps them) and joined in the sentence."""
+    rows = [f"{n}: " + (f"{s.cost:.6g}" if s.converged else s.result.value) + f" ({s.iterations} iterations)"
+            for n, s in zip(names, sols)]
+    return f"{what.replace('_', ' ')} tried: {'; '.join(rows)}; the lowest kept", {what: rows}
 
 
 def spread(costs: list[float], N: int, rtol: float, false: list[float] = ()) -> dict:
