@@ -159,7 +159,7 @@ class TimeStrategy(Composed):
                                                            f"(seed {k})") for k in range(self.starts))
         coarse = CoarseToFine(self, Solve(label="from coarse"), self.coarse_factor, self.coarse_min)
         if coarse.grid(problem) < problem.N and self.sides:     # a coarse path may cut the cone: one start here too
-            return FirstOf((BestOf((coarse, fine[0])), BestOf(fine[1:])))
+            return FirstOf((BestOf((coarse, replace(fine[0], budget=self.start_budget))), BestOf(fine[1:])))
         if coarse.grid(problem) < problem.N:
             return FirstOf((coarse, BestOf(fine)))
         times = bracketing_times(problem) + estimate_times(problem, self.estimate_factors)
