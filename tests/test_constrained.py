@@ -54,16 +54,18 @@ def test_time_optimal_slews_converge_to_the_published_minimum(name, published):
 
 @pytest.mark.parametrize("name", ["slew_time_optimal", "slew_time_optimal_symmetric"])
 def test_coarse_grid_starts_reach_the_fine_grid_minimum(name):
-    """The time objective's starts are solved on max(25, N // 4) steps and the best is finished on N
-    (TimeStrategy.coarse_min): the same minimum as the starts solved on N steps."""
-    from se3ocp.transcription.objectives.time import TimeStrategy, bracketing_times
+    """The time objective's starts are solved on max(25, N // 2) steps (recursively: 100 -> 50 -> 25) and the best is
+    finished on N (TimeStrategy.coarse_min, coarse_factor): the same minimum as the starts solved on N steps."""
+    from se3ocp.transcription.objectives.time import TimeStrategy, bracketing_times, estimate_times
 
     coarse = solved(name, 100)
-    assert coarse.trace[0].label == "the best start on 25 steps, resampled"
+    assert coarse.trace[0].label == "the best start on 50 steps, resampled"
+    assert coarse.trace[0].parts[-1].label == "the best start on 25 steps, resampled"
     assert coarse.trace[0].prepared_on == "the coarse grid" and coarse.trace[0].total_iterations > coarse.trace[0].iterations
     assert coarse.stats["initial_guess"] == "from coarse"
     fine = se3ocp.solve(maneuver(name, 100), "direct", strategy=TimeStrategy(coarse_min=10 ** 6))   # the starts on N
-    starts = TimeStrategy().starts + len(bracketing_times(maneuver(name, 100).problem))   # seeds, T bracketing
+    p100, ts = maneuver(name, 100).problem, TimeStrategy()
+    starts = ts.starts + len(bracketing_times(p100)) + len(estimate_times(p100, ts.estimate_factors))  # seeds, Ts
     assert [a.prepared_on for a in fine.trace] == [""] * starts
     assert "resampled" not in fine.stats["initial_guess"]
     assert fine.converged and coarse.converged

@@ -140,16 +140,18 @@ def test_the_phase_1_reaches_the_same_solution():
 # --------------------------------------------------------------- multistart for the time objective: the spread
 def test_time_optimal_starts_report_their_spread():
     """Betts' slew (configs/slew_time_optimal.yaml) on 25 steps, the coarsest grid: three seeded starts at the
-    guess T = 30 and two at the geometric means with the bounds (5.48, 54.8).  Measured: the seeded ones end at
-    28.5464, the bracketing ones at 29.32 (another local minimum): the message and the stats say so and the
-    lowest is kept.  On 40 steps the coarse grid's spread is carried into the Solution and summary.json."""
+    guess T = 30, two at the geometric means with the bounds (5.48, 54.8) and three across the eigenaxis bang-bang
+    time 34.31 (x 1, 2, 4 clipped to the bound: 34.31, 68.62, 100).  Measured: the seeded ones end at 28.5464, the
+    bracketing ones at 29.32 (another local minimum): the message and the stats say so and the lowest is kept.  On 40 steps the coarse grid's spread is carried into the Solution and summary.json."""
     sol = se3ocp.solve(maneuver("slew_time_optimal", 25))
     assert sol.converged, sol.message
     costs = [a.cost for a in sol.trace if a.result.successful]
-    assert len(sol.trace) == 5 and sol.trace[3].label.startswith("interpolate over T = 5.47723")
-    assert sol.cost == min(costs) and sol.stats["multistart_starts"] == 5
+    assert len(sol.trace) == 8 and sol.trace[3].label.startswith("interpolate over T = 5.47723")
+    assert [a.label.split(" with")[0] for a in sol.trace[5:]] == [f"interpolate over T = {T}" for T in
+                                                                   ("34.3112", "68.6224", "100")]
+    assert sol.cost == min(costs) and sol.stats["multistart_starts"] == 8
     assert sol.stats["multistart_optima"] >= 2 and sol.stats["multistart_spread"] > 1e-2
-    assert "the 5 starts on 25 steps ended at" in sol.message and "different optima" in sol.message
+    assert "the 8 starts on 25 steps ended at" in sol.message and "different optima" in sol.message
     fine = se3ocp.solve(maneuver("slew_time_optimal", 40))
     summary = fine.summary()
     assert fine.converged and summary["multistart_grid"] == 25 and summary["multistart_optima"] >= 2

@@ -4,19 +4,22 @@ bounded -- its cost block of the direct method's NLP (N h), its scales, and its 
 conditions are the bang-bang law and the time condition (:mod:`transcription.methods.indirect.objectives`)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
+from itertools import product
 from typing import ClassVar
 
 import numpy as np
 
-from ..geometry.state import U_FORCE, U_MOMENT
+from ..geometry.state import U_FORCE, U_MOMENT, unpack_states
 from ..nlp import blocks
 from ..nlp.structured import Block
 from ..methods.indirect.laws import TimeLaw
 from ..ocp import Objective, Problem, ProblemError
+from ..ocp.estimate import time_estimate
+from ..results.start import Start
 from ..strategy.core import BestOf, CoarseToFine, Composed, FirstOf, Solve, chosen
-from ..strategy.starts import perturbed
+from ..strategy.starts import closest_approach, detour, interpolation, obstacles, perturbed
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,48 @@ def start_sizes(problem: Problem) -> np.ndarray:
     return size
 
 
+def estimate_times(problem: Problem, factors: tuple[float, ...]) -> list[float]:
+    """The final times of the starts across the problem's own estimate of its minimum time T_e
+    (:func:`~transcription.ocp.estimate.time_estimate`: the Hohmann delta-v at full thrust, the eigenaxis bang-bang
+    slew): T_e times each of ``factors``, clipped to the time bounds, those within 5 % of the guess or of each other
+    counted once; [] without an estimate.  Why: the guess alone may lie nearer a worse local minimum (a raise from
+    T = 0.4 at N = 100 wandered 10 min; docs/mathematics.md §10)."""
+    est = time_estimate(problem)
+    if est is None:
+        return []
+    lo, hi = problem.time_bounds
+    out: list[float] = []
+    for f in factors:
+        T = float(np.clip(est * f, lo, hi))
+        if all(abs(T - o) > 0.05 * o for o in out + [problem.T]):
+            out.append(T)
+    return out
+
+
+def cone_classes(problem: Problem, reach_deg: float, most: int) -> list[tuple[tuple[int, int], ...]]:
+    """The homotopy classes of the attitude path round the cones the straight (screw) path passes within
+    ``reach_deg`` of (:func:`~transcription.strategy.starts.closest_approach`): every choice of a side (+1 near, -1
+    far) for each, as ((constraint index, side), ...), at most ``most`` of them (the cones nearest the path first);
+    [] when no cone is in the way.  How many turns round a cone is not enumerated."""
+    R = unpack_states(interpolation(problem).X).R
+    near = {i: a for i, _, a, _ in obstacles(problem)}
+    close = sorted((ang - near[i], i) for i, _, ang in closest_approach(problem, R) if ang < near[i] + np.radians(reach_deg))
+    idx = [i for _, i in close][:max(0, int(np.log2(max(most, 1))))]
+    return [tuple(zip(idx, sides)) for sides in product((1, -1), repeat=len(idx))] if idx else []
+
+
+def class_name(problem: Problem, sides: tuple[tuple[int, int], ...]) -> str:
+    """The words of one homotopy class (:func:`cone_classes`): 'keep_out 1 on the near side, ...' (1-based)."""
+    return ", ".join(f"{problem.constraints[i].kind} {i + 1} on the {'near' if s > 0 else 'far'} side" for i, s in sides)
+
+
+def routed(problem: Problem, size: np.ndarray, seed: int, T: float | None, sides: tuple, clearance_deg: float) -> Start:
+    """The symmetry-breaking start (:func:`~transcription.strategy.starts.perturbed`) over T, its attitude routed
+    round the cones on ``sides`` (:func:`~transcription.strategy.starts.detour`; () the straight path)."""
+    base = detour(problem, dict(sides), np.radians(clearance_deg), T) if sides else None
+    return perturbed(problem, size, seed, T, base)
+
+
 @dataclass(frozen=True)
 class TimeStrategy(Composed):
     """The time objective's default: ``starts`` symmetry-breaking starts (the screw interpolation with seeded random
@@ -75,27 +120,53 @@ class TimeStrategy(Composed):
     max(coarse_min, N // coarse_factor) steps they are solved there first (recursively: that solve does the same),
     the best resampled and finished here, the starts on this grid being the fallback -- each start costs a quarter (or
     less) of a fine one and the finish takes few iterations; on the coarsest grid, also starts over the times that
-    bracket the guess (:func:`bracketing_times`)."""
+    bracket the guess (:func:`bracketing_times`) and across the problem's own estimate of its minimum time
+    (:func:`estimate_times`, ``estimate_factors``), each within ``start_budget`` iterations (a start over
+    T = 0.364 of configs/orbit_raise_time.yaml on 50 steps wandered 1528 iterations, 133 s, and failed).  The grids
+    halve (``coarse_factor`` 2): that raise at N = 100 finished from 25 steps wandered off (T ~ 1.1, not ended in 10
+    min); by halves it takes 2.4 s.
+
+    With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
+    per homotopy class of the path round them (:func:`cone_classes`, at most ``max_classes``): its starts routed
+    through a waypoint ``cone_clearance_deg`` outside each cone on the side the class says (``sides``), each class
+    finished on this grid, the fastest kept, the classes named in the message and in ``stats['homotopy_classes']``.
+    Why finished apart: a coarse path may cut a cone between its nodes and its finish jump to another class (the
+    120 deg slew past a 40 deg cone: 28.7 on 25 steps, 39.23 on 200, where 28.89 exists)."""
 
     starts: int = 3
-    coarse_factor: int = 4
+    coarse_factor: int = 2
     coarse_min: int = 25
+    estimate_factors: tuple[float, ...] = (1.0, 2.0, 4.0)
+    start_budget: int | None = 400
+    cone_reach_deg: float = 10.0
+    cone_clearance_deg: float = 5.0
+    max_classes: int = 4
+    sides: tuple = ()
 
     def compose(self, problem: Problem, options, start=None):
         if start is not None:
             return Solve(label="warm start")
         if (one := chosen(problem, options)) is not None:
             return one
+        if not self.sides and (classes := cone_classes(problem, self.cone_reach_deg, self.max_classes)):
+            return BestOf(tuple(replace(self, sides=c) for c in classes), names=tuple(class_name(problem, c)
+                                                                                      for c in classes),
+                          stat="homotopy_classes")
         size = start_sizes(problem)
-        fine = tuple(Solve(partial(perturbed, size=size, seed=k), f"interpolate with symmetry-breaking controls (seed {k})")
-                     for k in range(self.starts))
+        route = partial(routed, size=size, sides=self.sides, clearance_deg=self.cone_clearance_deg)
+        where = f" round {class_name(problem, self.sides)}" if self.sides else ""
+        fine = tuple(Solve(partial(route, seed=k, T=None), f"interpolate{where} with symmetry-breaking controls "
+                                                           f"(seed {k})") for k in range(self.starts))
         coarse = CoarseToFine(self, Solve(label="from coarse"), self.coarse_factor, self.coarse_min)
+        if coarse.grid(problem) < problem.N and self.sides:     # a coarse path may cut the cone: one start here too
+            return FirstOf((BestOf((coarse, replace(fine[0], budget=self.start_budget))), BestOf(fine[1:])))
         if coarse.grid(problem) < problem.N:
             return FirstOf((coarse, BestOf(fine)))
-        bracket = tuple(Solve(partial(perturbed, size=size, seed=0, T=Ts),
-                              f"interpolate over T = {Ts:.6g} with symmetry-breaking controls (seed 0)")
-                        for Ts in bracketing_times(problem))
-        return BestOf(fine + bracket)
+        times = bracketing_times(problem) + estimate_times(problem, self.estimate_factors)
+        bracket = tuple(Solve(partial(route, seed=0, T=Ts), f"interpolate{where} over T = {Ts:.6g} with "
+                              "symmetry-breaking controls (seed 0)", self.start_budget) for Ts in times)
+        return BestOf(tuple(replace(f, budget=self.start_budget) for f in fine) + bracket)
 
 
-__all__ = ["Time", "TimeStrategy", "bracketing_times", "start_sizes"]
+__all__ = ["Time", "TimeStrategy", "bracketing_times", "class_name", "cone_classes", "estimate_times", "routed",
+           "start_sizes"]

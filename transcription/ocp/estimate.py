@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.so3 import log_so3_any
 from ..geometry.state import pack_state, unpack_states
 from .conditions import orbit_conditions, rendezvous_state
 from .problem import Problem
@@ -90,3 +91,53 @@ def moment_size(problem: Problem) -> float | None:
         return None
     r0 = float(np.linalg.norm(unpack_states(problem.X0).x[0]))
     return float(4.0 * np.pi * np.linalg.eigvalsh(problem.disc.J)[-1] * mu / r0**3)
+
+
+def largest_along(actuator, n: np.ndarray) -> float:
+    """The largest t >= 0 with t n admissible for ``actuator`` (unit n, 3, in the part's frame): the channels
+    Q^T (t n) in [lo, hi] and |t n| <= radius; 0 for a removed part, inf for a free one."""
+    Q, lo, hi = actuator.channels
+    c = np.asarray(Q, float).T @ np.asarray(n, float)
+    t = float(actuator.radius)
+    for cj, l, h in zip(c, lo, hi):
+        if abs(cj) > 1e-12:
+            t = min(t, (h if cj > 0 else -l) / abs(cj))
+    return max(t, 0.0)
+
+
+def eigenaxis_time(problem: Problem) -> float | None:
+    """The time of the rest-to-rest bang-bang rotation about the eigenaxis n from R_0 to the target attitude R_d
+    (radians theta = |Log(R_0^T R_d)|, n its body-frame axis): 2 sqrt(theta n^T J n / M_n), M_n the largest moment
+    the bound gives along n (:func:`largest_along`), the gyroscopic torque ignored (none about a principal axis).  An
+    estimate of a slew's minimum time (above it when the bound is a box: the time-optimal slew is not eigenaxis,
+    Betts' 28.63 s against 34.31 s).  None without a fixed attitude target or a moment bound, or when it does not
+    turn."""
+    target, bound = problem.terminal, problem.control.moment_bound
+    if not isinstance(target, TargetState) or "attitude" not in target.fixed or bound is None or bound.removed:
+        return None
+    w = log_so3_any(unpack_states(problem.X0).R[0].T @ unpack_states(target.X).R[0])
+    theta = float(np.linalg.norm(w))
+    if theta < 1e-9:
+        return None
+    n = w / theta
+    M = largest_along(bound, n)
+    return float(2.0 * np.sqrt(theta * float(n @ problem.disc.J @ n) / M)) if 0 < M < np.inf else None
+
+
+def transfer_time(problem: Problem) -> float | None:
+    """A lower bound on the time of an orbit change between circular orbits: the least impulsive delta-v between
+    them (:func:`~transcription.ocp.feasibility.orbit_delta_v`, Hohmann's) over the largest acceleration the force
+    bound gives, F_max / m (docs/mathematics.md §13).  None where that check does not apply or needs no delta-v."""
+    from .feasibility import orbit_capacity         # feasibility's orbit check, computed once there
+    cap = orbit_capacity(problem)
+    if cap is None or not cap[2] > 0:
+        return None
+    T = problem.time_bounds[1] if problem.free_time else problem.T
+    return float(cap[2] / (cap[3] / T))
+
+
+def time_estimate(problem: Problem) -> float | None:
+    """The problem's own estimate of its minimum time: the larger of :func:`transfer_time` (a bound) and
+    :func:`eigenaxis_time` (an estimate) that apply; None when neither does."""
+    known = [t for t in (transfer_time(problem), eigenaxis_time(problem)) if t is not None and np.isfinite(t)]
+    return max(known) if known else None

@@ -152,11 +152,15 @@ class FirstOf:
 class BestOf:
     """Every strategy (a multistart); the lowest-cost converged Solution, the trace of all of them, and the spread of
     the converged costs (:func:`spread`).  ``judge(solution, ctx) -> bool``: whether a converged start is a false
-    minimum of the NLP rather than an optimum of the problem (named in the sentence; None: none judged)."""
+    minimum of the NLP rather than an optimum of the problem (named in the sentence; None: none judged).  ``names``
+    (one per strategy, e.g. the homotopy classes of a path round its cones) and ``stat``: what each ended at and the
+    iterations it spent, said in the message and in ``stats[stat]`` (:func:`tried`)."""
 
     strategies: tuple
     same_optimum_rtol: float = 1e-6
     judge: Callable[[Solution, "Context"], bool] | None = None
+    names: tuple[str, ...] = ()
+    stat: str = ""
 
     def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
         sols = []
@@ -169,7 +173,20 @@ class BestOf:
         said = spread([s.cost for s in done], problem.N, self.same_optimum_rtol,
                       [s.cost for s in done if self.judge is not None and self.judge(s, ctx)])
         best = replace(best, trace=tuple(a for x in sols for a in x.trace))
-        return best.with_notes(said["multistart"] if best.converged and said else "", **said)
+        best = best.with_notes(said["multistart"] if best.converged and said else "", **said)
+        if not self.names:
+            return best
+        line, stats = tried(self.stat, self.names, sols)
+        return best.with_notes(line, **stats)
+
+
+def tried(what: str, names: tuple[str, ...], sols: list[Solution]) -> tuple[str, dict]:
+    """The sentence and stats of a :class:`BestOf` whose strategies are named (``names``, one each): what each
+    ended at (its cost to 6 digits, or its result) and the iterations it spent, one line each in ``stats[what]``
+    (words: summary.json keeps them) and joined in the sentence."""
+    rows = [f"{n}: " + (f"{s.cost:.6g}" if s.converged else s.result.value) + f" ({s.iterations} iterations)"
+            for n, s in zip(names, sols)]
+    return f"{what.replace('_', ' ')} tried: {'; '.join(rows)}; the lowest kept", {what: rows}
 
 
 def spread(costs: list[float], N: int, rtol: float, false: list[float] = ()) -> dict:
@@ -300,4 +317,4 @@ class Continuation:
 
 
 __all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromScheme", "Solve", "Strategy",
-           "chosen", "collapsed", "labelled", "not_made", "spread", "step_line"]
+           "chosen", "collapsed", "labelled", "not_made", "spread", "step_line", "tried"]

@@ -18,12 +18,14 @@ start's force (a body-fixed engine).  An orbit target is stood for by
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..dynamics.lgvi import Discretization
 from ..geometry.so3 import exp_so3, log_so3_any, rotation_between
 from ..geometry.state import NU, U_FORCE, U_MOMENT, X_ANG, X_ROT, pack_state, unpack_states
-from ..ocp import Problem
+from ..ocp import KeepIn, KeepOut, Problem
 from ..ocp.estimate import target_estimate
 from ..results.start import Origin, Start
 
@@ -234,15 +236,83 @@ def implied_effort(disc, X: np.ndarray, h, W: np.ndarray) -> tuple[float, float]
             float(0.5 * np.einsum("k,ki,ij,kj->", hk, u, W[U_MOMENT, U_MOMENT], u)))
 
 
-def perturbed(problem: Problem, size: np.ndarray, seed: int = 0, T: float | None = None) -> Start:
-    """The screw interpolation (over the horizon T, the problem's by default) with controls drawn (seeded, normal)
-    at the size ``size`` (6,) of each control component (their bounds; 0 for a removed control).  It breaks the
-    symmetry of the eigenaxis maneuver, a stationary point of the time-optimal problem (docs/mathematics.md §10)."""
-    g = interpolation(problem, T)
+def perturbed(problem: Problem, size: np.ndarray, seed: int = 0, T: float | None = None,
+              base: Start | None = None) -> Start:
+    """The screw interpolation (over the horizon T, the problem's by default; or the start ``base``) with controls
+    drawn (seeded, normal) at the size ``size`` (6,) of each control component (their bounds; 0 for a removed
+    control).  It breaks the symmetry of the eigenaxis maneuver, a stationary point of the time-optimal problem
+    (docs/mathematics.md §10)."""
+    g = interpolation(problem, T) if base is None else base
     rng = np.random.default_rng(seed)
     size = np.asarray(size, float)[:, None]
     return Start(t=g.t, X=g.X, U=np.clip(size * rng.standard_normal(g.U.shape), -size, size), scheme=g.scheme,
                  origin=Origin.interpolate)
+
+
+def obstacles(problem: Problem) -> list[tuple[int, np.ndarray, float, np.ndarray]]:
+    """The fixed-direction cones of ``problem``'s path constraints as regions the body axis must avoid: (index in
+    problem.constraints, unit axis s, half-angle alpha (rad), body axis b); a keep-out cone (d, a) is itself, a
+    keep-in cone (d, a) avoids the cone (-d, 180 deg - a).  Cones about a moving direction are left out."""
+    out = []
+    for i, c in enumerate(problem.constraints):
+        if isinstance(c, (KeepOut, KeepIn)) and not c.moving:
+            d, a = np.asarray(c.direction, float), np.radians(c.angle_deg)
+            out.append((i, d, a) if isinstance(c, KeepOut) else (i, -d, np.pi - a))
+            out[-1] += (np.asarray(c.body_axis, float),)
+    return out
+
+
+def closest_approach(problem: Problem, R: np.ndarray) -> list[tuple[int, int, float]]:
+    """For each obstacle (:func:`obstacles`) along attitudes R (N+1, 3, 3): (its index, the node k nearest its axis,
+    the least angle (rad) from its axis), in the order of the obstacles."""
+    out = []
+    for i, s, alpha, b in obstacles(problem):
+        ang = np.arccos(np.clip(np.einsum("kij,j,i->k", R, b, s), -1.0, 1.0))
+        k = int(np.argmin(ang))
+        out.append((i, k, float(ang[k])))
+    return out
+
+
+def _waypoint(Rk: np.ndarray, Rprev: np.ndarray, Rnext: np.ndarray, s: np.ndarray, alpha: float, b: np.ndarray,
+              side: int, clearance: float) -> np.ndarray:
+    """The attitude Rk turned so that its body axis p = Rk b lies ``clearance`` (rad) outside the cone (s, alpha) on
+    the ``side`` (+1: the side of s where p already is; -1: the opposite side), by the smallest rotation."""
+    p = Rk @ b
+    d = p - (p @ s) * s
+    if np.linalg.norm(d) < 1e-6:          # through the axis: the sides lie across the path's direction
+        d = np.cross(s, Rnext @ b - Rprev @ b)
+    d = d / max(np.linalg.norm(d), 1e-300)
+    q = np.cos(alpha + clearance) * s + side * np.sin(alpha + clearance) * d
+    return rotation_between(p[None], q[None])[0] @ Rk
+
+
+def detour(problem: Problem, sides: dict[int, int], clearance: float, T: float | None = None) -> Start:
+    """The screw interpolation (:func:`interpolation`, over T) with its attitude routed round the cones of ``sides``
+    ({index in problem.constraints: +1 the near side, -1 the far side}): a waypoint where the straight path passes
+    nearest each cone's axis (:func:`closest_approach`), turned ``clearance`` (rad) outside the cone on that side
+    (:func:`_waypoint`), joined by geodesics R(t) = Exp(f Log(R_b R_a^T)) R_a at constant rate between the waypoints'
+    nodes; Pi = J R^T w / dt on each piece (body), the endpoint mismatches blended away as in :func:`screw_path`.
+    Positions and linear momenta as the interpolation's; zero controls.  One start per homotopy class of the path
+    round the cones (which side of each)."""
+    g = interpolation(problem, T)
+    st = unpack_states(g.X)
+    R, J, t = st.R, np.asarray(problem.disc.J, float), g.t
+    cones = {i: (s, a, b) for i, s, a, b in obstacles(problem)}
+    anchors = [(0, R[0])]
+    for i, k, _ in sorted(closest_approach(problem, R), key=lambda c: c[1]):
+        if i in sides and 0 < k < len(R) - 1 and k > anchors[-1][0]:
+            anchors.append((k, _waypoint(R[k], R[k - 1], R[k + 1], *cones[i], sides[i], clearance)))
+    anchors.append((len(R) - 1, R[-1]))
+    Rn, Pi = R.copy(), np.zeros_like(st.Pi)
+    for (ka, Ra), (kb, Rb) in zip(anchors[:-1], anchors[1:]):
+        w = log_so3_any(Rb @ Ra.T)
+        f = (t[ka:kb + 1] - t[ka]) / (t[kb] - t[ka])
+        Rn[ka:kb + 1] = [exp_so3(c * w) @ Ra for c in f]
+        Pi[ka:kb + 1] = np.einsum("ij,kjl,l->ki", J, np.swapaxes(Rn[ka:kb + 1], 1, 2), w / (t[kb] - t[ka]))
+    a, d = unpack_states(problem.X0), unpack_states(target_estimate(problem))
+    f = (t - t[0]) / (t[-1] - t[0])
+    Pi = Pi + (1 - f)[:, None] * (a.Pi[0] - Pi[0]) + f[:, None] * (d.Pi[0] - Pi[-1])
+    return replace(g, X=pack_state(st.x, st.gamma, Rn, Pi))
 
 
 def make(kind: str, problem: Problem) -> Start:
@@ -257,5 +327,5 @@ def make(kind: str, problem: Problem) -> Start:
     raise ValueError(f"initial_guess must be one of {', '.join(KINDS)}, got {kind!r}")
 
 
-__all__ = ["KINDS", "aimed", "implied_effort", "interpolation", "make", "orbit_interpolation", "orbit_turn",
+__all__ = ["KINDS", "aimed", "closest_approach", "detour", "implied_effort", "obstacles", "interpolation", "make", "orbit_interpolation", "orbit_turn",
            "perturbed", "rollout", "screw_path"]
