@@ -219,6 +219,8 @@ def check_summary(summ: Any, source: str, npz_methods: list[str]) -> None:
         if b["converged"] != Result(b["status"]).successful:
             fail(f"{at}converged", f"expected {Result(b['status']).successful} for status {b['status']}, got "
                                    f"{b['converged']}")
+        if not simulate and b["converged"] and not (b["cost"] is not None and math.isfinite(b["cost"])):
+            fail(f"{at}cost", f"expected a finite number for a converged plan, got {describe(b['cost'])}")
         history = b.get("history", [])
         if not isinstance(history, list):
             fail(f"{at}history", f"expected a list of progress records, got {describe(history)}")
