@@ -90,7 +90,10 @@ class StructuredFinish:
     the rough solve took below this x the scale become coast nodes.  ``exact``: the rounding of the solves on the
     pruned structure.  ``rounds``: at most this many solves (a round after the first widens the structure), each
     within ``budget`` iterations.  ``resolved``: the start resolves the switching times (an adaptive level of
-    refinement), its objective scaled by N / ``resolved_nodes``.  ``fallback``: the epigraph NLP from the same start
+    refinement).  ``scale_nodes``: on a grid of N > scale_nodes steps every solve sees the objective scaled by
+    N / scale_nodes (IPOPT's obj_scaling_factor): a node's share of the fuel falls as 1/N while the barrier's pull on
+    it does not, so on a fine grid IPOPT's own barrier start wanders and a warm start's multipliers, the rough solve's,
+    stay balanced only if every solve sees the same scale (docs/mathematics.md §23).  ``fallback``: the epigraph NLP from the same start
     with these IPOPT options (a small barrier, the point pushed off its bounds as little as possible), within
     ``fallback_budget`` iterations (None: max_iter); None: no fallback.  ``guard``: the guard's tolerances and kick
     (:class:`.guard.Guarded`; a coast node with sigma_j > tol joins B, its control started at kick x r along mu_j).
@@ -107,7 +110,7 @@ class StructuredFinish:
     rounds: int = 4
     budget: int = 500
     resolved: bool = False
-    resolved_nodes: int = 200
+    scale_nodes: int = 200
     fallback: Mapping | None = field(default_factory=lambda: {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9,
                                                               "slack_bound_push": 1e-9, "slack_bound_frac": 1e-9})
     fallback_budget: int | None = None
@@ -130,7 +133,7 @@ class StructuredFinish:
         ref = smoothing_reference(problem, start.U)      # the parts' bounds, an unbounded part's largest magnitude
         per_scale = ref / SmoothTranscription.magnitude_scales(problem)   # a rounding x ref, in the NLP's terms
         burn = burn_structure(problem, start.U, ref, 0 if self.resolved else self.dilate, self.burn_rtol)
-        extra = {"obj_scaling_factor": max(1.0, problem.N / self.resolved_nodes)} if self.resolved else {}
+        extra = {"obj_scaling_factor": max(1.0, problem.N / self.scale_nodes)}
         log, trace, v = [], [], {}
         point, sol = None, None
         for rnd in range(1, self.rounds + 1):
