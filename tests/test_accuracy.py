@@ -323,8 +323,8 @@ def test_fuel_raise_refined_to_1e_6_lands_within_it():
     """Acceptance (issue 26): the fuel-optimal raise (configs/orbit_raise_fuel.yaml, LGVI, bang-off-bang thrust) with
     accuracy 1e-6 on the adaptive mesh (docs/mathematics.md §16): the plan re-flown by the test's own DOP853 lands
     within 1e-6 in every component, on fewer steps than uniform refinement asks from the same first level
-    (1.2 N (miss / tol)^(1/2) = 7848; measured 200 -> 4826 -> 4923 -> 6083, miss 8.3e-7), and its cost is the fine
-    grids' optimum (0.8189309 within 2e-7: 0.8189308927 on 4826 steps, 0.8189308184 on 6083; 0.8188391397 on the
+    (1.2 N (miss / tol)^(1/2) = 7848; measured 200 -> 4826 -> 4895 -> 6110, miss 8.3e-7), and its cost is the fine
+    grids' optimum (0.8189309 within 2e-7: 0.8189307769 on 4826 steps, 0.8189308306 on 6110; 0.8188391397 on the
     default 200).  The levels after the first adaptive one are finished on the previous level's own switching
     structure (.fuel_structure.resolves).  The test's DOP853 flies the rigid body's MacCullagh gravity (its force and
     gravity-gradient moment written out in tests/test_flight.py's reflight): at N = 200 it agrees with the continuous
