@@ -61,5 +61,6 @@ def slew_comparison(N: int = 40):
     U = np.zeros((6, n))
     U[5] = np.where(np.linspace(0.0, p.T, n) < 0.5 * p.T, 0.05, -0.05)
     direct = dataclasses.replace(se3ocp.simulate(p, U), method="direct", solver="ipopt",
-                                 result=se3ocp.Result.converged, verdict="simulated as a stand-in for IPOPT")
+                                 result=se3ocp.Result.converged, verdict="simulated as a stand-in for IPOPT",
+                                 cost=float(p.control.objective.value(p, U, p.h)))   # a converged plan has a cost
     return man, compare(direct, se3ocp.solve(man, "indirect"))
