@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics.flight import interval_commands
+from ..dynamics.trajectory import Trajectory
 from ..geometry.state import NU, NX, NZ
 from ..methods.indirect.control import bound_data, weight_inverse
 from ..methods.indirect.shooting import shooting_functions
@@ -74,15 +75,26 @@ def checked_constraints(problem) -> tuple:
     return tuple(c for c in problem.constraints if c.kind in CHECKED_CONSTRAINTS)
 
 
+def least_margins(problem, X: np.ndarray) -> list[tuple[object, int, float]]:
+    """(constraint, node, margin) of the smallest margin of each checked constraint (:func:`checked_constraints`)
+    over the nodes X (n, 18), in the constraint's own unit (its ``margin``)."""
+    traj = Trajectory(t=np.zeros(len(X)), X=np.asarray(X, float), mass=problem.model.mass,
+                      inertia=problem.model.inertia)
+    out = []
+    for c in checked_constraints(problem):
+        m = c.margin(traj)
+        k = int(np.argmin(m))
+        out.append((c, k, float(m[k])))
+    return out
+
+
 def touching(problem, X: np.ndarray, tol: float) -> str:
     """'' unless the plan's nodes X (N+1, 18) come within ``tol`` (the constraint's unit) of a checked constraint's
     bound (:func:`checked_constraints`), where it may be active and the re-plans' conditions without it are not the
     problem's; else which, by how much and at which node."""
-    for c in checked_constraints(problem):
-        margins = np.array([float(c.expression(x, problem.model.inertia)) for x in np.asarray(X, float)])
-        k = int(np.argmin(margins))
-        if margins[k] <= tol:
-            return f"the plan touches its {c.kind} {c.limit:.6g} (margin {margins[k]:.3g} at node {k})"
+    for c, k, m in least_margins(problem, X):
+        if m <= tol:
+            return f"the plan touches its {c.kind} {c.limit:.6g} (margin {m:.3g} at node {k})"
     return ""
 
 
@@ -135,7 +147,6 @@ class Replanner:
         self.problem, self.h, self.iterations, self.jit = problem, float(h), int(iterations), bool(jit)
         self.Xd, self.Winv, self.bd = problem.terminal.X, weight_inverse(problem), bound_data(problem)
         self.free, self.cayley_tol = free_rows(problem.terminal), float(cayley_tol)
-        self.checked = checked_constraints(problem)
 
     def steps(self, n: int) -> float | np.ndarray:
         """The step sizes of the last n steps (a shrinking horizon's remainder): h on a uniform mesh, else h_k =
@@ -209,9 +220,7 @@ class Replanner:
     def violated(self, Xs: np.ndarray) -> str:
         """'' when the predicted nodes Xs (n, 18) keep every checked constraint (:func:`checked_constraints`), else
         which one they violate and by how much (its margin's unit)."""
-        inertia = self.problem.model.inertia
-        for c in self.checked:
-            worst = min(float(c.expression(x, inertia)) for x in Xs)
+        for c, _, worst in least_margins(self.problem, Xs):
             if worst < 0:
                 return f"the re-plan's prediction violates its {c.kind} {c.limit:.6g} by {-worst:.3g} at a node"
         return ""
