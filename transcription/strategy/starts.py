@@ -112,6 +112,14 @@ def aimed(problem: Problem, start: Start, axis: np.ndarray, thrust_range: tuple[
     return Start(t=start.t, X=X, U=U, scheme=start.scheme, origin=Origin.aimed, source=start.source)
 
 
+def rotation_geodesic(Ra: np.ndarray, w: np.ndarray, f: np.ndarray, J: np.ndarray, duration: float):
+    """The attitudes Exp(f_k w) Ra (len(f), 3, 3) along the geodesic from Ra by the inertial rotation vector w at
+    fractions f of it, turned at the constant rate w / ``duration``, and their body angular momenta
+    Pi_k = J R_k^T w / duration (len(f), 3)."""
+    Rs = np.array([exp_so3(c * w) @ Ra for c in f])
+    return Rs, np.einsum("ij,kjl,l->ki", J, np.swapaxes(Rs, 1, 2), w / duration)
+
+
 def screw_path(X0: np.ndarray, Xd: np.ndarray, s: np.ndarray, mass: float, J: np.ndarray, T: float) -> np.ndarray:
     """SE(3) geodesic between the configurations of X0 and Xd at s in [0, 1] (module docstring): states (len(s), 18)."""
     a, d = unpack_states(X0), unpack_states(Xd)
@@ -138,9 +146,8 @@ def screw_path(X0: np.ndarray, Xd: np.ndarray, s: np.ndarray, mass: float, J: np
         Es = np.array([exp_so3(si * w) for si in s])
         xs = q[None, :] + Es @ (x0 - q) + s[:, None] * dpitch * n[None, :]
         vs = np.cross(w / T, xs - q[None, :]) + (dpitch / T) * n[None, :]
-    Rs = np.array([exp_so3(si * w) @ R0 for si in s])
+    Rs, Pis = rotation_geodesic(R0, w, s, J, T)
     gam = mass * vs
-    Pis = np.einsum("ij,kjl,l->ki", J, np.swapaxes(Rs, 1, 2), w / T)
     # blend the endpoint mismatches away linearly
     g_a, g_b = a.gamma[0] - gam[0], d.gamma[0] - gam[-1]
     P_a, P_b = a.Pi[0] - Pis[0], d.Pi[0] - Pis[-1]
@@ -305,10 +312,8 @@ def detour(problem: Problem, sides: dict[int, int], clearance: float, T: float |
     anchors.append((len(R) - 1, R[-1]))
     Rn, Pi = R.copy(), np.zeros_like(st.Pi)
     for (ka, Ra), (kb, Rb) in zip(anchors[:-1], anchors[1:]):
-        w = log_so3_any(Rb @ Ra.T)
-        f = (t[ka:kb + 1] - t[ka]) / (t[kb] - t[ka])
-        Rn[ka:kb + 1] = [exp_so3(c * w) @ Ra for c in f]
-        Pi[ka:kb + 1] = np.einsum("ij,kjl,l->ki", J, np.swapaxes(Rn[ka:kb + 1], 1, 2), w / (t[kb] - t[ka]))
+        Rn[ka:kb + 1], Pi[ka:kb + 1] = rotation_geodesic(Ra, log_so3_any(Rb @ Ra.T),
+                                                         (t[ka:kb + 1] - t[ka]) / (t[kb] - t[ka]), J, t[kb] - t[ka])
     a, d = unpack_states(problem.X0), unpack_states(target_estimate(problem))
     f = (t - t[0]) / (t[-1] - t[0])
     Pi = Pi + (1 - f)[:, None] * (a.Pi[0] - Pi[0]) + f[:, None] * (d.Pi[0] - Pi[-1])
