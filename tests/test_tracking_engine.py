@@ -123,3 +123,29 @@ def test_a_body_engine_leo_raise_flown_closed_loop(config):
               f"{rows['lqr']['saturated_fraction']:.3f}, delta-v overhead {rows['lqr']['delta_v_overhead']:.2e}")
         assert c <= (o if scale == 0 else 1e-2 * o)
         assert rows["lqr"]["saturated_fraction"] <= 0.1 and abs(rows["lqr"]["delta_v_overhead"]) <= 1e-3
+
+
+@pytest.mark.slow
+def test_a_leo_raise_planned_with_j2_flown_on_j2_with_errors_lands_within_a_hundredth_of_open_loop():
+    """(slow: a LEO plan at N = 600 with J2, ~30 s, and 2 x 20 continuous flights, ~25 s.)  Issue 43's first line:
+    configs/leo/raise_engine_j2.yaml (one 2 N body engine, planned with J2) flown with configs/flights/leo_engine_j2.yaml
+    (the preset's J2 in the truth, 2 % thrust, 0.5 deg misalignment, initial dispersions 50 m, 5 cm/s, 0.5 deg,
+    1e-4 rad/s; 20 of its runs): the LQR's p95 position miss within 1e-2 of open loop's and its p95 delta-v overhead
+    within 5 % (measured with the file's 200 runs: p95 41.1 km open, 4.2 m closed; overhead p95 1.39 %).  A
+    point-mass plan flown on J2 is worse closed loop than open (J2's pull is 7x the engine's: README, flights)."""
+    import yaml
+    from pathlib import Path
+
+    man = maneuver("leo/raise_engine_j2")
+    sol = se3ocp.solve(man, "direct")
+    assert sol.converged, sol.message
+    doc = yaml.safe_load((Path(__file__).parents[1] / "configs/flights/leo_engine_j2.yaml").read_text())["flight"]
+    rows = se3ocp.fly(sol, {**doc, "runs": 20}, maneuver=man).rows
+    by = {f: [r for r in rows if r["feedback"] == f] for f in ("none", "lqr")}
+    assert all(r["status"] == "ok" for r in rows)
+    p95 = {f: float(np.percentile([r["position_miss"] for r in rs], 95)) for f, rs in by.items()}
+    overhead = float(np.percentile([r["delta_v_overhead"] for r in by["lqr"]], 95))
+    print(f"raise_engine_j2 on J2 with errors: p95 open {p95['none']:.3e} km, closed {p95['lqr']:.3e} km, "
+          f"delta-v overhead p95 {overhead:.3%}")
+    assert p95["none"] > 1.0                           # the errors give open loop kilometres to miss
+    assert p95["lqr"] <= 1e-2 * p95["none"] and overhead <= 0.05
