@@ -96,11 +96,13 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
 
 
 def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
-    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces)."""
+    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces) or
+    its actuators (problems.flight.actuators.check_actuators)."""
     from ..schema import ConfigError
+    from .actuators import check_actuators
     from .forces import check_forces
 
-    bad = check_forces(maneuver, spec.resolved["truth"])
+    bad = check_forces(maneuver, spec.resolved["truth"]) or check_actuators(maneuver, spec.actuators)
     if bad:
         raise ConfigError(source, f"flight.{bad[0]}", bad[1])
 

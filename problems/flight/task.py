@@ -11,6 +11,7 @@ from ...transcription.dynamics.lgvi import two_point
 from ...transcription.dynamics.flight import ClosedLoop, FlightError, OpenLoop, fly
 from ...transcription.results.check import margin_keys
 from ...transcription.closedloop.loop import TrackingLoop
+from ...transcription.closedloop.pulses import fly_pulsed
 from ...transcription.geometry.state import X_POS, X_ROT
 from ...transcription.geometry.so3 import log_so3, nearest_rotation
 from ...transcription.closedloop.mpc import Replanner, Replanning
@@ -19,6 +20,7 @@ from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
+from .actuators import pulses_of
 from .forces import truth_forces
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
@@ -159,7 +161,8 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
 
 def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
-    (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
+    (the tracker, the re-planning law) or None, the re-planning law or None, the pulses' figures (PULSE_COLUMNS; {}
+    without on/off thrusters: spec.actuators, transcription.closedloop.pulses)).  ``lqr``: the LQR flight's tracker
     (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
     forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
     if mode == "lqr" and lqr is not None:
@@ -170,15 +173,20 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
         o = spec.mpc
         law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
                                    o["min_horizon"], gains if o["between"] == "lqr" else None)
+    pulses = pulses_of(spec.actuators, plan.problem)
     if mode == "lqr":
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
-        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+        if not tracker.bounded and pulses is None:    # nothing to limit: the same law inside the flight, one call
             law = TrackingLoop.of_gains(gains)
-    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
-                 disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
-    return flight, tracker, law if mode == "mpc" else None
+    truth, J_law = truth_model(base, err.inertia), plan.problem.model.inertia   # the rate measured, the plan's J
+    if pulses is not None:
+        flight, mod = fly_pulsed(truth, err.X0, gains.t, law, pulses, err.actuators, spec.samples, forces, J_law,
+                                 tracker if mode == "lqr" else None)
+        return flight, tracker, law if mode == "mpc" else None, mod.summary(truth.mass)
+    flight = fly(truth, err.X0, gains.t, law, err.actuators, samples=spec.samples, disturbance=forces, law_inertia=J_law)
+    return flight, tracker, law if mode == "mpc" else None, {}
 
 
 def replan_columns(law) -> dict:
@@ -218,8 +226,9 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
+                flight, tracker, mpc, pulsed = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
+                metrics.update(pulsed)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:
                     replan_s[i] = np.column_stack([mpc.solve_times, mpc.prepare_times]).tolist()
