@@ -18,7 +18,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from se3ocp.transcription.closedloop.pulses import Modulator, Pulses, fly_pulsed, segments
+from se3ocp.transcription.closedloop.actuated import fly_actuated
+from se3ocp.transcription.closedloop.pulses import Modulator, Pulses, segments
 from se3ocp.transcription.dynamics.flight import OpenLoop
 from se3ocp.transcription.dynamics.model import BodyModel
 from se3ocp.transcription.geometry.state import X_MOM
@@ -51,7 +52,8 @@ def test_each_period_delivers_its_impulse():
     N, h = 12, 0.7
     a, b = commands(rng, N, 0.15)              # |I| ~ 0.18 > BIT, below F h = 0.35 (no saturation)
     times = h * np.arange(N + 1)
-    flight, mod = fly_pulsed(free_body(), start_state(), times, OpenLoop(a, b), Pulses(F, BIT))
+    run = fly_actuated(free_body(), start_state(), times, OpenLoop(a, b), Pulses(F, BIT))
+    flight, mod = run.flight, run.pulses
     gamma = flight.X[np.searchsorted(flight.t, times)][:, X_MOM]
     want = 0.5 * h * (a[:3] + b[:3]).T
     assert mod.fired == N and mod.skipped == 0 and mod.saturated == 0
@@ -65,7 +67,8 @@ def test_sum_over_a_flight_within_one_bit():
     N, h = 40, 0.5
     a, b = commands(rng, N, 0.012)             # |I| ~ 0.01 around the bit 0.02: many periods carried
     times = h * np.arange(N + 1)
-    flight, mod = fly_pulsed(free_body(), start_state(), times, OpenLoop(a, b), Pulses(F, BIT))
+    run = fly_actuated(free_body(), start_state(), times, OpenLoop(a, b), Pulses(F, BIT))
+    flight, mod = run.flight, run.pulses
     commanded = 0.5 * h * (a[:3] + b[:3]).sum(axis=1)
     flown = flight.X[-1, X_MOM] - flight.X[0, X_MOM]
     assert mod.skipped >= 10 and mod.fired >= 5

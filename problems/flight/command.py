@@ -129,7 +129,7 @@ def cmd_fly(args) -> int:
 
 #: the figures of the command's table, in its order (those the flight has; report.ROWS gives their quantities)
 TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ELEMENT_METRICS, "delta_v_overhead",
-              "saturated_fraction")
+              "saturated_fraction", "pulses_skipped", "wheel_torque_used", "wheel_momentum_used")
 
 
 def table(res) -> list[str]:

@@ -11,16 +11,14 @@ import numpy as np
 from ..io import write_csv, write_json, write_npz, write_yaml
 from .report import write_flight_report
 from .run import FlightResult
-from ...transcription.closedloop.pulses import PULSE_COLUMNS
 from .task import ERROR_COLUMNS, MPC_COLUMNS
 
 
 def columns(result: FlightResult) -> list[str]:
     """flights.csv's columns: run, feedback, status, the figures of merit, the re-plans (with MPC), the sampled
-    errors, message (and the pulses' figures with on/off thrusters)."""
+    errors, message (the figures include the actuators' with on/off thrusters or wheels: task.metric_keys)."""
     mpc = MPC_COLUMNS if "mpc" in result.spec.modes else ()
-    pulses = PULSE_COLUMNS if "pulses" in result.spec.actuators else ()
-    return ["run", "feedback", "status", *result.metrics, *mpc, *pulses, *ERROR_COLUMNS, "message"]
+    return ["run", "feedback", "status", *result.metrics, *mpc, *ERROR_COLUMNS, "message"]
 
 
 def write_flights(out: Path, result: FlightResult, plan_arrays: dict, figures: bool = True) -> list[Path]:

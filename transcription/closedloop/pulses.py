@@ -17,9 +17,10 @@ the command's where the pulse fits.  Pulse-width modulation, one pulse per perio
   (c_{k+1} = 0; a saturated period, counted);
 * otherwise c_{k+1} = 0.
 
-The moment command is not pulsed (it stays the law's affine command).  :func:`fly_pulsed` flies any control law so,
-each period split at the pulse's edges into at most three intervals of the flight engine (CVODES restarted at each
-edge, never integrated across the switch).  A tracker told what was delivered (:meth:`Tracker.delivered`) does not
+The moment command is not pulsed (it stays the law's affine command).
+:func:`transcription.closedloop.actuated.fly_actuated` flies any control law so, each period split at the pulse's
+edges into at most three intervals of the flight engine (CVODES restarted at each edge, never integrated across the
+switch).  A tracker told what was delivered (:meth:`Tracker.delivered`) does not
 mistake a carried or cut impulse for a disturbance.
 """
 from __future__ import annotations
@@ -27,10 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from ..dynamics.flight import (DEFAULT_SAMPLES, Actuators, Flight, FlightError, _applied, interval_integrator,
-                               sensed)
-from ..geometry.state import NU, NX, U_FORCE, U_MOMENT
 
 
 @dataclass(frozen=True)
@@ -124,52 +121,3 @@ def segments(pulse: Pulse) -> list[tuple[float, float, np.ndarray]]:
         s0, s1 = 1.0 - pulse.width, 1.0
     parts = [(0.0, s0, np.zeros(3)), (s0, s1, pulse.force), (s1, 1.0, np.zeros(3))]
     return [(lo, min(hi, 1.0), f) for lo, hi, f in parts if hi - lo > 0.0 and lo < 1.0]
-
-
-def fly_pulsed(model, X0: np.ndarray, times: np.ndarray, law, pulses: Pulses, actuators: Actuators | None = None,
-               samples: int = DEFAULT_SAMPLES, disturbance=None, law_inertia: np.ndarray | None = None,
-               tracker=None) -> tuple[Flight, Modulator]:
-    """Fly ``law`` (a per-interval law: ``commands(k, t_k, X) -> (a, b)``, 6 each; transcription.dynamics.flight) from
-    X0 over the node grid ``times`` (N+1,), its force delivered by on/off ``pulses`` (module docstring), as
-    :func:`~transcription.dynamics.flight.fly` flies it otherwise (truth ``model``, ``actuators``, ``disturbance``,
-    the law reading the rate through ``law_inertia``).  ``tracker``: told each period what was delivered
-    (:meth:`~transcription.closedloop.tracking.Tracker.delivered`).  Returns the Flight -- its intervals are the
-    periods' parts (at most three per period; every node time among its samples), its commands the pulses' -- and
-    the Modulator (its counts and what is left carried).  Raises FlightError if the integrator fails."""
-    times, Xk = np.asarray(times, float).ravel(), np.asarray(X0, float).reshape(NX)
-    h = np.diff(times)
-    if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
-        raise ValueError("times: expected at least two increasing finite times")
-    M = int(samples)
-    fn = interval_integrator(model, M, disturbance=disturbance)
-    Jinv = np.linalg.inv(model.inertia)
-    J_law = np.asarray(model.inertia if law_inertia is None else law_inertia, float).reshape(3, 3)
-    p = np.concatenate([Jinv.ravel(order="F"), (actuators or Actuators()).vector()])
-    mod = Modulator(pulses)
-    A, B, out, edges = [], [], [], [times[0]]
-    try:
-        for k in range(h.size):
-            a, b = (np.asarray(c, float).reshape(NU) for c in law.commands(k, float(times[k]), sensed(Xk, J_law, Jinv)))
-            pulse = mod.period(a[U_FORCE], b[U_FORCE], h[k])
-            if tracker is not None:
-                tracker.delivered(np.concatenate([(pulse.delivered - pulse.commanded) / h[k], np.zeros(3)]))
-            for lo, hi, f in segments(pulse):
-                ca_ = np.concatenate([f, a[U_MOMENT] + lo * (b[U_MOMENT] - a[U_MOMENT])])
-                cb_ = np.concatenate([f, a[U_MOMENT] + hi * (b[U_MOMENT] - a[U_MOMENT])])
-                X1, Xs = fn(Xk, np.concatenate([ca_, cb_, [h[k] * (hi - lo)]]), p)
-                A.append(ca_)
-                B.append(cb_)
-                out.append(Xs.full().T)
-                Xk = X1.full().ravel()
-                edges.append(times[k + 1] if hi >= 1.0 else times[k] + h[k] * hi)
-    except RuntimeError as e:
-        raise FlightError(f"the continuous flight failed (CVODES): {str(e).strip().splitlines()[-1]}") from None
-    A, B, edges = np.array(A).T, np.array(B).T, np.array(edges)
-    X = np.vstack([np.asarray(X0, float).reshape(1, NX), *out])
-    hs = np.diff(edges)
-    ts = edges[:-1, None] + hs[:, None] * (np.arange(M + 1) / M)[None, :]
-    ts[:, -1] = edges[1:]
-    flight = Flight(t=np.concatenate([[edges[0]], ts[:, 1:].ravel()]), X=X, samples=M, command_start=A.T.copy(),
-                    command_end=B.T.copy(), control_t=ts, control=_applied(X, A, B, M, p[9:]), mass=float(model.mass),
-                    inertia=np.asarray(model.inertia, float))
-    return flight, mod
