@@ -179,3 +179,19 @@ def test_the_time_optimal_slew_flown_on_wheels(n):
     used = [k for k in res.metrics if k.startswith("wheel")]
     assert len(used) == 2 + 2 * n
     assert max(r[k] for r in res.rows for k in used) <= 1.0 + 1e-9
+
+
+def test_the_report_shows_each_wheels_headroom():
+    """report.html's table has a row per wheel and limit (torque first; wheel 10 after wheel 2) in %, and the largest."""
+    from se3ocp.problems.flight.report import table
+    from se3ocp.problems.units import Units
+
+    cell = {"mean": 0.5, "p95": 0.9, "p99_7": 0.95, "max": 0.97, "n": 3}
+    keys = ["wheel_torque_used", "wheel_momentum_used"] + [f"wheel{i}_{w}_used" for i in (10, 2) for w in ("momentum", "torque")]
+    rows = table({"statistics": {"lqr": {k: cell for k in keys}}}, Units(normalized=False))
+    labels = [r["label"] for r in rows]
+    assert labels == ["peak wheel torque over its limit (the most used wheel)",
+                      "peak wheel momentum over its limit (the most used wheel)",
+                      "wheel 2: peak torque over its limit", "wheel 2: peak momentum over its limit",
+                      "wheel 10: peak torque over its limit", "wheel 10: peak momentum over its limit"]
+    assert all(r["unit"] == "%" and r["cells"][1] == "90.00" for r in rows)

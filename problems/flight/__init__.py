@@ -23,7 +23,9 @@ initial state, the plan's controls applied between the nodes as the scheme defin
 run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
 (docs/mathematics.md §12), computed from the flown state at each node, is added over the interval; with
 ``mpc`` the remainder of the plan is re-planned from the flown state every ``mpc.replan_every`` steps
-(transcription/mpc.py, docs/mathematics.md §12) and flown open loop in between.
+(transcription/mpc.py, docs/mathematics.md §12) and flown open loop in between.  With ``actuators`` (``actuators``
+module) the force is delivered by on/off thruster pulses and the moment by reaction wheels, period by period
+(transcription/closedloop/actuated.py, docs/mathematics.md §11).
 """
 from __future__ import annotations
 

@@ -97,8 +97,8 @@ def table(summary: dict, un: Units, tol: float = 0.0) -> list[dict]:
     margins = sorted({k for s in stats.values() for k in s if k.startswith("min_margin_")})
     rows += [(k, f"minimum margin: {k[len('min_margin_'):].replace('_', ' ')}",
               MARGIN_DIMENSION.get(k[len("min_margin_"):].rstrip("_0123456789"), "none"), "{:.4g}") for k in margins]
-    wheels = sorted((int(m.group(1)), m.group(2)) for s in stats.values() for k in s
-                    if (m := re.fullmatch(r"wheel(\d+)_(torque|momentum)_used", k)))
+    wheels = sorted(((int(m.group(1)), m.group(2)) for s in stats.values() for k in s
+                     if (m := re.fullmatch(r"wheel(\d+)_(torque|momentum)_used", k))), key=lambda w: (w[0], w[1] != "torque"))
     rows += [(f"wheel{i}_{what}_used", f"wheel {i}: peak {what} over its limit", "%", "{:.2f}")
              for i, what in dict.fromkeys(wheels)]
     out = []
