@@ -167,3 +167,23 @@ def test_the_pulses_block():
     man = _engine_man()
     assert pulse_thrust({"minimum_impulse": 0.0}, man.problem) == (0.1, "")
     assert pulse_thrust({"minimum_impulse": 0.0, "thrust": 0.3}, man.problem) == (0.3, "")
+
+
+def test_the_leo_pulses_flight_file():
+    """configs/flights/leo_pulses_j2.yaml reads for the LEO engine raise: a j2 truth with the earth preset's numbers, a
+    bit of 5e-5 kN s (0.05 N s: the file's impulse unit kN s shows as N s times 1e3), the thrust the engine's 1 N; the
+    command's line says so in N and N s."""
+    from se3ocp.problems.bodies import UnitSystem
+    from se3ocp.problems.flight import load_flight
+    from se3ocp.problems.flight.actuators import actuator_lines, pulse_thrust
+    from se3ocp.problems.units import units
+    from support import CONFIGS, maneuver
+
+    man = maneuver("leo_body_engine")
+    spec = load_flight(CONFIGS / "flights" / "leo_pulses_j2.yaml", man)
+    assert spec.gravity["kind"] == "j2" and spec.gravity["J2"] == pytest.approx(1.0826359e-3, rel=1e-7)
+    unit, factor = UnitSystem("km", "kg", "s").display("impulse")
+    assert unit == "N·s" and factor * spec.actuators["pulses"]["minimum_impulse"] == pytest.approx(0.05, rel=1e-12)
+    assert pulse_thrust(spec.actuators["pulses"], man.problem) == (1.0e-3, "")
+    line = actuator_lines(spec.actuators, man.problem, units(man.problem))[0]
+    assert line.startswith("on/off thrusters: 1 N pulses, minimum impulse 0.05 N·s"), line

@@ -152,25 +152,33 @@ def plan_wheel_peaks(sol, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("n", [3, 4])
 def test_the_time_optimal_slew_flown_on_wheels(n):
-    """configs/slew_time_optimal.yaml (N = 200, bang-bang on its 50 N m box) on 3 wheels along the body axes or a
-    4-wheel pyramid, torque limits 1.1x and momentum limits 1.2x the plan's peaks (:func:`plan_wheel_peaks`), 2 %
-    inertia and 0.57 deg (0.01 rad) axis errors, 3 runs: the LQR (its moment limited by the wheels, not the plan's box)
+    """configs/slew_time_optimal.yaml (N = 200, bang-bang on its 50 N m box) flown by configs/flights/slew_wheels_N.yaml:
+    on 3 wheels along the body axes or a 4-wheel pyramid, torque limits 1.1x and momentum limits 1.2x the plan's peaks
+    (the file's numbers against :func:`plan_wheel_peaks`, to 1e-8), 2 % inertia and 0.57 deg (0.01 rad) axis errors,
+    3 runs: the LQR (its moment limited by the wheels, not the plan's box)
     ends within 1e-3 deg of the plan (measured 2.6e-5 and 2.5e-5 deg p95 over 300 runs) where open loop misses by
     degrees (p95 13 deg), and no wheel passes its torque or momentum limit (peak fractions <= 1)."""
     import se3ocp
-    from se3ocp.problems.flight import parse_flight
+    from se3ocp.problems.flight import load_flight, with_changes
+    from se3ocp.problems.flight.actuators import actuator_lines
+    from se3ocp.problems.units import units
     from se3ocp.problems.flight.run import run_flights
     from se3ocp.problems.sweep.executors import SerialExecutor
-    from support import maneuver
+    from support import CONFIGS, maneuver
 
     man = maneuver("slew_time_optimal")
     sol = se3ocp.solve(man)
     assert sol.converged, sol.message
     A = np.eye(3) if n == 3 else PYRAMID
     tau, hw = plan_wheel_peaks(sol, A)
-    block = {"axes": A.T.tolist(), "torque_limit": (1.1 * tau).tolist(), "momentum_limit": (1.2 * hw).tolist(),
-             "axis_error_deg": float(np.degrees(0.01))}
-    spec = parse_flight({"runs": 3, "seed": 1, "errors": {"inertia_scale": 0.02}, "actuators": {"wheels": block}})
+    spec = with_changes(load_flight(CONFIGS / "flights" / f"slew_wheels_{n}.yaml", man), "slew_wheels", runs=3)
+    block = spec.actuators["wheels"]
+    assert np.abs(np.array(block["axes"]).T - A).max() <= 1e-12 and block["axis_error_deg"] == np.degrees(0.01)
+    assert np.allclose(block["torque_limit"], 1.1 * tau, rtol=1e-8, atol=0.0)
+    assert np.allclose(block["momentum_limit"], 1.2 * hw, rtol=1e-8, atol=0.0)
+    assert spec.errors["inertia_scale"] == 0.02
+    line = actuator_lines(spec.actuators, man.problem, units(man.problem))[0]
+    assert line.startswith(f"{n} reaction wheels: torque limits {1.1 * tau[0]:.4g}, ") and " N·m, momentum" in line
     res = run_flights(man, sol, spec, executor=SerialExecutor())
     assert all(r["status"] == "ok" for r in res.rows), [r["message"] for r in res.rows]
     lqr = [r for r in res.rows if r["feedback"] == "lqr"]

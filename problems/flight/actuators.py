@@ -126,6 +126,27 @@ def actuator_keys(actuators: dict) -> tuple:
     return pulses + (wheel_columns(len(actuators["wheels"]["axes"])) if "wheels" in actuators else ())
 
 
+def actuator_lines(actuators: dict, problem, un) -> list[str]:
+    """What the truth's actuators are, one line each, in the units a person reads (``un``: problems.units.Units of the
+    maneuver; a km file's kN s shown as N s): 'on/off thrusters: 1 N pulses, minimum impulse 0.05 N·s (carried ...)'."""
+    out = []
+    block = actuators.get("pulses")
+    if block is not None:
+        F, _ = pulse_thrust(block, problem)
+        fu, ff = un.shown("force")
+        iu, fi = un.shown("impulse") if un.system is not None else (un.unit("force") + "·" + un.unit("time"), 1.0)
+        out.append(f"on/off thrusters: {ff * F:.4g} {fu} pulses, minimum impulse {fi * block['minimum_impulse']:.4g} "
+                   f"{iu} (an impulse under it carried to the next period)")
+    block = actuators.get("wheels")
+    if block is not None:
+        mu, fm = un.shown("moment")
+        hu, fh = un.shown("angular_impulse")
+        tl, hl = (", ".join(f"{f * x:.4g}" for x in block[k]) for k, f in (("torque_limit", fm), ("momentum_limit", fh)))
+        out.append(f"{len(block['axes'])} reaction wheels: torque limits {tl} {mu}, momentum limits {hl} {hu}, axis "
+                   f"error {block['axis_error_deg']:.3g} deg (1-sigma)")
+    return out
+
+
 def check_actuators(maneuver, actuators: dict) -> tuple[str, str] | None:
     """(field, message) when the maneuver's plan cannot fly these actuators, else None."""
     block = actuators.get("pulses")

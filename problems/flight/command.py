@@ -86,6 +86,7 @@ def cmd_fly(args) -> int:
     from ..units import units
     from .output import write_flights
     from .run import run_flights
+    from .actuators import actuator_lines
     from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
@@ -104,6 +105,8 @@ def cmd_fly(args) -> int:
             taken = truth_from_preset(spec.gravity, man.physical)
             if taken:
                 _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
+            for line in actuator_lines(spec.actuators, man.problem, units(man.problem)):
+                _say(args, f"  {line}")
             bar = FlightProgress(quiet=args.quiet)
             try:
                 res = run_flights(man, sol, spec, executor=ex, save_runs=args.save_runs, progress=bar,
