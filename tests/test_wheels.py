@@ -64,6 +64,8 @@ def test_total_angular_momentum_conserved():
     body = np.einsum("kij,kj->ki", R, X[:, X_ANG])
     assert np.abs(H - H[0]).max() <= 1e-11 * np.linalg.norm(H[0])
     assert np.linalg.norm(body[-1] - body[0]) > 0.5 * np.linalg.norm(H[0])          # the wheels did work
+    H_nominal = np.einsum("kij,kj->ki", R, X[:, X_ANG] + hw @ PYRAMID.T)            # the wrong axes: not conserved
+    assert np.abs(H_nominal - H_nominal[0]).max() > 1e-2 * np.linalg.norm(H[0])
 
 
 def test_wheel_slew_in_closed_form():
