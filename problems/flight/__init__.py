@@ -23,7 +23,9 @@ initial state, the plan's controls applied between the nodes as the scheme defin
 run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
 (docs/mathematics.md §12), computed from the flown state at each node, is added over the interval; with
 ``mpc`` the remainder of the plan is re-planned from the flown state every ``mpc.replan_every`` steps
-(transcription/mpc.py, docs/mathematics.md §12) and flown open loop in between.
+(transcription/mpc.py, docs/mathematics.md §12) and flown open loop in between.  With ``actuators`` (``actuators``
+module) the force is delivered by on/off thruster pulses and the moment by reaction wheels, period by period
+(transcription/closedloop/actuated.py, docs/mathematics.md §11).
 """
 from __future__ import annotations
 
@@ -96,11 +98,13 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
 
 
 def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
-    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces)."""
+    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces) or
+    its actuators (problems.flight.actuators.check_actuators)."""
     from ..schema import ConfigError
+    from .actuators import check_actuators
     from .forces import check_forces
 
-    bad = check_forces(maneuver, spec.resolved["truth"])
+    bad = check_forces(maneuver, spec.resolved["truth"]) or check_actuators(maneuver, spec.actuators)
     if bad:
         raise ConfigError(source, f"flight.{bad[0]}", bad[1])
 

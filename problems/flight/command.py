@@ -86,6 +86,7 @@ def cmd_fly(args) -> int:
     from ..units import units
     from .output import write_flights
     from .run import run_flights
+    from .actuators import actuator_lines
     from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
@@ -104,6 +105,8 @@ def cmd_fly(args) -> int:
             taken = truth_from_preset(spec.gravity, man.physical)
             if taken:
                 _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
+            for line in actuator_lines(spec.actuators, man.problem, units(man.problem)):
+                _say(args, f"  {line}")
             bar = FlightProgress(quiet=args.quiet)
             try:
                 res = run_flights(man, sol, spec, executor=ex, save_runs=args.save_runs, progress=bar,
@@ -129,7 +132,7 @@ def cmd_fly(args) -> int:
 
 #: the figures of the command's table, in its order (those the flight has; report.ROWS gives their quantities)
 TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ELEMENT_METRICS, "delta_v_overhead",
-              "saturated_fraction")
+              "saturated_fraction", "pulses_skipped", "wheel_torque_used", "wheel_momentum_used")
 
 
 def table(res) -> list[str]:

@@ -16,7 +16,7 @@ from .task import ERROR_COLUMNS, MPC_COLUMNS
 
 def columns(result: FlightResult) -> list[str]:
     """flights.csv's columns: run, feedback, status, the figures of merit, the re-plans (with MPC), the sampled
-    errors, message."""
+    errors, message (the figures include the actuators' with on/off thrusters or wheels: task.metric_keys)."""
     mpc = MPC_COLUMNS if "mpc" in result.spec.modes else ()
     return ["run", "feedback", "status", *result.metrics, *mpc, *ERROR_COLUMNS, "message"]
 

@@ -40,6 +40,13 @@ ROWS = (
     ("max_position_deviation", "largest position deviation from the plan", "length", "{:.3e}"),
     ("max_attitude_deviation_deg", "largest attitude deviation from the plan", "angle", "{:.3e}"),
     *((f"miss_{k}", f"terminal miss in osculating {name}", q, "{:.3e}") for k, name, q in ELEMENT_DIFFERENCES),
+    ("pulses", "thruster pulses fired", "", "{:.1f}"),
+    ("pulses_skipped", "periods under the minimum impulse (carried)", "", "{:.1f}"),
+    ("pulses_saturated", "periods at full thrust throughout (excess cut)", "", "{:.1f}"),
+    ("narrowest_pulse", "narrowest pulse", "time", "{:.4g}"),
+    ("carried_delta_v", "Δv left carried at the end", "velocity", "{:.3e}"),
+    ("wheel_torque_used", "peak wheel torque over its limit (the most used wheel)", "%", "{:.2f}"),
+    ("wheel_momentum_used", "peak wheel momentum over its limit (the most used wheel)", "%", "{:.2f}"),
 )
 #: the columns of each feedback mode
 STATS = (("mean", "mean"), ("p95", "p95"), ("p99_7", "p99.7"))
@@ -82,13 +89,18 @@ def shown(un: Units, q: str) -> tuple[str, float]:
 
 def table(summary: dict, un: Units, tol: float = 0.0) -> list[dict]:
     """The statistics table: a row per figure of merit any mode has, cells (mean, p95, p99.7) per mode;
-    units by :func:`shown`; a margin row ``bad`` where one of
+    units by :func:`shown`; each wheel's headroom used (peak torque and momentum over its limits); a margin row ``bad``
+    where one of
     its statistics is below -tol (a path constraint violated by more than round-off)."""
     stats = summary["statistics"]
     rows = list(ROWS)
     margins = sorted({k for s in stats.values() for k in s if k.startswith("min_margin_")})
     rows += [(k, f"minimum margin: {k[len('min_margin_'):].replace('_', ' ')}",
               MARGIN_DIMENSION.get(k[len("min_margin_"):].rstrip("_0123456789"), "none"), "{:.4g}") for k in margins]
+    wheels = sorted(((int(m.group(1)), m.group(2)) for s in stats.values() for k in s
+                     if (m := re.fullmatch(r"wheel(\d+)_(torque|momentum)_used", k))), key=lambda w: (w[0], w[1] != "torque"))
+    rows += [(f"wheel{i}_{what}_used", f"wheel {i}: peak {what} over its limit", "%", "{:.2f}")
+             for i, what in dict.fromkeys(wheels)]
     out = []
     for key, label, q, fmt in rows:
         if not any(stats[m].get(key, {}).get("n") for m in stats):

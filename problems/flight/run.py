@@ -11,6 +11,7 @@ import numpy as np
 from ...transcription.closedloop.mpc import checked_constraints, polished
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
+from .actuators import actuator_keys
 from .plan import plan_payload
 from .schema import FlightSpec, truth_from_preset
 from .task import fly_runs, gains_of, metric_keys, miss_frame, plan_usage
@@ -45,7 +46,7 @@ class FlightResult:
 
     @property
     def metrics(self) -> tuple:
-        return metric_keys(self.maneuver.problem)
+        return metric_keys(self.maneuver.problem) + actuator_keys(self.spec.actuators)
 
     @property
     def finished_runs(self) -> int:

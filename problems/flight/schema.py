@@ -17,6 +17,7 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
         moment_scale: 0.02
         moment_misalignment_deg: 0.0
         inertia_scale: 0.01
+      actuators: {pulses: {minimum_impulse: 5.0e-5}}   # on/off thrusters (problems.flight.actuators)
       feedback: both          # none | lqr | mpc | both (none and lqr side by side) | all (none, lqr, mpc)
       mpc: {replan_every: 10, iterations: 1, min_horizon: 1, between: lqr}   # re-planning (transcription/mpc.py)
       weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.closedloop.tracking.SCALE_KEYS)
@@ -37,10 +38,11 @@ from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_E
 from ...transcription.closedloop.tracking import SCALE_KEYS
 from ..bodies import PRESETS
 from ..models import parse_gravity
+from .actuators import parse_actuators
 from .forces import FORCE_KEYS
 from ..schema import Validator
 
-FLIGHT_KEYS = ("truth", "errors", "feedback", "mpc", "weights", "runs", "seed")
+FLIGHT_KEYS = ("truth", "errors", "actuators", "feedback", "mpc", "weights", "runs", "seed")
 TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
@@ -69,7 +71,7 @@ class FlightSpec:
     samples: states per node interval; errors: 1-sigma values (initial: position, velocity (inertial),
     attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
     modes: the feedback modes flown ('none', 'lqr', 'mpc'); weights: tracking scales; mpc: the re-planning
-    options (MPC_KEYS); runs; seed; resolved: the block with its defaults (itself a valid flight block)."""
+    options (MPC_KEYS); actuators: the truth's actuators (problems.flight.actuators; {}: exact); runs; seed; resolved: the block with its defaults (itself a valid flight block)."""
 
     gravity: dict | None
     samples: int
@@ -80,6 +82,7 @@ class FlightSpec:
     seed: int
     resolved: dict = field(repr=False)
     mpc: dict = field(default_factory=lambda: dict(MPC_DEFAULTS))
+    actuators: dict = field(default_factory=dict)
 
 
 def default_errors() -> dict:
@@ -142,6 +145,7 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
     samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
                        at_most=MAX_SAMPLES)
     errors = _errors(v, d.get("errors", {}), f"{where}.errors")
+    actuators = parse_actuators(v, d.get("actuators"), f"{where}.actuators")
     feedback = v.choice(d.get("feedback", "both"), f"{where}.feedback", tuple(FEEDBACK))
     w = v.mapping(d.get("weights", {}), f"{where}.weights", SCALE_KEYS)
     weights = {}
@@ -160,9 +164,9 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
     resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, "integrator": "cvodes", "samples": samples},
-                "errors": errors, "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
+                "errors": errors, **({"actuators": actuators} if actuators else {}), "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
-                      runs=runs, seed=seed, resolved=resolved, mpc=mpc)
+                      runs=runs, seed=seed, resolved=resolved, mpc=mpc, actuators=actuators)
 
 
 def _errors(v: Validator, doc, where: str) -> dict:

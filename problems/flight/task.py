@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from ...transcription.dynamics.lgvi import two_point
 from ...transcription.dynamics.flight import ClosedLoop, FlightError, OpenLoop, fly
 from ...transcription.results.check import margin_keys
 from ...transcription.closedloop.loop import TrackingLoop
+from ...transcription.closedloop.actuated import fly_actuated
 from ...transcription.geometry.state import X_POS, X_ROT
 from ...transcription.geometry.so3 import log_so3, nearest_rotation
 from ...transcription.closedloop.mpc import Replanner, Replanning
@@ -19,6 +21,7 @@ from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
+from .actuators import pulses_of, truth_axes, wheels_of
 from .forces import truth_forces
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
@@ -157,9 +160,11 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, wheel_axes=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
-    (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
+    (the tracker, the re-planning law) or None, the re-planning law or None, the pulses' figures (PULSE_COLUMNS; {}
+    without on/off thrusters or wheels: spec.actuators, transcription.closedloop.actuated)); ``wheel_axes``: the run's
+    truth wheel axes (3, n; problems.flight.actuators.truth_axes).  ``lqr``: the LQR flight's tracker
     (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
     forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
     if mode == "lqr" and lqr is not None:
@@ -170,15 +175,22 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
         o = spec.mpc
         law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
                                    o["min_horizon"], gains if o["between"] == "lqr" else None)
+    pulses, wheels = pulses_of(spec.actuators, plan.problem), wheels_of(spec.actuators)
     if mode == "lqr":
+        if wheels is not None:       # the wheels' limits are their own (their controller clips; the tracker told)
+            gains = replace(gains, moment_bound=None)
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
-        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+        if not tracker.bounded and pulses is None and wheels is None:   # the same law inside the flight, one call
             law = TrackingLoop.of_gains(gains)
-    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
-                 disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
-    return flight, tracker, law if mode == "mpc" else None
+    truth, J_law = truth_model(base, err.inertia), plan.problem.model.inertia   # the rate measured, the plan's J
+    if pulses is not None or wheels is not None:
+        run = fly_actuated(truth, err.X0, gains.t, law, pulses, wheels, err.actuators, spec.samples, forces, J_law,
+                           tracker if mode == "lqr" else None, wheel_axes)
+        return run.flight, tracker, law if mode == "mpc" else None, run.summary()
+    flight = fly(truth, err.X0, gains.t, law, err.actuators, samples=spec.samples, disturbance=forces, law_inertia=J_law)
+    return flight, tracker, law if mode == "mpc" else None, {}
 
 
 def replan_columns(law) -> dict:
@@ -213,13 +225,15 @@ def fly_runs(task: dict) -> dict:
         err = sample_errors(spec, i, seeds[i], plan.trajectory.X[0], man.problem.model.mass, man.problem.model.inertia,
                             man.problem.disc.force_frame)
         cols = error_columns(err, man.problem.model.inertia)
+        axes = truth_axes(spec.actuators, seeds[i])
         if i < task.get("save", 0):
             saved[i] = err.arrays()
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
+                flight, tracker, mpc, pulsed = fly_one(plan, gains, spec, err, base, mode, lqr, forces, axes)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
+                metrics.update(pulsed)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:
                     replan_s[i] = np.column_stack([mpc.solve_times, mpc.prepare_times]).tolist()

@@ -379,6 +379,11 @@ class Tracker:
             du[U_FORCE] = kept
         return du, limited
 
+    def delivered(self, extra: np.ndarray) -> None:
+        """The actuators delivered this step's commands plus ``extra`` (6,) held over the step (on/off pulses: an
+        impulse carried or cut, transcription.closedloop.pulses): the next disturbance estimate compares with that."""
+        self.dw = self.dw + np.tile(np.asarray(extra, float).reshape(NU), 2 if two_point(self.gains.scheme) else 1)
+
     @property
     def saturated_fraction(self) -> float:
         """The fraction of the steps so far whose correction the actuators' bounds limited."""
