@@ -14,6 +14,7 @@ from ..results_dir import results_transaction
 from ..schema import ConfigError
 from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, load_flight, spec_source,
                with_changes)
+from .navigation import ESTIMATION_METRICS
 from .task import ELEMENT_METRICS
 
 
@@ -128,8 +129,8 @@ def cmd_fly(args) -> int:
 
 
 #: the figures of the command's table, in its order (those the flight has; report.ROWS gives their quantities)
-TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ELEMENT_METRICS, "delta_v_overhead",
-              "saturated_fraction")
+TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ESTIMATION_METRICS, *ELEMENT_METRICS,
+              "delta_v_overhead", "saturated_fraction")
 
 
 def table(res) -> list[str]:

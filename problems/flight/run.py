@@ -45,7 +45,7 @@ class FlightResult:
 
     @property
     def metrics(self) -> tuple:
-        return metric_keys(self.maneuver.problem)
+        return metric_keys(self.maneuver.problem, self.spec.navigation is not None)
 
     @property
     def finished_runs(self) -> int:

@@ -20,6 +20,7 @@ from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
 from .forces import truth_forces
+from .navigation import ESTIMATION_METRICS, estimation_metrics, navigated
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
 
@@ -69,11 +70,12 @@ def miss_components(X_N: np.ndarray, mass: float, dx: np.ndarray) -> np.ndarray:
     return rtn(X_N[None, X_POS], X_N[None, 3:6] / mass, np.asarray(dx, float)[None, :])[0]
 
 
-def metric_keys(problem) -> tuple:
-    """The figures of merit of a flight of ``problem``'s plan: METRICS, the element misses (ELEMENT_METRICS) with a
-    central body, and the margins of its path constraints."""
+def metric_keys(problem, navigation: bool = False) -> tuple:
+    """The figures of merit of a flight of ``problem``'s plan: METRICS, the estimation errors with ``navigation``
+    (problems.flight.navigation.ESTIMATION_METRICS), the element misses (ELEMENT_METRICS) with a central body, and
+    the margins of its path constraints."""
     orbit = ELEMENT_METRICS if problem.model.mu else ()
-    return METRICS + orbit + tuple(margin_keys(problem.constraints))
+    return METRICS + (ESTIMATION_METRICS if navigation else ()) + orbit + tuple(margin_keys(problem.constraints))
 
 
 def element_misses(mu: float | None, X_N: np.ndarray, mass: float, x: np.ndarray, v: np.ndarray) -> dict:
@@ -157,15 +159,17 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payload=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
-    (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
-    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
-    forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
+    (the tracker, the re-planning law) or None, the re-planning law or None, the navigated law or None).  ``lqr``: the
+    LQR flight's tracker (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.
+    ``forces``: the truth's forces besides gravity (problems.flight.forces.truth_forces; None: none).  With
+    ``spec.navigation`` the LQR reads the estimate of the measured state (problems.flight.navigation; ``payload``:
+    the plan's, problems.flight.plan.plan_payload)."""
     if mode == "lqr" and lqr is not None:
         gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
-    tracker = None
+    tracker = nav = None
     if mode == "mpc":
         o = spec.mpc
         law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
@@ -173,12 +177,16 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
     if mode == "lqr":
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
-        law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
-        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+        correction = lambda k, t, X: tracker.correction(k, X)                # noqa: E731
+        if spec.navigation is not None:
+            model = plan.problem.model
+            correction = nav = navigated(payload, gains, tracker, spec, err, model.mass, model.inertia)
+        law = ClosedLoop(law, correction, clip)   # clip: a plan's round-off only
+        if not tracker.bounded and nav is None:    # nothing to limit: the same law evaluated inside the flight, one call
             law = TrackingLoop.of_gains(gains)
     flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
                  disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
-    return flight, tracker, law if mode == "mpc" else None
+    return flight, tracker, law if mode == "mpc" else None, nav
 
 
 def replan_columns(law) -> dict:
@@ -218,9 +226,12 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
+                flight, tracker, mpc, nav = fly_one(plan, gains, spec, err, base, mode, lqr, forces, task["plan"])
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(replan_columns(mpc))
+                if spec.navigation is not None:
+                    metrics.update(estimation_metrics(nav, man.problem.model.mass, man.problem.model.inertia)
+                                   or dict.fromkeys(ESTIMATION_METRICS, math.nan))
                 if mpc is not None:
                     replan_s[i] = np.column_stack([mpc.solve_times, mpc.prepare_times]).tolist()
             except (FlightError, ValueError, np.linalg.LinAlgError) as e:

@@ -1,0 +1,63 @@
+"""Navigation in a Monte Carlo flight (the ``navigation:`` block): the plan's estimator (transcription.closedloop.
+estimator, built once per process and plan), each run's measurement draws from its own seed, and the estimation
+errors reported beside the misses (flights.csv)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ...transcription.closedloop.estimator import Navigated, measurement_nodes, noise_factor, plan_filter
+
+#: the estimation errors of a flight with navigation (flights.csv, the statistics): RMS over the nodes the tracker
+#: read of |x - x^|, |v - v^|, the attitude angle of R^T R^ (deg), |Omega - Omega^|, and the mean NEES per noisy
+#: component (1 when the estimator's covariance is consistent with its errors)
+ESTIMATION_METRICS = ("estimation_position", "estimation_velocity", "estimation_attitude_deg", "estimation_rate",
+                      "estimation_nees")
+#: the spawn key appended to a run's SeedSequence for its measurement noise (the other errors keep their draws)
+NOISE_STREAM = 0
+
+_FILTERS: dict = {}
+
+
+def sigmas(block: dict) -> tuple:
+    """(position, velocity, attitude (rad), rate) of a block of INITIAL_KEYS (problems.flight.schema)."""
+    return block["position"], block["velocity"], np.radians(block["attitude_deg"]), block["angular_velocity"]
+
+
+def filter_of(payload: dict, gains, spec, mass: float, inertia: np.ndarray):
+    """The estimator of the plan of ``gains`` (the tracker it feeds) for the flight ``spec``: the navigation noise,
+    the prior of the initial errors (spec.errors.initial), the measurement nodes of ``period``; built once per
+    process, plan and block."""
+    nav = spec.navigation
+    key = (payload["key"], id(gains), json.dumps(nav, sort_keys=True), json.dumps(spec.errors["initial"], sort_keys=True))
+    if key not in _FILTERS:
+        if len(_FILTERS) >= 8:
+            _FILTERS.clear()
+        F0 = noise_factor(sigmas(spec.errors["initial"]), mass, inertia)
+        F = noise_factor(sigmas(nav["noise"]), mass, inertia)
+        _FILTERS[key] = (plan_filter(gains, F, F0 @ F0.T, measurement_nodes(gains.t, nav.get("period")),
+                                     nav["estimator"]), F, gains)       # gains kept: its id is in the key
+    return _FILTERS[key][:2]
+
+
+def navigated(payload: dict, gains, tracker, spec, err, mass: float, inertia: np.ndarray) -> Navigated:
+    """The tracker fed by the estimator for the run of ``err`` (problems.flight.plan.RunErrors): its measurement
+    draws from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed."""
+    nav, F = filter_of(payload, gains, spec, mass, inertia)
+    entropy, spawn_key = err.seed
+    rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(*spawn_key, NOISE_STREAM)))
+    return Navigated(nav, tracker, F, rng.standard_normal((gains.N, 12)))
+
+
+def estimation_metrics(law: Navigated | None, mass: float, inertia: np.ndarray) -> dict:
+    """ESTIMATION_METRICS of a flight flown by ``law`` ({} without navigation)."""
+    if law is None:
+        return {}
+    e = np.array(law.errors, float)
+    rms = lambda a: float(np.sqrt(np.mean(np.sum(a * a, axis=1))))          # noqa: E731
+    noisy = int(np.count_nonzero(np.diag(law.nav.Ry)))
+    return {"estimation_position": rms(e[:, 0:3]), "estimation_velocity": rms(e[:, 3:6]) / mass,
+            "estimation_attitude_deg": float(np.degrees(rms(e[:, 6:9]))),
+            "estimation_rate": rms(np.linalg.solve(np.asarray(inertia, float), e[:, 9:12].T).T),
+            "estimation_nees": float(np.mean(law.nees)) / noisy if noisy else float("nan")}
