@@ -142,7 +142,7 @@ def table(res) -> list[str]:
     stats = res.statistics()
     un, quantity = units(res.maneuver.problem), {k: q for k, _, q, _ in ROWS}
     modes = list(stats)
-    rows = [f"{'p95 (mean)':<22}{'unit':<9}" + "".join(f"{m:>26}" for m in modes)]
+    rows = [f"{'p95 (mean)':<24}{'unit':<9}" + "".join(f"{m:>26}" for m in modes)]
     for key in TABLE_KEYS:
         if key not in res.metrics:
             continue
@@ -151,5 +151,5 @@ def table(res) -> list[str]:
         for m in modes:
             d = stats[m][key]
             cells.append(f"{'-':>26}" if d["n"] == 0 else f"{factor * d['p95']:>13.3e} ({factor * d['mean']:.2e})")
-        rows.append(f"{key:<22}{unit:<9}" + "".join(cells))
+        rows.append(f"{key:<24}{unit:<9}" + "".join(cells))
     return rows + [f"warning: {w}" for w in res.summary()["worse_than_open"]]

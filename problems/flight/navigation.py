@@ -8,6 +8,8 @@ import json
 import numpy as np
 
 from ...transcription.closedloop.estimator import Navigated, measurement_nodes, noise_factor, plan_filter
+from ...transcription.closedloop.loop import TrackingLoop
+from ...transcription.closedloop.navloop import NavigatedLoop
 
 #: the estimation errors of a flight with navigation (flights.csv, the statistics): RMS over the nodes the tracker
 #: read of |x - x^|, |v - v^|, the attitude angle of R^T R^ (deg), |Omega - Omega^|, and the mean NEES per noisy
@@ -41,17 +43,22 @@ def filter_of(payload: dict, gains, spec, mass: float, inertia: np.ndarray):
     return _FILTERS[key][:2]
 
 
-def navigated(payload: dict, gains, tracker, spec, err, mass: float, inertia: np.ndarray) -> Navigated:
-    """The tracker fed by the estimator for the run of ``err`` (problems.flight.plan.RunErrors): its measurement
-    draws from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed."""
+def navigated(payload: dict, gains, tracker, spec, err, mass: float, inertia: np.ndarray):
+    """The tracker fed by the estimator for the run of ``err`` (problems.flight.plan.RunErrors), its measurement
+    draws from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed: flown in one call
+    (transcription.closedloop.navloop.NavigatedLoop) unless the tracker limits its corrections (then the per-interval
+    law, transcription.closedloop.estimator.Navigated, the correction of a ClosedLoop)."""
     nav, F = filter_of(payload, gains, spec, mass, inertia)
     entropy, spawn_key = err.seed
     rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(*spawn_key, NOISE_STREAM)))
-    return Navigated(nav, tracker, F, rng.standard_normal((gains.N, 12)))
+    draws = rng.standard_normal((gains.N, 12))
+    if tracker.bounded:
+        return Navigated(nav, tracker, F, draws)
+    return NavigatedLoop(TrackingLoop.of_gains(gains, tracker.disturbance), nav, F, draws)
 
 
-def estimation_metrics(law: Navigated | None, mass: float, inertia: np.ndarray) -> dict:
-    """ESTIMATION_METRICS of a flight flown by ``law`` ({} without navigation)."""
+def estimation_metrics(law, mass: float, inertia: np.ndarray) -> dict:
+    """ESTIMATION_METRICS of a flight flown by ``law`` (:func:`navigated`'s; {} without navigation)."""
     if law is None:
         return {}
     e = np.array(law.errors, float)
@@ -60,4 +67,4 @@ def estimation_metrics(law: Navigated | None, mass: float, inertia: np.ndarray) 
     return {"estimation_position": rms(e[:, 0:3]), "estimation_velocity": rms(e[:, 3:6]) / mass,
             "estimation_attitude_deg": float(np.degrees(rms(e[:, 6:9]))),
             "estimation_rate": rms(np.linalg.solve(np.asarray(inertia, float), e[:, 9:12].T).T),
-            "estimation_nees": float(np.mean(law.nees)) / noisy if noisy else float("nan")}
+            "estimation_nees": float(np.mean(law.nav.nees(e))) / noisy if noisy else float("nan")}

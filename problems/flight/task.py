@@ -180,10 +180,11 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payl
         correction = lambda k, t, X: tracker.correction(k, X)                # noqa: E731
         if spec.navigation is not None:
             model = plan.problem.model
-            correction = nav = navigated(payload, gains, tracker, spec, err, model.mass, model.inertia)
+            nav = navigated(payload, gains, tracker, spec, err, model.mass, model.inertia)
+            correction = nav if tracker.bounded else correction
         law = ClosedLoop(law, correction, clip)   # clip: a plan's round-off only
-        if not tracker.bounded and nav is None:    # nothing to limit: the same law evaluated inside the flight, one call
-            law = TrackingLoop.of_gains(gains)
+        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+            law = TrackingLoop.of_gains(gains) if nav is None else nav
     flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
                  disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
     return flight, tracker, law if mode == "mpc" else None, nav

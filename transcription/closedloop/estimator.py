@@ -39,6 +39,7 @@ Shapes: Xref (N+1, 18), A (N, 12, 12), Bu (N, 12, 6), rho (N,), measured (N,) bo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -93,6 +94,17 @@ class NavigationFilter:
     @property
     def N(self) -> int:
         return self.A.shape[0]
+
+    @cached_property
+    def information(self) -> np.ndarray:
+        """(N, 12, 12): the pseudo-inverse of each node's P_zz (the NEES e^T P_zz^+ e of an error e)."""
+        return np.linalg.pinv(self.P[:, :NZ, :NZ], rcond=1e-13, hermitian=True)
+
+    def nees(self, errors: np.ndarray) -> np.ndarray:
+        """(n,): e_k^T P_zz,k^+ e_k of the errors (n, 12) at the first n nodes (12 degrees of freedom when the
+        estimator is consistent; fewer with components measured without noise)."""
+        e = np.asarray(errors, float)
+        return np.einsum("ki,kij,kj->k", e, self.information[:len(e)], e)
 
     @property
     def raw(self) -> bool:
@@ -201,20 +213,19 @@ def plan_filter(gains, F: np.ndarray, P0: np.ndarray, measured: np.ndarray, esti
 class Navigated:
     """The tracker fed by the estimator, as the correction of a transcription.dynamics.flight.ClosedLoop: at node k
     the sensed state X (18,) is measured with the draws ``draws[k]`` (N, 12 standard normals), estimated, the
-    tracker's correction du_k computed from X^_k (and d^_k), and the estimate carried to k+1.  ``errors`` (k, 12): X
-    (-) X^ at the nodes so far; ``nees`` (k,): e^T P_zz^+ e of each (12 degrees of freedom when consistent)."""
+    tracker's correction du_k computed from X^_k (and its disturbance), and the estimate carried to k+1.  ``errors``
+    (k, 12): X (-) X^ at the nodes so far.  (transcription.closedloop.navloop flies the same law in one call.)"""
 
     def __init__(self, nav: NavigationFilter, tracker, F: np.ndarray, draws: np.ndarray):
         self.nav, self.tracker, self.F, self.draws = nav, tracker, np.asarray(F, float), np.asarray(draws, float)
         self.estimator = Estimator(nav)
-        self.errors, self.nees = [], []
+        self.errors = []
 
     def __call__(self, k: int, t: float, X: np.ndarray) -> np.ndarray:
         Y = measure(X, self.F, self.draws[k]) if self.nav.measured[k] else None
         Xh, d = self.estimator.estimate(k, Y)
         e = self.estimator.error(X)
         self.errors.append(e)
-        self.nees.append(float(e @ np.linalg.pinv(self.nav.P[k, :NZ, :NZ], rcond=1e-13, hermitian=True) @ e))
         du = self.tracker.correction(k, Xh, d)
         self.estimator.predict(du)
         return du
