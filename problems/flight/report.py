@@ -57,6 +57,8 @@ FIGURES = (
     ("flight_tracks", "the first runs' deviation from the plan's nodes (position, attitude angle)"),
     ("flight_controls", "the first runs' applied controls against the actuators' bounds (solid) and the plan's "
                         "(dashed, with a bounds margin)"),
+    ("flight_navigation", "with navigation: the LQR flights' terminal misses beside their RMS estimation errors "
+                          "(the estimate the tracker read)"),
 )
 
 
