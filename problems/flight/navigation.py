@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from ...transcription.closedloop.estimator import Navigated, measurement_nodes, noise_factor, plan_filter
+from ...transcription.closedloop.estimator import Navigated, local_errors, measurement_nodes, noise_factor, plan_filter
 from ...transcription.closedloop.loop import TrackingLoop
 from ...transcription.closedloop.navloop import NavigatedLoop
 
@@ -27,28 +27,31 @@ def sigmas(block: dict) -> tuple:
     return block["position"], block["velocity"], np.radians(block["attitude_deg"]), block["angular_velocity"]
 
 
-def filter_of(payload: dict, gains, spec, mass: float, inertia: np.ndarray):
-    """The estimator of the plan of ``gains`` (the tracker it feeds) for the flight ``spec``: the navigation noise,
-    the prior of the initial errors (spec.errors.initial), the measurement nodes of ``period``; built once per
-    process, plan and block."""
+def filter_of(payload: dict, gains, spec, problem):
+    """The estimator of the plan of ``gains`` (the tracker it feeds; ``problem`` the plan's Problem) for the flight
+    ``spec``: the navigation noise, the prior of the initial errors (spec.errors.initial), the measurement nodes of
+    ``period``, the plan's local errors on its body's continuous equations; built once per process, plan and block."""
     nav = spec.navigation
     key = (payload["key"], id(gains), json.dumps(nav, sort_keys=True), json.dumps(spec.errors["initial"], sort_keys=True))
     if key not in _FILTERS:
         if len(_FILTERS) >= 8:
             _FILTERS.clear()
+        model = problem.model
+        mass, inertia = model.mass, model.inertia
         F0 = noise_factor(sigmas(spec.errors["initial"]), mass, inertia)
         F = noise_factor(sigmas(nav["noise"]), mass, inertia)
+        eps = local_errors(gains, model, problem.disc.force_frame)
         _FILTERS[key] = (plan_filter(gains, F, F0 @ F0.T, measurement_nodes(gains.t, nav.get("period")),
-                                     nav["estimator"]), F, gains)       # gains kept: its id is in the key
+                                     nav["estimator"], eps=eps), F, gains)       # gains kept: its id is in the key
     return _FILTERS[key][:2]
 
 
-def navigated(payload: dict, gains, tracker, spec, err, mass: float, inertia: np.ndarray):
+def navigated(payload: dict, gains, tracker, spec, err, problem):
     """The tracker fed by the estimator for the run of ``err`` (problems.flight.plan.RunErrors), its measurement
     draws from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed: flown in one call
     (transcription.closedloop.navloop.NavigatedLoop) unless the tracker limits its corrections (then the per-interval
     law, transcription.closedloop.estimator.Navigated, the correction of a ClosedLoop)."""
-    nav, F = filter_of(payload, gains, spec, mass, inertia)
+    nav, F = filter_of(payload, gains, spec, problem)
     entropy, spawn_key = err.seed
     rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(*spawn_key, NOISE_STREAM)))
     draws = rng.standard_normal((gains.N, 12))

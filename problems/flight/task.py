@@ -179,8 +179,7 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payl
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         correction = lambda k, t, X: tracker.correction(k, X)                # noqa: E731
         if spec.navigation is not None:
-            model = plan.problem.model
-            nav = navigated(payload, gains, tracker, spec, err, model.mass, model.inertia)
+            nav = navigated(payload, gains, tracker, spec, err, plan.problem)
             correction = nav if tracker.bounded else correction
         law = ClosedLoop(law, correction, clip)   # clip: a plan's round-off only
         if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call

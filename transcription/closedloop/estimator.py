@@ -16,27 +16,30 @@ linearization does not explain (thrust errors, unmodelled gravity); the error e 
 in the estimate's body frame, R = R^ Exp(delta theta)) and f - f^ have covariance P (18 x 18).  With the plan's own
 maps A_k, Bu_k (transcription.closedloop.tracking.Gains; Bu_k: a control held over step k) and rho_k = h_k / h:
 
-    predict   z^ = X^_k (-) X_k,   X^-_{k+1} = X_{k+1} (+) (A_k z^ + Bu_k (du_k + f^_k)),   f^-_{k+1} = f^_k,
-              P^-_{k+1} = Phi_k P_k Phi_k^T + rho_k blockdiag(Q_z, Q_f),   Phi_k = [[A_k, Bu_k], [0, I]],
+    predict   z^ = X^_k (-) X_k,   X^-_{k+1} = X_{k+1} (+) (A_k z^ + Bu_k (du_k + f^_k) + eps_k),   f^-_{k+1} = f^_k,
+              P^-_{k+1} = Phi_k P_k Phi_k^T + rho_k blockdiag(Q_z,k, Q_f),   Phi_k = [[A_k, Bu_k], [0, I]],
     update    nu = Y_k (-) X^-_k,   S = P^-_zz + R_y,   G = P^-_{:,z} S^-1   (18 x 12),
               X^_k = X^-_k (+) G_z nu,   f^_k = f^-_k + G_f nu,   P_k = (I - G H) P^- (I - G H)^T + G R_y G^T (Joseph),
 
-H = [I 0].  The tracker reads X^_k and the disturbance r^_k = Bu_k f^_k / rho_k (per mean step, its r).  The
+H = [I 0]; eps_k (12) is the plan's local error, X(t_{k+1}) (-) X_{k+1} of the continuous flight of the plan's body over
+step k from its node X_k (:func:`local_errors`): the plan is exact for its discrete equations, not for the continuous
+ones the truth follows, and the per-step difference is known before the flight.  The tracker reads X^_k and the
+disturbance r^_k = (Bu_k f^_k + eps_k) / rho_k (per mean step, its r).  The
 Jacobians are the plan's (the linearization about the plan, equal to the estimate's to first order in their
 distance), so the covariances and gains do not depend on the measurements: computed once per plan
 (:func:`navigation_filter`).  A component measured without noise (a 1-sigma of 0) is taken as measured (its row of
 G_z the identity); with no noise at all the tracker reads the measurement, i.e. the flown state, and estimates its
 disturbance itself, as without navigation.  Default process noise (:func:`plan_filter`): f a random walk drifting by
-a tenth of the tracker's characteristic controls over the horizon, and the state wandering beyond it by a tenth of a
-measurement's 1-sigma per step (what a disturbance changing within a step, e.g. a torque scale error across a
-bang-bang switch, does to the attitude: with 1 % instead the slew's NEES is ~250 per component, with a tenth ~1.6,
-while E3's p95 rate miss grows from 1.5e-3 to 6.9e-3 of open loop's, 500 runs; docs/mathematics.md §12).
+a tenth of the tracker's characteristic controls over the horizon, and the state wandering beyond it by 1 % of a
+measurement's 1-sigma per step plus each step's local error squared (eps_k is the continuous step's from the plan's
+node, not from the flown state: known to about its own size; docs/mathematics.md §12).
 
 Estimator ``none``: the tracker reads the measurement itself (X^ = Y), and between measurements the last one
 carried forward by the plan's linearization (G = [I; 0]: P is the covariance of that); the tracker estimates its
 disturbance from the measurements itself.
 
-Shapes: Xref (N+1, 18), A (N, 12, 12), Bu (N, 12, 6), rho (N,), measured (N,) bool, G (N, 18, 12), P (N, 18, 18).
+Shapes: Xref (N+1, 18), A (N, 12, 12), Bu (N, 12, 6), rho (N,), measured (N,) bool, G (N, 18, 12), P (N, 18, 18),
+eps (N, 12).
 """
 from __future__ import annotations
 
@@ -45,6 +48,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ..dynamics.flight import Actuators, OpenLoop, interval_integrator
 from ..geometry.state import NU, NX, NZ
 from .tracking import retract, tangent_error
 
@@ -92,6 +96,7 @@ class NavigationFilter:
     P: np.ndarray
     Ry: np.ndarray
     estimator: str = "ekf"
+    eps: np.ndarray | None = None
 
     @property
     def N(self) -> int:
@@ -114,18 +119,22 @@ class NavigationFilter:
         return self.estimator == "none" or not np.any(self.Ry)
 
 
-def navigation_filter(Xref, A, Bu, rho, Ry, P0, Qz, Qf, measured, estimator: str = "ekf") -> NavigationFilter:
+def navigation_filter(Xref, A, Bu, rho, Ry, P0, Qz, Qf, measured, estimator: str = "ekf",
+                      eps: np.ndarray | None = None) -> NavigationFilter:
     """The estimator's gains and covariances (module docstring) for the plan's nodes Xref (N+1, 18), maps A (N, 12,
     12), Bu (N, 12, 6), step ratios rho (N,), measurement covariance Ry (12, 12), prior P0 (18, 18) of [e; f] at
-    node 0, process noise per mean step Qz (12, 12) and Qf (6, 6) (scaled by rho_k), measured (N,) bool."""
+    node 0, process noise per mean step Qz (12, 12, or (N, 12, 12) step by step) and Qf (6, 6) (scaled by rho_k),
+    measured (N,) bool; ``eps``
+    (N, 12): the plan's local errors (:func:`local_errors`; None: none)."""
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
     A, Bu, rho, Ry = np.asarray(A, float), np.asarray(Bu, float), np.asarray(rho, float), np.asarray(Ry, float)
     N, n = A.shape[0], NZ + NU
     H = np.hstack([np.eye(NZ), np.zeros((NZ, NU))])
     G, P = np.zeros((N, n, NZ)), np.zeros((N, n, n))
+    Qz = np.broadcast_to(np.asarray(Qz, float), (N, NZ, NZ))
     Q = np.zeros((n, n))
-    Q[:NZ, :NZ], Q[NZ:, NZ:] = Qz, Qf
+    Q[NZ:, NZ:] = Qf
     Pm = np.asarray(P0, float).copy()
     raw = estimator == "none" or not np.any(Ry)
     for k in range(N):
@@ -138,9 +147,11 @@ def navigation_filter(Xref, A, Bu, rho, Ry, P0, Qz, Qf, measured, estimator: str
         Phi = np.block([[A[k], Bu[k]], [np.zeros((NU, NZ)), np.eye(NU)]])
         if raw:
             Phi[:NZ, NZ:] = 0.0
+        Q[:NZ, :NZ] = Qz[k]
         Pm = Phi @ P[k] @ Phi.T + rho[k] * Q
         Pm = 0.5 * (Pm + Pm.T)
-    return NavigationFilter(np.asarray(Xref, float), A, Bu, rho, np.asarray(measured, bool), G, P, Ry, estimator)
+    eps = np.zeros((N, NZ)) if eps is None else np.asarray(eps, float).reshape(N, NZ)
+    return NavigationFilter(np.asarray(Xref, float), A, Bu, rho, np.asarray(measured, bool), G, P, Ry, estimator, eps)
 
 
 def _gain(Pm: np.ndarray, Ry: np.ndarray) -> np.ndarray:
@@ -180,13 +191,13 @@ class Estimator:
                 nu = tangent_error(Y, self.Xm)
                 X, f = retract(self.Xm, nav.G[k, :NZ] @ nu), self.fm + nav.G[k, NZ:] @ nu
         self.X, self.f = X, f
-        return X, (None if nav.raw else nav.Bu[k] @ f / nav.rho[k])
+        return X, (None if nav.raw else (nav.Bu[k] @ f + nav.eps[k]) / nav.rho[k])
 
     def predict(self, du: np.ndarray) -> None:
         """Carry the estimate to node k+1 by the plan's linearization under the correction du (6,) issued at k."""
         nav, k = self.nav, self.k
         z = tangent_error(self.X, nav.Xref[k])
-        z1 = nav.A[k] @ z + nav.Bu[k] @ (np.asarray(du, float).reshape(NU) + self.f)
+        z1 = nav.A[k] @ z + nav.Bu[k] @ (np.asarray(du, float).reshape(NU) + self.f) + nav.eps[k]
         self.Xm, self.fm, self.k = retract(nav.Xref[k + 1], z1), self.f, k + 1
 
     def error(self, X: np.ndarray) -> np.ndarray:
@@ -195,21 +206,38 @@ class Estimator:
 
 
 def plan_filter(gains, F: np.ndarray, P0: np.ndarray, measured: np.ndarray, estimator: str = "ekf",
-                drift: float = 0.1, wander: float = 0.1) -> NavigationFilter:
+                drift: float = 0.1, wander: float = 0.01, eps: np.ndarray | None = None) -> NavigationFilter:
     """The estimator of a tracker's plan (transcription.closedloop.tracking.Gains: its nodes, maps, steps) for the
     measurement noise factor F (12, 12; :func:`noise_factor`), the prior P0 (12, 12) of the initial state's error
     from the plan's first node and the nodes ``measured`` (N,), with the default process noise (module docstring):
     the disturbance f a random walk of ``drift`` times the tracker's characteristic controls u_c (its weights'
     scales) over the horizon T, Q_f = diag(drift u_c)^2 h / T, its prior diag(drift u_c)^2; the state's own
-    Q_z = wander^2 R_y per mean step (it wanders by ``wander`` of a measurement's 1-sigma per step beyond f)."""
+    Q_z,k = wander^2 R_y + diag(eps_k)^2 / rho_k per mean step (it wanders by ``wander`` of a measurement's 1-sigma
+    per step beyond f, and the local error is known to about its own size); ``eps``: the plan's local errors
+    (:func:`local_errors`; None: none)."""
     Ry = F @ F.T
     sc = gains.weights.scales
     uc = np.concatenate([sc["force"], sc["moment"]]) * drift
     prior = np.zeros((NZ + NU, NZ + NU))
     prior[:NZ, :NZ], prior[NZ:, NZ:] = np.asarray(P0, float), np.diag(uc**2)
     rho = np.ones(gains.N) if gains.rho is None else gains.rho
-    return navigation_filter(gains.X, gains.A, gains.Bu, rho, Ry, prior, wander**2 * Ry, np.diag(uc**2) * gains.h / sc["T"],
-                             measured, estimator)
+    Qz = wander**2 * Ry + (0.0 if eps is None else np.einsum("ki,ij->kij", np.asarray(eps) ** 2, np.eye(NZ)) / rho[:, None, None])
+    return navigation_filter(gains.X, gains.A, gains.Bu, rho, Ry, prior, Qz, np.diag(uc**2) * gains.h / sc["T"],
+                             measured, estimator, eps)
+
+
+def local_errors(gains, model, force_frame: str = "inertial", samples: int = 1) -> np.ndarray:
+    """eps (N, 12): each step's local error, X(t_{k+1}) (-) X_{k+1} of the continuous flight of the plan's body
+    ``model`` (transcription.dynamics.flight) over step k from the plan's node X_k under the plan's commands (nominal
+    actuators; ``force_frame`` the plan's), against the plan's node X_{k+1}: what the plan's discrete map, and so A_k,
+    leaves out of each step (its own discretization error).  One mapped call of the engine's interval integrator."""
+    fn = interval_integrator(model, samples)
+    plan = OpenLoop.of_controls(gains.scheme, gains.U)
+    N, h = gains.N, np.diff(gains.t)
+    p = np.concatenate([np.linalg.inv(model.inertia).ravel(order="F"), Actuators(force_frame=force_frame).vector()])
+    X1, _ = fn.map(N)(gains.X[:-1].T, np.vstack([plan.start, plan.end, h[None, :]]), np.repeat(p[:, None], N, axis=1))
+    X1 = np.asarray(X1.full()).T
+    return np.array([tangent_error(X1[k], gains.X[k + 1]) for k in range(N)])
 
 
 class Navigated:

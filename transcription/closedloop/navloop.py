@@ -7,10 +7,10 @@ asked for each interval's command).
 At node k, from the flown state X (the law's sensing: Pi -> J_law J_truth^-1 Pi) and the predicted estimate X^-, f^-:
 
     Y = X (+) F n_k,   nu = Y (-) X^-,   X^ = X^- (+) G_z,k nu,   f^ = f^- + G_f,k nu      (G_k = 0: no measurement),
-    z = X^ (-) X_k,    du = -K_k z - L_k (c_f Bu_k f^ / rho_k + c_r (z - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1})),
-    X^-_{k+1} = X_{k+1} (+) (A_k z + Bu_k (du + f^)),   f^-_{k+1} = f^,
+    z = X^ (-) X_k,    du = -K_k z - L_k (c_f (Bu_k f^ + eps_k) + c_r (z - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1})),
+    X^-_{k+1} = X_{k+1} (+) (A_k z + Bu_k (du + f^) + eps_k),   f^-_{k+1} = f^,
 
-with c_f = 1 for the ekf (its disturbance) and c_r the tracker's own disturbance weight for the raw measurement
+with c_f = 1 / rho_k for the ekf (its disturbance; eps_k the plan's local error) and c_r the tracker's own disturbance weight for the raw measurement
 (estimator none).  The accumulated state is S = [X (18); X^- (18); f^- (6); z_{k-1} (12); du_{k-1} (6)]; each interval
 also returns e = X (-) X^ (12).  The same numbers as :class:`~transcription.closedloop.estimator.Navigated` with the
 per-interval law (tested to 1e-10).  (+), (-): :func:`~transcription.closedloop.tracking.retract`, ``tangent_error``.
@@ -29,9 +29,9 @@ from .estimator import NavigationFilter
 from .loop import N_G, TrackingLoop
 
 #: the accumulated state and the per-interval data beyond the tracker's (N_G + 9: its law and vec(J_law)): X_{k+1} (18),
-#: A_k (144), Bu_k (72), G_k (216), vec(F) (144), n_k (12), c_f / rho_k, c_r
+#: A_k (144), Bu_k (72), G_k (216), vec(F) (144), n_k (12), eps_k (12), c_f, c_r
 N_S = 2 * NX + NU + NZ + NU
-N_E = NX + NZ * NZ + NZ * NU + (NZ + NU) * NZ + NZ * NZ + NZ + 2
+N_E = NX + NZ * NZ + NZ * NU + (NZ + NU) * NZ + NZ * NZ + 2 * NZ + 2
 
 
 def _error(X, Xr):
@@ -69,7 +69,7 @@ class NavigatedLoop:
         cr = weight if nav.raw else np.zeros(N)
         flat = [np.asarray(M, float).transpose(0, 2, 1).reshape(N, -1) for M in (nav.A, nav.Bu, nav.G)]
         F = np.repeat(np.asarray(self.F, float).reshape(1, -1, order="F"), N, axis=0)
-        return law, np.hstack([nav.Xref[1:], *flat, F, self.draws[:N], cf[:, None], cr[:, None]]).T
+        return law, np.hstack([nav.Xref[1:], *flat, F, self.draws[:N], nav.eps, cf[:, None], cr[:, None]]).T
 
     def flown(self, fn: ca.Function, X0: np.ndarray, h: np.ndarray, p: np.ndarray, law_inertia: np.ndarray):
         """As :meth:`TrackingLoop.flown` (start, end commands (6, N) each, samples Xs (N M, 18)); sets ``errors``."""
@@ -102,16 +102,16 @@ def navigated_interval(fn: ca.Function) -> ca.Function:
     Bu, o = ca.reshape(g[o:o + NZ * NU], NZ, NU), o + NZ * NU
     G, o = ca.reshape(g[o:o + (NZ + NU) * NZ], NZ + NU, NZ), o + (NZ + NU) * NZ
     F, o = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), o + NZ * NZ
-    n, cf, cr = g[o:o + NZ], g[o + NZ], g[o + NZ + 1]
+    n, eps, cf, cr = g[o:o + NZ], g[o + NZ:o + 2 * NZ], g[o + 2 * NZ], g[o + 2 * NZ + 1]
     Y = _retract(Xs_, ca.mtimes(F, n))
     nu = _error(Y, Xm)
     Xh, fh = _retract(Xm, ca.mtimes(G[0:NZ, :], nu)), fm + ca.mtimes(G[NZ:, :], nu)
     z = _error(Xh, Xr)
-    r = cf * ca.mtimes(Bu, fh) + cr * (z - ca.mtimes(Ap, zp) - ca.mtimes(Bp, dup))
+    r = cf * (ca.mtimes(Bu, fh) + eps) + cr * (z - ca.mtimes(Ap, zp) - ca.mtimes(Bp, dup))
     du = -ca.mtimes(K, z) - ca.mtimes(L, r)
     a, b = w[0:NU] + du, w[NU:2 * NU] + du
     X1, Xs = fn(X, ca.vertcat(a, b, w[2 * NU]), p)
-    Xm1 = _retract(Xr1, ca.mtimes(A, z) + ca.mtimes(Bu, du + fh))
+    Xm1 = _retract(Xr1, ca.mtimes(A, z) + ca.mtimes(Bu, du + fh) + eps)
     return ca.Function("flight_navigated_interval", [S, w, g, p],
                        [ca.vertcat(X1, Xm1, fh, z, du), Xs, ca.vertcat(a, b), _error(Xs_, Xh)],
                        ["S", "w", "g", "p"], ["S1", "Xs", "cmd", "e"])
