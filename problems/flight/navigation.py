@@ -40,24 +40,27 @@ def filter_of(payload: dict, gains, spec, problem):
         mass, inertia = model.mass, model.inertia
         F0 = noise_factor(sigmas(spec.errors["initial"]), mass, inertia)
         F = noise_factor(sigmas(nav["noise"]), mass, inertia)
+        Fb = noise_factor(sigmas(nav["bias"]), mass, inertia)
         eps = local_errors(gains, model, problem.disc.force_frame)
         _FILTERS[key] = (plan_filter(gains, F, F0 @ F0.T, measurement_nodes(gains.t, nav.get("period")),
-                                     nav["estimator"], eps=eps), F, gains)       # gains kept: its id is in the key
-    return _FILTERS[key][:2]
+                                     nav["estimator"], eps=eps, Pc=Fb @ Fb.T), F, Fb, gains)   # gains: its id is in the key
+    return _FILTERS[key][:3]
 
 
 def navigated(payload: dict, gains, tracker, spec, err, problem):
     """The tracker fed by the estimator for the run of ``err`` (problems.flight.plan.RunErrors), its measurement
-    draws from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed: flown in one call
+    draws and then its constant bias from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed: flown
+    in one call
     (transcription.closedloop.navloop.NavigatedLoop) unless the tracker limits its corrections (then the per-interval
     law, transcription.closedloop.estimator.Navigated, the correction of a ClosedLoop)."""
-    nav, F = filter_of(payload, gains, spec, problem)
+    nav, F, Fb = filter_of(payload, gains, spec, problem)
     entropy, spawn_key = err.seed
     rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(*spawn_key, NOISE_STREAM)))
     draws = rng.standard_normal((gains.N, 12))
+    bias = Fb @ rng.standard_normal(12)
     if tracker.bounded:
-        return Navigated(nav, tracker, F, draws)
-    return NavigatedLoop(TrackingLoop.of_gains(gains, tracker.disturbance), nav, F, draws)
+        return Navigated(nav, tracker, F, draws, bias)
+    return NavigatedLoop(TrackingLoop.of_gains(gains, tracker.disturbance), nav, F, draws, bias)
 
 
 def estimation_metrics(law, mass: float, inertia: np.ndarray) -> dict:
@@ -66,7 +69,7 @@ def estimation_metrics(law, mass: float, inertia: np.ndarray) -> dict:
         return {}
     e = np.array(law.errors, float)
     rms = lambda a: float(np.sqrt(np.mean(np.sum(a * a, axis=1))))          # noqa: E731
-    noisy = int(np.count_nonzero(np.diag(law.nav.Ry)))
+    noisy = int(np.count_nonzero(~law.nav.exact))
     return {"estimation_position": rms(e[:, 0:3]), "estimation_velocity": rms(e[:, 3:6]) / mass,
             "estimation_attitude_deg": float(np.degrees(rms(e[:, 6:9]))),
             "estimation_rate": rms(np.linalg.solve(np.asarray(inertia, float), e[:, 9:12].T).T),

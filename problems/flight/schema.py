@@ -22,6 +22,7 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
       weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.closedloop.tracking.SCALE_KEYS)
       navigation:                                      # measurements and an estimator between them and the tracker
         noise: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.01, angular_velocity: 1.0e-4}   # 1-sigma
+        bias: {angular_velocity: 1.0e-4}               # 1-sigma of a constant bias per run (default 0), estimated
         period: 0.005                                  # between measurements (time unit; default: every node)
         estimator: ekf                                 # ekf (transcription.closedloop.estimator) | none (raw)
       runs: 200
@@ -51,7 +52,7 @@ ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale"
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
 #: the ``navigation`` block (measurement noise: the same quantities as the initial errors, 1-sigma)
-NAVIGATION_KEYS = ("noise", "period", "estimator")
+NAVIGATION_KEYS = ("noise", "bias", "period", "estimator")
 #: feedback modes flown for each value of ``feedback``
 FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "mpc": ("mpc",), "both": ("none", "lqr"), "all": ("none", "lqr", "mpc")}
 #: the ``mpc`` block: re-plan every this many node steps, Newton steps per re-plan, no re-plan with fewer
@@ -77,7 +78,7 @@ class FlightSpec:
     attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
     modes: the feedback modes flown ('none', 'lqr', 'mpc'); weights: tracking scales; mpc: the re-planning
     options (MPC_KEYS); runs; seed; resolved: the block with its defaults (itself a valid flight block);
-    navigation: {noise: {INITIAL_KEYS: 1-sigma}, period (time unit, None: every node), estimator} or None."""
+    navigation: {noise, bias: {INITIAL_KEYS: 1-sigma}, period (time unit, None: every node), estimator} or None."""
 
     gravity: dict | None
     samples: int
@@ -180,11 +181,13 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
 
 
 def _navigation(v: Validator, doc, where: str) -> dict:
-    """The navigation block with its defaults: noise (1-sigma, non-negative, default 0), period (positive, None:
-    every node), estimator (ESTIMATORS, default ekf)."""
+    """The navigation block with its defaults: noise and bias (1-sigma, non-negative, default 0), period (positive,
+    None: every node), estimator (ESTIMATORS, default ekf)."""
     n = v.mapping(doc, where, NAVIGATION_KEYS)
-    noise = v.mapping(n.get("noise", {}), f"{where}.noise", INITIAL_KEYS)
-    out = {"noise": {k: v.number(noise.get(k, 0.0), f"{where}.noise.{k}", nonneg=True) for k in INITIAL_KEYS}}
+    out = {}
+    for key in ("noise", "bias"):
+        block = v.mapping(n.get(key, {}), f"{where}.{key}", INITIAL_KEYS)
+        out[key] = {k: v.number(block.get(k, 0.0), f"{where}.{key}.{k}", nonneg=True) for k in INITIAL_KEYS}
     if n.get("period") is not None:
         out["period"] = v.number(n["period"], f"{where}.period", positive=True)
     out["estimator"] = v.choice(n.get("estimator", "ekf"), f"{where}.estimator", ESTIMATORS)

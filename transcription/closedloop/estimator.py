@@ -6,29 +6,31 @@ Measurement (every node k in ``measured``; each error 1-sigma, Gaussian, indepen
 
     x + n_x,   gamma + m n_v,   R Exp(n_theta) (body frame),   Pi + J n_omega   (the rate Omega + n_omega; J the law's),
 
-i.e. Y = X (+) F n, n ~ N(0, I_12), F = blockdiag(s_x I, m s_v I, s_theta I, s_omega J) (:func:`noise_factor`), and
-the measurement covariance is R_y = F F^T.  (+) and (-) are :func:`~transcription.closedloop.tracking.retract` and
+i.e. Y = X (+) (F n + c), n ~ N(0, I_12), F = blockdiag(s_x I, m s_v I, s_theta I, s_omega J) (:func:`noise_factor`),
+the measurement covariance R_y = F F^T, and c (12) a constant bias of the run (prior covariance P_c; 0 without).  (+) and (-) are :func:`~transcription.closedloop.tracking.retract` and
 :func:`~transcription.closedloop.tracking.tangent_error`: additive on x, gamma, Pi, R = R_ref Exp(zeta) (body).
 
 Estimator ``ekf``: a multiplicative extended Kalman filter on R^6 x SO(3) x R^3 with a disturbance.  The estimate
 is a state X^ (18, R^ a rotation matrix) and f^ (6), a persisting force (inertial) and moment (body) the plan's
 linearization does not explain (thrust errors, unmodelled gravity); the error e = X (-) X^ (12; attitude: delta theta
-in the estimate's body frame, R = R^ Exp(delta theta)) and f - f^ have covariance P (18 x 18).  With the plan's own
+in the estimate's body frame, R = R^ Exp(delta theta)), f - f^ and the bias's c - c^ (c^ constant) have covariance P
+(30 x 30).  With the plan's own
 maps A_k, Bu_k (transcription.closedloop.tracking.Gains; Bu_k: a control held over step k) and rho_k = h_k / h:
 
     predict   z^ = X^_k (-) X_k,   X^-_{k+1} = X_{k+1} (+) (A_k z^ + Bu_k (du_k + f^_k) + eps_k),   f^-_{k+1} = f^_k,
-              P^-_{k+1} = Phi_k P_k Phi_k^T + rho_k blockdiag(Q_z,k, Q_f),   Phi_k = [[A_k, Bu_k], [0, I]],
-    update    nu = Y_k (-) X^-_k,   S = P^-_zz + R_y,   G = P^-_{:,z} S^-1   (18 x 12),
-              X^_k = X^-_k (+) G_z nu,   f^_k = f^-_k + G_f nu,   P_k = (I - G H) P^- (I - G H)^T + G R_y G^T (Joseph),
+              P^-_{k+1} = Phi_k P_k Phi_k^T + rho_k blockdiag(Q_z,k, Q_f, 0),   Phi_k = [[A_k, Bu_k, 0], [0, I, 0], [0, 0, I]],
+    update    nu = Y_k (-) X^-_k - c^,   S = H P^- H^T + R_y,   G = P^- H^T S^-1   (30 x 12),
+              X^_k = X^-_k (+) G_z nu,   f^_k = f^-_k + G_f nu,   c^ += G_c nu,
+              P_k = (I - G H) P^- (I - G H)^T + G R_y G^T (Joseph),
 
-H = [I 0]; eps_k (12) is the plan's local error, X(t_{k+1}) (-) X_{k+1} of the continuous flight of the plan's body over
+H = [I 0 I] (a bias is observable only through the dynamics: the rate's through the attitude); eps_k (12) is the plan's local error, X(t_{k+1}) (-) X_{k+1} of the continuous flight of the plan's body over
 step k from its node X_k (:func:`local_errors`): the plan is exact for its discrete equations, not for the continuous
 ones the truth follows, and the per-step difference is known before the flight.  The tracker reads X^_k and the
 disturbance r^_k = (Bu_k f^_k + eps_k) / rho_k (per mean step, its r).  The
 Jacobians are the plan's (the linearization about the plan, equal to the estimate's to first order in their
 distance), so the covariances and gains do not depend on the measurements: computed once per plan
-(:func:`navigation_filter`).  A component measured without noise (a 1-sigma of 0) is taken as measured (its row of
-G_z the identity); with no noise at all the tracker reads the measurement, i.e. the flown state, and estimates its
+(:func:`navigation_filter`).  A component measured without noise or bias is taken as measured (its row of G_z the
+identity); with neither at all the tracker reads the measurement, i.e. the flown state, and estimates its
 disturbance itself, as without navigation.  Default process noise (:func:`plan_filter`): f a random walk drifting by
 a tenth of the tracker's characteristic controls over the horizon, and the state wandering beyond it by 1 % of a
 measurement's 1-sigma per step plus each step's local error squared (eps_k is the continuous step's from the plan's
@@ -38,7 +40,7 @@ Estimator ``none``: the tracker reads the measurement itself (X^ = Y), and betwe
 carried forward by the plan's linearization (G = [I; 0]: P is the covariance of that); the tracker estimates its
 disturbance from the measurements itself.
 
-Shapes: Xref (N+1, 18), A (N, 12, 12), Bu (N, 12, 6), rho (N,), measured (N,) bool, G (N, 18, 12), P (N, 18, 18),
+Shapes: Xref (N+1, 18), A (N, 12, 12), Bu (N, 12, 6), rho (N,), measured (N,) bool, G (N, 30, 12), P (N, 30, 30),
 eps (N, 12).
 """
 from __future__ import annotations
@@ -54,6 +56,8 @@ from .tracking import retract, tangent_error
 
 #: estimators: a multiplicative EKF, or the raw measurement
 ESTIMATORS = ("ekf", "none")
+#: the estimator's state: the error e (12), the disturbance f (6), the measurements' constant bias c (12)
+N_STATE = NZ + NU + NZ
 
 
 def noise_factor(sigmas, mass: float, inertia: np.ndarray) -> np.ndarray:
@@ -66,9 +70,10 @@ def noise_factor(sigmas, mass: float, inertia: np.ndarray) -> np.ndarray:
     return F
 
 
-def measure(X: np.ndarray, F: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Y (18,): the state X (18,) measured with the standard normal draws n (12,): X (+) F n."""
-    return retract(X, F @ n)
+def measure(X: np.ndarray, F: np.ndarray, n: np.ndarray, bias: np.ndarray | None = None) -> np.ndarray:
+    """Y (18,): the state X (18,) measured with the standard normal draws n (12,) and a constant ``bias`` c (12, in
+    tangent coordinates; None: 0): X (+) (F n + c)."""
+    return retract(X, F @ n + (0.0 if bias is None else np.asarray(bias, float)))
 
 
 def measurement_nodes(t: np.ndarray, period: float | None) -> np.ndarray:
@@ -84,8 +89,10 @@ def measurement_nodes(t: np.ndarray, period: float | None) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class NavigationFilter:
     """The estimator of one plan (module docstring): its nodes Xref, maps A, Bu, step ratios rho, the nodes
-    ``measured``, the gains G (N, 18, 12) and posterior covariances P (N, 18, 18) of [e; f] at each node (G = 0 where
-    nothing is measured), R_y (12, 12), ``estimator`` ('ekf' or 'none')."""
+    ``measured``, the gains G (N, 30, 12) and posterior covariances P (N, 30, 30) of [e; f; c] at each node (G = 0
+    where nothing is measured), R_y (12, 12), ``estimator`` ('ekf' or 'none'), the local errors eps (N, 12), ``raw``:
+    the tracker reads the measurement itself (the estimator 'none', or neither noise nor bias: X^ = Y = X); ``exact``
+    (12,) bool: the components measured with neither noise nor bias."""
 
     Xref: np.ndarray
     A: np.ndarray
@@ -97,6 +104,8 @@ class NavigationFilter:
     Ry: np.ndarray
     estimator: str = "ekf"
     eps: np.ndarray | None = None
+    raw: bool = False
+    exact: np.ndarray | None = None
 
     @property
     def N(self) -> int:
@@ -113,56 +122,57 @@ class NavigationFilter:
         e = np.asarray(errors, float)
         return np.einsum("ki,kij,kj->k", e, self.information[:len(e)], e)
 
-    @property
-    def raw(self) -> bool:
-        """Whether the tracker reads the measurement itself: the estimator 'none', or no noise at all (X^ = Y = X)."""
-        return self.estimator == "none" or not np.any(self.Ry)
-
 
 def navigation_filter(Xref, A, Bu, rho, Ry, P0, Qz, Qf, measured, estimator: str = "ekf",
-                      eps: np.ndarray | None = None) -> NavigationFilter:
+                      eps: np.ndarray | None = None, Pc: np.ndarray | None = None) -> NavigationFilter:
     """The estimator's gains and covariances (module docstring) for the plan's nodes Xref (N+1, 18), maps A (N, 12,
     12), Bu (N, 12, 6), step ratios rho (N,), measurement covariance Ry (12, 12), prior P0 (18, 18) of [e; f] at
     node 0, process noise per mean step Qz (12, 12, or (N, 12, 12) step by step) and Qf (6, 6) (scaled by rho_k),
-    measured (N,) bool; ``eps``
-    (N, 12): the plan's local errors (:func:`local_errors`; None: none)."""
+    measured (N,) bool; ``eps`` (N, 12): the plan's local errors (:func:`local_errors`; None: none); ``Pc`` (12, 12):
+    the prior of the measurements' constant bias c (None: no bias)."""
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
     A, Bu, rho, Ry = np.asarray(A, float), np.asarray(Bu, float), np.asarray(rho, float), np.asarray(Ry, float)
-    N, n = A.shape[0], NZ + NU
-    H = np.hstack([np.eye(NZ), np.zeros((NZ, NU))])
+    N, n = A.shape[0], N_STATE
+    H = np.hstack([np.eye(NZ), np.zeros((NZ, NU)), np.eye(NZ)])
     G, P = np.zeros((N, n, NZ)), np.zeros((N, n, n))
     Qz = np.broadcast_to(np.asarray(Qz, float), (N, NZ, NZ))
     Q = np.zeros((n, n))
-    Q[NZ:, NZ:] = Qf
-    Pm = np.asarray(P0, float).copy()
-    raw = estimator == "none" or not np.any(Ry)
+    Q[NZ:NZ + NU, NZ:NZ + NU] = Qf
+    Pm = np.zeros((n, n))
+    Pm[:NZ + NU, :NZ + NU] = P0
+    Pm[NZ + NU:, NZ + NU:] = 0.0 if Pc is None else Pc
+    raw = estimator == "none" or not (np.any(Ry) or np.any(Pm[NZ + NU:, NZ + NU:]))
+    exact = (np.diag(Ry) == 0.0) & (np.diag(Pm)[NZ + NU:] == 0.0)
     for k in range(N):
         if measured[k]:
-            G[k] = H.T if raw else _gain(Pm, Ry)
+            G[k] = H.T * (np.arange(n) < NZ)[:, None] if raw else _gain(Pm, Ry, H, exact)
             IGH = np.eye(n) - G[k] @ H
             P[k] = IGH @ Pm @ IGH.T + G[k] @ Ry @ G[k].T
         else:
             P[k] = Pm
-        Phi = np.block([[A[k], Bu[k]], [np.zeros((NU, NZ)), np.eye(NU)]])
-        if raw:
-            Phi[:NZ, NZ:] = 0.0
+        Phi = np.eye(n)
+        Phi[:NZ, :NZ] = A[k]
+        if not raw:
+            Phi[:NZ, NZ:NZ + NU] = Bu[k]
         Q[:NZ, :NZ] = Qz[k]
         Pm = Phi @ P[k] @ Phi.T + rho[k] * Q
         Pm = 0.5 * (Pm + Pm.T)
     eps = np.zeros((N, NZ)) if eps is None else np.asarray(eps, float).reshape(N, NZ)
-    return NavigationFilter(np.asarray(Xref, float), A, Bu, rho, np.asarray(measured, bool), G, P, Ry, estimator, eps)
+    return NavigationFilter(np.asarray(Xref, float), A, Bu, rho, np.asarray(measured, bool), G, P, Ry, estimator, eps,
+                            bool(raw), exact)
 
 
-def _gain(Pm: np.ndarray, Ry: np.ndarray) -> np.ndarray:
-    """G (18, 12) = P^-_{:,z} (P^-_zz + Ry)^+, the pseudo-inverse in the metric of its diagonal (a component known
-    exactly and measured without noise adds nothing), and the rows of components measured without noise the identity
-    (they are taken as measured)."""
-    S = Pm[:NZ, :NZ] + Ry
+def _gain(Pm: np.ndarray, Ry: np.ndarray, H: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """G (30, 12) = P^- H^T (H P^- H^T + Ry)^+, the pseudo-inverse in the metric of its diagonal (a component known
+    exactly and measured without noise or bias adds nothing), and the rows of the components measured exactly (no
+    noise, no bias) the identity (they are taken as measured)."""
+    PH = Pm @ H.T
+    S = H @ PH + Ry
     s = np.sqrt(np.diag(S))
     s[s == 0] = 1.0
-    G = (Pm[:, :NZ] / s) @ np.linalg.pinv(S / np.outer(s, s), rcond=1e-13, hermitian=True) / s
-    E = np.flatnonzero(np.diag(Ry) == 0.0)
+    G = (PH / s) @ np.linalg.pinv(S / np.outer(s, s), rcond=1e-13, hermitian=True) / s
+    E = np.flatnonzero(exact)
     G[E, :] = 0.0
     G[E, E] = 1.0
     return G
@@ -171,11 +181,12 @@ def _gain(Pm: np.ndarray, Ry: np.ndarray) -> np.ndarray:
 class Estimator:
     """The estimator of one flight (module docstring), asked in order k = 0, 1, ..., N-1: :meth:`estimate` with the
     measurement of node k (or None where none is taken) -> (X^_k, the disturbance r^_k per mean step the tracker
-    reads, or None where the tracker estimates its own), then :meth:`predict` with the correction du_k issued."""
+    reads, or None where the tracker estimates its own), then :meth:`predict` with the correction du_k issued.
+    ``c``: the bias estimate c^ (12)."""
 
     def __init__(self, nav: NavigationFilter):
         self.nav, self.k = nav, 0
-        self.Xm, self.fm = np.asarray(nav.Xref[0], float).copy(), np.zeros(NU)
+        self.Xm, self.fm, self.c = np.asarray(nav.Xref[0], float).copy(), np.zeros(NU), np.zeros(NZ)
         self.X = self.f = None
 
     def estimate(self, k: int, Y: np.ndarray | None):
@@ -188,8 +199,9 @@ class Estimator:
             if nav.raw:
                 X = np.asarray(Y, float).reshape(NX).copy()
             else:
-                nu = tangent_error(Y, self.Xm)
-                X, f = retract(self.Xm, nav.G[k, :NZ] @ nu), self.fm + nav.G[k, NZ:] @ nu
+                nu = tangent_error(Y, self.Xm) - self.c
+                X, f = retract(self.Xm, nav.G[k, :NZ] @ nu), self.fm + nav.G[k, NZ:NZ + NU] @ nu
+                self.c = self.c + nav.G[k, NZ + NU:] @ nu
         self.X, self.f = X, f
         return X, (None if nav.raw else (nav.Bu[k] @ f + nav.eps[k]) / nav.rho[k])
 
@@ -206,7 +218,8 @@ class Estimator:
 
 
 def plan_filter(gains, F: np.ndarray, P0: np.ndarray, measured: np.ndarray, estimator: str = "ekf",
-                drift: float = 0.1, wander: float = 0.01, eps: np.ndarray | None = None) -> NavigationFilter:
+                drift: float = 0.1, wander: float = 0.01, eps: np.ndarray | None = None,
+                Pc: np.ndarray | None = None) -> NavigationFilter:
     """The estimator of a tracker's plan (transcription.closedloop.tracking.Gains: its nodes, maps, steps) for the
     measurement noise factor F (12, 12; :func:`noise_factor`), the prior P0 (12, 12) of the initial state's error
     from the plan's first node and the nodes ``measured`` (N,), with the default process noise (module docstring):
@@ -214,7 +227,7 @@ def plan_filter(gains, F: np.ndarray, P0: np.ndarray, measured: np.ndarray, esti
     scales) over the horizon T, Q_f = diag(drift u_c)^2 h / T, its prior diag(drift u_c)^2; the state's own
     Q_z,k = wander^2 R_y + diag(eps_k)^2 / rho_k per mean step (it wanders by ``wander`` of a measurement's 1-sigma
     per step beyond f, and the local error is known to about its own size); ``eps``: the plan's local errors
-    (:func:`local_errors`; None: none)."""
+    (:func:`local_errors`; None: none); ``Pc``: the prior of the measurements' constant bias (None: none)."""
     Ry = F @ F.T
     sc = gains.weights.scales
     uc = np.concatenate([sc["force"], sc["moment"]]) * drift
@@ -223,7 +236,7 @@ def plan_filter(gains, F: np.ndarray, P0: np.ndarray, measured: np.ndarray, esti
     rho = np.ones(gains.N) if gains.rho is None else gains.rho
     Qz = wander**2 * Ry + (0.0 if eps is None else np.einsum("ki,ij->kij", np.asarray(eps) ** 2, np.eye(NZ)) / rho[:, None, None])
     return navigation_filter(gains.X, gains.A, gains.Bu, rho, Ry, prior, Qz, np.diag(uc**2) * gains.h / sc["T"],
-                             measured, estimator, eps)
+                             measured, estimator, eps, Pc)
 
 
 def local_errors(gains, model, force_frame: str = "inertial", samples: int = 1) -> np.ndarray:
@@ -242,17 +255,19 @@ def local_errors(gains, model, force_frame: str = "inertial", samples: int = 1) 
 
 class Navigated:
     """The tracker fed by the estimator, as the correction of a transcription.dynamics.flight.ClosedLoop: at node k
-    the sensed state X (18,) is measured with the draws ``draws[k]`` (N, 12 standard normals), estimated, the
-    tracker's correction du_k computed from X^_k (and its disturbance), and the estimate carried to k+1.  ``errors``
-    (k, 12): X (-) X^ at the nodes so far.  (transcription.closedloop.navloop flies the same law in one call.)"""
+    the sensed state X (18,) is measured with the draws ``draws[k]`` (N, 12 standard normals) and the run's constant
+    ``bias`` (12; None: 0), estimated, the tracker's correction du_k computed from X^_k (and its disturbance), and the
+    estimate carried to k+1.  ``errors`` (k, 12): X (-) X^ at the nodes so far.  (transcription.closedloop.navloop
+    flies the same law in one call.)"""
 
-    def __init__(self, nav: NavigationFilter, tracker, F: np.ndarray, draws: np.ndarray):
+    def __init__(self, nav: NavigationFilter, tracker, F: np.ndarray, draws: np.ndarray, bias: np.ndarray | None = None):
         self.nav, self.tracker, self.F, self.draws = nav, tracker, np.asarray(F, float), np.asarray(draws, float)
+        self.bias = np.zeros(NZ) if bias is None else np.asarray(bias, float).reshape(NZ)
         self.estimator = Estimator(nav)
         self.errors = []
 
     def __call__(self, k: int, t: float, X: np.ndarray) -> np.ndarray:
-        Y = measure(X, self.F, self.draws[k]) if self.nav.measured[k] else None
+        Y = measure(X, self.F, self.draws[k], self.bias) if self.nav.measured[k] else None
         Xh, d = self.estimator.estimate(k, Y)
         e = self.estimator.error(X)
         self.errors.append(e)
