@@ -30,7 +30,9 @@ def sigmas(block: dict) -> tuple:
 def filter_of(payload: dict, gains, spec, problem):
     """The estimator of the plan of ``gains`` (the tracker it feeds; ``problem`` the plan's Problem) for the flight
     ``spec``: the navigation noise, the prior of the initial errors (spec.errors.initial), the measurement nodes of
-    ``period``, the plan's local errors on its body's continuous equations; built once per process, plan and block."""
+    ``period``, the plan's local errors on its body's continuous equations, the bias's prior: (NavigationFilter, the
+    noise factor F, the bias factor F_b) (transcription.closedloop.estimator.noise_factor); built once per process,
+    plan and block."""
     nav = spec.navigation
     key = (payload["key"], id(gains), json.dumps(nav, sort_keys=True), json.dumps(spec.errors["initial"], sort_keys=True))
     if key not in _FILTERS:
