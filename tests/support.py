@@ -64,3 +64,21 @@ def slew_comparison(N: int = 40):
                                  result=se3ocp.Result.converged, verdict="simulated as a stand-in for IPOPT",
                                  cost=float(p.control.objective.value(p, U, p.h)))   # a converged plan has a cost
     return man, compare(direct, se3ocp.solve(man, "indirect"))
+
+
+def perturbed_truth(sol):
+    """A truth for closed-loop comparisons of a plan ``sol``: its body with the inertia 1 % off (diag 1.01, 0.99, 1),
+    actuators with a 2 % thrust scale and a small misalignment, and its first state offset by 1e-4 in x and gamma:
+    (body, Actuators, X0)."""
+    import numpy as np
+
+    from se3ocp.transcription.dynamics.flight import Actuators
+    from se3ocp.transcription.geometry.so3 import exp_so3
+
+    body = sol.problem.model
+    truth = type(body)(mass=body.mass, inertia=body.inertia * np.array([1.01, 0.99, 1.0]), potential=body.potential,
+                       forces=body.forces, mu=body.mu, markers=body.markers, name=body.name)
+    act = Actuators(force_scale=1.02, force_misalignment=exp_so3(np.radians([0.3, -0.2, 0.1])))
+    X0 = sol.trajectory.X[0].copy()
+    X0[0:6] += 1e-4
+    return truth, act, X0

@@ -35,7 +35,7 @@ from se3ocp.transcription.dynamics.flight import (RTOL, Actuators, ClosedLoop, F
 from se3ocp.transcription.results.check import continuous_check
 from se3ocp.transcription.geometry.so3 import exp_so3, rot_x, rotation_angle
 
-from support import maneuver
+from support import maneuver, perturbed_truth
 
 
 @lru_cache(maxsize=None)
@@ -251,12 +251,7 @@ def test_the_tracking_loop_in_one_call_flies_as_the_law_asked_per_interval(schem
 
     sol = solved("e3", N, scheme)
     g = tracking_gains(sol)
-    body = sol.problem.model
-    truth = type(body)(mass=body.mass, inertia=body.inertia * np.array([1.01, 0.99, 1.0]), potential=body.potential,
-                       forces=body.forces, mu=body.mu, markers=body.markers, name=body.name)
-    act = Actuators(force_scale=1.02, force_misalignment=exp_so3(np.radians([0.3, -0.2, 0.1])))
-    X0 = sol.trajectory.X[0].copy()
-    X0[0:6] += 1e-4
+    truth, act, X0 = perturbed_truth(sol)
     tr = g.tracker(disturbance=disturbance)
     old = fly(truth, X0, g.t, ClosedLoop(OpenLoop.of_controls(scheme, g.U), lambda k, t, X: tr.correction(k, X)), act)
     new = fly(truth, X0, g.t, TrackingLoop.of_gains(g, disturbance), act)

@@ -7,7 +7,9 @@ open loop and with the tracker, on a local process pool or a Dask cluster.
                            "errors": {"force_scale": 0.02}, "runs": 50})
     res.statistics()["lqr"]["position_miss"]["p95"]
 
-* ``schema`` -- the ``flight:`` block (:class:`FlightSpec`: truth, errors, feedback, mpc, weights, runs, seed);
+* ``schema`` -- the ``flight:`` block (:class:`FlightSpec`: truth, errors, feedback, mpc, weights, navigation, runs,
+  seed);
+* ``navigation`` -- the plan's estimator, each run's measurement noise, the estimation errors (with ``navigation:``);
 * ``plan`` -- the plan as plain data, the truth body, and each run's errors from its own
   ``SeedSequence(seed).spawn(runs)[i]`` (so the statistics do not depend on the workers);
 * ``task`` -- :func:`fly_runs`, the unit of work (a few runs, every feedback mode), and the figures of
@@ -21,7 +23,8 @@ How a flight is flown: the truth body (the plan's, under the flight's gravity, w
 is integrated by the continuous engine (transcription/flight, docs/mathematics.md §11) from the run's
 initial state, the plan's controls applied between the nodes as the scheme defines them, through the
 run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
-(docs/mathematics.md §12), computed from the flown state at each node, is added over the interval; with
+(docs/mathematics.md §12), computed from the flown state at each node (with ``navigation:``, from the estimate of
+its noisy measurement, §12 *Navigation*), is added over the interval; with
 ``mpc`` the remainder of the plan is re-planned from the flown state every ``mpc.replan_every`` steps
 (transcription/mpc.py, docs/mathematics.md §12) and flown open loop in between.  With ``actuators`` (``actuators``
 module) the force is delivered by on/off thruster pulses and the moment by reaction wheels, period by period

@@ -14,6 +14,7 @@ from ..results_dir import results_transaction
 from ..schema import ConfigError
 from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, load_flight, spec_source,
                with_changes)
+from .navigation import ESTIMATION_METRICS
 from .task import ELEMENT_METRICS
 
 
@@ -131,8 +132,8 @@ def cmd_fly(args) -> int:
 
 
 #: the figures of the command's table, in its order (those the flight has; report.ROWS gives their quantities)
-TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ELEMENT_METRICS, "delta_v_overhead",
-              "saturated_fraction", "pulses_skipped", "wheel_torque_used", "wheel_momentum_used")
+TABLE_KEYS = ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", *ESTIMATION_METRICS, *ELEMENT_METRICS,
+              "delta_v_overhead", "saturated_fraction", "pulses_skipped", "wheel_torque_used", "wheel_momentum_used")
 
 
 def table(res) -> list[str]:
@@ -144,7 +145,7 @@ def table(res) -> list[str]:
     stats = res.statistics()
     un, quantity = units(res.maneuver.problem), {k: q for k, _, q, _ in ROWS}
     modes = list(stats)
-    rows = [f"{'p95 (mean)':<22}{'unit':<9}" + "".join(f"{m:>26}" for m in modes)]
+    rows = [f"{'p95 (mean)':<24}{'unit':<9}" + "".join(f"{m:>26}" for m in modes)]
     for key in TABLE_KEYS:
         if key not in res.metrics:
             continue
@@ -153,5 +154,5 @@ def table(res) -> list[str]:
         for m in modes:
             d = stats[m][key]
             cells.append(f"{'-':>26}" if d["n"] == 0 else f"{factor * d['p95']:>13.3e} ({factor * d['mean']:.2e})")
-        rows.append(f"{key:<22}{unit:<9}" + "".join(cells))
+        rows.append(f"{key:<24}{unit:<9}" + "".join(cells))
     return rows + [f"warning: {w}" for w in res.summary()["worse_than_open"]]

@@ -7,7 +7,8 @@
 * ``flight_histograms``: log10 of the position, attitude and rate misses and the delta-v overhead, modes overlaid;
 * ``flight_tracks``: the position and attitude deviation from the plan's nodes of the first 20 runs;
 * ``flight_controls``: the applied controls of the first 20 runs against the actuators' bounds (solid)
-  and the plan's (dashed, with a bounds margin).
+  and the plan's (dashed, with a bounds margin);
+* ``flight_navigation`` (with navigation): the LQR flights' terminal misses beside their RMS estimation errors.
 
 Figures are made with matplotlib's Figure (no pyplot, no backend chosen)."""
 from __future__ import annotations
@@ -37,7 +38,7 @@ def draw_flights(out: Path, result: FlightResult) -> list[Path]:
     """Every figure of the module into ``out``; returns the files written."""
     written = []
     for name, draw in (("flight_miss", _miss), ("flight_histograms", _histograms), ("flight_tracks", _tracks),
-                       ("flight_controls", _controls)):
+                       ("flight_controls", _controls), ("flight_navigation", _navigation)):
         fig = draw(result)
         if fig is not None:
             written += save_figure(fig, Path(out) / name)
@@ -108,6 +109,29 @@ def _histograms(result: FlightResult) -> Figure:
         if both.size:
             ax.legend(fontsize=7)
     return _titled(fig, result, f"{result.finished_runs} runs")
+
+
+def _navigation(result: FlightResult) -> Figure | None:
+    """With navigation: log10 histograms of the LQR flights' terminal misses beside their RMS estimation errors."""
+    rows = _ok(result, "lqr")
+    if result.spec.navigation is None or not rows:
+        return None
+    u = units(result.maneuver.problem)
+    panels = (("position_miss", "estimation_position", "position", "length"),
+              ("velocity_miss", "estimation_velocity", "velocity", "velocity"),
+              ("attitude_miss_deg", "estimation_attitude_deg", "attitude", "angle"),
+              ("rate_miss", "estimation_rate", "rate", "angular_rate"))
+    fig = Figure(figsize=(11.0, 3.2))
+    for j, (miss, est, label, q) in enumerate(panels):
+        ax = fig.add_subplot(1, 4, j + 1)
+        for key, what, color in ((miss, "terminal miss", MODE_COLORS["lqr"]), (est, "RMS estimate error", "#4daf4a")):
+            a = np.array([r[key] for r in rows], float)
+            a = a[np.isfinite(a) & (a > 0)]
+            if a.size:
+                ax.hist(np.log10(a), bins=30, color=color, alpha=0.6, label=what)
+        ax.set_xlabel(f"log10 {u.label(label, q)}")
+        ax.legend(fontsize=7)
+    return _titled(fig, result, f"LQR with navigation ({result.spec.navigation['estimator']}): misses and estimation errors")
 
 
 def _tracks(result: FlightResult) -> Figure | None:

@@ -30,6 +30,11 @@ ROWS = (
     ("velocity_miss", "terminal velocity miss", "velocity", "{:.3e}"),
     ("attitude_miss_deg", "terminal attitude miss", "angle", "{:.3e}"),
     ("rate_miss", "terminal rate miss |ΔΩ|", "angular_rate", "{:.3e}"),
+    ("estimation_position", "navigation: RMS position estimate error", "length", "{:.3e}"),
+    ("estimation_velocity", "navigation: RMS velocity estimate error", "velocity", "{:.3e}"),
+    ("estimation_attitude_deg", "navigation: RMS attitude estimate error", "angle", "{:.3e}"),
+    ("estimation_rate", "navigation: RMS rate estimate error", "angular_rate", "{:.3e}"),
+    ("estimation_nees", "navigation: mean NEES per measured component (1: consistent)", "none", "{:.3g}"),
     ("delta_v", "Δv delivered", "velocity", "{:.6g}"),
     ("delta_v_overhead", "Δv overhead over the plan's (delivered)", "%", "{:.3f}"),
     ("delta_v_commanded_overhead", "Δv overhead over the plan's (commanded)", "%", "{:.3f}"),
@@ -59,6 +64,8 @@ FIGURES = (
     ("flight_tracks", "the first runs' deviation from the plan's nodes (position, attitude angle)"),
     ("flight_controls", "the first runs' applied controls against the actuators' bounds (solid) and the plan's "
                         "(dashed, with a bounds margin)"),
+    ("flight_navigation", "with navigation: the LQR flights' terminal misses beside their RMS estimation errors "
+                          "(the estimate the tracker read)"),
 )
 
 

@@ -46,7 +46,7 @@ class FlightResult:
 
     @property
     def metrics(self) -> tuple:
-        return metric_keys(self.maneuver.problem) + actuator_keys(self.spec.actuators)
+        return metric_keys(self.maneuver.problem, self.spec.navigation is not None) + actuator_keys(self.spec.actuators)
 
     @property
     def finished_runs(self) -> int:

@@ -21,6 +21,11 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
       feedback: both          # none | lqr | mpc | both (none and lqr side by side) | all (none, lqr, mpc)
       mpc: {replan_every: 10, iterations: 1, min_horizon: 1, between: lqr}   # re-planning (transcription/mpc.py)
       weights: {bandwidth: 2.0, attitude: 0.01}        # tracking scales (transcription.closedloop.tracking.SCALE_KEYS)
+      navigation:                                      # measurements and an estimator between them and the tracker
+        noise: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.01, angular_velocity: 1.0e-4}   # 1-sigma
+        bias: {angular_velocity: 1.0e-4}               # 1-sigma of a constant bias per run (default 0), estimated
+        period: 0.005                                  # between measurements (time unit; default: every node)
+        estimator: ekf                                 # ekf (transcription.closedloop.estimator) | none (raw)
       runs: 200
       seed: 1
 
@@ -35,6 +40,7 @@ from typing import Any
 
 from ...transcription.dynamics.flight import DEFAULT_SAMPLES
 from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_EVERY
+from ...transcription.closedloop.estimator import ESTIMATORS
 from ...transcription.closedloop.tracking import SCALE_KEYS
 from ..bodies import PRESETS
 from ..models import parse_gravity
@@ -42,11 +48,13 @@ from .actuators import parse_actuators
 from .forces import FORCE_KEYS
 from ..schema import Validator
 
-FLIGHT_KEYS = ("truth", "errors", "actuators", "feedback", "mpc", "weights", "runs", "seed")
+FLIGHT_KEYS = ("truth", "errors", "actuators", "feedback", "mpc", "weights", "navigation", "runs", "seed")
 TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
+#: the ``navigation`` block (measurement noise: the same quantities as the initial errors, 1-sigma)
+NAVIGATION_KEYS = ("noise", "bias", "period", "estimator")
 #: feedback modes flown for each value of ``feedback``
 FEEDBACK = {"none": ("none",), "lqr": ("lqr",), "mpc": ("mpc",), "both": ("none", "lqr"), "all": ("none", "lqr", "mpc")}
 #: the ``mpc`` block: re-plan every this many node steps, Newton steps per re-plan, no re-plan with fewer
@@ -71,7 +79,9 @@ class FlightSpec:
     samples: states per node interval; errors: 1-sigma values (initial: position, velocity (inertial),
     attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
     modes: the feedback modes flown ('none', 'lqr', 'mpc'); weights: tracking scales; mpc: the re-planning
-    options (MPC_KEYS); actuators: the truth's actuators (problems.flight.actuators; {}: exact); runs; seed; resolved: the block with its defaults (itself a valid flight block)."""
+    options (MPC_KEYS); actuators: the truth's actuators (problems.flight.actuators; {}: exact); runs; seed;
+    resolved: the block with its defaults (itself a valid flight block); navigation: {noise, bias: {INITIAL_KEYS:
+    1-sigma}, period (time unit, None: every node), estimator} or None."""
 
     gravity: dict | None
     samples: int
@@ -83,6 +93,7 @@ class FlightSpec:
     resolved: dict = field(repr=False)
     mpc: dict = field(default_factory=lambda: dict(MPC_DEFAULTS))
     actuators: dict = field(default_factory=dict)
+    navigation: dict | None = None
 
 
 def default_errors() -> dict:
@@ -163,10 +174,29 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
     mpc["between"] = v.choice(m.get("between", "lqr"), f"{where}.mpc.between", MPC_BETWEEN)
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
+    navigation = _navigation(v, d["navigation"], f"{where}.navigation") if d.get("navigation") is not None else None
+    if navigation is not None and "mpc" in FEEDBACK[feedback]:
+        v.fail(f"{where}.navigation", f"not flown with feedback {feedback!r}: the re-plans (mpc) read the flown state; "
+                                      f"fly navigation with none, lqr or both")
     resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, "integrator": "cvodes", "samples": samples},
-                "errors": errors, **({"actuators": actuators} if actuators else {}), "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
+                "errors": errors, **({"actuators": actuators} if actuators else {}), "feedback": feedback, "mpc": mpc,
+                "weights": weights, **({"navigation": navigation} if navigation else {}), "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
-                      runs=runs, seed=seed, resolved=resolved, mpc=mpc, actuators=actuators)
+                      runs=runs, seed=seed, resolved=resolved, mpc=mpc, actuators=actuators, navigation=navigation)
+
+
+def _navigation(v: Validator, doc, where: str) -> dict:
+    """The navigation block with its defaults: noise and bias (1-sigma, non-negative, default 0), period (positive,
+    None: every node), estimator (ESTIMATORS, default ekf)."""
+    n = v.mapping(doc, where, NAVIGATION_KEYS)
+    out = {}
+    for key in ("noise", "bias"):
+        block = v.mapping(n.get(key, {}), f"{where}.{key}", INITIAL_KEYS)
+        out[key] = {k: v.number(block.get(k, 0.0), f"{where}.{key}.{k}", nonneg=True) for k in INITIAL_KEYS}
+    if n.get("period") is not None:
+        out["period"] = v.number(n["period"], f"{where}.period", positive=True)
+    out["estimator"] = v.choice(n.get("estimator", "ekf"), f"{where}.estimator", ESTIMATORS)
+    return out
 
 
 def _errors(v: Validator, doc, where: str) -> dict:

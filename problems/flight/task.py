@@ -23,6 +23,7 @@ from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
 from .actuators import pulses_of, truth_axes, wheels_of
 from .forces import truth_forces
+from .navigation import ESTIMATION_METRICS, estimation_metrics, navigated
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
 
@@ -72,11 +73,12 @@ def miss_components(X_N: np.ndarray, mass: float, dx: np.ndarray) -> np.ndarray:
     return rtn(X_N[None, X_POS], X_N[None, 3:6] / mass, np.asarray(dx, float)[None, :])[0]
 
 
-def metric_keys(problem) -> tuple:
-    """The figures of merit of a flight of ``problem``'s plan: METRICS, the element misses (ELEMENT_METRICS) with a
-    central body, and the margins of its path constraints."""
+def metric_keys(problem, navigation: bool = False) -> tuple:
+    """The figures of merit of a flight of ``problem``'s plan: METRICS, the estimation errors with ``navigation``
+    (problems.flight.navigation.ESTIMATION_METRICS), the element misses (ELEMENT_METRICS) with a central body, and
+    the margins of its path constraints."""
     orbit = ELEMENT_METRICS if problem.model.mu else ()
-    return METRICS + orbit + tuple(margin_keys(problem.constraints))
+    return METRICS + (ESTIMATION_METRICS if navigation else ()) + orbit + tuple(margin_keys(problem.constraints))
 
 
 def element_misses(mu: float | None, X_N: np.ndarray, mass: float, x: np.ndarray, v: np.ndarray) -> dict:
@@ -160,17 +162,19 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, wheel_axes=None):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payload=None, wheel_axes=None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
-    (the tracker, the re-planning law) or None, the re-planning law or None, the pulses' figures (PULSE_COLUMNS; {}
-    without on/off thrusters or wheels: spec.actuators, transcription.closedloop.actuated)); ``wheel_axes``: the run's
-    truth wheel axes (3, n; problems.flight.actuators.truth_axes).  ``lqr``: the LQR flight's tracker
-    (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
-    forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
+    (the tracker, the re-planning law) or None, the re-planning law or None, the navigated law or None, the
+    actuators' figures (PULSE_COLUMNS; {} without on/off thrusters or wheels: spec.actuators,
+    transcription.closedloop.actuated)).  ``lqr``: the LQR flight's tracker (:func:`gains_of` with sub_steps;
+    default ``gains``), flown over its own node times.  ``forces``: the truth's forces besides gravity
+    (problems.flight.forces.truth_forces; None: none).  With ``spec.navigation`` the LQR reads the estimate of the
+    measured state (problems.flight.navigation; ``payload``: the plan's, problems.flight.plan.plan_payload);
+    ``wheel_axes``: the run's truth wheel axes (3, n; problems.flight.actuators.truth_axes)."""
     if mode == "lqr" and lqr is not None:
         gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
-    tracker = None
+    tracker = nav = None
     if mode == "mpc":
         o = spec.mpc
         law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
@@ -181,16 +185,21 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, whee
             gains = replace(gains, moment_bound=None)
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
-        law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
-        if not tracker.bounded and pulses is None and wheels is None:   # the same law inside the flight, one call
-            law = TrackingLoop.of_gains(gains)
+        correction = lambda k, t, X: tracker.correction(k, X)                # noqa: E731
+        actuated = pulses is not None or wheels is not None
+        if spec.navigation is not None:
+            nav = navigated(payload, gains, tracker, spec, err, plan.problem)
+            correction = nav if tracker.bounded or actuated else correction
+        law = ClosedLoop(law, correction, clip)   # clip: a plan's round-off only
+        if not tracker.bounded and not actuated:   # nothing to limit: the same law inside the flight, one call
+            law = TrackingLoop.of_gains(gains) if nav is None else nav
     truth, J_law = truth_model(base, err.inertia), plan.problem.model.inertia   # the rate measured, the plan's J
     if pulses is not None or wheels is not None:
         run = fly_actuated(truth, err.X0, gains.t, law, pulses, wheels, err.actuators, spec.samples, forces, J_law,
                            tracker if mode == "lqr" else None, wheel_axes)
-        return run.flight, tracker, law if mode == "mpc" else None, run.summary()
+        return run.flight, tracker, law if mode == "mpc" else None, nav, run.summary()
     flight = fly(truth, err.X0, gains.t, law, err.actuators, samples=spec.samples, disturbance=forces, law_inertia=J_law)
-    return flight, tracker, law if mode == "mpc" else None, {}
+    return flight, tracker, law if mode == "mpc" else None, nav, {}
 
 
 def replan_columns(law) -> dict:
@@ -231,10 +240,14 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc, pulsed = fly_one(plan, gains, spec, err, base, mode, lqr, forces, axes)
+                flight, tracker, mpc, nav, pulsed = fly_one(plan, gains, spec, err, base, mode, lqr, forces,
+                                                            task["plan"], axes)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(pulsed)
                 metrics.update(replan_columns(mpc))
+                if spec.navigation is not None:
+                    metrics.update(estimation_metrics(nav, man.problem.model.mass, man.problem.model.inertia)
+                                   or dict.fromkeys(ESTIMATION_METRICS, math.nan))
                 if mpc is not None:
                     replan_s[i] = np.column_stack([mpc.solve_times, mpc.prepare_times]).tolist()
             except (FlightError, ValueError, np.linalg.LinAlgError) as e:

@@ -319,9 +319,11 @@ class Tracker:
         self.z = self.dw = None
         self.saturated_steps = 0
 
-    def correction(self, k: int, X) -> np.ndarray:
+    def correction(self, k: int, X, r: np.ndarray | None = None) -> np.ndarray:
         """du_k (6,) for the state X at t_k, within the headroom of step k (0 without feedback); the flight
-        engine's per-interval law (transcription.flight.ClosedLoop) adds it to both ends of the interval."""
+        engine's per-interval law (transcription.flight.ClosedLoop) adds it to both ends of the interval.  ``r``: the
+        disturbance per mean step estimated elsewhere (a navigation filter, transcription.closedloop.estimator),
+        used instead of the tracker's own."""
         g = self.gains
         if k != self.k + 1 or not 0 <= k < g.N:
             raise ValueError(f"Tracker: expected step {self.k + 1} (steps 0..{g.N - 1} in order), got {k}")
@@ -329,7 +331,9 @@ class Tracker:
         if self.feedback:
             z = g.error(k, X)
             du = -g.K[k] @ z
-            if self.disturbance and k > 0:
+            if self.disturbance and r is not None:
+                du -= g.L[k] @ np.asarray(r, float).reshape(NZ)
+            elif self.disturbance and k > 0:
                 du -= g.L[k] @ g.per_mean_step(k - 1, z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
             elif self.disturbance and self.r0 is not None:          # k = 0: an estimate handed over
                 du -= g.L[0] @ self.r0
