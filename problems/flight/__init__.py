@@ -17,7 +17,8 @@ open loop and with the tracker, on a local process pool or a Dask cluster.
 * ``output`` -- flights.csv, summary.json, runs/NNNN.npz, plan.npz, gains.npz; ``figures`` -- the figures;
 * ``command`` -- ``se3ocp fly``.
 
-How a flight is flown: the truth body (the plan's, under the flight's gravity, with the run's inertia)
+How a flight is flown (``truth.integrator: basilisk``: in Basilisk's spacecraft instead, problems.flight.basilisk):
+the truth body (the plan's, under the flight's gravity, with the run's inertia)
 is integrated by the continuous engine (transcription/flight, docs/mathematics.md §11) from the run's
 initial state, the plan's controls applied between the nodes as the scheme defines them, through the
 run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
@@ -96,10 +97,15 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
 
 
 def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
-    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces)."""
+    """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces), or
+    when the truth is Basilisk's and Basilisk is not installed."""
     from ..schema import ConfigError
+    from .basilisk import available
     from .forces import check_forces
 
+    if spec.integrator == "basilisk" and not available():
+        raise ConfigError(source, "flight.truth.integrator", "basilisk needs Basilisk installed (pip install "
+                          "'se3ocp[basilisk]', PyPI bsk); or fly with integrator cvodes")
     bad = check_forces(maneuver, spec.resolved["truth"])
     if bad:
         raise ConfigError(source, f"flight.{bad[0]}", bad[1])

@@ -8,7 +8,11 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
                                                        # default to the maneuver's central_body preset's
         drag: {cd: 2.2, area_m2: 4.0}                  # exponential atmosphere (problems.flight.forces); default none
         srp: {cr: 1.3, area_m2: 4.0}                   # solar radiation pressure, a cannonball; default none
-        integrator: cvodes                             # the continuous engine (transcription/flight)
+        integrator: cvodes                             # the continuous engine: cvodes (transcription/flight) or
+                                                       # basilisk (Basilisk's spacecraft, problems.flight.basilisk;
+                                                       # the optional extra se3ocp[basilisk])
+        substeps: 32                                   # basilisk only: its RK4 steps per node interval (a multiple
+                                                       # of samples; second order in the step)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
         initial: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.5, angular_velocity: 1.0e-3}
@@ -37,11 +41,12 @@ from ...transcription.closedloop.mpc import DEFAULT_ITERATIONS, DEFAULT_REPLAN_E
 from ...transcription.closedloop.tracking import SCALE_KEYS
 from ..bodies import PRESETS
 from ..models import parse_gravity
+from .basilisk import DEFAULT_SUBSTEPS
 from .forces import FORCE_KEYS
 from ..schema import Validator
 
 FLIGHT_KEYS = ("truth", "errors", "feedback", "mpc", "weights", "runs", "seed")
-TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "samples")
+TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "substeps", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
@@ -55,7 +60,8 @@ MPC_DEFAULTS = {"replan_every": DEFAULT_REPLAN_EVERY, "iterations": DEFAULT_ITER
                 "between": "lqr"}
 MPC_BETWEEN = ("lqr", "none")
 MAX_ITERATIONS = 50
-INTEGRATORS = ("cvodes",)
+INTEGRATORS = ("cvodes", "basilisk")
+MAX_SUBSTEPS = 4096
 #: the most runs one flight may ask for, and the largest seed (NumPy's SeedSequence takes any
 #: non-negative integer; the cap keeps the resolved file readable)
 MAX_RUNS = 1_000_000
@@ -66,7 +72,8 @@ MAX_SAMPLES = 64
 @dataclass(frozen=True)
 class FlightSpec:
     """A validated flight block.  gravity: the truth's gravity block (None: the plan's own);
-    samples: states per node interval; errors: 1-sigma values (initial: position, velocity (inertial),
+    samples: states per node interval; integrator: the truth's engine (INTEGRATORS); substeps: Basilisk's steps per
+    node interval (0 with cvodes); errors: 1-sigma values (initial: position, velocity (inertial),
     attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
     modes: the feedback modes flown ('none', 'lqr', 'mpc'); weights: tracking scales; mpc: the re-planning
     options (MPC_KEYS); runs; seed; resolved: the block with its defaults (itself a valid flight block)."""
@@ -80,6 +87,8 @@ class FlightSpec:
     seed: int
     resolved: dict = field(repr=False)
     mpc: dict = field(default_factory=lambda: dict(MPC_DEFAULTS))
+    integrator: str = "cvodes"
+    substeps: int = 0
 
 
 def default_errors() -> dict:
@@ -138,9 +147,10 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
         if name in t:
             block = v.mapping(t[name], f"{where}.truth.{name}", keys, required=keys)
             forces[name] = {k: v.number(block[k], f"{where}.truth.{name}.{k}", positive=True) for k in keys}
-    v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
+    integrator = v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
     samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
                        at_most=MAX_SAMPLES)
+    engine = {"integrator": integrator, **_substeps(v, t, integrator, samples, f"{where}.truth")}
     errors = _errors(v, d.get("errors", {}), f"{where}.errors")
     feedback = v.choice(d.get("feedback", "both"), f"{where}.feedback", tuple(FEEDBACK))
     w = v.mapping(d.get("weights", {}), f"{where}.weights", SCALE_KEYS)
@@ -159,10 +169,24 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
     mpc["between"] = v.choice(m.get("between", "lqr"), f"{where}.mpc.between", MPC_BETWEEN)
     runs = v.number(d.get("runs", 100), f"{where}.runs", positive=True, integer=True, at_most=MAX_RUNS)
     seed = v.number(d.get("seed", 0), f"{where}.seed", nonneg=True, integer=True, at_most=MAX_SEED)
-    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, "integrator": "cvodes", "samples": samples},
+    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, **engine, "samples": samples},
                 "errors": errors, "feedback": feedback, "mpc": mpc, "weights": weights, "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
-                      runs=runs, seed=seed, resolved=resolved, mpc=mpc)
+                      runs=runs, seed=seed, resolved=resolved, mpc=mpc, integrator=integrator,
+                      substeps=engine.get("substeps", 0))
+
+
+def _substeps(v: Validator, truth: dict, integrator: str, samples: int, where: str) -> dict:
+    """{substeps: n} of a Basilisk truth (default basilisk.DEFAULT_SUBSTEPS; a multiple of samples), {} for cvodes."""
+    if integrator != "basilisk":
+        if "substeps" in truth:
+            v.fail(f"{where}.substeps", f"applies to integrator basilisk only (integrator is {integrator})")
+        return {}
+    n = v.number(truth.get("substeps", DEFAULT_SUBSTEPS), f"{where}.substeps", positive=True, integer=True,
+                 at_most=MAX_SUBSTEPS)
+    if n % samples:
+        v.fail(f"{where}.substeps", f"expected a multiple of samples ({samples}), got {n}")
+    return {"substeps": n}
 
 
 def _errors(v: Validator, doc, where: str) -> dict:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from functools import partial
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
+from .basilisk import fly_basilisk
 from .forces import truth_forces
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
 from .schema import parse_flight
@@ -170,14 +172,16 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
         o = spec.mpc
         law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
                                    o["min_horizon"], gains if o["between"] == "lqr" else None)
+    basilisk = spec.integrator == "basilisk"
     if mode == "lqr":
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
-        if not tracker.bounded:          # nothing to limit: the same law evaluated inside the flight, one call
+        if not tracker.bounded and not basilisk:   # nothing to limit: the same law inside the flight, one call
             law = TrackingLoop.of_gains(gains)
-    flight = fly(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
-                 disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
+    engine = partial(fly_basilisk, substeps=spec.substeps) if basilisk else fly
+    flight = engine(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
+                    disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
     return flight, tracker, law if mode == "mpc" else None
 
 

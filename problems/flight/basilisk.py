@@ -1,0 +1,179 @@
+"""Basilisk as a flight's truth (``flight.truth.integrator: basilisk``; issue 43): the plan flown in Basilisk's
+spacecraft (AVS Lab, University of Colorado; PyPI ``bsk``, the optional extra ``se3ocp[basilisk]``), the simulation a
+GNC team already trusts, instead of the project's own CVODES engine (transcription.dynamics.flight).
+
+What is Basilisk's: the rigid hub (``spacecraft.Spacecraft``: mass, inertia about the centre of mass, translation and
+rotation with MRP attitude and their shadow-set switching, its fixed-step RK4 integrator), the central body's
+point-mass gravity (``gravityEffector``, GM = the model's mu) and its gravity-gradient torque
+(``GravityGradientEffector``, 3 mu / r^3 rhat x J rhat), both evaluated at every Runge-Kutta stage, and the external
+force and torque (``extForceTorque``: an inertial force and a body torque held over each Basilisk step).
+
+What is the project's, applied through ``extForceTorque``: the actuators' output (transcription.dynamics.flight.
+actuator_output: the command through the run's scale factors and misalignments) and the rest of the truth model's
+forces -- the body's exact gravity minus what Basilisk's two effectors apply (for the dumbbell, its finite size beyond
+the second-order torque: ~(l / 2r)^2 of the gravity force), J2, drag and solar radiation pressure.  These are held
+over each Basilisk step at their value at the step's middle, predicted from the state at its start (x + v dt/2,
+R exp(Omega dt/2), the momenta by their rates at the start): the midpoint rule, so the flight converges at second
+order in the step dt = h / ``substeps``.
+
+Units: any consistent system serves Newton's and Euler's laws, so the file's length and mass units are Basilisk's
+metre and kilogram, and its time unit is scaled by tau so that one Basilisk step is exactly STEP_NS nanoseconds
+(Basilisk's clock is an integer of nanoseconds): velocities and rates / tau, forces, torques and GM / tau^2.
+
+The law of a closed-loop flight (the tracker, MPC) is asked for each node interval's command from the Basilisk state
+at the node (an external loop stepping Basilisk between samples), as the project's engine asks it.  A plan on a
+non-uniform mesh is not flown (its steps would need unequal Basilisk steps).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ...transcription.dynamics.flight import (Actuators, Flight, FlightError, actuator_output,
+                                              flight_record, sensed)
+from ...transcription.dynamics.model import BodyModel
+from ...transcription.geometry.so3 import exp_so3
+from ...transcription.geometry.state import NU, NX, join_state, split_state
+
+#: one Basilisk step in Basilisk's nanoseconds (the time scale makes every step exactly this long)
+STEP_NS = 1_000_000
+#: Basilisk steps per node interval (a multiple of the flight's samples); the flight converges at second order in it
+DEFAULT_SUBSTEPS = 32
+_NAME = "central"
+
+
+def available() -> bool:
+    """True when Basilisk (``bsk``) can be imported."""
+    from importlib.util import find_spec
+
+    return find_spec("Basilisk") is not None
+
+
+def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None) -> ca.Function:
+    """``basilisk_loads(X[18], u_cmd[6], q[21], J[3x3], dt) -> (f[3] inertial, M[3] body)``: what extForceTorque applies
+    over a Basilisk step of length dt (the file's time unit) that starts at X (the truth body of inertia J): the
+    actuators' output for the command u_cmd at the step's middle plus the truth's forces (``model.forces`` and the
+    ``disturbance``) minus Basilisk's point-mass gravity -mu m x / r^3 and gravity-gradient torque
+    3 mu / r^3 rhat_B x J rhat_B (none without a central body), all at the predicted middle state (module docstring)."""
+    X, uc, q, J, dt = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", 21), ca.SX.sym("J", 3, 3), ca.SX.sym("dt")
+    act = actuator_output()
+
+    def loads(Y):
+        y, _, R, _ = split_state(Y)
+        f, M = model.forces(y, R)
+        if disturbance is not None:
+            f = f + disturbance(Y)
+        u = act(Y, uc, q)
+        return f + u[0:3], M + u[3:6]
+
+    x, gamma, R, Pi = split_state(X)
+    Om = ca.solve(J, Pi)
+    f0, M0 = loads(X)
+    half = 0.5 * dt
+    Xm = join_state(x + half * gamma / model.mass, gamma + half * f0, ca.mtimes(R, exp_so3(half * Om)),
+                    Pi + half * (ca.cross(Pi, Om) + M0))
+    f, M = loads(Xm)
+    if model.mu:
+        xm, _, Rm, _ = split_state(Xm)
+        r = ca.norm_2(xm)
+        rb = ca.mtimes(Rm.T, xm) / r
+        f = f + model.mu * model.mass * xm / r**3
+        M = M - 3.0 * model.mu / r**3 * ca.cross(rb, ca.mtimes(J, rb))
+    return ca.Function("basilisk_loads", [X, uc, q, J, dt], [f, M], ["X", "u_cmd", "q", "J", "dt"], ["f", "M"])
+
+
+class Hub:
+    """One Basilisk simulation of a truth body: the spacecraft hub (mass, inertia), the central body's point-mass
+    gravity and gravity-gradient torque (when the model has a mu) and extForceTorque, stepped STEP_NS at a time.
+    ``tau``: Basilisk seconds per time unit of the file.  :meth:`state` reads the hub as the project's state (18,)."""
+
+    def __init__(self, model: BodyModel, X0: np.ndarray, tau: float):
+        from Basilisk.simulation import GravityGradientEffector, extForceTorque, spacecraft
+        from Basilisk.utilities import RigidBodyKinematics, SimulationBaseClass, simIncludeGravBody
+
+        self.mass, self.J, self.tau, self.mrp = float(model.mass), np.asarray(model.inertia, float), tau, RigidBodyKinematics
+        self.sim = SimulationBaseClass.SimBaseClass()
+        self.sim.CreateNewProcess("truth").addTask(self.sim.CreateNewTask("dynamics", STEP_NS))
+        sc = self.sc = spacecraft.Spacecraft()
+        sc.ModelTag = "se3ocp"
+        x, gamma, R, Pi = split_state(X0)
+        sc.hub.mHub, sc.hub.IHubPntBc_B, sc.hub.r_BcB_B = self.mass, self.J.tolist(), [[0.0]] * 3
+        sc.hub.r_CN_NInit = [[float(c)] for c in x]
+        sc.hub.v_CN_NInit = [[float(c)] for c in gamma / self.mass / tau]
+        sc.hub.sigma_BNInit = [[float(c)] for c in RigidBodyKinematics.C2MRP(R.T)]
+        sc.hub.omega_BN_BInit = [[float(c)] for c in np.linalg.solve(self.J, Pi) / tau]
+        self.sim.AddModelToTask("dynamics", sc)
+        self.effectors = []
+        if model.mu:
+            self.gravity = simIncludeGravBody.gravBodyFactory()
+            body = self.gravity.createCustomGravObject(_NAME, float(model.mu) / tau**2)
+            body.isCentralBody = True
+            self.gravity.addBodiesTo(sc)
+            gg = GravityGradientEffector.GravityGradientEffector()
+            gg.ModelTag = "gravity_gradient"
+            gg.addPlanetName(body.planetName)
+            sc.addDynamicEffector(gg)
+            self.sim.AddModelToTask("dynamics", gg)
+            self.effectors.append(gg)
+        self.ext = extForceTorque.ExtForceTorque()
+        self.ext.ModelTag = "loads"
+        sc.addDynamicEffector(self.ext)
+        self.sim.AddModelToTask("dynamics", self.ext)
+        self.sim.InitializeSimulation()
+        self.steps = 0
+
+    def step(self, f: np.ndarray, M: np.ndarray) -> None:
+        """One Basilisk step with the inertial force f and body torque M (the file's units) held over it."""
+        s = self.tau**-2
+        self.ext.extForce_N = [float(c) * s for c in f]
+        self.ext.extTorquePntB_B = [float(c) * s for c in M]
+        self.steps += 1
+        self.sim.ConfigureStopTime(self.steps * STEP_NS)
+        self.sim.ExecuteSimulation()
+
+    def state(self) -> np.ndarray:
+        """The hub's state as the project's X (18,): x, m v, R = [BN]^T from the MRP, J Omega (the file's units)."""
+        out = self.sc.scStateOutMsg.read()
+        R = np.asarray(self.mrp.MRP2C(np.asarray(out.sigma_BN, float))).T
+        return join_state(np.asarray(out.r_BN_N, float), self.mass * self.tau * np.asarray(out.v_BN_N, float), R,
+                          self.J @ (self.tau * np.asarray(out.omega_BN_B, float)))
+
+
+def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actuators: Actuators | None = None,
+                 samples: int = 4, disturbance: ca.Function | None = None, law_inertia: np.ndarray | None = None,
+                 substeps: int = DEFAULT_SUBSTEPS) -> Flight:
+    """Fly ``law`` (transcription.dynamics.flight's OpenLoop, ClosedLoop or any law with ``commands(k, t, X)``, X as
+    transcription.dynamics.flight.sensed makes it) from X0 over the node grid ``times`` (N+1, equal steps) in Basilisk
+    (module docstring), ``substeps`` Basilisk steps per node interval (a multiple of ``samples``); the arguments and
+    the returned :class:`Flight` as transcription.dynamics.flight.fly's.  ValueError for a non-uniform grid or
+    substeps that are not a multiple of samples; FlightError when the state leaves its domain."""
+    times, X0 = np.asarray(times, float).ravel(), np.asarray(X0, float).reshape(NX)
+    h = np.diff(times)
+    if times.size < 2 or not np.all(h > 0) or np.max(np.abs(h - h.mean())) > 1e-9 * h.mean():
+        raise ValueError("the Basilisk truth flies plans of equal steps only (one Basilisk step length)")
+    if not hasattr(law, "commands"):
+        raise ValueError("the Basilisk truth asks its law for each interval's commands: give a law with commands()")
+    if substeps < 1 or substeps % samples:
+        raise ValueError(f"substeps ({substeps}) must be a positive multiple of samples ({samples})")
+    N, n, every = h.size, int(substeps), int(substeps) // int(samples)
+    dt = float(h.mean()) / n
+    q = (actuators or Actuators()).vector()
+    Jinv, J_law = np.linalg.inv(model.inertia), np.asarray(model.inertia if law_inertia is None else law_inertia, float)
+    loads = midpoint_loads(model, disturbance)
+    hub = Hub(model, X0, STEP_NS * 1e-9 / dt)
+    A, B, Xs, X = np.zeros((NU, N)), np.zeros((NU, N)), [], X0
+    s_mid = (np.arange(n) + 0.5) / n
+    for k in range(N):
+        A[:, k], B[:, k] = law.commands(k, float(times[k]), sensed(X, J_law, Jinv))
+        for j in range(n):
+            f, M = loads(X, A[:, k] + s_mid[j] * (B[:, k] - A[:, k]), q, model.inertia, dt)
+            hub.step(np.asarray(f).ravel(), np.asarray(M).ravel())
+            X = hub.state()
+            if not np.all(np.isfinite(X)):
+                raise FlightError(f"the Basilisk flight left the state's domain in node interval {k}")
+            if (j + 1) % every == 0:
+                Xs.append(X)
+    return flight_record(model, times, X0, np.array(Xs), A, B, samples, q)
+
+
+__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "fly_basilisk", "midpoint_loads"]
