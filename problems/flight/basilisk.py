@@ -3,15 +3,16 @@ spacecraft (AVS Lab, University of Colorado; PyPI ``bsk``, the optional extra ``
 GNC team already trusts, instead of the project's own CVODES engine (transcription.dynamics.flight).
 
 What is Basilisk's: the rigid hub (``spacecraft.Spacecraft``: mass, inertia about the centre of mass, translation and
-rotation with MRP attitude and their shadow-set switching, its fixed-step RK4 integrator), the central body's
-point-mass gravity (``gravityEffector``, GM = the model's mu) and its gravity-gradient torque
-(``GravityGradientEffector``, 3 mu / r^3 rhat x J rhat), both evaluated at every Runge-Kutta stage, and the external
+rotation with MRP attitude and their shadow-set switching, its fixed-step RK4 integrator), the central body's gravity
+at the centre of mass (``gravityEffector``: GM = the model's mu, and for a j2 truth its spherical harmonics to degree 2,
+C20 = -J2 / sqrt(5) about the inertial e3, no planet rotation) and its gravity-gradient torque
+(``GravityGradientEffector``, 3 mu / r^3 rhat x J rhat), all evaluated at every Runge-Kutta stage, and the external
 force and torque (``extForceTorque``: an inertial force and a body torque held over each Basilisk step).
 
 What is the project's, applied through ``extForceTorque``: the actuators' output (transcription.dynamics.flight.
 actuator_output: the command through the run's scale factors and misalignments) and the rest of the truth model's
 forces -- the body's exact gravity minus what Basilisk's two effectors apply (for the dumbbell, its finite size beyond
-the second-order torque: ~(l / 2r)^2 of the gravity force), J2, drag and solar radiation pressure.  These are held
+the second-order torque: ~(l / 2r)^2 of the gravity force), drag and solar radiation pressure.  These are held
 over each Basilisk step at their value at the step's middle, predicted from the state at its start (x + v dt/2,
 R exp(Omega dt/2), the momenta by their rates at the start): the midpoint rule, so the flight converges at second
 order in the step dt = h / ``substeps``.
@@ -34,6 +35,7 @@ from ...transcription.dynamics.flight import (Actuators, Flight, FlightError, ac
 from ...transcription.dynamics.model import BodyModel
 from ...transcription.geometry.so3 import exp_so3
 from ...transcription.geometry.state import NU, NX, join_state, split_state
+from ..models import Gravity
 
 #: one Basilisk step in Basilisk's nanoseconds (the time scale makes every step exactly this long)
 STEP_NS = 1_000_000
@@ -49,12 +51,22 @@ def available() -> bool:
     return find_spec("Basilisk") is not None
 
 
-def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None) -> ca.Function:
+def central_field(model: BodyModel, j2: tuple[float, float] | None = None) -> Gravity | None:
+    """The central body's field Basilisk applies at the centre of mass (problems.models.Gravity): the point mass of
+    the model's mu, with the zonal J2 term when ``j2`` = (J2, R_e) is given; None without a central body."""
+    if not model.mu:
+        return None
+    return Gravity("j2", float(model.mu), *map(float, j2)) if j2 else Gravity("point_mass", float(model.mu))
+
+
+def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None,
+                   j2: tuple[float, float] | None = None) -> ca.Function:
     """``basilisk_loads(X[18], u_cmd[6], q[21], J[3x3], dt) -> (f[3] inertial, M[3] body)``: what extForceTorque applies
     over a Basilisk step of length dt (the file's time unit) that starts at X (the truth body of inertia J): the
     actuators' output for the command u_cmd at the step's middle plus the truth's forces (``model.forces`` and the
-    ``disturbance``) minus Basilisk's point-mass gravity -mu m x / r^3 and gravity-gradient torque
-    3 mu / r^3 rhat_B x J rhat_B (none without a central body), all at the predicted middle state (module docstring)."""
+    ``disturbance``) minus Basilisk's gravity at the centre of mass, -m grad V(x) of :func:`central_field` (``j2``:
+    (J2, R_e) of a j2 truth), and its gravity-gradient torque 3 mu / r^3 rhat_B x J rhat_B (none without a central
+    body), all at the predicted middle state (module docstring)."""
     X, uc, q, J, dt = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", 21), ca.SX.sym("J", 3, 3), ca.SX.sym("dt")
     act = actuator_output()
 
@@ -73,11 +85,14 @@ def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None) -> 
     Xm = join_state(x + half * gamma / model.mass, gamma + half * f0, ca.mtimes(R, exp_so3(half * Om)),
                     Pi + half * (ca.cross(Pi, Om) + M0))
     f, M = loads(Xm)
-    if model.mu:
+    field = central_field(model, j2)
+    if field is not None:
         xm, _, Rm, _ = split_state(Xm)
+        y = ca.SX.sym("y", 3)
+        grad = ca.Function("grad_V", [y], [ca.gradient(field.per_unit_mass(y), y)])
         r = ca.norm_2(xm)
         rb = ca.mtimes(Rm.T, xm) / r
-        f = f + model.mu * model.mass * xm / r**3
+        f = f + model.mass * grad(xm)
         M = M - 3.0 * model.mu / r**3 * ca.cross(rb, ca.mtimes(J, rb))
     return ca.Function("basilisk_loads", [X, uc, q, J, dt], [f, M], ["X", "u_cmd", "q", "J", "dt"], ["f", "M"])
 
@@ -85,10 +100,11 @@ def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None) -> 
 class Hub:
     """One Basilisk simulation of a truth body: the spacecraft hub (mass, inertia), the central body's point-mass
     gravity and gravity-gradient torque (when the model has a mu) and extForceTorque, stepped STEP_NS at a time.
-    ``tau``: Basilisk seconds per time unit of the file.  :meth:`state` reads the hub as the project's state (18,)."""
+    ``tau``: Basilisk seconds per time unit of the file; ``j2``: (J2, R_e) of the central body's zonal term (None:
+    a point mass).  :meth:`state` reads the hub as the project's state (18,)."""
 
-    def __init__(self, model: BodyModel, X0: np.ndarray, tau: float):
-        from Basilisk.simulation import GravityGradientEffector, extForceTorque, spacecraft
+    def __init__(self, model: BodyModel, X0: np.ndarray, tau: float, j2: tuple[float, float] | None = None):
+        from Basilisk.simulation import GravityGradientEffector, extForceTorque, gravityEffector, spacecraft
         from Basilisk.utilities import RigidBodyKinematics, SimulationBaseClass, simIncludeGravBody
 
         self.mass, self.J, self.tau, self.mrp = float(model.mass), np.asarray(model.inertia, float), tau, RigidBodyKinematics
@@ -108,6 +124,12 @@ class Hub:
             self.gravity = simIncludeGravBody.gravBodyFactory()
             body = self.gravity.createCustomGravObject(_NAME, float(model.mu) / tau**2)
             body.isCentralBody = True
+            if j2:
+                sh = gravityEffector.SphericalHarmonicsGravityModel()
+                sh.muBody, sh.radEquator, sh.maxDeg = body.mu, float(j2[1]), 2
+                sh.cBar = [[1.0], [0.0, 0.0], [-float(j2[0]) / np.sqrt(5.0), 0.0, 0.0]]   # fully normalized C20
+                sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
+                body.radEquator, body.gravityModel = float(j2[1]), sh
             self.gravity.addBodiesTo(sc)
             gg = GravityGradientEffector.GravityGradientEffector()
             gg.ModelTag = "gravity_gradient"
@@ -141,10 +163,11 @@ class Hub:
 
 def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actuators: Actuators | None = None,
                  samples: int = 4, disturbance: ca.Function | None = None, law_inertia: np.ndarray | None = None,
-                 substeps: int = DEFAULT_SUBSTEPS) -> Flight:
+                 substeps: int = DEFAULT_SUBSTEPS, j2: tuple[float, float] | None = None) -> Flight:
     """Fly ``law`` (transcription.dynamics.flight's OpenLoop, ClosedLoop or any law with ``commands(k, t, X)``, X as
     transcription.dynamics.flight.sensed makes it) from X0 over the node grid ``times`` (N+1, equal steps) in Basilisk
-    (module docstring), ``substeps`` Basilisk steps per node interval (a multiple of ``samples``); the arguments and
+    (module docstring), ``substeps`` Basilisk steps per node interval (a multiple of ``samples``), ``j2`` = (J2, R_e)
+    when the truth's central body has the J2 term (``model``'s potential must be that field); the arguments and
     the returned :class:`Flight` as transcription.dynamics.flight.fly's.  ValueError for a non-uniform grid or
     substeps that are not a multiple of samples; FlightError when the state leaves its domain."""
     times, X0 = np.asarray(times, float).ravel(), np.asarray(X0, float).reshape(NX)
@@ -159,8 +182,8 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
     dt = float(h.mean()) / n
     q = (actuators or Actuators()).vector()
     Jinv, J_law = np.linalg.inv(model.inertia), np.asarray(model.inertia if law_inertia is None else law_inertia, float)
-    loads = midpoint_loads(model, disturbance)
-    hub = Hub(model, X0, STEP_NS * 1e-9 / dt)
+    loads = midpoint_loads(model, disturbance, j2)
+    hub = Hub(model, X0, STEP_NS * 1e-9 / dt, j2)
     A, B, Xs, X = np.zeros((NU, N)), np.zeros((NU, N)), [], X0
     s_mid = (np.arange(n) + 0.5) / n
     for k in range(N):
@@ -176,4 +199,4 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
     return flight_record(model, times, X0, np.array(Xs), A, B, samples, q)
 
 
-__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "fly_basilisk", "midpoint_loads"]
+__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "central_field", "fly_basilisk", "midpoint_loads"]

@@ -159,11 +159,12 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, gravity: dict | None = None):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
     (the tracker, the re-planning law) or None, the re-planning law or None).  ``lqr``: the LQR flight's tracker
     (:func:`gains_of` with sub_steps; default ``gains``), flown over its own node times.  ``forces``: the truth's
-    forces besides gravity (problems.flight.forces.truth_forces; None: none)."""
+    forces besides gravity (problems.flight.forces.truth_forces; None: none).  ``gravity``: the truth's gravity block
+    ({kind, J2, radius}; what a Basilisk truth gives Basilisk's own gravity; default point mass)."""
     if mode == "lqr" and lqr is not None:
         gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
@@ -179,7 +180,11 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None):
         law = ClosedLoop(law, lambda k, t, X: tracker.correction(k, X), clip)   # clip: a plan's round-off only
         if not tracker.bounded and not basilisk:   # nothing to limit: the same law inside the flight, one call
             law = TrackingLoop.of_gains(gains)
-    engine = partial(fly_basilisk, substeps=spec.substeps) if basilisk else fly
+    if basilisk:
+        g = gravity or {"kind": "point_mass"}
+        engine = partial(fly_basilisk, substeps=spec.substeps, j2=(g["J2"], g["radius"]) if g["kind"] == "j2" else None)
+    else:
+        engine = fly
     flight = engine(truth_model(base, err.inertia), err.X0, gains.t, law, err.actuators, samples=spec.samples,
                     disturbance=forces, law_inertia=plan.problem.model.inertia)    # the rate measured, the plan's J
     return flight, tracker, law if mode == "mpc" else None
@@ -210,6 +215,7 @@ def fly_runs(task: dict) -> dict:
     gains = gains_of(task["plan"], spec.weights)
     lqr = gains_of(task["plan"], spec.weights, sub_steps=True) if "lqr" in spec.modes else None
     base, forces = truth_body(man, spec), truth_forces(man, spec.resolved["truth"])
+    gravity = spec.gravity or man.resolved.get("gravity")
     seeds = run_seeds(spec)
     usage = plan_usage(gains, spec.samples)
     rows, tracks, saved, replan_s = [], {}, {}, {}
@@ -222,7 +228,7 @@ def fly_runs(task: dict) -> dict:
         for mode in spec.modes:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
-                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces)
+                flight, tracker, mpc = fly_one(plan, gains, spec, err, base, mode, lqr, forces, gravity)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(replan_columns(mpc))
                 if mpc is not None:
