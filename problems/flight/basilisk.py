@@ -51,6 +51,17 @@ def available() -> bool:
     return find_spec("Basilisk") is not None
 
 
+def basilisk_text(substeps: int) -> str:
+    """One line naming the Basilisk truth: 'Basilisk 2.12.1 (bsk): spacecraft hub, RK4, 32 steps per node interval'."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version("bsk")
+    except PackageNotFoundError:
+        v = "(version unknown)"
+    return f"Basilisk {v} (bsk): spacecraft hub, RK4, {substeps} steps per node interval"
+
+
 def central_field(model: BodyModel, j2: tuple[float, float] | None = None) -> Gravity | None:
     """The central body's field Basilisk applies at the centre of mass (problems.models.Gravity): the point mass of
     the model's mu, with the zonal J2 term when ``j2`` = (J2, R_e) is given; None without a central body."""
@@ -199,4 +210,4 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
     return flight_record(model, times, X0, np.array(Xs), A, B, samples, q)
 
 
-__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "central_field", "fly_basilisk", "midpoint_loads"]
+__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "basilisk_text", "central_field", "fly_basilisk", "midpoint_loads"]

@@ -86,6 +86,7 @@ def cmd_fly(args) -> int:
     from ..units import units
     from .output import write_flights
     from .run import run_flights
+    from .basilisk import basilisk_text
     from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
@@ -101,6 +102,8 @@ def cmd_fly(args) -> int:
             where = {"serial": "in-process", "local": f"a local pool of {ex.workers} workers",
                      "dask": f"the Dask cluster at {args.scheduler}"}[ex.kind]
             _say(args, f"{man.name}: {spec.runs} runs x {' and '.join(spec.modes)} on {where} -> {tx.target}/")
+            if spec.integrator == "basilisk":
+                _say(args, f"  the truth: {basilisk_text(spec.substeps)}")
             taken = truth_from_preset(spec.gravity, man.physical)
             if taken:
                 _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
