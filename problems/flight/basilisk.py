@@ -12,10 +12,11 @@ force and torque (``extForceTorque``: an inertial force and a body torque held o
 What is the project's, applied through ``extForceTorque``: the actuators' output (transcription.dynamics.flight.
 actuator_output: the command through the run's scale factors and misalignments) and the rest of the truth model's
 forces -- the body's exact gravity minus what Basilisk's two effectors apply (for the dumbbell, its finite size beyond
-the second-order torque: ~(l / 2r)^2 of the gravity force), drag and solar radiation pressure.  These are held
-over each Basilisk step at their value at the step's middle, predicted from the state at its start (x + v dt/2,
-R exp(Omega dt/2), the momenta by their rates at the start): the midpoint rule, so the flight converges at second
-order in the step dt = h / ``substeps``.
+the second-order torque: ~(l / 2r)^2 of the gravity force), drag and solar radiation pressure.  These are held over
+each Basilisk step at their value at the step's middle, predicted to second order from a flown state (x + s v +
+s^2 a / 2, R exp(s Omega + s^2 Omega' / 2)), and in pairs of steps corrected by -c and +c, c = (L2 - L1) / 6, so that
+a pair applies the impulse and the first moment of a load changing linearly (docs/mathematics.md §11, *Basilisk as
+the truth*): the flight converges at second order in the step dt = h / ``substeps``.
 
 Units: any consistent system serves Newton's and Euler's laws, so the file's length and mass units are Basilisk's
 metre and kilogram, and its time unit is scaled by tau so that one Basilisk step is exactly STEP_NS nanoseconds
@@ -40,7 +41,7 @@ from ..models import Gravity
 #: one Basilisk step in Basilisk's nanoseconds (the time scale makes every step exactly this long)
 STEP_NS = 1_000_000
 #: Basilisk steps per node interval (a multiple of the flight's samples); the flight converges at second order in it
-DEFAULT_SUBSTEPS = 32
+DEFAULT_SUBSTEPS = 16
 _NAME = "central"
 
 
@@ -52,7 +53,7 @@ def available() -> bool:
 
 
 def basilisk_text(substeps: int) -> str:
-    """One line naming the Basilisk truth: 'Basilisk 2.12.1 (bsk): spacecraft hub, RK4, 32 steps per node interval'."""
+    """One line naming the Basilisk truth: 'Basilisk 2.12.1 (bsk): spacecraft hub, RK4, 16 steps per node interval'."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
@@ -70,15 +71,16 @@ def central_field(model: BodyModel, j2: tuple[float, float] | None = None) -> Gr
     return Gravity("j2", float(model.mu), *map(float, j2)) if j2 else Gravity("point_mass", float(model.mu))
 
 
-def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None,
-                   j2: tuple[float, float] | None = None) -> ca.Function:
-    """``basilisk_loads(X[18], u_cmd[6], q[21], J[3x3], dt) -> (f[3] inertial, M[3] body)``: what extForceTorque applies
-    over a Basilisk step of length dt (the file's time unit) that starts at X (the truth body of inertia J): the
-    actuators' output for the command u_cmd at the step's middle plus the truth's forces (``model.forces`` and the
+def predicted_loads(model: BodyModel, disturbance: ca.Function | None = None,
+                    j2: tuple[float, float] | None = None) -> ca.Function:
+    """``basilisk_loads(X[18], u_cmd[6], q[21], J[3x3], s) -> (f[3] inertial, M[3] body)``: the load extForceTorque is
+    to apply at the time s (the file's time unit) after the state X of the truth body of inertia J: the actuators'
+    output for the command u_cmd (the command at that time) plus the truth's forces (``model.forces`` and the
     ``disturbance``) minus Basilisk's gravity at the centre of mass, -m grad V(x) of :func:`central_field` (``j2``:
     (J2, R_e) of a j2 truth), and its gravity-gradient torque 3 mu / r^3 rhat_B x J rhat_B (none without a central
-    body), all at the predicted middle state (module docstring)."""
-    X, uc, q, J, dt = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", 21), ca.SX.sym("J", 3, 3), ca.SX.sym("dt")
+    body), all at the state predicted to second order in s: x + s v + s^2 a / 2, R exp(s Omega + s^2 Omega' / 2), the
+    momenta advanced by their rates at X (module docstring)."""
+    X, uc, q, J, dt = ca.SX.sym("X", NX), ca.SX.sym("u_cmd", NU), ca.SX.sym("q", 21), ca.SX.sym("J", 3, 3), ca.SX.sym("s")
     act = actuator_output()
 
     def loads(Y):
@@ -92,9 +94,9 @@ def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None,
     x, gamma, R, Pi = split_state(X)
     Om = ca.solve(J, Pi)
     f0, M0 = loads(X)
-    half = 0.5 * dt
-    Xm = join_state(x + half * gamma / model.mass, gamma + half * f0, ca.mtimes(R, exp_so3(half * Om)),
-                    Pi + half * (ca.cross(Pi, Om) + M0))
+    dPi = ca.cross(Pi, Om) + M0
+    Xm = join_state(x + dt * gamma / model.mass + 0.5 * dt**2 * f0 / model.mass, gamma + dt * f0,
+                    ca.mtimes(R, exp_so3(dt * Om + 0.5 * dt**2 * ca.solve(J, dPi))), Pi + dt * dPi)
     f, M = loads(Xm)
     field = central_field(model, j2)
     if field is not None:
@@ -105,7 +107,7 @@ def midpoint_loads(model: BodyModel, disturbance: ca.Function | None = None,
         rb = ca.mtimes(Rm.T, xm) / r
         f = f + model.mass * grad(xm)
         M = M - 3.0 * model.mu / r**3 * ca.cross(rb, ca.mtimes(J, rb))
-    return ca.Function("basilisk_loads", [X, uc, q, J, dt], [f, M], ["X", "u_cmd", "q", "J", "dt"], ["f", "M"])
+    return ca.Function("basilisk_loads", [X, uc, q, J, dt], [f, M], ["X", "u_cmd", "q", "J", "s"], ["f", "M"])
 
 
 class Hub:
@@ -187,27 +189,45 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
         raise ValueError("the Basilisk truth flies plans of equal steps only (one Basilisk step length)")
     if not hasattr(law, "commands"):
         raise ValueError("the Basilisk truth asks its law for each interval's commands: give a law with commands()")
-    if substeps < 1 or substeps % samples:
-        raise ValueError(f"substeps ({substeps}) must be a positive multiple of samples ({samples})")
+    if substeps < 2 or substeps % samples or substeps % 2:
+        raise ValueError(f"substeps ({substeps}) must be an even multiple of samples ({samples})")
     N, n, every = h.size, int(substeps), int(substeps) // int(samples)
     dt = float(h.mean()) / n
     q = (actuators or Actuators()).vector()
     Jinv, J_law = np.linalg.inv(model.inertia), np.asarray(model.inertia if law_inertia is None else law_inertia, float)
-    loads = midpoint_loads(model, disturbance, j2)
+    loads = predicted_loads(model, disturbance, j2)
     hub = Hub(model, X0, STEP_NS * 1e-9 / dt, j2)
     A, B, Xs, X = np.zeros((NU, N)), np.zeros((NU, N)), [], X0
-    s_mid = (np.arange(n) + 0.5) / n
     for k in range(N):
         A[:, k], B[:, k] = law.commands(k, float(times[k]), sensed(X, J_law, Jinv))
-        for j in range(n):
-            f, M = loads(X, A[:, k] + s_mid[j] * (B[:, k] - A[:, k]), q, model.inertia, dt)
-            hub.step(np.asarray(f).ravel(), np.asarray(M).ravel())
-            X = hub.state()
-            if not np.all(np.isfinite(X)):
-                raise FlightError(f"the Basilisk flight left the state's domain in node interval {k}")
-            if (j + 1) % every == 0:
-                Xs.append(X)
+        for j in range(0, n, 2):
+            X = _pair(hub, loads, X, A[:, k], B[:, k], j / n, 1.0 / n, q, model.inertia, dt, Xs, every, k)
     return flight_record(model, times, X0, np.array(Xs), A, B, samples, q)
 
 
-__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "basilisk_text", "central_field", "fly_basilisk", "midpoint_loads"]
+def _pair(hub: Hub, loads: ca.Function, X: np.ndarray, a: np.ndarray, b: np.ndarray, s: float, ds: float, q, J, dt,
+          Xs: list, every: int, k: int) -> np.ndarray:
+    """Two Basilisk steps from X at the normalized time s of interval k (command a + s (b - a), steps of ds = dt / h):
+    the loads L1, L2 at the steps' middles (:func:`predicted_loads`) held as L1 - c and L2 + c, c = (L2 - L1) / 6, so
+    that the pair applies the impulse and the first moment of a load changing linearly (midpoint values alone would
+    lag the position by L' dt^3 / 12 every step); L2 for c predicted from X.  Appends the states on the sample grid
+    (``every`` steps) to Xs; returns the state after the pair."""
+    def load(Y, at, ahead):
+        f, M = loads(Y, a + at * (b - a), q, J, ahead)
+        return np.concatenate([np.asarray(f).ravel(), np.asarray(M).ravel()])
+
+    first = load(X, s + 0.5 * ds, 0.5 * dt)
+    c = (load(X, s + 1.5 * ds, 1.5 * dt) - first) / 6.0
+    for i, held in enumerate((first - c, None)):
+        if held is None:
+            held = load(X, s + 1.5 * ds, 0.5 * dt) + c
+        hub.step(held[:3], held[3:])
+        X = hub.state()
+        if not np.all(np.isfinite(X)):
+            raise FlightError(f"the Basilisk flight left the state's domain in node interval {k}")
+        if (hub.steps % every) == 0:
+            Xs.append(X)
+    return X
+
+
+__all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "basilisk_text", "central_field", "fly_basilisk", "predicted_loads"]

@@ -11,8 +11,8 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
         integrator: cvodes                             # the continuous engine: cvodes (transcription/flight) or
                                                        # basilisk (Basilisk's spacecraft, problems.flight.basilisk;
                                                        # the optional extra se3ocp[basilisk])
-        substeps: 32                                   # basilisk only: its RK4 steps per node interval (a multiple
-                                                       # of samples; second order in the step)
+        substeps: 16                                   # basilisk only: its RK4 steps per node interval (an even
+                                                       # multiple of samples; second order in the step)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
         initial: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.5, angular_velocity: 1.0e-3}
@@ -177,15 +177,16 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
 
 
 def _substeps(v: Validator, truth: dict, integrator: str, samples: int, where: str) -> dict:
-    """{substeps: n} of a Basilisk truth (default basilisk.DEFAULT_SUBSTEPS; a multiple of samples), {} for cvodes."""
+    """{substeps: n} of a Basilisk truth (default basilisk.DEFAULT_SUBSTEPS; an even multiple of samples: its loads are
+    held in pairs of steps, problems.flight.basilisk), {} for cvodes."""
     if integrator != "basilisk":
         if "substeps" in truth:
             v.fail(f"{where}.substeps", f"applies to integrator basilisk only (integrator is {integrator})")
         return {}
     n = v.number(truth.get("substeps", DEFAULT_SUBSTEPS), f"{where}.substeps", positive=True, integer=True,
                  at_most=MAX_SUBSTEPS)
-    if n % samples:
-        v.fail(f"{where}.substeps", f"expected a multiple of samples ({samples}), got {n}")
+    if n % samples or n % 2:
+        v.fail(f"{where}.substeps", f"expected an even multiple of samples ({samples}), got {n}")
     return {"substeps": n}
 
 
