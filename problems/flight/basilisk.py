@@ -40,7 +40,7 @@ from ..models import Gravity
 
 #: one Basilisk step in Basilisk's nanoseconds (the time scale makes every step exactly this long)
 STEP_NS = 1_000_000
-#: Basilisk steps per node interval (a multiple of the flight's samples); the flight converges at second order in it
+#: Basilisk steps per node interval (an even multiple of the flight's samples); second order in the step
 DEFAULT_SUBSTEPS = 16
 _NAME = "central"
 
@@ -132,7 +132,7 @@ class Hub:
         sc.hub.sigma_BNInit = [[float(c)] for c in RigidBodyKinematics.C2MRP(R.T)]
         sc.hub.omega_BN_BInit = [[float(c)] for c in np.linalg.solve(self.J, Pi) / tau]
         self.sim.AddModelToTask("dynamics", sc)
-        self.effectors = []
+        self.effectors = []           # Basilisk's objects referenced here live as long as the simulation
         if model.mu:
             self.gravity = simIncludeGravBody.gravBodyFactory()
             body = self.gravity.createCustomGravObject(_NAME, float(model.mu) / tau**2)
@@ -143,6 +143,7 @@ class Hub:
                 sh.cBar = [[1.0], [0.0, 0.0], [-float(j2[0]) / np.sqrt(5.0), 0.0, 0.0]]   # fully normalized C20
                 sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
                 body.radEquator, body.gravityModel = float(j2[1]), sh
+                self.effectors.append(sh)
             self.gravity.addBodiesTo(sc)
             gg = GravityGradientEffector.GravityGradientEffector()
             gg.ModelTag = "gravity_gradient"
@@ -179,10 +180,11 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
                  substeps: int = DEFAULT_SUBSTEPS, j2: tuple[float, float] | None = None) -> Flight:
     """Fly ``law`` (transcription.dynamics.flight's OpenLoop, ClosedLoop or any law with ``commands(k, t, X)``, X as
     transcription.dynamics.flight.sensed makes it) from X0 over the node grid ``times`` (N+1, equal steps) in Basilisk
-    (module docstring), ``substeps`` Basilisk steps per node interval (a multiple of ``samples``), ``j2`` = (J2, R_e)
+    (module docstring), ``substeps`` Basilisk steps per node interval (an even multiple of ``samples``), ``j2`` = (J2, R_e)
     when the truth's central body has the J2 term (``model``'s potential must be that field); the arguments and
-    the returned :class:`Flight` as transcription.dynamics.flight.fly's.  ValueError for a non-uniform grid or
-    substeps that are not a multiple of samples; FlightError when the state leaves its domain."""
+    the returned :class:`Flight` as transcription.dynamics.flight.fly's.  ValueError for a non-uniform grid, a law
+    without ``commands`` or substeps that are not an even multiple of samples; FlightError when the state leaves its
+    domain."""
     times, X0 = np.asarray(times, float).ravel(), np.asarray(X0, float).reshape(NX)
     h = np.diff(times)
     if times.size < 2 or not np.all(h > 0) or np.max(np.abs(h - h.mean())) > 1e-9 * h.mean():
@@ -216,18 +218,19 @@ def _pair(hub: Hub, loads: ca.Function, X: np.ndarray, a: np.ndarray, b: np.ndar
         f, M = loads(Y, a + at * (b - a), q, J, ahead)
         return np.concatenate([np.asarray(f).ravel(), np.asarray(M).ravel()])
 
+    def step(held):
+        hub.step(held[:3], held[3:])
+        Y = hub.state()
+        if not np.all(np.isfinite(Y)):
+            raise FlightError(f"the Basilisk flight left the state's domain in node interval {k}")
+        if hub.steps % every == 0:
+            Xs.append(Y)
+        return Y
+
     first = load(X, s + 0.5 * ds, 0.5 * dt)
     c = (load(X, s + 1.5 * ds, 1.5 * dt) - first) / 6.0
-    for i, held in enumerate((first - c, None)):
-        if held is None:
-            held = load(X, s + 1.5 * ds, 0.5 * dt) + c
-        hub.step(held[:3], held[3:])
-        X = hub.state()
-        if not np.all(np.isfinite(X)):
-            raise FlightError(f"the Basilisk flight left the state's domain in node interval {k}")
-        if (hub.steps % every) == 0:
-            Xs.append(X)
-    return X
+    X = step(first - c)
+    return step(load(X, s + 1.5 * ds, 0.5 * dt) + c)
 
 
 __all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "basilisk_text", "central_field", "fly_basilisk", "predicted_loads"]
