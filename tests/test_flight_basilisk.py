@@ -20,11 +20,13 @@ Every claim with its tolerance:
 * A Monte Carlo through ``se3ocp.fly`` (E3 at N = 50, open loop and the LQR as an external loop stepping Basilisk
   between the nodes; J2 truth (Basilisk's own), 2 % thrust, 0.5 deg misalignment, initial dispersions; 2 runs, 16
   Basilisk steps per interval): every run's position, velocity, attitude and rate misses and delta-v within 1e-5
-  relative of the CVODES truth's (measured <= 3.2e-6).
+  relative of the CVODES truth's (measured <= 3.2e-6); summary.json names the engine (``truth_engine``: Basilisk's
+  version and step).
 """
 from __future__ import annotations
 
 from functools import lru_cache
+from importlib.metadata import version
 
 import numpy as np
 import pytest
@@ -135,6 +137,9 @@ def test_a_closed_loop_monte_carlo_in_basilisk_flies_each_run_as_the_projects_tr
     for engine in ("cvodes", "basilisk"):
         res = se3ocp.fly(sol, {**flight, "truth": {**flight["truth"], "integrator": engine}}, maneuver=man)
         assert res.failed == 0 and res.spec.integrator == engine
+        said = res.summary().get("truth_engine", "")      # summary.json names Basilisk's version and step
+        assert said == ("" if engine == "cvodes" else f"Basilisk {version('bsk')} (bsk): spacecraft hub, RK4, 16 steps "
+                                                      f"per node interval")
         rows[engine] = {(r["run"], r["feedback"]): r for r in res.rows}
     assert sorted(rows["basilisk"]) == [(0, "lqr"), (0, "none"), (1, "lqr"), (1, "none")]
     lqr, none = rows["cvodes"][(0, "lqr")], rows["cvodes"][(0, "none")]
