@@ -4,8 +4,8 @@ the optional extra ``se3ocp[basilisk]``) and skip cleanly without it; the others
 Every claim with its tolerance:
 
 * The flight block: ``truth.integrator: basilisk`` resolves with ``substeps`` (default 16), which must be an even
-  multiple of samples and applies to basilisk only; without Basilisk installed the flight is refused with one line naming
-  ``flight.truth.integrator``.
+  multiple of samples and applies to basilisk only; without Basilisk installed, or for a plan on a non-uniform mesh, the
+  flight is refused with one line naming ``flight.truth.integrator``.
 * What extForceTorque applies (``predicted_loads`` at s = 0): the dumbbell's gravity summed over its two spheres (written
   here) minus Basilisk's point mass and gravity-gradient torque (written here from Basilisk's documented formulas), plus
   the actuators' output, to 1e-12 relative.
@@ -27,12 +27,13 @@ from __future__ import annotations
 
 from functools import lru_cache
 from importlib.metadata import version
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import se3ocp
-from se3ocp.problems.flight import check_truth, parse_flight
+from se3ocp.problems.flight import check_truth, check_truth_plan, parse_flight
 from se3ocp.problems.flight import basilisk as bsk_truth
 from se3ocp.problems.schema import ConfigError
 from se3ocp.transcription.dynamics.flight import Actuators, OpenLoop, fly
@@ -71,6 +72,11 @@ def test_the_truth_block_takes_basilisk_with_its_substeps(monkeypatch):
                          ({"truth": {"integrator": "basilisk", "substeps": 0}}, "flight.truth.substeps: expected a positive")):
         with pytest.raises(ConfigError, match=message):
             parse_flight(doc, "f.yaml")
+    refined = SimpleNamespace(uniform=False, steps=np.array([0.01, 0.02, 0.01]))     # a plan on a refined mesh
+    with pytest.raises(ConfigError, match=r"flight.truth.integrator: basilisk flies plans of equal steps only; this "
+                                          r"plan's steps range from 0.01 to 0.02 \(a refined mesh\): fly it with cvodes"):
+        check_truth_plan(refined, spec, "f.yaml")
+    check_truth_plan(refined, parse_flight({}), "f.yaml")                          # the CVODES truth flies it
     monkeypatch.setattr(bsk_truth, "available", lambda: False)
     with pytest.raises(ConfigError, match=r"flight.truth.integrator: basilisk needs Basilisk installed \(pip install"):
         check_truth(maneuver("e3", 20, "lgvi"), spec, "f.yaml")

@@ -73,6 +73,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     check_feedback(maneuver, spec, spec_source(flight, maneuver))
     check_truth(maneuver, spec, spec_source(flight, maneuver))
     check_replanned_plan(maneuver, plan, spec, spec_source(flight, maneuver))
+    check_truth_plan(plan, spec, spec_source(flight, maneuver))
     return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
 
 
@@ -109,6 +110,17 @@ def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
     bad = check_forces(maneuver, spec.resolved["truth"])
     if bad:
         raise ConfigError(source, f"flight.{bad[0]}", bad[1])
+
+
+def check_truth_plan(plan, spec: FlightSpec, source: str) -> None:
+    """ConfigError (``flight.truth.integrator``) when a Basilisk truth is asked for a plan on a non-uniform mesh:
+    Basilisk's clock steps by one fixed length (problems.flight.basilisk)."""
+    from ..schema import ConfigError
+
+    if spec.integrator == "basilisk" and not plan.uniform:
+        d = plan.steps
+        raise ConfigError(source, "flight.truth.integrator", f"basilisk flies plans of equal steps only; this plan's "
+                          f"steps range from {d.min():.6g} to {d.max():.6g} (a refined mesh): fly it with cvodes")
 
 
 def check_replanned_plan(maneuver, plan, spec: FlightSpec, source: str) -> None:

@@ -12,8 +12,8 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, load_flight, spec_source,
-               with_changes)
+from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, check_truth_plan, load_flight,
+               spec_source, with_changes)
 from .task import ELEMENT_METRICS
 
 
@@ -96,6 +96,7 @@ def cmd_fly(args) -> int:
         print(f"se3ocp: {man.name}: {e}", file=sys.stderr)
         return 1
     check_replanned_plan(man, sol, spec, spec_source(args.flight, man))
+    check_truth_plan(sol, spec, spec_source(args.flight, man))
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
         with results_transaction(args.out, Path("results") / "flights" / safe_name(man.name), args.force) as tx:
