@@ -31,7 +31,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ...transcription.dynamics.flight import (Actuators, Flight, FlightError, actuator_output,
+from ...transcription.dynamics.flight import (DEFAULT_SAMPLES, Actuators, Flight, FlightError, actuator_output,
                                               flight_record, sensed)
 from ...transcription.dynamics.model import BodyModel
 from ...transcription.geometry.so3 import exp_so3
@@ -176,7 +176,7 @@ class Hub:
 
 
 def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actuators: Actuators | None = None,
-                 samples: int = 4, disturbance: ca.Function | None = None, law_inertia: np.ndarray | None = None,
+                 samples: int = DEFAULT_SAMPLES, disturbance: ca.Function | None = None, law_inertia: np.ndarray | None = None,
                  substeps: int = DEFAULT_SUBSTEPS, j2: tuple[float, float] | None = None) -> Flight:
     """Fly ``law`` (transcription.dynamics.flight's OpenLoop, ClosedLoop or any law with ``commands(k, t, X)``, X as
     transcription.dynamics.flight.sensed makes it) from X0 over the node grid ``times`` (N+1, equal steps) in Basilisk
