@@ -12,19 +12,19 @@ Every claim with its tolerance:
 * The loads ahead (``predicted_loads`` at s after a state) against the loads at the state CVODES flies to s: error
   O(s^3), ratio 8 +- 1 per halving of s (measured 2.6e-8, 3.2e-9, 4.0e-10 relative at s = 2e-3, 1e-3, 5e-4).
 * Open-loop E3 (LGVI, N = 400, the plan's own truth without errors) flown in Basilisk (RK4, 16 steps per node interval)
-  agrees with the project's CVODES truth to <= 1e-8 relative at the end: position and velocity relative to their
-  magnitudes, the attitude angle between the two (rad), the rate relative to its magnitude (measured 4.6e-10, 4.7e-10,
-  4.4e-10 rad, 3.9e-10; Basilisk's step h/16 = 7.8e-5 of the orbit period; slow: ~2 s of Basilisk).  On a coarse plan
-  (N = 50, 8 and 16 steps per interval) the difference falls at second order in Basilisk's step: ratio 4 +- 0.4 per
-  halving (measured 4.0 on every figure).
+  agrees with the project's CVODES truth to <= 1e-10 relative at the end (issue 43 asks 1e-8): position and velocity
+  relative to their magnitudes, the attitude angle between the two (rad), the rate relative to its magnitude
+  (measured 3.2e-12, 3.6e-12, 2.1e-12 rad, 3.6e-12: the CVODES truth's own floor, N RTOL = 4e-12; Basilisk's step
+  h/16 = 7.8e-5 of the orbit period; ~2 s of Basilisk).  On a coarse plan (N = 50, 8 and 16 steps per interval) the
+  difference falls at third order in Basilisk's step: ratio 8 per halving, 7 to 10 (measured 8.4, 8.3, 9.4, 8.3).
 * Physical units (the time scale tau, GM in km^3/s^2): 40 intervals of 30 s in LEO (configs/leo_body_engine.yaml's
   body, km, s, kg) under the Earth preset's J2 (Basilisk's own), a body-frame engine misaligned by 0.6 deg, thrust
-  0.5-1 N and moments of ~1e-9 kN km varying from node to node: <= 1e-9 at 16 steps per interval (measured 1.1e-10
-  position (0.76 mm), 2.0e-10 velocity, 1.8e-10 rad attitude, 9.0e-11 rate).
+  0.5-1 N and moments of ~1e-9 kN km varying from node to node: <= 1e-9 at 16 steps per interval (measured 4.2e-13
+  position (3 um), 8.1e-13 velocity, 1.8e-10 rad attitude, 1.1e-10 rate).
 * A Monte Carlo through ``se3ocp.fly`` (E3 at N = 50, open loop, the LQR and MPC as external loops stepping Basilisk
   between the nodes; J2 truth (Basilisk's own), 2 % thrust, 0.5 deg misalignment, initial dispersions; 2 runs, 16
-  Basilisk steps per interval): every run's position, velocity, attitude and rate misses and delta-v within 1e-5
-  relative of the CVODES truth's (measured <= 3.2e-6 open loop, 9.8e-7 LQR, 9.5e-7 MPC); summary.json names the
+  Basilisk steps per interval): every run's position, velocity, attitude and rate misses and delta-v within 5e-7
+  relative of the CVODES truth's (measured <= 5.6e-8 open loop, 4.8e-8 LQR, 4.3e-8 MPC); summary.json names the
   engine (``truth_engine``: Basilisk's version and step).
 """
 from __future__ import annotations
@@ -125,18 +125,17 @@ def open_loop_in_basilisk(N: int, substeps: tuple) -> list[dict]:
     return [final_differences(bsk_truth.fly_basilisk(man.problem.model, X0, t, law, substeps=n), ref) for n in substeps]
 
 
-@pytest.mark.slow
 def test_open_loop_e3_in_basilisk_agrees_with_the_projects_truth():
     pytest.importorskip("Basilisk")
     d = open_loop_in_basilisk(400, (bsk_truth.DEFAULT_SUBSTEPS,))[0]
-    assert max(d.values()) <= 1e-8, d
+    assert max(d.values()) <= 1e-10, d
 
 
-def test_basilisk_converges_at_second_order_in_its_step():
+def test_basilisk_converges_at_third_order_in_its_step():
     pytest.importorskip("Basilisk")
     d = open_loop_in_basilisk(50, (8, 16))
     for key in d[0]:
-        assert 3.6 <= d[0][key] / d[1][key] <= 4.4, (key, d)
+        assert 7.0 <= d[0][key] / d[1][key] <= 10.0, (key, d)
 
 
 def test_a_closed_loop_monte_carlo_in_basilisk_flies_each_run_as_the_projects_truth():
@@ -159,7 +158,7 @@ def test_a_closed_loop_monte_carlo_in_basilisk_flies_each_run_as_the_projects_tr
     for key, a in rows["cvodes"].items():
         b = rows["basilisk"][key]
         for m in ("position_miss", "velocity_miss", "attitude_miss_deg", "rate_miss", "delta_v"):
-            assert abs(b[m] - a[m]) <= 1e-5 * a[m], (key, m, a[m], b[m])
+            assert abs(b[m] - a[m]) <= 5e-7 * a[m], (key, m, a[m], b[m])
 
 
 def test_the_loads_ahead_are_predicted_to_second_order():

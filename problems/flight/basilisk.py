@@ -14,9 +14,9 @@ actuator_output: the command through the run's scale factors and misalignments) 
 forces -- the body's exact gravity minus what Basilisk's two effectors apply (for the dumbbell, its finite size beyond
 the second-order torque: ~(l / 2r)^2 of the gravity force), drag and solar radiation pressure.  These are held over
 each Basilisk step at their value at the step's middle, predicted to second order from a flown state (x + s v +
-s^2 a / 2, R exp(s Omega + s^2 Omega' / 2)), and in pairs of steps corrected by -c and +c, c = (L2 - L1) / 6, so that
-a pair applies the impulse and the first moment of a load changing linearly (docs/mathematics.md §11, *Basilisk as
-the truth*): the flight converges at second order in the step dt = h / ``substeps``.
+s^2 a / 2, R exp(s Omega + s^2 Omega' / 2)), corrected in pairs of steps so that a pair applies the impulse and the
+first moment of a load changing quadratically in time (docs/mathematics.md §11, *Basilisk as the truth*): the flight
+converges at third order in the step dt = h / ``substeps``.
 
 Units: any consistent system serves Newton's and Euler's laws, so the file's length and mass units are Basilisk's
 metre and kilogram, and its time unit is scaled by tau so that one Basilisk step is exactly STEP_NS nanoseconds
@@ -40,7 +40,7 @@ from ..models import Gravity
 
 #: one Basilisk step in Basilisk's nanoseconds (the time scale makes every step exactly this long)
 STEP_NS = 1_000_000
-#: Basilisk steps per node interval (an even multiple of the flight's samples); second order in the step
+#: Basilisk steps per node interval (an even multiple of the flight's samples); third order in the step
 DEFAULT_SUBSTEPS = 16
 _NAME = "central"
 
@@ -210,10 +210,13 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
 def _pair(hub: Hub, loads: ca.Function, X: np.ndarray, a: np.ndarray, b: np.ndarray, s: float, ds: float, q, J, dt,
           Xs: list, every: int, k: int) -> np.ndarray:
     """Two Basilisk steps from X at the normalized time s of interval k (command a + s (b - a), steps of ds = dt / h):
-    the loads L1, L2 at the steps' middles (:func:`predicted_loads`) held as L1 - c and L2 + c, c = (L2 - L1) / 6, so
-    that the pair applies the impulse and the first moment of a load changing linearly (midpoint values alone would
-    lag the position by L' dt^3 / 12 every step); L2 for c predicted from X.  Appends the states on the sample grid
-    (``every`` steps) to Xs; returns the state after the pair."""
+    the loads L1, L2 at the steps' middles (:func:`predicted_loads`) held as L1 - c + e and L2 + c + e with
+    c = L' dt / 6 = (L2 - L1) / 6 and e = L'' dt^2 / 24 = (L- - 2 L1 + L2) / 24 (L- at the middle of the step before),
+    so that the pair applies the impulse and the first moment of a load changing quadratically (midpoint values alone
+    lag the position by L' dt^3 / 12 and the impulse by L'' dt^3 / 24 every step).  c and e come from loads predicted
+    from X (the interval's affine command extended past its ends, so no node's kink enters); L2 held from the state
+    after the first step.  Appends the states on the sample grid (``every`` steps) to Xs; returns the state after the
+    pair."""
     def load(Y, at, ahead):
         f, M = loads(Y, a + at * (b - a), q, J, ahead)
         return np.concatenate([np.asarray(f).ravel(), np.asarray(M).ravel()])
@@ -227,10 +230,10 @@ def _pair(hub: Hub, loads: ca.Function, X: np.ndarray, a: np.ndarray, b: np.ndar
             Xs.append(Y)
         return Y
 
-    first = load(X, s + 0.5 * ds, 0.5 * dt)
-    c = (load(X, s + 1.5 * ds, 1.5 * dt) - first) / 6.0
-    X = step(first - c)
-    return step(load(X, s + 1.5 * ds, 0.5 * dt) + c)
+    before, first, second = (load(X, s + f * ds, f * dt) for f in (-0.5, 0.5, 1.5))
+    c, curve = (second - first) / 6.0, (before - 2.0 * first + second) / 24.0
+    X = step(first - c + curve)
+    return step(load(X, s + 1.5 * ds, 0.5 * dt) + c + curve)
 
 
 __all__ = ["DEFAULT_SUBSTEPS", "Hub", "STEP_NS", "available", "basilisk_text", "central_field", "fly_basilisk", "predicted_loads"]

@@ -12,7 +12,7 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
                                                        # basilisk (Basilisk's spacecraft, problems.flight.basilisk;
                                                        # the optional extra se3ocp[basilisk])
         substeps: 16                                   # basilisk only: its RK4 steps per node interval (an even
-                                                       # multiple of samples; second order in the step)
+                                                       # multiple of samples; third order in the step)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
         initial: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.5, angular_velocity: 1.0e-3}
