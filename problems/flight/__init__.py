@@ -19,7 +19,8 @@ open loop and with the tracker, on a local process pool or a Dask cluster.
 * ``output`` -- flights.csv, summary.json, runs/NNNN.npz, plan.npz, gains.npz; ``figures`` -- the figures;
 * ``command`` -- ``se3ocp fly``.
 
-How a flight is flown: the truth body (the plan's, under the flight's gravity, with the run's inertia)
+How a flight is flown (``truth.integrator: basilisk``: in Basilisk's spacecraft instead, problems.flight.basilisk):
+the truth body (the plan's, under the flight's gravity, with the run's inertia)
 is integrated by the continuous engine (transcription/flight, docs/mathematics.md §11) from the run's
 initial state, the plan's controls applied between the nodes as the scheme defines them, through the
 run's actuators (scale factors, misalignment rotations); with feedback ``lqr`` the tracker's correction
@@ -77,6 +78,7 @@ def fly(plan, flight: FlightSpec | Mapping | str | Path | None = None, *, maneuv
     check_feedback(maneuver, spec, spec_source(flight, maneuver))
     check_truth(maneuver, spec, spec_source(flight, maneuver))
     check_replanned_plan(maneuver, plan, spec, spec_source(flight, maneuver))
+    check_truth_plan(plan, spec, spec_source(flight, maneuver))
     return run_flights(maneuver, plan, spec, workers=workers, scheduler=scheduler, save_runs=save_runs)
 
 
@@ -102,14 +104,30 @@ def check_feedback(maneuver, spec: FlightSpec, source: str) -> None:
 
 def check_truth(maneuver, spec: FlightSpec, source: str) -> None:
     """ConfigError when the maneuver cannot carry the flight's truth forces (problems.flight.forces.check_forces) or
-    its actuators (problems.flight.actuators.check_actuators)."""
+    its actuators (problems.flight.actuators.check_actuators), or when the truth is Basilisk's and Basilisk is not
+    installed."""
     from ..schema import ConfigError
     from .actuators import check_actuators
+    from .basilisk import available
     from .forces import check_forces
 
+    if spec.integrator == "basilisk" and not available():
+        raise ConfigError(source, "flight.truth.integrator", "basilisk needs Basilisk installed (pip install "
+                          "'se3ocp[basilisk]', PyPI bsk); or fly with integrator cvodes")
     bad = check_forces(maneuver, spec.resolved["truth"]) or check_actuators(maneuver, spec.actuators)
     if bad:
         raise ConfigError(source, f"flight.{bad[0]}", bad[1])
+
+
+def check_truth_plan(plan, spec: FlightSpec, source: str) -> None:
+    """ConfigError (``flight.truth.integrator``) when a Basilisk truth is asked for a plan on a non-uniform mesh:
+    Basilisk's clock steps by one fixed length (problems.flight.basilisk)."""
+    from ..schema import ConfigError
+
+    if spec.integrator == "basilisk" and not plan.uniform:
+        d = plan.steps
+        raise ConfigError(source, "flight.truth.integrator", f"basilisk flies plans of equal steps only; this plan's "
+                          f"steps range from {d.min():.6g} to {d.max():.6g} (a refined mesh): fly it with cvodes")
 
 
 def check_replanned_plan(maneuver, plan, spec: FlightSpec, source: str) -> None:

@@ -12,8 +12,8 @@ from pathlib import Path
 from ..io import safe_name
 from ..results_dir import results_transaction
 from ..schema import ConfigError
-from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, load_flight, spec_source,
-               with_changes)
+from . import (_spec, check_feedback, check_plan, check_replanned_plan, check_truth, check_truth_plan, load_flight,
+               spec_source, with_changes)
 from .navigation import ESTIMATION_METRICS
 from .task import ELEMENT_METRICS
 
@@ -88,6 +88,7 @@ def cmd_fly(args) -> int:
     from .output import write_flights
     from .run import run_flights
     from .actuators import actuator_lines
+    from .basilisk import basilisk_text
     from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
@@ -97,12 +98,15 @@ def cmd_fly(args) -> int:
         print(f"se3ocp: {man.name}: {e}", file=sys.stderr)
         return 1
     check_replanned_plan(man, sol, spec, spec_source(args.flight, man))
+    check_truth_plan(sol, spec, spec_source(args.flight, man))
     ex = make_executor(args.workers, args.scheduler)  # a bad --scheduler fails before anything is written
     try:
         with results_transaction(args.out, Path("results") / "flights" / safe_name(man.name), args.force) as tx:
             where = {"serial": "in-process", "local": f"a local pool of {ex.workers} workers",
                      "dask": f"the Dask cluster at {args.scheduler}"}[ex.kind]
             _say(args, f"{man.name}: {spec.runs} runs x {' and '.join(spec.modes)} on {where} -> {tx.target}/")
+            if spec.integrator == "basilisk":
+                _say(args, f"  the truth: {basilisk_text(spec.substeps)}")
             taken = truth_from_preset(spec.gravity, man.physical)
             if taken:
                 _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")

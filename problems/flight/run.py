@@ -12,6 +12,7 @@ from ...transcription.closedloop.mpc import checked_constraints, polished
 from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .actuators import actuator_keys
+from .basilisk import basilisk_text
 from .plan import plan_payload
 from .schema import FlightSpec, truth_from_preset
 from .task import fly_runs, gains_of, metric_keys, miss_frame, plan_usage
@@ -82,6 +83,8 @@ class FlightResult:
         taken = truth_from_preset(self.spec.gravity, self.maneuver.physical)
         if taken:
             out["truth_from_preset"] = taken
+        if self.spec.integrator == "basilisk":
+            out["truth_engine"] = basilisk_text(self.spec.substeps)
         return out
 
     def replan_summary(self) -> dict:

@@ -8,7 +8,11 @@ Schema (every key optional; unknown keys are rejected; errors are one line namin
                                                        # default to the maneuver's central_body preset's
         drag: {cd: 2.2, area_m2: 4.0}                  # exponential atmosphere (problems.flight.forces); default none
         srp: {cr: 1.3, area_m2: 4.0}                   # solar radiation pressure, a cannonball; default none
-        integrator: cvodes                             # the continuous engine (transcription/flight)
+        integrator: cvodes                             # the continuous engine: cvodes (transcription/flight) or
+                                                       # basilisk (Basilisk's spacecraft, problems.flight.basilisk;
+                                                       # the optional extra se3ocp[basilisk])
+        substeps: 16                                   # basilisk only: its RK4 steps per node interval (an even
+                                                       # multiple of samples; third order in the step)
         samples: 4                                     # states per node interval (margins between nodes)
       errors:                                          # 1-sigma, Gaussian, seeded; default 0
         initial: {position: 1.0e-4, velocity: 1.0e-4, attitude_deg: 0.5, angular_velocity: 1.0e-3}
@@ -45,11 +49,12 @@ from ...transcription.closedloop.tracking import SCALE_KEYS
 from ..bodies import PRESETS
 from ..models import parse_gravity
 from .actuators import parse_actuators
+from .basilisk import DEFAULT_SUBSTEPS
 from .forces import FORCE_KEYS
 from ..schema import Validator
 
 FLIGHT_KEYS = ("truth", "errors", "actuators", "feedback", "mpc", "weights", "navigation", "runs", "seed")
-TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "samples")
+TRUTH_KEYS = ("gravity", "drag", "srp", "integrator", "substeps", "samples")
 ERROR_KEYS = ("initial", "force_scale", "force_misalignment_deg", "moment_scale", "moment_misalignment_deg",
               "inertia_scale")
 INITIAL_KEYS = ("position", "velocity", "attitude_deg", "angular_velocity")
@@ -65,7 +70,8 @@ MPC_DEFAULTS = {"replan_every": DEFAULT_REPLAN_EVERY, "iterations": DEFAULT_ITER
                 "between": "lqr"}
 MPC_BETWEEN = ("lqr", "none")
 MAX_ITERATIONS = 50
-INTEGRATORS = ("cvodes",)
+INTEGRATORS = ("cvodes", "basilisk")
+MAX_SUBSTEPS = 4096
 #: the most runs one flight may ask for, and the largest seed (NumPy's SeedSequence takes any
 #: non-negative integer; the cap keeps the resolved file readable)
 MAX_RUNS = 1_000_000
@@ -76,7 +82,8 @@ MAX_SAMPLES = 64
 @dataclass(frozen=True)
 class FlightSpec:
     """A validated flight block.  gravity: the truth's gravity block (None: the plan's own);
-    samples: states per node interval; errors: 1-sigma values (initial: position, velocity (inertial),
+    samples: states per node interval; integrator: the truth's engine (INTEGRATORS); substeps: Basilisk's steps per
+    node interval (0 with cvodes); errors: 1-sigma values (initial: position, velocity (inertial),
     attitude_deg, angular_velocity (body); the others dimensionless scale factors or degrees);
     modes: the feedback modes flown ('none', 'lqr', 'mpc'); weights: tracking scales; mpc: the re-planning
     options (MPC_KEYS); actuators: the truth's actuators (problems.flight.actuators; {}: exact); runs; seed;
@@ -94,6 +101,8 @@ class FlightSpec:
     mpc: dict = field(default_factory=lambda: dict(MPC_DEFAULTS))
     actuators: dict = field(default_factory=dict)
     navigation: dict | None = None
+    integrator: str = "cvodes"
+    substeps: int = 0
 
 
 def default_errors() -> dict:
@@ -152,9 +161,10 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
         if name in t:
             block = v.mapping(t[name], f"{where}.truth.{name}", keys, required=keys)
             forces[name] = {k: v.number(block[k], f"{where}.truth.{name}.{k}", positive=True) for k in keys}
-    v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
+    integrator = v.choice(t.get("integrator", "cvodes"), f"{where}.truth.integrator", INTEGRATORS)
     samples = v.number(t.get("samples", DEFAULT_SAMPLES), f"{where}.truth.samples", positive=True, integer=True,
                        at_most=MAX_SAMPLES)
+    engine = {"integrator": integrator, **_substeps(v, t, integrator, samples, f"{where}.truth")}
     errors = _errors(v, d.get("errors", {}), f"{where}.errors")
     actuators = parse_actuators(v, d.get("actuators"), f"{where}.actuators")
     feedback = v.choice(d.get("feedback", "both"), f"{where}.feedback", tuple(FEEDBACK))
@@ -178,11 +188,15 @@ def parse_flight(doc: Any, source: str = "<flight>", where: str = "flight", pres
     if navigation is not None and "mpc" in FEEDBACK[feedback]:
         v.fail(f"{where}.navigation", f"not flown with feedback {feedback!r}: the re-plans (mpc) read the flown state; "
                                       f"fly navigation with none, lqr or both")
-    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, "integrator": "cvodes", "samples": samples},
+    if actuators and integrator == "basilisk":
+        v.fail(f"{where}.actuators", "not flown in Basilisk (its wheel and thruster effectors are not mapped); fly "
+                                     "actuators with integrator cvodes")
+    resolved = {"truth": {**({"gravity": gravity} if gravity else {}), **forces, **engine, "samples": samples},
                 "errors": errors, **({"actuators": actuators} if actuators else {}), "feedback": feedback, "mpc": mpc,
                 "weights": weights, **({"navigation": navigation} if navigation else {}), "runs": runs, "seed": seed}
     return FlightSpec(gravity=gravity, samples=samples, errors=errors, modes=FEEDBACK[feedback], weights=weights,
-                      runs=runs, seed=seed, resolved=resolved, mpc=mpc, actuators=actuators, navigation=navigation)
+                      runs=runs, seed=seed, resolved=resolved, mpc=mpc, actuators=actuators, navigation=navigation,
+                      integrator=integrator, substeps=engine.get("substeps", 0))
 
 
 def _navigation(v: Validator, doc, where: str) -> dict:
@@ -197,6 +211,20 @@ def _navigation(v: Validator, doc, where: str) -> dict:
         out["period"] = v.number(n["period"], f"{where}.period", positive=True)
     out["estimator"] = v.choice(n.get("estimator", "ekf"), f"{where}.estimator", ESTIMATORS)
     return out
+
+
+def _substeps(v: Validator, truth: dict, integrator: str, samples: int, where: str) -> dict:
+    """{substeps: n} of a Basilisk truth (default basilisk.DEFAULT_SUBSTEPS; an even multiple of samples: its loads are
+    held in pairs of steps, problems.flight.basilisk), {} for cvodes."""
+    if integrator != "basilisk":
+        if "substeps" in truth:
+            v.fail(f"{where}.substeps", f"applies to integrator basilisk only (integrator is {integrator})")
+        return {}
+    n = v.number(truth.get("substeps", DEFAULT_SUBSTEPS), f"{where}.substeps", positive=True, integer=True,
+                 at_most=MAX_SUBSTEPS)
+    if n % samples or n % 2:
+        v.fail(f"{where}.substeps", f"expected an even multiple of samples ({samples}), got {n}")
+    return {"substeps": n}
 
 
 def _errors(v: Validator, doc, where: str) -> dict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
 from .actuators import pulses_of, truth_axes, wheels_of
+from .basilisk import fly_basilisk
 from .forces import truth_forces
 from .navigation import ESTIMATION_METRICS, estimation_metrics, navigated
 from .plan import load_plan, run_seeds, sample_errors, truth_body, truth_model
@@ -162,7 +164,18 @@ def error_columns(err, plan_inertia: np.ndarray) -> dict:
     return out
 
 
-def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payload=None, wheel_axes=None):
+def truth_engine(spec, gravity: dict | None):
+    """The continuous engine that flies a run: transcription.dynamics.flight.fly (CVODES), or Basilisk's spacecraft
+    (problems.flight.basilisk.fly_basilisk) for ``spec.integrator`` basilisk, given the truth's gravity block
+    ``gravity`` ({kind, J2, radius}: Basilisk's own gravity; None: point mass)."""
+    if spec.integrator != "basilisk":
+        return fly
+    g = gravity or {"kind": "point_mass"}
+    return partial(fly_basilisk, substeps=spec.substeps, j2=(g["J2"], g["radius"]) if g["kind"] == "j2" else None)
+
+
+def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payload=None, wheel_axes=None,
+            engine=fly):
     """One flight of a run's errors ``err`` in feedback ``mode`` -> (Flight, what reports the saturated fraction
     (the tracker, the re-planning law) or None, the re-planning law or None, the navigated law or None, the
     actuators' figures (PULSE_COLUMNS; {} without on/off thrusters or wheels: spec.actuators,
@@ -170,7 +183,8 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payl
     default ``gains``), flown over its own node times.  ``forces``: the truth's forces besides gravity
     (problems.flight.forces.truth_forces; None: none).  With ``spec.navigation`` the LQR reads the estimate of the
     measured state (problems.flight.navigation; ``payload``: the plan's, problems.flight.plan.plan_payload);
-    ``wheel_axes``: the run's truth wheel axes (3, n; problems.flight.actuators.truth_axes)."""
+    ``wheel_axes``: the run's truth wheel axes (3, n; problems.flight.actuators.truth_axes); ``engine``: the
+    continuous engine (:func:`truth_engine`; the actuators' flights are CVODES's)."""
     if mode == "lqr" and lqr is not None:
         gains = lqr
     law = OpenLoop.of_controls(gains.scheme, gains.U)
@@ -180,25 +194,26 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payl
         law = tracker = Replanning(Replanner(plan.problem, gains.h, o["iterations"]), plan.warm, o["replan_every"],
                                    o["min_horizon"], gains if o["between"] == "lqr" else None)
     pulses, wheels = pulses_of(spec.actuators, plan.problem), wheels_of(spec.actuators)
+    one_call = engine is fly and pulses is None and wheels is None   # a law the CVODES flight evaluates in one call
     if mode == "lqr":
         if wheels is not None:       # the wheels' limits are their own (their controller clips; the tracker told)
             gains = replace(gains, moment_bound=None)
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
         correction = lambda k, t, X: tracker.correction(k, X)                # noqa: E731
-        actuated = pulses is not None or wheels is not None
         if spec.navigation is not None:
-            nav = navigated(payload, gains, tracker, spec, err, plan.problem)
-            correction = nav if tracker.bounded or actuated else correction
+            nav = navigated(payload, gains, tracker, spec, err, plan.problem, one_call)
+            correction = nav if tracker.bounded or not one_call else correction
         law = ClosedLoop(law, correction, clip)   # clip: a plan's round-off only
-        if not tracker.bounded and not actuated:   # nothing to limit: the same law inside the flight, one call
+        if not tracker.bounded and one_call:   # nothing to limit: the same law inside the flight, one call
             law = TrackingLoop.of_gains(gains) if nav is None else nav
     truth, J_law = truth_model(base, err.inertia), plan.problem.model.inertia   # the rate measured, the plan's J
     if pulses is not None or wheels is not None:
         run = fly_actuated(truth, err.X0, gains.t, law, pulses, wheels, err.actuators, spec.samples, forces, J_law,
                            tracker if mode == "lqr" else None, wheel_axes)
         return run.flight, tracker, law if mode == "mpc" else None, nav, run.summary()
-    flight = fly(truth, err.X0, gains.t, law, err.actuators, samples=spec.samples, disturbance=forces, law_inertia=J_law)
+    flight = engine(truth, err.X0, gains.t, law, err.actuators, samples=spec.samples, disturbance=forces,
+                    law_inertia=J_law)
     return flight, tracker, law if mode == "mpc" else None, nav, {}
 
 
@@ -227,6 +242,7 @@ def fly_runs(task: dict) -> dict:
     gains = gains_of(task["plan"], spec.weights)
     lqr = gains_of(task["plan"], spec.weights, sub_steps=True) if "lqr" in spec.modes else None
     base, forces = truth_body(man, spec), truth_forces(man, spec.resolved["truth"])
+    engine = truth_engine(spec, spec.gravity or man.resolved.get("gravity"))
     seeds = run_seeds(spec)
     usage = plan_usage(gains, spec.samples)
     rows, tracks, saved, replan_s = [], {}, {}, {}
@@ -241,7 +257,7 @@ def fly_runs(task: dict) -> dict:
             row = {"run": i, "feedback": mode, "status": "ok", "message": ""}
             try:
                 flight, tracker, mpc, nav, pulsed = fly_one(plan, gains, spec, err, base, mode, lqr, forces,
-                                                            task["plan"], axes)
+                                                            task["plan"], axes, engine)
                 metrics, track = flight_metrics(flight, plan, tracker, usage, man.problem.constraints)
                 metrics.update(pulsed)
                 metrics.update(replan_columns(mpc))

@@ -303,11 +303,20 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
             Xs = np.vstack(out)
     except RuntimeError as e:
         raise FlightError(f"the continuous flight failed (CVODES): {str(e).strip().splitlines()[-1]}") from None
+    return flight_record(model, times, X0, Xs, A, B, M, p[9:])
+
+
+def flight_record(model: BodyModel, times: np.ndarray, X0: np.ndarray, Xs: np.ndarray, A: np.ndarray, B: np.ndarray,
+                  samples: int, q: np.ndarray) -> Flight:
+    """The :class:`Flight` of a flown motion, whatever engine flew it: node times (N+1,), X0 (18,), Xs (N M, 18) the
+    states at s = 1/M, ..., 1 of each interval (M = ``samples``), the commands A, B (6, N) at the intervals' ends,
+    q (21,) the actuators (:meth:`Actuators.vector`); the applied control by :func:`actuator_output` on the samples."""
+    M, h = int(samples), np.diff(times)
     X = np.vstack([X0[None, :], Xs])
     ts = times[:-1, None] + h[:, None] * (np.arange(M + 1) / M)[None, :]    # (N, M+1): s = 0, 1/M, ..., 1
     ts[:, -1] = times[1:]
     return Flight(t=np.concatenate([[times[0]], ts[:, 1:].ravel()]), X=X, samples=M, command_start=A.T.copy(),
-                  command_end=B.T.copy(), control_t=ts, control=_applied(X, A, B, M, p[9:]),
+                  command_end=B.T.copy(), control_t=ts, control=_applied(X, A, B, M, q),
                   mass=float(model.mass), inertia=np.asarray(model.inertia, float))
 
 
