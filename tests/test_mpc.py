@@ -217,3 +217,22 @@ def test_a_free_time_plan_is_re_planned_over_its_own_final_time():
     assert rec.accepted and rec.residual_before <= 1e-11
     assert np.abs(new.U - sol.controls).max() <= 1e-10 * np.abs(sol.controls).max()
     assert new.T == pytest.approx(sol.T, rel=1e-14)
+
+
+@pytest.mark.slow
+def test_mpc_accepts_re_plans_at_the_round_off_of_a_km_file():
+    """(slow: a LEO plan, N = 400, and one MPC flight, ~30 s.)  configs/leo_body_engine.yaml (km, s, kg) flown by MPC
+    without errors: a re-plan's acceptance floor scales with the target's magnitude (the momentum m |v| ~ 3.8e3 kg
+    km/s), so the re-plans that reach the target to round-off are kept -- with the floor at 1e-9 absolute every one
+    was rejected (4.5e-9 against a warm start's 2.2e-9) and MPC flew the plan.  Measured: 40 re-plans, 21 accepted;
+    MPC 3.8 mm from the target against open loop's 8.8 m (the plan's discretization)."""
+    from support import maneuver
+
+    man = maneuver("leo_body_engine")
+    sol = se3ocp.solve(man, "direct")
+    assert sol.converged, sol.message
+    rows = {r["feedback"]: r for r in fly(sol, {"feedback": "all", "runs": 1}, maneuver=man).rows}
+    mpc = rows["mpc"]
+    assert mpc["status"] == "ok" and mpc["replans"] >= 10
+    assert mpc["replans_rejected"] <= mpc["replans"] // 2
+    assert mpc["position_miss"] <= 1e-2 * rows["none"]["position_miss"]
