@@ -66,14 +66,14 @@ def slew_comparison(N: int = 40):
     return man, compare(direct, se3ocp.solve(man, "indirect"))
 
 
-def independent(name: str, make, N: int | None = None) -> float:
-    """The cost of one plain solve of a bundled maneuver from the start ``make(problem)`` on the file's grid (N
-    overridden), within the solver's whole max_iter -- no strategy, no coarse grid, no multistart: an independent
+def independent(name: str, make, N: int | None = None, *sets: str) -> float:
+    """The cost of one plain solve of a bundled maneuver (N and ``sets`` overridden) from the start ``make(problem)``
+    on its grid, within the solver's whole max_iter -- no strategy, no coarse grid, no multistart: an independent
     solve to check a default against (inf if it does not converge)."""
     from se3ocp.transcription.solve import solve_direct
     from se3ocp.transcription.strategy.core import Solve
 
-    m = maneuver(name, N)
+    m = maneuver(name, N, None, *sets)
     s = solve_direct(m.problem, m.direct, strategy=Solve(make, "independent"))
     return s.cost if s.converged else float("inf")
 

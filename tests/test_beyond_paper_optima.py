@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from se3ocp.transcription.objectives.time import start_sizes
@@ -83,9 +82,27 @@ def test_effort_slew_tries_both_sides_of_its_cone():
 @pytest.mark.slow
 def test_two_axes_slew_reaches_the_best_of_four_classes():
     """Slow (~50 s).  The slew past a Sun cone on the tracker and an Earth cone on the radiator: single starts over
-    T = 30 in each of the four classes and straight end at 24.4350, 27.2337, 25.3659 (and fail or repeat); the
-    default reaches the best, the four classes named."""
-    classes = [(), ((0, 1), (1, 1)), ((0, 1), (1, -1)), ((0, -1), (1, 1)), ((0, -1), (1, -1))]
+    T = 30, straight and in three of the four classes, end at 24.4350 (straight; tracker and radiator on the near
+    side), 27.2337 and 25.3659 (the fourth's, tracker near and radiator far, wandered 3000 iterations, 8 min on the
+    loaded machine, without converging: left out); the default reaches the best, the four classes named."""
+    classes = [(), ((0, 1), (1, 1)), ((0, -1), (1, 1)), ((0, -1), (1, -1))]
     found = [single("slew_two_axes_time", 30.0, c) for c in classes]
     sol = reaches("slew_two_axes_time", found)
-    assert len(sol.stats["homotopy_classes"]) == 4 and np.isfinite(sol.cost)
+    assert len(sol.stats["homotopy_classes"]) == 4 and max(found) > 1.1 * min(found)
+    assert abs(sol.cost - 24.4350) < 1e-4
+
+
+@pytest.mark.slow
+def test_free_time_rendezvous_reaches_the_better_phasing():
+    """Slow (~5 s).  The least-effort rendezvous with T free in [0.3, 1.5]: plain solves from the free motion and from
+    the screw interpolation turning with the orbit, over the guesses T = 0.35, 0.5, 0.8, 1.1, 1.45, end at 0.182268
+    (T = 0.697), 0.163349 (T = 1.302) or 7.297 (T at its bound 1.5).  (From the plain screw interpolation: 126.5 at
+    the bound, or from 0.5 no convergence after 164 s: left out.)  Before the time guesses the default ended at
+    0.182268 from the guess 0.8; now it tries 0.8, 0.4899 and 1.0954 and keeps 0.163349."""
+    name = "rendezvous_free_time"
+    found = [independent(name, lambda q, k=kind: starts.make(k, q), None, f"horizon.T.guess={g}")
+             for g in (0.35, 0.5, 0.8, 1.1, 1.45) for kind in ("rollout", "orbit")]
+    sol = reaches(name, found)
+    assert [r.split(":")[0] for r in sol.stats["time_guesses"]] == ["T guess 0.8", "T guess 0.489898",
+                                                                     "T guess 1.09545"]
+    assert abs(sol.cost - 0.163349) < 1e-6 and abs(sol.T - 1.3016) < 1e-3 and sol.problem.T == 0.8

@@ -236,7 +236,7 @@ class CoarseToFine:
     on SE(3) and finished by ``finish`` (named ``label``, the coarse solves its attempt's parts); when the coarse
     solve fails, a Solution saying so (a FirstOf then tries the next start).
 
-    ``fallback``: the starts on this grid tried too when the finish converged more than ``jump_rtol`` (relative)
+    ``fallback``: the starts on this grid (a strategy) tried too when the finish converged more than ``jump_rtol`` (relative)
     above the coarse optimum -- it left the coarse optimum's basin for another local minimum rather than refining it
     -- the lower of the two kept, the jump said in the message and ``stats['finish_jumps']``.  Why: a 50 deg
     minimum-time plane change at thrust 15 (configs/plane_change_time_50.yaml): 0.5209 on 25 steps, its finish on 50
