@@ -265,7 +265,7 @@ class EffortStrategy(Composed):
         entries = []
         if relaxed is not None:
             phase1 = bounded and not engine
-            entries.append(RelaxedStart(self, relaxed, None if engine else self.first_budget,
+            entries.append(RelaxedStart(replace(self, sides=()), relaxed, None if engine else self.first_budget,
                                         {**extra, **(self.phase1 if phase1 else {})}, phase1, self.aim_fraction))
         (l0, s0, st0), (l1, s1, st1) = ordered_starts(problem, self.rollout_first_miss)
         entries += [Solve(partial(_given, s0), l0, self.first_budget, extra or None, st0),
