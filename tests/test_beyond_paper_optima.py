@@ -106,3 +106,26 @@ def test_free_time_rendezvous_reaches_the_better_phasing():
     assert [r.split(":")[0] for r in sol.stats["time_guesses"]] == ["T guess 0.8", "T guess 0.489898",
                                                                      "T guess 1.09545"]
     assert abs(sol.cost - 0.163349) < 1e-6 and abs(sol.T - 1.3016) < 1e-3 and sol.problem.T == 0.8
+
+
+def test_effort_strategy_composes_classes_and_time_guesses():
+    """No solve: the effort slew past one cone composes one strategy per side (named), the free-time rendezvous one
+    per time guess (0.8 and the geometric means with the bounds 0.3 and 1.5), and a cone the straight path is
+    nearest at an end node is no class (the keep-in slew's station mirrored to the far side of its path: the
+    antenna is nearest the forbidden region at its first node, where no detour can route)."""
+    from se3ocp.transcription.objectives.effort import EffortStrategy
+    from se3ocp.transcription.strategy.core import BestOf, Guessed
+    from se3ocp.transcription.strategy.starts import cone_classes
+
+    m = maneuver("slew_keep_out_effort")
+    plan = EffortStrategy().compose(m.problem, m.direct)
+    assert isinstance(plan, BestOf) and [s.sides for s in plan.strategies] == [((0, 1),), ((0, -1),)]
+    assert plan.names == ("keep_out 1 on the near side", "keep_out 1 on the far side")
+    r = maneuver("rendezvous_free_time")
+    plan = EffortStrategy().compose(r.problem, r.direct)
+    assert all(isinstance(s, Guessed) and not s.inner.bracket_times for s in plan.strategies)
+    assert [s.T for s in plan.strategies] == pytest.approx([0.8, math.sqrt(0.24), math.sqrt(1.2)], rel=1e-12)
+    mirrored = maneuver("slew_keep_in_time", None, None, "constraints=[{kind: keep_in, body_axis: [0, 0, 1], "
+                        "direction: [0.6644630243886747, -0.3420201433256687, 0.6644630243886747], max_angle_deg: 56}]")
+    assert cone_classes(mirrored.problem, 10.0, 4) == []
+    assert len(cone_classes(maneuver("slew_keep_in_time").problem, 10.0, 4)) == 2
