@@ -82,3 +82,38 @@ def perturbed_truth(sol):
     X0 = sol.trajectory.X[0].copy()
     X0[0:6] += 1e-4
     return truth, act, X0
+
+
+def independent(name: str, make, N: int | None = None, *sets: str) -> float:
+    """The cost of one plain solve of a bundled maneuver (N and ``sets`` overridden) from the start ``make(problem)``
+    on its grid, within the solver's whole max_iter -- no strategy, no coarse grid, no multistart: an independent
+    solve to check a default against (inf if it does not converge)."""
+    from se3ocp.transcription.solve import solve_direct
+    from se3ocp.transcription.strategy.core import Solve
+
+    m = maneuver(name, N, None, *sets)
+    s = solve_direct(m.problem, m.direct, strategy=Solve(make, "independent"))
+    return s.cost if s.converged else float("inf")
+
+
+def single(name: str, T: float | None, sides: tuple = (), N: int | None = None, seed: int = 0) -> float:
+    """The minimum time (or cost) from one symmetry-breaking start (``seed`` over T; None: the file's T) routed round
+    the cones on ``sides`` ((constraint index, +1 near / -1 far), ...; clearance 5 deg): :func:`independent`."""
+    import math
+
+    from se3ocp.transcription.objectives.time import start_sizes
+    from se3ocp.transcription.strategy import starts
+
+    def make(q):
+        base = starts.detour(q, dict(sides), math.radians(5.0), T) if sides else None
+        return starts.perturbed(q, start_sizes(q), seed, T=T, base=base)
+    return independent(name, make, N)
+
+
+def default(name: str, N: int | None = None):
+    """The default solve of a bundled maneuver (``se3ocp.solve``) and its wall time in seconds."""
+    import time
+
+    t = time.perf_counter()
+    sol = se3ocp.solve(maneuver(name, N))
+    return sol, time.perf_counter() - t

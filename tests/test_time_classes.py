@@ -7,39 +7,17 @@ configs/orbit_raise_time.yaml)."""
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
 
 import se3ocp
 from se3ocp.transcription.geometry.state import unpack_states
-from se3ocp.transcription.objectives.time import cone_classes, estimate_times, start_sizes
+from se3ocp.transcription.objectives.time import cone_classes, estimate_times
 from se3ocp.transcription.ocp.estimate import eigenaxis_time, transfer_time
-from se3ocp.transcription.solve import solve_direct
 from se3ocp.transcription.strategy import starts
-from se3ocp.transcription.strategy.core import Solve
 
-from support import maneuver
-
-
-def single(name: str, T: float, sides: tuple = (), N: int | None = None) -> float:
-    """The minimum time from one start (seed 0 over T, routed round the cones on ``sides``) on the file's grid, within
-    the solver's whole max_iter: an independent solve (inf if it does not converge)."""
-    m = maneuver(name, N)
-    size = start_sizes(m.problem)
-
-    def make(q):
-        base = starts.detour(q, dict(sides), math.radians(5.0), T) if sides else None
-        return starts.perturbed(q, size, 0, T=T, base=base)
-    s = solve_direct(m.problem, m.direct, strategy=Solve(make, "independent"))
-    return s.cost if s.converged else math.inf
-
-
-def default(name: str, N: int | None = None):
-    t = time.perf_counter()
-    sol = se3ocp.solve(maneuver(name, N))
-    return sol, time.perf_counter() - t
+from support import default, maneuver, single
 
 
 def test_minimum_time_estimates_in_closed_form():

@@ -22,8 +22,9 @@ from ..outcome import Result
 from ..results.start import Start
 from ..strategy import starts
 from ..strategy.saddle import Escape
-from ..strategy.core import Composed, Context, FirstOf, Solve, chosen, labelled, not_made
-from ..strategy.starts import aimed, implied_effort
+from ..strategy.core import BestOf, Composed, Context, FirstOf, Guessed, Solve, chosen, labelled, not_made
+from ..strategy.starts import aimed, class_name, cone_classes, implied_effort
+from .time import bracketing_times
 
 
 @per_discretization
@@ -213,7 +214,22 @@ class EffortStrategy(Composed):
     aimed start in 240 iterations, failed from it at 200 and then from the others after 3404).  ``aim_fraction``:
     the engine's aimed start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j
     |f_j|.  ``escape``: the fields of the :class:`~transcription.strategy.saddle.Escape` that checks each start's
-    solve for a saddle of the NLP (docs/mathematics.md §10) before the next start is tried."""
+    solve for a saddle of the NLP (docs/mathematics.md §10) before the next start is tried.
+
+    With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
+    per homotopy class of the path round them (:func:`~transcription.strategy.starts.cone_classes`, at most
+    ``max_classes``): each first tries the interpolation routed through a waypoint ``cone_clearance_deg`` outside each
+    cone on the side the class says (``sides``; :func:`~transcription.strategy.starts.detour`), within
+    ``first_budget``, then the starts above; the lowest cost is kept, the classes named in the message and in
+    ``stats['homotopy_classes']``.  Why: every start above crosses the cones, and the solver pushes the path out on
+    whichever side it meets first -- not always the cheaper (configs/slew_keep_out_effort.yaml: the near side
+    0.0012423, the far side 0.0012091).
+
+    With a free final time and ``bracket_times``, all this from the guess T and from the times that bracket it
+    (:func:`~transcription.objectives.time.bracketing_times`, the geometric means of T and each bound), the lowest
+    cost kept, each named in the message and in ``stats['time_guesses']``.  Why: the effort has a local minimum in T
+    for each way of phasing (configs/rendezvous_free_time.yaml: 0.182268 at T = 0.697 from the guess 0.8, 0.163349
+    at T = 1.302 from 1.1)."""
 
     first_budget: int = 200
     rollout_first_miss: float = 1.0
@@ -223,12 +239,24 @@ class EffortStrategy(Composed):
     escape: Mapping = field(default_factory=dict)
     not_tried: str = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally "
                       "infeasible; solver.direct.initial_guess=rollout or interpolate tries this start)")
+    cone_reach_deg: float = 10.0
+    cone_clearance_deg: float = 5.0
+    max_classes: int = 4
+    sides: tuple = ()
+    bracket_times: bool = True
 
     def compose(self, problem: Problem, options, start: Start | None = None):
         if start is not None:
             return Escape(Solve(label="warm start"), **self.escape)
         if (one := chosen(problem, options)) is not None:
             return Escape(one, **self.escape)
+        if problem.free_time and self.bracket_times:
+            times = (problem.T, *bracketing_times(problem))
+            return BestOf(tuple(Guessed(replace(self, bracket_times=False), T) for T in times),
+                          names=tuple(f"T guess {T:.6g}" for T in times), stat="time_guesses")
+        if not self.sides and (classes := cone_classes(problem, self.cone_reach_deg, self.max_classes)):
+            return BestOf(tuple(replace(self, sides=c) for c in classes),
+                          names=tuple(class_name(problem, c) for c in classes), stat="homotopy_classes")
         relaxed = relaxation(problem)
         c = problem.control
         engine = c.force_bound is not None and c.force_bound.engine_axis is not None
@@ -237,11 +265,15 @@ class EffortStrategy(Composed):
         entries = []
         if relaxed is not None:
             phase1 = bounded and not engine
-            entries.append(RelaxedStart(self, relaxed, None if engine else self.first_budget,
+            entries.append(RelaxedStart(replace(self, sides=()), relaxed, None if engine else self.first_budget,
                                         {**extra, **(self.phase1 if phase1 else {})}, phase1, self.aim_fraction))
         (l0, s0, st0), (l1, s1, st1) = ordered_starts(problem, self.rollout_first_miss)
         entries += [Solve(partial(_given, s0), l0, self.first_budget, extra or None, st0),
                     Solve(partial(_given, s1), l1, None, extra or None, st1)]
+        if self.sides:
+            routed = partial(starts.detour, sides=dict(self.sides), clearance=np.radians(self.cone_clearance_deg))
+            entries.insert(0, Solve(routed, f"interpolate round {class_name(problem, self.sides)}", self.first_budget,
+                                    extra or None))
         return FirstOf(tuple(Escape(e, **self.escape) for e in entries), self.not_tried)
 
 

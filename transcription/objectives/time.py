@@ -6,12 +6,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import partial
-from itertools import product
 from typing import ClassVar
 
 import numpy as np
 
-from ..geometry.state import U_FORCE, U_MOMENT, unpack_states
+from ..geometry.state import U_FORCE, U_MOMENT
 from ..nlp import blocks
 from ..nlp.structured import Block
 from ..methods.indirect.laws import TimeLaw
@@ -19,7 +18,7 @@ from ..ocp import Objective, Problem, ProblemError
 from ..ocp.estimate import time_estimate
 from ..results.start import Start
 from ..strategy.core import BestOf, CoarseToFine, Composed, FirstOf, Solve, chosen
-from ..strategy.starts import closest_approach, detour, interpolation, obstacles, perturbed
+from ..strategy.starts import class_name, cone_classes, detour, perturbed
 
 
 @dataclass(frozen=True)
@@ -87,23 +86,6 @@ def estimate_times(problem: Problem, factors: tuple[float, ...]) -> list[float]:
     return out
 
 
-def cone_classes(problem: Problem, reach_deg: float, most: int) -> list[tuple[tuple[int, int], ...]]:
-    """The homotopy classes of the attitude path round the cones the straight (screw) path passes within
-    ``reach_deg`` of (:func:`~transcription.strategy.starts.closest_approach`): every choice of a side (+1 near, -1
-    far) for each, as ((constraint index, side), ...), at most ``most`` of them (the cones nearest the path first);
-    [] when no cone is in the way.  How many turns round a cone is not enumerated."""
-    R = unpack_states(interpolation(problem).X).R
-    near = {i: a for i, _, a, _ in obstacles(problem)}
-    close = sorted((ang - near[i], i) for i, _, ang in closest_approach(problem, R) if ang < near[i] + np.radians(reach_deg))
-    idx = [i for _, i in close][:max(0, int(np.log2(max(most, 1))))]
-    return [tuple(zip(idx, sides)) for sides in product((1, -1), repeat=len(idx))] if idx else []
-
-
-def class_name(problem: Problem, sides: tuple[tuple[int, int], ...]) -> str:
-    """The words of one homotopy class (:func:`cone_classes`): 'keep_out 1 on the near side, ...' (1-based)."""
-    return ", ".join(f"{problem.constraints[i].kind} {i + 1} on the {'near' if s > 0 else 'far'} side" for i, s in sides)
-
-
 def routed(problem: Problem, size: np.ndarray, seed: int, T: float | None, sides: tuple, clearance_deg: float) -> Start:
     """The symmetry-breaking start (:func:`~transcription.strategy.starts.perturbed`) over T, its attitude routed
     round the cones on ``sides`` (:func:`~transcription.strategy.starts.detour`; () the straight path)."""
@@ -124,7 +106,11 @@ class TimeStrategy(Composed):
     (:func:`estimate_times`, ``estimate_factors``), each within ``start_budget`` iterations (a start over
     T = 0.364 of configs/orbit_raise_time.yaml on 50 steps wandered 1528 iterations, 133 s, and failed).  The grids
     halve (``coarse_factor`` 2): that raise at N = 100 finished from 25 steps wandered off (T ~ 1.1, not ended in 10
-    min); by halves it takes 2.4 s.
+    min); by halves it takes 2.4 s.  A finish that ends more than ``finish_jump_rtol`` above its coarse optimum jumped to
+another local minimum: the (budgeted) starts on its grid are tried in turn until one converges, the lower kept
+(:class:`CoarseToFine`'s ``fallback``; a 50 deg plane change: 0.5209 on 25 steps, finished at 0.7391 on 100, where
+0.5212 exists).  In turn, not all of them: a fallback, not a multistart on the fine grid (there, seed 1 of that plane
+change took 144 iterations and 80 s, IPOPT's inertia correction at regularizations up to 1e7).
 
     With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
     per homotopy class of the path round them (:func:`cone_classes`, at most ``max_classes``): its starts routed
@@ -141,6 +127,7 @@ class TimeStrategy(Composed):
     cone_reach_deg: float = 10.0
     cone_clearance_deg: float = 5.0
     max_classes: int = 4
+    finish_jump_rtol: float = 0.02
     sides: tuple = ()
 
     def compose(self, problem: Problem, options, start=None):
@@ -157,7 +144,9 @@ class TimeStrategy(Composed):
         where = f" round {class_name(problem, self.sides)}" if self.sides else ""
         fine = tuple(Solve(partial(route, seed=k, T=None), f"interpolate{where} with symmetry-breaking controls "
                                                            f"(seed {k})") for k in range(self.starts))
-        coarse = CoarseToFine(self, Solve(label="from coarse"), self.coarse_factor, self.coarse_min)
+        budgeted = tuple(replace(f, budget=self.start_budget) for f in fine)
+        coarse = CoarseToFine(self, Solve(label="from coarse"), self.coarse_factor, self.coarse_min,
+                              None if self.sides else FirstOf(budgeted), self.finish_jump_rtol)
         if coarse.grid(problem) < problem.N and self.sides:     # a coarse path may cut the cone: one start here too
             return FirstOf((BestOf((coarse, replace(fine[0], budget=self.start_budget))), BestOf(fine[1:])))
         if coarse.grid(problem) < problem.N:
@@ -165,7 +154,7 @@ class TimeStrategy(Composed):
         times = bracketing_times(problem) + estimate_times(problem, self.estimate_factors)
         bracket = tuple(Solve(partial(route, seed=0, T=Ts), f"interpolate{where} over T = {Ts:.6g} with "
                               "symmetry-breaking controls (seed 0)", self.start_budget) for Ts in times)
-        return BestOf(tuple(replace(f, budget=self.start_budget) for f in fine) + bracket)
+        return BestOf(budgeted + bracket)
 
 
 __all__ = ["Time", "TimeStrategy", "bracketing_times", "class_name", "cone_classes", "estimate_times", "routed",

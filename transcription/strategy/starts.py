@@ -19,6 +19,7 @@ start's force (a body-fixed engine).  An orbit target is stood for by
 from __future__ import annotations
 
 from dataclasses import replace
+from itertools import product
 
 import numpy as np
 
@@ -320,6 +321,25 @@ def detour(problem: Problem, sides: dict[int, int], clearance: float, T: float |
     return replace(g, X=pack_state(st.x, st.gamma, Rn, Pi))
 
 
+def cone_classes(problem: Problem, reach_deg: float, most: int) -> list[tuple[tuple[int, int], ...]]:
+    """The homotopy classes of the attitude path round the cones the straight (screw) path passes within
+    ``reach_deg`` of (:func:`closest_approach`): every choice of a side (+1 near, -1
+    far) for each, as ((constraint index, side), ...), at most ``most`` of them (the cones nearest the path first);
+    [] when no cone is in the way.  A cone the path is nearest at one of its ends is left out: :func:`detour` has no
+    node to route there, so its sides would be one start.  How many turns round a cone is not enumerated."""
+    R = unpack_states(interpolation(problem).X).R
+    near = {i: a for i, _, a, _ in obstacles(problem)}
+    close = sorted((ang - near[i], i) for i, k, ang in closest_approach(problem, R)
+                   if ang < near[i] + np.radians(reach_deg) and 0 < k < len(R) - 1)
+    idx = [i for _, i in close][:max(0, int(np.log2(max(most, 1))))]
+    return [tuple(zip(idx, sides)) for sides in product((1, -1), repeat=len(idx))] if idx else []
+
+
+def class_name(problem: Problem, sides: tuple[tuple[int, int], ...]) -> str:
+    """The words of one homotopy class (:func:`cone_classes`): 'keep_out 1 on the near side, ...' (1-based)."""
+    return ", ".join(f"{problem.constraints[i].kind} {i + 1} on the {'near' if s > 0 else 'far'} side" for i, s in sides)
+
+
 def make(kind: str, problem: Problem) -> Start:
     """Dispatch on ``kind`` in :data:`KINDS`: the free motion, the screw interpolation, or the screw interpolation
     turning with the orbit ('orbit'; without a central body or an orbit normal: the screw interpolation)."""
@@ -332,5 +352,5 @@ def make(kind: str, problem: Problem) -> Start:
     raise ValueError(f"initial_guess must be one of {', '.join(KINDS)}, got {kind!r}")
 
 
-__all__ = ["KINDS", "aimed", "closest_approach", "detour", "implied_effort", "obstacles", "interpolation", "make", "orbit_interpolation", "orbit_turn",
+__all__ = ["KINDS", "aimed", "class_name", "closest_approach", "cone_classes", "detour", "implied_effort", "obstacles", "interpolation", "make", "orbit_interpolation", "orbit_turn",
            "perturbed", "rollout", "screw_path"]
