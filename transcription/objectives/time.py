@@ -107,10 +107,10 @@ class TimeStrategy(Composed):
     T = 0.364 of configs/orbit_raise_time.yaml on 50 steps wandered 1528 iterations, 133 s, and failed).  The grids
     halve (``coarse_factor`` 2): that raise at N = 100 finished from 25 steps wandered off (T ~ 1.1, not ended in 10
     min); by halves it takes 2.4 s.  A finish that ends more than ``finish_jump_rtol`` above its coarse optimum jumped to
-another local minimum: the (budgeted) starts on its grid are tried in turn until one converges, the lower kept
-(:class:`CoarseToFine`'s ``fallback``; a 50 deg plane change: 0.5209 on 25 steps, finished at 0.7391 on 100, where
-0.5212 exists).  In turn, not all of them: a fallback, not a multistart on the fine grid (there, seed 1 of that plane
-change took 144 iterations and 80 s, IPOPT's inertia correction at regularizations up to 1e7).
+    another local minimum: the (budgeted) starts on its grid are tried in turn until one converges, the lower kept
+    (:class:`CoarseToFine`'s ``fallback``; a 50 deg plane change: 0.5209 on 25 steps, finished at 0.7391 on 100, where
+    0.5212 exists).  In turn, not all of them: a fallback, not a multistart on the fine grid (there, seed 1 of that plane
+    change took 144 iterations and 80 s, IPOPT's inertia correction at regularizations up to 1e7).
 
     With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
     per homotopy class of the path round them (:func:`cone_classes`, at most ``max_classes``): its starts routed
