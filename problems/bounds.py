@@ -96,3 +96,31 @@ def magnitude(v: Validator, x: float, where: str, what: str) -> None:
     if not MIN_MAGNITUDE <= x <= MAX_MAGNITUDE:
         v.fail(where, f"expected {what} from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g} (its square enters the "
                       f"equations and must be a normal double-precision number), got {x:g}")
+
+
+#: the most reaction wheels a file may give
+MAX_WHEELS = 12
+
+
+def wheel_axes(v: Validator, axes, where: str) -> np.ndarray:
+    """A list of 3 to MAX_WHEELS wheel spin axes (body frame) -> (n, 3) unit rows spanning three dimensions (the
+    wheels must give a moment about any axis); bad input names ``where``."""
+    if not isinstance(axes, (list, tuple)) or not 3 <= len(axes) <= MAX_WHEELS:
+        v.fail(where, f"expected a list of 3 to {MAX_WHEELS} axes (each a list of 3 numbers)")
+    A = np.array([v.vec3(a, f"{where}[{i}]") for i, a in enumerate(axes)], float)
+    n = np.linalg.norm(A, axis=1)
+    if np.any(n == 0):
+        v.fail(f"{where}[{int(np.argmin(n))}]", "expected a non-zero axis")
+    A = A / n[:, None]
+    if np.linalg.matrix_rank(A, tol=1e-6) < 3:
+        v.fail(where, "expected axes spanning three dimensions (the wheels must give a moment about any axis)")
+    return A
+
+
+def per_wheel(v: Validator, val, n: int, where: str) -> list[float]:
+    """One positive number for every wheel, or one per wheel (n) -> n positive floats; bad input names ``where``."""
+    vals = val if isinstance(val, (list, tuple)) else [val] * n
+    if len(vals) != n:
+        v.fail(where, f"expected one positive number or {n} (one per wheel)")
+    return [v.number(x, where + (f"[{i}]" if isinstance(val, (list, tuple)) else ""), positive=True)
+            for i, x in enumerate(vals)]

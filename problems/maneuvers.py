@@ -30,6 +30,8 @@ Schema (unknown keys are rejected everywhere; see the README's "Writing your own
       - {kind: keep_out, body_axis: [3], direction: [3] | nadir | velocity, min_angle_deg: deg}
       - {kind: keep_in, body_axis: [3], direction: [3] | nadir | velocity, max_angle_deg: deg}
       - {kind: max_angular_rate, value: w}
+      - {kind: wheel_momentum, axes: [[3], ...], limit: h | [h, ...]}   # reaction wheels (3+, body axes) that
+                                         # turn the body, at rest at t = 0: |h_i| <= h (transcription.ocp.WheelMomentum)
     solver: {direct: {...}, indirect: {...}}
     flight: {...}                        # how `se3ocp fly` flies the plan (problems/flight/schema.py)
 
@@ -68,13 +70,13 @@ import numpy as np
 from ..transcription.geometry.state import pack_state
 from ..transcription.dynamics.lgvi import FORCE_FRAMES, SCHEMES, discretization
 from ..transcription.options import AccuracyOptions, DirectOptions, IndirectOptions, OptionError
-from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, spd_weight)
+from ..transcription.ocp import (ImpulsiveControl, KeepIn, KeepOut, MaxAngularRate, MinRadius, Problem, ProblemError, SmoothControl, TargetOrbit, TargetRendezvous, TargetState, spd_weight, wheel_momentum_constraints)
 from ..transcription.dynamics.trajectory import Trajectory
 from ..transcription.ocp.estimate import control_sizes
 from ..transcription.objectives import OBJECTIVES, named
 
 from . import moving as _moving
-from .bounds import MAX_MAGNITUDE, MIN_MAGNITUDE, bounds_margin, control_bound, magnitude
+from .bounds import MAX_MAGNITUDE, MIN_MAGNITUDE, bounds_margin, control_bound, magnitude, per_wheel, wheel_axes
 from . import physical as _physical
 from .models import GM_NORMALIZED, Dumbbell, Gravity, RigidBody, parse_gravity
 from .schema import Validator, describe, join_field, load_with_overrides
@@ -90,7 +92,8 @@ MODEL_DEFAULTS: dict[str, Any] = {
 }
 RIGID_BODY_KEYS = ("kind", "mass", "inertia", "mu", "central_body_radius")
 CONSTRAINT_KEYS = {"min_radius": ("radius",), "keep_out": ("body_axis", "direction", "min_angle_deg"),
-                   "keep_in": ("body_axis", "direction", "max_angle_deg"), "max_angular_rate": ("value",)}
+                   "keep_in": ("body_axis", "direction", "max_angle_deg"), "max_angular_rate": ("value",),
+                   "wheel_momentum": ("axes", "limit")}
 #: the most steps a horizon may have (a typo such as N = 1e9 is refused before anything is allocated;
 #: 10^7 steps of the 18-number state already take 1.4 GB)
 MAX_N = 10_000_000
@@ -463,33 +466,50 @@ def _constraints(v: Validator, cdoc, body, initial: StateSpec, terminal) -> tupl
             v.fail(w, f"expected a mapping with a kind ({', '.join(CONSTRAINT_KEYS)}), got {describe(c)}")
         kind = v.choice(c["kind"], f"{w}.kind", tuple(CONSTRAINT_KEYS))
         v.mapping(c, w, ("kind",) + CONSTRAINT_KEYS[kind], required=("kind",) + CONSTRAINT_KEYS[kind])
-        if kind == "min_radius":
-            con = MinRadius(v.number(c["radius"], f"{w}.radius", positive=True))
-        elif kind == "max_angular_rate":
-            rate = v.number(c["value"], f"{w}.value", positive=True)
-            magnitude(v, rate, f"{w}.value", "a rate limit")
-            con = MaxAngularRate(rate)
-        else:
-            vecs = {"body_axis": v.unit_vector(c["body_axis"], f"{w}.body_axis"),
-                    "direction": _moving.cone_direction(v, c["direction"], f"{w}.direction")}
-            ak = CONSTRAINT_KEYS[kind][2]
-            angle = v.number(c[ak], f"{w}.{ak}", lo=0.0, hi=180.0)
-            con = (KeepOut if kind == "keep_out" else KeepIn)(vecs["body_axis"], vecs["direction"], angle)
-        for label, st in (("initial", initial), ("terminal", terminal)):
-            if not isinstance(st, StateSpec):
-                continue
-            if set(con.needs) & st.free:  # a component the constraint is a function of is not given
-                continue
-            X = st.vector(body, initial)
-            margin = float(con.margin(Trajectory(np.zeros(1), X[None, :], body.mass, body.inertia))[0])
-            if not np.isfinite(margin):  # a moving cone's direction at a zero position or velocity
-                v.fail(w, f"the {label} state leaves the direction {con.direction!r} undefined (it is zero)", also=(label,))
-            if margin < 0:
-                unit = units_for(body.central_mu).unit(con.dimension)
-                v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g}"
-                          f"{' ' + unit if unit else ''})", also=(label,))
-        out.append(con)
+        for con in _constraint(v, c, kind, w, body, initial):
+            _holds_at_the_ends(v, con, kind, w, body, initial, terminal)
+            out.append(con)
     return tuple(out)
+
+
+def _constraint(v: Validator, c: dict, kind: str, w: str, body, initial: StateSpec) -> tuple:
+    """The path constraint(s) of one entry ``c`` of the list: one, or one per wheel of a wheel_momentum entry."""
+    if kind == "min_radius":
+        return (MinRadius(v.number(c["radius"], f"{w}.radius", positive=True)),)
+    if kind == "max_angular_rate":
+        rate = v.number(c["value"], f"{w}.value", positive=True)
+        magnitude(v, rate, f"{w}.value", "a rate limit")
+        return (MaxAngularRate(rate),)
+    if kind == "wheel_momentum":
+        if body.central_mu:
+            v.fail(w, "applies without a central body only: its gravity-gradient torque changes the body's and the "
+                      "wheels' angular momentum, which this constraint takes as constant (gravity kind none)")
+        A = wheel_axes(v, c["axes"], f"{w}.axes").T
+        lims = per_wheel(v, c["limit"], A.shape[1], f"{w}.limit")
+        X0 = initial.vector(body, initial)
+        return wheel_momentum_constraints(A, lims, X0[6:15].reshape(3, 3, order="F"), X0[15:18])
+    vecs = {"body_axis": v.unit_vector(c["body_axis"], f"{w}.body_axis"),
+            "direction": _moving.cone_direction(v, c["direction"], f"{w}.direction")}
+    ak = CONSTRAINT_KEYS[kind][2]
+    angle = v.number(c[ak], f"{w}.{ak}", lo=0.0, hi=180.0)
+    return ((KeepOut if kind == "keep_out" else KeepIn)(vecs["body_axis"], vecs["direction"], angle),)
+
+
+def _holds_at_the_ends(v: Validator, con, kind: str, w: str, body, initial: StateSpec, terminal) -> None:
+    """Bad input unless ``con`` holds at the initial state and at the terminal components given."""
+    for label, st in (("initial", initial), ("terminal", terminal)):
+        if not isinstance(st, StateSpec):
+            continue
+        if set(con.needs) & st.free:  # a component the constraint is a function of is not given
+            continue
+        X = st.vector(body, initial)
+        margin = float(con.margin(Trajectory(np.zeros(1), X[None, :], body.mass, body.inertia))[0])
+        if not np.isfinite(margin):  # a moving cone's direction at a zero position or velocity
+            v.fail(w, f"the {label} state leaves the direction {con.direction!r} undefined (it is zero)", also=(label,))
+        if margin < 0:
+            unit = units_for(body.central_mu).unit(con.dimension)
+            v.fail(w, f"the {label} state already violates this {kind} constraint (margin {margin:.4g}"
+                      f"{' ' + unit if unit else ''})", also=(label,))
 
 
 def clearance(central_radius: float, body) -> float | None:

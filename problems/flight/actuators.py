@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..bounds import per_wheel, wheel_axes
 from ..schema import Validator
 
 ACTUATOR_KEYS = ("pulses", "wheels")
 PULSE_KEYS = ("minimum_impulse", "thrust")
 WHEEL_KEYS = ("axes", "torque_limit", "momentum_limit", "axis_error_deg")
-MAX_WHEELS = 12
 
 
 def parse_actuators(v: Validator, doc, where: str) -> dict:
@@ -42,24 +42,10 @@ def parse_actuators(v: Validator, doc, where: str) -> dict:
 def _wheels(v: Validator, doc, where: str) -> dict:
     """The resolved wheels block: unit axes (lists of 3), limits one per wheel, the axis error (deg)."""
     w = v.mapping(doc, where, WHEEL_KEYS, required=("axes", "torque_limit", "momentum_limit"))
-    axes = w["axes"]
-    if not isinstance(axes, (list, tuple)) or not 3 <= len(axes) <= MAX_WHEELS:
-        v.fail(f"{where}.axes", f"expected a list of 3 to {MAX_WHEELS} axes (each a list of 3 numbers)")
-    A = np.array([v.vec3(a, f"{where}.axes[{i}]") for i, a in enumerate(axes)], float)
-    n = np.linalg.norm(A, axis=1)
-    if np.any(n == 0):
-        v.fail(f"{where}.axes[{int(np.argmin(n))}]", "expected a non-zero axis")
-    A = A / n[:, None]
-    if np.linalg.matrix_rank(A, tol=1e-6) < 3:
-        v.fail(f"{where}.axes", "expected axes spanning three dimensions (the wheels must give a moment about any axis)")
+    A = wheel_axes(v, w["axes"], f"{where}.axes")
     out = {"axes": A.tolist()}
     for k in ("torque_limit", "momentum_limit"):
-        val = w[k]
-        vals = val if isinstance(val, (list, tuple)) else [val] * len(A)
-        if len(vals) != len(A):
-            v.fail(f"{where}.{k}", f"expected one positive number or {len(A)} (one per wheel)")
-        out[k] = [v.number(x, f"{where}.{k}" + (f"[{i}]" if isinstance(val, (list, tuple)) else ""), positive=True)
-                  for i, x in enumerate(vals)]
+        out[k] = per_wheel(v, w[k], len(A), f"{where}.{k}")
     out["axis_error_deg"] = v.number(w.get("axis_error_deg", 0.0), f"{where}.axis_error_deg", nonneg=True, hi=90.0)
     return out
 

@@ -19,7 +19,8 @@ Modules: :mod:`.targets`, :mod:`.actuators`, :mod:`.controls`, :mod:`.constraint
 from __future__ import annotations
 
 from .conditions import (orbit_conditions, orbit_residual, rendezvous_residual, rendezvous_state, state_residual, terminal_error, terminal_residual, terminal_rows)
-from .constraints import (MARGIN_DIMENSION, MOVING_DIRECTIONS, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius)
+from .constraints import (MARGIN_DIMENSION, MOVING_DIRECTIONS, PATH_CONSTRAINTS, KeepIn, KeepOut, MaxAngularRate, MinRadius,
+                          WheelMomentum, wheel_momentum_constraints)
 from .actuators import AT_BOUND_RTOL, Actuator, BoxBound, NormBound, ThrusterBound
 from .controls import Bound, Control, ImpulsiveControl, SmoothControl, actuator_bounds, spd_weight
 from .costs import (ENGINE_ON_RTOL, control_activity, effort_cost, engine_figures, engine_reference, fuel_cost, impulse_cost, objective_value, quadrature_weights)
@@ -29,7 +30,8 @@ from .errors import ProblemError
 from .targets import STATE_COMPONENTS, Target, TargetOrbit, TargetRendezvous, TargetState, ascending_node
 
 __all__ = ["AT_BOUND_RTOL", "Actuator", "Bound", "BoxBound", "Control", "ENGINE_ON_RTOL", "ImpulsiveControl", "KeepIn", "KeepOut",
-           "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "NormBound", "Objective",
+           "MARGIN_DIMENSION", "MOVING_DIRECTIONS", "MaxAngularRate", "MinRadius", "WheelMomentum",
+           "wheel_momentum_constraints", "NormBound", "Objective",
            "PATH_CONSTRAINTS", "Problem", "ProblemError", "STATE_COMPONENTS", "SmoothControl", "Target", "TargetOrbit",
            "TargetRendezvous", "TargetState", "ThrusterBound", "actuator_bounds", "ascending_node", "control_activity",
            "effort_cost", "engine_figures", "engine_reference", "fuel_cost", "impulse_cost", "objective_value", "orbit_conditions",

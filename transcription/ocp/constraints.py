@@ -1,5 +1,5 @@
 """Path constraints enforced at every node: minimum radius, keep-out and keep-in cones (about a fixed inertial
-direction, the nadir or the velocity), maximum angular rate.
+direction, the nadir or the velocity), maximum angular rate, a reaction wheel's momentum.
 
 Each has ``expression(X, inertia)`` (>= 0 where it holds; CasADi or NumPy, the smooth form the direct method
 enforces) and ``margin(trajectory)`` (in the constraint's own unit, >= 0 where it holds; for reports)."""
@@ -178,8 +178,63 @@ class MaxAngularRate(_NormLimit, kind="max_angular_rate", dimension="angular_rat
     value: float
 
 
+@dataclass(frozen=True)
+class WheelMomentum:
+    """|h_i| <= limit at every node: the momentum of reaction wheel ``wheel`` (1-based) of a set on the body axes A
+    (3, n) that produces the plan's moment u_m (body frame).  The wheels start at rest relative to the body and only
+    the wheels turn the body, so the body's and the wheels' angular momentum H = R (Pi + A h_w) (inertial) keeps its
+    initial value H_0 = R_0 Pi_0, and the wheels, commanded by the pseudo-inverse A^+ (as the flight's wheels are,
+    transcription.dynamics.wheels), hold
+
+        h_w = A^+ (R^T H_0 - Pi),    h_i = a_i^T (R^T H_0 - Pi),    a_i = ``row`` (3,), the i-th row of A^+.
+
+    Exact without external torques (a slew without a central body: a maneuver file refuses it with one, whose
+    gravity-gradient torque changes H).  Smooth form limit^2 - h_i^2 >= 0 (row scale limit^2); margin limit - |h_i|
+    (angular momentum units: N m s in an SI file)."""
+
+    row: tuple
+    H0: tuple
+    limit: float
+    wheel: int = 1
+
+    kind = "wheel_momentum"
+    dimension = "angular_impulse"
+    needs = ("attitude", "angular_velocity")
+
+    def __post_init__(self):
+        positive(self.limit, f"constraints.{self.kind}.limit")
+        for name in ("row", "H0"):
+            a = np.asarray(getattr(self, name), float).reshape(-1)
+            if a.shape != (3,) or not np.all(np.isfinite(a)):
+                raise ProblemError(f"constraints.{self.kind}.{name}", "expected 3 finite numbers")
+            object.__setattr__(self, name, tuple(float(x) for x in a))
+
+    def momentum(self, X):
+        """h_i at one state X (CasADi symbolic: an expression; NumPy (18,): a float)."""
+        _, _, R, Pi = split_state(X)
+        body = mtimes(R.T, np.asarray(self.H0)) - Pi
+        return ca.dot(ca.DM(self.row), body) if is_symbolic(X) else float(np.asarray(self.row) @ body)
+
+    def expression(self, X, inertia):
+        h = self.momentum(X)
+        return self.limit**2 - h * h
+
+    def margin(self, traj) -> np.ndarray:
+        body = np.einsum("kji,j->ki", traj.R, np.asarray(self.H0)) - traj.Pi
+        return self.limit - np.abs(body @ np.asarray(self.row))
+
+
+def wheel_momentum_constraints(axes, limits, R0, Pi0) -> tuple[WheelMomentum, ...]:
+    """One :class:`WheelMomentum` per wheel of axes (3, n) with momentum limits (n,), for the initial attitude R0
+    (3, 3) and body angular momentum Pi0 (3,) (the wheels at rest relative to the body at t = 0)."""
+    A = np.asarray(axes, float)
+    H0 = np.asarray(R0, float) @ np.asarray(Pi0, float)
+    P = np.linalg.pinv(A)
+    return tuple(WheelMomentum(P[i], H0, float(lim), i + 1) for i, lim in enumerate(np.broadcast_to(limits, (A.shape[1],))))
+
+
 #: the path constraints a Problem accepts
-PATH_CONSTRAINTS = (MinRadius, KeepOut, KeepIn, MaxAngularRate)
+PATH_CONSTRAINTS = (MinRadius, KeepOut, KeepIn, MaxAngularRate, WheelMomentum)
 #: the dimension of each path constraint's margin, by kind ('length', 'angle' in degrees, 'angular_rate'):
 #: the unit labels come from problems.units (normalized orbit units only with a central body)
 MARGIN_DIMENSION = {c.kind: c.dimension for c in PATH_CONSTRAINTS}
