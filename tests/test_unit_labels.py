@@ -98,3 +98,13 @@ def test_report_names_the_units(leo):
     assert _bounds(bounded.problem) == ["force: |u| ≤ 1 N"]
     other = units(se3ocp.load(CONFIGS / "e3_inclination_change.yaml", ["model.mu=39.0"]).problem)
     assert "a central body of GM = 39" in other.summary and "no central body" not in other.summary
+
+
+def test_a_refined_solution_keeps_the_files_units():
+    """A solve refined to a path tolerance returns the Solution of another Problem object (its mesh's) than the file's;
+    its margins and misses keep the file's units (N m, N m s in an SI file), not the bare dimension."""
+    man = se3ocp.load(CONFIGS / "slew_keep_out_effort.yaml", ["horizon.N=20"])
+    sol = se3ocp.solve(man, constraints_tolerance=1e-5)
+    assert sol.problem is not man.problem and not sol.problem.uniform
+    for q, want in (("moment", "N·m"), ("angular_impulse", "N·m·s")):
+        assert units(sol.problem).unit(q) == units(man.problem).unit(q) == want
