@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from ...transcription.dynamics.flight import (DEFAULT_SAMPLES, Actuators, Flight, FlightError, actuator_output,
-                                              flight_record, sensed)
+                                              flight_record, law_sensing, node_grid, sensed)
 from ...transcription.dynamics.model import BodyModel
 from ...transcription.geometry.so3 import exp_so3
 from ...transcription.geometry.state import NU, NX, join_state, split_state
@@ -185,9 +185,8 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
     the returned :class:`Flight` as transcription.dynamics.flight.fly's.  ValueError for a non-uniform grid, a law
     without ``commands`` or substeps that are not an even multiple of samples; FlightError when the state leaves its
     domain."""
-    times, X0 = np.asarray(times, float).ravel(), np.asarray(X0, float).reshape(NX)
-    h = np.diff(times)
-    if times.size < 2 or not np.all(h > 0) or np.max(np.abs(h - h.mean())) > 1e-9 * h.mean():
+    (times, h), X0 = node_grid(times), np.asarray(X0, float).reshape(NX)
+    if np.max(np.abs(h - h.mean())) > 1e-9 * h.mean():
         raise ValueError("the Basilisk truth flies plans of equal steps only (one Basilisk step length)")
     if not hasattr(law, "commands"):
         raise ValueError("the Basilisk truth asks its law for each interval's commands: give a law with commands()")
@@ -196,7 +195,7 @@ def fly_basilisk(model: BodyModel, X0: np.ndarray, times: np.ndarray, law, actua
     N, n, every = h.size, int(substeps), int(substeps) // int(samples)
     dt = float(h.mean()) / n
     q = (actuators or Actuators()).vector()
-    Jinv, J_law = np.linalg.inv(model.inertia), np.asarray(model.inertia if law_inertia is None else law_inertia, float)
+    Jinv, J_law = law_sensing(model, law_inertia)
     loads = predicted_loads(model, disturbance, j2)
     hub = Hub(model, X0, STEP_NS * 1e-9 / dt, j2)
     A, B, Xs, X = np.zeros((NU, N)), np.zeros((NU, N)), [], X0

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..dynamics.flight import (DEFAULT_SAMPLES, Actuators, Flight, FlightError, _applied, interval_integrator,
-                               sensed)
+from ..dynamics.flight import (DEFAULT_SAMPLES, Actuators, Flight, FlightError, flight_record, interval_integrator,
+                               law_sensing, node_grid, sensed)
 from ..dynamics.wheels import WheelController, WheelRecord, Wheels, moment_of_wheels, wheel_integrator
 from ..geometry.state import NU, NX, U_FORCE, U_MOMENT, X_ANG
 from .pulses import Modulator, Pulse, Pulses, segments
@@ -54,13 +54,9 @@ def fly_actuated(model, X0: np.ndarray, times: np.ndarray, law, pulses: Pulses |
     reading the rate through ``law_inertia``), the force by ``pulses`` and the moment by ``wheels`` (the flight
     software's, nominal axes) whose truth axes are ``wheel_axes`` (3, n; default the nominal), their momenta from
     ``h_w0`` (n,; default 0).  Raises FlightError if the integrator fails."""
-    times, Xk = np.asarray(times, float).ravel(), np.asarray(X0, float).reshape(NX)
-    h = np.diff(times)
-    if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
-        raise ValueError("times: expected at least two increasing finite times")
+    (times, h), Xk = node_grid(times), np.asarray(X0, float).reshape(NX)
     M = int(samples)
-    Jinv = np.linalg.inv(model.inertia)
-    J_law = np.asarray(model.inertia if law_inertia is None else law_inertia, float).reshape(3, 3)
+    Jinv, J_law = law_sensing(model, law_inertia)
     q = (actuators or Actuators()).vector()
     mod = None if pulses is None else Modulator(pulses)
     if wheels is None:
@@ -107,18 +103,12 @@ def fly_actuated(model, X0: np.ndarray, times: np.ndarray, law, pulses: Pulses |
                 edges.append(times[k + 1] if hi >= 1.0 else times[k] + h[k] * hi)
     except RuntimeError as e:
         raise FlightError(f"the continuous flight failed (CVODES): {str(e).strip().splitlines()[-1]}") from None
-    A, B, edges = np.array(A).T, np.array(B).T, np.array(edges)
-    X = np.vstack([np.asarray(X0, float).reshape(1, NX), *out])
-    hs = np.diff(edges)
-    ts = edges[:-1, None] + hs[:, None] * (np.arange(M + 1) / M)[None, :]
-    ts[:, -1] = edges[1:]
-    control = _applied(X, A, B, M, q)
+    A, B, edges, Xs = np.array(A).T, np.array(B).T, np.array(edges), np.vstack(out)
+    moment = None if hw is None else _wheel_moments(np.vstack([np.asarray(X0, float).reshape(1, NX), Xs]),
+                                                    np.array(rec.h_w), taus, M, At, Jinv)
+    flight = flight_record(model, edges, X0, Xs, A, B, M, q, moment)
     if hw is not None:
-        control[..., U_MOMENT] = _wheel_moments(X, np.array(rec.h_w), taus, M, At, Jinv)
-        rec.t = np.concatenate([[edges[0]], ts[:, 1:].ravel()])
-    flight = Flight(t=np.concatenate([[edges[0]], ts[:, 1:].ravel()]), X=X, samples=M, command_start=A.T.copy(),
-                    command_end=B.T.copy(), control_t=ts, control=control, mass=float(model.mass),
-                    inertia=np.asarray(model.inertia, float))
+        rec.t = flight.t
     return Actuated(flight, mod, rec if hw is not None else None, ctl if hw is not None else None)
 
 

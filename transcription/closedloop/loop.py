@@ -21,13 +21,32 @@ import casadi as ca
 import numpy as np
 
 from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT
-from ..geometry.so3 import log_so3_small
+from ..geometry.so3 import exp_so3, log_so3_small
 from ..dynamics.flight import N_P, N_W, BoundedCache, OpenLoop
 
 #: per-interval data of the law: X_k (18), K_k (6 x 12), L_k (6 x 12), A_{k-1} (12 x 12), Bu_{k-1} (12 x 6),
 #: the weight of the disturbance term (0 at k = 0 or without it, else 1 / rho_{k-1}: 1 on a uniform mesh)
 N_G = NX + 2 * NU * NZ + NZ * NZ + NZ * NU + 1
 N_S = NX + NZ + NU
+
+
+def symbolic_error(X, Xr):
+    """X (-) Xr (12) of two symbolic states (18): :func:`~transcription.closedloop.tracking.tangent_error` with the
+    attitude's log taken by :func:`~transcription.geometry.so3.log_so3_small` (below ~0.9 pi)."""
+    R, Rr = ca.reshape(X[X_ROT], 3, 3), ca.reshape(Xr[X_ROT], 3, 3)
+    return ca.vertcat(X[X_POS] - Xr[X_POS], X[X_MOM] - Xr[X_MOM], log_so3_small(ca.mtimes(Rr.T, R)), X[X_ANG] - Xr[X_ANG])
+
+
+def symbolic_retract(Xr, z):
+    """Xr (+) z (18) of a symbolic state (18) and tangent vector (12): :func:`~transcription.closedloop.tracking.retract`."""
+    R = ca.mtimes(ca.reshape(Xr[X_ROT], 3, 3), exp_so3(z[6:9]))
+    return ca.vertcat(Xr[X_POS] + z[0:3], Xr[X_MOM] + z[3:6], ca.reshape(R, 9, 1), Xr[X_ANG] + z[9:12])
+
+
+def symbolic_sensed(X, J_law, Jinv):
+    """The state (18) a law reads from the symbolic truth state X: its Pi replaced by J_law J_truth^-1 Pi
+    (transcription.dynamics.flight.sensed), J_law and J_truth^-1 given column-major (9 each)."""
+    return ca.vertcat(X[0:X_ANG.start], ca.mtimes(ca.reshape(J_law, 3, 3), ca.mtimes(ca.reshape(Jinv, 3, 3), X[X_ANG])))
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,9 +109,7 @@ def tracking_interval(fn: ca.Function) -> ca.Function:
     K, L = ca.reshape(g[o:o + NU * NZ], NU, NZ), ca.reshape(g[o + NU * NZ:o + 2 * NU * NZ], NU, NZ)
     o += 2 * NU * NZ
     A, Bu = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), ca.reshape(g[o + NZ * NZ:o + NZ * NZ + NZ * NU], NZ, NU)
-    R, Rr = ca.reshape(X[X_ROT], 3, 3), ca.reshape(Xr[X_ROT], 3, 3)
-    Pi = ca.mtimes(ca.reshape(g[N_G:], 3, 3), ca.mtimes(ca.reshape(p[0:9], 3, 3), X[X_ANG]))   # J_law Omega (sensed)
-    z = ca.vertcat(X[X_POS] - Xr[X_POS], X[X_MOM] - Xr[X_MOM], log_so3_small(ca.mtimes(Rr.T, R)), Pi - Xr[X_ANG])
+    z = symbolic_error(symbolic_sensed(X, g[N_G:], p[0:9]), Xr)            # the error of J_law Omega (sensed)
     r = z - ca.mtimes(A, zp) - ca.mtimes(Bu, dup)
     du = -ca.mtimes(K, z) - g[N_G - 1] * ca.mtimes(L, r)
     a, b = w[0:NU] + du, w[NU:2 * NU] + du

@@ -24,27 +24,14 @@ import casadi as ca
 import numpy as np
 
 from ..dynamics.flight import N_P, N_W, BoundedCache
-from ..geometry.so3 import exp_so3, log_so3_small
-from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT
+from ..geometry.state import NU, NX, NZ
 from .estimator import N_STATE, NavigationFilter
-from .loop import N_G, TrackingLoop
+from .loop import N_G, TrackingLoop, symbolic_error, symbolic_retract, symbolic_sensed
 
 #: the accumulated state and the per-interval data beyond the tracker's (N_G + 9: its law and vec(J_law)): X_{k+1} (18),
 #: A_k (144), Bu_k (72), G_k (360), vec(F) (144), n_k (12), eps_k (12), the bias c (12), c_f, c_r
 N_S = 2 * NX + NU + NZ + NZ + NU
 N_E = NX + NZ * NZ + NZ * NU + N_STATE * NZ + NZ * NZ + 3 * NZ + 2
-
-
-def _error(X, Xr):
-    """X (-) Xr (12) of two symbolic states (18)."""
-    R, Rr = ca.reshape(X[X_ROT], 3, 3), ca.reshape(Xr[X_ROT], 3, 3)
-    return ca.vertcat(X[X_POS] - Xr[X_POS], X[X_MOM] - Xr[X_MOM], log_so3_small(ca.mtimes(Rr.T, R)), X[X_ANG] - Xr[X_ANG])
-
-
-def _retract(Xr, z):
-    """Xr (+) z (18) of a symbolic state (18) and tangent vector (12)."""
-    R = ca.mtimes(ca.reshape(Xr[X_ROT], 3, 3), exp_so3(z[6:9]))
-    return ca.vertcat(Xr[X_POS] + z[0:3], Xr[X_MOM] + z[3:6], ca.reshape(R, 9, 1), Xr[X_ANG] + z[9:12])
 
 
 @dataclass(eq=False)
@@ -100,7 +87,7 @@ def navigated_interval(fn: ca.Function) -> ca.Function:
     K, L = ca.reshape(g[o:o + NU * NZ], NU, NZ), ca.reshape(g[o + NU * NZ:o + 2 * NU * NZ], NU, NZ)
     o += 2 * NU * NZ
     Ap, Bp = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), ca.reshape(g[o + NZ * NZ:o + NZ * NZ + NZ * NU], NZ, NU)
-    Xs_ = ca.vertcat(X[0:15], ca.mtimes(ca.reshape(g[N_G:N_G + 9], 3, 3), ca.mtimes(ca.reshape(p[0:9], 3, 3), X[X_ANG])))
+    Xs_ = symbolic_sensed(X, g[N_G:N_G + 9], p[0:9])
     o = N_G + 9
     Xr1, o = g[o:o + NX], o + NX
     A, o = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), o + NZ * NZ
@@ -108,18 +95,18 @@ def navigated_interval(fn: ca.Function) -> ca.Function:
     G, o = ca.reshape(g[o:o + N_STATE * NZ], N_STATE, NZ), o + N_STATE * NZ
     F, o = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), o + NZ * NZ
     n, eps, c, cf, cr = g[o:o + NZ], g[o + NZ:o + 2 * NZ], g[o + 2 * NZ:o + 3 * NZ], g[o + 3 * NZ], g[o + 3 * NZ + 1]
-    Y = _retract(Xs_, ca.mtimes(F, n) + c)
-    nu = _error(Y, Xm) - cm
-    Xh, fh = _retract(Xm, ca.mtimes(G[0:NZ, :], nu)), fm + ca.mtimes(G[NZ:NZ + NU, :], nu)
+    Y = symbolic_retract(Xs_, ca.mtimes(F, n) + c)
+    nu = symbolic_error(Y, Xm) - cm
+    Xh, fh = symbolic_retract(Xm, ca.mtimes(G[0:NZ, :], nu)), fm + ca.mtimes(G[NZ:NZ + NU, :], nu)
     ch = cm + ca.mtimes(G[NZ + NU:, :], nu)
-    z = _error(Xh, Xr)
+    z = symbolic_error(Xh, Xr)
     r = cf * (ca.mtimes(Bu, fh) + eps) + cr * (z - ca.mtimes(Ap, zp) - ca.mtimes(Bp, dup))
     du = -ca.mtimes(K, z) - ca.mtimes(L, r)
     a, b = w[0:NU] + du, w[NU:2 * NU] + du
     X1, Xs = fn(X, ca.vertcat(a, b, w[2 * NU]), p)
-    Xm1 = _retract(Xr1, ca.mtimes(A, z) + ca.mtimes(Bu, du + fh) + eps)
+    Xm1 = symbolic_retract(Xr1, ca.mtimes(A, z) + ca.mtimes(Bu, du + fh) + eps)
     return ca.Function("flight_navigated_interval", [S, w, g, p],
-                       [ca.vertcat(X1, Xm1, fh, ch, z, du), Xs, ca.vertcat(a, b), _error(Xs_, Xh)],
+                       [ca.vertcat(X1, Xm1, fh, ch, z, du), Xs, ca.vertcat(a, b), symbolic_error(Xs_, Xh)],
                        ["S", "w", "g", "p"], ["S1", "Xs", "cmd", "e"])
 
 

@@ -262,6 +262,23 @@ def sensed(X: np.ndarray, J_law: np.ndarray, Jinv_truth: np.ndarray) -> np.ndarr
     return out
 
 
+def node_grid(times) -> tuple[np.ndarray, np.ndarray]:
+    """(times (N+1,), steps h (N,)) of a flight's node grid; ValueError unless it has two or more increasing finite
+    times."""
+    times = np.asarray(times, dtype=float).ravel()
+    h = np.diff(times)
+    if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
+        raise ValueError("times: expected at least two increasing finite times")
+    return times, h
+
+
+def law_sensing(model: BodyModel, law_inertia: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(J_truth^-1, J_law) of a flight whose law believes the inertia ``law_inertia`` (3x3; None: the truth's): the
+    two matrices of :func:`sensed`."""
+    J_law = model.inertia if law_inertia is None else law_inertia
+    return np.linalg.inv(model.inertia), np.asarray(J_law, dtype=float).reshape(3, 3)
+
+
 def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | ControlLaw",
         actuators: Actuators | None = None, samples: int = DEFAULT_SAMPLES, rtol: float = RTOL,
         atol: float = ATOL, disturbance: ca.Function | None = None,
@@ -273,16 +290,12 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
     command from the flown state as the law senses it (:func:`sensed`: the measured rate times ``law_inertia``, the
     inertia the law believes, 3x3; default the truth's: the flown state itself).  ``disturbance``: the truth's forces
     besides gravity (:func:`equations_of_motion`).  Raises FlightError if the integrator fails."""
-    times, X0 = np.asarray(times, dtype=float).ravel(), np.asarray(X0, dtype=float).reshape(NX)
-    h = np.diff(times)
-    if times.size < 2 or not np.all(np.isfinite(times)) or not np.all(h > 0):
-        raise ValueError("times: expected at least two increasing finite times")
+    (times, h), X0 = node_grid(times), np.asarray(X0, dtype=float).reshape(NX)
     if not np.all(np.isfinite(X0)):
         raise ValueError("X0: expected a finite state of 18 numbers")
     N, M = h.size, int(samples)
     fn = interval_integrator(model, M, rtol, atol, disturbance)
-    Jinv = np.linalg.inv(model.inertia)
-    J_law = np.asarray(model.inertia if law_inertia is None else law_inertia, dtype=float).reshape(3, 3)
+    Jinv, J_law = law_sensing(model, law_inertia)
     p = np.concatenate([Jinv.ravel(order="F"), (actuators or Actuators()).vector()])
     try:
         if isinstance(law, OpenLoop):
@@ -307,16 +320,20 @@ def fly(model: BodyModel, X0: np.ndarray, times: np.ndarray, law: "OpenLoop | Co
 
 
 def flight_record(model: BodyModel, times: np.ndarray, X0: np.ndarray, Xs: np.ndarray, A: np.ndarray, B: np.ndarray,
-                  samples: int, q: np.ndarray) -> Flight:
+                  samples: int, q: np.ndarray, moment: np.ndarray | None = None) -> Flight:
     """The :class:`Flight` of a flown motion, whatever engine flew it: node times (N+1,), X0 (18,), Xs (N M, 18) the
     states at s = 1/M, ..., 1 of each interval (M = ``samples``), the commands A, B (6, N) at the intervals' ends,
-    q (21,) the actuators (:meth:`Actuators.vector`); the applied control by :func:`actuator_output` on the samples."""
+    q (21,) the actuators (:meth:`Actuators.vector`); the applied control by :func:`actuator_output` on the samples,
+    its moment ``moment`` (N, M+1, 3) where another actuator gave it (reaction wheels)."""
     M, h = int(samples), np.diff(times)
-    X = np.vstack([X0[None, :], Xs])
+    X = np.vstack([np.asarray(X0, float).reshape(1, NX), Xs])
     ts = times[:-1, None] + h[:, None] * (np.arange(M + 1) / M)[None, :]    # (N, M+1): s = 0, 1/M, ..., 1
     ts[:, -1] = times[1:]
+    control = _applied(X, A, B, M, q)
+    if moment is not None:
+        control[..., 3:6] = moment
     return Flight(t=np.concatenate([[times[0]], ts[:, 1:].ravel()]), X=X, samples=M, command_start=A.T.copy(),
-                  command_end=B.T.copy(), control_t=ts, control=_applied(X, A, B, M, q),
+                  command_end=B.T.copy(), control_t=ts, control=control,
                   mass=float(model.mass), inertia=np.asarray(model.inertia, float))
 
 

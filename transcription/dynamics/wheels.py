@@ -39,6 +39,7 @@ class Wheels:
     axes: np.ndarray
     torque_limit: np.ndarray
     momentum_limit: np.ndarray
+    pinv: np.ndarray = field(init=False, repr=False, compare=False)    # A^+ (n, 3), computed once
 
     def __post_init__(self):
         A = np.asarray(self.axes, float)
@@ -49,6 +50,7 @@ class Wheels:
         if np.linalg.matrix_rank(A, tol=1e-6) < 3:
             raise ValueError("wheels: the axes must span three dimensions (rank 3)")
         object.__setattr__(self, "axes", A)
+        object.__setattr__(self, "pinv", np.linalg.pinv(A))
         for name in ("torque_limit", "momentum_limit"):
             v = np.broadcast_to(np.asarray(getattr(self, name), float), (A.shape[1],)).copy()
             if not (np.all(np.isfinite(v)) and np.all(v > 0)):
@@ -61,7 +63,7 @@ class Wheels:
 
     def torques(self, u_m: np.ndarray, h_w: np.ndarray, Omega: np.ndarray) -> np.ndarray:
         """tau (n,) = A^+ ((A h_w) x Omega - u_m): the torques giving the body the moment u_m (3,) (module docstring)."""
-        return np.linalg.pinv(self.axes) @ (np.cross(self.axes @ h_w, Omega) - np.asarray(u_m, float))
+        return self.pinv @ (np.cross(self.axes @ h_w, Omega) - np.asarray(u_m, float))
 
 
 @dataclass
