@@ -163,8 +163,7 @@ class SmoothTranscription:
         sc, J = self.scales, self.problem.model.inertia
         out = []
         for i, con in enumerate(self.problem.constraints):
-            scale = sc.X[0] if con.kind == "min_radius" else \
-                con.limit**2 if con.kind in ("max_angular_rate", "wheel_momentum") else 1.0
+            scale = con.row_scale(sc.X[0])
             fn = blocks.node_rows(f"path_{con.kind}", lambda X, c=con: c.expression(X, J), np.array([scale]))
             out.append((Block(f"constraint{i}", fn, self.layout.iX[:, 1:], sc.X, lbg=0.0, ubg=np.inf),
                         np.array([scale])))

@@ -2,7 +2,9 @@
 direction, the nadir or the velocity), maximum angular rate, a reaction wheel's momentum.
 
 Each has ``expression(X, inertia)`` (>= 0 where it holds; CasADi or NumPy, the smooth form the direct method
-enforces) and ``margin(trajectory)`` (in the constraint's own unit, >= 0 where it holds; for reports)."""
+enforces), ``margin(trajectory)`` (in the constraint's own unit, >= 0 where it holds; for reports), ``row_scale(L)``
+(the NLP's scale of its row, L the problem's length scale) and ``margin_scale(L)`` (what takes its margin into the
+units of the flown miss, transcription.results.check)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
@@ -55,6 +57,12 @@ class MinRadius(_NormLimit, kind="min_radius", dimension="length", of="position"
     """|x_k| >= radius at every node (stay above a sphere about the central body's centre); margin in length units."""
 
     radius: float
+
+    def row_scale(self, length: float) -> float:
+        return length
+
+    def margin_scale(self, length: float) -> float:
+        return 1.0 / length
 
 
 #: the directions a cone may follow besides a fixed inertial one: the nadir -x/|x| and the direction of
@@ -134,6 +142,13 @@ class _Cone:
         """d(X_k) (K, 3) along a Trajectory (the moving direction a figure draws)."""
         return self._along(traj, 1).T
 
+    def row_scale(self, length: float) -> float:
+        return 1.0
+
+    def margin_scale(self, length: float) -> float:
+        """A degree in radians: the angle's margin as the flown attitude miss."""
+        return np.pi / 180.0
+
     def angles_deg(self, traj) -> np.ndarray:
         """angle(R_k b, d(X_k)) in degrees (K,) along a Trajectory."""
         c = self._along(traj, 0).ravel()
@@ -176,6 +191,12 @@ class MaxAngularRate(_NormLimit, kind="max_angular_rate", dimension="angular_rat
     """|Omega_k| <= value at every node (Omega = J^-1 Pi, body frame)."""
 
     value: float
+
+    def row_scale(self, length: float) -> float:
+        return self.value**2
+
+    def margin_scale(self, length: float) -> float:
+        return 1.0
 
 
 @dataclass(frozen=True)
@@ -222,6 +243,13 @@ class WheelMomentum:
     def margin(self, traj) -> np.ndarray:
         body = np.einsum("kji,j->ki", traj.R, np.asarray(self.H0)) - traj.Pi
         return self.limit - np.abs(body @ np.asarray(self.row))
+
+    def row_scale(self, length: float) -> float:
+        return self.limit**2
+
+    def margin_scale(self, length: float) -> float:
+        """The margin as a fraction of the limit."""
+        return 1.0 / self.limit
 
 
 def wheel_momentum_constraints(axes, limits, R0, Pi0) -> tuple[WheelMomentum, ...]:

@@ -206,11 +206,10 @@ def margin_kind(key: str) -> str:
 
 
 def margin_scales(problem) -> list[float]:
-    """The factor that takes each path constraint's margin into the units of :func:`scaled_miss`: a cone's (deg)
-    pi / 180, a radius's 1 / L, a rate's 1, a wheel's momentum (N m s in SI) 1 / its limit."""
-    scale = {"angle": np.pi / 180.0, "length": 1.0 / characteristic_length(problem)}
-    return [1.0 / c.limit if MARGIN_DIMENSION.get(c.kind) == "angular_impulse" else
-            scale.get(MARGIN_DIMENSION.get(c.kind, ""), 1.0) for c in problem.constraints]
+    """The factor that takes each path constraint's margin into the units of :func:`scaled_miss` (its
+    ``margin_scale``): a cone's (deg) pi / 180, a radius's 1 / L, a rate's 1, a wheel's momentum 1 / its limit."""
+    L = characteristic_length(problem)
+    return [c.margin_scale(L) for c in problem.constraints]
 
 
 def path_tolerances(problem, tol: float | None = None) -> dict[str, float]:
