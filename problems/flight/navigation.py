@@ -53,15 +53,15 @@ def navigated(payload: dict, gains, tracker, spec, err, problem, one_call: bool 
     """The tracker fed by the estimator for the run of ``err`` (problems.flight.plan.RunErrors), its measurement
     draws and then its constant bias from SeedSequence(entropy, spawn_key + (NOISE_STREAM,)) of the run's seed: flown
     in one call
-    (transcription.closedloop.navloop.NavigatedLoop) unless the tracker limits its corrections or the flight cannot
-    take a one-call law (``one_call`` False: actuators, Basilisk) -- then the per-interval law,
-    transcription.closedloop.estimator.Navigated, the correction of a ClosedLoop."""
+    (transcription.closedloop.navloop.NavigatedLoop) with ``one_call``, else the per-interval law
+    (transcription.closedloop.estimator.Navigated, the correction of a ClosedLoop: a tracker that limits its
+    corrections, actuators, Basilisk)."""
     nav, F, Fb = filter_of(payload, gains, spec, problem)
     entropy, spawn_key = err.seed
     rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(*spawn_key, NOISE_STREAM)))
     draws = rng.standard_normal((gains.N, 12))
     bias = Fb @ rng.standard_normal(12)
-    if tracker.bounded or not one_call:
+    if not one_call:
         return Navigated(nav, tracker, F, draws, bias)
     return NavigatedLoop(TrackingLoop.of_gains(gains, tracker.disturbance), nav, F, draws, bias)
 

@@ -200,13 +200,13 @@ def fly_one(plan, gains, spec, err, base, mode: str, lqr=None, forces=None, payl
             gains = replace(gains, moment_bound=None)
         tracker = gains.tracker()
         clip = (lambda u: saturate(u, gains.force_bound, gains.moment_bound)[0]) if tracker.bounded else None
-        correction = lambda k, t, X: tracker.correction(k, X)                # noqa: E731
+        one_call = one_call and not tracker.bounded           # nothing to limit: the law inside the flight, one call
         if spec.navigation is not None:
             nav = navigated(payload, gains, tracker, spec, err, plan.problem, one_call)
-            correction = nav if tracker.bounded or not one_call else correction
-        law = ClosedLoop(law, correction, clip)   # clip: a plan's round-off only
-        if not tracker.bounded and one_call:   # nothing to limit: the same law inside the flight, one call
+        if one_call:
             law = TrackingLoop.of_gains(gains) if nav is None else nav
+        else:                                                  # clip: a plan's round-off only
+            law = ClosedLoop(law, nav if nav is not None else lambda k, t, X: tracker.correction(k, X), clip)
     truth, J_law = truth_model(base, err.inertia), plan.problem.model.inertia   # the rate measured, the plan's J
     if pulses is not None or wheels is not None:
         run = fly_actuated(truth, err.X0, gains.t, law, pulses, wheels, err.actuators, spec.samples, forces, J_law,
