@@ -239,18 +239,22 @@ def test_closed_loop_path_equals_open_loop():
     assert np.array_equal(a.nodes[0], sol.trajectory.X[0]) and np.allclose(a.node_times, sol.trajectory.t, rtol=0, atol=1e-15)
 
 
-@pytest.mark.parametrize("scheme, N, disturbance", [("lgvi", 100, True), ("first_order", 60, True),
-                                                     ("lgvi", 60, False)])
-def test_the_tracking_loop_in_one_call_flies_as_the_law_asked_per_interval(scheme, N, disturbance):
+@pytest.mark.parametrize("scheme, N, disturbance, local", [("lgvi", 100, True, True), ("first_order", 60, True, True),
+                                                            ("lgvi", 60, False, False)])
+def test_the_tracking_loop_in_one_call_flies_as_the_law_asked_per_interval(scheme, N, disturbance, local):
     """The tracker evaluated inside the flight's Function (transcription/flight/loop.py, one mapaccum call) against
     the Tracker asked for each interval's correction from Python (ClosedLoop): E3 with a truth inertia 1 % off,
-    a 2 % thrust scale, a misalignment and an initial offset; every sample and command agrees to 1e-10 relative
-    (measured 5e-13 for the states, 2e-12 for the commands)."""
+    a 2 % thrust scale, a misalignment and an initial offset, with (``local``) the plan's local errors fed forward;
+    every sample and command agrees to 1e-10 relative (measured 5e-13 for the states, 2e-12 for the commands)."""
+    from se3ocp.transcription.closedloop.estimator import local_errors
     from se3ocp.transcription.closedloop.loop import TrackingLoop
     from se3ocp.transcription.closedloop.tracking import tracking_gains
 
     sol = solved("e3", N, scheme)
     g = tracking_gains(sol)
+    if local:
+        g = g.with_local_errors(local_errors(g, sol.problem.model, sol.problem.disc.force_frame))
+        assert np.abs(g.f).max() > 0
     truth, act, X0 = perturbed_truth(sol)
     tr = g.tracker(disturbance=disturbance)
     old = fly(truth, X0, g.t, ClosedLoop(OpenLoop.of_controls(scheme, g.U), lambda k, t, X: tr.correction(k, X)), act)

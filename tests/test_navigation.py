@@ -333,8 +333,9 @@ def test_the_navigated_loop_in_one_call_flies_as_the_law_asked_per_interval(esti
     truth, act, X0 = perturbed_truth(sol)
     F = noise_factor((1e-4, 1e-4, np.radians(0.01), 1e-4), body.mass, body.inertia)
     F0 = noise_factor((1e-4, 1e-4, np.radians(0.5), 1e-3), body.mass, body.inertia)
-    nav = plan_filter(g, F, F0 @ F0.T, measurement_nodes(g.t, period), estimator,
-                      eps=local_errors(g, body, sol.problem.disc.force_frame))
+    eps = local_errors(g, body, sol.problem.disc.force_frame)
+    g = g.with_local_errors(eps)                         # the tracker feeds the same local errors forward
+    nav = plan_filter(g, F, F0 @ F0.T, measurement_nodes(g.t, period), estimator, eps=eps)
     draws = np.random.default_rng(4).standard_normal((g.N, 12))
     per = Navigated(nav, g.tracker(), F, draws)
     old = fly(truth, X0, g.t, ClosedLoop(OpenLoop.of_controls(g.scheme, g.U), per), act, law_inertia=body.inertia)

@@ -174,6 +174,42 @@ def test_riccati_gains_are_the_optimum_of_the_stacked_problem_with_a_constant_di
     assert cost == pytest.approx(z0 @ P[0] @ z0, rel=1e-10)
 
 
+def test_the_feedforward_of_known_local_errors_is_the_optimum_of_the_stacked_problem():
+    """z_{k+1} = A_k z_k + B_k du_k + eps_k with a known sequence eps (a plan's local errors): flying
+    du_k = -K_k z_k - f_k (:func:`~transcription.closedloop.tracking.feedforward`) gives the whole minimizing sequence of
+    the stacked least-squares problem (another formulation: all controls at once), to 1e-10; an input the problem
+    does not have gets none."""
+    rng = np.random.default_rng(5)
+    n, m, N = 4, 3, 12
+    A = np.eye(n) + 0.2 * rng.normal(size=(N, n, n))
+    B = rng.normal(size=(N, n, m))
+    Q, R, QN = np.diag(rng.uniform(0.5, 2, n)), np.diag(rng.uniform(0.5, 2, m)), np.diag(rng.uniform(1, 5, n))
+    active = np.array([True, False, True])
+    K, _, P, S = tr.riccati(A, B, Q, R, QN, active)
+    z0, eps = rng.normal(size=n), rng.normal(size=(N, n))
+    f = tr.feedforward(A, B, K, S, P, eps, np.eye(m), active)
+    assert np.all(f[:, 1] == 0)
+    z, flown = z0, []
+    for k in range(N):
+        du = -K[k] @ z - f[k]
+        flown.append(du[active])
+        z = A[k] @ z + B[k] @ du + eps[k]
+    Ba = B[:, :, active]
+    ma = Ba.shape[2]
+    G, c, rows, rhs = np.zeros((n, N * ma)), z0, [], []           # z_k = c_k + G_k du (c: the free response)
+    for k in range(N + 1):
+        W = np.sqrt(QN if k == N else Q)
+        rows.append(W @ G)
+        rhs.append(-W @ c)
+        if k < N:
+            G = A[k] @ G
+            G[:, k * ma:(k + 1) * ma] += Ba[k]
+            c = A[k] @ c + eps[k]
+    M = np.vstack(rows + [np.kron(np.eye(N), np.sqrt(R[np.ix_(active, active)]))])
+    best = np.linalg.lstsq(M, np.concatenate(rhs + [np.zeros(N * ma)]), rcond=None)[0]
+    assert np.allclose(np.concatenate(flown), best, rtol=1e-10, atol=1e-12 * np.abs(best).max())
+
+
 # ------------------------------------------------------------------------------------ linearization
 @pytest.mark.parametrize("scheme", ["lgvi", "first_order"])
 def test_the_linearization_predicts_the_discrete_step_to_second_order_on_the_manifold(scheme):

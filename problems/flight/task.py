@@ -19,6 +19,7 @@ from ...transcription.geometry.so3 import log_so3, nearest_rotation
 from ...transcription.closedloop.mpc import Replanner, Replanning
 from ...transcription.dynamics.trajectory import Trajectory
 from ...transcription.results.solution import rotation_angle
+from ...transcription.closedloop.estimator import local_errors
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..elements import ELEMENT_DIFFERENCES, element_differences
 from ..plots.orbits import rtn
@@ -49,13 +50,16 @@ _GAINS: dict = {}
 def gains_of(payload: dict, weights: dict, sub_steps: bool = False):
     """The plan's tracker (transcription.closedloop.tracking), built once per process and plan; ``sub_steps``: the LQR flight's,
     on the plan with the long steps of a non-uniform mesh split (transcription.closedloop.tracking.sub_stepped: the tracker
-    corrects inside them; the plan's own on a uniform mesh)."""
+    corrects inside them; the plan's own on a uniform mesh), with the plan's local errors on its own body's continuous
+    equations fed forward (transcription.closedloop.tracking.Gains.with_local_errors)."""
     key = (payload["key"], json.dumps(weights, sort_keys=True), bool(sub_steps))
     if key not in _GAINS:
         if len(_GAINS) >= 8:
             _GAINS.clear()
         _, sol = load_plan(payload)
-        _GAINS[key] = tracking_gains(sub_stepped(sol) if sub_steps else sol, weights)
+        gains = tracking_gains(sub_stepped(sol) if sub_steps else sol, weights)
+        problem = sol.problem
+        _GAINS[key] = gains.with_local_errors(local_errors(gains, problem.model, problem.disc.force_frame))
     return _GAINS[key]
 
 

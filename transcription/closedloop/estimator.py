@@ -26,7 +26,8 @@ maps A_k, Bu_k (transcription.closedloop.tracking.Gains; Bu_k: a control held ov
 H = [I 0 I] (a bias is observable only through the dynamics: the rate's through the attitude); eps_k (12) is the plan's local error, X(t_{k+1}) (-) X_{k+1} of the continuous flight of the plan's body over
 step k from its node X_k (:func:`local_errors`): the plan is exact for its discrete equations, not for the continuous
 ones the truth follows, and the per-step difference is known before the flight.  The tracker reads X^_k and the
-disturbance r^_k = (Bu_k f^_k + eps_k) / rho_k (per mean step, its r).  The
+disturbance r^_k = Bu_k f^_k / rho_k (per mean step, its r); the local errors reach it as its own feedforward (the
+same eps in its gains: transcription.closedloop.tracking.Gains.with_local_errors).  The
 Jacobians are the plan's (the linearization about the plan, equal to the estimate's to first order in their
 distance), so the covariances and gains do not depend on the measurements: computed once per plan
 (:func:`navigation_filter`).  A component measured without noise or bias is taken as measured (its row of G_z the
@@ -203,7 +204,7 @@ class Estimator:
                 X, f = retract(self.Xm, nav.G[k, :NZ] @ nu), self.fm + nav.G[k, NZ:NZ + NU] @ nu
                 self.c = self.c + nav.G[k, NZ + NU:] @ nu
         self.X, self.f = X, f
-        return X, (None if nav.raw else (nav.Bu[k] @ f + nav.eps[k]) / nav.rho[k])
+        return X, (None if nav.raw else nav.Bu[k] @ f / nav.rho[k])
 
     def predict(self, du: np.ndarray) -> None:
         """Carry the estimate to node k+1 by the plan's linearization under the correction du (6,) issued at k."""

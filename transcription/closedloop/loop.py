@@ -6,10 +6,11 @@ The law is :class:`transcription.closedloop.tracking.Tracker`'s without saturati
 from the flown state X_k,
 
     z_k = [x - x_k; gamma - gamma_k; vee log(R_k^T R); J_law Omega - Pi_k]    (tangent_error, log by atan2),
-    r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1}   (r_0 = 0),     du_k = -K_k z_k - L_k r_k / rho_{k-1},
+    r_k = z_k - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1} - eps_{k-1}   (r_0 = 0),     du_k = -K_k z_k - f_k - L_k r_k / rho_{k-1},
 
 with Omega = J_truth^-1 Pi the measured rate and J_law the inertia the law believes (the plan's: the rate is
-tracked, transcription.dynamics.flight.sensed), rho_{k-1} = h_{k-1} / h (1 on a uniform mesh), and the interval's
+tracked, transcription.dynamics.flight.sensed), eps and f the plan's known local errors and their feedforward (0
+without them; transcription.closedloop.tracking.Gains.with_local_errors), rho_{k-1} = h_{k-1} / h (1 on a uniform mesh), and the interval's
 command is (a_k + du_k, b_k + du_k).  The accumulated state is S = [X (18); z_{k-1} (12); du_{k-1} (6)].  The same
 numbers as the per-interval path (tested to 1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
 """
@@ -24,9 +25,11 @@ from ..geometry.state import NU, NX, NZ, X_ANG, X_MOM, X_POS, X_ROT
 from ..geometry.so3 import exp_so3, log_so3_small
 from ..dynamics.flight import N_P, N_W, BoundedCache, OpenLoop
 
-#: per-interval data of the law: X_k (18), K_k (6 x 12), L_k (6 x 12), A_{k-1} (12 x 12), Bu_{k-1} (12 x 6),
-#: the weight of the disturbance term (0 at k = 0 or without it, else 1 / rho_{k-1}: 1 on a uniform mesh)
-N_G = NX + 2 * NU * NZ + NZ * NZ + NZ * NU + 1
+#: per-interval data of the law: X_k (18), K_k (6 x 12), L_k (6 x 12), A_{k-1} (12 x 12), Bu_{k-1} (12 x 6), f_k (6),
+#: eps_{k-1} (12), the weight of the disturbance term (0 at k = 0 or without it, else 1 / rho_{k-1}: 1 on a uniform mesh)
+N_G = NX + 2 * NU * NZ + NZ * NZ + NZ * NU + NU + NZ + 1
+#: where f_k starts in the law's data
+_F = NX + 2 * NU * NZ + NZ * NZ + NZ * NU
 N_S = NX + NZ + NU
 
 
@@ -64,12 +67,14 @@ class TrackingLoop:
     Bu: np.ndarray
     disturbance: bool = True
     rho: np.ndarray | None = None
+    f: np.ndarray | None = None
+    eps: np.ndarray | None = None
 
     @classmethod
     def of_gains(cls, gains, disturbance: bool = True) -> "TrackingLoop":
         """The loop of a tracker's gains (transcription.closedloop.tracking.Gains) around its plan."""
         return cls(OpenLoop.of_controls(gains.scheme, gains.U), gains.X, gains.K, gains.L, gains.A, gains.Bu,
-                   disturbance, gains.rho)
+                   disturbance, gains.rho, gains.f, gains.eps)
 
     def data(self) -> np.ndarray:
         """(N_G, N): the per-interval data, column k for interval k (matrices column-major)."""
@@ -77,10 +82,14 @@ class TrackingLoop:
         Ap, Bp = np.zeros_like(self.A), np.zeros_like(self.Bu)
         Ap[1:], Bp[1:] = self.A[:-1], self.Bu[:-1]
         flat = [np.asarray(M, float).transpose(0, 2, 1).reshape(N, -1) for M in (self.K, self.L, Ap, Bp)]
+        f = np.zeros((N, NU)) if self.f is None else np.asarray(self.f, float)
+        ep = np.zeros((N, NZ))
+        if self.eps is not None:
+            ep[1:] = np.asarray(self.eps, float)[:-1]
         weight = np.where(np.arange(N) > 0, 1.0 if self.disturbance else 0.0, 0.0)[:, None]
         if self.rho is not None:          # r_k came from step k-1: per mean step, r_k / rho_{k-1}
             weight[1:, 0] /= np.asarray(self.rho, float)[:-1]
-        return np.hstack([np.asarray(self.Xref, float)[:N], *flat, weight]).T
+        return np.hstack([np.asarray(self.Xref, float)[:N], *flat, f, ep, weight]).T
 
     def flown(self, fn: ca.Function, X0: np.ndarray, h: np.ndarray, p: np.ndarray, law_inertia: np.ndarray):
         """Fly the loop with the engine's interval integrator ``fn`` (``flight_interval``) from X0 over steps h
@@ -109,9 +118,10 @@ def tracking_interval(fn: ca.Function) -> ca.Function:
     K, L = ca.reshape(g[o:o + NU * NZ], NU, NZ), ca.reshape(g[o + NU * NZ:o + 2 * NU * NZ], NU, NZ)
     o += 2 * NU * NZ
     A, Bu = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), ca.reshape(g[o + NZ * NZ:o + NZ * NZ + NZ * NU], NZ, NU)
+    f, ep = g[_F:_F + NU], g[_F + NU:_F + NU + NZ]
     z = symbolic_error(symbolic_sensed(X, g[N_G:], p[0:9]), Xr)            # the error of J_law Omega (sensed)
-    r = z - ca.mtimes(A, zp) - ca.mtimes(Bu, dup)
-    du = -ca.mtimes(K, z) - g[N_G - 1] * ca.mtimes(L, r)
+    r = z - ca.mtimes(A, zp) - ca.mtimes(Bu, dup) - ep
+    du = -ca.mtimes(K, z) - f - g[N_G - 1] * ca.mtimes(L, r)
     a, b = w[0:NU] + du, w[NU:2 * NU] + du
     X1, Xs = fn(X, ca.vertcat(a, b, w[2 * NU]), p)
     return ca.Function("flight_tracking_interval", [S, w, g, p], [ca.vertcat(X1, z, du), Xs, ca.vertcat(a, b)],

@@ -8,10 +8,11 @@ At node k, from the flown state X (the law's sensing: Pi -> J_law J_truth^-1 Pi)
 
     Y = X (+) (F n_k + c),   nu = Y (-) X^- - c^,   X^ = X^- (+) G_z,k nu,   f^ = f^- + G_f,k nu,   c^ <- c^ + G_c,k nu
                                                                                   (G_k = 0: no measurement; c the bias),
-    z = X^ (-) X_k,    du = -K_k z - L_k (c_f (Bu_k f^ + eps_k) + c_r (z - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1})),
+    z = X^ (-) X_k,    du = -K_k z - f_k - L_k (c_f Bu_k f^ + c_r (z - A_{k-1} z_{k-1} - Bu_{k-1} du_{k-1} - eps_{k-1})),
     X^-_{k+1} = X_{k+1} (+) (A_k z + Bu_k (du + f^) + eps_k),   f^-_{k+1} = f^,
 
-with c_f = 1 / rho_k for the ekf (its disturbance; eps_k the plan's local error) and c_r the tracker's own disturbance weight for the raw measurement
+with c_f = 1 / rho_k for the ekf (its disturbance beyond eps, the plan's local errors, which the tracker's feedforward f
+answers: transcription.closedloop.tracking.Gains.with_local_errors) and c_r the tracker's own disturbance weight for the raw measurement
 (estimator none).  The accumulated state is S = [X (18); X^- (18); f^- (6); c^ (12); z_{k-1} (12); du_{k-1} (6)]; each interval
 also returns e = X (-) X^ (12).  The same numbers as :class:`~transcription.closedloop.estimator.Navigated` with the
 per-interval law (tested to 1e-10).  (+), (-): :func:`~transcription.closedloop.tracking.retract`, ``tangent_error``.
@@ -26,7 +27,7 @@ import numpy as np
 from ..dynamics.flight import N_P, N_W, BoundedCache
 from ..geometry.state import NU, NX, NZ
 from .estimator import N_STATE, NavigationFilter
-from .loop import N_G, TrackingLoop, symbolic_error, symbolic_retract, symbolic_sensed
+from .loop import _F, N_G, TrackingLoop, symbolic_error, symbolic_retract, symbolic_sensed
 
 #: the accumulated state and the per-interval data beyond the tracker's (N_G + 9: its law and vec(J_law)): X_{k+1} (18),
 #: A_k (144), Bu_k (72), G_k (360), vec(F) (144), n_k (12), eps_k (12), the bias c (12), c_f, c_r
@@ -87,6 +88,7 @@ def navigated_interval(fn: ca.Function) -> ca.Function:
     K, L = ca.reshape(g[o:o + NU * NZ], NU, NZ), ca.reshape(g[o + NU * NZ:o + 2 * NU * NZ], NU, NZ)
     o += 2 * NU * NZ
     Ap, Bp = ca.reshape(g[o:o + NZ * NZ], NZ, NZ), ca.reshape(g[o + NZ * NZ:o + NZ * NZ + NZ * NU], NZ, NU)
+    f, ep = g[_F:_F + NU], g[_F + NU:_F + NU + NZ]
     Xs_ = symbolic_sensed(X, g[N_G:N_G + 9], p[0:9])
     o = N_G + 9
     Xr1, o = g[o:o + NX], o + NX
@@ -100,8 +102,8 @@ def navigated_interval(fn: ca.Function) -> ca.Function:
     Xh, fh = symbolic_retract(Xm, ca.mtimes(G[0:NZ, :], nu)), fm + ca.mtimes(G[NZ:NZ + NU, :], nu)
     ch = cm + ca.mtimes(G[NZ + NU:, :], nu)
     z = symbolic_error(Xh, Xr)
-    r = cf * (ca.mtimes(Bu, fh) + eps) + cr * (z - ca.mtimes(Ap, zp) - ca.mtimes(Bp, dup))
-    du = -ca.mtimes(K, z) - ca.mtimes(L, r)
+    r = cf * ca.mtimes(Bu, fh) + cr * (z - ca.mtimes(Ap, zp) - ca.mtimes(Bp, dup) - ep)
+    du = -ca.mtimes(K, z) - f - ca.mtimes(L, r)
     a, b = w[0:NU] + du, w[NU:2 * NU] + du
     X1, Xs = fn(X, ca.vertcat(a, b, w[2 * NU]), p)
     Xm1 = symbolic_retract(Xr1, ca.mtimes(A, z) + ca.mtimes(Bu, du + fh) + eps)

@@ -5,18 +5,20 @@ R^12, the tangent coordinates of A_k, B_k (§4; attitude error in the body frame
 inertial, moment body) is held over [t_k, t_{k+1}]: z_{k+1} = A_k z_k + Bu_k du_k, Bu_k = B_k [I; I] for the lgvi
 (w_k = [u_k + du_k; u_{k+1} + du_k]), B_k for first_order (w_k = u_{k+1} + du_k) (:func:`held`).  du_k = -K_k z_k -
 L_k r_k minimizes sum_{k<N} h_k (z_k^T Q z_k + du_k^T R du_k) + z_N^T Q_N z_N with a persisting disturbance r
-(:func:`riccati`; r_k estimated by :class:`Tracker`); step k is linearized at its own h_k.  Default weights: Bryson's
+(:func:`riccati`; r_k estimated by :class:`Tracker`), minus f_k where the plan's known local errors eps_k are given
+(:func:`feedforward`, :meth:`Gains.with_local_errors`); step k is linearized at its own h_k.  Default weights: Bryson's
 rule (:func:`bryson_weights`).  The inputs are the actuators' channels (:func:`input_channels`: one body-fixed engine's
 thrust along its axis and the moment; A_k's attitude columns carry d(R u_b)/dR); a removed control gets no feedback;
 the correction is limited to the plan's headroom below the actuators' bounds (:meth:`Tracker.limit`).  The state's
 Pi is the law's J Omega of the measured rate (transcription.dynamics.flight.sensed).
 
-Shapes: K, L (N, 6, 12), P (N+1, 12, 12), S (N, 6, 6), A (N, 12, 12), B (N, 12, nw), X (N+1, 18), U (6, n_controls).
+Shapes: K, L (N, 6, 12), P (N+1, 12, 12), S (N, 6, 6), A (N, 12, 12), B (N, 12, nw), X (N+1, 18), U (6, n_controls),
+eps (N, 12), f (N, 6).
 NumPy, except the linearization (the plan's CasADi ``variation``, mapped once).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Callable, Mapping
 
@@ -200,6 +202,29 @@ def riccati(A: np.ndarray, Bu: np.ndarray, Q: np.ndarray, R: np.ndarray, Q_N: np
     return K, L, P, SS
 
 
+def feedforward(A: np.ndarray, Bu: np.ndarray, K: np.ndarray, S: np.ndarray, P: np.ndarray, eps: np.ndarray,
+                E: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """f (N, 6): the LQR's answer to a known disturbance sequence (docs/mathematics.md §12, *Known local errors*).
+    With z_{k+1} = A_k z_k + Bu_k du_k + eps_k and the cost of :func:`riccati`, the cost-to-go gains a term 2 z^T s_k
+    and du_k = -K_k z_k - f_k, from s_N = 0:
+
+        f_k = S_k^-1 Bu_k^T (P_{k+1} eps_k + s_{k+1}),   s_k = (A_k - Bu_k K_k)^T (P_{k+1} eps_k + s_{k+1}),
+
+    in the input channels v = E^T du that exist (``active``; :func:`input_channels`), K, S (in du's coordinates), P of
+    :func:`riccati` (``Gains``), A (N, 12, 12), Bu (N, 12, 6)."""
+    N, n, m = Bu.shape
+    f = np.zeros((N, m))
+    s = np.zeros(n)
+    act = np.asarray(active, bool)
+    for k in range(N - 1, -1, -1):
+        g = P[k + 1] @ eps[k] + s
+        Bc = (Bu[k] @ E)[:, act]
+        Sc = (E.T @ S[k] @ E)[np.ix_(act, act)]
+        f[k] = E[:, act] @ np.linalg.solve(Sc, Bc.T @ g)
+        s = (A[k] - Bu[k] @ K[k]).T @ g
+    return f
+
+
 def box_qp(S: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_iter: int = 50) -> np.ndarray:
     """argmin (1/2) x^T S x + g^T x over lo <= x <= hi (S symmetric positive definite, infinite limits allowed):
     a primal active-set method from the clipped unconstrained minimizer, exact at its end."""
@@ -237,7 +262,8 @@ class Gains:
     in du_k (the metric under saturation).  A (N, 12, 12), B (N, 12, nw): the plan's variations (§4).  t (N+1,),
     X (N+1, 18): the plan's nodes; U (6, n_controls): its controls (lgvi u_0..u_N, first_order u_1..u_N); h: the mean
     step T/N; steps (N,): the h_k of a non-uniform mesh (None: uniform; §16).  force_bound, moment_bound: the bounds
-    the commands are clipped to (the plan's widened by its bounds_margin); removed: (force, moment) removed.
+    the commands are clipped to (the plan's widened by its bounds_margin); removed: (force, moment) removed.  eps
+    (N, 12), f (N, 6): the plan's known local errors and their feedforward (:meth:`with_local_errors`; None: none).
     """
 
     K: np.ndarray
@@ -256,10 +282,29 @@ class Gains:
     moment_bound: Actuator | None = None
     removed: tuple = (False, False)
     steps: np.ndarray | None = None
+    eps: np.ndarray | None = None
+    f: np.ndarray | None = None
 
     @property
     def N(self) -> int:
         return self.K.shape[0]
+
+    def with_local_errors(self, eps: np.ndarray) -> "Gains":
+        """These gains with the plan's known local errors eps (N, 12) -- what each step of the continuous flight from
+        the plan's node under its commands adds to z beyond A_k z_k + Bu_k du_k (transcription.closedloop.estimator.
+        local_errors) -- and their feedforward f (N, 6) (:func:`feedforward`): du_k = -K_k z_k - f_k - L_k r_k, r now
+        the disturbance beyond eps."""
+        eps = np.asarray(eps, float).reshape(self.N, NZ)
+        E, active = input_channels(self.force_bound, self.moment_bound, self.removed)
+        return replace(self, eps=eps, f=feedforward(self.A, self.Bu, self.K, self.S, self.P, eps, E, active))
+
+    def known(self, k: int) -> np.ndarray:
+        """eps_k (12,): the plan's known local error of step k (0 without them)."""
+        return np.zeros(NZ) if self.eps is None else self.eps[k]
+
+    def forward(self, k: int) -> np.ndarray:
+        """f_k (6,): the feedforward of step k (0 without local errors)."""
+        return np.zeros(NU) if self.f is None else self.f[k]
 
     @cached_property
     def rho(self) -> np.ndarray | None:
@@ -297,12 +342,13 @@ class Tracker:
     """The feedback law of one flight (docs/mathematics.md §12), called once per step, k = 0, 1, ..., N-1:
 
         z_k = tangent_error(X, X_k),
-        r_k = z_k - A_{k-1} z_{k-1} - B_{k-1} (w_{k-1} - w_{k-1}^plan)   (r_0 = 0; per mean step on a mesh),
-        du_k = -K_k z_k - L_k r_k,   commands = the plan's rows of step k + du_k,
+        r_k = z_k - A_{k-1} z_{k-1} - B_{k-1} (w_{k-1} - w_{k-1}^plan) - eps_{k-1}   (r_0 = 0; per mean step on a mesh),
+        du_k = -K_k z_k - f_k - L_k r_k,   commands = the plan's rows of step k + du_k,
 
-    w_{k-1} the commands issued: r_k is what the last step did that the linearization does not explain, taken as
-    persisting.  ``r0``: an estimate handed over for step 0 (:meth:`unexplained`).  The correction is limited to the
-    plan's symmetric headroom (:meth:`limit`: a box by :func:`box_qp` in the metric S_k, a norm by scaling; an
+    w_{k-1} the commands issued, eps and f the plan's known local errors and their feedforward
+    (:meth:`Gains.with_local_errors`; 0 without them): r_k is what the last step did that neither the linearization
+    nor the plan's own discretization error explains, taken as persisting.  ``r0``: an estimate handed over for step
+    0 (:meth:`unexplained`).  The correction is limited to the plan's symmetric headroom (:meth:`limit`: a box by :func:`box_qp` in the metric S_k, a norm by scaling; an
     engine's thrust to its own one-sided box).  feedback
     False: the plan's controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps`` counts the limited
     steps."""
@@ -330,11 +376,11 @@ class Tracker:
         du = np.zeros(NU)
         if self.feedback:
             z = g.error(k, X)
-            du = -g.K[k] @ z
+            du = -g.K[k] @ z - g.forward(k)
             if self.disturbance and r is not None:
                 du -= g.L[k] @ np.asarray(r, float).reshape(NZ)
             elif self.disturbance and k > 0:
-                du -= g.L[k] @ g.per_mean_step(k - 1, z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
+                du -= g.L[k] @ g.per_mean_step(k - 1, z - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw - g.known(k - 1))
             elif self.disturbance and self.r0 is not None:          # k = 0: an estimate handed over
                 du -= g.L[0] @ self.r0
             self.z = z
@@ -351,7 +397,7 @@ class Tracker:
         g = self.gains
         if not (self.feedback and self.disturbance) or self.k < 0 or k != self.k + 1 or k >= g.N:
             return None
-        return g.per_mean_step(k - 1, g.error(k, X) - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw)
+        return g.per_mean_step(k - 1, g.error(k, X) - g.A[k - 1] @ self.z - g.B[k - 1] @ self.dw - g.known(k - 1))
 
     def command(self, k: int, X) -> np.ndarray:
         """The node commands (rows, 6) of step k from the state X at t_k (rows: 2 lgvi, 1 first_order): the
