@@ -260,7 +260,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
                           constraints=constraints)
     except ProblemError as e:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1], also=_PROBLEM_ALSO.get(e.field, ()))
-    if resolved_control is not None and "weights" not in (doc.get("control") or {}):
+    if resolved_control is not None and (doc.get("control") or {}).get("weights", "auto") == "auto":
         problem = _weights_in_actuator_terms(problem, resolved_control)
     _physical.declare(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
@@ -401,7 +401,10 @@ def _control(v: Validator, c, units=None):
     frame = v.choice(c.get("force_frame", "inertial"), "control.force_frame", FORCE_FRAMES)
     W = {"force": np.ones(3), "moment": np.full(3, 1e4)}
     weights_doc = {"force": 1.0, "moment": 1e4}
-    if "weights" in c:
+    if c.get("weights", "auto") != "auto":            # 'auto' (or none): in the actuators' terms where they have some
+        if isinstance(c["weights"], str):
+            v.fail("control.weights", f"expected a mapping with keys force, moment, or 'auto' (each control in units "
+                                      f"of its size), got {c['weights']!r}")
         wd = v.mapping(c["weights"], "control.weights", ("force", "moment"))
         for k in ("force", "moment"):
             if k in wd:

@@ -206,7 +206,7 @@ def solve_relaxed(problem: se3ocp.Problem, tol: float = IPOPT_TOL, **options):
     """Our direct method (IPOPT) on :func:`relaxed_problem` of ``problem``: the objective's own strategy (for fuel
     :class:`FuelStrategy`) on the problem's scheme, KKT tolerance ``tol``, no continuous check (the SCvx relaxation has
     none).  Why not ``se3ocp.solve``'s defaults: for lgvi_kepler they first solve the problem on the lgvi scheme
-    (``transcription.solve.solve_direct``, ``FromScheme``), whose orbit is 3.5 km (N = 400) to 56 km (N = 100) off
+    (``transcription.solve.solve_direct``, ``from_scheme``), whose orbit is 3.5 km (N = 400) to 56 km (N = 100) off
     the exact one, and their tol is 1e-10.  Measured on leo_body_engine's relaxation: N = 400, defaults: solver_failed
     after 1626 iterations, 115 s; N = 400, tol 1e-8 with the detour: 'terminal_error' after 74 iterations; N = 100 with
     the detour: the lgvi effort problem 'infeasible'.  This function: N = 400 converged in 809 iterations, ~8 s."""

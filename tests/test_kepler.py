@@ -181,7 +181,7 @@ def test_leo_raise_flies_within_one_percent_of_the_maneuver():
         assert c.maneuver_fraction == pytest.approx(frac, rel=0.1)
         if scheme == "lgvi":
             assert frac > 0.3 and "of the maneuver" in sol.message
-        else:   # reached from the LGVI's optimum (strategy.core.FromScheme)
+        else:   # reached from the LGVI's optimum (strategy.core.from_scheme)
             assert sol.trace[0].label == "from the lgvi optimum" and sol.trace[0].parts
             assert dx <= 0.1 and dv <= 0.01 * c.change_velocity and frac <= 0.01
             assert "of the maneuver" not in sol.message

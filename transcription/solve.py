@@ -30,7 +30,7 @@ from .results.solution import SolveError, Solution, html_table
 from .results.start import Start, as_start
 from .results.trace import Attempt
 from .objectives.effort import first_start
-from .strategy.core import Context, FromScheme
+from .strategy.core import Context, default_strategy
 from .strategy.hints import failure_hint
 from .strategy.refine import AccuracyOptions, attach_checks, each, out_of_reach, refine
 
@@ -211,9 +211,8 @@ def solve_direct(problem: Problem, options: DirectOptions | None = None, progres
         return sol.with_notes(f"warm start from {warm.describe()} not used (the impulsive method starts from its own "
                               "guesses)") if warm is not None else sol
     if strategy is None:
-        strategy = problem.control.objective.strategy(problem, options)
-        if problem.scheme == "lgvi_kepler" and warm is None:    # reached from the LGVI's optimum (FromScheme)
-            strategy = FromScheme(strategy)
+        strategy = problem.control.objective.strategy(problem, options) if warm is not None else \
+            default_strategy(problem, options)
     if options.solver == "fatrop":
         sol = _fatrop_first(problem, strategy, ctx, warm)
     else:

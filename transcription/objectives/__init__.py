@@ -15,10 +15,11 @@ from ..ocp import Objective, ProblemError
 from .effort import Effort
 from .effort_time import EffortTime
 from .fuel import Fuel
+from .propellant import Propellant
 from .time import Time
 
 #: the objectives by the name a maneuver file gives (``control.objective``)
-OBJECTIVES: dict[str, type[Objective]] = {cls.name: cls for cls in (Effort, Time, Fuel, EffortTime)}
+OBJECTIVES: dict[str, type[Objective]] = {cls.name: cls for cls in (Effort, Time, Fuel, EffortTime, Propellant)}
 
 
 def named(name: str, **parameters: Any) -> Objective:
@@ -32,4 +33,4 @@ def named(name: str, **parameters: Any) -> Objective:
         raise ProblemError("control.objective", f"the {name} objective: {exc}") from None
 
 
-__all__ = ["OBJECTIVES", "Effort", "EffortTime", "Fuel", "Time", "named"]
+__all__ = ["OBJECTIVES", "Effort", "EffortTime", "Fuel", "Propellant", "Time", "named"]

@@ -23,6 +23,9 @@ class Objective:
     free_time: ClassVar[bool] = False
     #: its necessary conditions in the indirect method (transcription.methods.indirect.laws; None: not covered)
     indirect: ClassVar[Any] = None
+    #: on the Kepler-split LGVI its default strategy starts from its optimum on the LGVI (transcription.strategy.core.
+    #: default_strategy); False where its own strategy reaches that scheme otherwise
+    via_lgvi: ClassVar[bool] = True
     #: why fatrop's stage-ordered NLP is not used for it ('' when it is: transcription.methods.direct.fatrop)
     fatrop: ClassVar[str] = "fatrop is used for the effort objective"
 

@@ -281,35 +281,47 @@ class CoarseToFine:
 
 
 @dataclass(frozen=True)
-class FromScheme:
-    """The problem first solved on another ``scheme`` of the same grid and control layout (its own objective's
-    strategy), that optimum resampled onto this problem's scheme and finished by ``finish`` (named
-    'from the <scheme> optimum', the first solves its attempt's parts); when the first solve fails, a Solution
-    saying so (its trace: what the other scheme tried).
+class FromRelated:
+    """The problem first solved as a related one -- ``related(problem)``, by its own objective's strategy, its progress
+    under ``name`` -- that optimum fitted onto this problem's grid and scheme and finished by ``finish``, the attempt
+    named ``label`` (the first solves its parts, on ``on``); when the first solve fails, a Solution saying so (its
+    trace: what the related problem tried)."""
+
+    finish: Strategy
+    related: Callable[[Problem], Problem]
+    name: str
+    label: str
+    on: str
+
+    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
+        other = self.related(problem)
+        c = default_strategy(other, ctx.options).run(other, start, ctx.under(self.name))
+        if not c.converged or c.warm is None:
+            return not_made(problem, ctx, self.label, f"not available ({self.on} did not converge)", c.trace, self.on)
+        fitted = c.warm.fit(problem.N, problem.scheme, problem.fractions)[0]
+        return labelled(self.finish.run(problem, fitted, ctx), self.label, c.trace, self.on,
+                        getattr(self.finish, "label", ""))
+
+
+def from_scheme(finish: Strategy, scheme: str = "lgvi") -> FromRelated:
+    """The problem first solved on another ``scheme`` of the same grid and control layout (:class:`FromRelated`),
+    named 'from the <scheme> optimum'.
 
     How the Kepler-split LGVI is reached (docs/mathematics.md §2a): its exact two-body drift is strongly nonlinear
     in the state far from an orbit, where a solver's first iterates are, while the LGVI's drift is polynomial; their
     optima differ by the LGVI's orbit error (3.5 km in a LEO orbit at N = 400), a few iterations apart."""
+    def other(p: Problem) -> Problem:
+        d = p.disc
+        return replace(p, disc=discretization(d.model, scheme, d.newton_iters, force_frame=d.force_frame))
+    return FromRelated(finish, other, scheme, f"from the {scheme} optimum", f"the {scheme} problem")
 
-    finish: Strategy
-    scheme: str = "lgvi"
 
-    @property
-    def label(self) -> str:
-        return f"from the {self.scheme} optimum"
-
-    def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
-        d = problem.disc
-        other = replace(problem, disc=discretization(d.model, self.scheme, d.newton_iters, force_frame=d.force_frame))
-        first = other.control.objective.strategy(other, ctx.options)
-        c = first.run(other, start, ctx.under(self.scheme))
-        on = f"the {self.scheme} scheme"
-        if not c.converged or c.warm is None:
-            return not_made(problem, ctx, self.label, f"not available (the {self.scheme} problem did not converge)",
-                            c.trace, on)
-        fitted = c.warm.fit(problem.N, problem.scheme, problem.fractions)[0]
-        return labelled(self.finish.run(problem, fitted, ctx), self.label, c.trace, on,
-                        getattr(self.finish, "label", ""))
+def default_strategy(problem: Problem, options) -> Strategy:
+    """The strategy of ``problem`` when none is given: its objective's, on the Kepler-split LGVI started from its
+    optimum on the LGVI (:func:`from_scheme`) unless the objective's own strategy reaches it otherwise
+    (:attr:`~transcription.ocp.objective.Objective.via_lgvi`)."""
+    strategy = problem.control.objective.strategy(problem, options)
+    return from_scheme(strategy) if problem.scheme == "lgvi_kepler" and problem.control.objective.via_lgvi else strategy
 
 
 def step_line(what: str, sol: Solution) -> str:
@@ -347,6 +359,5 @@ class Continuation:
         return replace(sol, trace=(last,)).with_notes(continuation_steps=lines)
 
 
-__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromScheme", "Guessed", "Solve",
-           "Strategy",
-           "chosen", "collapsed", "labelled", "not_made", "spread", "step_line", "tried"]
+__all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromRelated", "Guessed",
+           "Solve", "Strategy", "chosen", "collapsed", "default_strategy", "from_scheme", "labelled", "not_made", "spread", "step_line", "tried"]
