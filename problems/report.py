@@ -240,7 +240,7 @@ def render(run, images: list[tuple[str, bytes]], config_text: str = "") -> str:
 
     result = run.result
     sols = dict(run.solutions)
-    problem = next(iter(sols.values())).problem
+    problem = next(iter(sols.values())).problem if sols else run.maneuver.problem   # none: no method applies
     summ = run.summary
     methods = _status_cards(sols, summ)
     comparison = None

@@ -211,6 +211,20 @@ def test_not_converged_exit_1_results_flagged(tmp_path):
     assert (tmp_path / "o" / "direct.npz").is_file()
 
 
+@pytest.mark.parametrize("figures", [False, True])
+def test_a_method_that_does_not_apply_alone_is_a_status_not_a_crash(tmp_path, figures):
+    """``--method indirect`` on a maneuver with a path constraint (the indirect method does not cover it): exit 1,
+    the status not_applicable and why, report.html and summary.json written, no figure and no traceback (the
+    report and the figures once took the problem from the first Solution, and there is none)."""
+    r = run("solve", CONFIGS / "e3_min_radius.yaml", "--method", "indirect", "--out", tmp_path / "o",
+            *(() if figures else ("--no-figures",)))
+    assert r.returncode == 1, r.stderr
+    assert "internal error" not in r.stderr and "Traceback" not in r.stderr
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["methods"]["indirect"]["status"] == "not_applicable" and "path constraints" in r.stdout
+    assert (tmp_path / "o" / "report.html").is_file() and not list((tmp_path / "o").glob("fig_*"))
+
+
 def test_solve_default_method_is_direct(tmp_path):
     r = run("solve", CONFIGS / "e3_inclination_change.yaml", "--set", "horizon.N=20", "--out", tmp_path / "o",
             "--no-figures", "--quiet")

@@ -138,6 +138,8 @@ def draw_run(results_dir: Path, run, which: tuple[str, ...] | None = None, *,
 
     d = Path(results_dir)
     runs = _runs(run.result, path_tolerance(run.maneuver))
+    if not runs:                  # no method applies (its status says why): nothing to draw
+        return {}
     problem = runs[0].sol.problem
     names = applicable(runs, problem)
     if stale_only:
