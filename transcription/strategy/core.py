@@ -282,20 +282,24 @@ class CoarseToFine:
 
 @dataclass(frozen=True)
 class FromRelated:
-    """The problem first solved as a related one -- ``related(problem)``, by its own objective's strategy, its progress
-    under ``name`` -- that optimum fitted onto this problem's grid and scheme and finished by ``finish``, the attempt
-    named ``label`` (the first solves its parts, on ``on``); when the first solve fails, a Solution saying so (its
-    trace: what the related problem tried)."""
+    """The problem first solved as a related one -- ``related(problem)``, by its default strategy
+    (:func:`default_strategy`; with ``own_scheme`` its objective's strategy on its own scheme, not through the LGVI),
+    its progress under ``name`` -- that optimum fitted onto this problem's grid and scheme and finished by ``finish``,
+    the attempt named ``label`` (the first solves its parts, on ``on``); when the first solve fails, a Solution saying
+    so (its trace: what the related problem tried)."""
 
     finish: Strategy
     related: Callable[[Problem], Problem]
     name: str
     label: str
     on: str
+    own_scheme: bool = False
 
     def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
         other = self.related(problem)
-        c = default_strategy(other, ctx.options).run(other, start, ctx.under(self.name))
+        first = other.control.objective.strategy(other, ctx.options) if self.own_scheme else \
+            default_strategy(other, ctx.options)
+        c = first.run(other, start, ctx.under(self.name))
         if not c.converged or c.warm is None:
             return not_made(problem, ctx, self.label, f"not available ({self.on} did not converge)", c.trace, self.on)
         fitted = c.warm.fit(problem.N, problem.scheme, problem.fractions)[0]
