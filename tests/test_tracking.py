@@ -137,54 +137,61 @@ def test_riccati_converges_to_the_discrete_algebraic_riccati_solution():
     assert np.allclose(S[0], R + B.T @ P[1] @ B, rtol=1e-14, atol=0)
 
 
-def stacked_lqr(A, B, Q, R, QN, active, z0, r):
-    """The optimal control sequence of sum (z^T Q z + du^T R du) + z_N^T Q_N z_N, z_{k+1} = A_k z_k + B_k du_k + r,
-    as one least-squares problem (du stacked over the active inputs); returns (du, its cost)."""
+def stacked_lqr(A, B, Q, R, QN, active, z0, d):
+    """The optimal control sequence of sum (z^T Q z + du^T R du) + z_N^T Q_N z_N, z_{k+1} = A_k z_k + B_k du_k + d_k
+    (``d`` a constant disturbance (n,) or a known sequence (N, n)), as one least-squares problem (du stacked over the
+    active inputs); returns (du, its cost)."""
     N, n, _ = B.shape
+    d = np.broadcast_to(d, (N, n))
     Ba = B[:, :, active]
     ma = Ba.shape[2]
-    F, G = [np.hstack([np.eye(n), np.zeros((n, n))])], [np.zeros((n, N * ma))]   # z_k = F_k [z0; r] + G_k du
-    for k in range(N):
-        Gk = A[k] @ G[-1]
-        Gk[:, k * ma:(k + 1) * ma] += Ba[k]
-        F.append(A[k] @ F[-1] + np.hstack([np.zeros((n, n)), np.eye(n)]))
-        G.append(Gk)
-    W = [np.sqrt(QN if k == N else Q) for k in range(N + 1)]
-    M = np.vstack([W[k] @ G[k] for k in range(N + 1)] + [np.kron(np.eye(N), np.sqrt(R[np.ix_(active, active)]))])
-    b = np.concatenate([-W[k] @ F[k] @ np.r_[z0, r] for k in range(N + 1)] + [np.zeros(N * ma)])
+    G, c, rows, rhs = np.zeros((n, N * ma)), np.asarray(z0, float), [], []   # z_k = c_k + G_k du (c: the free response)
+    for k in range(N + 1):
+        W = np.sqrt(QN if k == N else Q)
+        rows.append(W @ G)
+        rhs.append(-W @ c)
+        if k < N:
+            G = A[k] @ G
+            G[:, k * ma:(k + 1) * ma] += Ba[k]
+            c = A[k] @ c + d[k]
+    M = np.vstack(rows + [np.kron(np.eye(N), np.sqrt(R[np.ix_(active, active)]))])
+    b = np.concatenate(rhs + [np.zeros(N * ma)])
     du = np.linalg.lstsq(M, b, rcond=None)[0]
     return du, float(np.sum((M @ du - b) ** 2))
+
+
+def random_lqr(seed: int, n: int = 4, m: int = 3, N: int = 12):
+    """A random time-varying LQR problem (A, B, Q, R, Q_N, active) whose second input does not exist."""
+    rng = np.random.default_rng(seed)
+    A = np.eye(n) + 0.2 * rng.normal(size=(N, n, n))
+    B = rng.normal(size=(N, n, m))
+    Q, R, QN = np.diag(rng.uniform(0.5, 2, n)), np.diag(rng.uniform(0.5, 2, m)), np.diag(rng.uniform(1, 5, n))
+    return rng, (A, B, Q, R, QN, np.array([True, False, True]))
 
 
 def test_riccati_gains_are_the_optimum_of_the_stacked_problem_with_a_constant_disturbance():
     """du_0 = -K_0 z_0 - L_0 r against the minimizer over the whole control sequence (:func:`stacked_lqr`);
     its cost at r = 0 is z_0^T P_0 z_0; an input the problem does not have (``active``) gets no gain."""
-    rng = np.random.default_rng(3)
-    n, m, N = 4, 3, 12
-    A = np.eye(n) + 0.2 * rng.normal(size=(N, n, n))
-    B = rng.normal(size=(N, n, m))
-    Q, R, QN = np.diag(rng.uniform(0.5, 2, n)), np.diag(rng.uniform(0.5, 2, m)), np.diag(rng.uniform(1, 5, n))
-    active = np.array([True, False, True])
+    rng, lqr = random_lqr(3)
+    A, B, Q, R, QN, active = lqr
+    n = A.shape[1]
     K, L, P, _ = tr.riccati(A, B, Q, R, QN, active)
     assert np.all(K[:, 1] == 0) and np.all(L[:, 1] == 0)
     z0, r = rng.normal(size=n), rng.normal(size=n)
-    du, _ = stacked_lqr(A, B, Q, R, QN, active, z0, r)
+    du, _ = stacked_lqr(*lqr, z0, r)
     assert np.allclose(du[:2], (-K[0] @ z0 - L[0] @ r)[active], rtol=1e-10, atol=1e-12)
-    _, cost = stacked_lqr(A, B, Q, R, QN, active, z0, np.zeros(n))
+    _, cost = stacked_lqr(*lqr, z0, np.zeros(n))
     assert cost == pytest.approx(z0 @ P[0] @ z0, rel=1e-10)
 
 
 def test_the_feedforward_of_known_local_errors_is_the_optimum_of_the_stacked_problem():
     """z_{k+1} = A_k z_k + B_k du_k + eps_k with a known sequence eps (a plan's local errors): flying
     du_k = -K_k z_k - f_k (:func:`~transcription.closedloop.tracking.feedforward`) gives the whole minimizing sequence of
-    the stacked least-squares problem (another formulation: all controls at once), to 1e-10; an input the problem
+    the stacked least-squares problem (:func:`stacked_lqr`: all controls at once), to 1e-10; an input the problem
     does not have gets none."""
-    rng = np.random.default_rng(5)
-    n, m, N = 4, 3, 12
-    A = np.eye(n) + 0.2 * rng.normal(size=(N, n, n))
-    B = rng.normal(size=(N, n, m))
-    Q, R, QN = np.diag(rng.uniform(0.5, 2, n)), np.diag(rng.uniform(0.5, 2, m)), np.diag(rng.uniform(1, 5, n))
-    active = np.array([True, False, True])
+    rng, lqr = random_lqr(5)
+    A, B, Q, R, QN, active = lqr
+    N, n, m = B.shape
     K, _, P, S = tr.riccati(A, B, Q, R, QN, active)
     z0, eps = rng.normal(size=n), rng.normal(size=(N, n))
     f = tr.feedforward(A, B, K, S, P, eps, np.eye(m), active)
@@ -194,19 +201,7 @@ def test_the_feedforward_of_known_local_errors_is_the_optimum_of_the_stacked_pro
         du = -K[k] @ z - f[k]
         flown.append(du[active])
         z = A[k] @ z + B[k] @ du + eps[k]
-    Ba = B[:, :, active]
-    ma = Ba.shape[2]
-    G, c, rows, rhs = np.zeros((n, N * ma)), z0, [], []           # z_k = c_k + G_k du (c: the free response)
-    for k in range(N + 1):
-        W = np.sqrt(QN if k == N else Q)
-        rows.append(W @ G)
-        rhs.append(-W @ c)
-        if k < N:
-            G = A[k] @ G
-            G[:, k * ma:(k + 1) * ma] += Ba[k]
-            c = A[k] @ c + eps[k]
-    M = np.vstack(rows + [np.kron(np.eye(N), np.sqrt(R[np.ix_(active, active)]))])
-    best = np.linalg.lstsq(M, np.concatenate(rhs + [np.zeros(N * ma)]), rcond=None)[0]
+    best, _ = stacked_lqr(*lqr, z0, eps)
     assert np.allclose(np.concatenate(flown), best, rtol=1e-10, atol=1e-12 * np.abs(best).max())
 
 
