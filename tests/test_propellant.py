@@ -24,12 +24,14 @@ N = 60
 
 
 def parts(sol) -> tuple[float, float]:
-    """(impulse sum omega_j T_j, wheels' effort sum omega_j (1/2) u_m^T W_m u_m) of a plan, by NumPy from its controls."""
+    """(impulse sum omega_j T_j, wheels' effort sum omega_j (1/2) u_m^T W_m u_m) of a plan, by NumPy from its
+    controls."""
     p, U = sol.problem, np.asarray(sol.controls, float)
     omega = quadrature_weights(p.scheme, p.N, p.steps_of(sol.h))
     a = p.control.force_bound.engine_axis
     thrust = np.einsum("i,in->n", a, U[U_FORCE])
-    return float(omega @ thrust), float(omega @ (0.5 * np.einsum("in,ij,jn->n", U[U_MOMENT], p.control.W_m, U[U_MOMENT])))
+    wheels = 0.5 * np.einsum("in,ij,jn->n", U[U_MOMENT], p.control.W_m, U[U_MOMENT])
+    return float(omega @ thrust), float(omega @ wheels)
 
 
 def solved(*sets: str):

@@ -30,7 +30,8 @@ def sigmas(block: dict) -> tuple:
 def filter_of(payload: dict, gains, spec, problem):
     """The estimator of the plan of ``gains`` (the tracker it feeds; ``problem`` the plan's Problem) for the flight
     ``spec``: the navigation noise, the prior of the initial errors (spec.errors.initial), the measurement nodes of
-    ``period``, the plan's local errors on its body's continuous equations, the bias's prior: (NavigationFilter, the
+    ``period``, the plan's local errors on its body's continuous equations (those of ``gains``, which its tracker
+    feeds forward), the bias's prior: (NavigationFilter, the
     noise factor F, the bias factor F_b) (transcription.closedloop.estimator.noise_factor); built once per process,
     plan and block."""
     nav = spec.navigation
@@ -43,7 +44,7 @@ def filter_of(payload: dict, gains, spec, problem):
         F0 = noise_factor(sigmas(spec.errors["initial"]), mass, inertia)
         F = noise_factor(sigmas(nav["noise"]), mass, inertia)
         Fb = noise_factor(sigmas(nav["bias"]), mass, inertia)
-        eps = local_errors(gains, model, problem.disc.force_frame)
+        eps = gains.eps if gains.eps is not None else local_errors(gains, model, problem.disc.force_frame)
         _FILTERS[key] = (plan_filter(gains, F, F0 @ F0.T, measurement_nodes(gains.t, nav.get("period")),
                                      nav["estimator"], eps=eps, Pc=Fb @ Fb.T), F, Fb, gains)   # gains: its id is in the key
     return _FILTERS[key][:3]

@@ -312,4 +312,5 @@ def around(gains, k: int, plan: Start):
     return dataclasses.replace(gains, K=gains.K[k:], L=gains.L[k:], P=gains.P[k:], S=gains.S[k:], A=gains.A[k:],
                                B=gains.B[k:], t=gains.t[k:], X=plan.X, U=plan.U,
                                steps=None if gains.steps is None else gains.steps[k:],
-                               eps=None if gains.eps is None else gains.eps[k:], f=None if gains.f is None else gains.f[k:])
+                               eps=None if gains.eps is None else gains.eps[k:],
+                               f=None if gains.f is None else gains.f[k:])

@@ -348,8 +348,8 @@ class Tracker:
     w_{k-1} the commands issued, eps and f the plan's known local errors and their feedforward
     (:meth:`Gains.with_local_errors`; 0 without them): r_k is what the last step did that neither the linearization
     nor the plan's own discretization error explains, taken as persisting.  ``r0``: an estimate handed over for step
-    0 (:meth:`unexplained`).  The correction is limited to the plan's symmetric headroom (:meth:`limit`: a box by :func:`box_qp` in the metric S_k, a norm by scaling; an
-    engine's thrust to its own one-sided box).  feedback
+    0 (:meth:`unexplained`).  The correction is limited to the plan's symmetric headroom (:meth:`limit`: a box by
+    :func:`box_qp` in the metric S_k, a norm by scaling; an engine's thrust to its own one-sided box).  feedback
     False: the plan's controls only; disturbance False: du_k = -K_k z_k.  ``saturated_steps`` counts the limited
     steps."""
 

@@ -55,8 +55,9 @@ class Propellant(Objective):
 
     indirect: ClassVar = None
     name: ClassVar[str] = "propellant"
-    via_lgvi: ClassVar[bool] = False      # its effort problem is (PropellantStrategy): a bang-off-bang optimum of the
-    #                                       LGVI's orbit is a poor start on the exact one (1340 iterations, a worse optimum)
+    #: its strategy reaches lgvi_kepler through its effort problem (PropellantStrategy): a bang-off-bang optimum of the
+    #: LGVI's orbit was a poor start on the exact one (1342 more iterations, to a worse optimum: docs/mathematics.md §26)
+    via_lgvi: ClassVar[bool] = False
 
     def check(self, control) -> None:
         bound = control.force_bound
@@ -121,8 +122,8 @@ class PropellantStrategy(Composed):
             return Solve(label="warm start")
         if (one := chosen(problem, options)) is not None:
             return one
-        effort = FromRelated(Solve(label="from the effort optimum"), effort_problem, "effort", "from the effort optimum",
-                             "the effort problem")
+        label = "from the effort optimum"
+        effort = FromRelated(Solve(label=label), effort_problem, "effort", label, "the effort problem")
         own = replace(effort, label="from the effort optimum on its own scheme", own_scheme=True)
         return FirstOf((effort, *((own,) if problem.scheme == "lgvi_kepler" else ()),
                         Solve(starts.rollout, "rollout"), Solve(starts.interpolation, "interpolate")))

@@ -364,4 +364,5 @@ class Continuation:
 
 
 __all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromRelated", "Guessed",
-           "Solve", "Strategy", "chosen", "collapsed", "default_strategy", "from_scheme", "labelled", "not_made", "spread", "step_line", "tried"]
+           "Solve", "Strategy", "chosen", "collapsed", "default_strategy", "from_scheme", "labelled", "not_made", "spread",
+           "step_line", "tried"]
