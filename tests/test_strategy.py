@@ -8,6 +8,8 @@
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -274,3 +276,32 @@ def test_the_iteration_hint_names_the_budgets_the_starts_ran_on():
             "reached their limit ran on 3000 and 600 and 600 iterations (600: the plan's cap") in hint, hint
     full = dataclasses.replace(sol, trace=(Attempt("interpolate", Result.max_iterations, options.max_iter),))
     assert f"a larger solver.direct.max_iter (now {options.max_iter}); or" in failure_hint(full, options)
+
+
+@pytest.mark.parametrize("name, sets, objective_tip, weights_tip", [
+    ("leo_engine_fuel", (), True, False),                # fuel with an engine and bounded wheels: priced as auto
+    ("leo_body_engine", ("control.objective=fuel",), True, True),          # the moment unbounded, w_m chosen for effort
+    ("leo_body_engine", ("control.objective=propellant",), False, True),   # effort's (1, 1e10): the wheels almost free
+    ("leo_body_engine", ("control.objective=propellant", "control.weights=auto"), False, False),
+    ("leo_body_engine", (), False, False),               # the effort file's weights: within 10x of the actuators' terms
+    ("orbit_raise_fuel", (), False, True),               # no engine; its moment 1/40 of the actuators' terms
+    ("e3_inclination_change", (), False, False),         # no bounds: no actuators' terms
+])
+def test_the_failure_hint_names_the_objective_and_the_weight_ratio(name, sets, objective_tip, weights_tip):
+    """failure_hint after a failed solve puts the objective's own tip first (the L1 fuel of an engine with wheels:
+    the propellant objective, and a torque limit when the moment is free) and names a weight ratio an order of
+    magnitude or more away from the actuators' terms (with the factor), nothing of either where they do not apply."""
+    from se3ocp.transcription.methods.base import failed_solution
+    from se3ocp.transcription.options import DirectOptions
+    from se3ocp.transcription.strategy.hints import failure_hint
+
+    import support
+    problem = support.problem(name, 10, None, *sets)
+    hint = failure_hint(failed_solution(problem, "direct", "ipopt", Result.solver_failed, ""), DirectOptions())
+    assert hint.startswith("try "), hint
+    assert ("control.objective=propellant" in hint) is objective_tip, hint
+    assert hint.startswith("try control.objective=propellant") is objective_tip, hint
+    assert ("control.bounds.moment (the L1 optimum" in hint) is (objective_tip and "fuel" in str(sets)), hint
+    assert ("control.weights=auto" in hint) is weights_tip, hint
+    if weights_tip:
+        assert re.search(r"price the moment \d\.\de[+-]0\d times", hint), hint

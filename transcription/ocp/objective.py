@@ -77,6 +77,11 @@ class Objective:
         return np.zeros(0)
 
     # ------------------------------------------------------------------ methods and strategies
+    def failure_tip(self, problem: "Problem") -> str:
+        """What to try with this objective after its default strategy failed on ``problem``, in ``--set`` terms
+        ('' when it has nothing to add to transcription.strategy.hints.failure_hint's tips)."""
+        return ""
+
     def strategy(self, problem: "Problem", options: Any) -> Any:
         """This objective's default strategy for ``problem`` with the direct method's ``options``
         (:mod:`transcription.strategy`)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.state import U_FORCE, U_MOMENT
+from ..ocp.estimate import control_sizes
 from ..options import DirectOptions
 from ..outcome import Result
 from ..results.solution import Solution
@@ -19,7 +20,7 @@ def failure_hint(sol: Solution, options: DirectOptions, binding_fraction: float 
     r = sol.result
     if sol.converged or r in (Result.interrupted, Result.cayley_failed, Result.invalid_option, Result.non_finite):
         return ""
-    tips = []
+    tips = [tip for tip in (_objective_tip(sol), weights_tip(sol.problem)) if tip]
     binding = binding_bound(sol, binding_fraction)
     if binding and r in (Result.infeasible, Result.max_iterations, Result.acceptable, Result.time_limit,
                                           Result.solver_failed):
@@ -34,6 +35,36 @@ def failure_hint(sol: Solution, options: DirectOptions, binding_fraction: float 
     tips.append("an easier neighbouring maneuver (longer horizon.T, smaller change) reached by continuation: a sweep "
                 "along the changed key with continuation (configs/sweeps/)")
     return "try " + "; or ".join(tips)
+
+
+def _objective_tip(sol: Solution) -> str:
+    """The objective's own tip for ``sol``'s problem ('' without a smooth problem or a tip)."""
+    problem = sol.problem
+    return problem.control.objective.failure_tip(problem) if problem is not None and problem.kind == "smooth" else ""
+
+
+def weights_tip(problem, factor: float = 10.0) -> str:
+    """The tip 'control.weights=auto' when the problem's weights price the moment against the force ``factor`` or more
+    times away from the objective's weights in the actuators' terms (:meth:`~transcription.ocp.Objective.unit_weights`
+    at :func:`~transcription.ocp.estimate.control_sizes`), with how far; '' when they price them alike, when a part is
+    removed, or without those terms.  Why: a weight ratio chosen for another objective or by hand (a moment made
+    almost free, or too dear for the body to turn and aim its engine) is a cause of failure the user can change in
+    one key, and the other tips (iterations, tolerance, continuation) do not name it (issue 41: a raise in km with
+    default weights failed and the hint suggested a looser tolerance).  ``factor``: an order of magnitude, the
+    smallest mispricing named."""
+    if problem is None or problem.kind != "smooth" or any(problem.control.removed):
+        return ""
+    c = problem.control
+    sizes = control_sizes(problem)
+    W = None if sizes is None else c.objective.unit_weights(*sizes)
+    if W is None:
+        return ""
+    ratio = (np.trace(c.W_m) / np.trace(c.W_f)) / (np.trace(W[1]) / np.trace(W[0]))
+    if 1.0 / factor < ratio < factor:
+        return ""
+    return (f"control.weights=auto (the weights price the moment {ratio:.1e} times its price in the actuators' "
+            f"terms, force {sizes[0]:.3g} and moment {sizes[1]:.3g} in the file's units: "
+            f"{'cheaper' if ratio < 1 else 'dearer'} against the force)")
 
 
 def budget_tip(sol: Solution, options: DirectOptions) -> str:
@@ -76,4 +107,4 @@ def binding_bound(sol: Solution, fraction: float) -> str:
             f"control.bounds.{name} or a longer horizon.T")
 
 
-__all__ = ["binding_bound", "budget_tip", "failure_hint"]
+__all__ = ["binding_bound", "budget_tip", "failure_hint", "weights_tip"]

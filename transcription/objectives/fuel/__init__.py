@@ -103,6 +103,19 @@ class Fuel(Objective):
     def blocks(self, tr) -> list:
         return fuel_blocks(self, tr)
 
+    def failure_tip(self, problem: Problem) -> str:
+        """With an engine and wheels: the propellant objective (the L1 of the wheels' torque is what keeps these
+        problems from converging, docs §25-§26); with the moment unbounded, also its bound (the L1 optimum of a free
+        torque is impulsive in the limit, §21)."""
+        c = problem.control
+        bound = c.force_bound
+        if bound is None or bound.engine_axis is None or c.removed[1]:
+            return ""
+        tip = ("control.objective=propellant (the engine's impulse with the wheels' torque priced by its effort, "
+               "docs/mathematics.md §26: it converges in seconds where the L1 of the wheels' torque does not)")
+        return tip + ("; or a wheels' torque limit control.bounds.moment (the L1 optimum of a free torque is "
+                      "impulsive in the limit, §21)" if c.moment_bound is None else "")
+
     def strategy(self, problem: Problem, options) -> FuelStrategy:
         return FuelStrategy()
 
