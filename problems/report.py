@@ -338,7 +338,8 @@ def write_report(results_dir: Path, draw: bool = True) -> Path:
     if is_flight_dir(d):
         return write_flight_report(d)
     run = read_run(d)
-    return write_run_report(d, run, figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver)))
+    images = figure_images(d, run.result, draw=draw, tol=path_tolerance(run.maneuver)) if run.solutions else []
+    return write_run_report(d, run, images)
 
 
 def write_run_report(results_dir: Path, run, images: list[tuple[str, bytes]]) -> Path:

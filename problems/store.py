@@ -118,12 +118,14 @@ class Run:
     held: Solution | Comparison | None = None
 
     @property
-    def result(self) -> Solution | Comparison:
+    def result(self) -> Solution | Comparison | None:
         """The result held (:func:`held_run`); read back, the Solution, or the Comparison of a run with both
         methods -- compared again from the Solutions read back (costs, controls, statuses), so that its verdict
         is always the one of what is drawn, whatever summary.json's comparison block says."""
         if self.held is not None:
             return self.held
+        if not self.solutions:
+            return None                                     # no method applies (no_method_applies)
         if {"direct", "indirect"} <= set(self.solutions):
             return compare(self.solutions["direct"], self.solutions["indirect"])
         return next(iter(self.solutions.values()))
@@ -258,6 +260,14 @@ def _solution(method: str, arrays: dict[str, np.ndarray], block: dict[str, Any],
                     mesh=[m for m in block.get("mesh_history", []) if isinstance(m, dict)])
 
 
+def no_method_applies(summ: Any) -> bool:
+    """summary.json (as read) of a run whose every method is not_applicable: the one complete run without a .npz
+    (nothing to draw or export; its report is the statuses and their messages)."""
+    blocks = summ.get("methods") if isinstance(summ, dict) else None
+    return bool(blocks) and isinstance(blocks, dict) and all(
+        isinstance(b, dict) and b.get("status") == Result.not_applicable.value for b in blocks.values())
+
+
 def read_run(results_dir: Path) -> Run:
     """Read a results directory written by :func:`write_run`; ConfigError (naming the file) if it
     is not one."""
@@ -275,7 +285,7 @@ def read_run(results_dir: Path) -> Run:
     man = parse_maneuver(read_yaml_file(cfg), str(cfg))
     config_text = cfg.read_text(encoding="utf-8")   # read_yaml_file has checked that it is UTF-8
     present = [m for m, fname in NPZ.items() if (d / fname).is_file()]
-    if not present:
+    if not present and not no_method_applies(summ):
         raise ConfigError(str(d), "", "no direct.npz, indirect.npz or trajectory.npz")
     check_summary(summ, str(d / "summary.json"), present)
     sols = {}
@@ -297,5 +307,5 @@ def read_run(results_dir: Path) -> Run:
     return Run(man, sols, summ, config_text)
 
 
-__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "held_run", "path_tolerance", "read_run", "save_run",
+__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "held_run", "no_method_applies", "path_tolerance", "read_run", "save_run",
            "solutions_of", "summary", "to_jsonable", "write_run"]

@@ -3,6 +3,7 @@ fields, exit codes, no tracebacks (small N)."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -223,6 +224,23 @@ def test_a_method_that_does_not_apply_alone_is_a_status_not_a_crash(tmp_path, fi
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["methods"]["indirect"]["status"] == "not_applicable" and "path constraints" in r.stdout
     assert (tmp_path / "o" / "report.html").is_file() and not list((tmp_path / "o").glob("fig_*"))
+    if figures:
+        return
+    # read back: report renders it again (the status and why), plot and export say there is no plan (exit 2)
+    written = (tmp_path / "o" / "report.html").read_text()
+    (tmp_path / "o" / "report.html").unlink()
+    r = run("report", tmp_path / "o")
+    assert r.returncode == 0 and not r.stderr, r.stderr
+    again = (tmp_path / "o" / "report.html").read_text()
+    assert "indirect: not applicable" in again and "does not cover path constraints" in again
+    stamp = re.compile(r"\d{4}-\d\d-\d\d \d\d:\d\d \w+")                     # the time it was generated
+    assert stamp.sub("", again) == stamp.sub("", written)
+    for cmd in (("plot",), ("export", "--format", "oem")):
+        r = run(*cmd, tmp_path / "o")
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+        assert "the run holds no plan (no method applies: indirect: the indirect method does not cover" in r.stderr
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["config.resolved.yaml", "report.html",
+                                                                 "summary.json"]
 
 
 def test_solve_default_method_is_direct(tmp_path):

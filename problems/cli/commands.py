@@ -199,10 +199,11 @@ def _write(args, out: Path, run, figures: bool = True) -> None:
     write_run_report(out, run, list(drawn.items()))
 
 
-def _results_dir(d: Path, flights: bool = False) -> int:
-    """0 if d is a results directory (``flights``: or a flight directory of ``se3ocp fly``), else the error
-    printed and 2."""
+def _results_dir(d: Path, flights: bool = False, plan: bool = True) -> int:
+    """0 if d is a results directory (``flights``: or a flight directory of ``se3ocp fly``; ``plan``: holding a
+    plan, not a run where no method applies), else the error printed and 2."""
     from ..flight.report import is_flight_dir
+    from ..store import no_method_applies
 
     if flights and is_flight_dir(d):
         return 0
@@ -210,19 +211,28 @@ def _results_dir(d: Path, flights: bool = False) -> int:
         print(f"se3ocp: error: {d}: not a results directory (needs summary.json and config.resolved.yaml)", file=sys.stderr)
         return 2
     if not any((d / n).is_file() for n in ("direct.npz", "indirect.npz", "trajectory.npz")):
-        print(f"se3ocp: error: {d}: not a results directory (no direct.npz, indirect.npz or trajectory.npz)",
-              file=sys.stderr)
-        return 2
+        try:
+            summ = json.loads((d / "summary.json").read_text())
+        except (OSError, ValueError):
+            summ = None
+        if not no_method_applies(summ):
+            print(f"se3ocp: error: {d}: not a results directory (no direct.npz, indirect.npz or trajectory.npz)",
+                  file=sys.stderr)
+            return 2
+        if plan:
+            said = "; ".join(f"{m}: {b.get('message', '')}" for m, b in summ["methods"].items())
+            print(f"se3ocp: error: {d}: the run holds no plan (no method applies: {said})", file=sys.stderr)
+            return 2
     return 0
 
 
-def _update_results(args, write, said, flights: bool = False) -> int:
+def _update_results(args, write, said, flights: bool = False, plan: bool = True) -> int:
     """``plot`` and ``report``: ``write(path)`` adds files to a copy of the complete results directory
     ``args.results`` (results_update: the copy is swapped in when it returns) and returns their names;
     ``said(d, written)`` is the line printed.  2 if the directory is not a results directory (``flights``:
-    nor a flight directory)."""
+    nor a flight directory; ``plan``: 2 for a run without a plan, where no method applies)."""
     d = Path(args.results)
-    if _results_dir(d, flights):
+    if _results_dir(d, flights, plan):
         return 2
     with results_update(d) as tx:
         written = [str(d / name) for name in write(tx.path)]
@@ -294,7 +304,7 @@ def cmd_report(args) -> int:
     from ..report import write_report
 
     return _update_results(args, lambda path: [write_report(path, draw=not args.no_figures).name],
-                           lambda d, written: f"wrote {written[0]}", flights=True)
+                           lambda d, written: f"wrote {written[0]}", flights=True, plan=False)
 
 
 def cmd_sweep(args) -> int:
