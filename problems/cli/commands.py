@@ -92,9 +92,10 @@ def cmd_solve(args) -> int:
     with _results(args, man) as tx:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
-        slip = thrust_warning(man)
-        if slip:
-            say(args, f"warning: {slip}")
+        problem = man.problem
+        for said in (thrust_warning(man), problem.control.objective.caution(problem) if problem.kind == "smooth" else ""):
+            if said:
+                say(args, f"warning: {said}")
         result = _solved(args, man, args.method)
         kept = _kept_level(result)
         if not kept:

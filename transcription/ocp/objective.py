@@ -82,6 +82,11 @@ class Objective:
         ('' when it has nothing to add to transcription.strategy.hints.failure_hint's tips)."""
         return ""
 
+    def caution(self, problem: "Problem") -> str:
+        """One line said before solving ``problem`` when this objective is known to converge slowly or not at all on
+        problems of its kind, with what to try ('' otherwise)."""
+        return ""
+
     def strategy(self, problem: "Problem", options: Any) -> Any:
         """This objective's default strategy for ``problem`` with the direct method's ``options``
         (:mod:`transcription.strategy`)."""

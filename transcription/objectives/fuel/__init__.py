@@ -116,6 +116,12 @@ class Fuel(Objective):
         return tip + ("; or a wheels' torque limit control.bounds.moment (the L1 optimum of a free torque is "
                       "impulsive in the limit, §21)" if c.moment_bound is None else "")
 
+    def caution(self, problem: Problem) -> str:
+        """With an engine and wheels: none of the bundled engine files converges (docs §25), and the cure."""
+        tip = self.failure_tip(problem)
+        return (f"the L1 fuel of an engine with wheels converges slowly if at all (the bundled engine raises end "
+                f"without a plan after minutes: docs/mathematics.md §25); consider {tip}") if tip else ""
+
     def strategy(self, problem: Problem, options) -> FuelStrategy:
         return FuelStrategy()
 
