@@ -307,5 +307,5 @@ def read_run(results_dir: Path) -> Run:
     return Run(man, sols, summ, config_text)
 
 
-__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "held_run", "no_method_applies", "path_tolerance", "read_run", "save_run",
-           "solutions_of", "summary", "to_jsonable", "write_run"]
+__all__ = ["DEFAULT_PATH_TOL", "NPZ", "Run", "check_summary", "held_run", "no_method_applies", "path_tolerance",
+           "read_run", "save_run", "solutions_of", "summary", "to_jsonable", "write_run"]

@@ -93,7 +93,8 @@ def cmd_solve(args) -> int:
         say(args, f"{man.name}: {man.control_kind} maneuver, {man.discretization}, N = {man.N}, T = {man.T:g} "
                     f"-> {tx.target}/")
         problem = man.problem
-        for said in (thrust_warning(man), problem.control.objective.caution(problem) if problem.kind == "smooth" else ""):
+        caution = problem.control.objective.caution(problem) if problem.kind == "smooth" else ""
+        for said in (thrust_warning(man), caution):
             if said:
                 say(args, f"warning: {said}")
         result = _solved(args, man, args.method)

@@ -89,6 +89,7 @@ def cmd_fly(args) -> int:
     from .run import run_flights
     from .actuators import actuator_lines
     from .basilisk import basilisk_text
+    from .forces import j2_plane_drift
     from .schema import preset_text, truth_from_preset
 
     man, sol, spec = _plan(args)
@@ -110,6 +111,9 @@ def cmd_fly(args) -> int:
             taken = truth_from_preset(spec.gravity, man.physical)
             if taken:
                 _say(args, f"  {preset_text(taken, units(man.problem).unit('length'))}")
+            drift = j2_plane_drift(man, sol, spec.gravity)
+            if drift:
+                _say(args, f"  warning: {drift}")
             for line in actuator_lines(spec.actuators, man.problem, units(man.problem)):
                 _say(args, f"  {line}")
             bar = FlightProgress(quiet=args.quiet)

@@ -87,6 +87,64 @@ def check_forces(maneuver, truth: dict) -> tuple[str, str] | None:
     return None
 
 
+def plane_turn(mu: float, x: np.ndarray, v: np.ndarray, c2: float, T: float) -> tuple[float, float]:
+    """(secular, periodic): the angle (rad) by which a J2 term c2 = J2 R^2 turns the plane of the orbit through (x, v)
+    over T by its nodal regression, (3/2) n c2 / p^2 |cos i| T sin i, and the amplitude of the plane's short-periodic
+    wobble about it, (3/2) c2 / p^2 |sin i cos i| (the flown turn is within it of the secular one: measured within
+    0.99 of it from 0.1 to 1.3 orbits at 45-97.6 deg); (0, 0) for an orbit that is not an ellipse."""
+    from ..elements import elements_of
+
+    el = elements_of(mu, x, v)
+    p = el["a"] * (1.0 - el["e"] ** 2)
+    if not (el["a"] > 0.0 and p > 0.0):
+        return 0.0, 0.0
+    i = math.radians(el["i_deg"])
+    k = 1.5 * c2 / p**2 * abs(math.cos(i)) * math.sin(i)
+    return math.sqrt(mu / el["a"] ** 3) * T * k, k
+
+
+def j2_plane_drift(maneuver, plan, gravity: dict | None) -> str:
+    """'' or one line: the truth's J2 differs from the plan's (``gravity``: the truth's block, None: the plan's own)
+    and undoing the orbit plane's turn it adds over T needs more delta-v than the force bound leaves beyond the plan.
+
+    The nodal regression of J2 (Vallado 2013, ch. 9), dOmega/dt = -(3/2) n J2 (R/p)^2 cos i, differs between the
+    truth and the plan by (3/2) n |J2_t R_t^2 - J2_p R_p^2| / p^2 |cos i|; over T the plane turns by that drift times
+    sin i, less twice its short-periodic wobble (:func:`plane_turn`) at the least, and undoing a turn theta at speed v
+    needs at least v theta (a plane change at its best node: spread over the orbit it costs more).  The engine leaves
+    F_max T / m less the plan's own delta-v (sum_j omega_j |u_f,j| / m).
+    A lower bound on what feedback needs, so the line is said only when it cannot be met.  Why: a point-mass plan
+    flown on a J2 truth by a 1-2 N engine lands kilometres off in closed loop as in open loop (the pull of J2 is
+    several times the engine's), and the cure is in the plan, not in the tracker's weights (issue 43)."""
+    from ...transcription.geometry.state import X_MOM, X_POS
+    from ...transcription.ocp import quadrature_weights
+
+    problem = plan.problem if plan.problem is not None else maneuver.problem
+    plan_g, truth_g = maneuver.resolved.get("gravity") or {}, gravity or maneuver.resolved.get("gravity") or {}
+    c2 = [g.get("J2", 0.0) * g.get("radius", 0.0) ** 2 if g.get("kind") == "j2" else 0.0 for g in (plan_g, truth_g)]
+    bound, mu = problem.control.force_bound, problem.model.mu
+    if c2[0] == c2[1] or bound is None or not mu or plan.controls is None:
+        return ""
+    X0, T, m = np.asarray(problem.X0, float), float(problem.T), float(problem.model.mass)
+    x, v = X0[X_POS], X0[X_MOM] / m
+    secular, periodic = plane_turn(mu, x, v, abs(c2[1] - c2[0]), T)
+    turn = max(secular - 2.0 * periodic, 0.0)
+    need = float(np.linalg.norm(v)) * turn
+    omega = quadrature_weights(problem.scheme, problem.N, problem.steps_of(problem.h))
+    used = float(np.sum(omega * np.linalg.norm(np.asarray(plan.controls, float)[:3], axis=0))) / m
+    spare = bound.largest_norm() * T / m - used
+    if need <= spare:
+        return ""
+    which = "the truth's J2 is not in the plan" if c2[0] == 0.0 else (
+        "the plan's J2 is not in the truth" if c2[1] == 0.0 else "the truth's J2 differs from the plan's")
+    ms = 1e3 if maneuver.physical is not None and maneuver.physical.units is not None \
+        and maneuver.physical.units.length == "km" else 1.0
+    unit = "m/s" if ms == 1e3 else "length/time"
+    return (f"{which}: over T it turns the orbit's plane by at least {math.degrees(turn):.3g} deg against the plan; "
+            f"undoing that needs at least {need * ms:.3g} {unit}, and the force bound leaves {max(spare, 0.0) * ms:.3g} {unit} "
+            f"beyond the plan's {used * ms:.3g}: no feedback can bring this plan to its target -- plan with the "
+            f"truth's gravity (the maneuver's gravity block)")
+
+
 def truth_forces(maneuver, truth: dict) -> ca.Function | None:
     """The Function X (18) -> f (3) of the truth forces ``truth`` for ``maneuver`` (module docstring), or None
     without any; one Function per set of numbers and process (the flight engine builds its integrator per
@@ -122,5 +180,5 @@ def _forces(mass: float, L: float, radius_m: float, drag: tuple | None, srp: tup
     return ca.Function("truth_forces", [X], [f], ["X"], ["f"])
 
 
-__all__ = ["EXPONENTIAL_ATMOSPHERE", "FORCE_KEYS", "OMEGA_EARTH", "SOLAR_PRESSURE", "check_forces", "density", "sun",
-           "truth_forces"]
+__all__ = ["EXPONENTIAL_ATMOSPHERE", "FORCE_KEYS", "OMEGA_EARTH", "SOLAR_PRESSURE", "check_forces", "density",
+           "j2_plane_drift", "plane_turn", "sun", "truth_forces"]
