@@ -29,7 +29,6 @@ from ..transcription.solve import Comparison, compare
 from ..transcription.results.start import Start
 from .maneuvers import Maneuver, load_maneuver
 from .store import path_tolerance
-from .units import declare, declared
 
 
 def load(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Maneuver:
@@ -157,20 +156,8 @@ def solve(problem: Maneuver | Problem, method: str = "direct", *, direct: Direct
     out = _solve.solve(prob, method, direct=d, indirect=i, progress=cb, warm_start=warm_start, accuracy=acc,
                        strategy=strategy)
     if isinstance(problem, Maneuver):
-        out = with_physical(problem, check_clearance(problem, with_units(problem, out)))
+        out = with_physical(problem, check_clearance(problem, out))
     return _solve.raise_unconverged(out) if throw else out
-
-
-def with_units(maneuver: Maneuver, result: Solution | Comparison) -> Solution | Comparison:
-    """``result`` with the maneuver file's units declared for every Solution's own Problem (a refined level's or a
-    strategy's Problem is another object than the file's: without this its margins and misses lost their units)."""
-    system = declared(maneuver.problem)
-
-    def mark(s: Solution) -> Solution:
-        if s.problem is not None and system is not None and declared(s.problem) is None:
-            declare(s.problem, system)
-        return s
-    return each(result, mark)
 
 
 def simulate(problem: Maneuver | Problem, controls=None) -> Solution:

@@ -262,7 +262,7 @@ def parse_maneuver(doc: Any, source: str = "<config>") -> Maneuver:
         v.fail(_PROBLEM_FIELDS.get(e.field, e.field), str(e).split(": ", 1)[1], also=_PROBLEM_ALSO.get(e.field, ()))
     if resolved_control is not None and (doc.get("control") or {}).get("weights", "auto") == "auto":
         problem = _weights_in_actuator_terms(problem, resolved_control)
-    _physical.declare(problem, phys)
+    problem = _physical.in_units(problem, phys)
     return Maneuver(name=name.strip(), source=source, problem=problem, direct=direct, indirect=indirect, body=body,
                     central_body_radius=central_radius, initial=initial, terminal=terminal, resolved=resolved,
                     physical=phys, accuracy=accuracy)

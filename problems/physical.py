@@ -211,12 +211,12 @@ def check_radians(v, angle: float, where: str) -> None:
                       f"(a rotation of exactly {angle!r} degrees: give the attitude as a matrix)")
 
 
-def declare(problem, phys: Physical) -> None:
-    """Record the file's units for its Problem (problems.units.declare), so figures and reports of
-    its solutions label them."""
-    from .units import declare as _declare
-
-    _declare(problem, phys.units)
+def in_units(problem, phys: Physical | None):
+    """The file's Problem carrying the file's units (Problem.units, problems.units.declared), so figures and
+    reports of its solutions -- and of every Problem derived from it -- label them."""
+    if phys is None or phys.units is None:
+        return problem
+    return problem.replace(units=phys.units)
 
 
 def unit_system(man) -> UnitSystem | None:
@@ -248,6 +248,6 @@ def thrust_warning(man) -> str:
             f"(1 N = 1e-3 kN) -- a bound meant in newtons?")
 
 
-__all__ = ["KEYS", "THRUST_SLIP_RATIO", "Physical", "check_radians", "check_units", "declare", "expand", "radians_hint",
+__all__ = ["KEYS", "THRUST_SLIP_RATIO", "Physical", "check_radians", "check_units", "expand", "in_units", "radians_hint",
            "thrust_warning", "unit_system"]
 

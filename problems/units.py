@@ -12,14 +12,14 @@ Three cases (problems/bodies.py):
   the numbers are in whatever units the file used, and the labels name only the dimension
   ("mass·length²/time²") or nothing at all -- never "orbital periods".
 
-A loaded maneuver declares its unit system for its Problem (:func:`declare`, called by
-problems.maneuvers), so that everything drawn from a Solution of that Problem finds it; a Problem
-built in Python has none (normalized or unnamed, by its GM).
+A loaded maneuver's Problem carries its unit system (``Problem.units``: problems.physical.in_units,
+called by problems.maneuvers), and every Problem derived from it by ``replace`` -- a refined level's, a
+strategy's, one sent to a worker process -- keeps it, so everything drawn from a Solution finds it; a
+Problem built in Python has none unless given ``units=`` (normalized or unnamed, by its GM).
 """
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 
 from ..transcription.ocp import MARGIN_DIMENSION
@@ -131,23 +131,11 @@ def units_for(mu: float | None, system: UnitSystem | None = None) -> Units:
     return Units(normalized=mu is not None and math.isclose(mu, GM_NORMALIZED, rel_tol=1e-9), mu=mu)
 
 
-#: id(problem) -> (weak reference to it, its UnitSystem); see :func:`declare`
-_DECLARED: dict[int, tuple[weakref.ref, UnitSystem]] = {}
-
-
-def declare(problem, system: UnitSystem | None) -> None:
-    """Record that ``problem``'s numbers are in ``system`` (a loaded maneuver's ``units:`` or preset);
-    the record goes with the Problem object."""
-    if system is None:
-        return
-    key = id(problem)
-    _DECLARED[key] = (weakref.ref(problem, lambda _r, k=key: _DECLARED.pop(k, None)), system)
-
-
 def declared(problem) -> UnitSystem | None:
-    """The UnitSystem :func:`declare` recorded for this very Problem object, or None."""
-    entry = _DECLARED.get(id(problem))
-    return entry[1] if entry is not None and entry[0]() is problem else None
+    """The UnitSystem a Problem carries (its ``units``: a loaded maneuver's ``units:`` or preset,
+    :func:`problems.physical.in_units`), or None."""
+    system = getattr(problem, "units", None)
+    return system if isinstance(system, UnitSystem) else None
 
 
 def units(problem) -> Units:
@@ -155,4 +143,4 @@ def units(problem) -> Units:
     return units_for(getattr(getattr(problem, "model", None), "mu", None), declared(problem))
 
 
-__all__ = ["DIMENSIONS", "MARGIN_DIMENSION", "Units", "declare", "declared", "units", "units_for"]
+__all__ = ["DIMENSIONS", "MARGIN_DIMENSION", "Units", "declared", "units", "units_for"]

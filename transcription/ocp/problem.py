@@ -40,6 +40,9 @@ class Problem:
     #: of the bounds of the problem it relaxes (objectives.effort.relaxation); None: from this problem's boundary
     #: data and bounds alone (nlp.scaling.control_magnitudes)
     control_scales: tuple | None = None
+    #: what the problem's numbers are in: a label its author attaches (problems.units: the maneuver file's
+    #: UnitSystem), kept by :meth:`replace` and pickling, never read by the numerical core; None: unnamed
+    units: object = None
     #: what methods build from this (immutable) Problem and keep with it (its NLP, by the options it depends on):
     #: :meth:`memo`
     _memo: dict = dataclasses.field(default_factory=dict, init=False, repr=False, compare=False)
