@@ -305,3 +305,5 @@ def test_the_failure_hint_names_the_objective_and_the_weight_ratio(name, sets, o
     assert ("control.weights=auto" in hint) is weights_tip, hint
     if weights_tip:
         assert re.search(r"price the moment \d\.\de[+-]0\d times", hint), hint
+    infeasible = failure_hint(failed_solution(problem, "direct", "ipopt", Result.infeasible, ""), DirectOptions())
+    assert "control.weights=auto" not in infeasible, infeasible           # weights do not make a problem feasible

@@ -20,11 +20,13 @@ def failure_hint(sol: Solution, options: DirectOptions, binding_fraction: float 
     r = sol.result
     if sol.converged or r in (Result.interrupted, Result.cayley_failed, Result.invalid_option, Result.non_finite):
         return ""
-    tips = [tip for tip in (_objective_tip(sol), weights_tip(sol.problem)) if tip]
+    tips = [tip for tip in (_objective_tip(sol),) if tip]
     binding = binding_bound(sol, binding_fraction)
     if binding and r in (Result.infeasible, Result.max_iterations, Result.acceptable, Result.time_limit,
                                           Result.solver_failed):
         tips.append(binding)
+    if r is not Result.infeasible and (weights := weights_tip(sol.problem)):   # weights do not make it feasible
+        tips.append(weights)
     if r is Result.acceptable:
         tips.append("a looser solver.direct.tol (IPOPT stalled at its 'acceptable' level above it) or "
                     "solver.direct.options.acceptable_iter=0 (keep iterating)")
