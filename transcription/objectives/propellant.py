@@ -108,14 +108,14 @@ def effort_problem(problem: Problem) -> Problem:
 @dataclass(frozen=True)
 class PropellantStrategy(Composed):
     """The propellant objective's default (module docstring): from the effort problem's optimum
-    (:func:`effort_problem`, by its default strategy: on lgvi_kepler through its LGVI optimum; then, on lgvi_kepler,
-    by its strategy on that scheme itself), then the free motion and the interpolation, the first that converges
-    kept; a given start or a chosen ``initial_guess`` is solved from as it is.  Why both routes: neither serves every
-    engine file.  With the wheels' torque bounded (configs/leo_engine_fuel.yaml, 0.01 N m) the effort problem's LGVI
-    optimum, 3.5 km off the exact orbit, was no start on lgvi_kepler (3000 iterations at a residual of 0.18), where
-    its own relaxed and aimed starts converge in 69; with the moment free (leo_body_engine, weights auto) those end
-    at a higher effort optimum (1027.6 against 996.1) from which the propellant solve wandered (918 iterations at a
-    residual of 0.03 in 76 s), where the LGVI's route converges in 118."""
+    (:func:`effort_problem`, by its default strategy: on lgvi_kepler through its LGVI optimum, then by its strategy on
+    that scheme itself, :func:`~transcription.strategy.core.default_strategy`), then the free motion and the
+    interpolation, the first that converges kept; a given start or a chosen ``initial_guess`` is solved from as it
+    is.  Neither of the effort problem's routes serves every engine file: with the wheels' torque bounded
+    (configs/leo_engine_fuel.yaml, 0.01 N m) the LGVI's optimum is no start on lgvi_kepler, where the own starts
+    converge in 69 iterations; with the moment free (leo_body_engine, weights auto) those end at a higher effort
+    optimum (1027.6 against 996.1) from which the propellant solve wandered (918 iterations at a residual of 0.03 in
+    76 s), where the LGVI's route converges in 118."""
 
     def compose(self, problem: Problem, options, start: Start | None = None):
         if start is not None:
@@ -124,9 +124,7 @@ class PropellantStrategy(Composed):
             return one
         label = "from the effort optimum"
         effort = FromRelated(Solve(label=label), effort_problem, "effort", label, "the effort problem")
-        own = replace(effort, label="from the effort optimum on its own scheme", own_scheme=True)
-        return FirstOf((effort, *((own,) if problem.scheme == "lgvi_kepler" else ()),
-                        Solve(starts.rollout, "rollout"), Solve(starts.interpolation, "interpolate")))
+        return FirstOf((effort, Solve(starts.rollout, "rollout"), Solve(starts.interpolation, "interpolate")))
 
 
 __all__ = ["Propellant", "PropellantStrategy", "effort_problem", "propellant_node"]

@@ -283,49 +283,55 @@ class CoarseToFine:
 @dataclass(frozen=True)
 class FromRelated:
     """The problem first solved as a related one -- ``related(problem)``, by its default strategy
-    (:func:`default_strategy`; with ``own_scheme`` its objective's strategy on its own scheme, not through the LGVI),
-    its progress under ``name`` -- that optimum fitted onto this problem's grid and scheme and finished by ``finish``,
-    the attempt named ``label`` (the first solves its parts, on ``on``); when the first solve fails, a Solution saying
-    so (its trace: what the related problem tried)."""
+    (:func:`default_strategy`), its progress under ``name`` -- that optimum fitted onto this problem's grid and scheme and finished by ``finish``
+    (within ``finish_budget`` iterations per solve when given), the attempt named ``label`` (the first solves its
+    parts, on ``on``); when the first solve fails, a Solution saying so (its trace: what the related problem tried)."""
 
     finish: Strategy
     related: Callable[[Problem], Problem]
     name: str
     label: str
     on: str
-    own_scheme: bool = False
+    finish_budget: int | None = None
 
     def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
         other = self.related(problem)
-        first = other.control.objective.strategy(other, ctx.options) if self.own_scheme else \
-            default_strategy(other, ctx.options)
-        c = first.run(other, start, ctx.under(self.name))
+        c = default_strategy(other, ctx.options).run(other, start, ctx.under(self.name))
         if not c.converged or c.warm is None:
             return not_made(problem, ctx, self.label, f"not available ({self.on} did not converge)", c.trace, self.on)
         fitted = c.warm.fit(problem.N, problem.scheme, problem.fractions)[0]
+        if self.finish_budget is not None:
+            ctx = ctx.using(max_iter=min(self.finish_budget, ctx.options.max_iter))
         return labelled(self.finish.run(problem, fitted, ctx), self.label, c.trace, self.on,
                         getattr(self.finish, "label", ""))
 
 
-def from_scheme(finish: Strategy, scheme: str = "lgvi") -> FromRelated:
+def from_scheme(finish: Strategy, scheme: str = "lgvi", finish_budget: int | None = 200) -> FromRelated:
     """The problem first solved on another ``scheme`` of the same grid and control layout (:class:`FromRelated`),
-    named 'from the <scheme> optimum'.
+    named 'from the <scheme> optimum', its finish within ``finish_budget`` iterations.
 
     How the Kepler-split LGVI is reached (docs/mathematics.md §2a): its exact two-body drift is strongly nonlinear
     in the state far from an orbit, where a solver's first iterates are, while the LGVI's drift is polynomial; their
-    optima differ by the LGVI's orbit error (3.5 km in a LEO orbit at N = 400), a few iterations apart."""
+    optima differ by the LGVI's orbit error (3.5 km in a LEO orbit at N = 400), a few iterations apart: 7 to 27 on the
+    six bundled lgvi_kepler files.  A finish that has not converged in ``finish_budget`` (about seven times the most
+    measured) is not near: on leo_engine_fuel.yaml's effort problem (the wheels' torque bounded) it wandered for
+    3000 iterations at a residual of 0.18, where the objective's own strategy on that scheme converges in 69."""
     def other(p: Problem) -> Problem:
         d = p.disc
         return replace(p, disc=discretization(d.model, scheme, d.newton_iters, force_frame=d.force_frame))
-    return FromRelated(finish, other, scheme, f"from the {scheme} optimum", f"the {scheme} problem")
+    return FromRelated(finish, other, scheme, f"from the {scheme} optimum", f"the {scheme} problem",
+                       finish_budget=finish_budget)
 
 
 def default_strategy(problem: Problem, options) -> Strategy:
-    """The strategy of ``problem`` when none is given: its objective's, on the Kepler-split LGVI started from its
-    optimum on the LGVI (:func:`from_scheme`) unless the objective's own strategy reaches it otherwise
+    """The strategy of ``problem`` when none is given: its objective's; on the Kepler-split LGVI first from its
+    optimum on the LGVI (:func:`from_scheme`), then -- when that route fails -- the objective's own strategy on that
+    scheme, unless the objective's own strategy reaches it otherwise
     (:attr:`~transcription.ocp.objective.Objective.via_lgvi`)."""
     strategy = problem.control.objective.strategy(problem, options)
-    return from_scheme(strategy) if problem.scheme == "lgvi_kepler" and problem.control.objective.via_lgvi else strategy
+    if problem.scheme == "lgvi_kepler" and problem.control.objective.via_lgvi:
+        return FirstOf((from_scheme(strategy), strategy))
+    return strategy
 
 
 def step_line(what: str, sol: Solution) -> str:
