@@ -283,9 +283,10 @@ class CoarseToFine:
 @dataclass(frozen=True)
 class FromRelated:
     """The problem first solved as a related one -- ``related(problem)``, by its default strategy
-    (:func:`default_strategy`), its progress under ``name`` -- that optimum fitted onto this problem's grid and scheme and finished by ``finish``
-    (within ``finish_budget`` iterations per solve when given), the attempt named ``label`` (the first solves its
-    parts, on ``on``); when the first solve fails, a Solution saying so (its trace: what the related problem tried)."""
+    (:func:`default_strategy`), its progress under ``name`` -- that optimum fitted onto this problem's grid and scheme
+    and finished by ``finish`` (within ``finish_budget`` iterations per solve when given), the attempt named ``label``
+    (the first solves its parts, on ``on``); when the first solve fails, a Solution saying so (its trace: what the
+    related problem tried)."""
 
     finish: Strategy
     related: Callable[[Problem], Problem]
