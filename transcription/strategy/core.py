@@ -286,7 +286,7 @@ class FromRelated:
     (:func:`default_strategy`), its progress under ``name`` -- that optimum fitted onto this problem's grid and scheme
     and finished by ``finish`` (within ``finish_budget`` iterations per solve when given), the attempt named ``label``
     (the first solves its parts, on ``on``); when the first solve fails, a Solution saying so (its trace: what the
-    related problem tried)."""
+    related problem tried), which with ``conclusive`` ends a :class:`FirstOf` (:meth:`ends`)."""
 
     finish: Strategy
     related: Callable[[Problem], Problem]
@@ -294,6 +294,11 @@ class FromRelated:
     label: str
     on: str
     finish_budget: int | None = None
+    conclusive: bool = False
+
+    def ends(self, sol: Solution) -> bool:
+        """With ``conclusive``: whether ``sol`` says the related problem did not converge (no start was made)."""
+        return self.conclusive and bool(sol.trace) and sol.trace[0].result is None
 
     def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution:
         other = self.related(problem)
@@ -321,17 +326,20 @@ def from_scheme(finish: Strategy, scheme: str = "lgvi", finish_budget: int | Non
         d = p.disc
         return replace(p, disc=discretization(d.model, scheme, d.newton_iters, force_frame=d.force_frame))
     return FromRelated(finish, other, scheme, f"from the {scheme} optimum", f"the {scheme} problem",
-                       finish_budget=finish_budget)
+                       finish_budget=finish_budget, conclusive=True)
 
 
 def default_strategy(problem: Problem, options) -> Strategy:
     """The strategy of ``problem`` when none is given: its objective's; on the Kepler-split LGVI first from its
-    optimum on the LGVI (:func:`from_scheme`), then -- when that route fails -- the objective's own strategy on that
-    scheme, unless the objective's own strategy reaches it otherwise
-    (:attr:`~transcription.ocp.objective.Objective.via_lgvi`)."""
+    optimum on the LGVI (:func:`from_scheme`), then -- when that optimum is no start (its finish fails) -- the
+    objective's own strategy on that scheme, unless the objective's own strategy reaches it otherwise
+    (:attr:`~transcription.ocp.objective.Objective.via_lgvi`).  When the LGVI problem itself fails, the same strategy
+    is not run again on the exact scheme, whose drift is the harder to start (leo_engine_fuel.yaml's L1 fuel: both
+    fail, 5.5 and 6.5 min)."""
     strategy = problem.control.objective.strategy(problem, options)
     if problem.scheme == "lgvi_kepler" and problem.control.objective.via_lgvi:
-        return FirstOf((from_scheme(strategy), strategy))
+        return FirstOf((from_scheme(strategy), strategy),
+                       not_tried="not tried (the lgvi problem did not converge by the same strategy)")
     return strategy
 
 
