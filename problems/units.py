@@ -14,8 +14,8 @@ Three cases (problems/bodies.py):
 
 A loaded maneuver's Problem carries its unit system (``Problem.units``: problems.physical.in_units,
 called by problems.maneuvers), and every Problem derived from it by ``replace`` -- a refined level's, a
-strategy's, one sent to a worker process -- keeps it, so everything drawn from a Solution finds it; a
-Problem built in Python has none unless given ``units=`` (normalized or unnamed, by its GM).
+strategy's -- keeps it, so everything drawn from a Solution finds it; a Problem built in Python has none
+unless given ``units=`` (normalized or unnamed, by its GM).
 """
 from __future__ import annotations
 

@@ -41,7 +41,7 @@ class Problem:
     #: data and bounds alone (nlp.scaling.control_magnitudes)
     control_scales: tuple | None = None
     #: what the problem's numbers are in: a label its author attaches (problems.units: the maneuver file's
-    #: UnitSystem), kept by :meth:`replace` and pickling, never read by the numerical core; None: unnamed
+    #: UnitSystem), kept by :meth:`replace`, never read by the numerical core; None: unnamed
     units: object = None
     #: what methods build from this (immutable) Problem and keep with it (its NLP, by the options it depends on):
     #: :meth:`memo`
