@@ -17,6 +17,7 @@ Every claim with its tolerance:
 """
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -260,3 +261,26 @@ def test_the_replans_start_from_costates_polished_by_the_indirect_method():
     before = [rp.replan(sol.trajectory.X[0], rp.start(s.warm).tail(0))[1].residual_before for s in (sol, better)]
     assert before[0] > 1e-5 and before[1] <= 1e-9
     assert np.array_equal(better.controls, sol.controls) and better.warm is not sol.warm
+
+
+def test_a_plan_no_feedback_can_hold_on_the_truths_j2_is_said_before_flying_and_kept(tmp_path, capsys):
+    """leo_body_engine (a 1 N engine) planned about a point mass and flown on the preset's J2: the command says before
+    the flights that the plane's turn needs more delta-v than the engine has (problems.flight.forces.j2_plane_drift),
+    and summary.json and report.html keep the line; flown on its own gravity, nothing is said."""
+    from se3ocp.problems.cli import main
+
+    f = tmp_path / "flight.yaml"
+    f.write_text("flight: {truth: {gravity: {kind: j2}}, feedback: none, runs: 1}\n")
+    args = ["fly", "configs/leo_body_engine.yaml", "--set", "horizon.N=40", "--workers", "1", "--no-figures"]
+    assert main([*args, "--flight", str(f), "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    said = [ln for ln in out.splitlines() if "warning: the truth's J2 is not in the plan" in ln]
+    assert len(said) == 1 and out.index(said[0]) < out.index("p95 (mean)"), out
+    line = said[0].split("warning: ", 1)[1]
+    assert "needs at least 2" in line and "m/s, and the force bound leaves" in line
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["plane_drift"] == line
+    assert "No feedback can hold this plan:" in (tmp_path / "o" / "report.html").read_text()
+    f.write_text("flight: {feedback: none, runs: 1}\n")
+    assert main([*args, "--flight", str(f), "--out", str(tmp_path / "p")]) == 0
+    assert "J2 is not in the plan" not in capsys.readouterr().out
+    assert "plane_drift" not in json.loads((tmp_path / "p" / "summary.json").read_text())

@@ -13,6 +13,7 @@ from ..maneuvers import Maneuver
 from ..sweep.executors import Executor, make_executor
 from .actuators import actuator_keys
 from .basilisk import basilisk_text
+from .forces import j2_plane_drift
 from .plan import plan_payload
 from .schema import FlightSpec, truth_from_preset
 from .task import fly_runs, gains_of, metric_keys, miss_frame, plan_usage
@@ -44,6 +45,8 @@ class FlightResult:
     mpc_warm_start: str = ""      # which costates the re-plans start from (transcription.closedloop.mpc.polished)
     wall_s: float = 0.0
     interrupted: bool = False
+    #: said before flying (problems.flight.forces.j2_plane_drift: no feedback can hold the plan), '' when nothing
+    plane_drift: str = ""
 
     @property
     def metrics(self) -> tuple:
@@ -78,6 +81,8 @@ class FlightResult:
             if {"none", mode} <= set(stats):
                 out[key] = p95_ratios(stats["none"], stats[mode])
         out["worse_than_open"] = worse_than_open(out)
+        if self.plane_drift:
+            out["plane_drift"] = self.plane_drift
         if "mpc" in stats:
             out["mpc"] = self.replan_summary()
         taken = truth_from_preset(self.spec.gravity, self.maneuver.physical)
@@ -164,7 +169,8 @@ def run_flights(man: Maneuver, sol, spec: FlightSpec, *, workers: int | None = N
     sol, warm = polished(sol) if "mpc" in spec.modes else (sol, "")
     payload = plan_payload(man, sol)
     gains = gains_of(payload, spec.weights)
-    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [], mpc_warm_start=warm)
+    res = FlightResult(man, spec, plan_figures(sol, gains, spec), gains, [], mpc_warm_start=warm,
+                       plane_drift=j2_plane_drift(man, sol, spec.gravity))
     if "lqr" in spec.modes and gains.steps is not None:
         res.lqr_gains = gains_of(payload, spec.weights, sub_steps=True)
     ex = executor or make_executor(workers, scheduler)

@@ -8,15 +8,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-import numpy as np
-
-from ...geometry.state import X_POS
 from ...ocp import Problem
-from ...ocp.estimate import target_estimate
 from ...results.solution import Solution
 from ...results.start import Start
 from ...strategy import starts
-from ...strategy.core import BestOf, CoarseToFine, Composed, Context, FirstOf, Solve, chosen, not_made
+from ...strategy.core import BestOf, CoarseToFine, Composed, Context, FirstOf, Solve, chosen, not_made, resolves
 from .continuation import ContinuationStart, counted_unbounded
 from .guard import Guarded
 from .homotopy import Homotopy
@@ -24,20 +20,11 @@ from .structure import StructuredFinish
 
 def coarse_resolves(problem: Problem, Nc: int, fraction: float) -> bool:
     """Whether the maneuver on Nc uniform steps is near enough the one on ``problem``'s grid for its optimum to
-    start the fuel solve: the two grids' free motions end at positions at most ``fraction`` * F T^2 / (2 m) apart, F
-    the largest force the bound allows (without a bound: the displacement the maneuver needs, |x_d - x_N^(N)|, x_d of
-    :func:`~transcription.ocp.estimate.target_estimate`); gaps at round-off (1e-9 of the position) always resolve.
-    Why: around the Earth a one-revolution LEO raise with a 1 N engine on 500 kg can move the body by 31 km, while the
-    discrete orbit of 100 steps ends 53 km from that of 400 steps: its coarse problems are infeasible
-    (docs/mathematics.md, "LEO fuel raises"); the fuel raise's gap is 0.0044 against a reach of 9.8."""
-    bound = problem.control.force_bound
-    F = bound.largest_norm() if bound is not None else np.inf
-    Xd, T = target_estimate(problem), problem.T
-    fine = starts.rollout(problem).X[-1]
-    coarse = starts.rollout(problem.replace(N=Nc, mesh=None)).X[-1]
-    gap = float(np.linalg.norm(fine[X_POS] - coarse[X_POS]))
-    reach = F * T**2 / (2.0 * problem.model.mass) if np.isfinite(F) else float(np.linalg.norm(Xd[X_POS] - fine[X_POS]))
-    return gap <= fraction * reach or gap <= 1e-9 * max(float(np.linalg.norm(fine[X_POS])), 1.0)
+    start the fuel solve (:func:`~transcription.strategy.core.resolves`).  Why: around the Earth a one-revolution LEO
+    raise with a 1 N engine on 500 kg can move the body by 31 km, while the discrete orbit of 100 steps ends 53 km from
+    that of 400 steps: its coarse problems are infeasible (docs/mathematics.md, "LEO fuel raises"); the fuel raise's
+    gap is 0.0044 against a reach of 9.8."""
+    return resolves(problem, problem.replace(N=Nc, mesh=None), fraction)
 
 
 @dataclass(frozen=True)
