@@ -248,6 +248,6 @@ def thrust_warning(man) -> str:
             f"(1 N = 1e-3 kN) -- a bound meant in newtons?")
 
 
-__all__ = ["KEYS", "THRUST_SLIP_RATIO", "Physical", "check_radians", "check_units", "expand", "in_units", "radians_hint",
-           "thrust_warning", "unit_system"]
+__all__ = ["KEYS", "THRUST_SLIP_RATIO", "Physical", "check_radians", "check_units", "expand", "in_units",
+           "radians_hint", "thrust_warning", "unit_system"]
 

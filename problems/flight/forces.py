@@ -140,8 +140,8 @@ def j2_plane_drift(maneuver, plan, gravity: dict | None) -> str:
         and maneuver.physical.units.length == "km" else 1.0
     unit = "m/s" if ms == 1e3 else "length/time"
     return (f"{which}: over T it turns the orbit's plane by at least {math.degrees(turn):.3g} deg against the plan; "
-            f"undoing that needs at least {need * ms:.3g} {unit}, and the force bound leaves {max(spare, 0.0) * ms:.3g} {unit} "
-            f"beyond the plan's {used * ms:.3g}: no feedback can bring this plan to its target -- plan with the "
+            f"undoing that needs at least {need * ms:.3g} {unit}, and the force bound leaves "
+            f"{max(spare, 0.0) * ms:.3g} {unit} beyond the plan's {used * ms:.3g}: no feedback can bring this plan to its target -- plan with the "
             f"truth's gravity (the maneuver's gravity block)")
 
 
