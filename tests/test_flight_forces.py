@@ -195,16 +195,18 @@ def test_a_point_mass_plan_flown_on_j2_is_warned_when_no_feedback_can_hold_it():
     j2 = {"kind": "j2", "J2": 1.0826359e-3, "radius": 6378.1366}
     man = maneuver("leo_body_engine")
     p = man.problem
-    idle = SimpleNamespace(problem=p, controls=np.zeros((6, p.N + 1)))
+    idle = SimpleNamespace(problem=p, controls=np.zeros((6, p.N + 1)), delta_v=0.0)
     said = j2_plane_drift(man, idle, j2)
     assert said.startswith("the truth's J2 is not in the plan: over T it turns the orbit's plane by at least 0.172 deg"
                            " against the plan; undoing that needs at least 23 m/s, and the force bound leaves 11.1 m/s "
                            "beyond the plan's 0: no feedback"), said
-    half = SimpleNamespace(problem=p, controls=np.r_[np.full((1, p.N + 1), 0.5e-3), np.zeros((5, p.N + 1))])
+    half = SimpleNamespace(problem=p, controls=np.r_[np.full((1, p.N + 1), 0.5e-3), np.zeros((5, p.N + 1))],
+                           delta_v=0.5e-3 * p.T / p.model.mass)                      # half the thrust all along
     assert "leaves 5.56 m/s beyond the plan's 5.56" in j2_plane_drift(man, half, j2)
     assert j2_plane_drift(man, idle, None) == "" and j2_plane_drift(man, idle, {"kind": "point_mass"}) == ""
     man_j2 = maneuver("leo/raise_engine_j2")
-    assert j2_plane_drift(man_j2, SimpleNamespace(problem=man_j2.problem, controls=np.zeros((6, man_j2.N + 1))),
-                          j2) == ""
+    assert j2_plane_drift(man_j2, SimpleNamespace(problem=man_j2.problem, controls=np.zeros((6, man_j2.N + 1)),
+                                                  delta_v=0.0), j2) == ""
     sso = maneuver("leo/raise_engine_j2", None, None, "gravity.kind=point_mass")
-    assert j2_plane_drift(sso, SimpleNamespace(problem=sso.problem, controls=np.zeros((6, sso.N + 1))), j2) == ""
+    assert j2_plane_drift(sso, SimpleNamespace(problem=sso.problem, controls=np.zeros((6, sso.N + 1)), delta_v=0.0),
+                          j2) == ""

@@ -111,12 +111,13 @@ def j2_plane_drift(maneuver, plan, gravity: dict | None) -> str:
     truth and the plan by (3/2) n |J2_t R_t^2 - J2_p R_p^2| / p^2 |cos i|; over T the plane turns by that drift times
     sin i, less twice its short-periodic wobble (:func:`plane_turn`) at the least, and undoing a turn theta at speed v
     needs at least v theta (a plane change at its best node: spread over the orbit it costs more).  The engine leaves
-    F_max T / m less the plan's own delta-v (sum_j omega_j |u_f,j| / m).
+    F_max T / m less the plan's own delta-v (``plan.delta_v``, sum_j omega_j |u_f,j| / m).
     A lower bound on what feedback needs, so the line is said only when it cannot be met.  Why: a point-mass plan
     flown on a J2 truth by a 1-2 N engine lands kilometres off in closed loop as in open loop (the pull of J2 is
     several times the engine's), and the cure is in the plan, not in the tracker's weights (issue 43)."""
     from ...transcription.geometry.state import X_MOM, X_POS
-    from ...transcription.ocp import quadrature_weights
+    from ..units import units
+    from .report import shown
 
     problem = plan.problem if plan.problem is not None else maneuver.problem
     plan_g, truth_g = maneuver.resolved.get("gravity") or {}, gravity or maneuver.resolved.get("gravity") or {}
@@ -129,20 +130,17 @@ def j2_plane_drift(maneuver, plan, gravity: dict | None) -> str:
     secular, periodic = plane_turn(mu, x, v, abs(c2[1] - c2[0]), T)
     turn = max(secular - 2.0 * periodic, 0.0)
     need = float(np.linalg.norm(v)) * turn
-    omega = quadrature_weights(problem.scheme, problem.N, problem.steps_of(problem.h))
-    used = float(np.sum(omega * np.linalg.norm(np.asarray(plan.controls, float)[:3], axis=0))) / m
+    used = float(plan.delta_v)
     spare = bound.largest_norm() * T / m - used
     if need <= spare:
         return ""
     which = "the truth's J2 is not in the plan" if c2[0] == 0.0 else (
         "the plan's J2 is not in the truth" if c2[1] == 0.0 else "the truth's J2 differs from the plan's")
-    ms = 1e3 if maneuver.physical is not None and maneuver.physical.units is not None \
-        and maneuver.physical.units.length == "km" else 1.0
-    unit = "m/s" if ms == 1e3 else "length/time"
+    unit, k = shown(units(problem), "velocity")
     return (f"{which}: over T it turns the orbit's plane by at least {math.degrees(turn):.3g} deg against the plan; "
-            f"undoing that needs at least {need * ms:.3g} {unit}, and the force bound leaves "
-            f"{max(spare, 0.0) * ms:.3g} {unit} beyond the plan's {used * ms:.3g}: no feedback can bring this plan to its target -- plan with the "
-            f"truth's gravity (the maneuver's gravity block)")
+            f"undoing that needs at least {need * k:.3g} {unit}, and the force bound leaves {max(spare, 0.0) * k:.3g} "
+            f"{unit} beyond the plan's {used * k:.3g}: no feedback can bring this plan to its target -- plan with "
+            f"the truth's gravity (the maneuver's gravity block)")
 
 
 def truth_forces(maneuver, truth: dict) -> ca.Function | None:
