@@ -11,8 +11,9 @@ from the flown state X_k,
 with Omega = J_truth^-1 Pi the measured rate and J_law the inertia the law believes (the plan's: the rate is
 tracked, transcription.dynamics.flight.sensed), eps and f the plan's known local errors and their feedforward (0
 without them; transcription.closedloop.tracking.Gains.with_local_errors), rho_{k-1} = h_{k-1} / h (1 on a uniform
-mesh), and the interval's command is (a_k + du_k, b_k + du_k).  The accumulated state is S = [X (18); z_{k-1} (12); du_{k-1} (6)].  The same
-numbers as the per-interval path (tested to 1e-10 relative); the attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
+mesh), and the interval's command is (a_k + du_k, b_k + du_k).  The accumulated state is
+S = [X (18); z_{k-1} (12); du_{k-1} (6)].  The same numbers as the per-interval path (tested to 1e-10 relative); the
+attitude error is taken below ~0.9 pi (:func:`~transcription.geometry.so3.log_so3_small`).
 """
 from __future__ import annotations
 

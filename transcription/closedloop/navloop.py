@@ -13,8 +13,9 @@ At node k, from the flown state X (the law's sensing: Pi -> J_law J_truth^-1 Pi)
 
 with c_f = 1 / rho_k for the ekf (its disturbance beyond eps, the plan's local errors, which the tracker's feedforward f
 answers: transcription.closedloop.tracking.Gains.with_local_errors) and c_r the tracker's own disturbance weight for
-the raw measurement (estimator none).  The accumulated state is S = [X (18); X^- (18); f^- (6); c^ (12); z_{k-1} (12); du_{k-1} (6)]; each interval
-also returns e = X (-) X^ (12).  The same numbers as :class:`~transcription.closedloop.estimator.Navigated` with the
+the raw measurement (estimator none).  The accumulated state is
+S = [X (18); X^- (18); f^- (6); c^ (12); z_{k-1} (12); du_{k-1} (6)]; each interval also returns
+e = X (-) X^ (12).  The same numbers as :class:`~transcription.closedloop.estimator.Navigated` with the
 per-interval law (tested to 1e-10).  (+), (-): :func:`~transcription.closedloop.tracking.retract`, ``tangent_error``.
 """
 from __future__ import annotations

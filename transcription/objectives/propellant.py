@@ -55,8 +55,8 @@ class Propellant(Objective):
 
     indirect: ClassVar = None
     name: ClassVar[str] = "propellant"
-    #: its strategy reaches lgvi_kepler through its effort problem (PropellantStrategy): a bang-off-bang optimum of the
-    #: LGVI's orbit was a poor start on the exact one (1342 more iterations, to a worse optimum: docs/mathematics.md §26)
+    #: its strategy reaches lgvi_kepler through its effort problem (PropellantStrategy): a bang-off-bang optimum of
+    #: the LGVI's orbit was a poor start on the exact one (1342 more iterations, to a worse optimum: docs §26)
     via_lgvi: ClassVar[bool] = False
 
     def check(self, control) -> None:
