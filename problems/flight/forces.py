@@ -117,7 +117,6 @@ def j2_plane_drift(maneuver, plan, gravity: dict | None) -> str:
     several times the engine's), and the cure is in the plan, not in the tracker's weights (issue 43)."""
     from ...transcription.geometry.state import X_MOM, X_POS
     from ..units import units
-    from .report import shown
 
     problem = plan.problem if plan.problem is not None else maneuver.problem
     plan_g, truth_g = maneuver.resolved.get("gravity") or {}, gravity or maneuver.resolved.get("gravity") or {}
@@ -136,7 +135,7 @@ def j2_plane_drift(maneuver, plan, gravity: dict | None) -> str:
         return ""
     which = "the truth's J2 is not in the plan" if c2[0] == 0.0 else (
         "the plan's J2 is not in the truth" if c2[1] == 0.0 else "the truth's J2 differs from the plan's")
-    unit, k = shown(units(problem), "velocity")
+    unit, k = units(problem).shown("velocity")
     return (f"{which}: over T it turns the orbit's plane by at least {math.degrees(turn):.3g} deg against the plan; "
             f"undoing that needs at least {need * k:.3g} {unit}, and the force bound leaves {max(spare, 0.0) * k:.3g} "
             f"{unit} beyond the plan's {used * k:.3g}: no feedback can bring this plan to its target -- plan with "
