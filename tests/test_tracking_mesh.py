@@ -309,7 +309,9 @@ def test_cli_fly_an_adaptive_plan_end_to_end(tmp_path):
     d = np.diff(g["t"])
     assert d.max() > 5 * d.min() and g["lqr_K"].shape[0] == len(g["lqr_t"]) - 1 > len(d)
     s = json.loads((out / "summary.json").read_text())
-    assert s["plan"]["N"] == len(d) and s["mpc"]["rejected"] == 0 and s["mpc"]["replans"] == 2 * 10
+    # re-plans at k = 0, 25, 50, ... of each run's N nodes (the plan's N, 217 measured, leaves more than the least
+    # horizon after the last)
+    assert s["plan"]["N"] == len(d) and s["mpc"]["rejected"] == 0 and s["mpc"]["replans"] == 2 * -(-len(d) // 25)
     assert (s["plan"]["h_min"], s["plan"]["h_max"]) == (d.min(), d.max())
     st = s["statistics"]
     print(f"se3ocp fly, adaptive N = {len(d)}: p95 position open {st['none']['position_miss']['p95']:.2e}, "

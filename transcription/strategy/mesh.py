@@ -5,10 +5,13 @@
   (the LGVI's node controls interpolated, u_{k+1/2} = (u_k + u_{k+1}) / 2; the first-order u_{k+1} held); a local
   error C_k h_k^{p+1} (p the scheme's order) makes the difference to X_{k+1} C_k h_k^{p+1} (1 - 2^-p), so
   e_k = difference / (1 - 2^-p), in the units of the continuous miss (position / L, velocity / V, angle, rate).
-* :func:`equidistributed_steps` -- with C(t) = e_k / h_k^{p+1} piecewise constant, sum_k C_k h_k^{p+1} is least for
+* :func:`equidistributed_density` -- with C(t) = e_k / h_k^{p+1} piecewise constant, sum_k C_k h_k^{p+1} is least for
   a given number of steps at h(t) = a C(t)^(-1/p) (equidistribution), where sum_k e_k = a^p T; a is chosen for the
   sum asked.  The node density 1/h(t) per level stays within [1/merge, split] times the old one (:class:`Refinement`)
   and each step's is the largest of its own and its neighbours'.
+* :func:`aimed_density` -- the sum asked is the one whose predicted terminal miss, the signed contributions c_k of the
+  steps each scaled by its refinement, is the miss aimed at (the cancellations the new mesh keeps counted, not those
+  it removes).
 """
 from __future__ import annotations
 
@@ -97,12 +100,13 @@ def tangent_norms(c: np.ndarray, problem, L: float, V: float, angle: float = 1.0
 
 
 def error_estimate(problem, X: np.ndarray, U: np.ndarray, steps: np.ndarray, order: int, L: float,
-                   V: float, angle: float = 1.0, rate: float = 1.0) -> tuple[np.ndarray, float]:
-    """(e (N,), predicted): each step's share e_k = |c_k| of the terminal error (:func:`propagated_errors`, in the
-    units of :func:`tangent_norms`) and the predicted terminal miss |sum_k c_k|."""
+                   V: float, angle: float = 1.0, rate: float = 1.0) -> tuple[np.ndarray, float, np.ndarray]:
+    """(e (N,), predicted, c (N, 12)): each step's signed contribution c_k to the terminal error
+    (:func:`propagated_errors`), its size e_k = |c_k| and the predicted terminal miss |sum_k c_k|, in the units of
+    :func:`tangent_norms`."""
     c = propagated_errors(problem, X, U, steps, local_errors(problem, X, U, steps, order))
     return (tangent_norms(c, problem, L, V, angle, rate),
-            float(tangent_norms(c.sum(axis=0), problem, L, V, angle, rate)[0]))
+            float(tangent_norms(c.sum(axis=0), problem, L, V, angle, rate)[0]), c)
 
 
 def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, total: float,
@@ -119,6 +123,44 @@ def equidistributed_density(steps: np.ndarray, errors: np.ndarray, order: int, t
     return np.clip(C ** (1.0 / order) / a, 1.0 / (rules.merge * h), rules.split / h)
 
 
+def aimed_density(problem, steps: np.ndarray, c: np.ndarray, order: int, aim: float, units: tuple,
+                  rules: Refinement = Refinement(), margin: float = 1.0) -> np.ndarray:
+    """The node density (N,) of :func:`equidistributed_density` whose predicted terminal miss is ``aim``.  Refined to
+    the density rho_k, step k's signed contribution c_k (N, 12) (:func:`propagated_errors`) becomes
+    c_k (rho_k h_k)^-p: an order-p scheme's error per unit time goes as h^p (and the LGVI's one error of a step
+    holding a control jump, ~ jump h^2, as well).  The predicted miss |sum_k c_k (rho_k h_k)^-p| (:func:`tangent_norms`
+    with ``units``: L, V[, angle, rate]) keeps the signs, so it counts the cancellations between the steps' errors
+    that the new mesh keeps and not those it removes: a switch's error resolved leaves the smooth part's, which may
+    cancel less (docs/mathematics.md §16).  The equidistributed sum is found by bisection in its logarithm.  Where
+    even every step split as far as one level may (:class:`Refinement` ``split``) predicts more than ``aim`` (a
+    floor): if the floor is within ``aim`` x ``margin`` (the tolerance itself, ``aim`` being it over a safety
+    margin), every step is split so (the closest this level comes, within the tolerance); beyond it, the density aims
+    at the floor plus ``aim`` -- this level cannot meet the tolerance, so it makes its progress on the fewest steps
+    that come within ``aim`` of the floor, and the next level goes on from a plan that resolves more."""
+    h = np.asarray(steps, dtype=float)
+    e = tangent_norms(c, problem, *units)
+
+    def density(log_total: float) -> np.ndarray:
+        return equidistributed_density(h, e, order, float(np.exp(log_total)), rules)
+
+    def predicted(log_total: float) -> float:
+        s = (density(log_total) * h) ** (-float(order))
+        return float(tangent_norms((c * s[:, None]).sum(axis=0), problem, *units)[0])
+
+    lo, hi = np.log(e.sum()) - 30.0, np.log(e.sum()) + 15.0     # beyond both of the density's bounds
+    if predicted(hi) <= aim:
+        return density(hi)
+    floor = predicted(lo)        # every step split as far as one level may
+    if floor > aim * margin:     # the tolerance out of this level's reach: the floor plus the aim, then more levels
+        aim = floor + aim
+    elif floor > aim:            # within reach only without the margin: as close as this level may come
+        return density(lo)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if predicted(mid) <= aim else (lo, mid)
+    return density(lo)
+
+
 def density_steps(steps: np.ndarray, density: np.ndarray) -> np.ndarray:
     """New step sizes over the horizon of the old ``steps`` (N,) with the node density ``density`` (N,) (nodes per
     unit time, constant on each old step): the new nodes where its integral passes the integers (rescaled so
@@ -130,13 +172,6 @@ def density_steps(steps: np.ndarray, density: np.ndarray) -> np.ndarray:
     t_new = np.interp(np.linspace(0.0, phi[-1], n + 1), phi, t_old)
     t_new[-1] = t_old[-1]
     return np.diff(t_new)
-
-
-def equidistributed_steps(steps: np.ndarray, errors: np.ndarray, order: int, total: float,
-                          rules: Refinement = Refinement()) -> np.ndarray:
-    """New step sizes (N',) over the same horizon whose local errors sum to about ``total`` and are
-    equidistributed in time (module docstring): steps h (N,), their local errors e (N,), the scheme's order p."""
-    return density_steps(steps, equidistributed_density(steps, errors, order, total, rules))
 
 
 def subdivided_steps(steps: np.ndarray, factor: float) -> np.ndarray:
@@ -289,6 +324,6 @@ def _with_neighbours(dens: np.ndarray, h: np.ndarray, split: float) -> np.ndarra
                       split / h)
 
 
-__all__ = ["Refinement", "chord_share", "contact_sagitta", "density_steps", "drift_shares", "equidistributed_density",
-           "equidistributed_steps", "error_estimate", "interval_margins", "local_errors", "margin_gradients",
+__all__ = ["Refinement", "aimed_density", "chord_share", "contact_sagitta", "density_steps", "drift_shares", "equidistributed_density",
+           "error_estimate", "interval_margins", "local_errors", "margin_gradients",
            "path_density", "propagated_errors", "subdivided_steps", "tangent_norms", "variations"]

@@ -22,8 +22,7 @@ from ..outcome import Result
 from ..results.solution import Solution
 from ..dynamics.trajectory import trajectory
 from ..dynamics.lgvi import ORDER, discretization
-from .mesh import (Refinement, density_steps, equidistributed_density, equidistributed_steps, error_estimate,
-                   path_density, subdivided_steps)
+from .mesh import Refinement, aimed_density, density_steps, error_estimate, path_density, subdivided_steps
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..solve import Comparison
@@ -305,34 +304,38 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float, rule
               path_tol: float | None = None) -> tuple[np.ndarray, float]:
     """The adaptive level's next mesh (relative step sizes) and this level's predicted miss (docs/mathematics.md
     §16): each step's local error (step doubling) propagated to the final node (transcription.strategy.mesh),
-    equidistributed with the sum of the shares e_k aimed at tol / safety times the measured miss's share of that sum.
-    A path violation over ``path_tol`` (default tol) is refined by :func:`path_mesh` (the steps whose local errors
-    drift the path off, and those about a contact); if that finds nothing, the mesh is subdivided by the uniform
-    factor of :func:`next_N`.  tol = inf (``solver.constraints_tolerance`` alone): the miss is not refined.
-    ``units``: the divisors of :func:`miss_units` (default those of :func:`scaled_miss`).  The mesh may have more
-    than growth N steps: the caller caps it (:func:`capped_mesh`)."""
+    equidistributed so that the predicted miss of the refined mesh (:func:`~.mesh.aimed_density`) is tol / safety,
+    calibrated by this level's flown miss over its own prediction.  A path violation over ``path_tol`` (default tol)
+    is refined by :func:`path_mesh` (the steps whose local errors drift the path off, and those about a contact); if
+    that finds nothing, the mesh is subdivided by the uniform factor of :func:`next_N`.  tol = inf
+    (``solver.constraints_tolerance`` alone): the miss is not refined.  ``units``: the divisors of :func:`miss_units`
+    (default those of :func:`scaled_miss`).  The mesh may have more than growth N steps: the caller caps it
+    (:func:`capped_mesh`)."""
     p = ORDER[problem.scheme]
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
-    e, predicted = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, *(units or (L, V)))
+    units = units or (L, V)
+    e, predicted, c = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, *units)
     path_tol = tol if path_tol is None else path_tol
     if rec["path_violation"] > path_tol:
-        mesh = path_mesh(problem, best, e, rec, path_tol, rules, tol)
+        mesh = path_mesh(problem, best, c, units, predicted, rec, path_tol, rules, tol)
         if mesh is not None:
             return mesh, predicted
     ratio = max(rec["miss"] / tol, rec["path_violation"] / path_tol)
-    if rec["path_violation"] / path_tol > rec["miss"] / tol or not (e.sum() > 0 and rec["miss"] > 0):
+    if rec["path_violation"] / path_tol > rec["miss"] / tol or not (predicted > 0 and rec["miss"] > 0):
         return subdivided_steps(best.steps, next_N(problem.N, ratio, order, 0, rules) / problem.N), predicted
-    return equidistributed_steps(best.steps, e, p, tol / rules.safety * e.sum() / rec["miss"], rules), predicted
+    aim = tol / rules.safety * predicted / rec["miss"]
+    return (density_steps(best.steps, aimed_density(problem, best.steps, c, p, aim, units, rules, rules.safety)),
+            predicted)
 
 
-def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rules: Refinement,
-              miss_tol: float | None = None) -> np.ndarray | None:
+def path_mesh(problem, best: Solution, c: np.ndarray, units: tuple, predicted: float, rec: dict, tol: float,
+              rules: Refinement, miss_tol: float | None = None) -> np.ndarray | None:
     """The next mesh when the flown path leaves a path constraint between the nodes by more than tol
     (docs/mathematics.md §16): on every step the larger of the terminal miss's node density (:func:`next_mesh`, aimed
-    at ``miss_tol``, default tol; 1 / h_k when there is no miss or miss_tol is inf) and
-    transcription.strategy.mesh.path_density's (aimed at tol / safety).  None when the path rule finds nothing over
-    the tolerance (the caller subdivides)."""
+    at ``miss_tol``, default tol, from the steps' contributions ``c`` in ``units`` and their ``predicted`` miss;
+    1 / h_k when there is no miss or miss_tol is inf) and transcription.strategy.mesh.path_density's (aimed at
+    tol / safety).  None when the path rule finds nothing over the tolerance (the caller subdivides)."""
     from ..dynamics.flight import DEFAULT_SAMPLES, FlightError
 
     p, h = ORDER[problem.scheme], best.steps
@@ -344,9 +347,9 @@ def path_mesh(problem, best: Solution, e: np.ndarray, rec: dict, tol: float, rul
     if dens is None:
         return None
     miss_tol = tol if miss_tol is None else miss_tol
-    if e.sum() > 0 and rec["miss"] > 0 and np.isfinite(miss_tol):
-        dens = np.maximum(dens, equidistributed_density(h, e, p, miss_tol / rules.safety * e.sum() / rec["miss"],
-                                                        rules))
+    if predicted > 0 and rec["miss"] > 0 and np.isfinite(miss_tol):
+        dens = np.maximum(dens, aimed_density(problem, h, c, p, miss_tol / rules.safety * predicted / rec["miss"],
+                                              units, rules, rules.safety))
     else:
         dens = np.maximum(dens, 1.0 / h)
     return density_steps(h, dens)
