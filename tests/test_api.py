@@ -6,6 +6,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 import se3ocp
 from support import ROOT
 
@@ -74,3 +76,23 @@ def test_nothing_refers_outside_the_repository():
             files += list((ROOT / folder).glob(ext))
     bad = [str(p.relative_to(ROOT)) for p in files if pat.search(p.read_text()) and p.name != "test_api.py"]
     assert not bad, bad
+
+
+def test_a_solved_problem_and_its_solution_pickle_and_solve_alike():
+    """A Problem whose Discretization has built its step Functions (any solve does) and the Solution it gave go
+    through pickle (to a process pool, a cache): the Solution's cost and plan come back bit for bit, and the
+    unpickled Problem, its Function cache rebuilt on first use, solves to the same cost to round-off (1e-12)."""
+    import pickle
+
+    import numpy as np
+    from support import problem
+
+    p = problem("e3", 40, "lgvi")
+    sol = se3ocp.solve(p)
+    p2, sol2 = pickle.loads(pickle.dumps(p)), pickle.loads(pickle.dumps(sol))
+    assert sol2.cost == sol.cost and np.array_equal(sol2.controls, sol.controls) and sol2.result is sol.result
+    assert dict(sol2.stats) == dict(sol.stats) and sol2.trace == sol.trace
+    with pytest.raises(TypeError):
+        sol2.stats["iterations"] = 0          # still read-only
+    again = se3ocp.solve(p2)
+    assert again.converged and abs(again.cost - sol.cost) <= 1e-12 * abs(sol.cost)

@@ -306,6 +306,12 @@ class Discretization:
         return self.cached("parametric", lambda: _StepFunctions(self, parametric=True))
 
     # ------------------------------------------------------------------ cache
+    def __getstate__(self) -> dict:
+        """Pickled without the cache of :meth:`cached` (what it holds is rebuilt on first use; some of it, the
+        parametric step Functions' builders, are local closures that do not pickle), so a Problem or a Solution
+        solved on this Discretization can go to another process."""
+        return {**self.__dict__, "_built": {}}
+
     def cached(self, key: Hashable, build: Callable[[], Any]) -> Any:
         """What ``build()`` returns, built on the first call with ``key`` and kept on this Discretization
         (keys name what is built and its structural arguments, e.g. ('rollout', N))."""

@@ -163,6 +163,11 @@ class Problem:
         """The target state (18) of a state target, else None."""
         return self.terminal.X if isinstance(self.terminal, TargetState) else None
 
+    def __getstate__(self) -> dict:
+        """Pickled without its :meth:`memo` (what methods built from it is rebuilt on first use; an NLP holds
+        objects that do not pickle), so a solved Problem can go to another process."""
+        return {**self.__dict__, "_memo": {}}
+
     def memo(self, key, build):
         """``build()`` once per ``key`` for this Problem, kept with it (a method's NLP of it: the Problem is
         immutable, so what is built from it stays valid; :meth:`replace` starts a new memo)."""

@@ -95,6 +95,13 @@ class Solution:
     force_frame: str = field(init=False, repr=False)
     f_inertial: np.ndarray | None = field(init=False, repr=False)
 
+    def __getstate__(self) -> dict:
+        """Pickled with its read-only ``stats`` as a plain dict (a mappingproxy does not pickle)."""
+        return {**self.__dict__, "stats": dict(self.stats)}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state, stats=MappingProxyType(state["stats"]))
+
     def __post_init__(self):
         def put(name, value):
             object.__setattr__(self, name, value)
