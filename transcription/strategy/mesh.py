@@ -324,6 +324,6 @@ def _with_neighbours(dens: np.ndarray, h: np.ndarray, split: float) -> np.ndarra
                       split / h)
 
 
-__all__ = ["Refinement", "aimed_density", "chord_share", "contact_sagitta", "density_steps", "drift_shares", "equidistributed_density",
-           "error_estimate", "interval_margins", "local_errors", "margin_gradients",
+__all__ = ["Refinement", "aimed_density", "chord_share", "contact_sagitta", "density_steps", "drift_shares",
+           "equidistributed_density", "error_estimate", "interval_margins", "local_errors", "margin_gradients",
            "path_density", "propagated_errors", "subdivided_steps", "tangent_norms", "variations"]
