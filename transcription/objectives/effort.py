@@ -22,7 +22,7 @@ from ..outcome import Result
 from ..results.start import Start
 from ..strategy import starts
 from ..strategy.saddle import Escape
-from ..strategy.core import BestOf, Composed, Context, FirstOf, Guessed, Solve, chosen, labelled, not_made
+from ..strategy.core import BestOf, Composed, Context, FirstOf, Guessed, Solve, Warm, chosen, labelled, not_made
 from ..strategy.starts import aimed, class_name, cone_classes, implied_effort
 from .time import bracketing_times
 
@@ -247,7 +247,7 @@ class EffortStrategy(Composed):
 
     def compose(self, problem: Problem, options, start: Start | None = None):
         if start is not None:
-            return Escape(Solve(label="warm start"), **self.escape)
+            return Escape(Warm(), **self.escape)
         if (one := chosen(problem, options)) is not None:
             return Escape(one, **self.escape)
         if problem.free_time and self.bracket_times:

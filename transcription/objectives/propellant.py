@@ -30,7 +30,7 @@ from ..nlp.structured import Block, BlockFunction
 from ..ocp import Objective, Problem, ProblemError, quadrature_weights
 from ..results.start import Start
 from ..strategy import starts
-from ..strategy.core import Composed, FirstOf, FromRelated, Solve, chosen
+from ..strategy.core import Composed, FirstOf, FromRelated, Solve, Warm, chosen
 from .effort import Effort
 
 
@@ -119,7 +119,7 @@ class PropellantStrategy(Composed):
 
     def compose(self, problem: Problem, options, start: Start | None = None):
         if start is not None:
-            return Solve(label="warm start")
+            return Warm()
         if (one := chosen(problem, options)) is not None:
             return one
         label = "from the effort optimum"

@@ -17,7 +17,7 @@ from ..methods.indirect.laws import TimeLaw
 from ..ocp import Objective, Problem, ProblemError
 from ..ocp.estimate import time_estimate
 from ..results.start import Start
-from ..strategy.core import BestOf, CoarseToFine, Composed, FirstOf, Solve, chosen
+from ..strategy.core import BestOf, CoarseToFine, Composed, FirstOf, Solve, Warm, chosen
 from ..strategy.starts import class_name, cone_classes, detour, perturbed
 
 
@@ -132,7 +132,7 @@ class TimeStrategy(Composed):
 
     def compose(self, problem: Problem, options, start=None):
         if start is not None:
-            return Solve(label="warm start")
+            return Warm()
         if (one := chosen(problem, options)) is not None:
             return one
         if not self.sides and (classes := cone_classes(problem, self.cone_reach_deg, self.max_classes)):

@@ -12,7 +12,7 @@ from ...ocp import Problem
 from ...results.solution import Solution
 from ...results.start import Start
 from ...strategy import starts
-from ...strategy.core import BestOf, CoarseToFine, Composed, Context, FirstOf, Solve, chosen, not_made, resolves
+from ...strategy.core import BestOf, CoarseToFine, Composed, Context, FirstOf, Solve, Warm, chosen, not_made, resolves
 from .continuation import ContinuationStart, counted_unbounded
 from .guard import Guarded
 from .homotopy import Homotopy
@@ -97,7 +97,7 @@ class FuelStrategy(Composed):
         from an adaptive level resolving the switching times, on its own burn nodes); one on this grid solved from."""
         fitted, notes = start.fit(problem.N, problem.scheme, problem.fractions)
         if not notes:
-            return Solve(label="warm start")
+            return Warm()
         resolved = start.N > self.resolved_fraction * problem.N and not start.uniform
         return _Fitted(self._structure(label="warm start", resolved=resolved))
 
