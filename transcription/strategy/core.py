@@ -409,5 +409,5 @@ class Continuation:
 
 
 __all__ = ["BestOf", "CoarseToFine", "Composed", "Context", "Continuation", "FirstOf", "FromRelated", "Guessed",
-           "Solve", "Strategy", "Warm", "chosen", "collapsed", "default_strategy", "from_scheme", "labelled", "not_made",
-           "resolves", "spread", "step_line", "tried"]
+           "Solve", "Strategy", "Warm", "chosen", "collapsed", "default_strategy", "from_scheme", "labelled",
+           "not_made", "resolves", "spread", "step_line", "tried"]
