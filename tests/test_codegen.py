@@ -356,3 +356,27 @@ def test_the_parametric_costate_map_equals_the_numeric_one(name, scheme):
     assert np.array_equal(a[0], b[0])
     for x, y in zip(a[1:], b[1:]):
         assert np.max(np.abs(x - y)) <= 1e-13 * max(1.0, np.max(np.abs(x)))
+
+
+def test_stop_collects_an_ended_builder_and_its_lock(tmp_path):
+    """A builder that ended without removing its lock (killed while still starting, before its SIGTERM handler) and
+    is not yet collected is a zombie, which a signal 0 takes for a live build: stop() collects it and removes the
+    lock, so building() is empty at once instead of until the parent happens to reap it (a CI run under load left two
+    such locks for the 60 s of test_new_numbers_in_a_known_structure_compile_nothing)."""
+    import subprocess
+    import sys
+
+    from se3ocp.transcription.compile import build
+
+    proc = subprocess.Popen([sys.executable, "-c", "pass"], start_new_session=True)
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:        # ended, not collected: a zombie
+        with open(f"/proc/{proc.pid}/stat") as f:
+            if f.read().split(")")[-1].split()[0] == "Z":
+                break
+        time.sleep(0.05)
+    lock = tmp_path / "lib.so.building"
+    lock.write_text(str(proc.pid))
+    assert build.building(tmp_path) == [lock]
+    assert build.stop(tmp_path, timeout=5.0) == 1
+    assert build.building(tmp_path) == [] and not lock.exists()

@@ -181,8 +181,22 @@ def stop(cache: Path | None = None, timeout: float = 10.0) -> int:
                 stopped.add(lock)
             except (OSError, ValueError):
                 pass
+        for lock in stopped:
+            _reap(lock)
         time.sleep(0.1)
+    for lock in stopped:      # a builder ended before its SIGTERM handler was set (still starting) left its lock
+        if lock.exists() and not _alive(lock):
+            lock.unlink(missing_ok=True)
     return len(stopped)
+
+
+def _reap(lock: Path) -> None:
+    """Collect the builder behind ``lock`` if it is this process's child and has ended: until then it is a zombie,
+    which :func:`_alive` (a signal 0 to its id) takes for a build under way."""
+    try:
+        os.waitpid(int(lock.read_text().strip()), os.WNOHANG)
+    except (OSError, ValueError):       # not our child, already collected, or the lock gone
+        pass
 
 
 #: how many background builds compile at once (the others wait for a slot): cores, not one per library
