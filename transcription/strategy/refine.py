@@ -315,7 +315,7 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float, rule
     L = _length(problem)
     V = float(np.sqrt(problem.model.mu / L)) if problem.model.mu else 1.0
     units = units or (L, V)
-    e, predicted, c = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, *units)
+    _, predicted, c = error_estimate(problem, best.trajectory.X, best.controls, best.steps, p, *units)
     path_tol = tol if path_tol is None else path_tol
     if rec["path_violation"] > path_tol:
         mesh = path_mesh(problem, best, c, units, predicted, rec, path_tol, rules, tol)
@@ -324,9 +324,16 @@ def next_mesh(problem, best: Solution, rec: dict, tol: float, order: float, rule
     ratio = max(rec["miss"] / tol, rec["path_violation"] / path_tol)
     if rec["path_violation"] / path_tol > rec["miss"] / tol or not (predicted > 0 and rec["miss"] > 0):
         return subdivided_steps(best.steps, next_N(problem.N, ratio, order, 0, rules) / problem.N), predicted
-    aim = tol / rules.safety * predicted / rec["miss"]
-    return (density_steps(best.steps, aimed_density(problem, best.steps, c, p, aim, units, rules, rules.safety)),
-            predicted)
+    return density_steps(best.steps, miss_density(problem, best.steps, c, units, predicted, rec, tol, rules)), predicted
+
+
+def miss_density(problem, steps: np.ndarray, c: np.ndarray, units: tuple, predicted: float, rec: dict, tol: float,
+                 rules: Refinement) -> np.ndarray:
+    """The node density whose predicted miss is tol / safety (:func:`~.mesh.aimed_density`, the safety its margin),
+    calibrated by this level's flown miss over its own ``predicted`` one: the terminal miss's rule of
+    :func:`next_mesh` and :func:`path_mesh`."""
+    return aimed_density(problem, steps, c, ORDER[problem.scheme], tol / rules.safety * predicted / rec["miss"], units,
+                         rules, rules.safety)
 
 
 def path_mesh(problem, best: Solution, c: np.ndarray, units: tuple, predicted: float, rec: dict, tol: float,
@@ -348,8 +355,7 @@ def path_mesh(problem, best: Solution, c: np.ndarray, units: tuple, predicted: f
         return None
     miss_tol = tol if miss_tol is None else miss_tol
     if predicted > 0 and rec["miss"] > 0 and np.isfinite(miss_tol):
-        dens = np.maximum(dens, aimed_density(problem, h, c, p, miss_tol / rules.safety * predicted / rec["miss"],
-                                              units, rules, rules.safety))
+        dens = np.maximum(dens, miss_density(problem, h, c, units, predicted, rec, miss_tol, rules))
     else:
         dens = np.maximum(dens, 1.0 / h)
     return density_steps(h, dens)
