@@ -12,13 +12,15 @@ import casadi as ca
 import numpy as np
 
 from ..dynamics.lgvi import discretization, per_discretization
-from ..geometry.state import NU, X_ANG, X_ROT
+from ..geometry.state import NU, U_FORCE, X_ANG, X_ROT
 from ..nlp.scaling import control_magnitudes, scaled_terminal_miss
 from ..nlp.structured import Block, BlockFunction
 from ..methods.indirect.laws import EffortLaw
 from ..ocp import Objective, Problem, effort_cost, quadrature_weights
+from ..ocp.actuators import NormBound
 from ..ocp.estimate import moment_size
 from ..outcome import Result
+from ..results.solution import Solution
 from ..results.start import Start
 from ..strategy import starts
 from ..strategy.saddle import Escape
@@ -169,7 +171,9 @@ class RelaxedStart:
     ipopt: Mapping
     phase1: bool
     aim_fraction: float
+    hull_budget: int = 200
     label: str = "the solution without bounds and path constraints"
+    hull_label: str = "the engine's force free to point anywhere, from the relaxed solution clipped to its thrust"
 
     def run(self, problem: Problem, start: Start | None, ctx: Context):
         sub = self.inner.run(self.relaxed, None, ctx.under("relaxed"))
@@ -179,6 +183,11 @@ class RelaxedStart:
         first = sub.warm.primal()
         engine = problem.control.force_bound
         if engine is not None and engine.engine_axis is not None:
+            hull, first = self.within_hull(engine, first, ctx)
+            if hull is not None and not hull.converged:
+                if hull.result is Result.infeasible or hull.result is Result.interrupted:
+                    return labelled(hull, self.hull_label, sub.trace, "the relaxed problem")
+                first = sub.warm.primal()       # the relaxed solution as it was (the aimed start clips it)
             M = moment_size(problem)            # the body turns in at the angular acceleration M / lambda_max(J)
             alpha = None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1]
             first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction,
@@ -187,8 +196,33 @@ class RelaxedStart:
         sol = ctx.solve(problem, first, "from relaxed", ipopt=self.ipopt, max_iter=budget)
         return labelled(sol, self.label, sub.trace, "the relaxed problem")
 
+    def within_hull(self, engine, first: Start, ctx: Context) -> tuple[Solution | None, Start]:
+        """Where the relaxed solution ``first`` asks more force than the engine's largest thrust F, the solve of the
+        relaxed problem with |f| <= F (a gimballed engine: the convex hull of the forces the engine gives, pointing
+        anywhere) from ``first`` with its force clipped to that ball, within ``hull_budget`` iterations: (its
+        Solution, its optimum -- or ``first`` if it did not converge).  (None, ``first``) where nothing exceeds F,
+        or with a ``hull_budget`` of 0.
+        Why: the aimed start clips the thrust to the engine's range; where the relaxed optimum asks more (a raise
+        with a phase to meet, its peak 2.1 F) the clipped start misses its target by far and the engine's solve
+        from it stalled (docs/mathematics.md §14, *Within the engine's thrust*)."""
+        F = engine.engine_range[1]
+        f = first.U[U_FORCE]
+        size = np.linalg.norm(f, axis=0)
+        if not size.max(initial=0.0) > F or self.hull_budget <= 0:
+            return None, first
+        U = first.U.copy()
+        U[U_FORCE] = f * np.minimum(1.0, F / np.where(size > 0, size, 1.0))
+        within = self.relaxed.replace(control=replace(self.relaxed.control, force_bound=NormBound(F)))
+        sol = ctx.solve(within, replace(first, U=U), "within the engine's thrust", ipopt={"mu_init": 1e-4},
+                        max_iter=min(int(ctx.options.max_iter), self.hull_budget))
+        return sol, (sol.warm.primal() if sol.converged and sol.warm is not None else first)
+
     def ends(self, sol) -> bool:
-        return self.phase1 and sol.result is Result.infeasible
+        """A phase 1 that ended locally infeasible, or (an engine) a relaxed problem within its thrust that did: the
+        problem's set of forces lies inside that one's, so the engine cannot meet its target either."""
+        if sol.result is not Result.infeasible:
+            return False
+        return self.phase1 or (bool(sol.trace) and sol.trace[0].label == self.hull_label)
 
 
 @dataclass(frozen=True)
@@ -213,7 +247,9 @@ class EffortStrategy(Composed):
     the free motion and the interpolation know nothing of the engine (a raise with a 3 N engine: converged from the
     aimed start in 240 iterations, failed from it at 200 and then from the others after 3404).  ``aim_fraction``:
     the engine's aimed start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j
-    |f_j|.  ``escape``: the fields of the :class:`~transcription.strategy.saddle.Escape` that checks each start's
+    |f_j|.  ``hull_budget``: where the relaxed solution asks more force than the engine's largest thrust, the
+    iterations of its solve within that thrust (:meth:`RelaxedStart.within_hull`; 0: not solved, the relaxed solution
+    aimed and clipped as it is).  ``escape``: the fields of the :class:`~transcription.strategy.saddle.Escape` that checks each start's
     solve for a saddle of the NLP (docs/mathematics.md §10) before the next start is tried.
 
     With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
@@ -236,6 +272,7 @@ class EffortStrategy(Composed):
     infeasibility_detection: Mapping = field(default_factory=lambda: {"expect_infeasible_problem": "yes"})
     phase1: Mapping = field(default_factory=lambda: {"start_with_resto": "yes"})
     aim_fraction: float = 0.1
+    hull_budget: int = 200
     escape: Mapping = field(default_factory=dict)
     not_tried: str = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally "
                       "infeasible; solver.direct.initial_guess=rollout or interpolate tries this start)")
@@ -266,7 +303,8 @@ class EffortStrategy(Composed):
         if relaxed is not None:
             phase1 = bounded and not engine
             entries.append(RelaxedStart(replace(self, sides=()), relaxed, None if engine else self.first_budget,
-                                        {**extra, **(self.phase1 if phase1 else {})}, phase1, self.aim_fraction))
+                                        {**extra, **(self.phase1 if phase1 else {})}, phase1, self.aim_fraction,
+                                        self.hull_budget))
         (l0, s0, st0), (l1, s1, st1) = ordered_starts(problem, self.rollout_first_miss)
         entries += [Solve(partial(_given, s0), l0, self.first_budget, extra or None, st0),
                     Solve(partial(_given, s1), l1, None, extra or None, st1)]
