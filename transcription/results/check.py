@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry.state import X_ANG, X_MOM, X_POS, X_ROT
 from ..geometry.so3 import nearest_rotation, orthogonality_error, rotation_angle
-from ..ocp import MARGIN_DIMENSION, STATE_COMPONENTS, TargetState, quadrature_weights, terminal_error
+from ..ocp import MARGIN_DIMENSION, STATE_COMPONENTS, TargetRendezvous, TargetState, quadrature_weights, terminal_error
 from ..outcome import Result
 from ..dynamics.trajectory import Trajectory
 from ..dynamics.flight import DEFAULT_SAMPLES, Actuators, FlightError, OpenLoop, fly
@@ -49,7 +49,8 @@ class ContinuousCheck:
     time.  message: '' or why the flight failed (then the numbers are nan).
 
     What the maneuver changes (:func:`maneuver_change`; nan where it does not apply): change_position,
-    change_velocity, change_attitude (rad) -- for a state target, each changed component's smallest measure (the
+    change_velocity, change_attitude (rad) -- for a state, rendezvous or orbit target, each changed component's
+    smallest measure (the
     radius change or the free motion's distance to the target; the plan's delta-v or the free motion's velocity
     distance; the slew or the free motion's angle); change_target -- for any target, the terminal-error measure of
     the free motion (what the controls must remove).  :attr:`maneuver_fraction` is the flown miss relative to it.
@@ -256,16 +257,35 @@ def continuous_check(sol: "Solution", samples: int = DEFAULT_SAMPLES,
                            path_tolerances(prob, path_tol))
 
 
-def maneuver_change(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> tuple[float, float, float, float]:
-    """What the maneuver changes (:class:`ContinuousCheck`), each component the smallest of its measures:
+def target_point(prob, XF: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, set[str]]:
+    """The point of the terminal set that a final state ``XF`` (18,) is measured against at the final time T:
+    (position, momentum gamma = m v, attitude R or None, the components the target fixes).  A state target's own; a
+    rendezvous's target at T (:meth:`~transcription.ocp.TargetRendezvous.point`); for a target orbit the point of its
+    circle nearest XF's position (the projection on its plane, scaled to its radius) with the circular velocity there,
+    sqrt(mu / r) n x e -- the orbit fixes position and velocity; its body-axis condition is no full attitude."""
+    t, mass = prob.terminal, prob.model.mass
+    if isinstance(t, TargetState):
+        return t.X[X_POS], t.X[X_MOM], t.X[X_ROT].reshape(3, 3, order="F"), set(STATE_COMPONENTS) - set(t.free)
+    if isinstance(t, TargetRendezvous):
+        p, v = t.point(T, prob.model.mu)
+        return np.asarray(p, float), mass * np.asarray(v, float), t.R, set(t.fixed)
+    n = t.normal
+    x = XF[X_POS] - (XF[X_POS] @ n) * n
+    e = x / np.linalg.norm(x) if np.linalg.norm(x) > 0 else t.plane_basis()[1]
+    return t.radius * e, mass * np.sqrt(prob.model.mu / t.radius) * np.cross(n, e), None, {"position", "velocity"}
 
-    * position: the distance between the target and where the free motion from the plan's initial state ends at its
+
+def maneuver_change(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> tuple[float, float, float, float]:
+    """What the maneuver changes (:class:`ContinuousCheck`), each component the smallest of its measures, against the
+    target's point (:func:`target_point`: a state, a rendezvous's target at T, the nearest point of a target orbit):
+
+    * position: the distance between that point and where the free motion from the plan's initial state ends at its
       final time, and the change of radius | |x_d| - |x_0| | (a raise: the raise, not the phase it also fixes);
     * velocity: the same free-motion distance in velocity, and the plan's delta-v (:func:`delta_v`);
     * attitude (rad): the free motion's angle to the target attitude, and angle(R_0^T R_d) (the slew).
 
     A measure below a millionth of its scale (the orbit radius L and circular speed V of :func:`scaled_miss`, 1 rad)
-    is not a change; a state target's free component, or one with no change, is nan (not part of the maneuver).
+    is not a change; a component the target leaves free, or one with no change, is nan (not part of the maneuver).
     The fourth number is the target-error measure of the free motion (any target).  All nan when the free motion
     cannot be flown or there is no target."""
     prob, traj = sol.problem, sol.trajectory
@@ -281,16 +301,15 @@ def maneuver_change(sol: "Solution", samples: int = DEFAULT_SAMPLES) -> tuple[fl
     XF = free.X[-1].copy()
     XF[X_ROT] = nearest_rotation(XF[X_ROT].reshape(3, 3, order="F")).reshape(9, order="F")
     target = terminal_error(XF, prob, T=float(traj.t[-1]))
-    if not isinstance(prob.terminal, TargetState):
-        return (float("nan"),) * 3 + (target,)
-    Xd, X0, fixed = prob.terminal.X, traj.X[0], set(STATE_COMPONENTS) - set(prob.terminal.free)
+    xd, gd, Rd, fixed = target_point(prob, XF, float(traj.t[-1]))
+    X0 = traj.X[0]
     mass, L = prob.model.mass, characteristic_length(prob)
     V = float(np.sqrt(prob.model.mu / L)) if prob.model.mu else 1.0
     rot = lambda X: X[X_ROT].reshape(3, 3, order="F")                         # noqa: E731
-    measures = {"position": ([np.linalg.norm(XF[X_POS] - Xd[X_POS]),
-                              abs(np.linalg.norm(Xd[X_POS]) - np.linalg.norm(X0[X_POS]))], L),
-                "velocity": ([np.linalg.norm(XF[X_MOM] - Xd[X_MOM]) / mass, delta_v(sol)], V),
-                "attitude": ([rotation_angle(rot(Xd).T @ rot(XF)), rotation_angle(rot(X0).T @ rot(Xd))], 1.0)}
+    measures = {"position": ([np.linalg.norm(XF[X_POS] - xd), abs(np.linalg.norm(xd) - np.linalg.norm(X0[X_POS]))], L),
+                "velocity": ([np.linalg.norm(XF[X_MOM] - gd) / mass, delta_v(sol)], V),
+                "attitude": ([rotation_angle(Rd.T @ rot(XF)), rotation_angle(rot(X0).T @ Rd)] if Rd is not None
+                             else [], 1.0)}
     out = []
     for k, (values, scale) in measures.items():
         changes = [float(c) for c in values if np.isfinite(c) and c > 1e-6 * scale]
