@@ -173,7 +173,6 @@ class RelaxedStart:
     aim_fraction: float
     hull_budget: int = 200
     label: str = "the solution without bounds and path constraints"
-    hull_label: str = "the engine's force free to point anywhere, from the relaxed solution clipped to its thrust"
 
     def run(self, problem: Problem, start: Start | None, ctx: Context):
         sub = self.inner.run(self.relaxed, None, ctx.under("relaxed"))
@@ -184,10 +183,8 @@ class RelaxedStart:
         engine = problem.control.force_bound
         if engine is not None and engine.engine_axis is not None:
             hull, first = self.within_hull(engine, first, ctx)
-            if hull is not None and not hull.converged:
-                if hull.result is Result.infeasible or hull.result is Result.interrupted:
-                    return labelled(hull, self.hull_label, sub.trace, "the relaxed problem")
-                first = sub.warm.primal()       # the relaxed solution as it was (the aimed start clips it)
+            if hull is not None and hull.result is Result.interrupted:
+                return labelled(hull, self.label, sub.trace, "the relaxed problem")
             M = moment_size(problem)            # the body turns in at the angular acceleration M / lambda_max(J)
             alpha = None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1]
             first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction,
@@ -199,11 +196,12 @@ class RelaxedStart:
     def within_hull(self, engine, first: Start, ctx: Context) -> tuple[Solution | None, Start]:
         """Where the relaxed solution ``first`` asks more force than the engine's largest thrust F, the solve of the
         relaxed problem with |f| <= F (a gimballed engine: the convex hull of the forces the engine gives, pointing
-        anywhere) from ``first`` with its force clipped to that ball, within ``hull_budget`` iterations: (its
-        Solution, its optimum -- or ``first`` if it did not converge).  (None, ``first``) where nothing exceeds F,
-        or with a ``hull_budget`` of 0.
+        anywhere) from ``first`` with its force clipped to that ball (:class:`~transcription.strategy.core.Warm`),
+        within ``hull_budget`` iterations: (its Solution, its optimum -- or ``first`` as it was if it did not
+        converge: the aimed start then clips it).  (None, ``first``) where nothing exceeds F, or with a
+        ``hull_budget`` of 0.
         Why: the aimed start clips the thrust to the engine's range; where the relaxed optimum asks more (a raise
-        with a phase to meet, its peak 2.1 F) the clipped start misses its target by far and the engine's solve
+        with a phase to meet, its peak 1.4 F) the clipped start misses its target by far and the engine's solve
         from it stalled (docs/mathematics.md §14, *Within the engine's thrust*)."""
         F = engine.engine_range[1]
         f = first.U[U_FORCE]
@@ -213,16 +211,12 @@ class RelaxedStart:
         U = first.U.copy()
         U[U_FORCE] = f * np.minimum(1.0, F / np.where(size > 0, size, 1.0))
         within = self.relaxed.replace(control=replace(self.relaxed.control, force_bound=NormBound(F)))
-        sol = ctx.solve(within, replace(first, U=U), "within the engine's thrust", ipopt={"mu_init": 1e-4},
-                        max_iter=min(int(ctx.options.max_iter), self.hull_budget))
+        budget = ctx.using(max_iter=min(int(ctx.options.max_iter), self.hull_budget))
+        sol = Warm("within the engine's thrust").run(within, replace(first, U=U), budget)
         return sol, (sol.warm.primal() if sol.converged and sol.warm is not None else first)
 
     def ends(self, sol) -> bool:
-        """A phase 1 that ended locally infeasible, or (an engine) a relaxed problem within its thrust that did: the
-        problem's set of forces lies inside that one's, so the engine cannot meet its target either."""
-        if sol.result is not Result.infeasible:
-            return False
-        return self.phase1 or (bool(sol.trace) and sol.trace[0].label == self.hull_label)
+        return self.phase1 and sol.result is Result.infeasible
 
 
 @dataclass(frozen=True)
@@ -249,8 +243,8 @@ class EffortStrategy(Composed):
     the engine's aimed start (:func:`~.starts.aimed`) turns the body fully where |f_j| >= this fraction of max_j
     |f_j|.  ``hull_budget``: where the relaxed solution asks more force than the engine's largest thrust, the
     iterations of its solve within that thrust (:meth:`RelaxedStart.within_hull`; 0: not solved, the relaxed solution
-    aimed and clipped as it is).  ``escape``: the fields of the :class:`~transcription.strategy.saddle.Escape` that checks each start's
-    solve for a saddle of the NLP (docs/mathematics.md §10) before the next start is tried.
+    aimed and clipped as it is).  ``escape``: the fields of the :class:`~transcription.strategy.saddle.Escape` that
+    checks each start's solve for a saddle of the NLP (docs/mathematics.md §10) before the next start is tried.
 
     With keep-out or keep-in cones in the way of the straight path (within ``cone_reach_deg``), one such strategy
     per homotopy class of the path round them (:func:`~transcription.strategy.starts.cone_classes`, at most

@@ -50,9 +50,8 @@ class ContinuousCheck:
 
     What the maneuver changes (:func:`maneuver_change`; nan where it does not apply): change_position,
     change_velocity, change_attitude (rad) -- for a state, rendezvous or orbit target, each changed component's
-    smallest measure (the
-    radius change or the free motion's distance to the target; the plan's delta-v or the free motion's velocity
-    distance; the slew or the free motion's angle); change_target -- for any target, the terminal-error measure of
+    smallest measure (the radius change or the free motion's distance to the target; the plan's delta-v or the free
+    motion's velocity distance; the slew or the free motion's angle); change_target -- for any target, the terminal-error measure of
     the free motion (what the controls must remove).  :attr:`maneuver_fraction` is the flown miss relative to it.
 
     margin_tolerances: for each key of min_margins, the violation (margin below 0, in the margin's own unit: deg for
