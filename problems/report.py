@@ -72,6 +72,8 @@ CONTINUOUS_ROWS = (
     ("continuous_target_error", "terminal error of the flight (as the plan's)", "", "{:.2e}"),
     ("continuous_max_position_deviation", "largest position deviation at the nodes", "length", "{:.2e}"),
     ("continuous_max_attitude_deviation_rad", "largest attitude deviation at the nodes", "rad", "{:.2e}"),
+    ("continuous_attitude_growth", "growth of an attitude error given at the start, flown open loop (measured when "
+                                   "the plan misses by more than 1 %; > 100: unstable open loop)", "", "{:.3g}"),
     ("continuous_check_s", "time of the check", "s", "{:.3f}"),
 )
 

@@ -151,7 +151,8 @@ _NUMBERS = ("cost", "terminal_error", "build_s", "solve_s", "T", "h", "delta_v",
                                           "terminal_attitude_rad", "terminal_rate", "target_error",
                                           "max_position_deviation", "max_attitude_deviation_rad",
                                           "orthogonality_drift", "check_s", "change_position", "change_velocity",
-                                          "change_attitude_rad", "change_target", "maneuver_fraction")))
+                                          "change_attitude_rad", "change_target", "maneuver_fraction",
+                                          "attitude_growth")))
 BLOCK_FIELDS: dict[str, Any] = {"status": str, "message": str, "converged": bool, "cost": "number",
                                 "terminal_error": "number", "iterations": "count", "N": "count", "method": str,
                                 "solver": str, "discretization": str, **{k: "number" for k in _NUMBERS[2:]},

@@ -123,8 +123,8 @@ def miss_lines(sols) -> list[str]:
                    f"({of})")
         if c.maneuver_fraction > FLOWN_MISS_TOL:
             out.append(f"warning: {s.method}'s plan misses by {pct} of its maneuver, above "
-                       f"{100 * FLOWN_MISS_TOL:g} %: the {s.scheme} scheme's error at N = {s.N}; "
-                       + _cure(s))
+                       f"{100 * FLOWN_MISS_TOL:g} %: " + (c.unstable_note() or f"the {s.scheme} scheme's error at N = "
+                                                           f"{s.N}; " + _cure(s)))
     return out + path_lines(sols)
 
 

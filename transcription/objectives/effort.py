@@ -26,6 +26,7 @@ from ..strategy import starts
 from ..strategy.saddle import Escape
 from ..strategy.core import BestOf, Composed, Context, FirstOf, Guessed, Solve, Warm, chosen, labelled, not_made
 from ..strategy.starts import aimed, class_name, cone_classes, implied_effort
+from .peak import PeakForce, least_peak_force
 from .time import bracketing_times
 
 
@@ -172,6 +173,7 @@ class RelaxedStart:
     phase1: bool
     aim_fraction: float
     hull_budget: int = 200
+    peak_rtol: float = 1e-6
     label: str = "the solution without bounds and path constraints"
 
     def run(self, problem: Problem, start: Start | None, ctx: Context):
@@ -179,44 +181,70 @@ class RelaxedStart:
         if not sub.converged or sub.warm is None:
             return not_made(problem, ctx, self.label, "not available (the relaxed problem did not converge)",
                             sub.trace, "the relaxed problem")
-        first = sub.warm.primal()
+        first, parts = sub.warm.primal(), sub.trace
         engine = problem.control.force_bound
         if engine is not None and engine.engine_axis is not None:
             hull, first = self.within_hull(engine, first, ctx)
+            parts += hull.trace if hull is not None else ()
             if hull is not None and hull.result is Result.interrupted:
                 return labelled(hull, self.label, sub.trace, "the relaxed problem")
+            if hull is not None and hull.result is Result.infeasible:
+                return not_made(problem, ctx, self.label, hull.verdict, parts, "the relaxed problem", Result.infeasible)
             M = moment_size(problem)            # the body turns in at the angular acceleration M / lambda_max(J)
             alpha = None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1]
             first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction,
                           frame=self.relaxed.disc, alpha=alpha)
         budget = int(ctx.options.max_iter) if self.budget is None else min(int(ctx.options.max_iter), self.budget)
         sol = ctx.solve(problem, first, "from relaxed", ipopt=self.ipopt, max_iter=budget)
-        return labelled(sol, self.label, sub.trace, "the relaxed problem")
+        return labelled(sol, self.label, parts, "the relaxed problem")
 
     def within_hull(self, engine, first: Start, ctx: Context) -> tuple[Solution | None, Start]:
-        """Where the relaxed solution ``first`` asks more force than the engine's largest thrust F, the solve of the
-        relaxed problem with |f| <= F (a gimballed engine: the convex hull of the forces the engine gives, pointing
-        anywhere) from ``first`` with its force clipped to that ball (:class:`~transcription.strategy.core.Warm`),
-        within ``hull_budget`` iterations: (its Solution, its optimum -- or ``first`` as it was if it did not
-        converge: the aimed start then clips it).  (None, ``first``) where nothing exceeds F, or with a
-        ``hull_budget`` of 0.
+        """Where the relaxed solution ``first`` asks more force than the engine's largest thrust F: first the least
+        peak force of the relaxed problem (:class:`~transcription.objectives.peak.PeakForce`) from ``first``; where it
+        exceeds F (by more than ``peak_rtol``) no attitude of the engine can give the force the maneuver needs, and
+        the problem is reported infeasible (a Solution whose result says so; :meth:`ends`).  Else the relaxed problem
+        with |f| <= F (a gimballed engine: the convex hull of the forces the engine gives, pointing anywhere) from the
+        least peak force's optimum (within the bound: a feasible start) -- or, where that solve did not converge, from
+        ``first`` with its force clipped to the ball -- (:class:`~transcription.strategy.core.Warm`), each within
+        ``hull_budget`` iterations: (the hull's Solution, its optimum -- or ``first`` as it was if it did not converge:
+        the aimed start then clips it).  (None, ``first``) where nothing exceeds F, or with a ``hull_budget`` of 0.
         Why: the aimed start clips the thrust to the engine's range; where the relaxed optimum asks more (a raise
         with a phase to meet, its peak 1.4 F) the clipped start misses its target by far and the engine's solve
-        from it stalled (docs/mathematics.md §14, *Within the engine's thrust*)."""
+        from it stalled; where no thrust within F can do it, nothing said so in 8 minutes of solving
+        (docs/mathematics.md §14, *Within the engine's thrust*)."""
         F = engine.engine_range[1]
         f = first.U[U_FORCE]
         size = np.linalg.norm(f, axis=0)
         if not size.max(initial=0.0) > F or self.hull_budget <= 0:
             return None, first
-        U = first.U.copy()
-        U[U_FORCE] = f * np.minimum(1.0, F / np.where(size > 0, size, 1.0))
-        within = self.relaxed.replace(control=replace(self.relaxed.control, force_bound=NormBound(F)))
         budget = ctx.using(max_iter=min(int(ctx.options.max_iter), self.hull_budget))
-        sol = Warm("within the engine's thrust").run(within, replace(first, U=U), budget)
+        c = self.relaxed.control
+        least = Warm("the least peak force").run(self.relaxed.replace(control=replace(c, objective=PeakForce())),
+                                                 first, budget)
+        if least.result is Result.interrupted:
+            return least, first
+        if least.converged and least.warm is not None:
+            need = least_peak_force(least.controls)
+            if need > F * (1.0 + self.peak_rtol):
+                why = (f"the maneuver needs a force of at least {need:.6g} at its peak even pointing anywhere (the "
+                       f"least peak force of the problem without the engine's attitude), more than the engine's "
+                       f"largest thrust {F:.6g}: no attitude of the engine can give it (a thrust above {need:.4g} or a "
+                       f"longer horizon is needed)")
+                return replace(least, result=Result.infeasible, verdict=why), first
+            start = least.warm.primal()
+        else:
+            U = first.U.copy()
+            U[U_FORCE] = f * np.minimum(1.0, F / np.where(size > 0, size, 1.0))
+            start = replace(first, U=U)
+        within = self.relaxed.replace(control=replace(c, force_bound=NormBound(F)))
+        sol = Warm("within the engine's thrust").run(within, start, budget)
+        sol = labelled(sol, "within the engine's thrust", least.trace, "the least peak force")
         return sol, (sol.warm.primal() if sol.converged and sol.warm is not None else first)
 
     def ends(self, sol) -> bool:
-        return self.phase1 and sol.result is Result.infeasible
+        """The problem was found infeasible: by the phase 1 (``phase1``), or before any solve of it (its attempt not
+        run: the least peak force exceeds the engine's thrust, :meth:`within_hull`)."""
+        return sol.result is Result.infeasible and (self.phase1 or (bool(sol.trace) and sol.trace[0].result is None))
 
 
 @dataclass(frozen=True)
@@ -268,8 +296,9 @@ class EffortStrategy(Composed):
     aim_fraction: float = 0.1
     hull_budget: int = 200
     escape: Mapping = field(default_factory=dict)
-    not_tried: str = ("not tried (the phase 1 from the relaxed optimum ended at a least violation > 0: locally "
-                      "infeasible; solver.direct.initial_guess=rollout or interpolate tries this start)")
+    not_tried: str = ("not tried (the start from the relaxed optimum found the problem infeasible: its phase 1 ended "
+                      "at a least violation > 0, or the least peak force exceeds the engine's thrust; "
+                      "solver.direct.initial_guess=rollout or interpolate tries this start)")
     cone_reach_deg: float = 10.0
     cone_clearance_deg: float = 5.0
     max_classes: int = 4

@@ -80,10 +80,11 @@ def chosen(problem: Problem, options) -> "Solve | None":
 
 
 def not_made(problem: Problem, ctx: Context, label: str, why: str, parts: tuple[Attempt, ...] = (),
-             on: str = "") -> Solution:
+             on: str = "", result: Result = Result.solver_failed) -> Solution:
     """The Solution of a start that could not be made (its ``parts``: the solves that tried to make it): no solve
-    from it; the trace's attempt says why."""
-    sol = failed_solution(problem, ctx.method.name, getattr(ctx.options, "solver", ""), Result.solver_failed, why)
+    from it, ``result`` (``infeasible`` where making it proved the problem has no solution); the trace's attempt
+    says why."""
+    sol = failed_solution(problem, ctx.method.name, getattr(ctx.options, "solver", ""), result, why)
     return replace(sol, trace=(Attempt(label, None, note=why, parts=parts, prepared_on=on),))
 
 
