@@ -122,5 +122,15 @@ def element_differences(mu: float, x, v, x_ref, v_ref) -> dict[str, float]:
             "raan_deg": wrap(el["raan_deg"] - ref["raan_deg"]), "u_deg": wrap(u(el) - u(ref))}
 
 
+def rtn(x: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Components (n, 3) of inertial vectors u in the osculating orbit's radial, along-track
+    (transverse: n x r) and normal (h/|h|) directions at positions and velocities x, v (n, 3)."""
+    r_hat = x / np.linalg.norm(x, axis=1)[:, None]
+    h = np.cross(x, v)
+    n_hat = h / np.linalg.norm(h, axis=1)[:, None]
+    t_hat = np.cross(n_hat, r_hat)
+    return np.stack([np.einsum("ij,ij->i", u, e) for e in (r_hat, t_hat, n_hat)], axis=1)
+
+
 __all__ = ["ELEMENT_DIFFERENCES", "ELEMENT_KEYS", "ElementsError", "check_elements", "element_differences", "elements_of",
-           "state_of"]
+           "rtn", "state_of"]

@@ -665,6 +665,7 @@ def test_maneuver_accuracy_without_a_maneuver_is_refused_before_solving(tmp_path
     assert out_of_reach(man.problem, AccuracyOptions(accuracy=1e-3)) == ""
 
 
+@pytest.mark.slow
 def test_a_warm_level_stays_in_its_basin():
     """configs/leo/phasing_engine.yaml (one body-fixed engine, two orbits, saturated thrust) refined to 1e-3 of the
     maneuver from its N = 800: level 1 starts from level 0's optimum with IPOPT's barrier at mu_init = 1e-4

@@ -280,3 +280,36 @@ def test_every_package_is_installed():
     found = {PACKAGE} | {".".join((PACKAGE,) + init.parent.relative_to(ROOT).parts)
                          for layer in LAYERS for init in (ROOT / layer).rglob("__init__.py")}
     assert listed == found, (sorted(found - listed), sorted(listed - found))
+
+
+#: the import name of each run-time dependency (pyproject.toml's ``dependencies``)
+DISTRIBUTION_OF = {"casadi": "casadi", "numpy": "numpy", "matplotlib": "matplotlib", "mpl_toolkits": "matplotlib",
+                   "yaml": "pyyaml", "jinja2": "jinja2", "PIL": "pillow", "scipy": "scipy"}
+#: the optional extras' packages and the one module each may be imported in (inside a function: only its feature
+#: needs it, and says what to install when missing)
+OPTIONAL = {"distributed": "problems/sweep/executors.py", "Basilisk": "problems/flight/basilisk.py"}
+
+
+def test_every_import_is_a_run_time_dependency_or_an_extra_where_it_is_used():
+    """Every third-party package the two layers import is one of pyproject.toml's run-time dependencies, or an
+    optional extra imported only inside a function of its own module (:data:`OPTIONAL`): scipy, imported by the
+    saddle check of every solve, was a test-only dependency, so a fresh `pip install .` could not even validate a
+    file."""
+    import re
+    import sys
+    tomllib = pytest.importorskip("tomllib")
+    declared = {re.split(r"[<>=\[ ;]", d, maxsplit=1)[0].lower()
+                for d in tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]}
+    bad = {}
+    for layer in LAYERS:
+        for path in (ROOT / layer).rglob("*.py"):
+            tree, where = ast.parse(path.read_text()), str(path.relative_to(ROOT))
+            top_level = set(map(id, tree.body))
+            for node in ast.walk(tree):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else []
+                for top in {n.split(".")[0] for n in names} - set(sys.stdlib_module_names) - {"__future__"}:
+                    extra = OPTIONAL.get(top) == where and id(node) not in top_level
+                    if DISTRIBUTION_OF.get(top) not in declared and not extra:
+                        bad.setdefault(top, []).append(where)
+    assert not bad, bad

@@ -52,7 +52,8 @@ def test_time_optimal_slews_converge_to_the_published_minimum(name, published):
     assert abs(extrapolated - published) <= 1e-3 * published, (extrapolated, published)
 
 
-@pytest.mark.parametrize("name", ["slew_time_optimal", "slew_time_optimal_symmetric"])
+@pytest.mark.parametrize("name", [pytest.param("slew_time_optimal", marks=pytest.mark.slow),    # 22-30 s
+                                  "slew_time_optimal_symmetric"])
 def test_coarse_grid_starts_reach_the_fine_grid_minimum(name):
     """The time objective's starts are solved on max(25, N // 2) steps (recursively: 100 -> 50 -> 25) and the best is
     finished on N (TimeStrategy.coarse_min, coarse_factor): the same minimum as the starts solved on N steps."""

@@ -22,7 +22,7 @@ from ...transcription.results.solution import rotation_angle
 from ...transcription.closedloop.estimator import local_errors
 from ...transcription.closedloop.tracking import saturate, sub_stepped, tracking_gains
 from ..elements import ELEMENT_DIFFERENCES, element_differences
-from ..plots.orbits import rtn
+from ..elements import rtn
 from .actuators import pulses_of, truth_axes, wheels_of
 from .basilisk import fly_basilisk
 from .forces import truth_forces
@@ -65,7 +65,7 @@ def gains_of(payload: dict, weights: dict, sub_steps: bool = False):
 
 def miss_frame(X_N: np.ndarray, mass: float) -> str:
     """The frame the position miss is given in: the target orbit's RTN frame at the plan's final state
-    (problems.plots.orbits.rtn: radial, along-track, normal), or the inertial axes where the body does
+    (problems.elements.rtn: radial, along-track, normal), or the inertial axes where the body does
     not move about a centre (x x v = 0)."""
     x, v = X_N[X_POS], X_N[3:6] / mass
     n = np.linalg.norm(np.cross(x, v))

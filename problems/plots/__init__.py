@@ -22,7 +22,8 @@ from __future__ import annotations
 from .animation import Animation, animate, write_animation
 from .catalogue import CAPTIONS, FIGURES, applicable, caption, draw, draw_all, draw_run, figures, is_fresh
 from .histories import (fig_angular_velocity, fig_attitude_error, fig_constraints, fig_control_norms, fig_convergence, fig_costates, fig_force, fig_moment, fig_orbital_elements, fig_thrust_rtn, fig_velocity, quaternions)
-from .orbits import osculating_elements, rtn
+from ..elements import rtn
+from .orbits import osculating_elements
 from .runs import Run, _runs, node_cells
 from .style import BOUND, COLORS, COMP, CONE, FAIL, QUAT, STYLES, THRUST
 from .targets import _describe, removed

@@ -7,7 +7,7 @@ import numpy as np
 from ...transcription.ocp import ENGINE_ON_RTOL, Problem, engine_reference
 from ..units import units
 from .runs import Run
-from .orbits import rtn
+from ..elements import rtn
 from .style import BOUND, COMP, THRUST, W, _finish, _shade, _subplots, _time_axes
 from .targets import _bound_of
 

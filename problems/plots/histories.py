@@ -10,7 +10,8 @@ from ...transcription.geometry.so3 import quaternions, rotation_angle
 from ...transcription.ocp import MaxAngularRate, MinRadius, Problem
 from ...transcription.results.solution import figures_of_merit
 from ..units import units
-from .orbits import osculating_elements, rtn
+from ..elements import rtn
+from .orbits import osculating_elements
 from .runs import Run, node_cells
 from .style import BOUND, COMP, FAIL, QUAT, W, _finish, _shade, _subplots, _time_axes
 from .targets import _bound_of, _describe, _target_elements, _target_R, removed

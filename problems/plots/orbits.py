@@ -1,5 +1,5 @@
-"""Orbital mechanics for the figures, in NumPy only (no matplotlib): osculating elements, the
-radial / along-track / normal frame, and points of orbit ellipses and circles."""
+"""Orbital mechanics for the figures, in NumPy only (no matplotlib): osculating elements and points of orbit
+ellipses and circles (the radial / along-track / normal frame: problems.elements.rtn)."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,16 +17,6 @@ def osculating_elements(x: np.ndarray, v: np.ndarray, mu: float) -> dict[str, np
         e = np.linalg.norm(np.cross(v, h) / mu - x / r[:, None], axis=1)
         a = 1.0 / (2.0 / r - np.einsum("ij,ij->i", v, v) / mu)
     return {"radius": r, "inclination": inc, "eccentricity": e, "semi_major_axis": a}
-
-
-def rtn(x: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Components (n, 3) of inertial vectors u in the osculating orbit's radial, along-track
-    (transverse: n x r) and normal (h/|h|) directions at positions and velocities x, v (n, 3)."""
-    r_hat = x / np.linalg.norm(x, axis=1)[:, None]
-    h = np.cross(x, v)
-    n_hat = h / np.linalg.norm(h, axis=1)[:, None]
-    t_hat = np.cross(n_hat, r_hat)
-    return np.stack([np.einsum("ij,ij->i", u, e) for e in (r_hat, t_hat, n_hat)], axis=1)
 
 
 def _orbit_ellipse(x, v, mu, n=200):

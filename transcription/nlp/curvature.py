@@ -16,8 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .structured import StructuredNLP
 
@@ -36,8 +34,9 @@ class Curvature:
         return bool(self.least < -rtol * max(abs(self.largest), 1e-300))
 
 
-def _sparse(m) -> sp.csc_matrix:
+def _sparse(m):
     """A CasADi DM as a scipy CSC matrix."""
+    import scipy.sparse as sp
     return sp.csc_matrix(m.sparse())
 
 
@@ -57,6 +56,8 @@ def least_curvature(nlp: StructuredNLP, lbx: np.ndarray, ubx: np.ndarray, x: np.
     sees fewer directions, never one that leaves the feasible set).  Lanczos gets ``maxiter`` restarts to reach
     the relative accuracy ``tol``; when it does not (the least eigenvalues clustered near zero, as at a degenerate
     minimum), the curvature is nan: no sign is claimed."""
+    import scipy.sparse as sp             # here, not at the top: the CLI's commands that solve nothing skip its 0.3 s
+    import scipy.sparse.linalg as spla
     fns = nlp.derivative_functions()
     x = np.asarray(x, float)
     g, J = fns["jac_g"](x, [])

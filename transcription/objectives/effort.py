@@ -208,6 +208,7 @@ class RelaxedStart:
         ``first`` with its force clipped to the ball -- (:class:`~transcription.strategy.core.Warm`), each within
         ``hull_budget`` iterations: (the hull's Solution, its optimum -- or ``first`` as it was if it did not converge:
         the aimed start then clips it).  (None, ``first``) where nothing exceeds F, or with a ``hull_budget`` of 0.
+        A free final time asks no least peak force (it falls as T grows): the hull is solved from the clipped start.
         Why: the aimed start clips the thrust to the engine's range; where the relaxed optimum asks more (a raise
         with a phase to meet, its peak 1.4 F) the clipped start misses its target by far and the engine's solve
         from it stalled; where no thrust within F can do it, nothing said so in 8 minutes of solving
@@ -219,11 +220,12 @@ class RelaxedStart:
             return None, first
         budget = ctx.using(max_iter=min(int(ctx.options.max_iter), self.hull_budget))
         c = self.relaxed.control
-        least = Warm("the least peak force").run(self.relaxed.replace(control=replace(c, objective=PeakForce())),
-                                                 first, budget)
-        if least.result is Result.interrupted:
+        least = None if self.relaxed.free_time else \
+            Warm("the least peak force").run(self.relaxed.replace(control=replace(c, objective=PeakForce())), first,
+                                             budget)
+        if least is not None and least.result is Result.interrupted:
             return least, first
-        if least.converged and least.warm is not None:
+        if least is not None and least.converged and least.warm is not None:
             need = least_peak_force(least.controls)
             if need > F * (1.0 + self.peak_rtol):
                 why = (f"the maneuver needs a force of at least {need:.6g} at its peak even pointing anywhere (the "
@@ -238,7 +240,8 @@ class RelaxedStart:
             start = replace(first, U=U)
         within = self.relaxed.replace(control=replace(c, force_bound=NormBound(F)))
         sol = Warm("within the engine's thrust").run(within, start, budget)
-        sol = labelled(sol, "within the engine's thrust", least.trace, "the least peak force")
+        sol = labelled(sol, "within the engine's thrust", least.trace if least is not None else (),
+                       "the least peak force")
         return sol, (sol.warm.primal() if sol.converged and sol.warm is not None else first)
 
     def ends(self, sol) -> bool:
