@@ -296,7 +296,7 @@ def read_run(results_dir: Path) -> Run:
         # A truncated or foreign file can fail in many ways (zipfile.BadZipFile, zlib.error, a
         # missing or misshapen array): any of them is one line naming the file, never a traceback.
         try:
-            with np.load(p) as z:
+            with open(p, "rb") as f, np.load(f) as z:     # our handle: NumPy leaves its own open on BadZipFile
                 arrays = {k: z[k] for k in z.files}
             missing = [k for k in ("t", "x", "gamma", "R", "Pi") if k not in arrays]
             if missing:

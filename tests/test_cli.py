@@ -147,6 +147,7 @@ def test_npz_contents(compared):
     assert cfg["horizon"]["N"] == 60 and cfg["solver"]["direct"]["solver"] == "ipopt"
 
 
+@pytest.mark.slow
 def test_plot_redraws(compared, tmp_path):
     out, _ = compared
     (out / "fig_force.png").unlink()

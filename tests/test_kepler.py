@@ -224,7 +224,7 @@ def test_the_kepler_scheme_falls_back_on_its_own_starts_when_the_lgvi_route_wand
     assert own.result is Result.converged and fell.cost == pytest.approx(sol.cost, rel=1e-9)
 
 
-@pytest.mark.parametrize("N, route", [(400, True), (100, False), (40, False)])
+@pytest.mark.parametrize("N, route", [pytest.param(400, True, marks=pytest.mark.slow), (100, False), (40, False)])
 def test_the_lgvi_route_is_taken_only_where_its_orbit_resolves_the_maneuver(N, route):
     """default_strategy on lgvi_kepler goes through the LGVI only where the LGVI's free motion ends within half of what
     the engine can move the body in T (leo_body_engine: 1 N on 500 kg, 31 km; the LGVI's orbit 3.5 km off at N = 400,

@@ -138,6 +138,7 @@ def test_a_nadir_cone_equals_the_fixed_cone_about_the_nadir_of_that_node():
                 assert abs(float(f(X)) - a.expression(X, J)) <= 1e-15
 
 
+@pytest.mark.slow
 def test_continuous_check_measures_the_moving_cone_between_nodes():
     """The flight (eqs. (1)-(4), transcription/flight) dips out of the cone between the nodes and near the
     active node by O(h^2) or faster: measured 0.0735 deg at N = 100, 0.0060 at 200, 0.00073 at 400."""
