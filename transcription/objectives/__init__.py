@@ -5,7 +5,8 @@ default strategy), and the registry the maneuver files name them by.
     SmoothControl(objective=Fuel(), W_f=1.0, W_m=1.0)          # or named("fuel")
 
 A new objective is a module here with its class (a frozen dataclass of :class:`~transcription.ocp.objective.
-Objective`) and a line in :data:`OBJECTIVES`.
+Objective`) and a line in :data:`OBJECTIVES`.  (:mod:`.peak`'s least peak force has no line: the effort strategy asks
+it whether an engine is strong enough; it is no file's objective.)
 """
 from __future__ import annotations
 
