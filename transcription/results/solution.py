@@ -175,7 +175,12 @@ class Solution:
         notes; rendered from the data, never parsed back."""
         parts = [self.verdict] if self.verdict else []
         if len(self.trace) > 1:
-            parts.append("initial guesses tried: " + "; ".join(a.line() for a in self.trace))
+            lines, before = [], None
+            for a in self.trace:       # a start not run says why once: the verdict's words, or its neighbour's
+                said = a.result is None and a.note and (a.note == self.verdict or a.note == before)
+                lines.append(f"{a.label}: {'as said' if a.note == self.verdict else 'the same'}" if said else a.line())
+                before = a.note if a.result is None else None
+            parts.append("initial guesses tried: " + "; ".join(lines))
         return "; ".join(parts + list(self.notes))
 
     def with_notes(self, *notes: str, **stats) -> "Solution":
