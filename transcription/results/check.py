@@ -33,8 +33,8 @@ FLOWN_MISS_TOL = 0.01
 PATH_MARGIN_TOL = 1e-5
 #: the attitude error given at the start of the flights that measure its growth (rad) and the growth beyond which a
 #: plan is said to be unstable open loop (:func:`attitude_amplification`): a torque-free body keeps an attitude error
-#: as it is (1); measured, LEO engine plans that fly within 1 % grow it 4.7-30 times (raise_in_phase and three raises
-#: written after it), the phasing of configs/leo/phasing_across_gradient.yaml 255-1590 times (N = 300-600)
+#: as it is (1); measured, LEO engine plans that fly within 1 % grow it 4.7-30 times (raise_in_phase and two raises
+#: written with it), the phasing of configs/leo/phasing_across_gradient.yaml 255-1590 times (N = 300-600)
 PERTURBATION_RAD, UNSTABLE_GROWTH = 1e-6, 100.0
 #: the cure a path note names (:meth:`ContinuousCheck.path_note`)
 PATH_CURE = ("set solver.constraints_tolerance (or solver.accuracy) to refine the mesh where the path leaves it, or "
