@@ -298,6 +298,10 @@ def test_an_engine_below_the_least_peak_force_is_found_infeasible_at_once():
     assert sol.result.value == "infeasible", sol.message
     assert "least peak force" in sol.message and "0.00219" in sol.message
     assert sol.iterations < 200
+    from se3ocp.problems.cli.progress import engine_lines
+    assert sol.stats["least_peak_force"] == pytest.approx(2.1931e-3, rel=1e-4)          # kN
+    assert engine_lines([sol]) == ["direct: the engine would need a thrust above 2.193 N at its peak, the least the "
+                                   "maneuver needs with the thrust pointing anywhere; it gives 2 N"]
 
 
 def test_a_free_final_time_solves_the_hull_without_the_least_peak_force():

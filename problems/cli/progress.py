@@ -87,7 +87,25 @@ def table(sols) -> list[str]:
         miss = f"{miss:>10.2e}" if miss is not None else f"{'-':>10}"
         rows.append(f"{s.method:<{mw}} {s.result.value:<{sw}} {s.cost:>14.8g} {s.terminal_error:>10.2e} {miss} "
                     f"{_percent(s):>10} {o:>10.2e} {s.iterations:>6d} {s.build_s:>8.2f} {s.solve_s:>8.2f}")
-    return rows + miss_lines(sols) + burn_lines(sols)
+    return rows + miss_lines(sols) + burn_lines(sols) + engine_lines(sols)
+
+
+def engine_lines(sols) -> list[str]:
+    """A line per method found infeasible because its engine is too weak (``stats['least_peak_force']``, the least peak
+    force of the maneuver with the thrust pointing anywhere): that force and the engine's, in N for a physical file."""
+    from ..units import units
+
+    out = []
+    for s in sols:
+        need = (getattr(s, "stats", None) or {}).get("least_peak_force")
+        if need is None:
+            continue
+        bound = s.problem.control.force_bound       # an engine's: the stat is only made for one
+        unit, f = units(s.problem).shown("force")
+        unit = f" {unit}" if unit else ""
+        out.append(f"{s.method}: the engine would need a thrust above {f * need:.4g}{unit} at its peak, the least the "
+                   f"maneuver needs with the thrust pointing anywhere; it gives {f * bound.engine_range[1]:.4g}{unit}")
+    return out
 
 
 def _percent(sol) -> str:

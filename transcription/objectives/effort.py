@@ -188,8 +188,9 @@ class RelaxedStart:
             parts += hull.trace if hull is not None else ()
             if hull is not None and hull.result is Result.interrupted:
                 return labelled(hull, self.label, sub.trace, "the relaxed problem")
-            if hull is not None and hull.result is Result.infeasible:
-                return not_made(problem, ctx, self.label, hull.verdict, parts, "the relaxed problem", Result.infeasible)
+            if hull is not None and hull.result is Result.infeasible:     # stats: the force it needs, for the CLI
+                return not_made(problem, ctx, self.label, hull.verdict, parts, "the relaxed problem",
+                                Result.infeasible).with_notes(least_peak_force=least_peak_force(hull.controls))
             M = moment_size(problem)            # the body turns in at the angular acceleration M / lambda_max(J)
             alpha = None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1]
             first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction,
