@@ -190,7 +190,7 @@ class RelaxedStart:
                 return labelled(hull, self.label, sub.trace, "the relaxed problem")
             if hull is not None and hull.result is Result.infeasible:     # stats: the force it needs, for the CLI
                 return not_made(problem, ctx, self.label, hull.verdict, parts, "the relaxed problem",
-                                Result.infeasible).with_notes(least_peak_force=least_peak_force(hull.controls))
+                                Result.infeasible).with_notes(least_peak_force=hull.stats["least_peak_force"])
             M = moment_size(problem)            # the body turns in at the angular acceleration M / lambda_max(J)
             alpha = None if M is None else M / np.linalg.eigvalsh(problem.disc.J)[-1]
             first = aimed(problem, first, engine.engine_axis, engine.engine_range, fraction=self.aim_fraction,
@@ -203,7 +203,8 @@ class RelaxedStart:
         """Where the relaxed solution ``first`` asks more force than the engine's largest thrust F: first the least
         peak force of the relaxed problem (:class:`~transcription.objectives.peak.PeakForce`) from ``first``; where it
         exceeds F (by more than ``peak_rtol``) no attitude of the engine can give the force the maneuver needs, and
-        the problem is reported infeasible (a Solution whose result says so; :meth:`ends`).  Else the relaxed problem
+        the problem is reported infeasible (a Solution whose result says so, ``stats['least_peak_force']`` the force;
+        :meth:`ends`).  Else the relaxed problem
         with |f| <= F (a gimballed engine: the convex hull of the forces the engine gives, pointing anywhere) from the
         least peak force's optimum (within the bound: a feasible start) -- or, where that solve did not converge, from
         ``first`` with its force clipped to the ball -- (:class:`~transcription.strategy.core.Warm`), each within
@@ -233,7 +234,7 @@ class RelaxedStart:
                        f"least peak force of the problem without the engine's attitude), more than the engine's "
                        f"largest thrust {F:.6g}: no attitude of the engine can give it (a thrust above {need:.4g} or a "
                        f"longer horizon is needed)")
-                return replace(least, result=Result.infeasible, verdict=why), first
+                return replace(least, result=Result.infeasible, verdict=why).with_notes(least_peak_force=need), first
             start = least.warm.primal()
         else:
             U = first.U.copy()
