@@ -1,6 +1,7 @@
 """Compilation of hot Functions to C (transcription/codegen.py): fallback, cache, equality."""
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -362,7 +363,7 @@ def test_the_parametric_costate_map_equals_the_numeric_one(name, scheme):
 def test_stop_collects_an_ended_builder_and_its_lock(tmp_path):
     """A builder that ended without removing its lock (killed while still starting, before its SIGTERM handler) and
     is not yet collected is a zombie, which a signal 0 takes for a live build: stop() collects it and removes the
-    lock, so building() is empty at once instead of until the parent happens to reap it (a CI run under load left two
+    lock and the job it left (the cache keeps no orphan), so building() is empty at once instead of until the parent happens to reap it (a CI run under load left two
     such locks for the 60 s of test_new_numbers_in_a_known_structure_compile_nothing)."""
     import subprocess
     import sys
@@ -380,6 +381,15 @@ def test_stop_collects_an_ended_builder_and_its_lock(tmp_path):
         time.sleep(0.05)
     lock = tmp_path / "lib.so.building"
     lock.write_text(str(proc.pid))
-    assert build.building(tmp_path) == [lock]
-    assert build.stop(tmp_path, timeout=5.0) == 1
-    assert build.building(tmp_path) == [] and not lock.exists()
+    job = tmp_path / "background_x"        # its job, which a builder ended by its SIGTERM handler removes first
+    job.mkdir()
+    (job / "job.json").write_text(json.dumps([{"lock": str(lock)}]))
+    other = tmp_path / "other.so.building"  # a build whose lock is being written (no pid yet): under way, its job stays
+    other.write_text("")
+    live = tmp_path / "background_y"
+    live.mkdir()
+    (live / "job.json").write_text(json.dumps([{"lock": str(other)}]))
+    assert sorted(build.building(tmp_path)) == sorted([lock, other])
+    assert build.stop(tmp_path, timeout=1.0) == 1
+    assert build.building(tmp_path) == [other] and not lock.exists()
+    assert not job.exists() and live.is_dir()

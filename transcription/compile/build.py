@@ -187,7 +187,21 @@ def stop(cache: Path | None = None, timeout: float = 10.0) -> int:
     for lock in stopped:      # a builder ended before its SIGTERM handler was set (still starting) left its lock
         if lock.exists() and not _alive(lock):
             lock.unlink(missing_ok=True)
+    if stopped:               # ... and its job, which it removes before its locks when it ends by its handler
+        _remove_orphans(cache_dir() if cache is None else cache)
     return len(stopped)
+
+
+def _remove_orphans(cache: Path) -> None:
+    """Remove the jobs in ``cache`` whose builder is gone: none of their locks is held by a build under way
+    (:func:`_alive`).  A builder removes its job before its last lock, so a job without a live lock is left over."""
+    for spec in cache.glob("background_*/job.json"):
+        try:
+            locks = [Path(entry["lock"]) for entry in json.loads(spec.read_text())]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if not any(_alive(lock) for lock in locks):
+            shutil.rmtree(spec.parent, ignore_errors=True)
 
 
 def _reap(lock: Path) -> None:
