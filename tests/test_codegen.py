@@ -363,8 +363,9 @@ def test_the_parametric_costate_map_equals_the_numeric_one(name, scheme):
 def test_stop_collects_an_ended_builder_and_its_lock(tmp_path):
     """A builder that ended without removing its lock (killed while still starting, before its SIGTERM handler) and
     is not yet collected is a zombie, which a signal 0 takes for a live build: stop() collects it and removes the
-    lock and the job it left (the cache keeps no orphan), so building() is empty at once instead of until the parent happens to reap it (a CI run under load left two
-    such locks for the 60 s of test_new_numbers_in_a_known_structure_compile_nothing)."""
+    lock and the job it left (the cache keeps no orphan), so building() is empty at once instead of until the parent
+    happens to reap it (a CI run under load left two such locks for the 60 s of
+    test_new_numbers_in_a_known_structure_compile_nothing, and a run on two workers its job)."""
     import subprocess
     import sys
 
