@@ -52,7 +52,9 @@ class PeakForce(Objective):
 
     name: ClassVar[str] = "peak_force"
     fatrop: ClassVar[str] = "fatrop is not used for the peak force (its one variable joins every stage)"
-    via_lgvi: ClassVar[bool] = False
+
+    def via_lgvi(self, problem) -> bool:
+        return False
 
     def check(self, control) -> None:
         if control.force_bound is not None and control.force_bound.removed:

@@ -10,7 +10,7 @@ quadratic cost replaced by a linear one: no epigraph, no homotopy, no switching 
 moment, the wheels' torque impulse, is what needs them).  The thrust is bang-off-bang where the switching function
 w_f + lambda^T (dstep/dT) leaves the bounds' interior (the nodes at 0 or T_max), as the fuel objective's.
 
-Default strategy (:class:`PropellantStrategy`): the effort problem with the force priced at the same margin at full
+Default strategy (:class:`FromEffort`): the effort problem with the force priced at the same margin at full
 thrust -- (1/2) W_f' T^2 with W_f' = w_f / T_max, whose derivative at T_max is w_f -- solved by its own strategy
 (the relaxed problem, the aimed start), then this problem from its optimum.  Weights in the actuators' terms
 (:meth:`Propellant.unit_weights`): the impulse in seconds of full thrust, the wheels' effort in units of their size.
@@ -19,7 +19,7 @@ The indirect method does not cover it.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import ClassVar
+from typing import Callable, ClassVar
 
 import casadi as ca
 import numpy as np
@@ -55,9 +55,12 @@ class Propellant(Objective):
 
     indirect: ClassVar = None
     name: ClassVar[str] = "propellant"
-    #: its strategy reaches lgvi_kepler through its effort problem (PropellantStrategy): a bang-off-bang optimum of
-    #: the LGVI's orbit was a poor start on the exact one (1342 more iterations, to a worse optimum: docs §26)
-    via_lgvi: ClassVar[bool] = False
+
+    def via_lgvi(self, problem: Problem) -> bool:
+        """False: its strategy reaches lgvi_kepler through its effort problem (:class:`FromEffort`); a bang-off-bang
+        optimum of the LGVI's orbit was a poor start on the exact one (1342 more iterations, to a worse optimum: docs
+        §26)."""
+        return False
 
     def check(self, control) -> None:
         bound = control.force_bound
@@ -94,8 +97,8 @@ class Propellant(Objective):
         fn = propellant_node(problem.disc, tr.free_h)
         return [(Block("propellant", fn, tr.node_variables(own=False), data), np.zeros(0))]
 
-    def strategy(self, problem: Problem, options) -> "PropellantStrategy":
-        return PropellantStrategy()
+    def strategy(self, problem: Problem, options) -> "FromEffort":
+        return FromEffort()
 
 
 def effort_problem(problem: Problem) -> Problem:
@@ -106,9 +109,10 @@ def effort_problem(problem: Problem) -> Problem:
 
 
 @dataclass(frozen=True)
-class PropellantStrategy(Composed):
-    """The propellant objective's default (module docstring): from the effort problem's optimum
-    (:func:`effort_problem`, by its default strategy: on lgvi_kepler through its LGVI optimum, then by its strategy on
+class FromEffort(Composed):
+    """The default of the objectives linear in the thrust (the propellant's, module docstring; the fuel's counted on
+    channels, :mod:`.fuel`): from the optimum of the effort problem ``related(problem)`` (here
+    :func:`effort_problem`, by its default strategy: on lgvi_kepler through its LGVI optimum, then by its strategy on
     that scheme itself, :func:`~transcription.strategy.core.default_strategy`), then the free motion and the
     interpolation, the first that converges kept; a given start or a chosen ``initial_guess`` is solved from as it
     is.  Neither of the effort problem's routes serves every engine file: with the wheels' torque bounded
@@ -117,14 +121,19 @@ class PropellantStrategy(Composed):
     optimum (1027.6 against 996.1) from which the propellant solve wandered (918 iterations at a residual of 0.03 in
     76 s), where the LGVI's route converges in 118."""
 
+    related: Callable[[Problem], Problem] = effort_problem
+    #: the finish from the effort optimum starts IPOPT's barrier here (None: at its own 0.1, :class:`Warm`'s note)
+    mu_init: float | None = None
+
     def compose(self, problem: Problem, options, start: Start | None = None):
         if start is not None:
             return Warm()
         if (one := chosen(problem, options)) is not None:
             return one
         label = "from the effort optimum"
-        effort = FromRelated(Solve(label=label), effort_problem, "effort", label, "the effort problem")
+        effort = FromRelated(Solve(label=label) if self.mu_init is None else Warm(label, self.mu_init),
+                             self.related, "effort", label, "the effort problem")
         return FirstOf((effort, Solve(starts.rollout, "rollout"), Solve(starts.interpolation, "interpolate")))
 
 
-__all__ = ["Propellant", "PropellantStrategy", "effort_problem", "propellant_node"]
+__all__ = ["FromEffort", "Propellant", "effort_problem", "propellant_node"]

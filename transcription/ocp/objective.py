@@ -23,9 +23,6 @@ class Objective:
     free_time: ClassVar[bool] = False
     #: its necessary conditions in the indirect method (transcription.methods.indirect.laws; None: not covered)
     indirect: ClassVar[Any] = None
-    #: on the Kepler-split LGVI its default strategy starts from its optimum on the LGVI (transcription.strategy.core.
-    #: default_strategy); False where its own strategy reaches that scheme otherwise
-    via_lgvi: ClassVar[bool] = True
     #: why fatrop's stage-ordered NLP is not used for it ('' when it is: transcription.methods.direct.fatrop)
     fatrop: ClassVar[str] = "fatrop is used for the effort objective"
 
@@ -86,6 +83,12 @@ class Objective:
         """One line said before solving ``problem`` when this objective is known to converge slowly or not at all on
         problems of its kind, with what to try ('' otherwise)."""
         return ""
+
+    def via_lgvi(self, problem: "Problem") -> bool:
+        """Whether on the Kepler-split LGVI its default strategy starts from its optimum on the LGVI
+        (:func:`transcription.strategy.core.default_strategy`); False where its own strategy reaches that scheme
+        otherwise."""
+        return True
 
     def strategy(self, problem: "Problem", options: Any) -> Any:
         """This objective's default strategy for ``problem`` with the direct method's ``options``

@@ -364,11 +364,11 @@ def default_strategy(problem: Problem, options, reach: float = 0.5) -> Strategy:
     optimum on the LGVI (:func:`from_scheme`) when the LGVI's discrete orbit :func:`resolves` this one (within
     ``reach`` of what the controls can change: the coarse grids' rule of the fuel strategy), then -- or only, when it
     does not -- the objective's own strategy on that scheme, unless the objective's own strategy reaches it otherwise
-    (:attr:`~transcription.ocp.objective.Objective.via_lgvi`).  Measured (leo_body_engine, 1 N on 500 kg, reach 31 km):
+    (:meth:`~transcription.ocp.objective.Objective.via_lgvi`).  Measured (leo_body_engine, 1 N on 500 kg, reach 31 km):
     at N = 400 the LGVI's orbit ends 3.5 km off and its route reaches the better optimum; at N = 100 (56 km) and 40 its
     problem failed after 94 and 49 s where the own starts converge in 1.2 and 1.0 s."""
     strategy = problem.control.objective.strategy(problem, options)
-    if problem.scheme != "lgvi_kepler" or not problem.control.objective.via_lgvi:
+    if problem.scheme != "lgvi_kepler" or not problem.control.objective.via_lgvi(problem):
         return strategy
     route = from_scheme(strategy)
     return FirstOf((route, strategy)) if resolves(problem, route.related(problem), reach) else strategy
