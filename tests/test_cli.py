@@ -245,20 +245,24 @@ def test_a_method_that_does_not_apply_alone_is_a_status_not_a_crash(tmp_path, fi
 
 
 def test_the_fuel_of_an_engine_with_wheels_is_cautioned_before_solving(tmp_path):
-    """``solve`` says before solving, in one warning line, that the L1 fuel of an engine with wheels converges slowly
-    if at all and names objective=propellant (the objective's caution); the failure's hint puts that tip first.  A
-    fuel file without an engine gets no such line."""
+    """``solve`` says before solving, in one warning line, that the fuel of an engine with a torque of any direction
+    converges slowly if at all and names three wheels (a box of the norm bound's limit) and objective=propellant (the
+    objective's caution); the failure's hint puts that tip first.  A fuel file without an engine, and the bundled
+    engine file with its three wheels (counted on channels), get no such line."""
     r = run("solve", CONFIGS / "leo_engine_fuel.yaml", "--set", "horizon.N=10", "--set", "solver.direct.max_iter=3",
-            "--out", tmp_path / "o", "--no-figures")
+            "--set", "control.bounds.moment={norm: 1.0e-8}", "--out", tmp_path / "o", "--no-figures")
     assert r.returncode == 1, r.stderr
     lines = r.stdout.splitlines()
-    assert lines[1].startswith("warning: the L1 fuel of an engine with wheels converges slowly if at all"), lines[:3]
-    assert "consider control.objective=propellant" in lines[1] and lines[2] == "solving by the direct method ..."
-    assert "try control.objective=propellant" in json.loads((tmp_path / "o" / "summary.json").read_text())[
-        "methods"]["direct"]["message"]
-    r = run("solve", CONFIGS / "orbit_raise_fuel.yaml", "--set", "horizon.N=10", "--set", "solver.direct.max_iter=3",
-            "--out", tmp_path / "p", "--no-figures")
-    assert "warning" not in r.stdout, r.stdout
+    assert lines[1].startswith("warning: the fuel of an engine with a torque of any direction (its 2-norm) converges "
+                               "slowly if at all"), lines[:3]
+    assert "consider control.bounds.moment={box: [1e-08, 1e-08, 1e-08]}" in lines[1], lines[1]
+    assert "or control.objective=propellant" in lines[1] and lines[2] == "solving by the direct method ..."
+    assert "try control.bounds.moment={box: [1e-08, 1e-08, 1e-08]}" in json.loads(
+        (tmp_path / "o" / "summary.json").read_text())["methods"]["direct"]["message"]
+    for name in ("orbit_raise_fuel", "leo_engine_fuel"):
+        r = run("solve", CONFIGS / f"{name}.yaml", "--set", "horizon.N=10", "--set", "solver.direct.max_iter=3",
+                "--out", tmp_path / name, "--no-figures")
+        assert "warning" not in r.stdout, r.stdout
 
 
 def test_solve_default_method_is_direct(tmp_path):

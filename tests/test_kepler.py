@@ -193,8 +193,8 @@ def test_leo_raise_flies_within_one_percent_of_the_maneuver():
 def test_the_kepler_scheme_falls_back_on_its_own_starts_when_the_lgvi_route_wanders():
     """The default strategy on lgvi_kepler: the LGVI's optimum finished on the exact scheme within the route's finish
     budget (200 iterations; 7-27 on the six bundled lgvi_kepler files), then the objective's own starts on the exact
-    scheme.  leo_engine_fuel.yaml's effort problem (the propellant strategy's first solve: the thrust priced at
-    w_f / T_max, the wheels' torque bounded at 0.01 N m) is one whose LGVI optimum was no start with IPOPT's default
+    scheme.  leo_engine_fuel.yaml's effort problem with its wheels as one torque of any direction (the propellant
+    strategy's first solve: the thrust priced at w_f / T_max, the torque bounded at |u_m| <= 0.01 N m) is one whose LGVI optimum was no start with IPOPT's default
     barrier start (the finish wandered for 3000 iterations, 6 min, at a residual of 0.18; with the budget it stopped at
     200 and the own starts converged, 30 s in all); from the barrier at 1e-4 (strategy.core.Warm) the route's finish
     converges (measured 48 iterations, 9 s in all), to the own starts' optimum (1e-9 relative), and the plan flown by
@@ -204,7 +204,7 @@ def test_the_kepler_scheme_falls_back_on_its_own_starts_when_the_lgvi_route_wand
     from se3ocp.transcription.strategy.core import FirstOf, FromRelated, default_strategy
 
     man = load("configs/leo_engine_fuel.yaml", ["control.objective=effort", "control.weights.force=1e6",
-                                                "control.weights.moment=1e16"])
+                                                "control.weights.moment=1e16", "control.bounds.moment={norm: 1.0e-8}"])
     p = man.problem
     plan = default_strategy(p, DirectOptions())
     assert isinstance(plan, FirstOf) and isinstance(plan.strategies[0], FromRelated)

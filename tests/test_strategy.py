@@ -279,7 +279,8 @@ def test_the_iteration_hint_names_the_budgets_the_starts_ran_on():
 
 
 @pytest.mark.parametrize("name, sets, objective_tip, weights_tip", [
-    ("leo_engine_fuel", (), True, False),                # fuel with an engine and bounded wheels: priced as auto
+    ("leo_engine_fuel", (), False, False),               # fuel on the channels of an engine and three wheels
+    ("leo_engine_fuel", ("control.bounds.moment={norm: 1.0e-8}",), True, False),   # a torque of any direction
     ("leo_body_engine", ("control.objective=fuel",), True, True),          # the moment unbounded, w_m chosen for effort
     ("leo_body_engine", ("control.objective=propellant",), False, True),   # effort's (1, 1e10): the wheels almost free
     ("leo_body_engine", ("control.objective=propellant", "control.weights=auto"), False, False),
@@ -288,8 +289,8 @@ def test_the_iteration_hint_names_the_budgets_the_starts_ran_on():
     ("e3_inclination_change", (), False, False),         # no bounds: no actuators' terms
 ])
 def test_the_failure_hint_names_the_objective_and_the_weight_ratio(name, sets, objective_tip, weights_tip):
-    """failure_hint after a failed solve puts the objective's own tip first (the L1 fuel of an engine with wheels:
-    the propellant objective, and a torque limit when the moment is free) and names a weight ratio an order of
+    """failure_hint after a failed solve puts the objective's own tip first (the fuel of an engine with a torque of
+    any direction: three wheels, with the norm bound's limit when there is one, or the propellant objective) and names a weight ratio an order of
     magnitude or more away from the actuators' terms (with the factor), nothing of either where they do not apply."""
     from se3ocp.transcription.methods.base import failed_solution
     from se3ocp.transcription.options import DirectOptions
@@ -300,8 +301,8 @@ def test_the_failure_hint_names_the_objective_and_the_weight_ratio(name, sets, o
     hint = failure_hint(failed_solution(problem, "direct", "ipopt", Result.solver_failed, ""), DirectOptions())
     assert hint.startswith("try "), hint
     assert ("control.objective=propellant" in hint) is objective_tip, hint
-    assert hint.startswith("try control.objective=propellant") is objective_tip, hint
-    assert ("control.bounds.moment (the L1 optimum" in hint) is (objective_tip and "fuel" in str(sets)), hint
+    assert hint.startswith("try control.bounds.moment={box: [") is objective_tip, hint
+    assert ("{box: [1e-08, 1e-08, 1e-08]}" in hint) is (objective_tip and "norm" in str(sets)), hint
     assert ("control.weights=auto" in hint) is weights_tip, hint
     if weights_tip:
         assert re.search(r"price the moment \d\.\de[+-]0\d times", hint), hint

@@ -12,9 +12,10 @@ lo <= T <= hi, and, gimballed, within a ball |u| <= radius:
                                                                 one engine fixed in the body (force_frame body)
 
 Whatever depends on the kind of actuator asks it, here and nowhere else (:meth:`Actuator.margin`,
-:meth:`~Actuator.project`, :meth:`~Actuator.variable_box`, :attr:`~Actuator.channel_rows`, ...).  Fuel: an engine's
-magnitude (one free one-sided channel, the others 0) is |u| = T_1 = a^T u, linear (:attr:`~Actuator.engine_axis`);
-otherwise the 2-norm.
+:meth:`~Actuator.project`, :meth:`~Actuator.variable_box`, :attr:`~Actuator.channel_rows`, ...).  Fuel: counted
+channel by channel, sum_i |T_i|, where every channel is bounded and there is no ball (a box, an engine: each thruster
+pair, wheel or engine spends its own; :attr:`~Actuator.fuel_channels`) -- an engine's is its thrust T_1 = a^T u = |u|,
+linear; otherwise the 2-norm |u|.
 """
 from __future__ import annotations
 
@@ -77,6 +78,19 @@ class Actuator:
             return None
         i = int(np.flatnonzero(free)[0])
         return Q[:, i] if lo[i] >= 0.0 else None
+
+    @property
+    def fuel_channels(self) -> np.ndarray | None:
+        """Q, where the actuator's fuel is counted channel by channel, sum_i |T_i| (thrusters, wheels and an engine:
+        every channel bounded, no ball -- a box, an engine, whose |u| = T_1); None where it is the 2-norm |u| (a
+        gimballed actuator, a removed part)."""
+        Q, lo, hi = self.channels
+        return Q if not np.isfinite(self.radius) and np.all(np.isfinite(lo) & np.isfinite(hi)) else None
+
+    def fuel(self, u: np.ndarray) -> np.ndarray:
+        """(n,) the fuel rate of controls u (n, 3): sum_i |T_i| over the channels (:attr:`fuel_channels`), else |u|."""
+        u = np.asarray(u, float)
+        return np.linalg.norm(u, axis=-1) if self.fuel_channels is None else np.abs(self.T(u)).sum(axis=-1)
 
     @property
     def engine_range(self) -> tuple[float, float] | None:

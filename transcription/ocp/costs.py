@@ -37,10 +37,13 @@ def effort_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> flo
 
 
 def fuel_cost(U: np.ndarray, control: SmoothControl, omega: np.ndarray) -> float:
-    """sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) for U (6, n_controls) (the fuel objective)."""
+    """sum_j omega_j (w_f |u_f,j| + w_m |u_m,j|) for U (6, n_controls) (the fuel objective), each |u| the part's
+    actuator's fuel rate (:meth:`~.actuators.Actuator.fuel`: sum_i |T_i| over a box's or an engine's channels), the
+    2-norm for an unbounded part."""
     U = np.asarray(U, dtype=float)
-    return float(np.sum(omega * (control.W_f[0, 0] * np.linalg.norm(U[U_FORCE], axis=0)
-                                 + control.W_m[0, 0] * np.linalg.norm(U[U_MOMENT], axis=0))))
+    rate = [np.linalg.norm(U[sl], axis=0) if b is None else b.fuel(U[sl].T)
+            for sl, b in ((U_FORCE, control.force_bound), (U_MOMENT, control.moment_bound))]
+    return float(np.sum(omega * (control.W_f[0, 0] * rate[0] + control.W_m[0, 0] * rate[1])))
 
 
 def objective_value(problem: "Problem", U: np.ndarray, h: float) -> float:

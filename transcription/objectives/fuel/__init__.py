@@ -7,7 +7,13 @@ The parameters of the NLP's form are the objective's fields, so that every step 
 structured finish -- is the solve of a Problem by the direct method: ``smoothing`` eps in [0, 1] and ``reference``
 (r_f, r_m) of the smoothed magnitude phi_eps(s) = (1 - eps) s + eps s^2 / (2 r) (eps = 0: the fuel objective);
 ``burn`` (2, n_controls) bool, a fixed switching structure (None: the epigraph u = s d on every node) with the
-magnitudes' ``rounding`` (2,) (a fraction of each part's magnitude scale)."""
+magnitudes' ``rounding`` (2,) (a fraction of each part's magnitude scale).
+
+Where every part's actuator counts its fuel channel by channel (:meth:`Fuel.on_channels`: an engine, thrusters,
+wheels -- :attr:`~transcription.ocp.actuators.Actuator.fuel_channels`), the cost is linear in the channels' magnitudes
+and the NLP a linear program's epigraph of them (:func:`.nlp.channel_node`): it is solved as it stands, from the
+effort optimum (:class:`~transcription.objectives.propellant.FromEffort`), with none of the epigraph's homotopy, guard
+or structured finish (docs/mathematics.md §27)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -18,7 +24,10 @@ import numpy as np
 from ...geometry.state import U_FORCE, U_MOMENT
 from ...methods.indirect.laws import FuelLaw
 from ...ocp import Objective, Problem, ProblemError, fuel_cost, quadrature_weights
-from .nlp import fuel_blocks, fuel_slacks
+from ...strategy.core import Warm
+from ..propellant import FromEffort
+from .homotopy import Homotopy
+from .nlp import channel_blocks, fuel_blocks, fuel_slacks
 from .plan import FuelStrategy
 
 
@@ -57,6 +66,19 @@ class Fuel(Objective):
     def __hash__(self) -> int:
         return hash((self.smoothing, self.reference, self.rounding, None if self.burn is None else self.burn.tobytes()))
 
+    @staticmethod
+    def on_channels(problem: Problem) -> tuple[np.ndarray, np.ndarray] | None:
+        """(Q_f, Q_m) where both parts' fuel is counted on their actuators' channels (a removed part's on the axes,
+        held at 0), or None (a part unbounded or gimballed: the 2-norm, the epigraph)."""
+        c = problem.control
+        out = []
+        for bound in (c.force_bound, c.moment_bound):
+            Q = None if bound is None else np.eye(3) if bound.removed else bound.fuel_channels
+            if Q is None:
+                return None
+            out.append(Q)
+        return out[0], out[1]
+
     @property
     def epigraph(self) -> bool:
         """The magnitude-direction epigraph on every node (no fixed switching structure)."""
@@ -80,16 +102,27 @@ class Fuel(Objective):
                                 + (0.0 if rm else c.W_m[0, 0] * sU[U_MOMENT].max()))
 
     def slacks(self, tr) -> int:
-        return 8 if self.epigraph else 2
+        return 6 if self.on_channels(tr.problem) is not None else 8 if self.epigraph else 2
 
     def slack_scales(self, tr) -> np.ndarray:
+        if self.on_channels(tr.problem) is not None:
+            return np.repeat(tr.magnitudes, 3)
         return np.r_[tr.magnitudes, np.ones(6)] if self.epigraph else tr.magnitudes
 
     def slack_values(self, tr, U: np.ndarray) -> np.ndarray:
+        channels = self.on_channels(tr.problem)
+        if channels is not None:     # |T_i| = |Q^T u|, the force's channels then the moment's
+            return np.abs(np.vstack([channels[0].T @ U[U_FORCE], channels[1].T @ U[U_MOMENT]]))
         return fuel_slacks(U)[:self.slacks(tr)]
 
     def slack_bounds(self, tr, lbx: np.ndarray, ubx: np.ndarray) -> None:
         lay, c = tr.layout, tr.problem.control
+        if self.on_channels(tr.problem) is not None:
+            # s_i >= 0, free above even where T_i is held (an engine's off-axis channels, a removed part): fixed there,
+            # its rows would repeat T_i = 0's and IPOPT meet dependent active rows (3000 iterations on
+            # leo_engine_fuel with three wheels, 52 without)
+            lbx[lay.iS] = np.maximum(lbx[lay.iS], 0.0)
+            return
         lbx[lay.iS[:2]] = np.maximum(lbx[lay.iS[:2]], 0.0)      # the magnitudes s >= 0
         for k, (sl, bound) in enumerate(((U_FORCE, c.force_bound), (U_MOMENT, c.moment_bound))):
             if bound is not None and bound.removed:              # a removed part: no magnitude
@@ -101,28 +134,38 @@ class Fuel(Objective):
                 lbx[coast] = ubx[coast] = 0.0
 
     def blocks(self, tr) -> list:
-        return fuel_blocks(self, tr)
+        channels = self.on_channels(tr.problem)
+        return fuel_blocks(self, tr) if channels is None else channel_blocks(tr, channels)
 
     def failure_tip(self, problem: Problem) -> str:
-        """With an engine and wheels: the propellant objective (the L1 of the wheels' torque is what keeps these
-        problems from converging, docs §25-§26); with the moment unbounded, also its bound (the L1 optimum of a free
-        torque is impulsive in the limit, §21)."""
+        """With an engine and a moment of any direction (gimballed or unbounded): three wheels on the body axes, whose
+        fuel counts on channels (docs §27: it converges in seconds where the 2-norm of the torque does not, §25), or
+        the propellant objective (§26)."""
         c = problem.control
         bound = c.force_bound
-        if bound is None or bound.engine_axis is None or c.removed[1]:
+        if bound is None or bound.engine_axis is None or c.removed[1] or self.on_channels(problem) is not None:
             return ""
-        tip = ("control.objective=propellant (the engine's impulse with the wheels' torque priced by its effort, "
-               "docs/mathematics.md §26: it converges in seconds where the L1 of the wheels' torque does not)")
-        return tip + ("; or a wheels' torque limit control.bounds.moment (the L1 optimum of a free torque is "
-                      "impulsive in the limit, §21)" if c.moment_bound is None else "")
+        b = f"{c.moment_bound.radius:g}" if c.moment_bound is not None else "b"
+        return (f"control.bounds.moment={{box: [{b}, {b}, {b}]}} (three wheels on the body axes"
+                + ("" if c.moment_bound is not None else ", b each one's torque limit")
+                + ", each one's torque impulse counted: docs/mathematics.md §27, it converges in seconds where the "
+                "2-norm of the torque does not), or control.objective=propellant (the wheels' torque priced by its "
+                "effort, §26)")
 
     def caution(self, problem: Problem) -> str:
-        """With an engine and wheels: none of the bundled engine files converges (docs §25), and the cure."""
+        """With an engine and a moment of any direction: the L1 of its 2-norm converges slowly if at all (docs §25),
+        and the cure."""
         tip = self.failure_tip(problem)
-        return (f"the L1 fuel of an engine with wheels converges slowly if at all (the bundled engine raises end "
-                f"without a plan after minutes: docs/mathematics.md §25); consider {tip}") if tip else ""
+        return (f"the fuel of an engine with a torque of any direction (its 2-norm) converges slowly if at all "
+                f"(docs/mathematics.md §25); consider {tip}") if tip else ""
 
-    def strategy(self, problem: Problem, options) -> FuelStrategy:
+    def via_lgvi(self, problem: Problem) -> bool:
+        """Counted on channels its strategy reaches lgvi_kepler through its effort problem (:class:`FromEffort`)."""
+        return self.on_channels(problem) is None
+
+    def strategy(self, problem: Problem, options) -> FuelStrategy | FromEffort:
+        if self.on_channels(problem) is not None:
+            return FromEffort(Homotopy(None).effort_problem, mu_init=Warm.mu_init)
         return FuelStrategy()
 
 

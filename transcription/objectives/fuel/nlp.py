@@ -15,6 +15,13 @@
         rows = [(b_f (sqrt(|u_f|^2 + delta_f^2) - delta_f - s_f) - (1 - b_f) sS_f) / sS_f (<= 0); the same of u_m];
         an engine's force: a^T u_f - s_f <= 0 on every node (no rounding; T = 0 is the engine row's bound).
 
+    channel_node(disc, free_h)         the fuel counted on the actuators' channels (:meth:`Fuel.on_channels`)
+        v = [u_j (6); s (6) (each channel's |T_i|, the force's then the moment's); h / h_scale (free_h)]
+        p = [sU (6); sS (2); omega_j / h; h (or h_scale); w_f; w_m; s_obj; vec Q_f (9); vec Q_m (9)]
+        rows = [(T_f - s_f) / sS_f, (-T_f - s_f) / sS_f, (T_m - s_m) / sS_m, (-T_m - s_m) / sS_m (<= 0)],
+        T = Q^T u; cost = omega_j (w_f sum_i s_f,i + w_m sum_i s_m,i) / s_obj: linear, a linear program's epigraph of
+        sum_i |T_i| -- no bilinear term, no false coast (a channel at 0 with |dL/dT_i| < w is one of the problem's)
+
 The epigraph is the magnitude-direction split u = s d, |d| <= 1, s >= 0, with the cost omega_j (w_f s_f + w_m s_m):
 at the optimum s = |u|.  Unlike |u|^2 <= s^2 its constraint gradients do not vanish where the control is off
 (u = s = 0), which is where a fuel-optimal control spends its coast arcs (with |u|^2 <= s^2 IPOPT declared the E3 fuel
@@ -79,6 +86,38 @@ def fuel_node(disc, free_h: bool, l1: bool = False, engine: bool = False) -> Blo
     return BlockFunction(ca.Function(name, [v, p], [cost, ca.vertcat(*rows)], ["v", "p"], ["cost", "rows"]))
 
 
+@per_discretization
+def channel_node(disc, free_h: bool) -> BlockFunction:
+    """The fuel objective counted on channels at one control node (module docstring)."""
+    v = ca.SX.sym("v", NU + 6 + (1 if free_h else 0))
+    p = ca.SX.sym("p", NU + 2 + 5 + 18)
+    sU, sS = p[:NU], p[NU:NU + 2]
+    omega_per_h, hp, wf, wm, s_obj = (p[NU + 2 + k] for k in range(5))
+    Qf, Qm = ca.reshape(p[NU + 7:NU + 16], 3, 3), ca.reshape(p[NU + 16:NU + 25], 3, 3)
+    h = hp * v[-1] if free_h else hp
+    u = v[:NU] * sU
+    sf, sm = v[NU:NU + 3] * sS[0], v[NU + 3:NU + 6] * sS[1]
+    Tf, Tm = Qf.T @ u[U_FORCE], Qm.T @ u[U_MOMENT]
+    rows = ca.vertcat((Tf - sf) / sS[0], (-Tf - sf) / sS[0], (Tm - sm) / sS[1], (-Tm - sm) / sS[1])
+    cost = omega_per_h * h * (wf * ca.sum1(sf) + wm * ca.sum1(sm)) / s_obj
+    return BlockFunction(ca.Function("fuel_channels" + ("_freeh" if free_h else ""), [v, p], [cost, rows],
+                                     ["v", "p"], ["cost", "rows"]))
+
+
+def channel_blocks(tr, channels: tuple[np.ndarray, np.ndarray]) -> list:
+    """The fuel block counted on the channels (Q_f, Q_m) of the NLP ``tr``, with its row scales (module
+    docstring)."""
+    problem, sc, control = tr.problem, tr.scales, tr.problem.control
+    nU, sS = len(tr.layout.control_nodes), tr.magnitudes
+    shared = np.r_[problem.h, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
+                   channels[0].ravel(order="F"), channels[1].ravel(order="F")]
+    data = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), tr.omega_per_h[None, :],
+                      np.repeat(shared[:, None], nU, axis=1)])
+    block = Block("fuel", channel_node(problem.disc, tr.free_h), tr.node_variables(), data,
+                  lbg=np.full(12, -np.inf), ubg=np.zeros(12))
+    return [(block, np.repeat(sS, 6))]
+
+
 def fuel_blocks(objective, tr) -> list:
     """The fuel block of the NLP ``tr`` for the Fuel ``objective`` (module docstring), with its row scales."""
     problem, lay, sc = tr.problem, tr.layout, tr.scales
@@ -114,4 +153,4 @@ def fuel_rows(objective, tr, rows: np.ndarray) -> tuple[np.ndarray | None, np.nd
     return rows[2:5], rows[5:8]
 
 
-__all__ = ["fuel_blocks", "fuel_node", "fuel_rows", "fuel_slacks"]
+__all__ = ["channel_blocks", "channel_node", "fuel_blocks", "fuel_node", "fuel_rows", "fuel_slacks"]
