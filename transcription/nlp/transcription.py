@@ -91,6 +91,13 @@ class SmoothTranscription:
         problem = self.problem
         return quadrature_weights(problem.scheme, problem.N, 1.0 if problem.uniform else problem.mesh)
 
+    def node_parameters(self, head: np.ndarray, shared: np.ndarray, *rows: np.ndarray) -> np.ndarray:
+        """The parameters of each control node's objective block (n_p, n_controls): ``head`` (the scales) on every
+        node, omega_j / h (:attr:`omega_per_h`), ``shared`` on every node, then the per-node ``rows``."""
+        nU = len(self.layout.control_nodes)
+        return np.vstack([np.repeat(np.asarray(head, float)[:, None], nU, axis=1), self.omega_per_h[None, :],
+                          np.repeat(np.asarray(shared, float)[:, None], nU, axis=1), *rows])
+
     def node_variables(self, own: bool = True) -> np.ndarray:
         """The variables of each control node's block (n, n_controls): its controls, its objective's variables (with
         ``own``) and the free step size."""

@@ -76,10 +76,7 @@ class Effort(Objective):
 
     def blocks(self, tr) -> list:
         problem, sc, c = tr.problem, tr.scales, tr.problem.control
-        nU = len(tr.layout.control_nodes)
-        data = np.vstack([np.repeat(sc.U[:, None], nU, axis=1), tr.omega_per_h[None, :],
-                          np.repeat(np.r_[problem.h, sc.objective, c.W_f.ravel(order="F"),
-                                          c.W_m.ravel(order="F")][:, None], nU, axis=1)])
+        data = tr.node_parameters(sc.U, np.r_[problem.h, sc.objective, c.W_f.ravel(order="F"), c.W_m.ravel(order="F")])
         fn = effort_node(problem.disc, tr.free_h)
         return [(Block("effort", fn, tr.node_variables(own=False), data), np.zeros(0))]
 

@@ -90,10 +90,8 @@ class Propellant(Objective):
 
     def blocks(self, tr) -> list:
         problem, sc, c = tr.problem, tr.scales, tr.problem.control
-        nU = len(tr.layout.control_nodes)
         shared = np.r_[problem.h, sc.objective, c.force_bound.engine_axis, c.W_f[0, 0], c.W_m.ravel(order="F")]
-        data = np.vstack([np.repeat(sc.U[:, None], nU, axis=1), tr.omega_per_h[None, :],
-                          np.repeat(shared[:, None], nU, axis=1)])
+        data = tr.node_parameters(sc.U, shared)
         fn = propellant_node(problem.disc, tr.free_h)
         return [(Block("propellant", fn, tr.node_variables(own=False), data), np.zeros(0))]
 

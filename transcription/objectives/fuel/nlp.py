@@ -107,12 +107,10 @@ def channel_node(disc, free_h: bool) -> BlockFunction:
 def channel_blocks(tr, channels: tuple[np.ndarray, np.ndarray]) -> list:
     """The fuel block counted on the channels (Q_f, Q_m) of the NLP ``tr``, with its row scales (module
     docstring)."""
-    problem, sc, control = tr.problem, tr.scales, tr.problem.control
-    nU, sS = len(tr.layout.control_nodes), tr.magnitudes
+    problem, sc, control, sS = tr.problem, tr.scales, tr.problem.control, tr.magnitudes
     shared = np.r_[problem.h, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
                    channels[0].ravel(order="F"), channels[1].ravel(order="F")]
-    data = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), tr.omega_per_h[None, :],
-                      np.repeat(shared[:, None], nU, axis=1)])
+    data = tr.node_parameters(np.r_[sc.U, sS], shared)
     block = Block("fuel", channel_node(problem.disc, tr.free_h), tr.node_variables(), data,
                   lbg=np.full(12, -np.inf), ubg=np.zeros(12))
     return [(block, np.repeat(sS, 6))]
@@ -128,10 +126,9 @@ def fuel_blocks(objective, tr) -> list:
     ref = sS if objective.reference is None else np.asarray(objective.reference, float).reshape(2)
     shared = np.r_[problem.h, control.W_f[0, 0], control.W_m[0, 0], sc.objective,
                    engine if engine is not None else np.zeros(3), ref, objective.smoothing]
-    data = np.vstack([np.repeat(np.r_[sc.U, sS][:, None], nU, axis=1), tr.omega_per_h[None, :],
-                      np.repeat(shared[:, None], nU, axis=1)]
-                     + ([objective.burn.astype(float),
-                         np.repeat((np.asarray(objective.rounding, float) * sS)[:, None], nU, axis=1)] if l1 else []))
+    structure = ([objective.burn.astype(float), np.repeat((np.asarray(objective.rounding, float) * sS)[:, None], nU,
+                                                          axis=1)] if l1 else [])
+    data = tr.node_parameters(np.r_[sc.U, sS], shared, *structure)
     fn = fuel_node(problem.disc, tr.free_h, l1, engine is not None)
     if l1:
         lbg, ubg, scales = np.full(2, -np.inf), np.zeros(2), sS
