@@ -32,6 +32,7 @@ def test_each_actuator_counts_its_fuel():
     on_axis = T[:, None] * engine.axis
     assert np.allclose(engine.fuel(on_axis), T, rtol=1e-14, atol=1e-15)
     assert box.fuel_channels is not None and engine.fuel_channels is not None and ball.fuel_channels is None
+    assert np.array_equal(NormBound(0.0).fuel_channels, np.eye(3))      # a removed part: its channels held at 0
     c = problem("leo_engine_fuel", 10).control
     U = np.vstack([np.outer(c.force_bound.axis, T[:11]) * 1e-3, u[:11].T * 1e-9])
     om = RNG.uniform(0.5, 1.5, 11)

@@ -82,10 +82,11 @@ class Actuator:
     @property
     def fuel_channels(self) -> np.ndarray | None:
         """Q, where the actuator's fuel is counted channel by channel, sum_i |T_i| (thrusters, wheels and an engine:
-        every channel bounded, no ball -- a box, an engine, whose |u| = T_1); None where it is the 2-norm |u| (a
-        gimballed actuator, a removed part)."""
+        every channel bounded, no ball -- a box, an engine, whose |u| = T_1; a removed part, whose channels are held
+        at 0); None where it is the 2-norm |u| (a gimballed actuator)."""
         Q, lo, hi = self.channels
-        return Q if not np.isfinite(self.radius) and np.all(np.isfinite(lo) & np.isfinite(hi)) else None
+        bounded = not np.isfinite(self.radius) and np.all(np.isfinite(lo) & np.isfinite(hi))
+        return Q if bounded or self.removed else None
 
     def fuel(self, u: np.ndarray) -> np.ndarray:
         """(n,) the fuel rate of controls u (n, 3): sum_i |T_i| over the channels (:attr:`fuel_channels`), else |u|."""

@@ -68,16 +68,12 @@ class Fuel(Objective):
 
     @staticmethod
     def on_channels(problem: Problem) -> tuple[np.ndarray, np.ndarray] | None:
-        """(Q_f, Q_m) where both parts' fuel is counted on their actuators' channels (a removed part's on the axes,
-        held at 0), or None (a part unbounded or gimballed: the 2-norm, the epigraph)."""
+        """(Q_f, Q_m) where both parts' fuel is counted on their actuators' channels
+        (:attr:`~transcription.ocp.actuators.Actuator.fuel_channels`), or None (a part unbounded or gimballed: the
+        2-norm, the epigraph)."""
         c = problem.control
-        out = []
-        for bound in (c.force_bound, c.moment_bound):
-            Q = None if bound is None else np.eye(3) if bound.removed else bound.fuel_channels
-            if Q is None:
-                return None
-            out.append(Q)
-        return out[0], out[1]
+        Q = [None if b is None else b.fuel_channels for b in (c.force_bound, c.moment_bound)]
+        return None if any(q is None for q in Q) else (Q[0], Q[1])
 
     @property
     def epigraph(self) -> bool:
