@@ -43,16 +43,17 @@ def test_each_actuator_counts_its_fuel():
 def test_the_channel_form_is_chosen_by_the_actuators():
     """Fuel.on_channels: leo_engine_fuel (an engine, a box of wheels) and the fuel raise with boxes: (Q_f, Q_m), its
     strategy from the effort optimum without the LGVI route; a gimballed part (the fuel raise as written) or an
-    unbounded one (leo_body_engine): None, the epigraph's strategy."""
+    unbounded one (leo_body_engine): None, the epigraph's strategy -- through the LGVI for the gimballed part, on the
+    scheme itself for the engine with an unbounded torque (its continuation through channels, docs §25)."""
     for name, sets in (("leo_engine_fuel", ()),
                        ("orbit_raise_fuel", ("control.bounds={force: {box: [40, 40, 40]}, moment: {box: [1, 1, 1]}}",))):
         p = problem(name, 10, None, *sets)
         Qf, Qm = Fuel.on_channels(p)
         assert np.allclose(Qm, np.eye(3)) and np.allclose(Qf @ Qf.T, np.eye(3), atol=1e-15)
         assert isinstance(p.control.objective.strategy(p, None), FromEffort) and not p.control.objective.via_lgvi(p)
-    for name, sets in (("orbit_raise_fuel", ()), ("leo_body_engine", ("control.objective=fuel",))):
+    for name, sets, lgvi in (("orbit_raise_fuel", (), True), ("leo_body_engine", ("control.objective=fuel",), False)):
         p = problem(name, 10, None, *sets)
-        assert Fuel.on_channels(p) is None and p.control.objective.via_lgvi(p)
+        assert Fuel.on_channels(p) is None and p.control.objective.via_lgvi(p) is lgvi
 
 
 def test_a_box_fuel_raise_beats_every_feasible_plan_and_keeps_its_bounds():

@@ -247,8 +247,9 @@ def test_a_method_that_does_not_apply_alone_is_a_status_not_a_crash(tmp_path, fi
 def test_the_fuel_of_an_engine_with_wheels_is_cautioned_before_solving(tmp_path):
     """``solve`` says before solving, in one warning line, that the fuel of an engine with a torque of any direction
     converges slowly if at all and names three wheels (a box of the norm bound's limit) and objective=propellant (the
-    objective's caution); the failure's hint puts that tip first.  A fuel file without an engine, and the bundled
-    engine file with its three wheels (counted on channels), get no such line."""
+    objective's caution); the failure's hint puts that tip first.  A fuel file without an engine, the bundled
+    engine file with its three wheels (counted on channels) and leo_body_engine with its torque unbounded (reached
+    through channels, docs §25) get no such line."""
     r = run("solve", CONFIGS / "leo_engine_fuel.yaml", "--set", "horizon.N=10", "--set", "solver.direct.max_iter=3",
             "--set", "control.bounds.moment={norm: 1.0e-8}", "--out", tmp_path / "o", "--no-figures")
     assert r.returncode == 1, r.stderr
@@ -259,9 +260,10 @@ def test_the_fuel_of_an_engine_with_wheels_is_cautioned_before_solving(tmp_path)
     assert "or control.objective=propellant" in lines[1] and lines[2] == "solving by the direct method ..."
     assert "try control.bounds.moment={box: [1e-08, 1e-08, 1e-08]}" in json.loads(
         (tmp_path / "o" / "summary.json").read_text())["methods"]["direct"]["message"]
-    for name in ("orbit_raise_fuel", "leo_engine_fuel"):
+    for name, sets in (("orbit_raise_fuel", []), ("leo_engine_fuel", []),
+                       ("leo_body_engine", ["--set", "control.objective=fuel"])):
         r = run("solve", CONFIGS / f"{name}.yaml", "--set", "horizon.N=10", "--set", "solver.direct.max_iter=3",
-                "--out", tmp_path / name, "--no-figures")
+                *sets, "--out", tmp_path / name, "--no-figures")
         assert "warning" not in r.stdout, r.stdout
 
 

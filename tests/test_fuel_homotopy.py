@@ -178,9 +178,9 @@ def test_a_coarse_grid_whose_orbit_the_force_cannot_reach_is_skipped():
     assert coarse_resolves(problem("leo_body_engine", 400, None, "control.objective=fuel"), 100,
                            FuelStrategy().coarse_reach)
     leo = problem("leo_body_engine", 400, "lgvi", "control.objective=fuel")
-    plan = FuelStrategy().compose(leo, se3ocp.DirectOptions()).inner
-    assert isinstance(plan, FirstOf) and [e.label for e in plan.strategies] == [
-        "the fuel homotopy from the effort optimum (or its continuation from a bounded problem)", "rollout",
+    first, plan = FuelStrategy().compose(leo, se3ocp.DirectOptions()).inner.strategies   # the continuation, the grids
+    assert first.continued and isinstance(plan, FirstOf) and [e.label for e in plan.strategies] == [
+        "the fuel homotopy from the effort optimum (or its continuation from channels)", "rollout",
         "interpolate"]
     assert not coarse_resolves(leo, 100, FuelStrategy().coarse_reach)
     strong = problem("leo_body_engine", 400, "lgvi", "control.objective=fuel",

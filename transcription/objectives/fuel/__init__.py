@@ -27,7 +27,8 @@ from ...ocp import Objective, Problem, ProblemError, fuel_cost, quadrature_weigh
 from ...strategy.core import Warm
 from ..propellant import FromEffort
 from .homotopy import Homotopy
-from .nlp import channel_blocks, fuel_blocks, fuel_slacks
+from .nlp import channel_blocks, fuel_blocks, fuel_slacks, on_channels
+from .continuation import through_channels
 from .plan import FuelStrategy
 
 
@@ -66,14 +67,7 @@ class Fuel(Objective):
     def __hash__(self) -> int:
         return hash((self.smoothing, self.reference, self.rounding, None if self.burn is None else self.burn.tobytes()))
 
-    @staticmethod
-    def on_channels(problem: Problem) -> tuple[np.ndarray, np.ndarray] | None:
-        """(Q_f, Q_m) where both parts' fuel is counted on their actuators' channels
-        (:attr:`~transcription.ocp.actuators.Actuator.fuel_channels`), or None (a part unbounded or gimballed: the
-        2-norm, the epigraph)."""
-        c = problem.control
-        Q = [None if b is None else b.fuel_channels for b in (c.force_bound, c.moment_bound)]
-        return None if any(q is None for q in Q) else (Q[0], Q[1])
+    on_channels = staticmethod(on_channels)
 
     @property
     def epigraph(self) -> bool:
@@ -149,15 +143,16 @@ class Fuel(Objective):
                 "effort, §26)")
 
     def caution(self, problem: Problem) -> str:
-        """With an engine and a moment of any direction: the L1 of its 2-norm converges slowly if at all (docs §25),
-        and the cure."""
-        tip = self.failure_tip(problem)
+        """With an engine and a gimballed moment (a norm bound): the L1 of its 2-norm converges slowly if at all
+        (docs §25), and the cure.  An unbounded moment is reached through channels (:mod:`.continuation`)."""
+        tip = "" if through_channels(problem) else self.failure_tip(problem)
         return (f"the fuel of an engine with a torque of any direction (its 2-norm) converges slowly if at all "
                 f"(docs/mathematics.md §25); consider {tip}") if tip else ""
 
     def via_lgvi(self, problem: Problem) -> bool:
-        """Counted on channels its strategy reaches lgvi_kepler through its effort problem (:class:`FromEffort`)."""
-        return self.on_channels(problem) is None
+        """Counted on channels its strategy reaches lgvi_kepler through its effort problem (:class:`FromEffort`), and
+        through problems counted on channels (:func:`.continuation.through_channels`) on that scheme itself."""
+        return self.on_channels(problem) is None and not through_channels(problem)
 
     def strategy(self, problem: Problem, options) -> FuelStrategy | FromEffort:
         if self.on_channels(problem) is not None:

@@ -39,6 +39,15 @@ from ...geometry.state import NU, U_FORCE, U_MOMENT
 from ...nlp.structured import Block, BlockFunction
 
 
+def on_channels(problem) -> tuple[np.ndarray, np.ndarray] | None:
+    """(Q_f, Q_m) where both parts' fuel is counted on their actuators' channels
+    (:attr:`~transcription.ocp.actuators.Actuator.fuel_channels`), or None (a part unbounded or gimballed: the
+    2-norm, the epigraph)."""
+    c = problem.control
+    Q = [None if b is None else b.fuel_channels for b in (c.force_bound, c.moment_bound)]
+    return None if any(q is None for q in Q) else (Q[0], Q[1])
+
+
 def fuel_slacks(U: np.ndarray) -> np.ndarray:
     """The fuel epigraph's variables (8, n) of controls U (6, n): magnitudes |u_f|, |u_m| and unit directions
     (u / |u|, or e1 where the control is 0)."""
@@ -150,4 +159,4 @@ def fuel_rows(objective, tr, rows: np.ndarray) -> tuple[np.ndarray | None, np.nd
     return rows[2:5], rows[5:8]
 
 
-__all__ = ["channel_blocks", "channel_node", "fuel_blocks", "fuel_node", "fuel_rows", "fuel_slacks"]
+__all__ = ["channel_blocks", "channel_node", "fuel_blocks", "fuel_node", "fuel_rows", "fuel_slacks", "on_channels"]

@@ -1,9 +1,10 @@
 """The fuel objective's default strategy (:class:`FuelStrategy`): on a grid of more than ``coarse_min`` steps the best
 start on max(coarse_min, N // coarse_factor) steps (recursively), resampled on SE(3) and finished here on its switching
 structure (:mod:`.structure`; the free motion and the screw interpolation on this grid are the fallback); on the
-coarsest grid the multistart: the homotopy from the effort optimum (:mod:`.homotopy`; or the continuation from a
-bounded problem, :mod:`.continuation`), the free motion and the screw interpolation, the lowest converged cost kept;
-every epigraph solution checked by the fuel KKT guard and escaped from a false minimum (:mod:`.guard`)."""
+coarsest grid -- or on the problem's own where the continuation through problems counted on channels applies
+(:func:`.continuation.through_channels`) -- the multistart: the homotopy from the effort optimum (:mod:`.homotopy`; or
+that continuation, :mod:`.continuation`), the free motion and the screw interpolation, the lowest converged cost
+kept; every epigraph solution checked by the fuel KKT guard and escaped from a false minimum (:mod:`.guard`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -13,7 +14,7 @@ from ...results.solution import Solution
 from ...results.start import Start
 from ...strategy import starts
 from ...strategy.core import BestOf, CoarseToFine, Composed, Context, FirstOf, Solve, Warm, chosen, not_made, resolves
-from .continuation import ContinuationStart, counted_unbounded
+from .continuation import ContinuationStart, counted_unbounded, through_channels
 from .guard import Guarded
 from .homotopy import Homotopy
 from .structure import StructuredFinish
@@ -31,10 +32,11 @@ def coarse_resolves(problem: Problem, Nc: int, fraction: float) -> bool:
 class FuelStart:
     """The homotopy's start on the coarsest grid, or, where the homotopy cannot begin with its first level
     (:meth:`.continuation.ContinuationStart.start_problem`), the continuation's; the effort optimum is solved once
-    for either."""
+    for either.  ``continued``: the continuation's alone (not made where it does not apply: the plan goes on)."""
 
     homotopy: Homotopy
     continuation: ContinuationStart
+    continued: bool = False
 
     @property
     def label(self) -> str:
@@ -46,9 +48,12 @@ class FuelStart:
             return not_made(problem, ctx, self.label, "not available (the effort problem or a smoothed problem did "
                                                       "not converge)", effort.trace, "the effort problem")
         bounded = self.continuation.start_problem(problem, effort.warm.U, self.homotopy.effort_level_ratio)
+        if bounded is None and self.continued:
+            return not_made(problem, ctx, self.label, "not needed (the homotopy starts the problem itself)",
+                            effort.trace, "the effort problem")
         if bounded is None:
             return self.homotopy.run(problem, None, ctx, effort=(effort, said))
-        sol = self.continuation.run(problem, bounded, ctx)
+        sol = self.continuation.run(problem, bounded, effort.warm, ctx)
         first = sol.trace[0].prepared(effort.trace, sol.trace[0].prepared_on or "the effort problem")
         return replace(sol, trace=(first,) + sol.trace[1:])
 
@@ -84,9 +89,8 @@ class FuelStrategy(Composed):
                        finish=self._structure(label="from last level", fallback_budget=base.level_budget))
 
     def _continuation(self) -> ContinuationStart:
-        base = self.continuation or ContinuationStart(None, None, None)
-        return replace(base, first=self, finish=self._structure(label="from continuation"),
-                       step=self._structure(rounds=12, fallback=None))
+        base = self.continuation or ContinuationStart(None)
+        return replace(base, finish=self._structure(label="from continuation"))
 
     def compose(self, problem: Problem, options, start: Start | None = None) -> Guarded:
         inner = self._from(problem, start) if start is not None else chosen(problem, options) or self._plan(problem)
@@ -102,6 +106,11 @@ class FuelStrategy(Composed):
         return _Fitted(self._structure(label="warm start", resolved=resolved))
 
     def _plan(self, problem: Problem):
+        if through_channels(problem):   # the continuation through channels, when it applies, on this grid (docs §25)
+            return FirstOf((FuelStart(self.homotopy_start(), self._continuation(), continued=True), self._grids(problem)))
+        return self._grids(problem)
+
+    def _grids(self, problem: Problem):
         fine = (Solve(starts.rollout, "rollout", self.first_budget), Solve(starts.interpolation, "interpolate"))
         coarse = CoarseToFine(self, self._structure(label="from coarse"), self.coarse_factor, self.coarse_min)
         Nc = coarse.grid(problem)
