@@ -172,17 +172,23 @@ def test_a_coarse_grid_whose_orbit_the_force_cannot_reach_is_skipped():
     strategy starts with the homotopy on the 400 steps themselves ('first'; its moment unbounded, the continuation
     where it applies); the fuel raise keeps its coarse grid (gap 0.0044 against a reach of 9.8).  A 10 N engine
     (reach 309 km) brings the coarse grid back, and so does the file's own scheme, lgvi_kepler, which flies the orbit
-    exactly on either grid.  Composing solves nothing."""
+    exactly on either grid (there the continuation through channels is tried on the 400 steps before it, docs §25).
+    Composing solves nothing."""
     from se3ocp.transcription.objectives.fuel.plan import coarse_resolves
 
     assert coarse_resolves(problem("leo_body_engine", 400, None, "control.objective=fuel"), 100,
                            FuelStrategy().coarse_reach)
     leo = problem("leo_body_engine", 400, "lgvi", "control.objective=fuel")
-    first, plan = FuelStrategy().compose(leo, se3ocp.DirectOptions()).inner.strategies   # the continuation, the grids
-    assert first.continued and isinstance(plan, FirstOf) and [e.label for e in plan.strategies] == [
+    plan = FuelStrategy().compose(leo, se3ocp.DirectOptions()).inner
+    assert isinstance(plan, FirstOf) and [e.label for e in plan.strategies] == [
         "the fuel homotopy from the effort optimum (or its continuation from channels)", "rollout",
         "interpolate"]
+    assert not plan.strategies[0].continued
     assert not coarse_resolves(leo, 100, FuelStrategy().coarse_reach)
+    # on lgvi_kepler, where the coarse grid resolves, the continuation through channels runs on the 400 steps first
+    kepler = problem("leo_body_engine", 400, None, "control.objective=fuel")
+    first, grids = FuelStrategy().compose(kepler, se3ocp.DirectOptions()).inner.strategies
+    assert first.continued and isinstance(grids.strategies[0], CoarseToFine)
     strong = problem("leo_body_engine", 400, "lgvi", "control.objective=fuel",
                      "control.bounds={force: {thruster: {axis: [1, 0, 0], max: 1.0e-2, min: 0.0}}}")
     assert coarse_resolves(strong, 100, FuelStrategy().coarse_reach)

@@ -37,7 +37,6 @@ from ...results.start import Start
 from ...strategy.core import Context, Continuation, Warm, labelled, not_made, step_line
 from .guard import counted_parts
 from .homotopy import smoothing_reference
-from .nlp import on_channels
 
 
 def counted_unbounded(problem: Problem) -> np.ndarray:
@@ -87,11 +86,11 @@ class ContinuationStart:
         """Step 0 from the effort optimum's controls U (6, n): ``problem`` with every unbounded counted part on three
         channels bounded at r = margin x its largest magnitude in U rounded up to one significant digit
         (:func:`significant`) and the fuel weights w_i r_i / max_j r_j; None when the homotopy starts ``problem``
-        itself (no unbounded counted part, or references within ``ratio`` of each other: there the file's weights
-        are the first level's) or the start's fuel would not count on channels (a gimballed part)."""
-        free = counted_unbounded(problem)
-        if not free.any():
+        itself (references within ``ratio`` of each other: there the file's weights are the first level's) or the
+        continuation cannot start it (:func:`through_channels`: no unbounded counted part, or a gimballed one)."""
+        if not through_channels(problem):
             return None
+        free = counted_unbounded(problem)
         r = smoothing_reference(problem, U).astype(float)
         r[free] = significant(self.margin * r[free])
         if max(r[0] / r[1], r[1] / r[0]) <= ratio:
@@ -101,8 +100,7 @@ class ContinuationStart:
         # (w_i r_i) / max r, not w_i (r_i / max r): leo_body_engine's 1e10 x 1e-8 / 1e-3 is 1e5 to the bit so, and its
         # start problem the bundled leo_engine_fuel's
         W_f, W_m = c.W_f * r[0] / r.max(), c.W_m * r[1] / r.max()
-        start = problem.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1], W_f=W_f, W_m=W_m))
-        return start if on_channels(start) is not None else None
+        return problem.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1], W_f=W_f, W_m=W_m))
 
     def raised(self, step: Problem, problem: Problem, U: np.ndarray) -> Problem | None:
         """Step 2: ``step`` with its added bounds (on the parts ``problem`` leaves unbounded) that a channel of the

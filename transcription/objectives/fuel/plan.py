@@ -106,19 +106,16 @@ class FuelStrategy(Composed):
         return _Fitted(self._structure(label="warm start", resolved=resolved))
 
     def _plan(self, problem: Problem):
-        if through_channels(problem):   # the continuation through channels, when it applies, on this grid (docs §25)
-            return FirstOf((FuelStart(self.homotopy_start(), self._continuation(), continued=True), self._grids(problem)))
-        return self._grids(problem)
-
-    def _grids(self, problem: Problem):
         fine = (Solve(starts.rollout, "rollout", self.first_budget), Solve(starts.interpolation, "interpolate"))
         coarse = CoarseToFine(self, self._structure(label="from coarse"), self.coarse_factor, self.coarse_min)
         Nc = coarse.grid(problem)
-        if Nc < problem.N and coarse_resolves(problem, Nc, self.coarse_reach):
-            return FirstOf((coarse, BestOf(fine)))
         first = FuelStart(self.homotopy_start(), self._continuation())
         if counted_unbounded(problem).any():
             first = replace(first, homotopy=replace(first.homotopy, label=self._continuation().label))
+        if Nc < problem.N and coarse_resolves(problem, Nc, self.coarse_reach):
+            grids = FirstOf((coarse, BestOf(fine)))
+            # the continuation through channels, where it applies, on this grid before the coarse ones (docs §25)
+            return FirstOf((replace(first, continued=True), grids)) if through_channels(problem) else grids
         entries = (first, fine[0], replace(fine[1], budget=self.first_budget))
         return FirstOf(entries) if Nc < problem.N else BestOf(entries, judge=self.guard.failed)
 
