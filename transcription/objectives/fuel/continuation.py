@@ -12,9 +12,10 @@ problem through problems whose fuel counts on channels, linear (§27), each one 
 
 0. the start: every unbounded counted part given three channels on its frame's axes, each bounded at r = ``margin``
    x its largest magnitude in the effort optimum rounded up to one significant digit (the effort optimum satisfies
-   it), and the fuel weights w_i' = w_i r_i / max_j r_j, so that its effort problem (weights w_i' / r_i) is the
-   file's, scaled: solved from the file's effort optimum (on leo_body_engine the start is
-   configs/leo_engine_fuel.yaml's problem);
+   it), and the fuel weights w_i' = p / r_i, p = min_j w_j r_j: each part at its bound priced like the
+   cheaper part at its own (the weights a file without weights gets, each control in units of its size, up to one
+   factor), so that the path's first step moves only the parts' price ratio to the file's: solved from the file's
+   effort optimum (on leo_body_engine w_m' = 1 x 1e-3 / 2e-8 = 5e4 against the file's 1e10);
 1. the file's weights;
 2. the added bounds raised by ``bound_factor`` a step while a channel touches one, at most ``bound_steps`` times: a
    bound the optimum does not touch leaves it a KKT point of the problem without it, whose part's fuel is the sum of
@@ -26,7 +27,8 @@ A step that does not converge ends the path.  Measurements: docs/mathematics.md 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -74,20 +76,25 @@ def _bounds(problem: Problem, free: np.ndarray) -> str:
 @dataclass(frozen=True)
 class ContinuationStart:
     """Steps 0-3 of the module docstring: ``finish`` solves the problem itself from the path's last optimum (a
-    structured finish).  ``margin``, ``bound_factor``, ``bound_steps``: module docstring."""
+    structured finish, whose rough solve starts with the IPOPT options ``rough``: a small barrier, as the last step's
+    optimum is a neighbouring problem's on the same grid -- IPOPT's adaptive barrier from its default 0.1 threw
+    leo/raise_engine's point away, residual 1e3 within 50 iterations, where 1e-6 converged in 140; docs §25).
+    ``margin``, ``bound_factor``, ``bound_steps``: module docstring."""
 
     finish: object
     margin: float = 1.2
     bound_factor: float = 10.0
     bound_steps: int = 6
+    rough: Mapping = field(default_factory=lambda: {"mu_init": 1e-6})
     label: str = "the fuel homotopy from the effort optimum (or its continuation from channels)"
 
     def start_problem(self, problem: Problem, U: np.ndarray, ratio: float) -> Problem | None:
         """Step 0 from the effort optimum's controls U (6, n): ``problem`` with every unbounded counted part on three
         channels bounded at r = margin x its largest magnitude in U rounded up to one significant digit
-        (:func:`significant`) and the fuel weights w_i r_i / max_j r_j; None when the homotopy starts ``problem``
-        itself (references within ``ratio`` of each other: there the file's weights are the first level's) or the
-        continuation cannot start it (:func:`through_channels`: no unbounded counted part, or a gimballed one)."""
+        (:func:`significant`) and the fuel weights w_i' = p / r_i, p = min_j w_j r_j (module docstring);
+        None when the homotopy starts ``problem`` itself (references within ``ratio`` of each other: there the file's
+        weights are the first level's) or the continuation cannot start it (:func:`through_channels`: no unbounded
+        counted part, or a gimballed one)."""
         if not through_channels(problem):
             return None
         free = counted_unbounded(problem)
@@ -97,9 +104,10 @@ class ContinuationStart:
             return None
         c = problem.control
         bounds = [BoxBound(np.full(3, r[i])) if free[i] else b for i, b in enumerate((c.force_bound, c.moment_bound))]
-        # (w_i r_i) / max r, not w_i (r_i / max r): leo_body_engine's 1e10 x 1e-8 / 1e-3 is 1e5 to the bit so, and its
-        # start problem the bundled leo_engine_fuel's
-        W_f, W_m = c.W_f * r[0] / r.max(), c.W_m * r[1] / r.max()
+        # the prices at the bounds (fuel per second at a full channel) made equal: dimensionless, where the former
+        # w_i r_i / max r depended on the units (r_m / r_f is a length); measured in docs §25
+        price = np.array([c.W_f[0, 0], c.W_m[0, 0]]) * r
+        W_f, W_m = c.W_f * (price.min() / price[0]), c.W_m * (price.min() / price[1])
         return problem.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1], W_f=W_f, W_m=W_m))
 
     def raised(self, step: Problem, problem: Problem, U: np.ndarray) -> Problem | None:
