@@ -24,6 +24,7 @@ from se3ocp.transcription.objectives import Effort, Fuel
 from se3ocp.transcription.objectives.fuel.homotopy import Homotopy, smoothing_reference
 from se3ocp.transcription.objectives.fuel.plan import FuelStrategy, coarse_resolves
 from se3ocp.transcription.ocp import BoxBound, quadrature_weights
+from se3ocp.transcription.ocp.estimate import control_sizes
 from support import maneuver, problem
 
 FUEL = "control.objective=fuel"
@@ -119,14 +120,22 @@ def test_the_homotopys_effort_problem_is_its_first_level():
     """Homotopy.effort_problem: with every counted part bounded its weights are w_i / r_i (r_i the bounds), the
     first level's phi_1(s) = s^2 / (2 r), where the bounds differ by more than effort_level_ratio -- leo_engine_fuel:
     1e3 and 1e13 (the moment's weight 1e10 times the force's, as in leo_body_engine's effort problem) -- and the
-    file's weights otherwise (the fuel raise, bounds 40 and 1; leo_body_engine with the fuel objective: no moment
-    bound)."""
-    for name, sets, want in (("leo_engine_fuel", (), (1e3, 1e13)), ("orbit_raise_fuel", (), (1.0, 1.0)),
-                             ("leo_body_engine", (FUEL,), (1.0, 1e10))):
+    file's weights otherwise (the fuel raise, bounds 40 and 1).  With an unbounded counted part and a central body,
+    the effort in the actuators' terms, I / s_i^2 (control_sizes: leo_body_engine's engine 1e-3 kN and its torque
+    4 pi lambda_max(J) n^2 = 7.238e-9 kN km; leo/raise_engine's 3e-3 and 1.078e-8), whatever the fuel weights
+    (1 and 1e10; 1 / 3e-3 and 1 / 1.078e-8)."""
+    for name, sets, want in (("leo_engine_fuel", (), (1e3, 1e13)), ("orbit_raise_fuel", (), (1.0, 1.0))):
         e = Homotopy(None).effort_problem(problem(name, 10, None, *sets)).control
         assert isinstance(e.objective, Effort)
         assert np.allclose(e.W_f, want[0] * np.eye(3), rtol=1e-15, atol=0.0)
         assert np.allclose(e.W_m, want[1] * np.eye(3), rtol=1e-15, atol=0.0)
+    for p in (problem("leo_body_engine", 10, None, FUEL), se3ocp.load("configs/leo/raise_engine.yaml", [FUEL]).problem):
+        F, M = control_sizes(p)
+        e = Homotopy(None).effort_problem(p).control
+        assert isinstance(e.objective, Effort)
+        assert np.allclose(e.W_f, np.eye(3) / F**2, rtol=1e-15, atol=0.0)
+        assert np.allclose(e.W_m, np.eye(3) / M**2, rtol=1e-15, atol=0.0)
+    assert control_sizes(problem("leo_body_engine", 10, None, FUEL))[1] == pytest.approx(7.238e-9, rel=1e-3)
 
 
 @dataclass(frozen=True)

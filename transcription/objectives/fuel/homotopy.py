@@ -13,6 +13,7 @@ import numpy as np
 from ...geometry.state import U_FORCE, U_MOMENT
 from ...nlp.transcription import SmoothTranscription
 from ...ocp import Problem
+from ...ocp.estimate import control_sizes
 from ...results.solution import Solution
 from ...results.start import Start
 from ...strategy.core import Context, not_made
@@ -73,10 +74,18 @@ class Homotopy:
         """The effort problem whose optimum starts the homotopy: ``problem`` with the objective effort,
         sum_j omega_j (1/2)(u_f^T W_f' u_f + u_m^T W_m' u_m), where W_i' = w_i / r_i I (w_i the fuel weights, r_i the
         parts' magnitude scales: their bounds) when every part whose fuel counts is bounded and the bounds differ by
-        more than ``effort_level_ratio``; otherwise W_i' = w_i I (an unbounded part's reference is the effort
-        optimum's own magnitude): the first level's problem, phi_1(s) = s^2 / (2 r) (docs/mathematics.md §21)."""
+        more than ``effort_level_ratio``: the first level's problem, phi_1(s) = s^2 / (2 r) (docs/mathematics.md §21).
+        With an unbounded counted part (its reference is the effort optimum's own magnitude, not known before it) the
+        effort in the actuators' terms, W_i' = I / s_i^2 (s_i the controls' sizes,
+        :func:`~transcription.ocp.estimate.control_sizes`: each control in units of its size, docs §7), where the
+        problem has sizes: the fuel weights squared price the parts in a ratio that depends on the units (docs §25);
+        otherwise, as where the references are within ``effort_level_ratio``, W_i' = w_i I."""
         c = problem.control
         counted = [b for b, k in zip((c.force_bound, c.moment_bound), counted_parts(problem)) if k]
+        sizes = control_sizes(problem) if any(b is None for b in counted) else None
+        if sizes is not None:
+            W_f, W_m = Effort().unit_weights(*sizes)
+            return problem.replace(control=replace(c, objective=Effort(), W_f=W_f, W_m=W_m))
         r = SmoothTranscription.magnitude_scales(problem)
         if (not counted or any(b is None for b in counted)
                 or max(r[0] / r[1], r[1] / r[0]) <= self.effort_level_ratio):

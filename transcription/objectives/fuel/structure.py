@@ -87,8 +87,8 @@ class StructuredFinish:
     ``dilate``: the start's burn nodes (magnitude > ``burn_rtol`` x the part's scale) widened by this many nodes on
     each side (the fine grid resolves the switching times the coarse one rounds to its nodes).  ``rough``: the rough
     solve's rounding (x the part's scale), from IPOPT's own start with the ``cold`` options (the adaptive barrier
-    for a start from another grid; the continuation's finish passes a small barrier: :mod:`.continuation`).  ``prune``: burn nodes
-    the rough solve took below this x the scale become coast nodes.  ``exact``: the rounding of the solves on the
+    for a start from another grid; the continuation's finish passes a small barrier: :mod:`.continuation`).
+    ``prune``: burn nodes the rough solve took below this x the scale become coast nodes.  ``exact``: the rounding of the solves on the
     pruned structure.  ``rounds``: at most this many solves (a round after the first widens the structure), each
     within ``budget`` iterations.  ``resolved``: the start resolves the switching times (an adaptive level of
     refinement).  ``scale_nodes``: on a grid of N > scale_nodes steps every solve sees the objective scaled by
