@@ -14,8 +14,9 @@ problem through problems whose fuel counts on channels, linear (§27), each one 
    x its largest magnitude in the effort optimum rounded up to one significant digit (the effort optimum satisfies
    it), and the fuel weights w_i' = p / r_i, p = min_j w_j r_j: each part at its bound priced like the
    cheaper part at its own (the weights a file without weights gets, each control in units of its size, up to one
-   factor), so that the path's first step moves only the parts' price ratio to the file's: solved from the file's
-   effort optimum (on leo_body_engine w_m' = 1 x 1e-3 / 2e-8 = 5e4 against the file's 1e10);
+   factor), so that the path's first step moves only the parts' price ratio to the file's: solved from the optimum
+   of the homotopy's effort problem (:meth:`~.homotopy.Homotopy.effort_problem`: in the actuators' terms where the
+   problem has sizes; on leo_body_engine b = 1e-8 and w_m' = 1 x 1e-3 / 1e-8 = 1e5 against the file's 1e10);
 1. the file's weights;
 2. the added bounds raised by ``bound_factor`` a step while a channel touches one, at most ``bound_steps`` times: a
    bound the optimum does not touch leaves it a KKT point of the problem without it, whose part's fuel is the sum of
@@ -140,7 +141,7 @@ class ContinuationStart:
         return nxt
 
     def run(self, problem: Problem, start_problem: Problem, effort: Start, ctx: Context) -> Solution:
-        """Steps 0-3 from the file's effort optimum ``effort``."""
+        """Steps 0-3 from the effort optimum ``effort`` (of :meth:`~.homotopy.Homotopy.effort_problem`)."""
         free = counted_unbounded(problem)
         first = Warm("continuation start").run(start_problem, effort, ctx)
         lines = [step_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
