@@ -82,13 +82,13 @@ class Homotopy:
         otherwise, as where the references are within ``effort_level_ratio``, W_i' = w_i I."""
         c = problem.control
         counted = [b for b, k in zip((c.force_bound, c.moment_bound), counted_parts(problem)) if k]
-        sizes = control_sizes(problem) if any(b is None for b in counted) else None
+        unbounded = any(b is None for b in counted)
+        sizes = control_sizes(problem) if unbounded else None
         if sizes is not None:
             W_f, W_m = Effort().unit_weights(*sizes)
             return problem.replace(control=replace(c, objective=Effort(), W_f=W_f, W_m=W_m))
         r = SmoothTranscription.magnitude_scales(problem)
-        if (not counted or any(b is None for b in counted)
-                or max(r[0] / r[1], r[1] / r[0]) <= self.effort_level_ratio):
+        if not counted or unbounded or max(r[0] / r[1], r[1] / r[0]) <= self.effort_level_ratio:
             return problem.replace(control=replace(c, objective=Effort()))
         return problem.replace(control=replace(c, objective=Effort(), W_f=c.W_f / r[0], W_m=c.W_m / r[1]))
 

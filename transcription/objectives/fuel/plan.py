@@ -111,7 +111,7 @@ class FuelStrategy(Composed):
         Nc = coarse.grid(problem)
         first = FuelStart(self.homotopy_start(), self._continuation())
         if counted_unbounded(problem).any():
-            first = replace(first, homotopy=replace(first.homotopy, label=self._continuation().label))
+            first = replace(first, homotopy=replace(first.homotopy, label=first.continuation.label))
         if Nc < problem.N and coarse_resolves(problem, Nc, self.coarse_reach):
             grids = FirstOf((coarse, BestOf(fine)))
             # the continuation through channels, where it applies, on this grid before the coarse ones (docs §25)

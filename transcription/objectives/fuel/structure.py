@@ -88,10 +88,10 @@ class StructuredFinish:
     each side (the fine grid resolves the switching times the coarse one rounds to its nodes).  ``rough``: the rough
     solve's rounding (x the part's scale), from IPOPT's own start with the ``cold`` options (the adaptive barrier
     for a start from another grid; the continuation's finish passes a small barrier: :mod:`.continuation`).
-    ``prune``: burn nodes the rough solve took below this x the scale become coast nodes.  ``exact``: the rounding of the solves on the
-    pruned structure.  ``rounds``: at most this many solves (a round after the first widens the structure), each
-    within ``budget`` iterations.  ``resolved``: the start resolves the switching times (an adaptive level of
-    refinement).  ``scale_nodes``: on a grid of N > scale_nodes steps every solve sees the objective scaled by
+    ``prune``: burn nodes the rough solve took below this x the scale become coast nodes.  ``exact``: the rounding of
+    the solves on the pruned structure.  ``rounds``: at most this many solves (a round after the first widens the
+    structure), each within ``budget`` iterations.  ``resolved``: the start resolves the switching times (an adaptive
+    level of refinement).  ``scale_nodes``: on a grid of N > scale_nodes steps every solve sees the objective scaled by
     N / scale_nodes (IPOPT's obj_scaling_factor): a node's share of the fuel falls as 1/N while the barrier's pull on
     it does not, so on a fine grid IPOPT's own barrier start wanders and a warm start's multipliers, the rough solve's,
     stay balanced only if every solve sees the same scale (docs/mathematics.md §23).  ``fallback``: the epigraph NLP from the same start
