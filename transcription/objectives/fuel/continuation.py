@@ -37,7 +37,7 @@ from ...geometry.state import U_FORCE, U_MOMENT
 from ...ocp import AT_BOUND_RTOL, BoxBound, Problem
 from ...results.solution import Solution
 from ...results.start import Start
-from ...strategy.core import Context, Continuation, Warm, labelled, not_made, step_line
+from ...strategy.core import Context, Continuation, Solve, Warm, labelled, not_made, step_line
 from .guard import counted_parts
 from .homotopy import smoothing_reference
 
@@ -80,13 +80,18 @@ class ContinuationStart:
     structured finish, whose rough solve starts with the IPOPT options ``rough``: a small barrier, as the last step's
     optimum is a neighbouring problem's on the same grid -- IPOPT's adaptive barrier from its default 0.1 threw
     leo/raise_engine's point away, residual 1e3 within 50 iterations, where 1e-6 converged in 140; docs §25).
-    ``margin``, ``bound_factor``, ``bound_steps``: module docstring."""
+    ``step``: the IPOPT options of steps 1-2, each from the last optimum: IPOPT's adaptive barrier from 1e-4.  The
+    monotone barrier (:class:`~transcription.strategy.core.Warm`) fell to 1e-9 within 30 iterations, far from the
+    step's optimum, and then crawled along the bounds with steps of a few hundredths: leo_body_engine's weights step
+    took 229 iterations there, 64 this way (the path 694 -> 88 iterations; docs §25).  ``margin``, ``bound_factor``,
+    ``bound_steps``: module docstring."""
 
     finish: object
     margin: float = 1.2
     bound_factor: float = 10.0
     bound_steps: int = 6
     rough: Mapping = field(default_factory=lambda: {"mu_init": 1e-6})
+    step: Mapping = field(default_factory=lambda: {"mu_init": 1e-4, "mu_strategy": "adaptive"})
     label: str = "the fuel homotopy from the effort optimum (or its continuation from channels)"
 
     def start_problem(self, problem: Problem, U: np.ndarray, ratio: float) -> Problem | None:
@@ -147,7 +152,8 @@ class ContinuationStart:
         lines = [step_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
         stepped = None
         if first.converged and first.warm is not None:
-            stepped = Continuation(self.path(start_problem, problem), Warm()).run(problem, first.warm, ctx)
+            steps = Solve(label="warm start", ipopt=dict(self.step))
+            stepped = Continuation(self.path(start_problem, problem), steps).run(problem, first.warm, ctx)
             lines += stepped.stats["continuation_steps"]
         parts = first.trace + (() if stepped is None else stepped.trace)
         if stepped is None or not stepped.converged or stepped.warm is None:
