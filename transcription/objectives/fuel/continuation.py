@@ -80,18 +80,20 @@ class ContinuationStart:
     structured finish, whose rough solve starts with the IPOPT options ``rough``: a small barrier, as the last step's
     optimum is a neighbouring problem's on the same grid -- IPOPT's adaptive barrier from its default 0.1 threw
     leo/raise_engine's point away, residual 1e3 within 50 iterations, where 1e-6 converged in 140; docs §25).
-    ``step``: the IPOPT options of steps 1-2, each from the last optimum: IPOPT's adaptive barrier from 1e-4.  The
-    monotone barrier (:class:`~transcription.strategy.core.Warm`) fell to 1e-9 within 30 iterations, far from the
-    step's optimum, and then crawled along the bounds with steps of a few hundredths: leo_body_engine's weights step
-    took 229 iterations there, 64 this way (the path 694 -> 88 iterations; docs §25).  ``margin``, ``bound_factor``,
-    ``bound_steps``: module docstring."""
+    ``weights_step``: the IPOPT options of step 1, the file's weights (prices moved by up to 1e5) from the start's
+    optimum: IPOPT's adaptive barrier from 1e-4.  The monotone barrier of a warm start
+    (:class:`~transcription.strategy.core.Warm`, which step 2's raised bounds keep) fell to 1e-9 within 30 iterations
+    of leo_body_engine's weights step, far from its optimum, and crawled along the bounds with steps of a few
+    hundredths: 229 iterations, 64 this way.  Step 2 from the adaptive barrier too was measured faster on three
+    maneuvers but carried leo/phasing_engine's path to a point the finish could not finish from (docs §25).
+    ``margin``, ``bound_factor``, ``bound_steps``: module docstring."""
 
     finish: object
     margin: float = 1.2
     bound_factor: float = 10.0
     bound_steps: int = 6
     rough: Mapping = field(default_factory=lambda: {"mu_init": 1e-6})
-    step: Mapping = field(default_factory=lambda: {"mu_init": 1e-4, "mu_strategy": "adaptive"})
+    weights_step: Mapping = field(default_factory=lambda: {"mu_init": 1e-4, "mu_strategy": "adaptive"})
     label: str = "the fuel homotopy from the effort optimum (or its continuation from channels)"
 
     def start_problem(self, problem: Problem, U: np.ndarray, ratio: float) -> Problem | None:
@@ -128,7 +130,8 @@ class ContinuationStart:
         return step.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1])) if any(touched) else None
 
     def path(self, start: Problem, problem: Problem):
-        """Steps 1-2 as the Continuation asks for them: the next (phase, problem) after the ``history`` tried, None
+        """Steps 1-2 as the Continuation asks for them: the next (phase, problem) after the ``history`` tried (step 1
+        with its strategy, from ``weights_step``), None
         when the last step did not converge, touches no added bound, or the bounds were raised ``bound_steps``
         times."""
         free = counted_unbounded(problem)
@@ -136,7 +139,8 @@ class ContinuationStart:
 
         def nxt(_, history):
             if not history:
-                return f"continuation {_weights(weighted)}", weighted
+                return f"continuation {_weights(weighted)}", weighted, Solve(label="warm start",
+                                                                             ipopt=dict(self.weights_step))
             last, sol = history[-1]
             if not sol.converged or sol.warm is None or len(history) > self.bound_steps:
                 return None
@@ -152,8 +156,7 @@ class ContinuationStart:
         lines = [step_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
         stepped = None
         if first.converged and first.warm is not None:
-            steps = Solve(label="warm start", ipopt=dict(self.step))
-            stepped = Continuation(self.path(start_problem, problem), steps).run(problem, first.warm, ctx)
+            stepped = Continuation(self.path(start_problem, problem), Warm()).run(problem, first.warm, ctx)
             lines += stepped.stats["continuation_steps"]
         parts = first.trace + (() if stepped is None else stepped.trace)
         if stepped is None or not stepped.converged or stepped.warm is None:
