@@ -175,12 +175,12 @@ def test_the_continuation_holds_on_a_raise_it_was_not_written_on():
     lgvi_kepler: a maneuver written after the continuation.  Converged by the continuation through channels, the
     guard passed on the problem itself, every step converged, the answer at or below the last step's (the sum of the
     moment components' magnitudes, >= their 2-norm), the re-simulated terminal error <= 1e-6 and the thrust within
-    0 <= T <= max, and flown in continuous time within 1 % of the raise.  Measured (docs §25): 1815.717627, 620
-    iterations, 66 s, flown 14.8 m off (992 and 141 s from the effort problem in the fuel weights, which priced the
-    torque at its size 3.6e-6 times the engine); with the former start weights (the torque at 0.12 of the engine's
-    price) the start step had not converged after 1523 iterations, and with the
-    finish's rough solve from the adaptive barrier the continuation failed there (the plan's other starts reached the
-    same optimum after 17 168 iterations)."""
+    0 <= T <= max, and flown in continuous time within 1 % of the raise.  Measured (docs §25): 1815.717627, 533
+    iterations, 61 s (620, 66 s before the weights step's adaptive barrier), flown 14.8 m off (992 and 141 s from
+    the effort problem in the fuel weights, which priced the torque at its size 3.6e-6 times the engine); with the
+    former start weights (the torque at 0.12 of the engine's price) the start step had not converged after 1523
+    iterations, and with the finish's rough solve from the adaptive barrier the continuation failed there (the plan's
+    other starts reached the same optimum after 17 168 iterations)."""
     import re
 
     import se3ocp

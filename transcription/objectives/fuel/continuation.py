@@ -17,7 +17,7 @@ problem through problems whose fuel counts on channels, linear (§27), each one 
    factor), so that the path's first step moves only the parts' price ratio to the file's: solved from the optimum
    of the homotopy's effort problem (:meth:`~.homotopy.Homotopy.effort_problem`: in the actuators' terms where the
    problem has sizes; on leo_body_engine b = 1e-8 and w_m' = 1 x 1e-3 / 1e-8 = 1e5 against the file's 1e10);
-1. the file's weights;
+1. the file's weights (from IPOPT's adaptive barrier: ``ContinuationStart.weights_step``);
 2. the added bounds raised by ``bound_factor`` a step while a channel touches one, at most ``bound_steps`` times: a
    bound the optimum does not touch leaves it a KKT point of the problem without it, whose part's fuel is the sum of
    its components' magnitudes (at most sqrt(3) times their 2-norm, the problem's);
