@@ -386,8 +386,9 @@ class Continuation:
     gives the next (phase, problem) from the history of ((problem, solution), ...) tried so far, failures included
     (None: the path is done), each solved by ``step`` -- or (phase, problem, strategy), solved by that strategy.  The
     path moves the parameter (a smoothing eps, the weights, the bounds, a sweep's axis) and is its own step-size
-    controller: after a step that did not converge it may try a shorter one, or end.  The Solution is the last one tried, its attempt named ``label`` with every step's solves as
-    its parts and ``stats['continuation_steps']`` one line per step; None when the path is empty."""
+    controller: after a step that did not converge it may try a shorter one, or end.  The Solution is the last one
+    tried, its attempt named ``label`` with every step's solves as its parts and ``stats['continuation_steps']`` one
+    line per step; None when the path is empty."""
 
     path: Callable[[Problem, tuple], tuple | None]
     step: Strategy
