@@ -131,9 +131,8 @@ class ContinuationStart:
 
     def path(self, start: Problem, problem: Problem):
         """Steps 1-2 as the Continuation asks for them: the next (phase, problem) after the ``history`` tried (step 1
-        with its strategy, from ``weights_step``), None
-        when the last step did not converge, touches no added bound, or the bounds were raised ``bound_steps``
-        times."""
+        with its strategy, from ``weights_step``), None when the last step did not converge, touches no added bound,
+        or the bounds were raised ``bound_steps`` times."""
         free = counted_unbounded(problem)
         weighted = start.replace(control=replace(start.control, W_f=problem.control.W_f, W_m=problem.control.W_m))
 
