@@ -96,6 +96,31 @@ def test_assemble_sums_duplicates_and_keeps_order():
     np.testing.assert_array_equal(out, [[0, 4], [0, 4], [2, 0]])
 
 
+def _rows_block(name: str, nr: int, M: int) -> Block:
+    """A block of nr rows v[0] * (1..nr) per instance over M variables (one per instance)."""
+    v, p = ca.SX.sym("v", 1), ca.SX.sym("p", 0)
+    fn = ca.Function(f"rows_{nr}", [v, p], [ca.SX(0), v * ca.DM(np.arange(1.0, nr + 1))], ["v", "p"], ["cost", "rows"])
+    return Block(name, fn, np.arange(M)[None, :], np.zeros(0))
+
+
+def test_shared_rows_copy_the_blocks_two_nlps_share_and_zero_the_rest():
+    """StructuredNLP.shared_rows: per-row values of one NLP (by its key) on another's rows -- a block with the same
+    name, rows and instances copied row for row, a block of another shape or absent there 0; exact (a copy)."""
+    M = 4
+    theirs = StructuredNLP(M, [_rows_block("dynamics", 3, M), _rows_block("fuel", 12, M), _rows_block("path", 2, M),
+                               _rows_block("terminal", 5, 1)])
+    mine = StructuredNLP(M, [_rows_block("dynamics", 3, M), _rows_block("fuel", 2, M), _rows_block("extra", 1, M),
+                             _rows_block("terminal", 5, 1)])
+    values = np.arange(1.0, theirs.ng + 1)
+    out = mine.shared_rows(theirs.key, values)
+    assert out.shape == (mine.ng,)
+    for name in ("dynamics", "terminal"):
+        np.testing.assert_array_equal(out[mine.rows(name)], values[theirs.rows(name)])
+    for name in ("fuel", "extra"):
+        assert not out[mine.rows(name)].any()
+    np.testing.assert_array_equal(mine.shared_rows(mine.key, np.arange(mine.ng)), np.arange(mine.ng))
+
+
 def test_block_shapes_are_checked():
     fn = blocks.state_target(problem("e3", 10).disc, ("position",)).function
     with pytest.raises(ValueError, match="do not match"):

@@ -211,6 +211,22 @@ class StructuredNLP:
         b = next(b for b in self.blocks if b.name == name)
         return self._offsets[name] + np.arange(b.nr * b.M).reshape(b.M, b.nr).T
 
+    def shared_rows(self, key: tuple, values: np.ndarray) -> np.ndarray:
+        """(ng,) per-row ``values`` of the NLP whose :attr:`key` is ``key`` (its ng rows) on this NLP's rows: the
+        blocks both have with the same name, rows and instances (the same constraints: dynamics, controls, path,
+        terminal) copied, every other row 0 (e.g. the rows of another objective)."""
+        theirs, off = {}, 0
+        for name, _, nr, M in key[1]:
+            theirs[name] = (off, nr, M)
+            off += nr * M
+        out = np.zeros(self.ng)
+        for b in self.blocks:
+            o = theirs.get(b.name)
+            if b.nr and o is not None and o[1:] == (b.nr, b.M):
+                n = np.arange(b.nr * b.M)              # both in g's order: instance-major, rows within
+                out[self._offsets[b.name] + n] = np.asarray(values, float)[o[0] + n]
+        return out
+
     def derivative_functions(self) -> dict[str, ca.Function]:
         """nlpsol options: grad_f (x, p) -> (f, grad_f_x), jac_g (x, p) -> (g, jac_g_x),
         hess_lag (x, p, lam_f, lam_g) -> triu_hess_gamma_x_x."""
