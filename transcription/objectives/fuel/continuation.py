@@ -17,12 +17,12 @@ problem through problems whose fuel counts on channels, linear (§27), each one 
    factor), so that the path's first step moves only the parts' price ratio to the file's: solved from the optimum
    of the homotopy's effort problem (:meth:`~.homotopy.Homotopy.effort_problem`: in the actuators' terms where the
    problem has sizes; on leo_body_engine b = 1e-8 and w_m' = 1 x 1e-3 / 1e-8 = 1e5 against the file's 1e10);
-1. the file's weights (from IPOPT's adaptive barrier: ``ContinuationStart.weights_step``);
+1. the file's weights (each step of 1-2 one warm solve from IPOPT's adaptive barrier: ``ContinuationStart.step``);
 2. the added bounds raised by ``bound_factor`` a step while a channel touches one, at most ``bound_steps`` times: a
    bound the optimum does not touch leaves it a KKT point of the problem without it, whose part's fuel is the sum of
    its components' magnitudes (at most sqrt(3) times their 2-norm, the problem's);
-3. the problem itself (the 2-norm of the part, the epigraph) from that optimum by the structured finish
-   (``finish``) and the fuel KKT guard.
+3. the problem itself (the 2-norm of the part, the epigraph) from that optimum and its multipliers by the structured
+   finish (``finish``) and the fuel KKT guard.
 
 A step that does not converge ends the path.  Measurements: docs/mathematics.md §25.
 """
@@ -76,24 +76,27 @@ def _bounds(problem: Problem, free: np.ndarray) -> str:
 
 @dataclass(frozen=True)
 class ContinuationStart:
-    """Steps 0-3 of the module docstring: ``finish`` solves the problem itself from the path's last optimum (a
-    structured finish, whose rough solve starts with the IPOPT options ``rough``: a small barrier, as the last step's
-    optimum is a neighbouring problem's on the same grid -- IPOPT's adaptive barrier from its default 0.1 threw
-    leo/raise_engine's point away, residual 1e3 within 50 iterations, where 1e-6 converged in 140; docs §25).
-    ``weights_step``: the IPOPT options of step 1, the file's weights (prices moved by up to 1e5) from the start's
-    optimum: IPOPT's adaptive barrier from 1e-4.  The monotone barrier of a warm start
-    (:class:`~transcription.strategy.core.Warm`, which step 2's raised bounds keep) fell to 1e-9 within 30 iterations
-    of leo_body_engine's weights step, far from its optimum, and crawled along the bounds with steps of a few
-    hundredths: 229 iterations, 64 this way.  Step 2 from the adaptive barrier too was measured faster on three
-    maneuvers but carried leo/phasing_engine's path to a point the finish could not finish from (docs §25).
-    ``margin``, ``bound_factor``, ``bound_steps``: module docstring."""
+    """Steps 0-3 of the module docstring: ``finish`` solves the problem itself from the path's last optimum, its
+    multipliers included (a structured finish, whose rough solve starts with the IPOPT options ``rough``: a small
+    barrier, as the last step's optimum is a neighbouring problem's on the same grid -- IPOPT's adaptive barrier from
+    its default 0.1 threw leo/raise_engine's point away, residual 1e3 within 50 iterations, where 1e-6 converged in
+    140 -- and with that optimum's multipliers on the rows the two NLPs share; docs §25).  ``step``: the IPOPT options
+    of steps 1-2, each from the last step's optimum: IPOPT's adaptive barrier from 1e-4.  The monotone barrier of a
+    warm start (:class:`~transcription.strategy.core.Warm`) fell to 1e-9 within 30 iterations of leo_body_engine's
+    weights step, far from its optimum, and crawled along the bounds with steps of a few hundredths: 229 iterations,
+    64 this way; its bound step 111, 24 this way.  ``resolve``: the IPOPT options of the finish's warm solves (on the
+    pruned structure, on a widened one), with the last solve's multipliers from a barrier of 1e-6 and IPOPT's default
+    pushes off the bounds (the guard's barrier of 1e-9 sent leo_body_engine's pruned solve, infeasible by 7e-2 where
+    the pruned controls were zeroed, into IPOPT's restoration phase: 103 iterations, 18 this way).  ``margin``,
+    ``bound_factor``, ``bound_steps``: module docstring."""
 
     finish: object
     margin: float = 1.2
     bound_factor: float = 10.0
     bound_steps: int = 6
     rough: Mapping = field(default_factory=lambda: {"mu_init": 1e-6})
-    weights_step: Mapping = field(default_factory=lambda: {"mu_init": 1e-4, "mu_strategy": "adaptive"})
+    step: Mapping = field(default_factory=lambda: {"mu_init": 1e-4, "mu_strategy": "adaptive"})
+    resolve: Mapping = field(default_factory=lambda: {"warm_start_init_point": "yes", "mu_init": 1e-6})
     label: str = "the fuel homotopy from the effort optimum (or its continuation from channels)"
 
     def start_problem(self, problem: Problem, U: np.ndarray, ratio: float) -> Problem | None:
@@ -130,16 +133,15 @@ class ContinuationStart:
         return step.replace(control=replace(c, force_bound=bounds[0], moment_bound=bounds[1])) if any(touched) else None
 
     def path(self, start: Problem, problem: Problem):
-        """Steps 1-2 as the Continuation asks for them: the next (phase, problem) after the ``history`` tried (step 1
-        with its strategy, from ``weights_step``), None when the last step did not converge, touches no added bound,
-        or the bounds were raised ``bound_steps`` times."""
+        """Steps 1-2 as the Continuation asks for them: the next (phase, problem) after the ``history`` tried, None
+        when the last step did not converge, touches no added bound, or the bounds were raised ``bound_steps``
+        times."""
         free = counted_unbounded(problem)
         weighted = start.replace(control=replace(start.control, W_f=problem.control.W_f, W_m=problem.control.W_m))
 
         def nxt(_, history):
             if not history:
-                return f"continuation {_weights(weighted)}", weighted, Solve(label="warm start",
-                                                                             ipopt=dict(self.weights_step))
+                return f"continuation {_weights(weighted)}", weighted
             last, sol = history[-1]
             if not sol.converged or sol.warm is None or len(history) > self.bound_steps:
                 return None
@@ -155,13 +157,14 @@ class ContinuationStart:
         lines = [step_line(f"start: {_weights(start_problem)}, {_bounds(start_problem, free)}", first)]
         stepped = None
         if first.converged and first.warm is not None:
-            stepped = Continuation(self.path(start_problem, problem), Warm()).run(problem, first.warm, ctx)
+            steps = Solve(label="warm start", ipopt=dict(self.step))
+            stepped = Continuation(self.path(start_problem, problem), steps).run(problem, first.warm, ctx)
             lines += stepped.stats["continuation_steps"]
         parts = first.trace + (() if stepped is None else stepped.trace)
         if stepped is None or not stepped.converged or stepped.warm is None:
             return not_made(problem, ctx, self.label, "not available (the effort problem or a step of the "
                             "continuation did not converge)", parts, "the fuel continuation")
-        done = self.finish.run(problem, stepped.warm.primal(), ctx.under("from continuation"))
+        done = self.finish.run(problem, stepped.warm, ctx.under("from continuation"))
         return labelled(done, self.label, parts, "the fuel continuation").with_notes(fuel_continuation=lines)
 
 

@@ -90,7 +90,8 @@ class FuelStrategy(Composed):
 
     def _continuation(self) -> ContinuationStart:
         base = self.continuation or ContinuationStart(None)
-        return replace(base, finish=self._structure(label="from continuation", cold=base.rough))
+        return replace(base, finish=self._structure(label="from continuation", cold=base.rough, shared_duals=True,
+                                                    warm=base.resolve))
 
     def compose(self, problem: Problem, options, start: Start | None = None) -> Guarded:
         inner = self._from(problem, start) if start is not None else chosen(problem, options) or self._plan(problem)

@@ -98,7 +98,12 @@ class StructuredFinish:
     with these IPOPT options (a small barrier, the point pushed off its bounds as little as possible), within
     ``fallback_budget`` iterations (None: max_iter); None: no fallback.  ``guard``: the guard's tolerances and kick
     (:class:`.guard.Guarded`; a coast node with sigma_j > tol joins B, its control started at kick x r along mu_j).
-    A warm solve that fails is solved once more from its primal point with the ``cold`` options."""
+    ``shared_duals``: the first solve starts with the start's multipliers (of its NLP, ``start.nlp_key``) on the rows
+    both NLPs share (:meth:`~transcription.nlp.structured.StructuredNLP.shared_rows`: the dynamics, controls, path and
+    terminal rows; the fuel rows at 0): for a start that is the optimum of a neighbouring problem on the same grid (a
+    continuation's), where IPOPT's own estimate left the rough solve regularizing its Hessian at every iteration
+    (docs/mathematics.md §25).  ``warm``: the IPOPT options of the warm solves (pruned, widened; None: the guard's
+    warm options).  A warm solve that fails is solved once more from its primal point with the ``cold`` options."""
 
     guard: Guarded
     label: str = "structured finish"
@@ -115,6 +120,8 @@ class StructuredFinish:
     fallback: Mapping | None = field(default_factory=lambda: {"mu_init": 1e-6, "bound_push": 1e-9, "bound_frac": 1e-9,
                                                               "slack_bound_push": 1e-9, "slack_bound_frac": 1e-9})
     fallback_budget: int | None = None
+    shared_duals: bool = False
+    warm: Mapping | None = None
 
     def run(self, problem: Problem, start: Start, ctx: Context) -> Solution:
         sol, stats = self.finish(problem, start, ctx)
@@ -180,9 +187,12 @@ class StructuredFinish:
         c = problem.control
         p = problem.replace(control=replace(c, objective=c.objective.structured(burn, rounding * per_scale)))
         budget = min(int(ctx.options.max_iter), self.budget)
-        tries = [(point, self.guard.warm, "")] if point is not None and point.lam_g is not None else []
+        tries = [(point, self.warm or self.guard.warm, "")] if point is not None and point.lam_g is not None else []
         first = start.primal() if point is None else replace(start.primal(), point=replace(point, lam_g=None,
                                                                                           lam_x=None))
+        if point is None and self.shared_duals and start.multipliers is not None and start.nlp_key is not None:
+            nlp = transcription(p, ctx.options)[0].nlp
+            first = replace(first, multipliers=nlp.shared_rows(start.nlp_key, start.multipliers), nlp_key=nlp.key)
         tries.append((None, self.cold, "from IPOPT's own start: " if tries else ""))
         said = []
         for warm, options, prefix in tries:      # a failed warm solve: again, cold (class docstring)
