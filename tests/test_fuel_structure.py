@@ -218,3 +218,36 @@ def test_a_failed_warm_solve_is_solved_again_from_ipopts_own_start(coarse):
     assert cut and "from IPOPT's own start: Solve_Succeeded" in stats["fuel_structure"][0], stats["fuel_structure"]
     assert sol.converged and stats["fuel_guard"] == "passed"
     assert sol.cost == pytest.approx(plain.cost, rel=1e-9)
+
+
+def test_shared_duals_start_the_rough_solve_with_the_starts_multipliers_on_the_shared_rows(finished):
+    """StructuredFinish(shared_duals=True) from a start carrying an NLP's multipliers (here the 50-step optimum's own,
+    of the pruned structured NLP): the rough solve's Start carries them on the rough NLP's rows, copied exactly on the
+    rows both share (StructuredNLP.shared_rows), with the rough NLP's key, so that IPOPT starts with them; without the
+    flag it starts from the primal point alone.  The finish from there ends at the same optimum (1e-9)."""
+    p, sol, _ = finished
+    src = sol.warm
+    assert src.multipliers is not None and src.nlp_key is not None
+    seen = {}
+
+    class Recording(Context):
+        def solve(self, problem, start, label, ipopt=None, **options):
+            seen.setdefault(label, (problem, start))
+            return Context.solve(self, problem, start, label, ipopt, **options)
+
+    again, stats = _finish(p, src, ctx=Recording(Direct(se3ocp.DirectOptions())), shared_duals=True)
+    rough_problem, rough_start = seen["structured rough"]
+    nlp = transcription(rough_problem, se3ocp.DirectOptions())[0].nlp
+    assert rough_start.nlp_key == nlp.key and rough_start.multipliers.shape == (nlp.ng,)
+    theirs = {name: (nr, M) for name, _, nr, M in src.nlp_key[1]}
+    shared = [b.name for b in nlp.blocks if b.nr and theirs.get(b.name) == (b.nr, b.M)]
+    assert "dynamics" in shared and "terminal" in shared
+    mine = np.concatenate([rough_start.multipliers[nlp.rows(n).ravel(order="F")] for n in shared])
+    offsets = np.cumsum([0] + [nr * M for _, _, nr, M in src.nlp_key[1]])
+    where = {name: k for k, (name, *_) in enumerate(src.nlp_key[1])}
+    ref = np.concatenate([src.multipliers[offsets[where[n]]:offsets[where[n] + 1]] for n in shared])
+    np.testing.assert_array_equal(mine, ref)
+    assert again.converged and again.cost == pytest.approx(sol.cost, rel=1e-9)
+    seen.clear()
+    _finish(p, src.primal(), ctx=Recording(Direct(se3ocp.DirectOptions())), shared_duals=True)
+    assert seen["structured rough"][1].multipliers is None
