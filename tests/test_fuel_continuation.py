@@ -110,7 +110,7 @@ def test_the_path_takes_the_files_weights_then_raises_a_touched_bound():
     assert np.array_equal(first.control.W_m, p.control.W_m) and np.array_equal(first.control.W_f, p.control.W_f)
     assert first.control.moment_bound == s.control.moment_bound and phase == "continuation w_f 1, w_m 1e+10"
     touch, below = _Tried(True, _effort_controls(n, ENGINE, b[0])), _Tried(True, _effort_controls(n, ENGINE, 0.5 * b[0]))
-    phase, raised = nxt(p, ((first, touch),))        # two entries: the Continuation's own step
+    phase, raised = nxt(p, ((first, touch),))
     assert np.allclose(raised.control.moment_bound.b, fc.bound_factor * b, rtol=1e-15, atol=0.0)
     assert raised.control.force_bound == p.control.force_bound and phase == "continuation |u_m,i| <= 1e-07"
     assert nxt(p, ((first, below),)) is None
@@ -173,8 +173,8 @@ def test_the_continuation_holds_on_a_raise_it_was_not_written_on():
     lgvi_kepler: a maneuver written after the continuation.  Converged by the continuation through channels, the
     guard passed on the problem itself, every step converged, the answer at or below the last step's (the sum of the
     moment components' magnitudes, >= their 2-norm), the re-simulated terminal error <= 1e-6 and the thrust within
-    0 <= T <= max, and flown in continuous time within 1 % of the raise.  Measured (docs §25): 1815.717627, 533
-    iterations, 61 s (620, 66 s before the weights step's adaptive barrier), flown 14.8 m off (992 and 141 s from
+    0 <= T <= max, and flown in continuous time within 1 % of the raise.  Measured (docs §25): 1815.717627, 478
+    iterations, 51 s by the CLI (620, 66 s with every step from the monotone barrier), flown 14.8 m off (992 and 141 s from
     the effort problem in the fuel weights, which priced the torque at its size 3.6e-6 times the engine); with the
     former start weights (the torque at 0.12 of the engine's price) the start step had not converged after 1523
     iterations, and with the finish's rough solve from the adaptive barrier the continuation failed there (the plan's

@@ -308,28 +308,3 @@ def test_the_failure_hint_names_the_objective_and_the_weight_ratio(name, sets, o
         assert re.search(r"price the moment \d\.\de[+-]0\d times", hint), hint
     infeasible = failure_hint(failed_solution(problem, "direct", "ipopt", Result.infeasible, ""), DirectOptions())
     assert "control.weights=auto" not in infeasible, infeasible           # weights do not make a problem feasible
-
-
-def test_a_continuations_path_may_choose_a_steps_strategy():
-    """strategy.core.Continuation: a path entry (phase, problem) is solved by the Continuation's own step, an entry
-    (phase, problem, strategy) by that strategy; each from the last converged step's solution, one line per step."""
-    from se3ocp.transcription.solve import implementation
-    from se3ocp.transcription.strategy.core import Context, Continuation, Warm
-
-    man = maneuver(DETUMBLE, 20)
-    p, used = man.problem, []
-
-    class Recorded:
-        def __init__(self, name):
-            self.name = name
-
-        def run(self, problem, start, ctx):
-            used.append((self.name, start is None))
-            return Warm(self.name).run(problem, start, ctx)
-
-    def path(_, history):
-        return ((("first", p, Recorded("chosen")), ("second", p))[len(history)] if len(history) < 2 else None)
-
-    sol = Continuation(path, Recorded("own")).run(p, None, Context(implementation(p, "direct", man.direct), None))
-    assert used == [("chosen", True), ("own", False)]
-    assert sol.converged and [line.split(":")[0] for line in sol.stats["continuation_steps"]] == ["first", "second"]

@@ -384,21 +384,20 @@ def step_line(what: str, sol: Solution) -> str:
 class Continuation:
     """A path of problems solved in turn, each from the last converged one's solution: ``path(problem, history)``
     gives the next (phase, problem) from the history of ((problem, solution), ...) tried so far, failures included
-    (None: the path is done), each solved by ``step`` -- or (phase, problem, strategy), solved by that strategy.  The
-    path moves the parameter (a smoothing eps, the weights, the bounds, a sweep's axis) and is its own step-size
-    controller: after a step that did not converge it may try a shorter one, or end.  The Solution is the last one
-    tried, its attempt named ``label`` with every step's solves as its parts and ``stats['continuation_steps']`` one
-    line per step; None when the path is empty."""
+    (None: the path is done), each solved by ``step``.  The path moves the parameter (a smoothing eps, the weights, the
+    bounds, a sweep's axis) and is its own step-size controller: after a step that did not converge it may try a
+    shorter one, or end.  The Solution is the last one tried, its attempt named ``label`` with every step's solves as
+    its parts and ``stats['continuation_steps']`` one line per step; None when the path is empty."""
 
-    path: Callable[[Problem, tuple], tuple | None]
+    path: Callable[[Problem, tuple], tuple[str, Problem] | None]
     step: Strategy
     label: str = "continuation"
 
     def run(self, problem: Problem, start: Start | None, ctx: Context) -> Solution | None:
         history, parts, lines, sol, warm = (), [], [], None, start
         while (nxt := self.path(problem, history)) is not None:
-            phase, p, *chosen_step = nxt
-            sol = (chosen_step[0] if chosen_step else self.step).run(p, warm, ctx.under(phase))
+            phase, p = nxt
+            sol = self.step.run(p, warm, ctx.under(phase))
             parts += sol.trace
             lines.append(step_line(phase, sol))
             history += ((p, sol),)
